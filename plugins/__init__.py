@@ -1,0 +1,1 @@
+"""Built-in device plugins, registered through the tactile_studio.devices entry points."""

@@ -1,0 +1,112 @@
+"""The ``replay`` device: plays a recorded session or an old ShearSense CSV back as a live stream.
+
+Frames come out at their original timing (``speed=1``), faster (``speed=10``), or as
+fast as the consumer takes them (``speed=0``), optionally looping. Device time keeps
+growing across loops so downstream rate and gap logic sees one continuous stream.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
+from tactile_studio.errors import DeviceNotFound, UserError
+from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
+
+
+def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray]:
+    """(layout, raw, times) from a session (.h5) or a ShearSense CSV."""
+    if not path.exists():
+        raise DeviceNotFound(f"replay: {path}: no such file")
+    if path.suffix.lower() == ".csv":
+        from tactile_studio.storage.shearsense import read_shearsense_csv
+
+        data = read_shearsense_csv(path)
+        return SHEARSENSE_6X6, data.raw, np.asarray(data.times, dtype=np.float64)
+    from tactile_studio.storage.session import Session
+
+    with Session(path) as s:
+        times = s.column("device_time")
+        if len(times) >= 2 and not np.all(np.diff(times) >= 0):
+            times = s.column("host_time")
+        return s.layout, s.raw(), times
+
+
+class ReplayDevice(DevicePlugin):
+    name = "replay"
+    description = "Replays a session file (.h5) or a ShearSense CSV at original timing or faster"
+    settings_schema = (
+        Setting("path", "path", "", "session .h5 or ShearSense .csv to replay"),
+        Setting("speed", "float", 1.0, "1 = original timing, N = N times faster, 0 = as fast "
+                "as possible", minimum=0.0, maximum=1000.0),
+        Setting("loop", "bool", False, "start again at the end"),
+    )
+
+    def __init__(self, **settings: object) -> None:
+        super().__init__(**settings)
+        if not self.settings["path"]:
+            raise UserError("device replay: setting path is required (--set path=FILE)")
+        self._path = Path(self.settings["path"]).expanduser()
+        self._layout, self._raw, times = _load(self._path)
+        if len(self._raw) == 0:
+            raise UserError(f"replay: {self._path}: has no frames")
+        self._rel_t = times - times[0]
+        span = float(self._rel_t[-1]) if len(times) > 1 else 0.0
+        self._period = span * len(times) / (len(times) - 1) if len(times) > 1 else 1.0
+        self._rate = (len(times) - 1) / span if span > 0 else 43.0
+        self._pos = 0
+        self._loops = 0
+        self._t0 = 0.0
+        self._done = False
+
+    @property
+    def layout(self) -> Layout:
+        return self._layout
+
+    @property
+    def nominal_rate_hz(self) -> float:
+        return self._rate
+
+    def open(self) -> None:
+        self._pos, self._loops, self._done = 0, 0, False
+        self._t0 = time.monotonic()
+
+    def close(self) -> None:
+        pass
+
+    @property
+    def finished(self) -> bool:
+        return self._done
+
+    def _due(self) -> int:
+        """How many frames of the current pass are due by now."""
+        speed = self.settings["speed"]
+        if speed <= 0:
+            return len(self._raw)
+        elapsed = (time.monotonic() - self._t0) * speed - self._loops * self._period
+        return int(np.searchsorted(self._rel_t, elapsed, side="right"))
+
+    def read(self, max_frames: int) -> FrameBatch:
+        deadline = time.monotonic() + 0.1
+        while True:
+            due = min(self._due(), self._pos + max_frames)
+            if due > self._pos or time.monotonic() >= deadline:
+                break
+            time.sleep(0.002)
+        start, stop = self._pos, max(self._pos, due)
+        n_total = len(self._raw)
+        seq = self._loops * n_total + np.arange(start, stop)
+        batch = FrameBatch(raw=self._raw[start:stop],
+                           device_time=self._rel_t[start:stop] + self._loops * self._period,
+                           seq=seq)
+        self._pos = stop
+        if self._pos >= n_total:
+            if self.settings["loop"]:
+                self._pos = 0
+                self._loops += 1
+            else:
+                self._done = True
+        return batch

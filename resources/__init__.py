@@ -1,0 +1,1 @@
+"""Protocol files, style sheets and icons, found with importlib.resources."""

@@ -1,0 +1,3 @@
+from tactile_studio.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,46 @@
+"""The ``tactile-studio`` command line.
+
+Every module in this package that defines ``register(subparsers)`` adds its commands;
+nothing else needs editing to add one. User errors print one line and exit 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+from tactile_studio import __version__
+from tactile_studio.errors import Cancelled, UserError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="tactile-studio",
+        description="Tactile Studio: record, view, collect and learn from tactile arrays.")
+    parser.add_argument("--version", action="version", version=f"tactile-studio {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        if hasattr(module, "register"):
+            module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        args = parser.parse_args(["gui", *(argv or [])])
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"tactile-studio: error: {exc}", file=sys.stderr)
+        return 1
+    except Cancelled:
+        print("tactile-studio: cancelled; finished work was kept", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print("tactile-studio: interrupted", file=sys.stderr)
+        return 130

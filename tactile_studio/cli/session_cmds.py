@@ -1,0 +1,127 @@
+"""``devices``, ``record`` and ``info``: the session commands that need no GUI."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
+from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.session import Session
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("devices", help="list device plugins and their settings")
+    p.set_defaults(func=cmd_devices)
+
+    p = sub.add_parser("record", help="record a device to a session file")
+    p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
+    p.add_argument("--seconds", type=float, required=True, help="how long to record")
+    p.add_argument("--out", required=True, help="session file to write (.h5)")
+    p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
+    p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    p.set_defaults(func=cmd_record)
+
+    p = sub.add_parser("info", help="summarise a session file")
+    p.add_argument("file", help="session file (.h5)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=cmd_info)
+
+
+def cmd_devices(args: argparse.Namespace) -> int:
+    for name, cls in available_plugins().items():
+        if isinstance(cls, Exception):
+            print(f"{name}: failed to load ({cls})")
+            continue
+        print(f"{name}: {cls.description}")
+        for setting in cls.settings_schema:
+            print(f"    {setting.describe()}")
+    return 0
+
+
+def cmd_record(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if out.exists() and not args.force:
+        raise UserError(f"{out}: already exists (use --force to overwrite)")
+    if args.seconds <= 0:
+        raise UserError(f"--seconds must be positive, got {args.seconds}")
+    device = create_device(args.device, parse_set_options(args.set))
+    engine = AcquisitionEngine(device)
+    engine.start()
+    if not engine.wait_frames(1, timeout=10.0):
+        engine.stop()
+        raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
+    recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
+    progress = TerminalProgress(f"recording {out.name}")
+    token = CancelToken()
+    start = time.monotonic()
+    with ctrl_c_cancels(token):
+        while not token.wait(0.1):
+            elapsed = time.monotonic() - start
+            progress(min(1.0, elapsed / args.seconds),
+                     f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
+            if elapsed >= args.seconds or engine.state in (ERROR, FINISHED):
+                break
+    engine.stop()
+    recorder.stop()
+    with Session(out) as s:
+        summary = s.summary()
+    print(f"\nwrote {out}: {summary['frames']} frames, {summary['duration_s']:.2f} s, "
+          f"{summary['rate_hz']:.1f} Hz, malformed {summary['malformed']}, gaps {summary['gaps']}")
+    if engine.state == ERROR:
+        raise UserError(f"recording stopped early: {engine.error} (frames so far are in {out})")
+    return 0
+
+
+def _trial_table(trials: list[dict[str, Any]]) -> str:
+    try:  # the collection runner's formatter when present
+        from tactile_studio.protocol.report import trial_table
+        return trial_table(trials)
+    except ImportError:
+        counts: dict[tuple[str, str], int] = {}
+        for t in trials:
+            key = (str(t.get("gesture")), str(t.get("status")))
+            counts[key] = counts.get(key, 0) + 1
+        return "\n".join(f"  {g:<20} {s:<10} {n}" for (g, s), n in sorted(counts.items()))
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    with Session(args.file) as s:
+        summary = s.summary()
+    if args.json:
+        json.dump(summary, sys.stdout, indent=2, default=str)
+        print()
+        return 0
+    meta = summary["metadata"]
+    device = meta.get("device", {})
+    lines = [
+        f"file:       {summary['path']}",
+        f"layout:     {summary['layout']}",
+        f"device:     {device.get('plugin', '?')} {device.get('settings', '')}",
+        f"created:    {meta.get('created', '?')}   app {meta.get('app_version', '?')}",
+        f"frames:     {summary['frames']} over {summary['duration_s']:.2f} s "
+        f"({summary['rate_hz']:.2f} Hz)",
+        f"malformed:  {summary['malformed']} {summary['malformed_by_kind'] or ''}",
+        f"gaps:       {summary['gaps']}   reconnects {summary['reconnects']}",
+        f"events:     {len(summary['events'])}"
+        + (f" ({', '.join(sorted({e['kind'] for e in summary['events']}))})"
+           if summary["events"] else ""),
+        f"closed:     {'cleanly' if summary['closed_cleanly'] else 'NOT cleanly (recovered)'}",
+    ]
+    if meta.get("participant"):
+        lines.append(f"participant: {meta['participant']}")
+    if meta.get("notes"):
+        lines.append(f"notes:      {meta['notes']}")
+    if summary.get("trials"):
+        lines.append(f"trials:     {len(summary['trials'])}")
+        lines.append(_trial_table(summary["trials"]))
+    print("\n".join(lines))
+    return 0

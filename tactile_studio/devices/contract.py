@@ -1,0 +1,153 @@
+"""The public device-plugin contract. Built-in plugins use exactly this, as third parties do.
+
+A plugin is a class registered under the entry-point group ``tactile_studio.devices``.
+The acquisition engine drives it from its own thread::
+
+    dev = Plugin(**settings)          # validates settings (SettingsError)
+    dev.open()                        # DeviceNotFound if it is not there
+    while running:
+        batch = dev.read(max_frames)  # blocks up to ~0.1 s; may return an empty batch
+    dev.close()
+
+``read`` raises ``DeviceLost`` when the device goes away; if ``supports_reconnect`` the
+engine then calls ``reopen()`` with backoff until it succeeds or the user stops.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from tactile_studio.errors import SettingsError
+from tactile_studio.sensor.layout import Layout
+
+_TYPES = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One entry of a plugin's settings schema."""
+
+    name: str
+    kind: str  # int | float | str | bool | choice | path
+    default: Any
+    help: str = ""
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+
+    def parse(self, value: Any, device: str) -> Any:
+        """Convert a value (possibly the text of ``--set key=value``) and check it."""
+        where = f"device {device}: setting {self.name}"
+        if value is None:
+            return None
+        try:
+            if self.kind == "bool":
+                if isinstance(value, str):
+                    low = value.strip().lower()
+                    if low not in {"1", "0", "true", "false", "yes", "no", "on", "off"}:
+                        raise ValueError(value)
+                    value = low in {"1", "true", "yes", "on"}
+                else:
+                    value = bool(value)
+            else:
+                value = _TYPES[self.kind](value)
+        except (TypeError, ValueError):
+            raise SettingsError(f"{where}: {value!r} is not a valid {self.kind}") from None
+        if self.kind == "choice" and value not in self.choices:
+            raise SettingsError(f"{where}: {value!r} is not one of {', '.join(self.choices)}")
+        if self.minimum is not None and value < self.minimum:
+            raise SettingsError(f"{where}: {value} is below the minimum {self.minimum}")
+        if self.maximum is not None and value > self.maximum:
+            raise SettingsError(f"{where}: {value} is above the maximum {self.maximum}")
+        return value
+
+    def describe(self) -> str:
+        extra = f" [{'|'.join(self.choices)}]" if self.choices else ""
+        rng = ""
+        if self.minimum is not None or self.maximum is not None:
+            rng = f" (range {self.minimum if self.minimum is not None else ''}.."
+            rng += f"{self.maximum if self.maximum is not None else ''})"
+        return f"{self.name}={self.default!r} ({self.kind}{extra}){rng}  {self.help}"
+
+
+@dataclass
+class FrameBatch:
+    """Frames read in one call.
+
+    ``raw``: (n, n_channels) counts in the layout's dtype. ``device_time``: (n,) seconds
+    on the device's clock (or None: the engine uses host time). ``seq``: (n,) device
+    sequence numbers (or None: no gap detection from the device). ``malformed``: bad
+    input dropped while reading, counted by kind (e.g. {"short": 2, "non_numeric": 1}).
+    """
+
+    raw: np.ndarray
+    device_time: np.ndarray | None = None
+    seq: np.ndarray | None = None
+    malformed: dict[str, int] = field(default_factory=dict)
+    host_time: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return int(self.raw.shape[0])
+
+
+class DevicePlugin(abc.ABC):
+    """Base class of every device plugin (simulated, replay, serial, BLE, third party)."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    settings_schema: ClassVar[tuple[Setting, ...]] = ()
+    supports_reconnect: ClassVar[bool] = False
+
+    def __init__(self, **settings: Any) -> None:
+        self.settings = self.validate_settings(settings)
+
+    @classmethod
+    def validate_settings(cls, settings: dict[str, Any]) -> dict[str, Any]:
+        """Defaults filled in, every value parsed and range-checked, unknown keys refused."""
+        schema = {s.name: s for s in cls.settings_schema}
+        unknown = sorted(set(settings) - set(schema))
+        if unknown:
+            known = ", ".join(schema) or "none"
+            raise SettingsError(f"device {cls.name}: unknown setting {unknown[0]!r} (known: {known})")
+        return {n: s.parse(settings.get(n, s.default), cls.name) for n, s in schema.items()}
+
+    @property
+    @abc.abstractmethod
+    def layout(self) -> Layout:
+        """The sensor layout this device delivers."""
+
+    @property
+    @abc.abstractmethod
+    def nominal_rate_hz(self) -> float:
+        """The rate the device is configured for (the engine measures the real one)."""
+
+    @abc.abstractmethod
+    def open(self) -> None:
+        """Connect. Raise DeviceNotFound with a one-line message if impossible."""
+
+    @abc.abstractmethod
+    def read(self, max_frames: int) -> FrameBatch:
+        """Block until at least one frame (or ~0.1 s) and return up to ``max_frames``."""
+
+    @abc.abstractmethod
+    def close(self) -> None:
+        """Disconnect; must be safe to call twice or after a failed open."""
+
+    def reopen(self) -> None:
+        """Try once to reconnect after DeviceLost; raise DeviceError while it fails."""
+        self.close()
+        self.open()
+
+    @property
+    def finished(self) -> bool:
+        """True when a finite source (a replayed file) has delivered everything."""
+        return False
+
+    def info(self) -> dict[str, Any]:
+        """What goes into a session's metadata about the device."""
+        return {"plugin": self.name, "settings": dict(self.settings),
+                "layout": self.layout.name, "nominal_rate_hz": self.nominal_rate_hz}

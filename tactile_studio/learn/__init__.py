@@ -1,0 +1,1 @@
+"""Learning core: datasets, models, training, evaluation, streaming inference."""

@@ -1,0 +1,1 @@
+"""Collection protocols (files) and the Qt-free session runner."""

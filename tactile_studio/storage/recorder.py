@@ -1,0 +1,99 @@
+"""The recorder: a consumer thread that pulls everything from the engine into a file."""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections import Counter
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.storage.session_writer import SessionWriter
+
+
+class Recorder:
+    """Writes every frame and event the engine produces from now on to ``path``.
+
+    Frames are pulled in chunks by cursor, so the recorder never slows the device
+    thread; if it ever falls a whole ring behind, the lost frames are recorded as an
+    ``overrun`` event and counted, never hidden.
+    """
+
+    def __init__(self, engine: AcquisitionEngine, path: str | os.PathLike,
+                 metadata: dict[str, Any] | None = None, poll_s: float = 0.05,
+                 flush_interval: float = 0.5) -> None:
+        self.engine = engine
+        self.writer = SessionWriter(path, engine.layout, engine.device.info(), metadata,
+                                    flush_interval=flush_interval)
+        self.poll_s = poll_s
+        self.dropped = 0
+        self._cursor = engine.frames
+        self._event_cursor = engine.event_count
+        self.start_counters = engine.counters()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        if engine.baseline is not None:
+            self.writer.add_baseline(engine.baseline, 0)
+
+    @property
+    def path(self) -> os.PathLike:
+        return self.writer.path
+
+    @property
+    def start_frame(self) -> int:
+        """Engine frame index that became file row 0 (before any overrun)."""
+        return int(self.start_counters["frames"])
+
+    def start(self) -> Recorder:
+        self._thread.start()
+        return self
+
+    def stop(self) -> None:
+        """Write what is left, then close the file cleanly."""
+        self._stop.set()
+        self._thread.join()
+        self._drain()
+        self.writer.close()
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.poll_s):
+            self._drain()
+
+    def _engine_to_row(self, frame: int) -> int:
+        return max(0, frame - self.start_frame - self.dropped)
+
+    def _drain(self) -> None:
+        chunk = self.engine.read_since(self._cursor)
+        if chunk.lost:
+            self.dropped += chunk.lost
+            self.writer.add_event("overrun", lost=chunk.lost)
+        if len(chunk):
+            self.writer.append_frames(chunk.raw, chunk.device_time, chunk.host_time,
+                                      chunk.seq, index=np.arange(chunk.start, chunk.stop))
+            self._cursor = chunk.stop
+        for event in self.engine.events_since(self._event_cursor):
+            self._event_cursor += 1
+            event = dict(event)
+            kind = event.pop("kind")
+            frame = self._engine_to_row(int(event.pop("frame")))
+            t = event.pop("time")
+            if kind == "tare" and "baseline" in event:
+                self.writer.add_baseline(event["baseline"], frame)
+                event = {k: v for k, v in event.items() if k != "baseline"}
+            self.writer.add_event(kind, frame=frame, time_s=t, **event)
+        self.writer.set_counters(self._counters_since_start())
+        self.writer.flush()
+
+    def _counters_since_start(self) -> dict[str, Any]:
+        now, start = self.engine.counters(), self.start_counters
+        by_kind = Counter(now["malformed_by_kind"])
+        by_kind.subtract(start["malformed_by_kind"])
+        return {
+            "malformed_by_kind": {k: v for k, v in by_kind.items() if v > 0},
+            "gaps": now["gaps"] - start["gaps"],
+            "missing_frames": now["missing_frames"] - start["missing_frames"],
+            "reconnects": now["reconnects"] - start["reconnects"],
+            "dropped": self.dropped,
+        }

@@ -1,0 +1,231 @@
+"""Reading session files, including ones whose writer was killed mid-recording."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from tactile_studio.errors import SessionFileError
+from tactile_studio.sensor.decode import compute_baseline
+from tactile_studio.sensor.layout import Layout, get_layout
+from tactile_studio.storage.session_writer import FORMAT
+
+
+@dataclass
+class Journal:
+    """The journal folded into its current state."""
+
+    metadata: dict[str, Any] = field(default_factory=dict)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    baselines: list[dict[str, Any]] = field(default_factory=list)
+    trials: list[dict[str, Any]] = field(default_factory=list)
+    counters: dict[str, Any] = field(default_factory=dict)
+    closed: bool = False
+
+
+def read_journal(f: h5py.File) -> Journal:
+    """Fold ``/journal`` (JSON lines) into metadata, events, trials and counters.
+
+    A line cut short by a crash is ignored; everything before it counts.
+    """
+    j = Journal()
+    trials: dict[int, dict[str, Any]] = {}
+    data = bytes(f["journal"][:]) if "journal" in f else b""
+    for line in data.split(b"\n"):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+        except ValueError:
+            continue
+        kind = rec.pop("type", None)
+        if kind == "metadata":
+            j.metadata.update(rec.get("update", {}))
+        elif kind == "event":
+            j.events.append(rec)
+        elif kind == "baseline":
+            j.baselines.append(rec)
+        elif kind == "trial":
+            trials[int(rec["index"])] = rec
+        elif kind == "trial_update":
+            idx = int(rec.pop("index"))
+            if idx in trials:
+                trials[idx].update(rec)
+        elif kind == "counters":
+            j.counters = rec
+        elif kind == "closed":
+            j.closed = True
+    j.trials = [trials[k] for k in sorted(trials)]
+    return j
+
+
+_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def _check_not_truncated(path: Path) -> None:
+    """Compare the superblock's end-of-file address with the real size.
+
+    A truncated file must be caught before h5py opens it: an SWMR reader retries
+    reading damaged metadata for a long time instead of failing.
+    """
+    size = path.stat().st_size
+    with open(path, "rb") as fh:
+        head = fh.read(96)
+    if head[:8] != _SIGNATURE:
+        raise SessionFileError(f"{path}: not an HDF5 file (corrupt or not a session)")
+    version = head[8]
+    if version >= 2:
+        off = head[9]
+        eof_at = 12 + 2 * off
+    else:
+        off = head[13]
+        eof_at = 24 + (4 if version == 1 else 0) + 2 * off
+    if off not in (4, 8) or len(head) < eof_at + off:
+        raise SessionFileError(f"{path}: damaged HDF5 superblock")
+    eof = int.from_bytes(head[eof_at:eof_at + off], "little")
+    if size < eof:
+        raise SessionFileError(f"{path}: truncated ({size} of {eof} bytes present)")
+
+
+def _open_h5(path: Path) -> h5py.File:
+    if not path.exists():
+        raise SessionFileError(f"{path}: no such file")
+    if path.is_dir():
+        raise SessionFileError(f"{path}: is a folder, not a session file")
+    _check_not_truncated(path)
+    try:
+        return h5py.File(path, "r", locking=False)
+    except OSError as exc:
+        first = str(exc)
+    try:  # a writer killed mid-recording leaves the SWMR "open for write" flag set
+        return h5py.File(path, "r", swmr=True, locking=False)
+    except OSError:
+        pass
+    if "signature" in first or "file signature" in first:
+        raise SessionFileError(f"{path}: not an HDF5 file (corrupt or not a session)") from None
+    raise SessionFileError(f"{path}: cannot be read, truncated or corrupt HDF5") from None
+
+
+class Session:
+    """A session file opened for reading. Use as a context manager or call ``close``."""
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        self._f = _open_h5(self.path)
+        try:
+            self._check_and_load()
+        except SessionFileError:
+            self._f.close()
+            raise
+        except (OSError, KeyError, ValueError, RuntimeError) as exc:
+            self._f.close()
+            raise SessionFileError(f"{self.path}: damaged session file ({exc})") from None
+
+    def _check_and_load(self) -> None:
+        f = self._f
+        if f.attrs.get("format") != FORMAT:
+            raise SessionFileError(f"{self.path}: HDF5 file but not a Tactile Studio session")
+        if "frames/raw" not in f:
+            raise SessionFileError(f"{self.path}: session has no frames dataset")
+        self.journal = read_journal(f)
+        self.schema_version = int(f.attrs.get("schema_version", 0))
+        cols = [f["frames/raw"].shape[0]] + [
+            f[f"frames/{n}"].shape[0] for n in ("device_time", "host_time", "seq", "index")]
+        # After a crash the columns may be one flush apart: trust the shortest.
+        self.n_frames = int(min(cols))
+        layout_name = self.journal.metadata.get("layout", {}).get("name") or f.attrs.get("layout")
+        if not layout_name:
+            raise SessionFileError(f"{self.path}: session metadata names no layout")
+        self.layout: Layout = get_layout(str(layout_name))
+
+    # ---- context manager -------------------------------------------------------------
+    def close(self) -> None:
+        self._f.close()
+
+    def __enter__(self) -> Session:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- data ------------------------------------------------------------------------
+    @property
+    def metadata(self) -> dict[str, Any]:
+        return self.journal.metadata
+
+    @property
+    def events(self) -> list[dict[str, Any]]:
+        return self.journal.events
+
+    @property
+    def trials(self) -> list[dict[str, Any]]:
+        return self.journal.trials
+
+    @property
+    def closed_cleanly(self) -> bool:
+        return self.journal.closed
+
+    def raw(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        stop = self.n_frames if stop is None else min(stop, self.n_frames)
+        return self._f["frames/raw"][start:stop]
+
+    def column(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """One of device_time, host_time, seq, index."""
+        stop = self.n_frames if stop is None else min(stop, self.n_frames)
+        return self._f[f"frames/{name}"][start:stop]
+
+    def baseline(self, row: int = 0) -> np.ndarray:
+        """The newest recorded baseline at or before ``row`` (else the first recorded
+        one, else the mean of the first 100 frames)."""
+        chosen = None
+        for b in self.journal.baselines:
+            if b["frame"] <= row or chosen is None:
+                chosen = b
+        if chosen is not None:
+            return np.asarray(chosen["values"], dtype=np.float64)
+        if self.n_frames == 0:
+            raise SessionFileError(f"{self.path}: session has no frames to take a baseline from")
+        return compute_baseline(self.raw(0, 100))
+
+    # ---- summary ---------------------------------------------------------------------
+    def summary(self) -> dict[str, Any]:
+        """What ``tactile-studio info --json`` prints."""
+        n = self.n_frames
+        duration = rate = 0.0
+        if n >= 2:
+            t = self.column("device_time", 0, n)
+            span = float(t[-1] - t[0])
+            if span <= 0:
+                t = self.column("host_time", 0, n)
+                span = float(t[-1] - t[0])
+            if span > 0:
+                duration = span * n / (n - 1)
+                rate = (n - 1) / span
+        counters = self.journal.counters
+        by_kind = dict(counters.get("malformed_by_kind", {}))
+        by_kind_total = Counter(by_kind)
+        out: dict[str, Any] = {
+            "path": str(self.path),
+            "frames": n,
+            "duration_s": round(duration, 4),
+            "rate_hz": round(rate, 3),
+            "malformed": int(sum(by_kind_total.values())),
+            "malformed_by_kind": by_kind,
+            "gaps": sum(1 for e in self.events if e.get("kind") == "gap"),
+            "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
+            "closed_cleanly": self.closed_cleanly,
+            "layout": self.layout.name,
+            "events": self.events,
+            "metadata": self.metadata,
+        }
+        if self.trials:
+            out["participant"] = self.metadata.get("participant")
+            out["trials"] = self.trials
+        return out

@@ -1,0 +1,183 @@
+"""Writing session files: HDF5 in SWMR mode so a killed recording still opens.
+
+All datasets are created up front and the file is switched to SWMR (single writer,
+multiple readers): HDF5 then orders its writes so the file is valid at every flush,
+and a SIGKILL loses at most what came after the last flush. Everything that is not a
+frame (metadata updates, events, baselines, trials, counters) goes into ``/journal``,
+an append-only byte stream of JSON lines, because SWMR forbids creating objects or
+attributes after the switch. ``close()`` additionally writes readable copies
+(``metadata_json``, ``events_json``, ``trials_json`` attributes) for other tools.
+See docs/session-format.md.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from tactile_studio import __version__
+from tactile_studio.errors import SessionFileError
+from tactile_studio.sensor.layout import Layout
+
+FORMAT = "tactile-studio-session"
+SCHEMA_VERSION = 1
+FRAME_CHUNK = 256
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+class SessionWriter:
+    """Appends frames and journal records to a new session file; thread-safe."""
+
+    def __init__(self, path: str | os.PathLike, layout: Layout, device_info: dict[str, Any],
+                 metadata: dict[str, Any] | None = None, flush_interval: float = 0.5) -> None:
+        self.path = Path(path)
+        self.layout = layout
+        self.flush_interval = flush_interval
+        self._lock = threading.RLock()
+        if self.path.parent and not self.path.parent.exists():
+            raise SessionFileError(f"{self.path}: folder {self.path.parent} does not exist")
+        try:
+            self._f = h5py.File(self.path, "w", libver="latest", locking=False)
+        except OSError as exc:
+            raise SessionFileError(f"{self.path}: cannot create session file ({exc})") from None
+        f, c = self._f, layout.n_channels
+        f.attrs["format"] = FORMAT
+        f.attrs["schema_version"] = SCHEMA_VERSION
+        f.attrs["app_version"] = __version__
+        f.attrs["layout"] = layout.name
+        g = f.create_group("frames")
+        self._raw = g.create_dataset("raw", (0, c), maxshape=(None, c), dtype=layout.raw_dtype,
+                                     chunks=(FRAME_CHUNK, c))
+        self._cols = {
+            name: g.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(4096,))
+            for name, dt in (("device_time", "f8"), ("host_time", "f8"), ("seq", "i8"),
+                             ("index", "i8"))
+        }
+        self._journal = f.create_dataset("journal", (0,), maxshape=(None,), dtype="u1",
+                                         chunks=(16384,))
+        f.swmr_mode = True
+        self._n = 0
+        self._last_flush = time.monotonic()
+        self._closed = False
+        self.metadata: dict[str, Any] = {
+            "schema_version": SCHEMA_VERSION,
+            "app_version": __version__,
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "layout": layout.to_dict(),
+            "device": device_info,
+            "notes": "",
+        }
+        self.metadata.update(metadata or {})
+        self._record({"type": "metadata", "update": self.metadata})
+        self.flush()
+
+    # ---- frames ----------------------------------------------------------------------
+    @property
+    def n_frames(self) -> int:
+        return self._n
+
+    def append_frames(self, raw: np.ndarray, device_time: np.ndarray, host_time: np.ndarray,
+                      seq: np.ndarray | None = None, index: np.ndarray | None = None) -> int:
+        """Append frames; returns the file row of the first. Flushes on the interval."""
+        n = int(raw.shape[0])
+        if n == 0:
+            return self._n
+        with self._lock:
+            first = self._n
+            self._raw.resize(first + n, axis=0)
+            self._raw[first:] = raw
+            cols = {"device_time": device_time, "host_time": host_time,
+                    "seq": seq if seq is not None else np.full(n, -1),
+                    "index": index if index is not None else np.arange(first, first + n)}
+            for name, values in cols.items():
+                ds = self._cols[name]
+                ds.resize(first + n, axis=0)
+                ds[first:] = values
+            self._n = first + n
+            self._maybe_flush()
+            return first
+
+    # ---- journal ---------------------------------------------------------------------
+    def _record(self, record: dict[str, Any]) -> None:
+        data = (json.dumps(record, default=_jsonable, separators=(",", ":")) + "\n").encode()
+        with self._lock:
+            m = self._journal.shape[0]
+            self._journal.resize(m + len(data), axis=0)
+            self._journal[m:] = np.frombuffer(data, dtype=np.uint8)
+
+    def update_metadata(self, **update: Any) -> None:
+        self.metadata.update(update)
+        self._record({"type": "metadata", "update": update})
+
+    def add_event(self, kind: str, frame: int | None = None, time_s: float | None = None,
+                  **detail: Any) -> None:
+        """An event at file row ``frame`` (default: the next frame to be written)."""
+        self._record({"type": "event", "kind": kind,
+                      "frame": self._n if frame is None else int(frame),
+                      "time": time.time() if time_s is None else time_s, **detail})
+
+    def add_baseline(self, values: np.ndarray, frame: int | None = None) -> None:
+        self._record({"type": "baseline", "frame": self._n if frame is None else int(frame),
+                      "values": [float(v) for v in values]})
+
+    def add_trial(self, trial: dict[str, Any]) -> None:
+        """A trial record; must carry an ``index``. Later updates merge by index."""
+        self._record({"type": "trial", **trial})
+
+    def update_trial(self, index: int, **changes: Any) -> None:
+        self._record({"type": "trial_update", "index": int(index), **changes})
+
+    def set_counters(self, counters: dict[str, Any]) -> None:
+        """Device counters (malformed by kind, gaps, ...) for this session; last one wins."""
+        self._record({"type": "counters", **counters})
+
+    # ---- flushing --------------------------------------------------------------------
+    def _maybe_flush(self) -> None:
+        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    def flush(self) -> None:
+        with self._lock:
+            if not self._closed:
+                self._f.flush()
+                self._last_flush = time.monotonic()
+
+    def close(self) -> None:
+        """Flush, close, and write human-readable copies of the journal as attributes."""
+        with self._lock:
+            if self._closed:
+                return
+            self._record({"type": "closed", "time": time.time()})
+            self._f.flush()
+            self._f.close()
+            self._closed = True
+        from tactile_studio.storage.session import read_journal  # avoid an import cycle
+
+        with h5py.File(self.path, "r+", locking=False) as f:
+            j = read_journal(f)
+            f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
+            f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
+            f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
+
+    def __enter__(self) -> SessionWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
