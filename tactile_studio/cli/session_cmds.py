@@ -55,11 +55,14 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
     engine = AcquisitionEngine(device)
+    # The recorder exists before the engine starts so the connect and tare events are kept.
+    recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
     engine.start()
     if not engine.wait_frames(1, timeout=10.0):
         engine.stop()
+        recorder.stop()
+        out.unlink(missing_ok=True)
         raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
-    recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
     progress = TerminalProgress(f"recording {out.name}")
     token = CancelToken()
     start = time.monotonic()

@@ -1,0 +1,180 @@
+"""The simulated sensor as a device plugin: real-time (or faster) ShearSense frames.
+
+The physics lives in :mod:`tactile_studio.simulate`; this plugin only paces it against
+the wall clock and makes its controls safe to call from another thread (a virtual
+participant, the GUI) while the acquisition engine reads. ``device_time`` is simulated
+time (frame index / rate) and ``seq`` the frame index, so faster-than-real-time runs
+look exactly like real ones to everything downstream.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, ClassVar
+
+import numpy as np
+
+from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
+from tactile_studio.errors import SettingsError
+from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
+from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig
+from tactile_studio.simulate.gestures import canonical_gesture
+from tactile_studio.simulate.schedule import AUTO, Trial
+
+_WAIT_S = 0.1  # longest read() blocks without a frame due
+
+
+class SimulatedSensor(DevicePlugin):
+    """A virtual 6x6 shear+normal sensor with gestures, noise, drift and faults."""
+
+    name: ClassVar[str] = "simulated"
+    description: ClassVar[str] = (
+        "Simulated ShearSense 6x6 sensor: the nine protocol gestures, viscoelasticity, "
+        "noise, drift, crosstalk and optional faults")
+    settings_schema: ClassVar[tuple[Setting, ...]] = (
+        Setting("rate", "float", 43.0, "frames per second", minimum=1.0, maximum=5000.0),
+        Setting("speed", "float", 1.0, "1 = real time, 10 = ten times faster, "
+                "0 = as fast as possible", minimum=0.0, maximum=10000.0),
+        Setting("seed", "int", 0, "random seed: sensor identity, noise, trials", minimum=0),
+        Setting("gesture", "str", AUTO, "auto (demo cycle), idle, or a gesture name: "
+                + ", ".join(GESTURE_NAMES)),
+        Setting("intensity", "float", 1.0, "scales gesture load", minimum=0.0, maximum=5.0),
+        Setting("gesture_speed", "float", 1.0, "scales gesture tempo", minimum=0.1, maximum=5.0),
+        Setting("style_seed", "int", 0, "virtual participant's personal style", minimum=0),
+        Setting("noise", "float", 20.0, "Gaussian noise, counts std", minimum=0.0, maximum=5000.0),
+        Setting("drift", "float", 0.002, "slow baseline wander, relative amplitude",
+                minimum=0.0, maximum=0.1),
+        Setting("crosstalk", "float", 0.07, "shear x<->y crosstalk fraction",
+                minimum=0.0, maximum=0.2),
+        Setting("fault", "choice", "none", "simulated defect", choices=FAULTS),
+        Setting("fault_taxel", "int", 14, "taxel the fault affects (0..35)",
+                minimum=0, maximum=35),
+    )
+
+    def __init__(self, **settings: Any) -> None:
+        super().__init__(**settings)
+        s = self.settings
+        try:
+            mode = AUTO if s["gesture"].strip().lower() == AUTO else canonical_gesture(s["gesture"])
+        except ValueError as exc:
+            raise SettingsError(f"device {self.name}: setting gesture: {exc}") from None
+        s["gesture"] = mode
+        self._sim = SensorSimulator(SimConfig(
+            rate=s["rate"], seed=s["seed"], gesture=mode, intensity=s["intensity"],
+            speed=s["gesture_speed"], style_seed=s["style_seed"], noise=s["noise"],
+            drift=s["drift"], crosstalk=s["crosstalk"], fault=s["fault"],
+            fault_taxel=s["fault_taxel"]))
+        self._lock = threading.RLock()
+        self._open = False
+        self._t0 = 0.0        # wall clock at open
+        self._f0 = 0          # frame index at open
+
+    # ---- contract --------------------------------------------------------------------
+    @property
+    def layout(self) -> Layout:
+        return SHEARSENSE_6X6
+
+    @property
+    def nominal_rate_hz(self) -> float:
+        return float(self.settings["rate"])
+
+    def open(self) -> None:
+        with self._lock:
+            self._open = True
+            self._t0 = time.monotonic()
+            self._f0 = self._sim.frame
+
+    def close(self) -> None:
+        with self._lock:
+            self._open = False
+
+    def read(self, max_frames: int) -> FrameBatch:
+        """Frames due by now (real-time pacing), or up to ``max_frames`` at speed 0."""
+        max_frames = max(1, int(max_frames))
+        speed = float(self.settings["speed"])
+        n = max_frames
+        if speed > 0:
+            deadline = time.monotonic() + _WAIT_S
+            while True:
+                n = min(max_frames, self._due() - self._sim.frame)
+                if n > 0:
+                    break
+                now = time.monotonic()
+                if now >= deadline:
+                    return self._batch(0)
+                next_at = self._t0 + (self._sim.frame - self._f0) / (self.nominal_rate_hz * speed)
+                time.sleep(min(max(next_at - now, 0.0005), deadline - now))
+        return self._batch(n)
+
+    def info(self) -> dict[str, Any]:
+        out = super().info()
+        out["simulated"] = True
+        return out
+
+    # ---- virtual-participant controls (thread-safe) ----------------------------------
+    def perform(self, gesture: str, duration_s: float = 2.0, intensity: float | None = None,
+                speed: float | None = None, at_frame: int | None = None) -> Trial:
+        """Start ``gesture`` at the next frame (or at simulated frame ``at_frame``).
+
+        Returns the scheduled :class:`Trial` (its ``start`` is the first frame).
+        Raises ValueError for an unknown gesture or a frame already generated.
+        """
+        with self._lock:
+            return self._sim.perform(gesture, duration_s, intensity, speed, at_frame)
+
+    def press(self, x_mm: float, y_mm: float, load_kpa: float, radius_mm: float = 5.0,
+              shear_x: float = 0.0, shear_y: float = 0.0, duration_s: float = 2.0,
+              at_frame: int | None = None) -> Trial:
+        """A static press (indenter / known weight) at (x, y) mm; ground truth 'press'."""
+        with self._lock:
+            return self._sim.press(x_mm, y_mm, load_kpa, radius_mm, shear_x, shear_y,
+                                   duration_s, at_frame=at_frame)
+
+    def set_gesture(self, name: str, at_frame: int | None = None,
+                    intensity: float | None = None, speed: float | None = None) -> None:
+        """Continuous mode from the next frame (or ``at_frame``): 'auto', 'idle', or a
+        gesture repeated in back-to-back 2 s trials. ``intensity``/``speed`` also become
+        the defaults of later :meth:`perform` calls."""
+        with self._lock:
+            self._sim.set_gesture(name, at_frame, intensity, speed)
+
+    def set_style(self, seed: int, at_frame: int | None = None) -> None:
+        """Become another virtual participant from the next frame (or ``at_frame``)."""
+        with self._lock:
+            self._sim.set_style(seed, at_frame)
+
+    @property
+    def current_gesture(self) -> str:
+        """Ground truth: the gesture being performed at the newest frame delivered."""
+        with self._lock:
+            return self._sim.current_gesture
+
+    def gesture_at(self, frame: int) -> str:
+        """Ground truth at frame (= seq) ``frame``."""
+        with self._lock:
+            return self._sim.gesture_at(frame)
+
+    @property
+    def next_frame(self) -> int:
+        """The seq the next delivered frame will have (for scheduling with ``at_frame``)."""
+        with self._lock:
+            return self._sim.frame
+
+    @property
+    def simulator(self) -> SensorSimulator:
+        """The underlying generator (hold no reference across threads without the lock)."""
+        return self._sim
+
+    # ---- internals -------------------------------------------------------------------
+    def _due(self) -> int:
+        """Index one past the newest frame due by now (the first one is due at open)."""
+        elapsed = time.monotonic() - self._t0
+        return self._f0 + int(elapsed * self.nominal_rate_hz * float(self.settings["speed"])) + 1
+
+    def _batch(self, n: int) -> FrameBatch:
+        with self._lock:
+            f0 = self._sim.frame
+            raw = self._sim.step(n)
+        seq = np.arange(f0, f0 + len(raw), dtype=np.int64)
+        return FrameBatch(raw=raw, device_time=seq / self.nominal_rate_hz, seq=seq)
