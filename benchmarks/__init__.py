@@ -1,0 +1,1 @@
+"""Benchmarks: plain scripts that measure and print; `make bench` runs them all."""
