@@ -1,0 +1,103 @@
+"""``import`` (shearsense, cost, haart) and ``export``: files in and out of sessions."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("import", help="turn other tools' and datasets' files into sessions",
+                       description="Import files as session files (.h5), one per input "
+                                   "CSV or per subject. Ctrl-C keeps finished sessions.")
+    fmt = p.add_subparsers(dest="import_format", metavar="FORMAT", required=True)
+    s = fmt.add_parser("shearsense", help="the old collection software's CSVs")
+    s.add_argument("files", nargs="+", help="P<participant>...<FLAT|PILLOW>.csv files")
+    c = fmt.add_parser("cost", help="the CoST dataset (CoST.csv)")
+    c.add_argument("files", nargs=1, metavar="file", help="CoST.csv")
+    h = fmt.add_parser("haart", help="the HAART dataset (training.csv, testWITHLABELS.csv)")
+    h.add_argument("files", nargs="+", help="training.csv and/or testWITHLABELS.csv")
+    for q in (s, c, h):
+        q.add_argument("--out", default=".", help="folder for the session files (default: .)")
+        q.add_argument("--force", action="store_true", help="overwrite existing sessions")
+        q.set_defaults(func=cmd_import)
+
+    e = sub.add_parser("export", help="export sessions as ShearSense CSV, NPZ or a trial table")
+    e.add_argument("sessions", nargs="+", help="session files (.h5)")
+    e.add_argument("--format", required=True, choices=["shearsense-csv", "npz", "csv-trials"])
+    e.add_argument("--out", default=".", help="output folder (default: .)")
+    e.add_argument("--all-trials", action="store_true",
+                   help="also export redone and discarded trials (default: ok only)")
+    e.add_argument("--grid", default="auto", choices=["auto", "virtual", "physical"],
+                   help="npz grid: virtual 11x11 for the shear sensor (auto) or physical")
+    e.add_argument("--force", action="store_true", help="overwrite existing files")
+    e.set_defaults(func=cmd_export)
+
+
+class _Bar:
+    """A terminal progress bar that can end its line, so that a message printed after
+    an error or a finished session starts on a line of its own."""
+
+    def __init__(self, label: str) -> None:
+        self.bar = TerminalProgress(label)
+        self.open = False
+
+    def __call__(self, fraction: float, message: str = "") -> None:
+        self.bar(fraction, message)
+        self.open = fraction < 1.0
+
+    def end_line(self) -> None:
+        if self.open:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.open = False
+
+
+@contextmanager
+def _bar(label: str) -> Iterator[_Bar]:
+    bar = _Bar(label)
+    try:
+        yield bar
+    finally:
+        bar.end_line()
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    from tactile_studio.storage.importers import import_cost, import_haart, import_shearsense
+
+    token = CancelToken()
+    with ctrl_c_cancels(token), _bar(f"import {args.import_format}") as bar:
+        def done(path: Path) -> None:
+            bar.end_line()
+            print(f"wrote {path}", flush=True)
+
+        if args.import_format == "shearsense":
+            out = import_shearsense(args.files, args.out, bar, token, args.force, done)
+        elif args.import_format == "cost":
+            out = import_cost(args.files[0], args.out, bar, token, args.force, done)
+        else:
+            out = import_haart(args.files, args.out, bar, token, args.force, done)
+    print(f"imported {len(out)} session(s) into {args.out}")
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from tactile_studio.storage.exporters import export_session
+
+    token = CancelToken()
+    total = 0
+    with ctrl_c_cancels(token):
+        for session in args.sessions:
+            with _bar(f"export {Path(session).name}") as bar:
+                paths = export_session(session, args.format, args.out, args.all_trials,
+                                       args.grid, bar, token, args.force)
+            total += len(paths)
+            shown = paths[0] if len(paths) == 1 else f"{len(paths)} files in {args.out}"
+            print(f"{session}: wrote {shown}", flush=True)
+    print(f"exported {len(args.sessions)} session(s), {total} file(s)")
+    return 0

@@ -1,0 +1,242 @@
+"""Exporting sessions for other tools: the old ShearSense CSV, per-trial NPZ arrays, and
+a tidy per-trial CSV for statistics.
+
+Only trials with status ``ok`` are exported unless ``all_trials`` is set. Every export
+is a long job (``progress``, ``cancel``); a cancelled export keeps the files it finished
+and removes the one it was writing. See docs/import-export.md.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.sensor.decode import decode
+from tactile_studio.storage.importers._common import check_outputs, frame_interval
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.shearsense import (
+    N_CHANNELS,
+    parse_shearsense_name,
+    write_shearsense_csv,
+)
+
+FORMATS = ("shearsense-csv", "npz", "csv-trials")
+GRIDS = ("auto", "virtual", "physical")
+TRIAL_COLUMNS = ["session", "participant", "condition", "protocol", "index", "block",
+                 "gesture", "label", "key", "status", "reason", "flags", "start_sample",
+                 "end_sample", "start_time", "end_time", "n_frames", "duration_s"]
+FEATURE_COLUMNS = ["peak_normal", "mean_normal", "mean_abs_shear", "contact_area",
+                   "dominant_hz", "centroid_speed", "spread_change", "divergence", "curl",
+                   "coherence", "movement"]
+
+
+def selected_trials(session: Session, all_trials: bool = False) -> list[dict[str, Any]]:
+    """The trials to export: ``ok`` ones, or all of them, cut to the frames on disk."""
+    out = []
+    for t in session.trials:
+        if not all_trials and t.get("status") != "ok":
+            continue
+        s, e = int(t["start_sample"]), min(int(t["end_sample"]), session.n_frames)
+        if e > s >= 0:
+            out.append({**t, "start_sample": s, "end_sample": e})
+    return out
+
+
+def gesture_labels(session: Session) -> list[str]:
+    """The session's ordered label set (metadata ``gestures``, else sorted trial gestures)."""
+    names = list(session.metadata.get("gestures") or [])
+    return names + sorted({str(t.get("gesture")) for t in session.trials} - set(names))
+
+
+def _atomic(path: Path, write: Callable[[Path], Any]) -> Path:
+    """Write through a temporary name so a cancelled export leaves no half file."""
+    tmp = path.with_name(f".{path.name}.part")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "-", text).strip("-").lower() or "gesture"
+
+
+# ---- ShearSense CSV ------------------------------------------------------------------
+def shearsense_csv_name(session: Session) -> str:
+    """The session's name, with participant and condition added where the old naming
+    (``P<participant>...<FLAT|PILLOW>.csv``) needs them, so re-importing finds them."""
+    name = session.path.stem
+    participant = str(session.metadata.get("participant") or "")
+    condition = str(session.metadata.get("condition") or "")
+    if participant and parse_shearsense_name(f"{name}.csv")[0] != participant:
+        name = f"{participant}_{name}"
+    if condition and parse_shearsense_name(f"{name}.csv")[1] != condition.upper():
+        name = f"{name}_{condition.upper()}"
+    return f"{name}.csv"
+
+
+def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
+                          all_trials: bool = False, progress: ProgressFn | None = None,
+                          cancel: CancelToken | None = None, force: bool = False) -> Path:
+    """The old collection software's CSV: baseline row, frames, trial keys as labels."""
+    progress = progress or no_progress
+    with Session(path) as s:
+        if s.layout.n_channels != N_CHANNELS or not s.layout.has_shear:
+            raise UserError(f"{s.path}: layout {s.layout.name} cannot be written as "
+                            f"ShearSense CSV (needs shearsense-6x6)")
+        out = Path(out_dir) / shearsense_csv_name(s)
+        check_outputs([out], force)
+        labels = np.zeros(s.n_frames, dtype=np.int64)
+        for t in selected_trials(s, all_trials):
+            key = str(t.get("key") or "")
+            if len(key) != 1:
+                raise UserError(f"{s.path}: trial {t['index']} has no one-letter key "
+                                f"({key!r}); the ShearSense CSV labels rows by key")
+            labels[t["start_sample"]:t["end_sample"]] = ord(key)
+        raw, times, baseline = s.raw(), s.column("host_time"), s.baseline(0)
+    def shown(fraction: float, message: str = "") -> None:
+        progress(fraction, message.replace(f".{out.name}.part", out.name))
+    return _atomic(out, lambda tmp: write_shearsense_csv(
+        tmp, raw, times, labels, baseline, progress=shown, cancel=cancel))
+
+
+# ---- NPZ per trial -------------------------------------------------------------------
+def trial_stack(s: Session, trial: dict[str, Any], virtual: bool) -> np.ndarray:
+    """(3, T, R, C) float32 normal, shear x, shear y of one trial (zeros for no shear)."""
+    a, b = trial["start_sample"], trial["end_sample"]
+    return decode(s.layout, s.raw(a, b), s.baseline(a), virtual=virtual).stack()
+
+
+def export_npz(path: str | os.PathLike, out_dir: str | os.PathLike, all_trials: bool = False,
+               grid: str = "auto", progress: ProgressFn | None = None,
+               cancel: CancelToken | None = None, force: bool = False) -> list[Path]:
+    """One ``.npz`` per trial: ``x`` (3, T, R, C) plus label, gesture, participant, index.
+
+    ``grid``: ``virtual`` (the paper's 11x11 for the 6x6 sensor), ``physical``, or
+    ``auto`` (virtual when the layout has shear, physical for pressure-only grids).
+    """
+    if grid not in GRIDS:
+        raise UserError(f"unknown grid {grid!r} (choose from {', '.join(GRIDS)})")
+    progress = progress or no_progress
+    out_dir = Path(out_dir)
+    written: list[Path] = []
+    with Session(path) as s:
+        virtual = grid == "virtual" or (grid == "auto" and s.layout.has_shear)
+        trials = selected_trials(s, all_trials)
+        names = [out_dir / f"{s.path.stem}_t{int(t['index']):04d}_{_slug(str(t['gesture']))}.npz"
+                 for t in trials]
+        check_outputs(names, force)
+        labels = gesture_labels(s)
+        meta = s.metadata
+        rate = 1.0 / frame_interval(s.column("device_time"), 1.0)
+        for i, (t, name) in enumerate(zip(trials, names)):
+            if cancel is not None:
+                cancel.check()
+            x = trial_stack(s, t, virtual)
+            gesture = str(t["gesture"])
+            fields = dict(
+                x=x, label=np.int64(labels.index(gesture)), gesture=np.str_(gesture),
+                participant=np.str_(meta.get("participant") or ""),
+                condition=np.str_(meta.get("condition") or ""),
+                index=np.int64(t["index"]), block=np.int64(t.get("block", -1)),
+                status=np.str_(t.get("status", "")), key=np.str_(t.get("key") or ""),
+                start_sample=np.int64(t["start_sample"]), end_sample=np.int64(t["end_sample"]),
+                gestures=np.array(labels, dtype=str), session=np.str_(s.path.name),
+                channels=np.array(["normal", "shear_x", "shear_y"]), units=np.str_(s.layout.units),
+                grid=np.str_("virtual" if virtual else "physical"), rate_hz=np.float64(rate))
+            written.append(_atomic(name, lambda tmp, f=fields: _savez(tmp, f)))
+            progress(min((i + 1) / max(len(trials), 1), 0.99), f"{name.name}")
+    progress(1.0, f"{len(written)} trials")
+    return written
+
+
+def _savez(tmp: Path, fields: dict[str, Any]) -> None:
+    with open(tmp, "wb") as fh:
+        np.savez(fh, **fields)
+
+
+# ---- tidy per-trial CSV --------------------------------------------------------------
+def trial_row(s: Session, t: dict[str, Any], labels: list[str], rate: float) -> dict[str, Any]:
+    """One trial's metadata and summary features (physical grid, layout units)."""
+    from tactile_studio.learn.features import gesture_metrics
+
+    frames = s.raw(t["start_sample"], t["end_sample"])
+    dec = decode(s.layout, frames, s.baseline(t["start_sample"]), virtual=False)
+    if dec.shear_x is not None:
+        x, names = dec.stack(), ["normal", "shear_x", "shear_y"]
+    else:
+        x, names = dec.normal[None], ["normal"]
+    metrics = gesture_metrics(x, names, rate)
+    meta = s.metadata
+    row: dict[str, Any] = {
+        "session": s.path.name, "participant": meta.get("participant", ""),
+        "condition": meta.get("condition", ""), "protocol": meta.get("protocol", ""),
+        "index": t["index"], "block": t.get("block", ""), "gesture": t["gesture"],
+        "label": labels.index(str(t["gesture"])), "key": t.get("key", ""),
+        "status": t.get("status", ""), "reason": t.get("reason") or "",
+        "flags": ";".join(t.get("flags") or []), "start_sample": t["start_sample"],
+        "end_sample": t["end_sample"], "start_time": t.get("start_time", ""),
+        "end_time": t.get("end_time", ""), "n_frames": len(frames),
+        "duration_s": round(len(frames) / rate, 6),
+        "peak_normal": float(dec.normal.max()) if len(frames) else 0.0,
+    }
+    for k in FEATURE_COLUMNS[1:]:
+        v = metrics.get(k, "")
+        row[k] = round(v, 6) if isinstance(v, float) else v
+    return row
+
+
+def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
+                      all_trials: bool = False, progress: ProgressFn | None = None,
+                      cancel: CancelToken | None = None, force: bool = False) -> Path:
+    """``<session>_trials.csv``: one row per trial, metadata then summary features."""
+    progress = progress or no_progress
+    with Session(path) as s:
+        out = Path(out_dir) / f"{s.path.stem}_trials.csv"
+        check_outputs([out], force)
+        trials = selected_trials(s, all_trials)
+        labels = gesture_labels(s)
+        rate = 1.0 / frame_interval(s.column("device_time"), 1.0)
+        extra = sorted({k for t in trials for k in t} - set(TRIAL_COLUMNS) - {"flags"})
+        rows = []
+        for i, t in enumerate(trials):
+            if cancel is not None:
+                cancel.check()
+            rows.append({**trial_row(s, t, labels, rate), **{k: t.get(k, "") for k in extra}})
+            progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {t['index']}")
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "w", newline="", encoding="utf-8") as fh:
+            w = csv.DictWriter(fh, fieldnames=TRIAL_COLUMNS + FEATURE_COLUMNS + extra)
+            w.writeheader()
+            w.writerows(rows)
+    _atomic(out, write)
+    progress(1.0, f"{out.name}: {len(rows)} trials")
+    return out
+
+
+def export_session(path: str | os.PathLike, fmt: str, out_dir: str | os.PathLike,
+                   all_trials: bool = False, grid: str = "auto",
+                   progress: ProgressFn | None = None, cancel: CancelToken | None = None,
+                   force: bool = False) -> list[Path]:
+    """Export one session in ``fmt`` (one of FORMATS) into ``out_dir``."""
+    if not Path(out_dir).is_dir():
+        raise UserError(f"{out_dir}: output folder does not exist")
+    if fmt == "shearsense-csv":
+        return [export_shearsense_csv(path, out_dir, all_trials, progress, cancel, force)]
+    if fmt == "npz":
+        return export_npz(path, out_dir, all_trials, grid, progress, cancel, force)
+    if fmt == "csv-trials":
+        return [export_csv_trials(path, out_dir, all_trials, progress, cancel, force)]
+    raise UserError(f"unknown export format {fmt!r} (choose from {', '.join(FORMATS)})")

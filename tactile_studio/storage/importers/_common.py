@@ -1,0 +1,141 @@
+"""What every importer shares: writing a finished session atomically, labelled runs,
+gesture names from the shipped protocols, progress slices."""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.session_writer import SessionWriter
+
+WRITE_CHUNK = 8192
+
+
+class ImportFormatError(UserError):
+    """An input file that is not in the format the importer was asked for."""
+
+
+def slice_progress(progress: ProgressFn, lo: float, hi: float) -> ProgressFn:
+    """Map a sub-job's 0..1 onto ``lo..hi`` of the whole job's progress. Never reports
+    1.0: only the whole job says it is done (a terminal bar ends its line there)."""
+    def inner(fraction: float, message: str = "") -> None:
+        progress(min(lo + (hi - lo) * min(max(fraction, 0.0), 1.0), 0.999), message)
+    return inner
+
+
+def check_outputs(paths: Sequence[Path], force: bool) -> None:
+    """Refuse before any work if an output exists (unless ``force``) or its folder is missing."""
+    for p in paths:
+        if not p.parent.is_dir():
+            raise UserError(f"{p.parent}: output folder does not exist")
+        if p.exists() and not force:
+            raise UserError(f"{p}: already exists (use --force to overwrite)")
+
+
+def labelled_runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
+    """(start, end, label) of each run of equal non-zero labels; end is exclusive."""
+    labels = np.asarray(labels)
+    if labels.size == 0:
+        return []
+    change = np.flatnonzero(np.diff(labels)) + 1
+    starts = np.concatenate(([0], change))
+    ends = np.concatenate((change, [labels.size]))
+    return [(int(s), int(e), int(labels[s])) for s, e in zip(starts, ends) if labels[s] != 0]
+
+
+def frame_interval(times: np.ndarray, default: float) -> float:
+    """Median positive frame interval of ``times`` (``default`` if there is none)."""
+    d = np.diff(np.asarray(times, dtype=np.float64))
+    d = d[d > 0]
+    return float(np.median(d)) if d.size else default
+
+
+def norm_name(text: str) -> str:
+    """Lower case, letters and digits only: 'No touch' == 'notouch' == 'NO_TOUCH'."""
+    return re.sub(r"[^a-z0-9]", "", str(text).lower())
+
+
+def load_protocol_or_none(name: str) -> Any:
+    """The shipped protocol ``name`` or None when it is missing or broken."""
+    try:
+        from tactile_studio.protocol.protocol_file import load_protocol
+        return load_protocol(name)
+    except (ImportError, UserError):
+        return None
+
+
+def participant_id(subject: str) -> str:
+    """Dataset subject -> participant: numbers become P01, P02 ...; other ids are kept."""
+    s = str(subject).strip()
+    try:
+        value = float(s)
+    except ValueError:
+        return s if s.upper().startswith("P") else f"P{s}"
+    return f"P{int(value):02d}" if value == int(value) else f"P{s}"
+
+
+def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
+                  metadata: dict[str, Any], raw: np.ndarray, times: np.ndarray,
+                  baseline: np.ndarray | None, trials: list[dict[str, Any]],
+                  counters: dict[str, Any] | None = None,
+                  progress: ProgressFn | None = None,
+                  cancel: CancelToken | None = None) -> Path:
+    """Write one complete session; a cancelled or failed write leaves no file behind."""
+    progress = progress or no_progress
+    n = int(raw.shape[0])
+    writer = SessionWriter(path, layout, device_info, metadata, flush_interval=1e9)
+    try:
+        if baseline is not None:
+            writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
+        if counters:
+            writer.set_counters(counters)
+        for i in range(0, n, WRITE_CHUNK):
+            if cancel is not None:
+                cancel.check()
+            j = min(n, i + WRITE_CHUNK)
+            writer.append_frames(raw[i:j], times[i:j], times[i:j])
+            progress(min(j / max(n, 1), 0.99), f"{path.name}: {j} of {n} frames")
+        for t in trials:
+            writer.add_trial(t)
+        writer.close()
+    except BaseException:
+        _discard(writer, path)
+        raise
+    progress(1.0, f"{path.name}: {n} frames, {len(trials)} trials")
+    return path
+
+
+def _discard(writer: SessionWriter, path: Path) -> None:
+    try:
+        writer.close()
+    except Exception:  # noqa: BLE001 - the file is being thrown away anyway
+        pass
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def run_jobs(jobs: Sequence[Callable[[ProgressFn], Path]], progress: ProgressFn | None,
+             lo: float = 0.0, hi: float = 1.0,
+             on_done: Callable[[Path], None] | None = None) -> list[Path]:
+    """Run per-session jobs in order, each on its share of ``lo..hi``; ``on_done`` hears
+    of every finished session (a cancel later keeps them)."""
+    progress = progress or no_progress
+    out: list[Path] = []
+    k = max(len(jobs), 1)
+    for i, job in enumerate(jobs):
+        out.append(job(slice_progress(progress, lo + (hi - lo) * i / k,
+                                      lo + (hi - lo) * (i + 1) / k)))
+        if on_done is not None:
+            on_done(out[-1])
+    progress(hi, f"{len(out)} session(s)")
+    return out
