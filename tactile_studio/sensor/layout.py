@@ -11,6 +11,7 @@ same axes, so an arrow points the way the skin is dragged.
 
 from __future__ import annotations
 
+import functools
 import string
 from dataclasses import dataclass
 
@@ -122,16 +123,11 @@ class Layout:
 
     def grid_index(self) -> np.ndarray:
         """(rows, cols) array of taxel numbers, for gathering channels into a grid."""
-        grid = np.empty((self.rows, self.cols), dtype=np.int64)
-        for t in range(self.n_taxels):
-            grid[self.taxel_rc(t)] = t
-        return grid
+        return _grid_index(self)
 
     def role_channels(self, role: int) -> np.ndarray:
         """(rows, cols) array of the raw channel index with ``role`` for every taxel."""
-        return self.grid_index() * self.channels_per_taxel + (
-            role if self.channels_per_taxel > 1 else 0
-        )
+        return _role_channels(self, role)
 
     def taxel_centre_mm(self, row: int, col: int) -> tuple[float, float]:
         """(x, y) of a taxel centre in mm from the top-left taxel's centre."""
@@ -145,6 +141,24 @@ class Layout:
             "channels_per_taxel": self.channels_per_taxel,
             "pitch_mm": self.pitch_mm,
         }
+
+
+@functools.lru_cache(maxsize=64)
+def _grid_index(layout: Layout) -> np.ndarray:
+    # Cached: decoding a single frame at display rate would otherwise rebuild it each time.
+    grid = np.empty((layout.rows, layout.cols), dtype=np.int64)
+    for t in range(layout.n_taxels):
+        grid[layout.taxel_rc(t)] = t
+    grid.setflags(write=False)
+    return grid
+
+
+@functools.lru_cache(maxsize=256)
+def _role_channels(layout: Layout, role: int) -> np.ndarray:
+    out = _grid_index(layout) * layout.channels_per_taxel + (
+        role if layout.channels_per_taxel > 1 else 0)
+    out.setflags(write=False)
+    return out
 
 
 SHEARSENSE_6X6 = Layout(

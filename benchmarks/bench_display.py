@@ -1,0 +1,111 @@
+"""Display benchmark: how fast the live view paints and how stale what it paints is.
+
+Runs the real main window offscreen on the simulated sensor at 43 Hz (the real sensor's
+rate) and at 1 kHz, and reports display fps (frames actually painted per second) and
+device-to-paint latency (time.time() at paint minus the frame's host arrival time),
+median and p95. Then times decoding one frame on the physical 6x6 and virtual 11x11
+grids, one frame at a time (what the live view does) and in batches (what analysis does).
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python benchmarks/bench_display.py [--seconds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+
+import numpy as np
+
+
+def bench_window(rate_hz: float, seconds: float, display_hz: float = 60.0) -> dict:
+    """Open the main window on the simulated sensor and measure painting for ``seconds``."""
+    from tactile_studio.ui.app import ensure_app
+    from tactile_studio.ui.main_window import MainWindow, wait_for
+
+    ensure_app()
+    w = MainWindow(device="simulated", settings={"rate": str(rate_hz), "gesture": "Twist"},
+                   connect=True, persist=False, display_hz=display_hz)
+    w.latency = type(w.latency)(keep=100_000)
+    try:
+        w.show()
+        wait_for(2.5)  # baseline (100 frames) and warm-up
+        w.latency.clear()
+        ticks0, frames0 = w._tick_count, w.controller.engine.frames
+        t0, cpu0 = time.monotonic(), time.thread_time()
+        wait_for(seconds)
+        elapsed = time.monotonic() - t0
+        gui_cpu = (time.thread_time() - cpu0) / elapsed
+        lat = w.latency.values
+        engine = w.controller.engine
+        return {
+            "input_hz": (engine.frames - frames0) / elapsed,
+            "timer_hz": (w._tick_count - ticks0) / elapsed,
+            "display_fps": lat.size / elapsed,
+            "gui_cpu_pct": gui_cpu * 100,
+            "latency_med_ms": float(np.median(lat)) * 1e3 if lat.size else float("nan"),
+            "latency_p95_ms": float(np.percentile(lat, 95)) * 1e3 if lat.size else float("nan"),
+        }
+    finally:
+        w.shutdown()
+        w.close()
+
+
+def bench_decode(repeat: int = 2000, batch: int = 1000) -> dict:
+    """Microseconds to decode one frame, singly and in a batch, physical and virtual."""
+    from tactile_studio.devices import create_device
+    from tactile_studio.sensor import compute_baseline, decode
+
+    dev = create_device("simulated", {"speed": "0", "gesture": "Twist"})
+    dev.open()
+    raw = np.concatenate([dev.read(256).raw for _ in range(8)])
+    dev.close()
+    base = compute_baseline(raw[:100])
+    lay = dev.layout
+    out = {}
+    for virtual in (False, True):
+        name = "virtual" if virtual else "physical"
+        one = raw[-1:]
+        decode(lay, one, base, virtual=virtual)
+        t0 = time.perf_counter()
+        for _ in range(repeat):
+            decode(lay, one, base, virtual=virtual)
+        out[f"{name}_single_us"] = (time.perf_counter() - t0) / repeat * 1e6
+        many = raw[:batch]
+        t0 = time.perf_counter()
+        for _ in range(20):
+            decode(lay, many, base, virtual=virtual)
+        out[f"{name}_batch_us"] = (time.perf_counter() - t0) / (20 * len(many)) * 1e6
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="measuring time per rate")
+    args = parser.parse_args(argv)
+    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    print(f"Live view display benchmark (platform {os.environ.get('QT_QPA_PLATFORM', 'native')},"
+          f" display timer 60 Hz, {args.seconds:g} s per rate)")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"(1-minute load average {load:.1f} on {os.cpu_count()} CPUs: a busy machine "
+          "lowers fps and raises latency)")
+    print(f"{'input':>8} {'measured':>9} {'timer':>7} {'display':>8} "
+          f"{'latency med':>12} {'p95':>8} {'GUI thread CPU':>15}")
+    for rate in (43.0, 1000.0):
+        r = bench_window(rate, args.seconds)
+        print(f"{rate:6.0f}Hz {r['input_hz']:7.1f}Hz {r['timer_hz']:5.1f}Hz "
+              f"{r['display_fps']:5.1f}fps {r['latency_med_ms']:9.1f} ms {r['latency_p95_ms']:5.1f} ms"
+              f" {r['gui_cpu_pct']:13.0f} %")
+    d = bench_decode()
+    print("Decode cost per frame (6x6 ShearSense, 180 channels):")
+    print(f"  physical 6x6:   {d['physical_single_us']:7.1f} us one at a time, "
+          f"{d['physical_batch_us']:6.2f} us in batches of 1000")
+    print(f"  virtual 11x11:  {d['virtual_single_us']:7.1f} us one at a time, "
+          f"{d['virtual_batch_us']:6.2f} us in batches of 1000")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

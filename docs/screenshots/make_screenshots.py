@@ -1,0 +1,50 @@
+"""Regenerate the README screenshots of the live main window (offscreen, no hardware).
+
+A simulated participant performs a gesture and the window is grabbed mid-gesture, so the
+pictures show pressure and shear arrows at a reproducible moment.
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_screenshots.py
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+
+
+def main(gesture: str = "Twist", at_s: float = 0.9) -> int:
+    if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
+        os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from tactile_studio.ui.app import ensure_app
+    from tactile_studio.ui.main_window import MainWindow, wait_for
+
+    ensure_app()
+    w = MainWindow(device="simulated", settings={"gesture": "idle"}, connect=True,
+                   persist=False)
+    try:
+        w.resize(1280, 800)
+        w.show()
+        engine = w.controller.engine
+        while engine.baseline is None and engine.running:
+            wait_for(0.1)
+        w.hover_taxel("C3")
+        for virtual, name in ((False, "main-window.png"), (True, "main-window-virtual.png")):
+            w.set_virtual(virtual)
+            w.hover_taxel("C3")
+            engine.device.perform(gesture, duration_s=2.0)
+            wait_for(at_s)
+            w.refresh_status()
+            out = HERE / name
+            w.grab().save(str(out))
+            print(out)
+            wait_for(2.0)  # let the gesture finish before the next one
+    finally:
+        w.shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(*sys.argv[1:2]))

@@ -1,0 +1,72 @@
+"""Starting the GUI and rendering it offscreen; the CLI's ``gui`` and ``snapshot`` call these."""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtWidgets import QApplication
+
+from tactile_studio.errors import UserError
+from tactile_studio.ui.main_window import MainWindow, wait_for
+from tactile_studio.ui.settings import APPLICATION, ORGANISATION
+
+
+def ensure_app(argv: list[str] | None = None) -> QApplication:
+    """The running QApplication, created (with our names) if there is none."""
+    app = QApplication.instance()
+    if app is None:
+        # The device, recorder and GUI threads share the GIL: hand it over every 1 ms
+        # (not 5 ms) so the display timer is not starved by a 1 kHz device thread.
+        sys.setswitchinterval(0.001)
+        app = QApplication(argv if argv is not None else sys.argv[:1])
+        app.setOrganizationName(ORGANISATION)
+        app.setApplicationName(APPLICATION)
+    return app  # type: ignore[return-value]
+
+
+def run_gui(device: str, settings: dict[str, Any], connect: bool = True) -> int:
+    """Show the main window connected to ``device`` and run until it is closed."""
+    app = ensure_app()
+    window = MainWindow(device=device, settings=settings, connect=connect)
+    window.show()
+    return int(app.exec())
+
+
+def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | os.PathLike,
+             virtual: bool = False, size: tuple[int, int] = (1280, 800),
+             hover: str | None = None) -> Path:
+    """Render the main window after ``seconds`` of live data and save it as a PNG.
+
+    ``hover`` names a taxel (e.g. "C3") whose readout is shown as if the pointer
+    rested on it.
+    """
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise UserError(f"{out}: folder {out.parent} does not exist")
+    ensure_app()
+    window = MainWindow(device=device, settings=settings, connect=False, persist=False)
+    try:
+        window.resize(*size)
+        window.set_virtual(virtual)
+        window.show()
+        if not window.panel.connect_device():
+            raise UserError(window.panel.error_text() or f"cannot connect to {device}")
+        if hover:
+            window.hover_taxel(hover)
+        wait_for(seconds)
+        st = window.controller.status()
+        if st.error:
+            raise UserError(f"device {device}: {st.error}")
+        window.refresh_status()
+        window.tick()
+        wait_for(0.05)
+        if not window.grab().save(str(out)):
+            raise UserError(f"{out}: cannot write the image (use a .png name)")
+    finally:
+        window.shutdown()
+        window.close()
+        window.deleteLater()
+    return out

@@ -1,0 +1,406 @@
+"""Choose a device plugin, edit its settings, connect, tare and record.
+
+The settings form is generated from the plugin's ``settings_schema`` and validated with
+the schema's own ``Setting.parse`` as the user types, so the rules live in one place
+(the core) and an invalid value shows its one-line message before anything connects.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import QSize, Qt, Signal
+from PySide6.QtGui import QPainter
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSizePolicy,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.devices.contract import DevicePlugin, Setting
+from tactile_studio.devices.registry import available_plugins
+from tactile_studio.errors import UserError
+from tactile_studio.live import LiveController, LiveStatus
+from tactile_studio.ui.settings import app_settings
+
+LAST_DIR_KEY = "record/last_dir"
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+class ElidedLabel(QLabel):
+    """One line of text, cut with "…" to the width it gets; the full text is the tooltip."""
+
+    def paintEvent(self, event) -> None:  # noqa: ANN001 - Qt signature
+        painter = QPainter(self)
+        rect = self.contentsRect()
+        text = self.fontMetrics().elidedText(self.text(), Qt.TextElideMode.ElideRight,
+                                             rect.width())
+        painter.setPen(self.palette().color(self.foregroundRole()))
+        painter.drawText(rect, int(self.alignment()), text)
+
+    def minimumSizeHint(self) -> QSize:
+        return QSize(10, super().minimumSizeHint().height())
+
+
+class _Field:
+    """One generated form row: the editor widget and how to read/write its text."""
+
+    def __init__(self, setting: Setting, on_change: Any) -> None:
+        self.setting = setting
+        self.widget: QWidget
+        default = "" if setting.default is None else str(setting.default)
+        if setting.kind == "bool":
+            self.editor = QCheckBox()
+            self.editor.setChecked(bool(setting.default))
+            self.editor.toggled.connect(on_change)
+            self.widget = self.editor
+        elif setting.kind == "choice":
+            self.editor = QComboBox()
+            self.editor.addItems(list(setting.choices))
+            self.editor.setCurrentText(default)
+            self.editor.currentTextChanged.connect(on_change)
+            self.widget = self.editor
+        else:
+            self.editor = QLineEdit(default)
+            self.editor.textChanged.connect(on_change)
+            self.widget = self.editor
+            if setting.kind == "path":
+                browse = QToolButton(text="…")
+                browse.clicked.connect(self._browse)
+                row = QWidget()
+                lay = QHBoxLayout(row)
+                lay.setContentsMargins(0, 0, 0, 0)
+                lay.addWidget(self.editor, 1)
+                lay.addWidget(browse)
+                self.widget = row
+        tip = setting.help or setting.name
+        if setting.minimum is not None or setting.maximum is not None:
+            tip += f" (range {setting.minimum if setting.minimum is not None else ''}.."
+            tip += f"{setting.maximum if setting.maximum is not None else ''})"
+        self.widget.setToolTip(tip)
+
+    def _browse(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self.widget, f"Choose {self.setting.name}",
+                                              self.text())
+        if path:
+            self.set_text(path)
+
+    def text(self) -> str:
+        if isinstance(self.editor, QCheckBox):
+            return "true" if self.editor.isChecked() else "false"
+        if isinstance(self.editor, QComboBox):
+            return self.editor.currentText()
+        return self.editor.text().strip()
+
+    def set_text(self, text: str) -> None:
+        if isinstance(self.editor, QCheckBox):
+            self.editor.setChecked(str(text).lower() in {"1", "true", "yes", "on"})
+        elif isinstance(self.editor, QComboBox):
+            self.editor.setCurrentText(str(text))
+        else:
+            self.editor.setText(str(text))
+
+    def set_invalid(self, bad: bool) -> None:
+        self.editor.setProperty("invalid", bad)
+        self.editor.style().unpolish(self.editor)
+        self.editor.style().polish(self.editor)
+
+
+class DevicePanel(QWidget):
+    """Device chooser + generated settings form + connect/tare/record + live state.
+
+    Talks to a :class:`LiveController`; emits ``engineChanged`` after connect or
+    disconnect so the owner can point its live view at the new engine, and
+    ``recordingChanged(path)`` ("" when a recording stops).
+    """
+
+    engineChanged = Signal()
+    recordingChanged = Signal(str)
+
+    def __init__(self, controller: LiveController, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.controller = controller
+        self.plugins = available_plugins()
+        self._fields: dict[str, _Field] = {}
+        self._form_error: str | None = None
+
+        self.device_box = QComboBox()
+        for name, cls in self.plugins.items():
+            if isinstance(cls, Exception):
+                self.device_box.addItem(f"{name} (failed to load)", name)
+                item = self.device_box.model().item(self.device_box.count() - 1)
+                item.setEnabled(False)
+                item.setToolTip(_one_line(cls))
+            else:
+                self.device_box.addItem(name, name)
+        self.device_box.currentIndexChanged.connect(self._rebuild_form)
+        self.description = QLabel()
+        self.description.setWordWrap(True)
+        self.description.setObjectName("hint")
+
+        self.form_box = QGroupBox("Settings")
+        self.form = QFormLayout(self.form_box)
+        self.form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+
+        self.error_label = ElidedLabel()
+        self.error_label.setObjectName("error")
+        self.error_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+        self.error_label.hide()
+
+        self.connect_button = QPushButton("Connect")
+        self.connect_button.setObjectName("primary")
+        self.connect_button.clicked.connect(self.connect_device)
+        self.disconnect_button = QPushButton("Disconnect")
+        self.disconnect_button.clicked.connect(self.disconnect_device)
+        self.tare_button = QPushButton("Tare")
+        self.tare_button.setToolTip("Take a new baseline from the next frames (hands off!)")
+        self.tare_button.clicked.connect(self.tare)
+        self.record_button = QPushButton("Record…")
+        self.record_button.setCheckable(True)
+        self.record_button.clicked.connect(self._on_record_clicked)
+        buttons = QHBoxLayout()
+        for b in (self.connect_button, self.disconnect_button):
+            buttons.addWidget(b)
+        buttons2 = QHBoxLayout()
+        for b in (self.tare_button, self.record_button):
+            buttons2.addWidget(b)
+
+        self.state_label = QLabel("disconnected")
+        self.state_label.setObjectName("state")
+        self.detail_label = QLabel()
+        self.detail_label.setObjectName("detail")
+        self.detail_label.setWordWrap(True)
+        self.record_label = QLabel()
+        self.record_label.setWordWrap(True)
+        self.record_label.setObjectName("recording")
+        self.record_label.hide()
+
+        box = QVBoxLayout(self)
+        box.addWidget(self.device_box)
+        box.addWidget(self.description)
+        box.addWidget(self.form_box)
+        box.addWidget(self.error_label)
+        box.addLayout(buttons)
+        box.addLayout(buttons2)
+        box.addSpacing(8)
+        box.addWidget(self.state_label)
+        box.addWidget(self.detail_label)
+        box.addWidget(self.record_label)
+        box.addStretch(1)
+        self._rebuild_form()
+        self._update_buttons(LiveStatus(None, "disconnected", None))
+
+    # ---- the form --------------------------------------------------------------------
+    def plugin(self) -> type[DevicePlugin] | None:
+        cls = self.plugins.get(self.device_name() or "")
+        return None if cls is None or isinstance(cls, Exception) else cls
+
+    def device_name(self) -> str | None:
+        data = self.device_box.currentData()
+        return None if data is None else str(data)
+
+    def set_device(self, name: str, values: dict[str, Any] | None = None) -> bool:
+        """Select a plugin and fill its form; False if the plugin is not available."""
+        i = self.device_box.findData(name)
+        if i < 0 or isinstance(self.plugins.get(name), Exception):
+            return False
+        if i != self.device_box.currentIndex():
+            self.device_box.setCurrentIndex(i)
+        else:
+            self._rebuild_form()
+        for key, value in (values or {}).items():
+            if key in self._fields and value is not None:
+                self._fields[key].set_text(str(value))
+        self._validate()
+        return True
+
+    def _rebuild_form(self) -> None:
+        while self.form.rowCount():
+            self.form.removeRow(0)
+        self._fields.clear()
+        cls = self.plugin()
+        self.description.setText(getattr(cls, "description", "") or "")
+        self.description.setVisible(bool(self.description.text()))
+        for setting in (cls.settings_schema if cls else ()):
+            field = _Field(setting, self._validate)
+            self._fields[setting.name] = field
+            self.form.addRow(setting.name, field.widget)
+        self.form_box.setVisible(bool(self._fields))
+        self._validate()
+
+    def values(self) -> dict[str, str]:
+        """The form as text, as ``--set key=value`` would give it (empty = default)."""
+        return {name: f.text() for name, f in self._fields.items() if f.text() != ""}
+
+    def _validate(self, *_: object) -> bool:
+        cls, first = self.plugin(), None
+        for name, field in self._fields.items():
+            text = field.text()
+            try:
+                if text != "":
+                    field.setting.parse(text, cls.name if cls else "")
+                field.set_invalid(False)
+            except UserError as exc:
+                field.set_invalid(True)
+                # the field is highlighted, so "device x: setting " need not be repeated
+                first = first or _one_line(exc).replace(
+                    f"device {cls.name if cls else ''}: setting ", "", 1)
+        self._form_error = first
+        self.show_error(first)
+        self.connect_button.setEnabled(cls is not None and first is None)
+        return first is None
+
+    def is_valid(self) -> bool:
+        """True when every field of the form parses."""
+        return self._form_error is None
+
+    def show_error(self, message: str | None) -> None:
+        """Show one line of error text under the form (None hides it)."""
+        if message:
+            self.error_label.setText(_one_line(message))
+            self.error_label.setToolTip(message)
+        self.error_label.setVisible(bool(message))
+
+    def error_text(self) -> str:
+        return self.error_label.text() if self.error_label.isVisible() else ""
+
+    # ---- verbs -----------------------------------------------------------------------
+    def connect_device(self) -> bool:
+        """Connect with the form's settings; False (and an inline error) if refused."""
+        name = self.device_name()
+        if name is None or not self._validate():
+            return False
+        try:
+            self.controller.connect(name, self.values())
+        except UserError as exc:
+            self.show_error(_one_line(exc))
+            return False
+        self.show_error(None)
+        self.engineChanged.emit()
+        self.refresh(self.controller.status())
+        return True
+
+    def disconnect_device(self) -> None:
+        was_recording = self.controller.recorder is not None
+        self.controller.disconnect()
+        if was_recording:
+            self._recording_stopped()
+        self.engineChanged.emit()
+        self.refresh(self.controller.status())
+
+    def tare(self) -> None:
+        self.controller.tare()
+
+    def ask_record_path(self) -> str | None:
+        """Ask where to record, starting in the folder the user last recorded to."""
+        settings = app_settings()
+        start = str(settings.value(LAST_DIR_KEY, "") or "") or str(Path.home())
+        if not os.path.isdir(start):
+            start = str(Path.home())
+        suggested = os.path.join(start, time.strftime("session-%Y%m%d-%H%M%S.h5"))
+        path, _ = QFileDialog.getSaveFileName(self, "Record to", suggested,
+                                              "Tactile Studio session (*.h5)")
+        if not path:
+            return None
+        if not path.endswith((".h5", ".hdf5")):
+            path += ".h5"
+        settings.setValue(LAST_DIR_KEY, os.path.dirname(os.path.abspath(path)))
+        return path
+
+    def _on_record_clicked(self) -> None:
+        if self.controller.recorder is not None:
+            self.stop_recording()
+            return
+        path = self.ask_record_path()
+        if path:
+            self.start_recording(path)
+        self.record_button.setChecked(self.controller.recorder is not None)
+
+    def start_recording(self, path: str) -> bool:
+        try:
+            self.controller.start_recording(path)
+        except UserError as exc:
+            self.show_error(_one_line(exc))
+            self.record_button.setChecked(False)
+            return False
+        self.show_error(None)
+        self.record_button.setChecked(True)
+        self.record_button.setText("Stop recording")
+        self.recordingChanged.emit(path)
+        self.refresh(self.controller.status())
+        return True
+
+    def stop_recording(self) -> str | None:
+        path = self.controller.stop_recording()
+        self._recording_stopped()
+        if path:
+            self.record_label.setText(f"Saved {path}")
+            self.record_label.show()
+        return path
+
+    def _recording_stopped(self) -> None:
+        self.record_button.setChecked(False)
+        self.record_button.setText("Record…")
+        self.recordingChanged.emit("")
+
+    # ---- live state --------------------------------------------------------------------
+    def refresh(self, st: LiveStatus) -> None:
+        """Show the connection state; called a few times a second by the owner."""
+        state = st.state
+        if st.state == "reconnecting":
+            state = f"reconnecting (attempt {st.reconnect_attempts})"
+        self.state_label.setText(f"{st.device}: {state}" if st.device else "No device connected")
+        self.state_label.setProperty("state", st.state)
+        self.state_label.style().unpolish(self.state_label)
+        self.state_label.style().polish(self.state_label)
+        if st.device is None:
+            self.detail_label.setText("")
+        else:
+            malformed = ", ".join(f"{k} {v}" for k, v in sorted(st.malformed_by_kind.items()))
+            lines = [
+                f"{st.measured_rate_hz:.1f} Hz measured · {st.frames} frames",
+                f"malformed: {malformed or 'none'}",
+                f"dropped {st.dropped} · gaps {st.gaps} · reconnects {st.reconnects}"
+                f" (attempts {st.reconnect_attempts})",
+            ]
+            self.detail_label.setText("\n".join(lines))
+        if st.error:
+            prefixed = st.error.startswith(f"{st.device}:")
+            self.show_error(st.error if prefixed else f"{st.device}: {st.error}")
+        elif self._form_error is None and st.state != "disconnected" and self.error_text() \
+                and self.error_text().startswith(f"{st.device}:"):
+            self.show_error(None)
+        if st.recording and st.state in ("error", "finished", "stopped"):
+            self.stop_recording()  # the stream ended: close the file safely now
+        elif st.recording:
+            self.record_label.setText(
+                f"Recording {os.path.basename(st.recording)} · {st.recorded_frames} frames")
+            self.record_label.show()
+        elif self.controller.recorder is None and self.record_button.isChecked():
+            self._recording_stopped()
+        self._update_buttons(st)
+
+    def _update_buttons(self, st: LiveStatus) -> None:
+        live = st.state in ("connecting", "running", "reconnecting")
+        self.connect_button.setText("Reconnect" if live else "Connect")
+        self.connect_button.setToolTip("Restart the device with the settings above" if live
+                                       else "Start streaming from the device")
+        self.disconnect_button.setEnabled(st.device is not None and st.state != "stopped")
+        self.tare_button.setEnabled(live)
+        self.record_button.setEnabled(live or st.recording is not None)

@@ -1,0 +1,439 @@
+"""A reusable normal-stress heatmap with shear arrows, for every screen that shows a sensor.
+
+Give it arrays (``set_frame``) — it never decodes. Cells are drawn in taxel units: the
+taxel in row r, column c is centred at (x=c, y=r), row 0 at the top, so the physical 6x6
+and the virtual 11x11 grid line up and arrows point the way the skin is dragged
+(x right = increasing column, y down = increasing row).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, Qt, Signal
+from PySide6.QtGui import QFont
+from PySide6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QDoubleSpinBox,
+    QHBoxLayout,
+    QLabel,
+    QSizePolicy,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.sensor.layout import Layout
+
+BACKGROUND = "#ffffff"
+FOREGROUND = "#303030"
+DEFAULT_MAX_KPA = 10.0
+# Arrow length in taxel pitches per kPa (2 kPa of shear is one pitch long). The same in
+# both grids, so toggling physical/virtual does not change what an arrow means.
+DEFAULT_ARROW_SCALE = 0.5
+
+
+class _PaintNotifyingView(pg.GraphicsLayoutWidget):
+    """A GraphicsLayoutWidget that says when it has painted (for paint latency)."""
+
+    painted = Signal()
+
+    def paintEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
+        super().paintEvent(ev)
+        self.painted.emit()
+
+
+def arrow_segments(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
+                   head: float = 0.3, min_head: float = 0.1, max_head: float = 0.3,
+                   angle_deg: float = 28.0) -> tuple[np.ndarray, np.ndarray]:
+    """Endpoints (x, y) for one ``connect="pairs"`` line: shaft plus two head strokes.
+
+    All arrays are flat; returns 6 points per arrow. Heads scale with the arrow within
+    ``min_head..max_head`` cells, so short arrows still read as arrows and long ones do
+    not grow huge heads.
+    """
+    n = cx.size
+    length = np.hypot(dx, dy)
+    safe = np.where(length > 0, length, 1.0)
+    ux, uy = dx / safe, dy / safe
+    h = np.clip(head * length, min_head, max_head)
+    tx, ty = cx + dx, cy + dy
+    a = math.radians(angle_deg)
+    cos_a, sin_a = math.cos(a), math.sin(a)
+    # rotate the reversed direction by +-a for the two head strokes
+    lx = tx - h * (ux * cos_a - uy * sin_a)
+    ly = ty - h * (uy * cos_a + ux * sin_a)
+    rx = tx - h * (ux * cos_a + uy * sin_a)
+    ry = ty - h * (uy * cos_a - ux * sin_a)
+    x = np.empty(6 * n)
+    y = np.empty(6 * n)
+    x[0::6], y[0::6], x[1::6], y[1::6] = cx, cy, tx, ty
+    x[2::6], y[2::6], x[3::6], y[3::6] = tx, ty, lx, ly
+    x[4::6], y[4::6], x[5::6], y[5::6] = tx, ty, rx, ry
+    return x, y
+
+
+class HeatmapView(QWidget):
+    """Normal stress image + colour bar with units + shear arrows + hover/click cells.
+
+    Signals carry cells of the displayed grid (row, col); ``cellHovered`` sends
+    (-1, -1) when the pointer leaves the map. ``virtualChanged`` fires when the user
+    flips the physical/virtual toggle: the owner then feeds the other grid.
+    """
+
+    cellHovered = Signal(int, int)
+    cellClicked = Signal(int, int)
+    virtualChanged = Signal(bool)
+    painted = Signal()
+
+    def __init__(self, parent: QWidget | None = None, controls: bool = True,
+                 colormap: str = "viridis") -> None:
+        super().__init__(parent)
+        self._units = "kPa"
+        self._virtual = False
+        self._fixed_max: float | None = DEFAULT_MAX_KPA
+        self._auto_hi = 1.0
+        self._arrow_scale = DEFAULT_ARROW_SCALE
+        self._arrows_on = True
+        self.arrow_min_kpa = 0.3  # the paper's smallest detectable shear: hide noise
+        self._shape: tuple[int, int] | None = None
+        self._hover = (-1, -1)
+        self._layout: Layout | None = None
+        self._data: np.ndarray | None = None
+
+        self.view = _PaintNotifyingView()
+        self.view.setBackground(BACKGROUND)
+        self.view.painted.connect(self.painted)
+        self.plot = self.view.addPlot()
+        self.plot.setAspectLocked(True)
+        self.plot.invertY(True)
+        self.plot.setMenuEnabled(False)
+        self.plot.setMouseEnabled(False, False)
+        self.plot.hideButtons()
+        self.plot.hideAxis("bottom")
+        self.plot.hideAxis("left")
+        self._labels: list[pg.TextItem] = []
+        self._label_font = QFont()
+        self._label_font.setPointSizeF(10.5)
+        self._label_font.setBold(True)
+        self.image = pg.ImageItem(axisOrder="row-major")
+        self.plot.addItem(self.image)
+        self.cmap = pg.colormap.get(colormap)
+        self.colorbar = pg.ColorBarItem(values=(0.0, DEFAULT_MAX_KPA), colorMap=self.cmap,
+                                        interactive=False,
+                                        width=18, colorMapMenu=False)
+        self.colorbar.setImageItem(self.image, insert_in=self.plot)
+        bar_axis = self.colorbar.axis
+        bar_axis.setPen(FOREGROUND)
+        bar_axis.setTextPen(FOREGROUND)
+        bar_axis.enableAutoSIPrefix(False)
+        bar_axis.setLabel(self._bar_label(), color=FOREGROUND)
+        self.arrow_under = pg.PlotDataItem(connect="pairs", pen=pg.mkPen("#000000", width=4))
+        self.arrow_line = pg.PlotDataItem(connect="pairs", pen=pg.mkPen("#ffffff", width=2))
+        for item in (self.arrow_under, self.arrow_line):
+            item.setZValue(10)
+            self.plot.addItem(item)
+        self.marks = pg.ScatterPlotItem(symbol="s", brush=None, pxMode=False)
+        self.marks.setZValue(8)
+        self.plot.addItem(self.marks)
+        self.hover_box = pg.PlotDataItem(
+            pen=pg.mkPen("#ffffff", width=2, style=Qt.PenStyle.DashLine))
+        self.hover_box.setZValue(12)
+        self.plot.addItem(self.hover_box)
+        self.view.scene().sigMouseMoved.connect(self._on_mouse_moved)
+        self.view.scene().sigMouseClicked.connect(self._on_mouse_clicked)
+
+        self.readout = QLabel(" ")
+        self.readout.setObjectName("readout")
+        self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.readout.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+
+        box = QVBoxLayout(self)
+        box.setContentsMargins(0, 0, 0, 0)
+        box.setSpacing(4)
+        self.controls = self._build_controls()
+        box.addWidget(self.controls)
+        self.controls.setVisible(controls)
+        box.addWidget(self.view, 1)
+        box.addWidget(self.readout)
+
+    # ---- controls ------------------------------------------------------------------
+    def _build_controls(self) -> QWidget:
+        w = QWidget()
+        row = QHBoxLayout(w)
+        row.setContentsMargins(4, 0, 4, 0)
+        self.physical_button = QToolButton(text="Physical 6×6", checkable=True, checked=True)
+        self.virtual_button = QToolButton(text="Virtual 11×11", checkable=True)
+        group = QButtonGroup(w)
+        group.setExclusive(True)
+        for b in (self.physical_button, self.virtual_button):
+            group.addButton(b)
+            row.addWidget(b)
+        self.virtual_button.toggled.connect(self._on_virtual_toggled)
+        row.addSpacing(16)
+        self.auto_range = QCheckBox("Auto range")
+        self.auto_range.toggled.connect(self._on_range_controls)
+        row.addWidget(self.auto_range)
+        row.addWidget(QLabel("max"))
+        self.max_spin = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=500.0,
+                                       singleStep=1.0, value=DEFAULT_MAX_KPA)
+        self.max_spin.setSuffix(" kPa")
+        self.max_spin.valueChanged.connect(self._on_range_controls)
+        row.addWidget(self.max_spin)
+        row.addSpacing(16)
+        self.arrows_check = QCheckBox("Shear arrows", checked=True)
+        self.arrows_check.toggled.connect(self.set_arrows_visible)
+        row.addWidget(self.arrows_check)
+        self.scale_spin = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=5.0,
+                                         singleStep=0.05, value=DEFAULT_ARROW_SCALE)
+        self.scale_spin.setSuffix(" pitch/kPa")
+        self.scale_spin.setToolTip("Arrow length: taxel pitches per kPa of shear")
+        self.scale_spin.valueChanged.connect(self.set_arrow_scale)
+        row.addWidget(self.scale_spin)
+        row.addStretch(1)
+        return w
+
+    def _on_virtual_toggled(self, on: bool) -> None:
+        if on != self._virtual:
+            self._virtual = on
+            self.virtualChanged.emit(on)
+
+    def _on_range_controls(self, *_: object) -> None:
+        self.max_spin.setEnabled(not self.auto_range.isChecked())
+        self.set_range(None if self.auto_range.isChecked() else self.max_spin.value())
+
+    # ---- public API ----------------------------------------------------------------
+    def set_layout(self, layout: Layout | None) -> None:
+        """Label the axes with the layout's taxel names (rows A.., columns 1..)."""
+        self._layout = layout
+        if layout is not None:
+            vr, vc = layout.virtual_shape
+            self.physical_button.setText(f"Physical {layout.rows}×{layout.cols}")
+            self.virtual_button.setText(f"Virtual {vr}×{vc}")
+        self._update_ticks()
+
+    @property
+    def virtual(self) -> bool:
+        return self._virtual
+
+    def set_virtual(self, on: bool) -> None:
+        """Show the toggle in this state (the owner feeds the matching grid)."""
+        self._virtual = on
+        (self.virtual_button if on else self.physical_button).setChecked(True)
+
+    @property
+    def fixed_max(self) -> float | None:
+        """The fixed colour range top (kPa), or None for auto range."""
+        return self._fixed_max
+
+    def set_range(self, fixed_max: float | None) -> None:
+        """Fix the colour range to 0..fixed_max, or None to follow the data."""
+        self._fixed_max = fixed_max
+        self.auto_range.blockSignals(True)
+        self.auto_range.setChecked(fixed_max is None)
+        self.auto_range.blockSignals(False)
+        if fixed_max is not None:
+            self.max_spin.blockSignals(True)
+            self.max_spin.setValue(fixed_max)
+            self.max_spin.blockSignals(False)
+            self.colorbar.setLevels((0.0, fixed_max))
+        self.max_spin.setEnabled(fixed_max is not None)
+
+    def levels(self) -> tuple[float, float]:
+        lo, hi = self.colorbar.levels()
+        return float(lo), float(hi)
+
+    @property
+    def arrow_scale(self) -> float:
+        return self._arrow_scale
+
+    def set_arrow_scale(self, cells_per_kpa: float) -> None:
+        self._arrow_scale = float(cells_per_kpa)
+        if abs(self.scale_spin.value() - cells_per_kpa) > 1e-9:
+            self.scale_spin.setValue(cells_per_kpa)
+
+    def set_arrows_visible(self, on: bool) -> None:
+        self._arrows_on = bool(on)
+        self.arrows_check.setChecked(on)
+        if not on:
+            self.arrow_line.setData([], [])
+            self.arrow_under.setData([], [])
+
+    def set_readout_text(self, text: str) -> None:
+        self.readout.setText(text or " ")
+
+    def image_data(self) -> np.ndarray | None:
+        """The array currently shown (rows x cols)."""
+        return self._data
+
+    def set_marked_cells(self, cells: list[tuple[int, int]], colors: list[str]) -> None:
+        """Outline physical taxels (row, col) in colours, e.g. the strip chart's taxels."""
+        if not cells:
+            self.marks.setData([])
+            return
+        self.marks.setData(
+            [{"pos": (c, r), "size": 0.86, "pen": pg.mkPen(col, width=3), "brush": None}
+             for (r, c), col in zip(cells, colors)])
+
+    def clear(self) -> None:
+        """Blank the map (no device)."""
+        self._data = None
+        self.image.clear()
+        self.arrow_line.setData([], [])
+        self.arrow_under.setData([], [])
+
+    def set_frame(self, normal: np.ndarray, shear_x: np.ndarray | None = None,
+                  shear_y: np.ndarray | None = None, units: str = "kPa") -> None:
+        """Draw one frame: ``normal`` (R, C), optional shear (R, C), row 0 at the top.
+
+        A (2R-1, 2C-1) grid is drawn as a virtual grid between the physical centres.
+        """
+        normal = np.asarray(normal, dtype=np.float32)
+        shape = normal.shape
+        step = self._cell_step(shape)
+        new_shape = shape != self._shape
+        if units != self._units:
+            self._units = units
+            self.colorbar.axis.setLabel(self._bar_label(), color=FOREGROUND)
+        self._data = normal
+        if self._fixed_max is None:
+            peak = float(np.nanmax(normal)) if normal.size else 1.0
+            # rise at once, fall slowly: the scale does not flicker with noise
+            self._auto_hi = max(1.0, peak, self._auto_hi * 0.97)
+            lo = min(0.0, float(np.nanmin(normal)))
+            self.colorbar.setLevels((lo, self._auto_hi))
+        self.image.setImage(normal, autoLevels=False)
+        if new_shape:  # after setImage: the rect maps the image's pixels to taxel units
+            self._shape = shape
+            self.image.setRect(-step / 2, -step / 2, shape[1] * step, shape[0] * step)
+            self._update_ticks()
+            self._set_view_range()
+            r, c = self._hover
+            if r >= shape[0] or c >= shape[1]:
+                self.hover_cell(-1, -1)
+            self._draw_hover_box()
+        self._draw_arrows(shear_x, shear_y, step)
+
+    # ---- drawing helpers -----------------------------------------------------------
+    def _bar_label(self) -> str:
+        return f"Normal stress ({self._units})"
+
+    def _cell_step(self, shape: tuple[int, ...]) -> float:
+        lay = self._layout
+        if lay is not None:
+            virtual = shape == lay.virtual_shape and shape != (lay.rows, lay.cols)
+        else:
+            virtual = self._virtual
+        return 0.5 if virtual else 1.0
+
+    def _set_view_range(self) -> None:
+        if self._shape is None:
+            return
+        step = self._cell_step(self._shape)
+        r, c = self._shape
+        # leave room on the left and top for the row letters and column numbers
+        self.plot.setRange(xRange=(-1.05, (c - 0.5) * step), yRange=(-1.0, (r - 0.5) * step),
+                           padding=0.01)
+
+    def _update_ticks(self) -> None:
+        """Row letters and column numbers as text in the view, right next to the map
+        (axes would sit at the edge of the aspect-locked view, far from the cells)."""
+        for item in self._labels:
+            self.plot.removeItem(item)
+        self._labels = []
+        lay = self._layout
+        if self._shape is None:
+            return
+        step = self._cell_step(self._shape)
+        rows = round((self._shape[0] - 1) * step) + 1
+        cols = round((self._shape[1] - 1) * step) + 1
+        for r in range(rows):
+            self._add_label(lay.taxel_name(r, 0)[:-1] if lay else str(r), -0.62, r, (1, 0.5))
+        for c in range(cols):
+            self._add_label(str(c + 1) if lay else str(c), c, -0.6, (0.5, 1))
+
+    def _add_label(self, text: str, x: float, y: float, anchor: tuple[float, float]) -> None:
+        item = pg.TextItem(text, color=FOREGROUND, anchor=anchor)
+        item.setFont(self._label_font)
+        item.setPos(x, y)
+        self.plot.addItem(item)
+        self._labels.append(item)
+
+    def _draw_arrows(self, sx: np.ndarray | None, sy: np.ndarray | None, step: float) -> None:
+        if not self._arrows_on or sx is None or sy is None:
+            self.arrow_line.setData([], [])
+            self.arrow_under.setData([], [])
+            return
+        mag = np.hypot(sx, sy)
+        rr, cc = np.nonzero(mag >= self.arrow_min_kpa)
+        if rr.size == 0:
+            self.arrow_line.setData([], [])
+            self.arrow_under.setData([], [])
+            return
+        k = self._arrow_scale
+        dx, dy = sx[rr, cc] * k, sy[rr, cc] * k
+        x, y = arrow_segments(cc * step, rr * step, dx, dy, min_head=0.06 + 0.04 * step,
+                              max_head=0.3 * step)
+        self.arrow_under.setData(x, y)
+        self.arrow_line.setData(x, y)
+
+    # ---- mouse ---------------------------------------------------------------------
+    def _cell_at(self, scene_pos: QPointF) -> tuple[int, int]:
+        if self._shape is None or not self.plot.sceneBoundingRect().contains(scene_pos):
+            return (-1, -1)
+        p = self.plot.vb.mapSceneToView(scene_pos)
+        step = self._cell_step(self._shape)
+        col = math.floor(p.x() / step + 0.5)
+        row = math.floor(p.y() / step + 0.5)
+        if 0 <= row < self._shape[0] and 0 <= col < self._shape[1]:
+            return (row, col)
+        return (-1, -1)
+
+    def _on_mouse_moved(self, scene_pos: QPointF) -> None:
+        cell = self._cell_at(scene_pos)
+        if cell != self._hover:
+            self._hover = cell
+            self._draw_hover_box()
+            self.cellHovered.emit(*cell)
+
+    def _on_mouse_clicked(self, ev) -> None:  # noqa: ANN001 - pyqtgraph event
+        cell = self._cell_at(ev.scenePos())
+        if cell != (-1, -1) and ev.button() == Qt.MouseButton.LeftButton:
+            self.cellClicked.emit(*cell)
+
+    def hovered_cell(self) -> tuple[int, int]:
+        return self._hover
+
+    def hover_cell(self, row: int, col: int) -> None:
+        """Act as if the pointer were over a cell (keyboard use, tests)."""
+        if (row, col) != self._hover:
+            self._hover = (row, col)
+            self._draw_hover_box()
+            self.cellHovered.emit(row, col)
+
+    def _draw_hover_box(self) -> None:
+        r, c = self._hover
+        if r < 0 or self._shape is None:
+            self.hover_box.setData([], [])
+            return
+        s = self._cell_step(self._shape)
+        x0, y0 = c * s - s / 2, r * s - s / 2
+        self.hover_box.setData([x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0])
+
+    def leaveEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
+        super().leaveEvent(ev)
+        if self._hover != (-1, -1):
+            self.hover_cell(-1, -1)
+
+
+def strip_colors(n: int) -> list[str]:
+    """Distinct line colours shared by the strip chart and the heatmap's taxel marks."""
+    palette = ["#e6194b", "#f58231", "#f032e6", "#4363d8", "#3cb44b", "#911eb4",
+               "#42d4f4", "#9a6324", "#000075", "#808000"]
+    return [palette[i % len(palette)] for i in range(n)]
+
+
+__all__ = ["HeatmapView", "arrow_segments", "strip_colors"]

@@ -1,0 +1,47 @@
+"""The main window's status bar: device state, rates, error counts and paint latency."""
+
+from __future__ import annotations
+
+from PySide6.QtWidgets import QLabel, QStatusBar, QWidget
+
+from tactile_studio.live import LiveStatus
+
+
+class LiveStatusBar(QStatusBar):
+    """Permanent fields; ``update_status`` is called a few times a second."""
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.state = QLabel("disconnected")
+        self.state.setObjectName("state")
+        self.rate = QLabel()
+        self.fps = QLabel()
+        self.malformed = QLabel()
+        self.dropped = QLabel()
+        self.latency = QLabel()
+        self.latency.setToolTip("Device-to-paint latency: paint time minus the newest "
+                                "frame's host arrival time (median of the last second)")
+        self.addWidget(self.state, 1)
+        for w in (self.rate, self.fps, self.malformed, self.dropped, self.latency):
+            self.addPermanentWidget(w)
+
+    def update_status(self, st: LiveStatus, display_fps: float,
+                      latency_ms: float | None) -> None:
+        text = f"{st.device}: {st.state}" if st.device else "No device connected"
+        if st.state == "reconnecting":
+            text += f" (attempt {st.reconnect_attempts})"
+        if st.error:
+            text += f" — {st.error}"
+        if st.recording:
+            text += f" · recording {st.recorded_frames} frames"
+        self.state.setText(text)
+        self.state.setToolTip(text)
+        self.state.setProperty("state", st.state)
+        self.state.style().unpolish(self.state)
+        self.state.style().polish(self.state)
+        self.rate.setText(f"{st.measured_rate_hz:6.1f} Hz")
+        self.fps.setText(f"display {display_fps:4.0f} fps")
+        self.malformed.setText(f"malformed {st.malformed}")
+        self.dropped.setText(f"dropped {st.dropped}")
+        self.latency.setText("latency –" if latency_ms is None
+                             else f"latency {latency_ms:5.1f} ms")
