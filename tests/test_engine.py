@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
 from plugin_fixtures import CountingDevice
+
 from tactile_studio.devices.engine import ERROR, FINISHED, RUNNING, AcquisitionEngine
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.devices.ring import RingBuffer

@@ -14,8 +14,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-
 from plugin_fixtures import LAYOUT, CountingDevice
+
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.errors import SessionFileError
