@@ -1,0 +1,129 @@
+"""Screenshots of the collection screens from a real session on the simulated sensor.
+
+``QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_collect_screenshots.py
+[OUT_DIR]`` (default: this folder) writes collect-*.png: the setup step, the participant screen waiting for a key, with a
+refused key, during a trial countdown and in a break, and the experimenter console
+mid-session with a flagged trial waiting for a decision. Works headless
+(QT_QPA_PLATFORM=offscreen); takes about 15 s.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+PARTICIPANT_SIZE = (1600, 900)
+CONSOLE_SIZE = (1500, 900)
+
+
+def _pump(app: object, until: Callable[[], bool], timeout: float = 20.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not until():
+        app.processEvents()  # type: ignore[attr-defined]
+        time.sleep(0.005)
+        if time.monotonic() > deadline:
+            raise TimeoutError("screenshot session did not reach the expected state")
+
+
+def _settle(app: object, seconds: float) -> None:
+    _pump(app, lambda t=time.monotonic() + seconds: time.monotonic() > t)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    out = Path(argv[0]) if argv else Path(__file__).resolve().parent
+    out.mkdir(parents=True, exist_ok=True)
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    tmp = Path(tempfile.mkdtemp(prefix="collect-shots-"))
+    os.environ["TACTILE_STUDIO_SETTINGS"] = str(tmp / "settings.ini")
+
+    from PySide6.QtWidgets import QApplication
+
+    from tactile_studio.protocol.snapshot import State
+    from tactile_studio.ui.collect_console import CollectConsole
+
+    app = QApplication.instance() or QApplication([])
+    console = CollectConsole()
+    console.resize(*CONSOLE_SIZE)
+    console.show()
+    s = console.setup
+    s.participant.setText("P01")
+    s.out_dir.setText(str(tmp))
+    s.device.setCurrentIndex(s.device.findData("simulated"))
+    s.device_settings.setText("speed=4 gesture=idle seed=3")
+    s.blocks.setValue(2)
+    _settle(app, 0.2)
+    console.grab().save(str(out / "collect-setup.png"))
+
+    choice = s.choice()
+    choice.protocol = choice.protocol.with_overrides(break_every=1, break_min_s=120.0,
+                                                     free_play_s=0.0)
+    console.start_session(choice)
+    runner, dev = console.runner, console.engine.device
+    screen = console.participant
+    screen.resize(*PARTICIPANT_SIZE)
+    screen.show()
+
+    def snap():  # noqa: ANN202
+        return runner.snapshot()
+
+    def trial(g, perform: bool = True) -> None:  # noqa: ANN001
+        n = len(snap().trials)
+        if perform:
+            dev.perform(g.name, duration_s=2.4)
+        console.forward_key(g.key)
+        _pump(app, lambda: len(snap().trials) > n and snap().state not in
+              (State.RECORDING, State.TRIAL_END))
+
+    console.primary_action()  # Start
+    _pump(app, lambda: snap().state == State.WAITING)
+    gestures = snap().gestures
+    for g in gestures[:3]:
+        trial(g)
+        if snap().state == State.REVIEW:
+            console.primary_action()
+    _settle(app, 0.6)  # let the beep's flash fade
+    screen.grab().save(str(out / "collect-participant-waiting.png"))
+
+    console.forward_key(gestures[0].key)  # already done: refused with a hint
+    _settle(app, 0.1)
+    screen.grab().save(str(out / "collect-participant-refused.png"))
+
+    dev.perform(gestures[3].name, duration_s=2.4)
+    console.forward_key(gestures[3].key)
+    _pump(app, lambda: snap().state != State.RECORDING or snap().trial_remaining_s < 1.25)
+    console.tick()
+    screen.grab().save(str(out / "collect-participant-trial.png"))
+    _pump(app, lambda: snap().state not in (State.RECORDING, State.TRIAL_END))
+    if snap().state == State.REVIEW:
+        console.primary_action()
+
+    for g in gestures[4:6]:
+        trial(g)
+        if snap().state == State.REVIEW:
+            console.primary_action()
+    trial(gestures[6], perform=False)  # nobody touched: flagged and held for a decision
+    dev.perform("Circular Stroke", duration_s=6.0)
+    _settle(app, 1.0)
+    console.grab().save(str(out / "collect-console.png"))
+    console.redo_last()
+    for g in snap().gestures:
+        if not g.done:
+            trial(g)
+            if snap().state == State.REVIEW:
+                console.primary_action()
+    _pump(app, lambda: snap().state == State.BREAK)
+    _settle(app, 1.2)
+    screen.grab().save(str(out / "collect-participant-break.png"))
+    console.close()
+    for p in sorted(out.glob("collect-*.png")):
+        print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,225 @@
+"""Opening and resuming collection sessions: engine + recorder + runner, Qt-free.
+
+Both the GUI and ``tactile-studio collect`` use these, so a session file looks the same
+whoever ran it.
+
+Resume: a session file whose writer was killed cannot be reopened for writing (HDF5's
+SWMR "open for write" flag stays set), and appending to a file in place risks the very
+trials we want to keep. So a resume copies everything the file holds (frames, baselines,
+events, trials, counters) into a fresh file next to it and flushes it; keeps the original as
+``<name>.bak-N.h5`` (a hard link, else a copy) and then moves the copy onto the original
+name with ``os.replace`` (atomic on POSIX), so a complete session is at that name at
+every instant. The copy's writer stays open and recording continues in it at the next
+trial of the stored block order.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.errors import SessionFileError, UserError
+from tactile_studio.protocol.protocol_file import Protocol, protocol_from_dict
+from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
+from tactile_studio.protocol.runner import Clock, CollectionRunner, State
+from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.session import Session
+
+PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
+COPY_CHUNK = 8192
+_NOT_COPIED = ("layout", "device", "schema_version", "app_version")
+
+
+class _OffsetRecorder(Recorder):
+    """A recorder whose file already holds ``row_offset`` rows from an earlier run, so
+    engine frames map to rows after them, and whose counters add the earlier ones."""
+
+    def __init__(self, engine: AcquisitionEngine, path: Path, metadata: dict[str, Any],
+                 row_offset: int = 0, base_counters: dict[str, Any] | None = None) -> None:
+        self.row_offset = int(row_offset)
+        self.base_counters = dict(base_counters or {})
+        super().__init__(engine, path, metadata)
+
+    @property
+    def start_frame(self) -> int:
+        return super().start_frame - self.row_offset
+
+    def _counters_since_start(self) -> dict[str, Any]:
+        now = super()._counters_since_start()
+        base = self.base_counters
+        by_kind = dict(base.get("malformed_by_kind", {}))
+        for k, v in now["malformed_by_kind"].items():
+            by_kind[k] = by_kind.get(k, 0) + v
+        out = {k: v + int(base.get(k, 0)) for k, v in now.items() if k != "malformed_by_kind"}
+        return {"malformed_by_kind": by_kind, **out}
+
+
+@dataclass
+class CollectionSession:
+    """A running collection: the runner plus what it writes to. ``close()`` when done."""
+
+    runner: CollectionRunner
+    recorder: Recorder
+    engine: AcquisitionEngine
+    path: Path
+    protocol: Protocol
+    participant: str
+    seed: int
+    resumed: bool = False
+    backup: Path | None = None
+
+    def close(self) -> None:
+        """Stop (aborting an unfinished runner; its finished trials stay) and close the
+        file cleanly. The engine is left running: it belongs to the caller."""
+        if self.runner.state not in State.DONE:
+            self.runner.abort()
+        self.recorder.stop()
+
+
+def check_participant(participant: str) -> str:
+    p = participant.strip()
+    if not PARTICIPANT_RE.match(p):
+        raise UserError(f"bad participant id {participant!r}: use letters, digits, '_', '-' or "
+                        "'.', e.g. P01")
+    return p
+
+
+def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:
+    """``DIR/P01_shear9_20250101-120000.h5`` (a suffix keeps it unique)."""
+    stem = f"{participant}_{protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}"
+    path, n = out_dir / f"{stem}.h5", 2
+    while path.exists():
+        path, n = out_dir / f"{stem}-{n}.h5", n + 1
+    return path
+
+
+def session_metadata(protocol: Protocol, participant: str, seed: int, orders: list[list[str]],
+                     practice: list[str], condition: str = "") -> dict[str, Any]:
+    return {
+        "participant": participant, "protocol": protocol.name, "condition": condition,
+        "gestures": protocol.gesture_names, "source": "collect",
+        "protocol_spec": protocol.to_dict(), "seed": int(seed),
+        "order_seed": order_seed(protocol, participant, seed),
+        "block_order": orders, "practice_order": practice,
+    }
+
+
+def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine,
+                 out_dir: str | os.PathLike, *, seed: int = 0, condition: str = "",
+                 beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
+                 hold_flagged: bool = False, path: str | os.PathLike | None = None
+                 ) -> CollectionSession:
+    """Create the session file and a runner in ``setup``; call ``runner.start()``.
+
+    Create it before ``engine.start()`` to have file rows equal engine frames.
+    """
+    participant = check_participant(participant)
+    out = Path(out_dir)
+    if not out.is_dir():
+        raise UserError(f"{out}: output folder does not exist")
+    target = Path(path) if path is not None else session_path(out, participant, protocol)
+    orders = block_orders(protocol, participant, seed)
+    practice = practice_order(protocol, participant, seed)
+    meta = session_metadata(protocol, participant, seed, orders, practice, condition)
+    recorder = Recorder(engine, target, meta).start()
+    runner = CollectionRunner(protocol, engine, recorder, participant, orders, practice=practice,
+                              beeper=beeper, clock=clock, auto_continue=auto_continue,
+                              hold_flagged=hold_flagged)
+    return CollectionSession(runner, recorder, engine, target, protocol, participant, seed)
+
+
+def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
+    """What a resume needs from a session file (protocol, participant, seed, device...)."""
+    with Session(path) as old:
+        meta = dict(old.metadata)
+        if meta.get("source") != "collect" or "block_order" not in meta:
+            raise SessionFileError(f"{path}: not a collection session (nothing to resume)")
+        protocol = protocol_from_dict(meta["protocol_spec"], f"{Path(path).name}: protocol_spec",
+                                      check_images=False)
+        ok = {(t["block"], t["gesture"]) for t in old.trials
+              if t["block"] >= 0 and t["status"] != "redone"}
+        total = sum(len(o) for o in meta["block_order"])
+        return {"protocol": protocol, "participant": meta["participant"],
+                "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
+                "layout": old.layout.name, "trials_done": len(ok), "trials_total": total,
+                "frames": old.n_frames}
+
+
+def _backup_path(path: Path) -> Path:
+    n = 1
+    while True:
+        cand = path.with_name(f"{path.stem}.bak-{n}{path.suffix}")
+        if not cand.exists():
+            return cand
+        n += 1
+
+
+def _keep_backup(path: Path, backup: Path) -> None:
+    """The original under a new name: a hard link (instant, same bytes), else a copy."""
+    try:
+        os.link(path, backup)
+    except OSError:
+        shutil.copy2(path, backup)
+
+
+def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
+                   clock: Clock | None = None, auto_continue: bool = True,
+                   hold_flagged: bool = False) -> CollectionSession:
+    """Continue a killed or closed session at the next trial of its stored order."""
+    path = Path(path)
+    info = read_resume_info(path)
+    if info["trials_done"] >= info["trials_total"]:
+        raise UserError(f"{path}: session is complete ({info['trials_done']} trials); "
+                        "nothing to resume")
+    if engine.layout.name != info["layout"]:
+        raise UserError(f"{path}: recorded with layout {info['layout']}, but the device "
+                        f"delivers {engine.layout.name}")
+    tmp = path.with_name(f".{path.name}.resuming")
+    backup = _backup_path(path)
+    with Session(path) as old:
+        meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
+        meta["resumes"] = int(meta.get("resumes", 0)) + 1
+        n = old.n_frames
+        if tmp.exists():
+            tmp.unlink()
+        rec = _OffsetRecorder(engine, tmp, meta, row_offset=n,
+                              base_counters=old.journal.counters)
+        w = rec.writer
+        for a in range(0, n, COPY_CHUNK):
+            b = min(n, a + COPY_CHUNK)
+            w.append_frames(old.raw(a, b), old.column("device_time", a, b),
+                            old.column("host_time", a, b), old.column("seq", a, b),
+                            old.column("index", a, b))
+        for base in old.journal.baselines:
+            w.add_baseline(base["values"], base["frame"])
+        for event in old.events:
+            e = dict(event)
+            kind, frame, t = e.pop("kind"), e.pop("frame", None), e.pop("time", None)
+            w.add_event(kind, frame=frame, time_s=t, **e)
+        trials = [dict(t) for t in old.trials]
+        for t in trials:
+            w.add_trial(t)
+        if old.journal.counters:
+            w.set_counters(old.journal.counters)
+    if engine.baseline is not None:
+        w.add_baseline(engine.baseline, n)
+    w.add_event("resume", frame=n, from_file=path.name, backup=backup.name, trials=len(trials))
+    w.flush()
+    _keep_backup(path, backup)
+    os.replace(tmp, path)  # atomic: there is a complete session at ``path`` at every instant
+    w.path = path  # the open writer follows the rename; close() reopens it by name
+    rec.start()
+    protocol = info["protocol"]
+    runner = CollectionRunner(protocol, engine, rec, info["participant"],
+                              meta["block_order"], practice=meta.get("practice_order", []),
+                              beeper=beeper, clock=clock, auto_continue=auto_continue,
+                              hold_flagged=hold_flagged, previous_trials=trials)
+    runner.notes = [line for line in str(meta.get("notes", "")).split("\n") if line]
+    return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
+                             info["seed"], resumed=True, backup=backup)

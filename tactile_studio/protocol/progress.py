@@ -1,0 +1,77 @@
+"""Building the runner's snapshot: countdowns, progress and the ETA."""
+
+from __future__ import annotations
+
+from statistics import median
+from typing import TYPE_CHECKING
+
+from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
+
+if TYPE_CHECKING:
+    from tactile_studio.protocol.runner import CollectionRunner
+
+DEFAULT_OVERHEAD_S = 2.5  # key, beep and reading the next gesture, before any is measured
+
+
+def seconds_per_trial(runner: CollectionRunner) -> float:
+    """Median time between recent trial starts (the participant's pace), else a guess."""
+    starts = runner.trial_starts[-21:]
+    steps = [b - a for a, b in zip(starts, starts[1:]) if b > a]
+    steps = [s for s in steps if s < 10 * (runner.protocol.trial_s + DEFAULT_OVERHEAD_S)]
+    return median(steps) if steps else runner.protocol.trial_s + DEFAULT_OVERHEAD_S
+
+
+def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
+    p = r.protocol
+    now = r.clock()
+    state = r.state
+    cur = r.current_trial
+    shown_state = r.paused_state if state == State.PAUSED and r.paused_state else state
+    trial_left = trial_fraction = None
+    current = None
+    if cur is not None:
+        current = cur["gesture"]
+        left = max(0, cur["end"] - r.engine.frames)
+        trial_left = left / r.rate
+        trial_fraction = 1.0 - left / r.trial_frames
+    elif r.pending_trial is not None:
+        current = r.pending_trial["gesture"]
+    elif state in (State.TRIAL_END, State.REVIEW) and r.trials:
+        current = r.trials[-1]["gesture"]
+    phase_left = max(0.0, r.phase_until - (r.paused_at if state == State.PAUSED else now))
+    free_left = phase_left if shown_state == State.FREE_PLAY else None
+    break_left = phase_left if shown_state == State.BREAK else None
+    can_continue = (state == State.FREE_PLAY or state == State.SETUP
+                    or (state == State.BREAK and phase_left <= 0)
+                    or r.held)
+    done = r.round_done()
+    gestures = tuple(
+        GestureView(g.name, g.key, g.definition, g.image, g.name in done, g.name == current)
+        for g in (p.gesture_by_name(n) for n in r.round_gestures))
+    remaining = tuple(n for n in r.round_gestures if n not in done)
+    total = sum(len(o) for o in r.orders)
+    blocks_done = {(t["block"], t["gesture"]) for t in r.trials
+                   if t["block"] >= 0 and t["status"] != "redone"}
+    trials_done = len(blocks_done)
+    breaks_left = sum(1 for b in range(max(r.block, 0), len(r.orders)) if r.break_after(b))
+    eta = (total - trials_done) * seconds_per_trial(r) + breaks_left * p.break_min_s
+    if shown_state in (State.FREE_PLAY, State.BREAK):
+        eta += phase_left
+    if state in State.DONE:
+        eta = 0.0
+    fields = {"practice": r.practice, "block_number": r.block + 1,
+              "blocks_total": len(r.orders), "current_gesture": current}
+    trials = tuple(dict(t) for t in r.trials)
+    return RunnerSnapshot(
+        state=state, paused_state=r.paused_state, participant=r.participant,
+        protocol=p.name, protocol_title=p.title, block=r.block,
+        block_number=max(r.block + 1, 0), blocks_total=len(r.orders), practice=r.practice,
+        gestures=gestures, remaining=remaining, current_gesture=current,
+        trial_remaining_s=trial_left, trial_fraction=trial_fraction,
+        free_play_remaining_s=free_left, break_remaining_s=break_left,
+        can_continue=can_continue, hint=r.hint,
+        message=participant_message(state, fields), redo_prompt=r.redo_prompt,
+        trials=trials, last_trial=trials[-1] if trials else None,
+        trials_done=trials_done, trials_total=total,
+        progress=trials_done / total if total else 1.0, eta_s=round(eta, 1),
+        notes=tuple(r.notes), beeps=r.beeps)

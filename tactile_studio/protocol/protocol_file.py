@@ -1,0 +1,275 @@
+"""Collection protocols as TOML files, validated field by field.
+
+A protocol says which gestures are collected (name, key, definition, optional image),
+how long a trial is, how many blocks, how blocks are randomised, when breaks come, the
+free play and practice at the start, and the beep. Shipped protocols live in
+``tactile_studio.resources/protocols``; any other ``.toml`` path works too. Every problem
+is one ``UserError`` line naming the file and the field, e.g.
+``shear9.toml: gestures[3].key: duplicate key 'r'``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.errors import UserError
+
+RANDOMISATION_MODES = ("shuffle_per_block", "fixed")
+
+
+class ProtocolError(UserError):
+    """A protocol file is missing, not TOML, or has a bad field."""
+
+
+@dataclass(frozen=True)
+class Gesture:
+    name: str
+    key: str
+    definition: str
+    image: str | None = None  # path, resolved against the protocol file's folder
+
+
+@dataclass(frozen=True)
+class Protocol:
+    name: str
+    title: str
+    description: str
+    gestures: tuple[Gesture, ...]
+    trial_s: float
+    blocks: int
+    free_play_s: float = 10.0
+    practice_trials: int = 0
+    randomisation: str = "shuffle_per_block"
+    seed: int = 0
+    break_every: int = 0
+    break_min_s: float = 0.0
+    beep_hz: float = 1000.0
+    beep_s: float = 0.2
+    min_contact_fraction: float = 0.03  # a light poke touches ~5-15% of a 2 s trial
+    centre_fraction: float = 0.7
+    source: str = ""
+
+    @property
+    def gesture_names(self) -> list[str]:
+        return [g.name for g in self.gestures]
+
+    def gesture_by_key(self, key: str) -> Gesture | None:
+        key = key.lower()
+        return next((g for g in self.gestures if g.key == key), None)
+
+    def gesture_by_name(self, name: str) -> Gesture:
+        return next(g for g in self.gestures if g.name == name)
+
+    def with_overrides(self, **changes: Any) -> Protocol:
+        """A copy with some fields changed, validated like a file (tests, --blocks)."""
+        data = self.to_dict()
+        data.update(changes)
+        return protocol_from_dict(data, self.source or f"{self.name}.toml")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The flat form stored in session metadata, so a resume needs no file on disk."""
+        d = dataclasses.asdict(self)
+        d["gestures"] = [dataclasses.asdict(g) for g in self.gestures]
+        d.pop("source")
+        return d
+
+
+# ---- loading ---------------------------------------------------------------------------
+def list_protocols() -> list[str]:
+    """Names of the shipped protocols."""
+    folder = resources.files("tactile_studio.resources") / "protocols"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".toml"))
+
+
+def _find(name_or_path: str | Path) -> tuple[str, bytes, Path | None]:
+    text = str(name_or_path)
+    path = Path(text)
+    if text.endswith(".toml") or path.parent != Path("."):
+        if not path.is_file():
+            raise ProtocolError(f"{path}: no such protocol file")
+        return path.name, path.read_bytes(), path.parent
+    res = resources.files("tactile_studio.resources") / "protocols" / f"{text}.toml"
+    if not res.is_file():
+        known = ", ".join(list_protocols())
+        raise ProtocolError(f"unknown protocol {text!r} (shipped: {known}; or give a .toml path)")
+    folder = Path(str(res)).parent
+    return f"{text}.toml", res.read_bytes(), folder if folder.is_dir() else None
+
+
+def load_protocol(name_or_path: str | Path) -> Protocol:
+    """A shipped protocol by name (``shear9``) or any protocol file by path."""
+    label, data, folder = _find(name_or_path)
+    try:
+        raw = tomllib.loads(data.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise ProtocolError(f"{label}: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ProtocolError(f"{label}: not valid TOML ({exc})") from None
+    return _parse_file(raw, label, folder)
+
+
+def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protocol:
+    v = _Validator(label)
+    v.known(raw, "", {"name", "title", "description", "trial_s", "blocks", "free_play_s",
+                      "practice_trials", "randomisation", "breaks", "beep", "quality",
+                      "gestures"})
+    rnd = v.table(raw, "randomisation")
+    brk = v.table(raw, "breaks")
+    beep = v.table(raw, "beep")
+    qual = v.table(raw, "quality")
+    v.known(rnd, "randomisation.", {"mode", "seed"})
+    v.known(brk, "breaks.", {"every_blocks", "min_s"})
+    v.known(beep, "beep.", {"frequency_hz", "length_s"})
+    v.known(qual, "quality.", {"min_contact_fraction", "centre_fraction"})
+    flat = {k: raw[k] for k in ("name", "title", "description", "trial_s", "blocks",
+                                "free_play_s", "practice_trials", "gestures") if k in raw}
+    rename = {("randomisation", "mode"): "randomisation", ("randomisation", "seed"): "seed",
+              ("breaks", "every_blocks"): "break_every", ("breaks", "min_s"): "break_min_s",
+              ("beep", "frequency_hz"): "beep_hz", ("beep", "length_s"): "beep_s",
+              ("quality", "min_contact_fraction"): "min_contact_fraction",
+              ("quality", "centre_fraction"): "centre_fraction"}
+    tables = {"randomisation": rnd, "breaks": brk, "beep": beep, "quality": qual}
+    fields = {}
+    for (table, key), target in rename.items():
+        if key in tables[table]:
+            flat[target] = tables[table][key]
+            fields[target] = f"{table}.{key}"
+    return protocol_from_dict(flat, label, folder, fields)
+
+
+def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = None,
+                       field_names: dict[str, str] | None = None,
+                       check_images: bool = True) -> Protocol:
+    """Validate the flat form (``Protocol.to_dict()``); errors name the field.
+
+    ``check_images=False`` when restoring from a session file on another machine.
+    """
+    v = _Validator(label, field_names or {})
+    name = v.text(data, "name", default=Path(label).stem)
+    gestures = _gestures(v, data.get("gestures"), folder, check_images)
+    mode = v.text(data, "randomisation", default="shuffle_per_block")
+    if mode not in RANDOMISATION_MODES:
+        v.fail("randomisation", f"unknown mode {mode!r} (use {' or '.join(RANDOMISATION_MODES)})")
+    return Protocol(
+        name=name,
+        title=v.text(data, "title", default=name),
+        description=v.text(data, "description", default="", allow_empty=True),
+        gestures=gestures,
+        trial_s=v.number(data, "trial_s", low=0.05, high=600.0, required=True),
+        blocks=v.integer(data, "blocks", low=1, high=10_000, required=True),
+        free_play_s=v.number(data, "free_play_s", low=0.0, high=3600.0, default=0.0),
+        practice_trials=v.integer(data, "practice_trials", low=0, high=1000, default=0),
+        randomisation=mode,
+        seed=v.integer(data, "seed", low=-(2**62), high=2**62, default=0),
+        break_every=v.integer(data, "break_every", low=0, high=10_000, default=0),
+        break_min_s=v.number(data, "break_min_s", low=0.0, high=86_400.0, default=0.0),
+        beep_hz=v.number(data, "beep_hz", low=20.0, high=20_000.0, default=1000.0),
+        beep_s=v.number(data, "beep_s", low=0.01, high=5.0, default=0.2),
+        min_contact_fraction=v.number(data, "min_contact_fraction", low=0.0, high=1.0,
+                                      default=0.03),
+        centre_fraction=v.number(data, "centre_fraction", low=0.05, high=1.0, default=0.7),
+        source=label,
+    )
+
+
+def _gestures(v: _Validator, items: Any, folder: Path | None,
+              check_images: bool = True) -> tuple[Gesture, ...]:
+    if items is None:
+        v.fail("gestures", "missing (at least one [[gestures]] table is needed)")
+    if not isinstance(items, list) or not items:
+        v.fail("gestures", "must be a non-empty list of [[gestures]] tables")
+    out: list[Gesture] = []
+    names: dict[str, int] = {}
+    keys: dict[str, int] = {}
+    for i, item in enumerate(items):
+        where = f"gestures[{i}]"
+        if not isinstance(item, dict):
+            v.fail(where, "must be a table with name, key and definition")
+        v.known(item, f"{where}.", {"name", "key", "definition", "image"})
+        gv = _Validator(v.label, prefix=f"{where}.")
+        name = gv.text(item, "name")
+        key = gv.text(item, "key")
+        if len(key) != 1 or not key.isprintable() or key.isspace():
+            gv.fail("key", f"must be one printable character, got {key!r}")
+        key = key.lower()
+        if name.lower() in names:
+            gv.fail("name", f"duplicate gesture name {name!r} (also gestures[{names[name.lower()]}])")
+        if key in keys:
+            gv.fail("key", f"duplicate key {key!r} (also gestures[{keys[key]}])")
+        names[name.lower()], keys[key] = i, i
+        definition = gv.text(item, "definition")
+        image = None
+        if item.get("image") is not None:
+            image = gv.text(item, "image")
+            path = Path(image) if folder is None else folder / image
+            if check_images and not path.is_file():
+                gv.fail("image", f"no such file {image!r}")
+            image = str(path)
+        out.append(Gesture(name, key, definition, image))
+    return tuple(out)
+
+
+class _Validator:
+    """Reads typed fields and raises one-line errors ``<file>: <field>: <problem>``."""
+
+    def __init__(self, label: str, names: dict[str, str] | None = None, prefix: str = "") -> None:
+        self.label, self.names, self.prefix = label, names or {}, prefix
+
+    def fail(self, field: str, problem: str) -> None:
+        raise ProtocolError(f"{self.label}: {self.prefix}{self.names.get(field, field)}: {problem}")
+
+    def known(self, table: dict[str, Any], prefix: str, allowed: set[str]) -> None:
+        for key in table:
+            if key not in allowed:
+                raise ProtocolError(f"{self.label}: {prefix}{key}: unknown field "
+                                    f"(known: {', '.join(sorted(allowed))})")
+
+    def table(self, data: dict[str, Any], key: str) -> dict[str, Any]:
+        value = data.get(key, {})
+        if not isinstance(value, dict):
+            self.fail(key, "must be a table")
+        return value
+
+    def text(self, data: dict[str, Any], key: str, default: str | None = None,
+             allow_empty: bool = False) -> str:
+        if key not in data:
+            if default is None:
+                self.fail(key, "missing")
+            return default
+        value = data[key]
+        if not isinstance(value, str):
+            self.fail(key, f"expected text, got {value!r}")
+        if not allow_empty and not value.strip():
+            self.fail(key, "must not be empty")
+        return value.strip() if key != "key" else value
+
+    def number(self, data: dict[str, Any], key: str, low: float, high: float,
+               default: float | None = None, required: bool = False) -> float:
+        if key not in data:
+            if required or default is None:
+                self.fail(key, "missing")
+            return float(default)
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            self.fail(key, f"expected a number, got {value!r}")
+        if not low <= value <= high:
+            self.fail(key, f"{value} is out of range {low:g}..{high:g}")
+        return float(value)
+
+    def integer(self, data: dict[str, Any], key: str, low: int, high: int,
+                default: int | None = None, required: bool = False) -> int:
+        if key not in data:
+            if required or default is None:
+                self.fail(key, "missing")
+            return int(default)
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, int):
+            self.fail(key, f"expected a whole number, got {value!r}")
+        if not low <= value <= high:
+            self.fail(key, f"{value} is out of range {low}..{high}")
+        return int(value)

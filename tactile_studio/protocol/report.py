@@ -1,0 +1,49 @@
+"""Text tables of a session's trials, for ``tactile-studio info`` and the console."""
+
+from __future__ import annotations
+
+from collections import Counter
+from typing import Any
+
+from tactile_studio.protocol.quality import FLAGS
+
+STATUSES = ("ok", "redone", "discarded")
+
+
+def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None) -> str:
+    """Trials per gesture by status, plus how many were flagged and why.
+
+    ``gestures`` (the session's ordered label set) fixes the row order; gestures only
+    seen in trials follow. Practice trials (block < 0) are counted on a line of their own.
+    """
+    if not trials:
+        return "no trials"
+    real = [t for t in trials if int(t.get("block", 0)) >= 0]
+    practice = len(trials) - len(real)
+    order = list(gestures or [])
+    order += sorted({str(t["gesture"]) for t in real} - set(order))
+    counts = {g: Counter() for g in order}
+    flags: Counter[str] = Counter()
+    for t in real:
+        c = counts[str(t["gesture"])]
+        c[t.get("status", "ok")] += 1
+        if t.get("flags"):
+            c["flagged"] += 1
+            flags.update(t["flags"])
+    cols = (*STATUSES, "flagged")
+    width = max([len("gesture"), len("total")] + [len(g) for g in order])
+    lines = [f"{'gesture':<{width}}  " + "  ".join(f"{c:>9}" for c in cols)]
+    total: Counter[str] = Counter()
+    for g in order:
+        total.update(counts[g])
+        lines.append(f"{g:<{width}}  " + "  ".join(f"{counts[g][c]:>9}" for c in cols))
+    lines.append(f"{'total':<{width}}  " + "  ".join(f"{total[c]:>9}" for c in cols))
+    if flags:
+        known = [f for f in FLAGS if f in flags] + sorted(set(flags) - set(FLAGS))
+        lines.append("flags: " + ", ".join(f"{f} {flags[f]}" for f in known))
+    blocks = sorted({int(t["block"]) for t in real})
+    if blocks:
+        lines.append(f"blocks: {len(blocks)} ({blocks[0] + 1}..{blocks[-1] + 1})")
+    if practice:
+        lines.append(f"practice trials: {practice}")
+    return "\n".join(lines)

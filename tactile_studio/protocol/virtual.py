@@ -1,0 +1,159 @@
+"""A virtual participant: presses the keys and performs the gestures on the simulator.
+
+It follows the participant screen like a person would: it does the block's remaining
+gestures in the order shown, pressing each gesture's key as it starts the gesture.
+Everything it does is keyed by frame index and drawn from generators seeded by
+(participant, seed), never by wall-clock time: it schedules each performance on the
+simulated sensor at a planned frame ahead of the stream and presses the key with that
+frame (``runner.key(k, at_frame=X)``), so with the simulator at any finite speed the
+same seed gives the same trials at the same file rows with the same frames.
+
+The personal style (where on the sensor, how hard, how fast) is the simulator's
+``style_seed``, derived from the participant id, so two virtual participants differ
+the way two people do.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.protocol.runner import CollectionRunner, State
+
+# Protocol gestures the simulator has no model for, mapped to a similar one:
+# (simulator gesture or None for no touch, intensity factor, speed factor).
+SIM_EQUIVALENT: dict[str, tuple[str | None, float, float]] = {
+    "poke": ("Poke", 1.0, 1.0), "pinch": ("Wide Pinch", 1.1, 1.2),
+    "wide pinch": ("Wide Pinch", 1.0, 1.0), "grab": ("Wide Pinch", 1.4, 1.3),
+    "squeeze": ("Wide Pinch", 1.3, 0.8), "pat": ("Heavy Pat", 0.6, 1.1),
+    "heavy pat": ("Heavy Pat", 1.0, 1.0), "hit": ("Heavy Pat", 1.6, 1.4),
+    "slap": ("Heavy Pat", 1.4, 1.6), "tap": ("Poke", 0.7, 2.0), "twist": ("Twist", 1.0, 1.0),
+    "rub": ("Back & Forth Rub", 1.0, 1.0), "back & forth rub": ("Back & Forth Rub", 1.0, 1.0),
+    "massage": ("Isometric Rub", 1.2, 0.8), "isometric rub": ("Isometric Rub", 1.0, 1.0),
+    "stroke": ("Circular Stroke", 0.8, 0.9), "circular stroke": ("Circular Stroke", 1.0, 1.0),
+    "press": ("Constant Touch", 1.5, 1.0), "constant": ("Constant Touch", 1.0, 1.0),
+    "constant touch": ("Constant Touch", 1.0, 1.0), "scratch": ("Tickle", 1.2, 1.5),
+    "tickle": ("Tickle", 1.0, 1.0), "no touch": (None, 0.0, 1.0),
+}
+_FALLBACK = ("Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
+             "Circular Stroke", "Constant Touch", "Tickle")
+
+
+def style_seed(participant: str, seed: int = 0) -> int:
+    """The participant's personal style, the same on every run and machine."""
+    digest = hashlib.sha256(f"style|{participant}|{int(seed)}".encode()).digest()
+    return int.from_bytes(digest[:4], "little") & 0x7FFFFFFF
+
+
+def sim_gesture(name: str) -> tuple[str | None, float, float]:
+    key = " ".join(name.lower().split())
+    if key in SIM_EQUIVALENT:
+        return SIM_EQUIVALENT[key]
+    h = int.from_bytes(hashlib.sha256(key.encode()).digest()[:2], "little")
+    return _FALLBACK[h % len(_FALLBACK)], 1.0, 1.0
+
+
+class VirtualParticipant:
+    """Drives ``runner`` and the simulated ``device`` (a SimulatedSensor) together.
+
+    Call :meth:`prepare` before the engine starts, then :meth:`step` after every
+    ``runner.tick()``. It starts the runner itself once the baseline is in.
+    """
+
+    def __init__(self, runner: CollectionRunner, device: Any, participant: str,
+                 seed: int = 0) -> None:
+        self.runner, self.device = runner, device
+        self.participant, self.seed = participant, int(seed)
+        self.style = style_seed(participant, seed)
+        self.rate = runner.rate
+        self.n = runner.trial_frames
+        self.start_frame = runner.engine.baseline_frames + round(0.5 * self.rate)
+        self._beep_frames = math.ceil(runner.protocol.beep_s * self.rate) + 1
+        self._plans: list[tuple[int, str, int]] = []  # (block, gesture, key frame) in order
+        self._count = 0
+        self.replanned = 0  # plans that had to move because the stream overtook them
+
+    def _rng(self, *key: int) -> np.random.Generator:
+        return np.random.default_rng([self.style, self.seed & 0x7FFFFFFF, *key])
+
+    def prepare(self) -> None:
+        """Quiet background, this participant's style, free-play touches, and every
+        remaining trial planned on the stream (so the plan never races the stream)."""
+        self.device.set_gesture("idle")  # from the next frame on
+        self.device.set_style(self.style)
+        self.start_frame = max(self.start_frame, self.device.next_frame + round(0.5 * self.rate))
+        r = self.runner
+        fp_frames = round(r.free_play_s * self.rate)
+        rng = self._rng(0xF4EE)
+        f = self.start_frame + round(0.3 * self.rate)
+        names = r.protocol.gesture_names
+        while fp_frames and f + self.n < self.start_frame + fp_frames:
+            sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
+            if sim is not None:
+                try:
+                    self.device.perform(sim, self.n / self.rate, inten, speed, at_frame=f)
+                except ValueError:
+                    pass  # the stream is already past it (prepared late): skip the touch
+            f += self.n + round(rng.uniform(0.3, 0.8) * self.rate)
+        frame = self.start_frame + fp_frames + round(1.0 * self.rate)
+        prev: int | None = None
+        for block, gesture in r.upcoming(1 << 30):
+            if prev is not None and block != prev and r.break_after(prev):
+                frame += round((r.protocol.break_min_s + 2.0) * self.rate)
+            frame = self._plan(block, gesture, frame + self._gap())
+            frame += self.n + self._beep_frames
+            prev = block
+
+    def _gap(self) -> int:
+        """Frames from the previous beep to the next key press: reading and reacting."""
+        return round(self._rng(0x6A9, self._count).uniform(0.4, 1.1) * self.rate)
+
+    def _plan(self, block: int, gesture: str, frame: int) -> int:
+        """Schedule ``gesture`` on the simulator at ``frame`` (moved later if the stream
+        already passed it) and remember it for the key press."""
+        rng = self._rng(0x7E1A, self._count)
+        self._count += 1
+        sim, inten, speed = sim_gesture(gesture)
+        inten *= float(rng.uniform(0.85, 1.15))
+        speed *= float(rng.uniform(0.9, 1.1))
+        lead = int(rng.integers(-2, 3))  # the hand lands a little before or after the key
+        for _ in range(100):
+            earliest = self.device.next_frame + 2 - min(lead, 0)
+            if frame < earliest:
+                frame = earliest + round(0.2 * self.rate)
+                self.replanned += 1
+            try:
+                if sim is not None:
+                    self.device.perform(sim, self.n / self.rate, inten, speed,
+                                        at_frame=frame + lead)
+                break
+            except ValueError:  # the stream overtook us between the check and the call
+                continue
+        self._plans.append((block, gesture, frame))
+        return frame
+
+    def step(self) -> bool:
+        """Act if it is time; True if a key was pressed (or the session started)."""
+        r = self.runner
+        if r.state == State.SETUP:
+            if r.engine.frames >= self.start_frame and r.engine.baseline is not None:
+                return r.start()
+            return False
+        if r.state not in State.KEY_STATES or r.held:
+            return False
+        nxt = r.upcoming(1)
+        if not nxt:
+            return False
+        block, gesture = nxt[0]
+        i = next((i for i, p in enumerate(self._plans) if p[:2] == (block, gesture)), None)
+        if i is None:  # off the plan (a redo): do it now
+            self._plan(block, gesture, self.device.next_frame + self._gap())
+            i = len(self._plans) - 1
+        frame = self._plans[i][2]
+        if r.engine.frames - 1 < frame:
+            return False  # not there yet
+        del self._plans[i]
+        return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)

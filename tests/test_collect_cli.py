@@ -1,0 +1,151 @@
+"""``tactile-studio collect`` as a user runs it: real subprocesses, real files,
+SIGKILL mid-session and a resume that loses no completed trial."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from tactile_studio.cli import main
+from tactile_studio.errors import SessionFileError
+from tactile_studio.protocol.protocol_file import load_protocol
+from tactile_studio.protocol.randomise import block_orders
+from tactile_studio.storage.session import Session
+
+EXE = str(Path(sys.executable).parent / "tactile-studio")
+WAIT_S = 60.0  # safety net only
+
+
+def _collect(*args: str, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([EXE, "collect", *args], capture_output=True, text=True,
+                          timeout=120, **kw)
+
+
+def _trials_in(path: Path) -> list[dict]:
+    try:
+        with Session(path) as s:
+            return s.trials
+    except SessionFileError:  # the writer is between creating and first flush
+        return []
+
+
+def _start(out: Path, *extra: str) -> tuple[subprocess.Popen, Path]:
+    proc = subprocess.Popen([EXE, "collect", "--protocol", "shear9", "--participant", "P01",
+                             "--device", "simulated", "--virtual-participant", "--out", str(out),
+                             *extra], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + WAIT_S
+    while not list(out.glob("*.h5")):
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    return proc, next(out.glob("*.h5"))
+
+
+def _wait_trials(proc: subprocess.Popen, path: Path, n: int) -> None:
+    deadline = time.monotonic() + WAIT_S
+    while len(_trials_in(path)) < n:
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "no progress"
+        time.sleep(0.05)
+
+
+def _main(capsys, *args: str) -> tuple[int, str, str]:
+    """The real CLI entry point in-process (no interpreter start-up per call)."""
+    code = main(["collect", *args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_headless_session_and_determinism(tmp_path: Path, capsys) -> None:
+    runs = []
+    for name, seed in (("a", "3"), ("b", "3"), ("c", "4")):
+        code, out, err = _main(capsys, "--protocol", "shear9", "--participant", "P01",
+                               "--virtual-participant", "--blocks", "1", "--seed", seed,
+                               "--speed", "40", "--out", str(tmp_path / name))
+        assert code == 0, err
+        path = Path(out.strip().splitlines()[-1])
+        assert path.parent == tmp_path / name and path.name.startswith("P01_shear9_")
+        assert "collect P01" in err  # progress on stderr
+        with Session(path) as s:
+            runs.append((s.trials, s.raw(0, s.n_frames)))
+    (ta, ra), (tb, rb), (tc, _) = runs
+    assert len(ta) == 9 and all(t["status"] == "ok" for t in ta)
+    assert ta == tb  # same seed: the same trials at the same rows...
+    end = ta[-1]["end_sample"]
+    assert (ra[:end] == rb[:end]).all()  # ...with the same frames
+    assert [t["gesture"] for t in ta] != [t["gesture"] for t in tc]
+
+
+def test_without_a_virtual_participant_it_points_to_the_gui(tmp_path: Path, capsys) -> None:
+    code, _, err = _main(capsys, "--protocol", "shear9", "--participant", "P01",
+                         "--out", str(tmp_path))
+    lines = err.strip().splitlines()
+    assert code == 1 and len(lines) == 1
+    assert "GUI" in lines[0] and "tactile-studio gui" in lines[0]
+    code, _, err = _main(capsys, "--protocol", "shear10", "--participant", "P01",
+                         "--virtual-participant", "--out", str(tmp_path))
+    assert code == 1 and "unknown protocol 'shear10'" in err
+    code, _, err = _main(capsys, "--protocol", "shear9", "--participant", "P 1",
+                         "--virtual-participant", "--out", str(tmp_path))
+    assert code == 1 and "bad participant id" in err
+    code, _, err = _main(capsys, "--virtual-participant", "--resume", str(tmp_path / "no.h5"))
+    assert code == 1 and "no such file" in err
+    assert not list(tmp_path.glob("*.h5"))
+
+
+def test_resume_refuses_a_mismatch_or_a_complete_session(tmp_path: Path, capsys) -> None:
+    code, out, err = _main(capsys, "--protocol", "shear9", "--participant", "P02",
+                           "--virtual-participant", "--blocks", "1", "--speed", "40",
+                           "--out", str(tmp_path))
+    assert code == 0, err
+    path = out.strip().splitlines()[-1]
+    for flag, value in (("--participant", "P03"), ("--protocol", "cost14"), ("--seed", "9")):
+        code, _, err = _main(capsys, "--virtual-participant", "--resume", path, flag, value)
+        assert code == 1 and value in err, err
+    code, _, err = _main(capsys, "--virtual-participant", "--resume", path)
+    assert code == 1 and "complete" in err
+
+
+def test_kill_minus_9_then_resume_loses_nothing_and_keeps_the_order(tmp_path: Path) -> None:
+    proc, path = _start(tmp_path, "--blocks", "3", "--seed", "5", "--speed", "15")
+    _wait_trials(proc, path, 11)  # into block 2
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=30)
+    assert proc.returncode == -signal.SIGKILL
+    kept = _trials_in(path)
+    assert len(kept) >= 11
+    res = _collect("--virtual-participant", "--resume", str(path), "--speed", "40")
+    assert res.returncode == 0, res.stderr
+    assert Path(res.stdout.strip().splitlines()[-1]) == path
+    backups = list(tmp_path.glob("*.bak-1.h5"))
+    assert len(backups) == 1
+    assert _trials_in(backups[0]) == kept
+    order = block_orders(load_protocol("shear9"), "P01", seed=5, blocks=3)
+    with Session(path) as s:
+        assert s.closed_cleanly and s.metadata["resumes"] == 1
+        trials = s.trials
+    assert trials[:len(kept)] == kept  # every completed trial survived, unchanged
+    assert [t["index"] for t in trials] == list(range(len(trials)))
+    assert all(t["status"] == "ok" for t in trials)
+    for b in range(3):
+        assert [t["gesture"] for t in trials if t["block"] == b] == order[b]
+    assert len(trials) == 27
+    for t in trials:
+        assert t["end_sample"] - t["start_sample"] == 86
+
+
+def test_ctrl_c_stops_cleanly_keeping_trials(tmp_path: Path) -> None:
+    proc, path = _start(tmp_path, "--blocks", "2", "--speed", "10")
+    _wait_trials(proc, path, 2)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "--resume" in err and "Traceback" not in err
+    with Session(path) as s:
+        assert s.closed_cleanly
+        assert 2 <= len(s.trials) < 18
+        assert any(e["kind"] == "abort" for e in s.events)

@@ -1,0 +1,122 @@
+"""Protocol files: the shipped ones load, every bad field is named, orders reproduce."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tactile_studio.errors import UserError
+from tactile_studio.protocol.protocol_file import (
+    ProtocolError,
+    list_protocols,
+    load_protocol,
+    protocol_from_dict,
+)
+from tactile_studio.protocol.randomise import block_orders, practice_order
+
+SHEAR9 = ["Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
+          "Circular Stroke", "Constant Touch", "Tickle"]
+COST14 = ["grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch", "slap",
+          "stroke", "squeeze", "tap", "tickle"]
+HAART7 = ["constant", "no touch", "pat", "rub", "scratch", "stroke", "tickle"]
+
+GOOD = """
+name = "mini"
+trial_s = 2.0
+blocks = 3
+[breaks]
+every_blocks = 1
+min_s = 5
+[[gestures]]
+name = "Poke"
+key = "p"
+definition = "Poke it."
+[[gestures]]
+name = "Rub"
+key = "r"
+definition = "Rub it."
+"""
+
+
+def test_shipped_protocols_load_with_the_papers_numbers() -> None:
+    assert list_protocols() == ["cost14", "haart7", "shear9"]
+    p = load_protocol("shear9")
+    assert p.gesture_names == SHEAR9
+    assert (p.blocks, p.trial_s, p.free_play_s, p.break_every) == (52, 2.0, 10.0, 12)
+    assert p.break_min_s >= 120
+    assert p.beep_hz > 0 and p.beep_s > 0
+    assert len({g.key for g in p.gestures}) == 9
+    assert all(len(g.definition) > 20 for g in p.gestures)
+    assert sorted(load_protocol("cost14").gesture_names) == sorted(COST14)
+    assert load_protocol("haart7").gesture_names == HAART7
+    for name in ("cost14", "haart7"):
+        assert all(g.definition for g in load_protocol(name).gestures)
+
+
+def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
+    f = tmp_path / "mini.toml"
+    f.write_text(GOOD)
+    p = load_protocol(f)
+    assert (p.name, p.blocks, p.break_every, p.break_min_s) == ("mini", 3, 1, 5.0)
+    assert p.gesture_by_key("R").name == "Rub"
+    again = protocol_from_dict(p.to_dict(), "again")
+    assert again.to_dict() == p.to_dict()
+    small = p.with_overrides(blocks=1, break_min_s=0.5)
+    assert (small.blocks, small.break_min_s, small.gestures) == (1, 0.5, p.gestures)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace('key = "r"', 'key = "p"'), "mini.toml: gestures[1].key: duplicate key 'p'"),
+    (lambda t: t.replace('name = "Rub"', 'name = "poke"'), "mini.toml: gestures[1].name: duplicate"),
+    (lambda t: t.replace('key = "r"', 'key = "rr"'), "mini.toml: gestures[1].key: must be one printable"),
+    (lambda t: t.replace('definition = "Rub it."', ''), "mini.toml: gestures[1].definition: missing"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = " "'), "gestures[1].definition: must not be empty"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "nope.png"'), "gestures[1].image: no such file"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'), "gestures[1].colour: unknown field"),
+    (lambda t: t.replace("blocks = 3", "blocks = 0"), "mini.toml: blocks: 0 is out of range"),
+    (lambda t: t.replace("blocks = 3", 'blocks = "many"'), "mini.toml: blocks: expected a whole number"),
+    (lambda t: t.replace("blocks = 3", ""), "mini.toml: blocks: missing"),
+    (lambda t: t.replace("trial_s = 2.0", "trial_s = -1"), "mini.toml: trial_s: -1 is out of range"),
+    (lambda t: t.replace("trial_s = 2.0", "trial_s = true"), "mini.toml: trial_s: expected a number"),
+    (lambda t: t.replace("min_s = 5", "min_s = -5"), "mini.toml: breaks.min_s: -5 is out of range"),
+    (lambda t: t.replace("every_blocks = 1", "every = 1"), "mini.toml: breaks.every: unknown field"),
+    (lambda t: t + '\n[beep]\nfrequency_hz = 5\n', "mini.toml: beep.frequency_hz: 5 is out of range"),
+    (lambda t: t + '\n[randomisation]\nmode = "latin"\n', "mini.toml: randomisation.mode: unknown mode 'latin'"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\ntrials = 4'), "mini.toml: trials: unknown field"),
+    (lambda t: t.split("[[gestures]]")[0], "mini.toml: gestures: missing"),
+    (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"), "mini.toml: breaks: must be a table"),
+    (lambda t: t + "\nblocks = [", "mini.toml: not valid TOML"),
+])
+def test_validation_names_the_field(tmp_path: Path, edit, message: str) -> None:
+    f = tmp_path / "mini.toml"
+    f.write_text(edit(GOOD))
+    with pytest.raises(ProtocolError) as err:
+        load_protocol(f)
+    assert message in str(err.value)
+    assert "\n" not in str(err.value)
+    assert isinstance(err.value, UserError)
+
+
+def test_missing_protocols_are_user_errors(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="unknown protocol 'shear10'.*shear9"):
+        load_protocol("shear10")
+    with pytest.raises(UserError, match="no such protocol file"):
+        load_protocol(tmp_path / "absent.toml")
+
+
+def test_randomisation_is_per_block_reproducible_and_per_participant() -> None:
+    p = load_protocol("shear9")
+    a = block_orders(p, "P01", seed=0)
+    assert len(a) == 52
+    assert all(sorted(block) == sorted(SHEAR9) for block in a)
+    assert len({tuple(b) for b in a}) > 40  # a fresh shuffle per block
+    assert block_orders(p, "P01", seed=0) == a
+    assert block_orders(p, "P02", seed=0) != a
+    assert block_orders(p, "P01", seed=1) != a
+    assert block_orders(p.with_overrides(blocks=2), "P01", seed=0) == a[:2]
+    fixed = p.with_overrides(randomisation="fixed")
+    assert block_orders(fixed, "P01") == [SHEAR9] * 52
+    assert practice_order(p.with_overrides(practice_trials=11), "P01") == \
+        practice_order(p.with_overrides(practice_trials=11), "P01")
+    assert len(practice_order(p.with_overrides(practice_trials=11), "P01")) == 11

@@ -1,0 +1,96 @@
+"""Quality flags on frames from the simulated sensor, and the info trial table."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from tactile_studio.protocol.quality import FLAGS, describe, in_centre, load_centroid, trial_flags
+from tactile_studio.protocol.report import trial_table
+from tactile_studio.sensor.decode import compute_baseline
+from tactile_studio.sensor.layout import COST_8X8, SHEARSENSE_6X6
+from tactile_studio.simulate import SensorSimulator
+
+N = 86
+
+
+def _trial(gesture: str | None = "Twist", press: tuple | None = None, **cfg) -> tuple:
+    sim = SensorSimulator(gesture="idle", seed=3, **cfg)
+    base = compute_baseline(sim.step(100))
+    if gesture:
+        sim.perform(gesture, 2.0, at_frame=110)
+    if press:
+        sim.press(*press, at_frame=110)
+    sim.step(10)
+    seq = np.arange(sim.frame, sim.frame + N)
+    return sim.step(N), base, seq
+
+
+def test_a_good_gesture_has_no_flags() -> None:
+    for gesture in ("Poke", "Twist", "Tickle", "Constant Touch"):
+        raw, base, seq = _trial(gesture)
+        assert trial_flags(SHEARSENSE_6X6, raw, base, seq=seq, device_time=seq / 43.0,
+                           rate_hz=43.0) == [], gesture
+
+
+def test_each_flag_from_its_cause() -> None:
+    lay = SHEARSENSE_6X6
+    raw, base, seq = _trial(None)
+    assert trial_flags(lay, raw, base) == ["no_contact"]
+    raw, base, _ = _trial("Twist", fault="stuck_channel")
+    assert "stuck_channel" in trial_flags(lay, raw, base)
+    raw, base, _ = _trial("Twist")
+    hot = raw.copy()
+    hot[40, 7] = 65535
+    assert trial_flags(lay, hot, base) == ["saturated"]
+    hot[40, 7] = 0
+    assert trial_flags(lay, hot, base) == ["saturated"]
+    jumped = seq.copy()
+    jumped[50:] += 3
+    assert trial_flags(lay, raw, base, seq=jumped) == ["gap"]
+    t = seq / 43.0
+    t[60:] += 0.5
+    assert trial_flags(lay, raw, base, device_time=t, rate_hz=43.0) == ["gap"]
+    assert trial_flags(lay, raw, base, gap_events=1) == ["gap"]
+    assert trial_flags(lay, raw, base, lost_frames=4) == ["dropped_frames"]
+    assert trial_flags(lay, raw[:0], base) == ["dropped_frames"]
+    raw, base, _ = _trial(None, press=(4.0, 40.0, 20.0))  # left edge, middle row
+    assert trial_flags(lay, raw, base) == ["off_centre"]
+    r, c = load_centroid(lay, raw, base)
+    assert c < 1.0 and 1.5 < r < 3.5
+    raw, base, _ = _trial(None, press=(40.0, 40.0, 20.0))
+    assert trial_flags(lay, raw, base) == []
+    assert in_centre(lay, load_centroid(lay, raw, base), 0.7)
+
+
+def test_flags_on_a_pressure_grid() -> None:
+    base = np.full(64, 100.0)
+    raw = np.tile(base, (N, 1))
+    assert trial_flags(COST_8X8, raw, base) == ["no_contact"]
+    raw[:, 27] += 300  # a press near the middle, rising counts
+    raw[:, 28] += np.linspace(0, 50, N)
+    assert trial_flags(COST_8X8, raw, base) == []
+    raw[10, 27] = COST_8X8.raw_max
+    assert trial_flags(COST_8X8, raw, base) == ["saturated"]
+
+
+def test_describe_and_trial_table() -> None:
+    assert describe(["no_contact", "off_centre"]) == "no contact, contact off the sensor centre"
+    assert set(FLAGS) == {"no_contact", "saturated", "stuck_channel", "dropped_frames", "gap",
+                          "off_centre"}
+    trials = [
+        {"index": 0, "block": -1, "gesture": "Poke", "status": "discarded", "flags": []},
+        {"index": 1, "block": 0, "gesture": "Twist", "status": "ok", "flags": []},
+        {"index": 2, "block": 0, "gesture": "Poke", "status": "redone", "flags": ["no_contact"]},
+        {"index": 3, "block": 0, "gesture": "Poke", "status": "ok", "flags": []},
+        {"index": 4, "block": 1, "gesture": "Poke", "status": "discarded", "flags": ["gap"]},
+    ]
+    table = trial_table(trials, ["Poke", "Twist", "Tickle"])
+    lines = table.splitlines()
+    assert lines[0].split() == ["gesture", "ok", "redone", "discarded", "flagged"]
+    assert lines[1].split() == ["Poke", "1", "1", "1", "2"]
+    assert lines[2].split() == ["Twist", "1", "0", "0", "0"]
+    assert lines[3].split() == ["Tickle", "0", "0", "0", "0"]
+    assert lines[4].split() == ["total", "2", "1", "1", "2"]
+    assert "flags: no_contact 1, gap 1" in table
+    assert "blocks: 2 (1..2)" in table and "practice trials: 1" in table
+    assert trial_table([]) == "no trials"

@@ -1,0 +1,196 @@
+"""The runner on the real stream: real engine, real simulated sensor, real session file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from collect_fixtures import do_trial, drive, make_rig, mini_protocol, perform_soon, start
+
+from tactile_studio.protocol.protocol_file import load_protocol
+from tactile_studio.protocol.virtual import VirtualParticipant
+from tactile_studio.storage.session import Session
+
+
+def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
+    protocol = load_protocol("shear9").with_overrides(blocks=2, free_play_s=1.0)
+    rig = make_rig(tmp_path, protocol, "P07", speed=60.0)
+    vp = VirtualParticipant(rig.runner, rig.device, "P07", seed=0)
+    # the engine is already running here: prepare() plans from the device's next frame
+    vp.prepare()
+    try:
+        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
+        snap = rig.runner.snapshot()
+    finally:
+        rig.close()
+    assert snap.trials_done == snap.trials_total == 18 and snap.progress == 1.0
+    assert rig.beeps.asked == [(protocol.beep_hz, protocol.beep_s)] * 18
+    n = round(protocol.trial_s * rig.device.nominal_rate_hz)
+    with Session(rig.session.path) as s:
+        trials = s.trials
+        order = s.metadata["block_order"]
+        assert s.metadata["participant"] == "P07" and s.metadata["source"] == "collect"
+        assert s.metadata["gestures"] == protocol.gesture_names
+        assert s.closed_cleanly
+        assert [t["status"] for t in trials] == ["ok"] * 18
+        assert [t["index"] for t in trials] == list(range(18))
+        for b in (0, 1):
+            done = [t["gesture"] for t in trials if t["block"] == b]
+            assert sorted(done) == sorted(protocol.gesture_names)  # a permutation
+            assert done == order[b]  # in the order shown
+        for t in trials:
+            assert t["end_sample"] - t["start_sample"] == n
+            seq = s.column("seq", t["start_sample"], t["end_sample"])
+            assert np.array_equal(np.diff(seq), np.ones(n - 1))  # every frame, in the file
+            dt = s.column("device_time", t["start_sample"], t["end_sample"])
+            assert t["start_time"] == round(float(dt[0]), 6)
+            assert abs(t["end_time"] - t["start_time"] - protocol.trial_s) < 1e-6
+            # the sensor really performed that gesture during the trial
+            assert rig.device.gesture_at(int(seq[n // 2])) == t["gesture"]
+            assert "no_contact" not in t["flags"]
+        starts = [t["start_sample"] for t in trials]
+        assert starts == sorted(starts) and all(
+            b["start_sample"] >= a["end_sample"] for a, b in zip(trials, trials[1:]))
+
+
+def test_refused_keys_leave_a_visible_hint(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol())
+    r = rig.runner
+    try:
+        assert not r.key("p") and "not started" in r.snapshot().hint
+        start(rig)
+        first = r.snapshot().remaining[0]
+        key = r.protocol.gesture_by_name(first).key
+        do_trial(rig, first)
+        snap = r.snapshot()
+        assert [g.done for g in snap.gestures].count(True) == 1
+        assert not r.key(key)
+        hint = r.snapshot().hint
+        assert f"{first} ({key}) is already done in this block" in hint
+        assert all(g in hint for g in r.snapshot().remaining)
+        assert r.state == "waiting_for_key" and len(r.trials) == 1
+        assert not r.key("z") and "'z' is not a gesture key" in r.snapshot().hint
+        assert not r.key("Shift") and "not a gesture key" in r.snapshot().hint
+        other = r.snapshot().remaining[0]
+        assert r.key(r.protocol.gesture_by_name(other).key.upper())  # case-insensitive
+        assert r.snapshot().hint == "" and r.state == "trial_recording"
+        assert not r.key(key) and "a trial is running" in r.snapshot().hint
+    finally:
+        rig.close()
+
+
+def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=2))
+    r = rig.runner
+    try:
+        start(rig)
+        g0 = r.snapshot().remaining[0]
+        t0 = do_trial(rig, g0)
+        assert r.redo_last("participant hesitated")
+        assert r.snapshot().remaining[0] == g0 and "redo" in r.snapshot().hint
+        t1 = do_trial(rig, g0)
+        assert t1["index"] == t0["index"] + 1 and t1["gesture"] == g0
+        g1 = r.snapshot().remaining[0]
+        do_trial(rig, g1)  # completes block 1; the runner moves on to block 2
+        assert r.snapshot().block_number == 2
+        assert r.redo_last()  # the last trial belongs to block 1: reopen it for g1
+        snap = r.snapshot()
+        assert (snap.block_number, snap.remaining) == (1, (g1,))
+        redo = do_trial(rig, g1)
+        assert redo["block"] == 0
+        assert r.snapshot().block_number == 2
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        status = [(t["gesture"], t["status"], t["reason"]) for t in s.trials]
+    assert status[0] == (g0, "redone", "participant hesitated")
+    assert status[1] == (g0, "ok", None)
+    assert status[2][:2] == (g1, "redone") and status[3][:2] == (g1, "ok")
+
+
+def test_discard_needs_a_reason_and_is_not_collected_again(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol())
+    r = rig.runner
+    try:
+        start(rig)
+        g0 = r.snapshot().remaining[0]
+        t0 = do_trial(rig, g0)
+        assert not r.discard(t0["index"], "  ") and "reason" in r.snapshot().hint
+        assert not r.discard(99, "x") and "no trial 99" in r.snapshot().hint
+        assert r.discard(t0["index"], "participant sneezed")
+        assert not r.discard(t0["index"], "again") and "already discarded" in r.snapshot().hint
+        assert g0 not in r.snapshot().remaining
+        assert r.snapshot().trials[0]["status"] == "discarded"
+        assert r.add_note("sensor re-taped after trial 0")
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert s.trials[0]["status"] == "discarded"
+        assert s.trials[0]["reason"] == "participant sneezed"
+        assert "re-taped" in s.metadata["notes"]
+        assert any(e["kind"] == "note" for e in s.events)
+
+
+def test_flagged_trial_prompts_a_redo_and_can_hold(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol(), hold_flagged=True)
+    r = rig.runner
+    try:
+        start(rig)
+        g0 = r.snapshot().remaining[0]
+        t0 = do_trial(rig, g0, perform=False)  # key pressed, nobody touched the sensor
+        assert "no_contact" in t0["flags"] and t0["status"] == "ok"
+        snap = r.snapshot()
+        assert snap.state == "trial_review" and snap.can_continue
+        assert f"Trial {t0['index']} ({g0}): no contact" in snap.redo_prompt
+        g1 = snap.remaining[0]
+        assert not r.key(r.protocol.gesture_by_name(g1).key)
+        assert "checking" in r.snapshot().hint
+        assert r.redo_last("no contact")
+        assert r.state == "waiting_for_key" and r.snapshot().redo_prompt == ""
+        t1 = do_trial(rig, g0)
+        assert t1["flags"] == [] and r.state == "waiting_for_key"
+    finally:
+        rig.close()
+
+
+def test_stuck_channel_and_off_centre_flags_reach_the_file(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol(), sim={"fault": "stuck_channel"})
+    r = rig.runner
+    try:
+        start(rig)
+        t0 = do_trial(rig, r.snapshot().remaining[0])
+        assert "stuck_channel" in t0["flags"]
+        frame = perform_soon(rig, press=(4.0, 4.0, 20.0))  # in the corner
+        g = r.snapshot().remaining[0]
+        assert r.key(r.protocol.gesture_by_name(g).key, at_frame=frame)
+        drive(rig, lambda: len(r.trials) == 2)
+        assert "off_centre" in r.trials[-1]["flags"]
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert "stuck_channel" in s.trials[0]["flags"]
+        assert "off_centre" in s.trials[1]["flags"]
+
+
+def test_practice_then_blocks_and_other_gesture_sets(tmp_path: Path) -> None:
+    protocol = load_protocol("haart7").with_overrides(blocks=1, free_play_s=0.0,
+                                                       practice_trials=2, trial_s=1.0)
+    rig = make_rig(tmp_path, protocol, "P11", speed=80.0)
+    vp = VirtualParticipant(rig.runner, rig.device, "P11", seed=2)
+    vp.prepare()
+    seen_practice = []
+    rig.runner.add_listener(lambda e: seen_practice.append(rig.runner.snapshot().practice)
+                            if e["kind"] == "trial_started" else None)
+    try:
+        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
+    finally:
+        rig.close()
+    trials = rig.runner.trials
+    assert seen_practice == [True, True] + [False] * 7
+    assert [(t["block"], t["status"], t["reason"]) for t in trials[:2]] == \
+        [(-1, "discarded", "practice")] * 2
+    real = trials[2:]
+    assert sorted(t["gesture"] for t in real) == sorted(protocol.gesture_names)
+    for t in real:  # "no touch" is performed as nothing at all: exactly that one is flagged
+        assert ("no_contact" in t["flags"]) == (t["gesture"] == "no touch"), t
+    assert rig.runner.snapshot().trials_done == 7

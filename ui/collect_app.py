@@ -1,0 +1,90 @@
+"""Ways into the collection console: the main window's menu and the ``collect`` command.
+
+``add_collection_menu`` puts "New collection session..." and "Resume collection
+session..." into a menu; the console then shares the main window's live engine when it
+is streaming. ``run_console`` is what ``tactile-studio collect`` (without
+``--virtual-participant``) can call to open the console pre-filled, or resuming a file.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction
+from PySide6.QtWidgets import QMenu, QWidget
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.ui.collect_console import CollectConsole
+
+LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
+
+
+def open_console(live: LiveSource | None = None, resume: bool = False,
+                 keep: list[CollectConsole] | None = None) -> CollectConsole:
+    """A new console window; shares the live engine from ``live()`` if it is running."""
+    engine, name = live() if live is not None else (None, None)
+    if engine is not None and not engine.running:
+        engine, name = None, None
+    console = CollectConsole(engine=engine, live_device=name)
+    console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+    if keep is not None:  # the caller holds a reference while the window is open
+        keep.append(console)
+        console.destroyed.connect(lambda *_: console in keep and keep.remove(console))
+    console.show()
+    if resume:
+        console.setup.choose_resume_file()
+    return console
+
+
+def add_collection_menu(window: QWidget, menu: QMenu, live: LiveSource | None = None) -> None:
+    """Add the collection actions to ``menu`` (e.g. the main window's File menu)."""
+    consoles: list[CollectConsole] = []
+    window._collect_consoles = consoles  # type: ignore[attr-defined]
+    menu.addSeparator()
+    new = QAction("New &collection session\u2026", window)
+    new.triggered.connect(lambda: open_console(live, keep=consoles))
+    menu.addAction(new)
+    resume = QAction("Resume collection session\u2026", window)
+    resume.triggered.connect(lambda: open_console(live, resume=True, keep=consoles))
+    menu.addAction(resume)
+
+
+def run_console(protocol: str | os.PathLike | None = None, participant: str = "",
+                device: str | None = None, device_settings: dict[str, Any] | None = None,
+                out_dir: str | os.PathLike | None = None, blocks: int | None = None,
+                seed: int | None = None, resume: str | os.PathLike | None = None) -> int:
+    """Open the console pre-filled (or resuming ``resume``) and run until it is closed.
+
+    The form stays editable: the experimenter checks it and clicks "Open session".
+    """
+    from tactile_studio.ui.app import ensure_app
+
+    app = ensure_app()
+    console = CollectConsole()
+    s = console.setup
+    if protocol is not None:
+        text = str(protocol)
+        if s.protocol.findData(text) >= 0:
+            s.protocol.setCurrentIndex(s.protocol.findData(text))
+        else:
+            s.set_protocol_file(str(Path(text).resolve()))
+    if participant:
+        s.participant.setText(participant)
+    if device:
+        s.device.setCurrentIndex(max(0, s.device.findData(device)))
+    if device_settings:
+        s.device_settings.setText(" ".join(f"{k}={v}" for k, v in device_settings.items()))
+    if out_dir is not None:
+        s.out_dir.setText(str(out_dir))
+    if blocks is not None:
+        s.blocks.setValue(int(blocks))
+    if seed is not None:
+        s.seed.setValue(int(seed))
+    console.show()
+    if resume is not None:
+        console.resume_from(resume)
+    return int(app.exec())

@@ -1,0 +1,432 @@
+"""The experimenter console of a collection session.
+
+Setup page (protocol, participant, folder, device, or "Resume session...") then the
+session page: the live heatmap with shear arrows, a mirror of the participant screen,
+session progress and ETA, the trial log with quality flags, and the experimenter's
+buttons. One QTimer drives ``runner.tick()`` and every repaint (never one repaint per
+sample). Widgets only present ``runner.snapshot()`` and forward intent to the runner;
+opening, resuming and closing the session file is the core's ``open_session`` /
+``resume_session`` / ``close``.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import QEvent, QObject, QSettings, Qt, QTimer
+from PySide6.QtGui import QCloseEvent, QGuiApplication, QKeyEvent, QKeySequence
+from PySide6.QtWidgets import (
+    QAbstractSpinBox,
+    QApplication,
+    QComboBox,
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QMainWindow,
+    QMessageBox,
+    QProgressBar,
+    QPushButton,
+    QSplitter,
+    QStackedWidget,
+    QTextEdit,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.registry import create_device
+from tactile_studio.errors import UserError
+from tactile_studio.live import LiveView
+from tactile_studio.protocol.collect import open_session, resume_session
+from tactile_studio.ui.collect_beep import QtBeeper
+from tactile_studio.ui.collect_log import TextDialog, TrialLog
+from tactile_studio.ui.collect_participant import ParticipantScreen
+from tactile_studio.ui.collect_setup import CollectSetup, SetupChoice
+from tactile_studio.ui.collect_view import participant_view, progress_text, state_label
+from tactile_studio.ui.heatmap import HeatmapView
+from tactile_studio.ui.settings import app_settings
+
+log = logging.getLogger(__name__)
+TICK_MS = 15
+HEATMAP_EVERY = 2          # heatmap at ~33 Hz: every other tick
+DISCARD_REASONS = ("wrong gesture", "started late", "interrupted", "sensor problem")
+ELLIPSIS = "\u2026"
+_TEXT_INPUTS = (QLineEdit, QTextEdit, QAbstractSpinBox, QComboBox)
+
+
+class CollectConsole(QMainWindow):
+    """Runs one collection session; ``engine`` shares a live engine (else one is made)."""
+
+    def __init__(self, engine: AcquisitionEngine | None = None, live_device: str | None = None,
+                 settings: QSettings | None = None, beeper: QtBeeper | None = None,
+                 clock: Any = None, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Tactile Studio \u2014 collection session")
+        self.shared_engine = engine
+        self.engine: AcquisitionEngine | None = None
+        self._own_engine = False
+        self.session: Any = None          # the core's collect session (cs)
+        self.runner: Any = None
+        self.protocol: Any = None
+        self.clock = clock
+        self.beeper = beeper or QtBeeper(self)
+        self.live = LiveView()
+        self._ticks = 0
+        self._closed_session_path: str | None = None
+        self._dialog: TextDialog | None = None
+        self._shown: Any = None  # the LiveFrame last drawn (LiveView caches per frame)
+
+        self.setup = CollectSetup(settings if settings is not None else app_settings(),
+                                  live_device=live_device if engine is not None else None)
+        self.setup.startRequested.connect(self.start_session)
+        self.setup.resumeRequested.connect(self.resume_from)
+        self.participant = ParticipantScreen()
+        self.participant.keyPressed.connect(self.forward_key)
+        self.beeper.flash.connect(self._flash)
+
+        self.stack = QStackedWidget()
+        self.stack.addWidget(self.setup)
+        self.stack.addWidget(self._build_session_page())
+        self.setCentralWidget(self.stack)
+        self.resize(1500, 900)
+
+        self.timer = QTimer(self)
+        self.timer.setTimerType(Qt.TimerType.PreciseTimer)
+        self.timer.setInterval(TICK_MS)
+        self.timer.timeout.connect(self.tick)
+        QApplication.instance().installEventFilter(self)
+
+    # ---- layout -----------------------------------------------------------------------
+    def _build_session_page(self) -> QWidget:
+        self.heatmap = HeatmapView()
+        self.heatmap.virtualChanged.connect(self._on_virtual)
+        self.mirror = ParticipantScreen(mirror=True)
+        mirror_box = QGroupBox("Participant screen (mirror)")
+        mb = QVBoxLayout(mirror_box)
+        mb.setContentsMargins(6, 6, 6, 6)
+        mb.addWidget(self.mirror)
+        self.state = QLabel()
+        self.state.setStyleSheet("font-size: 17px; font-weight: 600;")
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1000)
+        self.progress.setTextVisible(False)
+        self.progress_label = QLabel()
+        self.file_label = QLabel()
+        self.file_label.setStyleSheet("color: #606770;")
+        self.file_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.redo_banner = QLabel()
+        self.redo_banner.setWordWrap(True)
+        self.redo_banner.setStyleSheet(
+            "background: #ffe3b3; color: #6b4100; border-radius: 6px; padding: 8px;"
+            "font-weight: 600;")
+        self.hint_label = QLabel()
+        self.hint_label.setStyleSheet("color: #c0392b;")
+
+        b = self.buttons = {}
+        for name, text, key, slot in (
+                ("primary", "Start", "Ctrl+Return", self.primary_action),
+                ("redo", "Redo last", "Ctrl+Z", self.redo_last),
+                ("discard", "Discard\u2026", "Ctrl+D", self.ask_discard),
+                ("pause", "Pause", "Ctrl+P", self.toggle_pause),
+                ("break", "Skip to break", "Ctrl+B", self.skip_to_break),
+                ("note", "Note\u2026", "Ctrl+N", self.ask_note),
+                ("screen", "Participant screen", "Ctrl+F", self.show_participant_screen),
+                ("end", "End session", "", self.end_session)):
+            btn = QPushButton(text)
+            btn.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # letters and Space are the runner's
+            if key:
+                btn.setShortcut(QKeySequence(key))
+                btn.setToolTip(f"{text.rstrip(ELLIPSIS)} ({key})")
+            btn.clicked.connect(slot)
+            b[name] = btn
+        b["primary"].setStyleSheet("font-weight: 600; padding: 6px 18px;")
+        grid = QGridLayout()
+        for i, name in enumerate(("primary", "redo", "discard", "pause", "break", "note",
+                                  "screen", "end")):
+            grid.addWidget(b[name], i // 2, i % 2)
+
+        self.log = TrialLog()
+        log_box = QGroupBox("Trials")
+        lb = QVBoxLayout(log_box)
+        lb.setContentsMargins(6, 6, 6, 6)
+        lb.addWidget(self.log)
+
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.setContentsMargins(0, 0, 0, 0)
+        lv.addWidget(self.heatmap, 1)
+        lv.addWidget(self.state)
+        lv.addWidget(self.progress)
+        lv.addWidget(self.progress_label)
+        lv.addWidget(self.file_label)
+        lv.addWidget(self.redo_banner)
+        lv.addWidget(self.hint_label)
+        lv.addLayout(grid)
+        right = QSplitter(Qt.Orientation.Vertical)
+        right.addWidget(mirror_box)
+        right.addWidget(log_box)
+        right.setSizes([540, 320])
+
+        page = QSplitter(Qt.Orientation.Horizontal)
+        page.addWidget(left)
+        page.addWidget(right)
+        page.setSizes([560, 900])
+        outer = QWidget()
+        h = QHBoxLayout(outer)
+        h.setContentsMargins(6, 6, 6, 6)
+        h.addWidget(page)
+        return outer
+
+    # ---- opening and closing sessions ---------------------------------------------------
+    def _engine_for(self, device: str | None, dev_settings: dict[str, Any]) -> AcquisitionEngine:
+        if device is None:
+            if self.shared_engine is None:
+                raise UserError("no live device: choose a device")
+            return self.shared_engine
+        engine = AcquisitionEngine(create_device(device, dev_settings))
+        engine.start()
+        self._own_engine = True
+        return engine
+
+    def start_session(self, choice: SetupChoice) -> bool:
+        """Open a new session from the setup choices; False (message shown) on a user error."""
+        return self._open(lambda eng: open_session(
+            choice.protocol, participant=choice.participant, engine=eng,
+            out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
+            beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
+            auto_continue=choice.auto_continue), choice.device, choice.device_settings)
+
+    def resume_from(self, path: str | Path) -> bool:
+        """Continue a killed or closed session file at its next trial."""
+        device, dev_settings = self.setup.device_choice()
+        return self._open(lambda eng: resume_session(
+            Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
+            hold_flagged=self.setup.hold_flagged.isChecked(),
+            auto_continue=self.setup.auto_continue.isChecked()), device, dev_settings)
+
+    def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
+        self.close_session()
+        try:
+            self.engine = self._engine_for(device, dev_settings)
+            self.session = make(self.engine)
+        except UserError as exc:
+            self.setup.error.setText(str(exc))
+            self._stop_own_engine()
+            return False
+        self.runner = self.session.runner
+        self.protocol = self.runner.protocol
+        self.live.attach(self.engine)
+        self.live.virtual = self.heatmap.virtual
+        self.heatmap.set_layout(self.engine.layout)
+        self.file_label.setText(f"File: {self.session.path}")
+        self._closed_session_path = None
+        self.stack.setCurrentIndex(1)
+        self.timer.start()
+        self.tick()
+        return True
+
+    def close_session(self) -> str | None:
+        """Stop the timer and close the file cleanly (finished trials are kept)."""
+        self.timer.stop()
+        path = None
+        if self.session is not None:
+            path = str(self.session.path)
+            self.session.close()
+            self.session = None
+        self._stop_own_engine()
+        return path
+
+    def _stop_own_engine(self) -> None:
+        if self._own_engine and self.engine is not None:
+            self.engine.stop()
+        self._own_engine = False
+
+    def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt)
+        """Closing mid-session is safe: the file is consistent and can be resumed."""
+        self.close_session()
+        QApplication.instance().removeEventFilter(self)
+        self.participant.close()
+        super().closeEvent(event)
+
+    # ---- the timer ----------------------------------------------------------------------
+    def tick(self) -> None:
+        """Advance the runner and present its snapshot (called every TICK_MS)."""
+        if self.runner is None:
+            return
+        self.runner.tick()
+        snap = self.runner.snapshot()
+        self._ticks += 1
+        view = participant_view(snap, self.protocol)
+        self.participant.show_view(view)
+        self.mirror.show_view(view)
+        self._present(snap)
+        if self._ticks % HEATMAP_EVERY == 0:
+            frame = self.live.latest()
+            if frame is not None and frame is not self._shown:
+                self._shown = frame
+                self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
+        if snap.state in ("finished", "aborted") and self.session is not None:
+            self._closed_session_path = self.close_session()
+            self.file_label.setText(f"Saved: {self._closed_session_path}")
+
+    def _present(self, snap: Any) -> None:
+        self.state.setText(state_label(snap))
+        self.progress.setValue(int(round(1000 * (snap.progress or 0.0))))
+        self.progress_label.setText(progress_text(snap))
+        self.redo_banner.setText(snap.redo_prompt)
+        self.redo_banner.setVisible(bool(snap.redo_prompt))
+        self.hint_label.setText(snap.hint)
+        self.hint_label.setVisible(bool(snap.hint))
+        self.log.set_trials(snap.trials)
+        live = snap.state not in ("finished", "aborted")
+        b = self.buttons
+        if snap.state == "setup":
+            b["primary"].setText("Start")
+            b["primary"].setEnabled(True)
+        else:
+            b["primary"].setText("Continue")
+            b["primary"].setEnabled(bool(snap.can_continue))
+        b["redo"].setEnabled(live and snap.last_trial is not None)
+        b["discard"].setEnabled(bool(snap.trials))
+        b["pause"].setText("Resume" if snap.state == "paused" else "Pause")
+        b["pause"].setEnabled(live and snap.state != "setup")
+        b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
+        b["end"].setEnabled(live)
+
+    # ---- experimenter actions (forwarded to the runner) ---------------------------------
+    def primary_action(self) -> None:
+        if self.runner is None:
+            return
+        if self.runner.snapshot().state == "setup":
+            self.runner.start()
+        else:
+            self.runner.proceed()
+        self.tick()
+
+    def redo_last(self) -> None:
+        if self.runner is not None:
+            self.runner.redo_last()
+            self.tick()
+
+    def toggle_pause(self) -> None:
+        if self.runner is None:
+            return
+        if self.runner.snapshot().state == "paused":
+            self.runner.resume()
+        else:
+            self.runner.pause()
+        self.tick()
+
+    def skip_to_break(self) -> None:
+        if self.runner is not None:
+            self.runner.skip_to_break()
+            self.tick()
+
+    def ask_discard(self) -> TextDialog | None:
+        """Ask a reason to discard the selected trial (or the last one)."""
+        if self.runner is None:
+            return None
+        snap = self.runner.snapshot()
+        index = self.log.selected_index()
+        if index is None and snap.last_trial is not None:
+            index = int(snap.last_trial["index"])
+        if index is None:
+            return None
+        gesture = next((t["gesture"] for t in snap.trials if t["index"] == index), "?")
+        dlg = TextDialog("Discard trial", f"Discard trial {index} ({gesture}). Reason:",
+                         DISCARD_REASONS, self)
+        dlg.accepted.connect(lambda: self._discard(index, dlg.text()))
+        return self._open_dialog(dlg)
+
+    def _discard(self, index: int, reason: str) -> None:
+        if self.runner is not None:
+            self.runner.discard(index, reason)
+            self.tick()
+
+    def ask_note(self) -> TextDialog | None:
+        if self.runner is None:
+            return None
+        dlg = TextDialog("Session note", "Note (saved in the session file):", (), self)
+        dlg.accepted.connect(lambda: self.runner is not None and self.runner.add_note(dlg.text()))
+        return self._open_dialog(dlg)
+
+    def _open_dialog(self, dlg: TextDialog) -> TextDialog:
+        self._dialog = dlg
+        dlg.finished.connect(dlg.deleteLater)
+        dlg.open()
+        dlg.edit.setFocus()
+        return dlg
+
+    @property
+    def dialog(self) -> TextDialog | None:
+        """The open discard/note dialog, if any (tests type into it)."""
+        try:
+            return self._dialog if self._dialog is not None and self._dialog.isVisible() else None
+        except RuntimeError:  # already deleted
+            return None
+
+    def end_session(self) -> None:
+        if self.runner is None:
+            return
+        answer = QMessageBox.question(
+            self, "End session", "End the session now? Finished trials stay in the file.")
+        if answer == QMessageBox.StandardButton.Yes:
+            self.runner.abort()
+            self.tick()
+
+    # ---- keys ---------------------------------------------------------------------------
+    def forward_key(self, text: str) -> bool:
+        """A participant key from either window goes to the runner."""
+        if self.runner is None or not text.strip():
+            return False
+        accepted = self.runner.key(text)
+        self.tick()
+        return bool(accepted)
+
+    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt)
+        """Plain printable keys typed anywhere in the console go to the runner, unless
+        the experimenter is typing into a text field or a dialog."""
+        if event.type() != QEvent.Type.KeyPress or self.runner is None:
+            return False
+        if not isinstance(obj, QWidget) or obj.window() is not self:
+            return False
+        if self.stack.currentIndex() != 1 or isinstance(obj, _TEXT_INPUTS):
+            return False
+        assert isinstance(event, QKeyEvent)
+        mods = event.modifiers() & ~Qt.KeyboardModifier.ShiftModifier \
+            & ~Qt.KeyboardModifier.KeypadModifier
+        text = event.text()
+        if mods or len(text) != 1 or not text.isprintable() or text.isspace():
+            return False
+        if not event.isAutoRepeat():
+            self.forward_key(text)
+        return True
+
+    # ---- participant window and beep flash ----------------------------------------------
+    def show_participant_screen(self) -> None:
+        """Show the participant screen, full screen on a second monitor if there is one."""
+        screens = QGuiApplication.screens()
+        if len(screens) > 1:
+            other = next((s for s in screens if s is not self.screen()), screens[-1])
+            self.participant.setScreen(other)
+            self.participant.move(other.geometry().topLeft())
+            self.participant.showFullScreen()
+            size = other.geometry().size()
+        else:
+            self.participant.resize(1280, 720)
+            self.participant.show()
+            size = self.participant.size()
+        self.mirror.aspect = size.width() / max(1, size.height())
+        self.mirror.update()
+        self.participant.raise_()
+
+    def _flash(self) -> None:
+        self.participant.flash()
+        self.mirror.flash()
+
+    def _on_virtual(self, on: bool) -> None:
+        self.live.virtual = on

@@ -1,0 +1,381 @@
+"""The participant screen: what the person touching the sensor sees on the second monitor.
+
+Everything is painted relative to the widget's size, so the same widget works full
+screen on a participant monitor and as the scaled mirror in the experimenter console.
+It only draws a :class:`ParticipantView` (built from the runner's snapshot by
+``collect_view``) and forwards key presses; it holds no protocol logic.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from PySide6.QtCore import QRectF, Qt, QVariantAnimation, Signal
+from PySide6.QtGui import QColor, QFont, QFontMetricsF, QKeyEvent, QPainter, QPainterPath, QPen
+from PySide6.QtWidgets import QWidget
+
+BG = QColor("#1b1f2a")
+SURROUND = QColor("#0e1016")
+PANEL = QColor("#262c3b")
+PANEL_DONE = QColor("#20242f")
+TEXT = QColor("#f3f5f9")
+MUTED = QColor("#aab2c3")
+DIM = QColor("#5d6577")
+ACCENT = QColor("#5b9bff")
+ACTIVE = QColor("#ffb547")
+GOOD = QColor("#46c98b")
+WARN = QColor("#ff7a66")
+
+
+@dataclass
+class Card:
+    """One gesture of the block as shown to the participant."""
+
+    key: str
+    name: str
+    definition: str = ""
+    done: bool = False
+    active: bool = False
+
+
+@dataclass
+class ParticipantView:
+    """What the participant screen draws; ``mode`` picks the layout.
+
+    Modes: setup, free_play, block_start, waiting, recording, trial_end, review, break,
+    paused, finished, aborted.
+    """
+
+    mode: str = "setup"
+    title: str = ""
+    subtitle: str = ""
+    block_label: str = ""          # "Block 3 of 52", "Practice"; "" hides the header
+    done_in_block: int = 0
+    n_in_block: int = 0
+    cards: list[Card] = field(default_factory=list)
+    countdown_s: float | None = None        # seconds left (trial, break, free play)
+    countdown_total_s: float | None = None
+    hint: str = ""                          # e.g. a refused key
+    footer: str = ""
+
+
+def _grid(n: int, w: float, h: float, aspect: float = 2.1) -> tuple[int, int]:
+    """Columns and rows that make ``n`` cards of about ``aspect`` as large as possible."""
+    best, best_size = (1, n), -1.0
+    for cols in range(1, n + 1):
+        rows = math.ceil(n / cols)
+        cw, ch = w / cols, h / rows
+        size = min(cw, ch * aspect)
+        if size > best_size + 1e-6:
+            best, best_size = (cols, rows), size
+    return best
+
+
+def _font(px: float, bold: bool = False) -> QFont:
+    f = QFont()
+    f.setPixelSize(max(6, int(px)))
+    f.setBold(bold)
+    return f
+
+
+def _fit_font(text: str, rect: QRectF, px: float, bold: bool = False,
+              wrap: bool = True, min_px: float = 7) -> QFont:
+    """The largest font up to ``px`` in which ``text`` fits ``rect``."""
+    flags = int(Qt.TextFlag.TextWordWrap) if wrap else 0
+    while px > min_px:
+        f = _font(px, bold)
+        br = QFontMetricsF(f).boundingRect(rect, flags, text)
+        if br.width() <= rect.width() + 0.5 and br.height() <= rect.height() + 0.5:
+            return f
+        px *= 0.92
+    return _font(min_px, bold)
+
+
+class ParticipantScreen(QWidget):
+    """Large-type participant display; ``keyPressed`` carries the typed text."""
+
+    keyPressed = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None, mirror: bool = False) -> None:
+        super().__init__(parent)
+        self.mirror = mirror
+        # a mirror keeps the participant monitor's shape (letterboxed), so it shows the
+        # same layout the participant sees; None fills the widget
+        self.aspect: float | None = 16 / 9 if mirror else None
+        self.view = ParticipantView()
+        self._flash = 0.0
+        self._anim = QVariantAnimation(self)
+        self._anim.setStartValue(1.0)
+        self._anim.setEndValue(0.0)
+        self._anim.setDuration(450)
+        self._anim.valueChanged.connect(self._set_flash)
+        self.setFocusPolicy(Qt.FocusPolicy.NoFocus if mirror else Qt.FocusPolicy.StrongFocus)
+        self.setMinimumSize(240, 150)
+        self.setWindowTitle("Tactile Studio — participant")
+        self.setAutoFillBackground(False)
+
+    # ---- public -------------------------------------------------------------------
+    def show_view(self, view: ParticipantView) -> None:
+        """Draw ``view`` (cheap; called by the console's timer)."""
+        if view != self.view:
+            self.view = view
+            self.update()
+
+    def flash(self) -> None:
+        """The visual beep: a bright overlay fading out."""
+        self._anim.stop()
+        self._anim.start()
+
+    @property
+    def flash_level(self) -> float:
+        return self._flash
+
+    def toggle_full_screen(self) -> None:
+        if self.isFullScreen():
+            self.showNormal()
+        else:
+            self.showFullScreen()
+
+    def _set_flash(self, value: float) -> None:
+        self._flash = float(value)
+        self.update()
+
+    # ---- input --------------------------------------------------------------------
+    def keyPressEvent(self, event: QKeyEvent) -> None:  # noqa: N802 (Qt)
+        if event.key() == Qt.Key.Key_F11 and not self.mirror:
+            self.toggle_full_screen()
+            return
+        if event.key() == Qt.Key.Key_Escape and self.isFullScreen():
+            self.showNormal()
+            return
+        text = event.text()
+        if event.key() == Qt.Key.Key_Space:
+            text = " "
+        if text and not event.isAutoRepeat():
+            self.keyPressed.emit(text)
+            return
+        super().keyPressEvent(event)
+
+    # ---- painting -----------------------------------------------------------------
+    def paintEvent(self, event: object) -> None:  # noqa: N802 (Qt)
+        p = QPainter(self)
+        p.setRenderHint(QPainter.RenderHint.Antialiasing)
+        p.setRenderHint(QPainter.RenderHint.TextAntialiasing)
+        w, h = float(self.width()), float(self.height())
+        if self.aspect:
+            p.fillRect(self.rect(), SURROUND)
+            if w / h > self.aspect:
+                w = h * self.aspect
+            else:
+                h = w / self.aspect
+            p.translate((self.width() - w) / 2, (self.height() - h) / 2)
+        p.fillRect(QRectF(0, 0, w, h), BG)
+        u = min(w / 1600.0, h / 900.0)  # 1 unit = 1 px on a 1600x900 screen
+        v = self.view
+        pad = 36 * u
+        header_h = self._paint_header(p, QRectF(pad, pad * 0.6, w - 2 * pad, 64 * u), u)
+        body = QRectF(pad, pad * 0.6 + header_h + 18 * u, w - 2 * pad,
+                      h - (pad * 0.6 + header_h + 18 * u) - pad * 0.7)
+        hint_h = 0.0
+        if v.hint or v.footer:
+            one_line = QFontMetricsF(_font(30 * u, bold=True)).horizontalAdvance(v.hint or v.footer)
+            hint_h = (56 if one_line < w - 2 * pad - 80 * u else 92) * u
+        if hint_h:
+            self._paint_hint(p, QRectF(body.left(), body.bottom() - hint_h, body.width(),
+                                       hint_h), u)
+            body.setBottom(body.bottom() - hint_h - 10 * u)
+        if v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
+            stage_h = body.height() * (0.36 if v.mode in ("recording", "trial_end") else 0.22)
+            self._paint_stage(p, QRectF(body.left(), body.top(), body.width(), stage_h), u)
+            grid = QRectF(body.left(), body.top() + stage_h + 16 * u, body.width(),
+                          body.height() - stage_h - 16 * u)
+            self._paint_cards(p, grid, u, compact=v.mode != "waiting")
+        else:
+            self._paint_stage(p, body, u, big=True)
+        if self._flash > 0:
+            p.fillRect(QRectF(0, 0, w, h), QColor(255, 255, 255, int(200 * self._flash)))
+        p.end()
+
+    def _paint_header(self, p: QPainter, r: QRectF, u: float) -> float:
+        v = self.view
+        if not v.block_label:
+            return 0.0
+        p.setPen(TEXT)
+        p.setFont(_font(34 * u, bold=True))
+        p.drawText(r, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, v.block_label)
+        if v.n_in_block:
+            # one dot per gesture of the block, filled when done
+            d, gap = 20 * u, 12 * u
+            total = v.n_in_block * d + (v.n_in_block - 1) * gap
+            p.setFont(_font(26 * u))
+            txt = f"{v.done_in_block} of {v.n_in_block} done"
+            tw = QFontMetricsF(p.font()).horizontalAdvance(txt)
+            x0 = r.right() - total - tw - 24 * u
+            p.setPen(MUTED)
+            p.drawText(QRectF(r.right() - tw, r.top(), tw, r.height()),
+                       Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter, txt)
+            cy = r.center().y()
+            for i in range(v.n_in_block):
+                x = x0 + i * (d + gap)
+                dot = QRectF(x, cy - d / 2, d, d)
+                if i < v.done_in_block:
+                    p.setPen(Qt.PenStyle.NoPen)
+                    p.setBrush(GOOD)
+                else:
+                    p.setPen(QPen(DIM, max(1.0, 2.5 * u)))
+                    p.setBrush(Qt.BrushStyle.NoBrush)
+                p.drawEllipse(dot)
+        return r.height()
+
+    def _paint_stage(self, p: QPainter, r: QRectF, u: float, big: bool = False) -> None:
+        v = self.view
+        p.setPen(Qt.PenStyle.NoPen)
+        p.setBrush(PANEL)
+        p.drawRoundedRect(r, 22 * u, 22 * u)
+        inner = r.adjusted(36 * u, 20 * u, -36 * u, -20 * u)
+        text_r = QRectF(inner)
+        if v.countdown_s is not None:
+            side = min(inner.height() * (0.66 if big else 1.0), inner.width() * 0.35)
+            if big:
+                dial = QRectF(inner.center().x() - side / 2, inner.bottom() - side - 12 * u, side, side)
+                text_r = QRectF(inner.left(), inner.top(), inner.width(),
+                                inner.height() - side - 16 * u)
+            else:
+                dial = QRectF(inner.right() - side, inner.center().y() - side / 2, side, side)
+                text_r = QRectF(inner.left(), inner.top(), inner.width() - side - 30 * u,
+                                inner.height())
+            self._paint_dial(p, dial, u)
+        title_color = ACTIVE if v.mode in ("recording",) else TEXT
+        if v.mode == "trial_end":
+            title_color = GOOD
+        align = Qt.AlignmentFlag.AlignHCenter if big else Qt.AlignmentFlag.AlignLeft
+        sub_h = text_r.height() * 0.40 if v.subtitle else 0.0
+        title_r = QRectF(text_r.left(), text_r.top(), text_r.width(), text_r.height() - sub_h)
+        p.setPen(title_color)
+        p.setFont(_fit_font(v.title, title_r, (110 if big else 70) * u, bold=True))
+        valign = Qt.AlignmentFlag.AlignBottom if v.subtitle else Qt.AlignmentFlag.AlignVCenter
+        p.drawText(title_r, int(align | valign | Qt.TextFlag.TextWordWrap),
+                   v.title)
+        if v.subtitle:
+            sub_r = QRectF(text_r.left(), title_r.bottom() + 6 * u, text_r.width(), sub_h - 6 * u)
+            p.setPen(MUTED)
+            p.setFont(_fit_font(v.subtitle, sub_r, (40 if big else 32) * u))
+            p.drawText(sub_r, int(align | Qt.AlignmentFlag.AlignTop | Qt.TextFlag.TextWordWrap),
+                       v.subtitle)
+
+    def _paint_dial(self, p: QPainter, r: QRectF, u: float) -> None:
+        v = self.view
+        left = max(0.0, v.countdown_s or 0.0)
+        total = v.countdown_total_s or 0.0
+        frac = min(1.0, left / total) if total > 0 else 0.0
+        width = max(3.0, r.width() * 0.075)
+        ring = r.adjusted(width / 2, width / 2, -width / 2, -width / 2)
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        p.setPen(QPen(DIM, width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.FlatCap))
+        p.drawEllipse(ring)
+        color = ACTIVE if v.mode == "recording" else ACCENT
+        if v.mode == "trial_end":
+            color = GOOD
+        if frac > 0:
+            p.setPen(QPen(color, width, Qt.PenStyle.SolidLine, Qt.PenCapStyle.RoundCap))
+            p.drawArc(ring, 90 * 16, -int(360 * 16 * frac))  # clockwise from 12
+        if left >= 60:
+            txt = f"{int(left) // 60}:{int(left) % 60:02d}"
+        elif total >= 5:
+            txt = f"{math.ceil(left - 1e-9):d}"
+        else:
+            txt = f"{left:.1f}"
+        p.setPen(TEXT)
+        m = width * 1.6
+        p.setFont(_fit_font(txt, ring.adjusted(m, m, -m, -m), r.height() * 0.32,
+                            bold=True, wrap=False))
+        p.drawText(ring, Qt.AlignmentFlag.AlignCenter, txt)
+
+    def _paint_cards(self, p: QPainter, r: QRectF, u: float, compact: bool = False) -> None:
+        """The block's gestures; ``compact`` (during a trial) leaves out the definitions."""
+        cards = self.view.cards
+        if compact:
+            cards = [Card(c.key, c.name, "", c.done, c.active) for c in cards]
+        cols, rows = _grid(len(cards), r.width(), r.height())
+        gap = 18 * u
+        cw = (r.width() - gap * (cols - 1)) / cols
+        ch = (r.height() - gap * (rows - 1)) / rows
+        ch = min(ch, cw / 1.4)
+        rects = []
+        for i in range(len(cards)):
+            row, col = divmod(i, cols)
+            rects.append(QRectF(r.left() + col * (cw + gap), r.top() + row * (ch + gap), cw, ch))
+        # one definition font for all cards (the largest in which every one fits), so
+        # the cards read as one set
+        def_px = min(30 * u, ch * 0.16)
+        for card, cr in zip(cards, rects):
+            if card.definition and not card.done:
+                f = _fit_font(card.definition, self._definition_rect(cr, u), def_px)
+                def_px = min(def_px, float(f.pixelSize()))
+        for card, cr in zip(cards, rects):
+            self._paint_card(p, cr, card, u, def_px)
+
+    @staticmethod
+    def _badge_side(r: QRectF, u: float) -> float:
+        return min(r.height() * 0.36, 84 * u)
+
+    def _definition_rect(self, r: QRectF, u: float) -> QRectF:
+        pad = 18 * u
+        top = r.top() + pad + self._badge_side(r, u) + pad * 0.7
+        return QRectF(r.left() + pad, top, r.width() - 2 * pad, r.bottom() - pad * 0.8 - top)
+
+    def _paint_card(self, p: QPainter, r: QRectF, c: Card, u: float, def_px: float) -> None:
+        radius = 16 * u
+        p.setBrush(PANEL_DONE if c.done else PANEL)
+        if c.active:
+            p.setPen(QPen(ACTIVE, max(2.0, 5 * u)))
+        else:
+            p.setPen(Qt.PenStyle.NoPen)
+        p.drawRoundedRect(r, radius, radius)
+        pad = 18 * u
+        badge = self._badge_side(r, u)
+        b = QRectF(r.left() + pad, r.top() + pad, badge, badge)
+        path = QPainterPath()
+        path.addRoundedRect(b, 12 * u, 12 * u)
+        key_bg = GOOD if c.done else (ACTIVE if c.active else ACCENT)
+        p.fillPath(path, key_bg if not c.done else QColor(GOOD.red(), GOOD.green(),
+                                                           GOOD.blue(), 70))
+        p.setPen(QColor("#10131a") if not c.done else GOOD)
+        key_txt = "\u2713" if c.done else c.key.upper()
+        p.setFont(_fit_font(key_txt, b.adjusted(4, 4, -4, -4), badge * 0.62, bold=True,
+                            wrap=False))
+        p.drawText(b, Qt.AlignmentFlag.AlignCenter, key_txt)
+        name_r = QRectF(b.right() + pad, r.top() + pad, r.right() - b.right() - 2 * pad, badge)
+        p.setPen(DIM if c.done else TEXT)
+        p.setFont(_fit_font(c.name, name_r, badge * 0.5, bold=True))
+        p.drawText(name_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
+                               | Qt.TextFlag.TextWordWrap), c.name)
+        if c.done:
+            p.setFont(_font(min(def_px, badge * 0.34)))
+            p.drawText(QRectF(name_r.left(), name_r.bottom() + 2, name_r.width(), def_px * 2),
+                       Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop,
+                       f"key {c.key.upper()}  \u00b7  done")
+            return
+        if c.definition:
+            d = self._definition_rect(r, u)
+            if d.height() > 6:
+                p.setPen(MUTED)
+                p.setFont(_font(def_px))
+                p.drawText(d, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop
+                                  | Qt.TextFlag.TextWordWrap), c.definition)
+
+    def _paint_hint(self, p: QPainter, r: QRectF, u: float) -> None:
+        v = self.view
+        if v.hint:
+            p.setPen(Qt.PenStyle.NoPen)
+            p.setBrush(QColor(WARN.red(), WARN.green(), WARN.blue(), 40))
+            p.drawRoundedRect(r, 14 * u, 14 * u)
+            p.setPen(WARN)
+            text, bold, px = v.hint, True, 30 * u
+        else:
+            p.setPen(MUTED)
+            text, bold, px = v.footer, False, 28 * u
+        inner = r.adjusted(32 * u, 6 * u, -32 * u, -6 * u)
+        p.setFont(_fit_font(text, inner, px, bold=bold))
+        p.drawText(inner, int(Qt.AlignmentFlag.AlignCenter | Qt.TextFlag.TextWordWrap), text)
