@@ -1,0 +1,201 @@
+"""``tactile-studio train | evaluate | ablate | export-model``: the learning pipeline's CLI."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.devices.registry import parse_set_options
+from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+
+PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
+
+
+class _Bar(TerminalProgress):
+    """A progress bar that ends its line when the job stops early (error, Ctrl-C), so
+    the one-line message that follows starts on a line of its own."""
+
+    def __init__(self, label: str) -> None:
+        super().__init__(label, stream=sys.stderr)
+        self.open = False
+
+    def __call__(self, fraction: float, message: str = "") -> None:
+        super().__call__(fraction, message)
+        self.open = fraction < 1.0
+
+    def close(self) -> None:
+        if self.open:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.open = False
+
+
+def _add_data_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--data", nargs="+", required=True, metavar="PATH",
+                   help="folder(s) searched recursively for *.h5 sessions, or session files")
+    p.add_argument("--grid", choices=("physical", "virtual"), default="physical",
+                   help="physical taxels or the virtual (2R-1)x(2C-1) grid")
+    p.add_argument("--cache-dir", default=None, help="dataset cache (default ~/.cache/tactile-studio)")
+    p.add_argument("--no-cache", action="store_true", help="decode the sessions again")
+
+
+def _add_train_options(p: argparse.ArgumentParser) -> None:
+    _add_data_options(p)
+    p.add_argument("--model", required=True, metavar="NAME",
+                   help="cnn3d, cnn_transformer, cnn1d, mts3d, sefusion, rf or knn")
+    p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo",
+                   help="evaluation protocol (default lopo)")
+    p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")
+    p.add_argument("--epochs", type=int, default=None, help="maximum epochs (default: the model's)")
+    p.add_argument("--preset", choices=("full", "tiny"), default="full")
+    p.add_argument("--set", dest="sets", nargs="+", action="extend", metavar="KEY=VALUE",
+                   help="training options (lr, batch_size, patience, optimizer, weight_decay, "
+                        "momentum) and model options")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--folds", type=int, default=10, help="k for group-kfold")
+    p.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
+
+
+def _config(args: argparse.Namespace, channels: str | None):
+    from tactile_studio.learn.experiment import ExperimentConfig
+
+    return ExperimentConfig(
+        data=list(args.data), model=args.model, channels=channels, grid=args.grid,
+        protocol=args.protocol, rounds=args.rounds, preset=args.preset, epochs=args.epochs,
+        overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
+        device=args.device, threads=args.threads, cache_dir=args.cache_dir, use_cache=not args.no_cache)
+
+
+def _fmt(v: Any) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
+def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
+    print(f"{m['model']} · {m['protocol']} · channels {m['channels']} · "
+          f"{len(m['per_fold'])} fold(s)")
+    for key in ("accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",
+                "balanced_accuracy", "kappa"):
+        if key in m:
+            print(f"  {key:18s} {_fmt(m[key])}")
+    if m.get("heldout"):
+        print(f"  {'heldout_accuracy':18s} {_fmt(m['heldout']['accuracy'])}")
+    if len(m.get("rounds", [])) > 1:
+        print("  (medians over " + str(len(m["rounds"])) + " rounds)")
+    for f in m["per_fold"]:
+        who = ",".join(f["test_participants"])
+        who = f" (test: {who})" if who and who != f["name"] else ""
+        print(f"    round {f['round']} fold {f['name']}{who}: accuracy {_fmt(f['accuracy'])}")
+    if out is not None:
+        print(f"run folder: {out}")
+
+
+def cmd_train(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.experiment import run_experiment
+
+    token = CancelToken()
+    bar = _Bar("train")
+    try:
+        with ctrl_c_cancels(token):
+            result = run_experiment(_config(args, args.channels), args.out, bar, token)
+    finally:
+        bar.close()
+    _print_summary(result.metrics, result.out)
+    return 0
+
+
+def cmd_evaluate(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.evaluate import rescore_run
+
+    token = CancelToken()
+    bar = _Bar("evaluate")
+    try:
+        with ctrl_c_cancels(token):
+            m = rescore_run(args.run, args.data, args.cache_dir, bar, token)
+    finally:
+        bar.close()
+    print(f"re-scored from saved weights ({m['mode']} mode)")
+    _print_summary(m)
+    return 0
+
+
+def cmd_ablate(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.experiment import run_experiment
+
+    token = CancelToken()
+    rows = []
+    with ctrl_c_cancels(token):
+        for channels in args.channel_sets:
+            out = Path(args.out) / channels if args.out else None
+            bar = _Bar(f"{channels:6s}")
+            try:
+                res = run_experiment(_config(args, channels), out, bar, token)
+            finally:
+                bar.close()
+            rows.append((channels, res.metrics))
+    keys = ["accuracy", "f1_macro", "balanced_accuracy", "kappa"]
+    if any("trial_accuracy" in m for _, m in rows):
+        keys.insert(1, "trial_accuracy")
+    print(f"ablation: {args.model} · {args.protocol} · {args.preset}")
+    print(f"{'channels':10s}" + "".join(f"{k:>19s}" for k in keys))
+    for channels, m in rows:
+        print(f"{channels:10s}" + "".join(f"{_fmt(m.get(k)):>19s}" for k in keys))
+    return 0
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.export_run import export_run
+
+    token = CancelToken()
+    bar = _Bar("export")
+    try:
+        with ctrl_c_cancels(token):
+            report = export_run(args.run, args.format, args.data, args.cache_dir, bar, token)
+    finally:
+        bar.close()
+    print(f"{args.format} export of {report['model']} ({len(report['folds'])} fold model(s))")
+    for f in report["folds"]:
+        extra = f"  max |logit diff| {f['max_abs_diff']:.2e}" if "max_abs_diff" in f else ""
+        size = (f"  size {f['size_bytes'] / 1024:.1f} KiB (float {f['float_size_bytes'] / 1024:.1f} KiB)"
+                if "size_bytes" in f else "")
+        print(f"  {f['name']:>10s}: accuracy {f['accuracy_torch']:.3f} -> {f['accuracy_export']:.3f}"
+              f"{extra}{size}" + (f"  -> {f['path']}" if f.get("path") else ""))
+    print(f"test accuracy {report['accuracy_torch']:.4f} -> {report['accuracy_export']:.4f} "
+          f"(change {report['accuracy_change']:+.4f}, {report['changed_predictions']} of "
+          f"{report['n']} predictions changed)")
+    return 0
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("train", help="train and evaluate a gesture model on session files")
+    _add_train_options(p)
+    p.add_argument("--channels", choices=("normal", "shear", "both"), default=None,
+                   help="channel set (default: every channel the data has)")
+    p.add_argument("--out", required=True, metavar="RUN",
+                   help="run folder (re-run with the same folder to resume)")
+    p.set_defaults(func=cmd_train)
+
+    p = subparsers.add_parser("evaluate", help="re-score a run from its saved weights")
+    p.add_argument("run", metavar="RUN")
+    p.add_argument("--data", nargs="+", default=None, metavar="PATH",
+                   help="data to score on (default: the run's own data)")
+    p.add_argument("--cache-dir", default=None)
+    p.set_defaults(func=cmd_evaluate)
+
+    p = subparsers.add_parser("ablate", help="compare channel sets normal / shear / both")
+    _add_train_options(p)
+    p.add_argument("--channels", dest="channel_sets", nargs="+",
+                   choices=("normal", "shear", "both"), default=["normal", "shear", "both"])
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="keep one run folder per channel set under DIR")
+    p.set_defaults(func=cmd_ablate)
+
+    p = subparsers.add_parser("export-model", help="export a run's models to ONNX or int8")
+    p.add_argument("run", metavar="RUN")
+    p.add_argument("--format", choices=("onnx", "int8"), required=True)
+    p.add_argument("--data", nargs="+", default=None, metavar="PATH")
+    p.add_argument("--cache-dir", default=None)
+    p.set_defaults(func=cmd_export)

@@ -1,0 +1,89 @@
+"""Re-scoring a finished run from its saved weights (``tactile-studio evaluate``).
+
+Every fold's best-epoch weights are loaded (safetensors, no pickle) and predict again:
+
+* ``folds`` mode — the data holds the run's test trials (found by their uids): each fold
+  model re-predicts its own test trials, which reproduces the run's metrics (a check that
+  the saved weights and normalisation are complete);
+* ``external`` mode — none of the run's test trials are in the data (e.g. new
+  participants): every fold model predicts every trial, and the metrics pool them.
+
+The result is written to ``RUN/rescore.json`` (metrics.json is left as trained).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.dataset import build_dataset
+from tactile_studio.learn.experiment import ExperimentConfig, _predictions, summarise
+from tactile_studio.learn.learners import DataInfo, make_learner
+from tactile_studio.learn.runfolder import WEIGHTS, read_run, write_json
+
+
+def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
+                  cache_dir: str | None = None, device: str = "auto",
+                  progress: ProgressFn = no_progress, cancel: CancelToken | None = None):
+    """(config, resolved, fold records, dataset with run-label indices, learner, info)."""
+    cfg_json, records = read_run(run)
+    config = ExperimentConfig.from_dict(cfg_json["config"])
+    resolved = cfg_json["resolved"]
+    info = DataInfo.from_dict(resolved["data_info"])
+    labels = list(resolved["dataset"]["labels"])
+    ds = build_dataset(data or config.data, config.grid, config.channels,
+                       cache_dir or config.cache_dir, config.use_cache, progress, cancel)
+    if ds.grid_shape != tuple(info.grid) or ds.n_channels != info.in_channels:
+        raise UserError(f"the data ({ds.layout}, {ds.grid_shape[0]}x{ds.grid_shape[1]}, "
+                        f"{ds.n_channels} channels) does not fit the run's models "
+                        f"({info.grid[0]}x{info.grid[1]}, {info.in_channels} channels)")
+    unknown = sorted(set(ds.label_names) - set(labels))
+    if unknown:
+        raise UserError(f"gesture '{unknown[0]}' in the data is not one of the run's labels "
+                        f"({', '.join(labels)})")
+    remap = np.array([labels.index(g) for g in ds.label_names], dtype=np.int64)
+    ds = replace(ds, labels=remap[ds.labels], label_names=labels)
+    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
+                           device)
+    return config, resolved, records, ds, learner, info
+
+
+def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
+                cache_dir: str | None = None, progress: ProgressFn = no_progress,
+                cancel: CancelToken | None = None) -> dict[str, Any]:
+    """Metrics recomputed from the saved weights (see module doc); also saved to
+    ``RUN/rescore.json``."""
+    config, resolved, records, ds, learner, info = load_run_data(
+        run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
+    x, owner = learner.samples(ds)
+    index = {u: i for i, u in enumerate(ds.uids)}
+    wanted = {u for rec in records for u in rec["test"]}
+    found = wanted & set(index)
+    mode = "folds" if found else "external"
+    if found and found != wanted:
+        missing = sorted(wanted - found)
+        raise UserError(f"{len(missing)} of the run's test trials are not in the data "
+                        f"(first: {missing[0]})")
+    fresh = []
+    for k, rec in enumerate(records):
+        if cancel is not None:
+            cancel.check()
+        progress(0.3 + 0.7 * k / len(records), f"fold {rec['name']}")
+        fitted = learner.load(Path(rec["_dir"]) / WEIGHTS, info)
+        idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
+               else np.arange(len(ds)))
+        pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"])
+        fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
+    header = {"model": config.model, "protocol": config.protocol, "channels": ds.channels,
+              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
+              "mode": mode, "data": [str(p) for p in (data or config.data)]}
+    metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
+    write_json(Path(run) / "rescore.json", metrics)
+    progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
+    return metrics

@@ -1,0 +1,345 @@
+"""``run_experiment``: dataset -> folds -> training -> metrics -> run folder, as one job.
+
+It is the single entry point the CLI and (later) the GUI call: it takes a
+:class:`ExperimentConfig`, a progress callback ``(fraction, message)``, a
+:class:`~tactile_studio.jobs.CancelToken` and an optional ``listener`` that receives
+:class:`EpochEvent` / :class:`FoldEvent` objects with partial results (per-epoch curves,
+finished folds' metrics). Cancelling keeps finished folds on disk (and writes the
+metrics of those) before ``Cancelled`` propagates; running again with the same ``out``
+resumes with the unfinished folds.
+
+Seeds: round ``r`` uses seed ``config.seed + r`` for its splits, weight initialisation
+and batch order, so rounds differ and every round is reproducible.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio import __version__
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn import metrics as M
+from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
+from tactile_studio.learn.learners import DataInfo, make_learner
+from tactile_studio.learn.runfolder import RunFolder
+from tactile_studio.learn.splits import PROTOCOLS, make_folds
+
+# Config fields that change results (a resumed run must match on these).
+RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
+               "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split")
+
+
+@dataclass
+class ExperimentConfig:
+    data: list[str]
+    model: str
+    channels: str | None = None          # normal | shear | both; None = all the data has
+    grid: str = "physical"               # physical | virtual
+    protocol: str = "lopo"               # all-inclusive | lopo | group-kfold
+    rounds: int = 1
+    preset: str = "full"                 # full | tiny
+    epochs: int | None = None            # overrides the model's max_epochs
+    overrides: dict[str, Any] = field(default_factory=dict)  # training + model options
+    seed: int = 0
+    folds: int = 10                      # k of group-kfold
+    heldout_fraction: float = 0.1        # group-kfold held-out participants
+    val_fraction: float = 0.15           # validation share of training participants' trials
+    split: tuple[float, float, float] = (0.7, 0.2, 0.1)  # all-inclusive train/val/test
+    device: str = "auto"
+    threads: int | None = None           # torch CPU threads (None: torch's default)
+    cache_dir: str | None = None
+    use_cache: bool = True
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["data"] = [str(Path(p).resolve()) for p in self.data]
+        d["split"] = list(self.split)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ExperimentConfig:
+        known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
+        if "split" in known:
+            known["split"] = tuple(known["split"])
+        return cls(**known)
+
+    def validate(self) -> None:
+        if self.protocol not in PROTOCOLS:
+            raise UserError(f"unknown evaluation protocol {self.protocol!r} "
+                            f"(available: {', '.join(PROTOCOLS)})")
+        if self.grid not in GRIDS:
+            raise UserError(f"unknown grid {self.grid!r} (available: {', '.join(GRIDS)})")
+        if self.rounds < 1:
+            raise UserError(f"--rounds must be at least 1, got {self.rounds}")
+        if self.threads is not None and self.threads < 1:
+            raise UserError(f"--threads must be at least 1, got {self.threads}")
+        if self.epochs is not None and self.epochs < 1:
+            raise UserError(f"--epochs must be at least 1, got {self.epochs}")
+        if not 0 < self.val_fraction < 1 or not 0 < self.heldout_fraction < 1:
+            raise UserError("validation and held-out fractions must be between 0 and 1")
+        if len(self.split) != 3 or min(self.split) <= 0:
+            raise UserError("the all-inclusive split needs three positive fractions")
+
+
+@dataclass
+class EpochEvent:
+    round: int
+    fold: int
+    n_folds: int
+    fold_name: str
+    record: dict[str, Any]
+    history: list[dict[str, Any]]
+
+
+@dataclass
+class FoldEvent:
+    round: int
+    fold: int
+    n_folds: int
+    fold_name: str
+    metrics: dict[str, Any]
+    resumed: bool
+
+
+@dataclass
+class RunResult:
+    metrics: dict[str, Any]
+    config: ExperimentConfig
+    out: Path | None
+    folds: list[dict[str, Any]]
+    complete: bool
+
+
+Listener = Callable[[Any], None]
+
+
+def _versions() -> dict[str, str]:
+    import sklearn
+    import torch
+
+    return {"tactile_studio": __version__, "python": platform.python_version(),
+            "numpy": np.__version__, "torch": torch.__version__, "sklearn": sklearn.__version__}
+
+
+def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels: list[str],
+                    windowed: bool) -> dict[str, Any]:
+    out = M.classification_metrics(y, probs.argmax(axis=1), labels)
+    if windowed:
+        trials, pred = M.vote(owner, probs)
+        _, first = np.unique(owner, return_index=True)  # same sorted order as ``trials``
+        truth = y[first]
+        out["trial_accuracy"] = float((pred == truth).mean()) if len(trials) else 0.0
+        out["n_trials"] = int(len(trials))
+    return out
+
+
+def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndarray,
+                 labels: np.ndarray, stats) -> dict[str, Any]:
+    mask = np.isin(owner, idx)
+    probs = fitted.predict_proba(learner.apply_norm(x[mask], stats))
+    return {"owner": owner[mask].tolist(), "y_true": labels[owner[mask]].tolist(),
+            "probs": np.round(probs, 5).tolist()}
+
+
+def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
+                fold, round_: int, k: int, seed: int, cancel: CancelToken,
+                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[dict[str, Any], Any]:
+    t0 = time.perf_counter()
+    tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
+    stats = learner.norm_stats(x[tr])  # training part of this split only
+    y = ds.labels
+    fitted, history, best = learner.fit(
+        info, (learner.apply_norm(x[tr], stats), y[owner[tr]]),
+        (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch)
+    cancel.check()
+    uid = np.array(ds.uids)
+    rec = {
+        "round": round_, "fold": k, "name": fold.name, "seed": seed,
+        "test_participants": fold.test_participants,
+        "train": uid[fold.train].tolist(), "val": uid[fold.val].tolist(),
+        "test": uid[fold.test].tolist(), "heldout": uid[fold.heldout].tolist(),
+        "norm": stats, "history": history, "best_epoch": best,
+        "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats),
+        "seconds": time.perf_counter() - t0,
+    }
+    if len(fold.heldout):
+        rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y, stats)
+    return rec, fitted
+
+
+def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
+                 key: str = "predictions") -> dict[str, Any]:
+    p = rec[key]
+    return _sample_metrics(np.asarray(p["y_true"], dtype=np.int64),
+                           np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1),
+                           np.asarray(p["owner"]), labels, windowed)
+
+
+def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+            key: str = "predictions") -> dict[str, Any]:
+    """Metrics over the test predictions of several folds together (trial ids made unique
+    per fold so votes never mix folds)."""
+    ys, ps, os_ = [], [], []
+    for i, rec in enumerate(records):
+        p = rec[key]
+        ys.append(np.asarray(p["y_true"], dtype=np.int64))
+        ps.append(np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), len(labels)))
+        os_.append(np.asarray(p["owner"], dtype=np.int64) + i * 10_000_000)
+    return _sample_metrics(np.concatenate(ys), np.concatenate(ps), np.concatenate(os_),
+                           labels, windowed)
+
+
+def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+              header: dict[str, Any], complete: bool) -> dict[str, Any]:
+    """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics."""
+    per_fold, rounds = [], []
+    for rec in records:
+        m = fold_metrics(rec, labels, windowed)
+        m.update({"round": rec["round"], "fold": rec["fold"], "name": rec["name"],
+                  "test_participants": rec["test_participants"],
+                  "best_epoch": rec.get("best_epoch"), "n_test_trials": len(rec["test"])})
+        if rec.get("heldout_predictions"):
+            m["heldout_accuracy"] = fold_metrics(rec, labels, windowed,
+                                                 "heldout_predictions")["accuracy"]
+        per_fold.append(m)
+    round_ids = sorted({r["round"] for r in records})
+    for r in round_ids:
+        recs = [x for x in records if x["round"] == r]
+        m = _pooled(recs, labels, windowed)
+        m.update({"round": r, "seed": recs[0]["seed"], "folds": len(recs)})
+        if any(x.get("heldout_predictions") for x in recs):
+            m["heldout"] = _pooled(recs, labels, windowed, "heldout_predictions")
+        rounds.append(m)
+    overall = _pooled(records, labels, windowed)
+    medians = M.median_of(rounds)
+    overall.update(medians)  # with one round the median is that round's value
+    out = {**header, **overall, "complete": complete, "medians": medians,
+           "rounds": [{k: v for k, v in m.items() if k not in ("confusion_matrix",
+                                                              "confusion_counts")}
+                      for m in rounds],
+           "per_fold": per_fold}
+    if any(r.get("heldout_predictions") for r in records):
+        out["heldout"] = _pooled(records, labels, windowed, "heldout_predictions")
+    return out
+
+
+def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = None,
+                   progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
+                   listener: Listener | None = None, model_spec: Any = None,
+                   dataset: TrialDataset | None = None) -> RunResult:
+    """Train and evaluate ``config.model`` under ``config.protocol``; see module doc.
+
+    ``dataset`` skips building (used as it is when ``config.channels`` is None or its
+    channel set; otherwise it must hold every channel, e.g. ``build_dataset(...)``'s
+    default for shear data);
+    ``model_spec`` supplies a ModelSpec not in the registry.
+    """
+    cancel = cancel or CancelToken()
+    listener = listener or (lambda event: None)
+    config.validate()
+    with _torch_threads(config.threads):
+        return _run(config, out, progress, cancel, listener, model_spec, dataset)
+
+
+@contextmanager
+def _torch_threads(n: int | None) -> Iterator[None]:
+    """Use ``n`` torch CPU threads for the duration (the setting is process-wide)."""
+    if not n:
+        yield
+        return
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(n)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)
+
+
+def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToken,
+         listener: Listener, model_spec: Any, dataset: TrialDataset | None) -> RunResult:
+    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
+                           config.device, model_spec)
+    if dataset is None:
+        ds = build_dataset(config.data, config.grid, config.channels, config.cache_dir,
+                           config.use_cache, lambda f, m: progress(0.05 * f, m), cancel)
+    else:
+        ds = dataset if config.channels in (None, dataset.channels) else \
+            dataset.select(config.channels)
+    if ds.n_classes < 2:
+        raise UserError(f"the data has one gesture only ({ds.label_names[0]}); "
+                        "classification needs at least 2")
+    info = DataInfo.of(ds)
+    learner.check(info)
+    first_folds = make_folds(config.protocol, ds.labels, ds.participants, config.seed,
+                             config.folds, config.heldout_fraction, config.val_fraction,
+                             config.split)  # fails early on too few participants
+    header = {"model": learner.name, "protocol": config.protocol, "channels": ds.channels,
+              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed}
+    resolved = {"model": learner.describe(), "data_info": info.to_dict(),
+                "dataset": ds.summary(), "versions": _versions(),
+                "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    folder = RunFolder(out) if out is not None else None
+    if folder is not None:
+        folder.start(config.to_dict(), resolved, RESULT_KEYS)
+    progress(0.05, "making model inputs")
+    x, owner = learner.samples(ds)
+    total_units = config.rounds * len(first_folds)
+    records: list[dict[str, Any]] = []
+    done = 0
+    title = f"{learner.name} ({config.preset}) · {config.protocol} · {ds.channels}"
+    try:
+        for r in range(config.rounds):
+            seed = config.seed + r
+            folds = first_folds if r == 0 else make_folds(
+                config.protocol, ds.labels, ds.participants, seed, config.folds,
+                config.heldout_fraction, config.val_fraction, config.split)
+            for k, fold in enumerate(folds):
+                cancel.check()
+                where = f"round {r + 1}/{config.rounds} fold {k + 1}/{len(folds)} ({fold.name})"
+                rec = folder.load_fold(r, fold.name) if folder is not None else None
+                resumed = rec is not None
+                if rec is None:
+                    history: list[dict[str, Any]] = []
+                    max_ep = getattr(getattr(learner, "settings", None), "max_epochs", 1)
+
+                    def on_epoch(e: dict[str, Any], r=r, k=k, fold=fold, where=where,
+                                 history=history, max_ep=max_ep) -> None:
+                        history.append(e)
+                        frac = 0.05 + 0.92 * (done + min(e["epoch"] / max_ep, 1.0)) / total_units
+                        acc = e["val_acc"] if e["val_acc"] == e["val_acc"] else e["train_acc"]
+                        progress(frac, f"{where} epoch {e['epoch']} acc {acc:.2f}")
+                        listener(EpochEvent(r, k, len(folds), fold.name, e, list(history)))
+
+                    progress(0.05 + 0.92 * done / total_units, f"{where} training")
+                    rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
+                                              cancel, on_epoch)
+                    if folder is not None:
+                        folder.save_fold(rec, fitted)
+                records.append(rec)
+                done += 1
+                progress(0.05 + 0.92 * done / total_units, f"{where} done")
+                listener(FoldEvent(r, k, len(folds), fold.name,
+                                   fold_metrics(rec, ds.label_names, learner.windowed), resumed))
+    except Cancelled:
+        if records and folder is not None:
+            metrics = summarise(records, ds.label_names, learner.windowed, header, False)
+            folder.write_results(metrics, records, title + " (partial)")
+        raise
+    progress(0.98, "writing results")
+    metrics = summarise(records, ds.label_names, learner.windowed, header, True)
+    if folder is not None:
+        folder.write_results(metrics, records, title)
+    progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
+    return RunResult(metrics, config, Path(out) if out is not None else None, records, True)

@@ -1,0 +1,112 @@
+"""Exporting a run's fold models (``tactile-studio export-model``) and measuring the cost.
+
+Every fold's best-epoch model is exported with the models engineer's functions in
+:mod:`tactile_studio.learn.export` and re-scored on that fold's test set:
+
+* ``onnx`` — written to ``RUN/export/<fold>.onnx`` (labels, view and normalisation in
+  its metadata); onnxruntime's logits are compared with torch's (max absolute
+  difference; a difference above ``tolerance`` is an error);
+* ``int8`` — torch int8 quantisation calibrated on the fold's training samples; the
+  quantised model is measured in memory (torch's quantised modules do not export to
+  ONNX, so nothing is written).
+
+The report gives accuracy before and after, per fold and pooled, and how many test
+predictions changed. It is also written to ``RUN/export/<format>.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.evaluate import load_run_data
+from tactile_studio.learn.runfolder import WEIGHTS, write_json
+
+ONNX_TOLERANCE = 1e-3
+
+
+def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
+               cache_dir: str | None = None, progress: ProgressFn = no_progress,
+               cancel: CancelToken | None = None,
+               tolerance: float = ONNX_TOLERANCE) -> dict[str, Any]:
+    import torch
+
+    from tactile_studio.learn import export
+
+    if fmt not in ("onnx", "int8"):
+        raise UserError(f"unknown export format {fmt!r} (available: onnx, int8)")
+    config, resolved, records, ds, learner, info = load_run_data(
+        run, data, cache_dir, device="cpu", progress=lambda f, m: progress(0.2 * f, m),
+        cancel=cancel)
+    if learner.kind != "torch":
+        raise UserError(f"model '{config.model}' is a scikit-learn baseline; export-model "
+                        "handles torch models only")
+    if fmt == "int8" and not learner.spec.quantizable:
+        from tactile_studio.learn.models import MODELS
+
+        small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
+        raise UserError(f"model '{config.model}' has no int8 export (quantizable: {small})")
+    x, owner = learner.samples(ds)
+    index = {u: i for i, u in enumerate(ds.uids)}
+    out_dir = Path(run) / "export"
+    folds, truth_all, before_all, after_all = [], [], [], []
+    for k, rec in enumerate(records):
+        if cancel is not None:
+            cancel.check()
+        progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
+        missing = [u for u in rec["test"] if u not in index]
+        if missing:
+            raise UserError(f"test trial {missing[0]} of fold {rec['name']} is not in the data")
+        test = np.array([index[u] for u in rec["test"]], dtype=np.int64)
+        mask = np.isin(owner, test)
+        xt = learner.apply_norm(x[mask], rec["norm"])
+        yt = ds.labels[owner[mask]]
+        fitted = learner.load(Path(rec["_dir"]) / WEIGHTS, info)
+        model = fitted.model.eval()
+        with torch.no_grad():
+            ref = model(torch.from_numpy(xt)).numpy() if len(xt) else np.zeros((0, info.n_classes))
+        entry: dict[str, Any] = {"name": Path(rec["_dir"]).name, "n": int(len(yt))}
+        if fmt == "onnx":
+            path = out_dir / f"{entry['name']}.onnx"
+            meta = {"labels": json.dumps(ds.label_names), "model": config.model,
+                    "preset": config.preset, "channels": ds.channels,
+                    "view": json.dumps(resolved["model"]["view"]),
+                    "norm": json.dumps(rec["norm"])}
+            export.export_onnx(model, torch.from_numpy(xt[:1]), path, metadata=meta)
+            got = export.load_onnx_predictor(path)(xt) if len(xt) else ref
+            diff = float(np.abs(got - ref).max()) if len(xt) else 0.0
+            if diff > tolerance * max(1.0, float(np.abs(ref).max())):
+                raise UserError(f"{path}: ONNX logits differ from torch by {diff:.3g} "
+                                f"(tolerance {tolerance:g})")
+            entry.update(path=str(path), max_abs_diff=diff)
+        else:
+            tr = np.array([index[u] for u in rec["train"] if u in index], dtype=np.int64)
+            calib = learner.apply_norm(x[np.isin(owner, tr)][:256], rec["norm"])
+            qmodel = export.quantize_int8(model, torch.from_numpy(calib))
+            with torch.no_grad():
+                got = qmodel(torch.from_numpy(xt)).numpy()
+            entry.update(size_bytes=export.model_size_bytes(qmodel),
+                         float_size_bytes=export.model_size_bytes(model))
+        before, after = ref.argmax(axis=1), got.argmax(axis=1)
+        entry.update(accuracy_torch=float((before == yt).mean()) if len(yt) else 0.0,
+                     accuracy_export=float((after == yt).mean()) if len(yt) else 0.0,
+                     changed_predictions=int((before != after).sum()))
+        folds.append(entry)
+        truth_all.append(yt)
+        before_all.append(before)
+        after_all.append(after)
+    y, b, a = (np.concatenate(v) for v in (truth_all, before_all, after_all))
+    report = {"model": config.model, "format": fmt, "folds": folds, "n": int(len(y)),
+              "accuracy_torch": float((b == y).mean()), "accuracy_export": float((a == y).mean()),
+              "changed_predictions": int((b != a).sum())}
+    report["accuracy_change"] = report["accuracy_export"] - report["accuracy_torch"]
+    out_dir.mkdir(parents=True, exist_ok=True)
+    write_json(out_dir / f"{fmt}.json", report)
+    progress(1.0, "exported")
+    return report

@@ -1,0 +1,214 @@
+"""One interface over torch models (the registry) and the rf / knn baselines.
+
+A learner turns a dataset into samples (a torch model's view of every trial, or one
+feature vector per trial for the baselines), computes normalisation statistics from the
+training samples it is given, fits, predicts class probabilities, and saves / loads its
+fitted model with safetensors. The experiment code only talks to this interface.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken
+from tactile_studio.learn import baselines, views
+from tactile_studio.learn.train import TRAIN_KEYS, TrainSettings, train_settings
+
+
+@dataclass(frozen=True)
+class DataInfo:
+    """What a model needs to know about its input (saved in the run config)."""
+
+    n_classes: int
+    in_channels: int
+    grid: tuple[int, int]
+    channel_names: tuple[str, ...]
+    cell_pitch: float  # physical taxel pitches per grid cell (0.5 on the virtual grid)
+
+    @classmethod
+    def of(cls, ds) -> DataInfo:
+        return cls(ds.n_classes, ds.n_channels, ds.grid_shape, tuple(ds.channel_names),
+                   0.5 if ds.grid == "virtual" else 1.0)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"n_classes": self.n_classes, "in_channels": self.in_channels,
+                "grid": list(self.grid), "channel_names": list(self.channel_names),
+                "cell_pitch": self.cell_pitch}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> DataInfo:
+        return cls(int(d["n_classes"]), int(d["in_channels"]), tuple(d["grid"]),
+                   tuple(d["channel_names"]), float(d["cell_pitch"]))
+
+
+def available_models() -> dict[str, str]:
+    """Every model name the pipeline accepts, with a one-line description."""
+    out: dict[str, str] = {}
+    try:
+        from tactile_studio.learn.models import MODELS
+    except ImportError:
+        MODELS = {}
+    out.update({name: spec.description for name, spec in MODELS.items()})
+    out.update(baselines.DESCRIPTIONS)
+    return out
+
+
+def make_learner(name: str, preset: str = "full", overrides: dict[str, Any] | None = None,
+                 epochs: int | None = None, device: str = "auto", spec: Any = None):
+    """The learner for model ``name`` (``spec`` bypasses the registry, e.g. for tests)."""
+    overrides = dict(overrides or {})
+    if spec is None and name in baselines.BASELINES:
+        return BaselineLearner(name, preset, overrides)
+    if spec is None:
+        try:
+            from tactile_studio.learn.models import MODELS
+        except ImportError:
+            MODELS = {}
+        if name not in MODELS:
+            raise UserError(f"unknown model '{name}' (available: "
+                            f"{', '.join(available_models())})")
+        spec = MODELS[name]
+    return TorchLearner(spec, preset, overrides, epochs, device)
+
+
+class TorchLearner:
+    kind = "torch"
+
+    def __init__(self, spec: Any, preset: str, overrides: dict[str, Any],
+                 epochs: int | None, device: str) -> None:
+        from tactile_studio.learn.train import pick_device
+
+        self.spec, self.name, self.preset = spec, spec.name, preset
+        train_over = {k: v for k, v in overrides.items() if k in TRAIN_KEYS}
+        self.model_overrides = {k: v for k, v in overrides.items() if k not in TRAIN_KEYS}
+        self.settings: TrainSettings = train_settings(spec.train_defaults(preset), train_over,
+                                                      epochs)
+        self.view = _override_view(spec.view(preset), overrides)
+        self.device = pick_device(device)
+
+    @property
+    def windowed(self) -> bool:
+        return self.view.kind == "windows"
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": "torch", "description": self.spec.description,
+                "view": {"kind": self.view.kind, "frames": self.view.frames,
+                         "stride": self.view.stride},
+                "train": self.settings.to_dict(), "model_options": self.model_overrides,
+                "device": str(self.device)}
+
+    def build(self, info: DataInfo):
+        return self.spec.build(info.n_classes, info.in_channels, tuple(info.grid), self.preset,
+                               **self.model_overrides)
+
+    def check(self, info: DataInfo) -> None:
+        """Build once so bad model options fail before any training."""
+        self.build(info)
+
+    def samples(self, ds) -> tuple[np.ndarray, np.ndarray]:
+        return views.make_samples(ds.trials, self.view.kind, self.view.frames, self.view.stride)
+
+    def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
+        mean, std = views.channel_stats(x_train)
+        return {"mean": mean.tolist(), "std": std.tolist()}
+
+    def apply_norm(self, x: np.ndarray, stats: dict[str, list[float]]) -> np.ndarray:
+        return views.normalise(x, np.asarray(stats["mean"], np.float32),
+                               np.asarray(stats["std"], np.float32))
+
+    def fit(self, info: DataInfo, train: tuple[np.ndarray, np.ndarray],
+            val: tuple[np.ndarray, np.ndarray], seed: int, cancel: CancelToken | None,
+            on_epoch: Callable[[dict[str, Any]], None] | None):
+        import torch
+
+        from tactile_studio.learn.train import fit
+
+        torch.manual_seed(seed)
+        model = self.build(info)
+        _, history, best = fit(model, train, val, self.settings, seed, self.device, cancel,
+                               on_epoch)
+        return TorchFitted(model, self.device), history, best
+
+    def load(self, path, info: DataInfo) -> TorchFitted:
+        from tactile_studio.learn.train import load_weights
+
+        model = load_weights(self.build(info), path)
+        return TorchFitted(model.to(self.device), self.device)
+
+
+def _override_view(view: Any, overrides: dict[str, Any]) -> Any:
+    """The model's view with ``view_frames`` / ``view_stride`` overrides (the registry's
+    build also receives them, and sizes the model to the new length)."""
+    changes = {}
+    for key, attr in (("view_frames", "frames"), ("view_stride", "stride")):
+        if key in overrides:
+            try:
+                value = int(float(overrides[key]))
+            except (TypeError, ValueError):
+                value = 0
+            if value < 1:
+                raise UserError(f"{key}={overrides[key]!r} must be a positive whole number")
+            changes[attr] = value
+    return replace(view, **changes) if changes else view
+
+
+class TorchFitted:
+    def __init__(self, model, device) -> None:
+        self.model, self.device = model, device
+
+    def predict_proba(self, x: np.ndarray) -> np.ndarray:
+        from tactile_studio.learn.train import predict_proba
+
+        return predict_proba(self.model, x, self.device)
+
+    def save(self, path) -> None:
+        from tactile_studio.learn.train import save_weights
+
+        save_weights(self.model.state_dict(), path)
+
+
+class BaselineLearner:
+    kind = "baseline"
+    windowed = False
+
+    def __init__(self, name: str, preset: str, overrides: dict[str, Any]) -> None:
+        unused = [k for k in overrides if k in TRAIN_KEYS]
+        if unused:
+            raise UserError(f"model '{name}' is not trained by epochs: option "
+                            f"'{unused[0]}' does not apply")
+        self.name, self.preset = name, preset
+        self.options = baselines.baseline_options(name, preset, overrides)
+
+    def describe(self) -> dict[str, Any]:
+        return {"kind": "baseline", "description": baselines.DESCRIPTIONS[self.name],
+                "view": {"kind": "features"}, "model_options": self.options}
+
+    def check(self, info: DataInfo) -> None:
+        pass
+
+    def samples(self, ds) -> tuple[np.ndarray, np.ndarray]:
+        from tactile_studio.learn.features import feature_matrix
+
+        pitch = 0.5 if ds.grid == "virtual" else 1.0
+        x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch)
+        return x, np.arange(len(ds.trials))
+
+    def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
+        return {}  # k-NN standardises with its own training statistics; rf needs none
+
+    def apply_norm(self, x: np.ndarray, stats: dict[str, list[float]]) -> np.ndarray:
+        return x
+
+    def fit(self, info: DataInfo, train, val, seed, cancel, on_epoch):
+        if cancel is not None:
+            cancel.check()
+        model = baselines.BaselineModel(self.name, self.options, info.n_classes)
+        return model.fit(train[0], train[1], seed), [], 0
+
+    def load(self, path, info: DataInfo) -> baselines.BaselineModel:
+        return baselines.BaselineModel.load(path, self.name, self.options, info.n_classes)

@@ -1,0 +1,73 @@
+"""The touch-modalities paper's tiny 1-D CNN (made for an int8 microcontroller).
+
+Taxels (and channels) are the 1-D CNN's input channels, time is its axis: the trial is
+moving-average sliced (50% overlap) down to Ns=100 slices. A 1x1 convolution first
+mixes the C*R*X taxel signals into ``filters`` maps (the paper's sensor had far fewer
+taxels; without it a 36-channel first layer alone would hold 2.9 k weights), then 3 conv
+layers of 8 filters, kernel 10, each with BN, ReLU and max-pool halving the length
+(100 -> 91 -> 45 -> 36 -> 18 -> 9 -> 4), then a convolutional head: a conv to the classes
+whose kernel spans the remaining length (4), averaged over any positions left.
+
+Parameters, 6x6 normal (36 input channels), 9 classes:
+1x1 projection 36*8+8 = 296; 3 convs 3*(8*8*10+8) = 1944; 3 BN 3*16 = 48; head
+8*9*4+9 = 297; total 2,585 (~2.6 k).
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models._common import check_io, resolve_options
+
+OPTIONS: dict[str, dict[str, object]] = {
+    "full": {"filters": 8, "kernel": 10, "layers": 3, "dropout": 0.0},
+    "tiny": {"filters": 8, "kernel": 5, "layers": 3, "dropout": 0.0},
+}
+VIEWS = {"full": ViewSpec("slices", 100), "tiny": ViewSpec("slices", 50)}
+TRAIN = {
+    "full": TrainDefaults("adam", 1e-3, 32, 200, 20),
+    "tiny": TrainDefaults("adam", 1e-2, 16, 60, 10),
+}
+
+
+class CNN1D(nn.Module):
+    def __init__(self, n_classes: int, in_features: int, frames: int,
+                 filters: int, kernel: int, layers: int, dropout: float) -> None:
+        super().__init__()
+        body: list[nn.Module] = [nn.Conv1d(in_features, filters, 1)]
+        length = frames
+        for _ in range(layers):
+            body += [nn.Conv1d(filters, filters, kernel), nn.BatchNorm1d(filters),
+                     nn.ReLU(), nn.MaxPool1d(2)]
+            length = (length - kernel + 1) // 2
+            if length < 1:
+                raise UserError(
+                    f"model 'cnn1d': {frames} slices are too short for {layers} layers of "
+                    f"kernel {kernel}"
+                )
+        if dropout > 0:
+            body.append(nn.Dropout(dropout))
+        body.append(nn.Conv1d(filters, n_classes, length))
+        self.net = nn.Sequential(*body)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, t, r, s = x.shape
+        series = x.permute(0, 1, 3, 4, 2).reshape(b, c * r * s, t)
+        return self.net(series).mean(dim=2)
+
+
+def build(
+    n_classes: int, in_channels: int, grid: tuple[int, int], preset: str = "full",
+    frames: int | None = None, **overrides: object
+) -> CNN1D:
+    check_io("cnn1d", n_classes, in_channels, grid)
+    frames = frames or VIEWS[preset].frames
+    opts = resolve_options("cnn1d", preset, OPTIONS, overrides)
+    features = in_channels * grid[0] * grid[1]
+    model = CNN1D(n_classes, features, frames, **opts)  # type: ignore[arg-type]
+    model.input_shape = (in_channels, frames, *grid)
+    model.quant_stacks = ("net",)  # conv stacks export.quantize_int8 makes int8
+    return model

@@ -1,0 +1,94 @@
+"""The shear+normal paper's 3D CNN.
+
+A first Conv3D with a long temporal kernel (43 frames x 1 x 1, stride 4 in time) learns
+per-taxel temporal filters; two 3x3x3 convolutions (256, 512 filters) mix space and
+time; batch norm after each; global average pooling; dense 512; dropout; dense to the
+classes. ~4.7 M parameters at full size (3 channels, 9 classes: 4,710,153).
+Input (B, C, 86, R, X): the whole 2 s trial resampled to 86 frames.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models._common import check_io, resolve_options
+
+OPTIONS: dict[str, dict[str, object]] = {
+    "full": {
+        "filters": (128, 256, 512),
+        "temporal_kernel": 43,
+        "temporal_stride": 4,
+        "dense": 512,
+        "dropout": 0.5,
+    },
+    "tiny": {
+        "filters": (8, 16, 32),
+        "temporal_kernel": 8,
+        "temporal_stride": 2,
+        "dense": 32,
+        "dropout": 0.2,
+    },
+}
+VIEWS = {"full": ViewSpec("resample", 86), "tiny": ViewSpec("resample", 16)}
+TRAIN = {
+    "full": TrainDefaults("adam", 1e-5, 32, 200, 15),
+    "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
+}
+
+
+def _block(cin: int, cout: int, kernel, stride=1, padding=0) -> nn.Sequential:
+    return nn.Sequential(
+        nn.Conv3d(cin, cout, kernel, stride=stride, padding=padding),
+        nn.BatchNorm3d(cout),
+        nn.ReLU(inplace=True),
+    )
+
+
+class CNN3D(nn.Module):
+    def __init__(
+        self,
+        n_classes: int,
+        in_channels: int,
+        filters: tuple[int, ...],
+        temporal_kernel: int,
+        temporal_stride: int,
+        dense: int,
+        dropout: float,
+    ) -> None:
+        super().__init__()
+        self.temporal_kernel = temporal_kernel
+        layers = [_block(in_channels, filters[0], (temporal_kernel, 1, 1), (temporal_stride, 1, 1))]
+        for cin, cout in zip(filters[:-1], filters[1:]):
+            layers.append(_block(cin, cout, 3, padding=1))
+        self.features = nn.Sequential(*layers)
+        self.head = nn.Sequential(
+            nn.Linear(filters[-1], dense),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(dense, n_classes),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = self.features(x)
+        return self.head(h.mean(dim=(2, 3, 4)))
+
+
+def build(
+    n_classes: int, in_channels: int, grid: tuple[int, int], preset: str = "full",
+    frames: int | None = None, **overrides: object
+) -> CNN3D:
+    check_io("cnn3d", n_classes, in_channels, grid)
+    frames = frames or VIEWS[preset].frames
+    opts = resolve_options("cnn3d", preset, OPTIONS, overrides)
+    if opts["temporal_kernel"] > frames:
+        raise UserError(
+            f"model 'cnn3d': temporal_kernel={opts['temporal_kernel']} is longer than the "
+            f"{frames}-frame view"
+        )
+    model = CNN3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
+    model.input_shape = (in_channels, frames, *grid)
+    model.quant_stacks = ("features",)  # conv stacks export.quantize_int8 makes int8
+    return model

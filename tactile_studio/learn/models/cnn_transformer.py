@@ -1,0 +1,139 @@
+"""The HAART/CoST paper's CNN-Transformer over sliding windows.
+
+Per frame: four Conv2D 3x3 (BN, ReLU) with max-pooling after the 2nd and 4th, 512
+channels at 2x2, flatten, dense 256, dropout 0.5, dense 32 (the frame embedding). The
+window's embeddings get sinusoidal positions and go through a Transformer encoder
+(2 layers, 4 heads, d=32, ff=128, dropout 0.5); mean over time; linear to the classes.
+Windows are 27 frames, stride 9.
+
+The paper's grid is 8x8 (-> 4x4 -> 2x2). Other grids keep the 2x2 output: the second
+pooling's kernel/stride are chosen from the grid at build time (6x6: 3x3 -> 2x2 with
+kernel 2 stride 1; 11x11: 6x6 -> 2x2 with kernel 3 stride 3), which exports to ONNX
+unlike adaptive pooling with non-dividing sizes.
+
+``frame_features`` and ``classify_embeddings`` are public so the streaming predictor can
+cache per-frame embeddings and run only the transformer per prediction.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models._common import (
+    PositionalEncoding,
+    check_io,
+    resolve_options,
+    transformer_encoder,
+)
+
+OPTIONS: dict[str, dict[str, object]] = {
+    "full": {
+        "filters": (64, 128, 256, 512),
+        "dense": 256,
+        "d_model": 32,
+        "heads": 4,
+        "layers": 2,
+        "ff": 128,
+        "dropout": 0.5,
+    },
+    "tiny": {
+        "filters": (8, 8, 16, 16),
+        "dense": 32,
+        "d_model": 16,
+        "heads": 2,
+        "layers": 1,
+        "ff": 32,
+        "dropout": 0.1,
+    },
+}
+VIEWS = {"full": ViewSpec("windows", 27, 9), "tiny": ViewSpec("windows", 9, 3)}
+TRAIN = {
+    "full": TrainDefaults("sgd", 1e-3, 128, 100, 10, momentum=0.9),
+    "tiny": TrainDefaults("adam", 3e-3, 32, 40, 8),
+}
+
+
+def _pool_to_two(size: int) -> tuple[int, int]:
+    """(kernel, stride) of a max-pool that maps ``size`` to 2 (or 1 -> 1)."""
+    if size < 2:
+        return 1, 1
+    kernel = (size + 1) // 2
+    return kernel, size - kernel
+
+
+def _conv(cin: int, cout: int) -> list[nn.Module]:
+    return [nn.Conv2d(cin, cout, 3, padding=1), nn.BatchNorm2d(cout), nn.ReLU(inplace=True)]
+
+
+class FrameCNN(nn.Module):
+    """Embeds one frame (N, C, R, X) -> (N, d_model)."""
+
+    def __init__(self, in_channels: int, grid: tuple[int, int], filters, dense, d_model, dropout):
+        super().__init__()
+        if len(filters) != 4:
+            raise ValueError("filters needs 4 values")
+        f1, f2, f3, f4 = filters
+        r, c = (-(-g // 2) for g in grid)  # after the first pool (ceil mode)
+        (kr, sr), (kc, sc) = _pool_to_two(r), _pool_to_two(c)
+        self.convs = nn.Sequential(
+            *_conv(in_channels, f1),
+            *_conv(f1, f2),
+            nn.MaxPool2d(2, ceil_mode=True),
+            *_conv(f2, f3),
+            *_conv(f3, f4),
+            nn.MaxPool2d((kr, kc), stride=(sr, sc)),
+        )
+        out_r, out_c = (1 if r < 2 else 2), (1 if c < 2 else 2)
+        self.embed = nn.Sequential(
+            nn.Flatten(),
+            nn.Linear(f4 * out_r * out_c, dense),
+            nn.ReLU(inplace=True),
+            nn.Dropout(dropout),
+            nn.Linear(dense, d_model),
+        )
+
+    def forward(self, frames: torch.Tensor) -> torch.Tensor:
+        return self.embed(self.convs(frames))
+
+
+class CNNTransformer(nn.Module):
+    def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int], filters,
+                 dense: int, d_model: int, heads: int, layers: int, ff: int, dropout: float):
+        super().__init__()
+        self.frame_cnn = FrameCNN(in_channels, grid, filters, dense, d_model, dropout)
+        self.positions = PositionalEncoding(d_model)
+        self.encoder = transformer_encoder(d_model, heads, layers, ff, dropout)
+        self.classifier = nn.Linear(d_model, n_classes)
+
+    def frame_features(self, frames: torch.Tensor) -> torch.Tensor:
+        """(N, C, R, X) -> (N, d_model): the per-frame part, cacheable between windows."""
+        return self.frame_cnn(frames)
+
+    def classify_embeddings(self, emb: torch.Tensor) -> torch.Tensor:
+        """(B, T, d_model) frame embeddings of a window -> logits (B, n_classes)."""
+        h = self.encoder(self.positions(emb))
+        return self.classifier(h.mean(dim=1))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, t, r, s = x.shape
+        frames = x.permute(0, 2, 1, 3, 4).reshape(b * t, c, r, s)
+        emb = self.frame_features(frames).reshape(b, t, -1)
+        return self.classify_embeddings(emb)
+
+
+def build(
+    n_classes: int, in_channels: int, grid: tuple[int, int], preset: str = "full",
+    frames: int | None = None, **overrides: object
+) -> CNNTransformer:
+    check_io("cnn_transformer", n_classes, in_channels, grid)
+    frames = frames or VIEWS[preset].frames
+    opts = resolve_options("cnn_transformer", preset, OPTIONS, overrides)
+    if len(opts["filters"]) != 4:  # type: ignore[arg-type]
+        raise UserError("model 'cnn_transformer': filters needs 4 values, e.g. filters=64,128,256,512")
+    model = CNNTransformer(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
+    model.input_shape = (in_channels, frames, *grid)
+    model.quant_stacks = ("frame_cnn.convs",)  # conv stacks export.quantize_int8 makes int8
+    return model

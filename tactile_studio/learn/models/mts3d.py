@@ -1,0 +1,112 @@
+"""The object-recognition paper's multi-temporal-scale 3D CNN.
+
+The pipeline feeds N frames picked by gradient-adaptive sampling (each covers an equal
+share of the cumulative |frame difference|; views.gradient_adaptive_indices). The model
+average-pools the sequence in time by 1, 2 and 4 (M = 3 scales) and runs each scale
+through ONE shared ResNet3D-18-style backbone (3x3x3 stem, no first pooling, four stages
+of two basic blocks, 64/128/256/512 channels, stride 2 from the 2nd stage on, dropout 0.3
+after the 2nd stage); the globally pooled features of the scales are summed, then a
+linear layer gives the classes.
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models._common import check_io, resolve_options
+
+OPTIONS: dict[str, dict[str, object]] = {
+    "full": {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
+             "dropout": 0.3},
+    "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
+             "dropout": 0.1},
+}
+VIEWS = {"full": ViewSpec("gradient", 32), "tiny": ViewSpec("gradient", 8)}
+TRAIN = {
+    "full": TrainDefaults("sgd", 1e-2, 16, 100, 15, weight_decay=5e-4, momentum=0.9),
+    "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
+}
+
+
+class BasicBlock3D(nn.Module):
+    def __init__(self, cin: int, cout: int, stride: int) -> None:
+        super().__init__()
+        self.conv1 = nn.Conv3d(cin, cout, 3, stride=stride, padding=1, bias=False)
+        self.bn1 = nn.BatchNorm3d(cout)
+        self.conv2 = nn.Conv3d(cout, cout, 3, padding=1, bias=False)
+        self.bn2 = nn.BatchNorm3d(cout)
+        self.shortcut: nn.Module = nn.Identity()
+        if stride != 1 or cin != cout:
+            self.shortcut = nn.Sequential(
+                nn.Conv3d(cin, cout, 1, stride=stride, bias=False), nn.BatchNorm3d(cout)
+            )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = F.relu(self.bn1(self.conv1(x)))
+        h = self.bn2(self.conv2(h))
+        return F.relu(h + self.shortcut(x))
+
+
+class Backbone(nn.Module):
+    """ResNet3D-18-style feature extractor: (B, C, T, R, X) -> (B, widths[-1])."""
+
+    def __init__(self, in_channels: int, widths, blocks, dropout: float) -> None:
+        super().__init__()
+        self.stem = nn.Sequential(
+            nn.Conv3d(in_channels, widths[0], 3, padding=1, bias=False),
+            nn.BatchNorm3d(widths[0]),
+            nn.ReLU(inplace=True),
+        )
+        stages = []
+        cin = widths[0]
+        for i, (width, n) in enumerate(zip(widths, blocks)):
+            layers = [BasicBlock3D(cin, width, 1 if i == 0 else 2)]
+            layers += [BasicBlock3D(width, width, 1) for _ in range(n - 1)]
+            if i == 1:
+                layers.append(nn.Dropout(dropout))
+            stages.append(nn.Sequential(*layers))
+            cin = width
+        self.stages = nn.Sequential(*stages)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.stages(self.stem(x)).mean(dim=(2, 3, 4))
+
+
+class MTS3D(nn.Module):
+    def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
+                 dropout: float) -> None:
+        super().__init__()
+        self.scales = tuple(scales)
+        self.backbone = Backbone(in_channels, widths, blocks, dropout)
+        self.classifier = nn.Linear(widths[-1], n_classes)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        fused = None
+        for s in self.scales:
+            xs = x
+            if s > 1 and x.shape[2] >= s:
+                xs = F.avg_pool3d(x, kernel_size=(s, 1, 1), stride=(s, 1, 1))
+            feat = self.backbone(xs)
+            fused = feat if fused is None else fused + feat
+        return self.classifier(fused)
+
+
+def build(
+    n_classes: int, in_channels: int, grid: tuple[int, int], preset: str = "full",
+    frames: int | None = None, **overrides: object
+) -> MTS3D:
+    check_io("mts3d", n_classes, in_channels, grid)
+    frames = frames or VIEWS[preset].frames
+    opts = resolve_options("mts3d", preset, OPTIONS, overrides)
+    if len(opts["widths"]) != len(opts["blocks"]):  # type: ignore[arg-type]
+        raise UserError("model 'mts3d': widths and blocks need the same number of stages")
+    if len(opts["widths"]) < 2:  # type: ignore[arg-type]
+        raise UserError("model 'mts3d': needs at least 2 stages")
+    model = MTS3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
+    model.input_shape = (in_channels, frames, *grid)
+    model.quant_stacks = ()  # conv stacks export.quantize_int8 makes int8
+    return model

@@ -1,0 +1,141 @@
+"""The texture paper's multimodal fusion network.
+
+Each modality is a multichannel time series: normal = channel 0's taxels (R*X signals),
+shear = the shear channels' taxels (2*R*X). One depthwise-separable 1-D CNN branch per
+modality; the branches' feature maps are concatenated along channels, re-weighted by a
+Squeeze-and-Excitation block, projected to d_model, given sinusoidal positions, encoded
+by a Transformer encoder, averaged over time and classified by an MLP head.
+
+``fusion``: ``mid`` (the paper's: per-modality branches, fused feature maps), ``early``
+(all signals concatenated into one branch) or ``late`` (one complete network per modality,
+logits averaged). With a single-modality channel set (1 channel = normal/pressure, 2 =
+shear) there is one branch and all three variants coincide in structure.
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models._common import (
+    PositionalEncoding,
+    check_io,
+    resolve_options,
+    transformer_encoder,
+)
+
+OPTIONS: dict[str, dict[str, object]] = {
+    "full": {"fusion": "mid", "filters": 64, "kernel": 7, "blocks": 2, "se_reduction": 4,
+             "d_model": 64, "heads": 4, "layers": 2, "ff": 256, "hidden": 64, "dropout": 0.1},
+    "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
+             "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1},
+}
+CHOICES = {"fusion": ("mid", "early", "late")}
+VIEWS = {"full": ViewSpec("resample", 86), "tiny": ViewSpec("resample", 24)}
+TRAIN = {
+    "full": TrainDefaults("adamw", 1e-3, 32, 150, 20, weight_decay=1e-2),
+    "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
+}
+
+
+class SeparableBlock(nn.Module):
+    """Depthwise conv over time per signal, then a pointwise conv mixing signals."""
+
+    def __init__(self, cin: int, cout: int, kernel: int, pool: bool) -> None:
+        super().__init__()
+        self.depthwise = nn.Conv1d(cin, cin, kernel, padding=kernel // 2, groups=cin)
+        self.pointwise = nn.Conv1d(cin, cout, 1)
+        self.bn = nn.BatchNorm1d(cout)
+        self.act = nn.ReLU(inplace=True)
+        self.pool = nn.MaxPool1d(2, ceil_mode=True) if pool else nn.Identity()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.pool(self.act(self.bn(self.pointwise(self.depthwise(x)))))
+
+
+class SqueezeExcite(nn.Module):
+    def __init__(self, channels: int, reduction: int) -> None:
+        super().__init__()
+        hidden = max(1, channels // reduction)
+        self.gate = nn.Sequential(
+            nn.Linear(channels, hidden), nn.ReLU(inplace=True), nn.Linear(hidden, channels),
+            nn.Sigmoid(),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, C, T)
+        return x * self.gate(x.mean(dim=2)).unsqueeze(2)
+
+
+class Tower(nn.Module):
+    """Branches (one per input group) -> concat -> SE -> Transformer -> MLP head."""
+
+    def __init__(self, groups: list[int], n_classes: int, filters: int, kernel: int,
+                 blocks: int, se_reduction: int, d_model: int, heads: int, layers: int,
+                 ff: int, hidden: int, dropout: float) -> None:
+        super().__init__()
+        self.branches = nn.ModuleList()
+        for cin in groups:
+            mods = []
+            for i in range(blocks):
+                # pool after every block but the last: halves time for the transformer
+                mods.append(SeparableBlock(cin if i == 0 else filters, filters, kernel,
+                                           pool=i < blocks - 1))
+            self.branches.append(nn.Sequential(*mods))
+        width = filters * len(groups)
+        self.se = SqueezeExcite(width, se_reduction)
+        self.project = nn.Linear(width, d_model)
+        self.positions = PositionalEncoding(d_model)
+        self.encoder = transformer_encoder(d_model, heads, layers, ff, dropout)
+        self.head = nn.Sequential(
+            nn.Linear(d_model, hidden), nn.ReLU(inplace=True), nn.Dropout(dropout),
+            nn.Linear(hidden, n_classes),
+        )
+
+    def forward(self, inputs: list[torch.Tensor]) -> torch.Tensor:
+        maps = [branch(x) for branch, x in zip(self.branches, inputs)]
+        h = self.se(torch.cat(maps, dim=1) if len(maps) > 1 else maps[0])
+        h = self.project(h.transpose(1, 2))
+        h = self.encoder(self.positions(h))
+        return self.head(h.mean(dim=1))
+
+
+class SEFusion(nn.Module):
+    def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int],
+                 fusion: str, **opts) -> None:
+        super().__init__()
+        taxels = grid[0] * grid[1]
+        self.fusion = fusion
+        # channel 0 is normal when shear channels follow it; 1 channel = normal/pressure,
+        # 2 channels = shear only: a single modality.
+        self.split = in_channels == 3
+        if self.split and fusion == "mid":
+            self.towers = nn.ModuleList([Tower([taxels, 2 * taxels], n_classes, **opts)])
+        elif self.split and fusion == "late":
+            self.towers = nn.ModuleList([Tower([taxels], n_classes, **opts),
+                                         Tower([2 * taxels], n_classes, **opts)])
+        else:
+            self.towers = nn.ModuleList([Tower([in_channels * taxels], n_classes, **opts)])
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, c, t, r, s = x.shape
+        if self.split and self.fusion != "early":
+            normal = x[:, :1].permute(0, 1, 3, 4, 2).reshape(b, r * s, t)
+            shear = x[:, 1:].permute(0, 1, 3, 4, 2).reshape(b, 2 * r * s, t)
+            if self.fusion == "mid":
+                return self.towers[0]([normal, shear])
+            return (self.towers[0]([normal]) + self.towers[1]([shear])) / 2
+        return self.towers[0]([x.permute(0, 1, 3, 4, 2).reshape(b, c * r * s, t)])
+
+
+def build(
+    n_classes: int, in_channels: int, grid: tuple[int, int], preset: str = "full",
+    frames: int | None = None, **overrides: object
+) -> SEFusion:
+    check_io("sefusion", n_classes, in_channels, grid)
+    frames = frames or VIEWS[preset].frames
+    opts = resolve_options("sefusion", preset, OPTIONS, overrides, CHOICES)
+    model = SEFusion(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
+    model.input_shape = (in_channels, frames, *grid)
+    model.quant_stacks = ()  # conv stacks export.quantize_int8 makes int8
+    return model

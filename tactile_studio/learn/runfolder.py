@@ -1,0 +1,150 @@
+"""The run folder: everything a training run leaves behind, and reading it back.
+
+Layout::
+
+    RUN/config.json              the experiment config + what it resolved to (reproducible)
+    RUN/metrics.json             overall, per-round and per-fold metrics
+    RUN/confusion_matrix.csv     row-normalised, labelled
+    RUN/confusion_matrix.png
+    RUN/training_curves.png      torch models: loss and accuracy per epoch, every fold
+    RUN/folds/r0-<fold>/fold.json          split (trial uids), history, predictions, metrics
+    RUN/folds/r0-<fold>/model.safetensors  best-epoch weights (or the baseline's arrays)
+
+A fold whose ``fold.json`` exists is finished (it is written last, atomically), which is
+how re-running with the same ``--out`` resumes.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.errors import UserError
+
+CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
+
+
+def clean_json(value: Any) -> Any:
+    """NaN/inf -> None and numpy scalars -> Python, recursively (strict JSON)."""
+    if isinstance(value, dict):
+        return {str(k): clean_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [clean_json(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        try:
+            value = value.item()
+        except (ValueError, TypeError):
+            value = value.tolist()
+            return clean_json(value)
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def write_json(path: Path, data: Any) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(clean_json(data), indent=1, allow_nan=False))
+    os.replace(tmp, path)
+
+
+def read_json(path: Path) -> Any:
+    try:
+        return json.loads(Path(path).read_text())
+    except FileNotFoundError:
+        raise UserError(f"{path}: missing (not a finished run folder?)") from None
+    except ValueError:
+        raise UserError(f"{path}: not valid JSON (damaged run folder)") from None
+
+
+class RunFolder:
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+
+    @property
+    def folds_dir(self) -> Path:
+        return self.path / "folds"
+
+    def start(self, config: dict[str, Any], resolved: dict[str, Any],
+              compare_keys: tuple[str, ...]) -> bool:
+        """Create the folder and config.json, or check an existing one matches (resume).
+
+        Returns True when resuming an earlier run with the same settings and data.
+        """
+        cfg_path = self.path / CONFIG
+        if self.path.exists() and not self.path.is_dir():
+            raise UserError(f"{self.path}: exists and is not a folder")
+        if cfg_path.exists():
+            old = read_json(cfg_path)
+            diff = [k for k in compare_keys if old.get("config", {}).get(k) != clean_json(config.get(k))]
+            if diff:
+                raise UserError(f"{self.path} holds a different run (differs in: {', '.join(diff)}); "
+                                "choose another --out")
+            if old.get("resolved", {}).get("dataset", {}).get("fingerprint") != \
+                    resolved.get("dataset", {}).get("fingerprint"):
+                raise UserError(f"{self.path}: the data changed since this run started; "
+                                "choose another --out")
+            return True
+        if self.path.is_dir() and any(self.path.iterdir()):
+            raise UserError(f"{self.path}: folder is not empty and holds no run; choose another --out")
+        self.folds_dir.mkdir(parents=True, exist_ok=True)
+        write_json(cfg_path, {"config": config, "resolved": resolved})
+        return False
+
+    def fold_dir(self, round_: int, name: str) -> Path:
+        safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)  # participant ids become folder names
+        return self.folds_dir / f"r{round_}-{safe}"
+
+    def load_fold(self, round_: int, name: str) -> dict[str, Any] | None:
+        d = self.fold_dir(round_, name)
+        if (d / FOLD).is_file() and (d / WEIGHTS).is_file():
+            return read_json(d / FOLD)
+        return None
+
+    def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
+        d = self.fold_dir(record["round"], record["name"])
+        d.mkdir(parents=True, exist_ok=True)
+        fitted.save(d / WEIGHTS)
+        write_json(d / FOLD, record)
+
+    def write_results(self, metrics: dict[str, Any], records: list[dict[str, Any]],
+                      title: str) -> None:
+        from tactile_studio.learn import plots
+
+        write_json(self.path / METRICS, metrics)
+        write_confusion_csv(self.path / "confusion_matrix.csv", metrics["labels"],
+                            metrics["confusion_matrix"])
+        plots.confusion_png(self.path / "confusion_matrix.png", metrics["labels"],
+                            metrics["confusion_matrix"], metrics.get("confusion_counts"), title)
+        if any(r.get("history") for r in records):
+            plots.curves_png(self.path / "training_curves.png", records, title)
+
+
+def write_confusion_csv(path: Path, labels: list[str], matrix: list[list[float]]) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["true \\ predicted", *labels])
+        for name, row in zip(labels, matrix):
+            w.writerow([name, *(f"{v:.4f}" for v in row)])
+
+
+def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """(config.json contents, finished fold records in order) of a run folder."""
+    run = Path(path)
+    if not run.is_dir():
+        raise UserError(f"{run}: no such run folder")
+    cfg = read_json(run / CONFIG)
+    records = []
+    for d in sorted((run / "folds").glob("r*-*")):
+        if (d / FOLD).is_file() and (d / WEIGHTS).is_file():
+            rec = read_json(d / FOLD)
+            rec["_dir"] = str(d)
+            records.append(rec)
+    records.sort(key=lambda r: (r["round"], r["fold"]))
+    if not records:
+        raise UserError(f"{run}: the run has no finished folds")
+    return cfg, records

@@ -1,0 +1,130 @@
+"""Evaluation protocols as lists of folds of trial indices.
+
+Splits are made over trials, never over samples, so the windows of one trial always land
+in the same part. Protocols:
+
+* ``all-inclusive`` — one fold: 70% train / 20% validation / 10% test of the trials,
+  stratified by gesture (each gesture with at least 2 trials gets a test trial, with at
+  least 3 a validation trial).
+* ``lopo`` — leave one participant out: one fold per participant, whose trials are the
+  test set; the validation set (for early stopping) is a stratified share of the other
+  participants' trials.
+* ``group-kfold`` — as the CNN-Transformer paper: about 10% of the participants (at least
+  one) are held out; the rest are split into ``k`` participant-disjoint folds (``k`` at
+  most their number); each fold tests on its participants, trains on the others, and
+  also predicts the held-out participants.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+
+PROTOCOLS = ("all-inclusive", "lopo", "group-kfold")
+
+
+@dataclass
+class Fold:
+    name: str
+    train: np.ndarray
+    val: np.ndarray
+    test: np.ndarray
+    test_participants: list[str] = field(default_factory=list)
+    heldout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+
+def stratified_parts(idx: np.ndarray, labels: np.ndarray, fractions: tuple[float, ...],
+                     rng: np.random.Generator) -> list[np.ndarray]:
+    """Split trial indices ``idx`` by class into parts with the given fractions.
+
+    Part 0 takes the remainder. Parts are filled from the last: the last part gets at
+    least one trial of every class with 2 or more, the one before it with 3 or more,
+    and so on, so small classes still reach the test set.
+    """
+    parts: list[list[int]] = [[] for _ in fractions]
+    carry = np.zeros(len(fractions))  # rounding left over, so the totals stay on target
+    classes = np.unique(labels[idx])
+    for c in classes[rng.permutation(len(classes))]:
+        members = idx[labels[idx] == c].copy()
+        rng.shuffle(members)
+        n, pos = len(members), 0
+        sizes: list[int] = []
+        for j, k in enumerate(range(len(fractions) - 1, 0, -1)):
+            exact = n * fractions[k] + carry[k]
+            want = int(np.floor(exact + 0.5))
+            if n >= j + 2:
+                want = max(want, 1)
+            want = max(min(want, n - 1 - sum(sizes)), 0)
+            carry[k] = exact - want
+            sizes.append(want)
+        sizes = [n - sum(sizes)] + sizes[::-1]
+        for k, size in enumerate(sizes):
+            parts[k].extend(members[pos:pos + size].tolist())
+            pos += size
+    return [np.array(sorted(p), dtype=np.int64) for p in parts]
+
+
+def all_inclusive(labels: np.ndarray, seed: int,
+                  fractions: tuple[float, float, float] = (0.7, 0.2, 0.1)) -> list[Fold]:
+    rng = np.random.default_rng([seed, 0xA11])
+    train, val, test = stratified_parts(np.arange(len(labels)), labels, fractions, rng)
+    return [Fold("all", train, val, test)]
+
+
+def _check_participants(participants: np.ndarray, need: int, protocol: str) -> list[str]:
+    names = sorted(set(participants.tolist()))
+    if len(names) < need:
+        raise UserError(f"{protocol} needs at least {need} participants; the data has "
+                        f"{len(names)} ({', '.join(names)})")
+    return names
+
+
+def lopo(labels: np.ndarray, participants: np.ndarray, seed: int,
+         val_fraction: float = 0.15) -> list[Fold]:
+    names = _check_participants(participants, 2, "leave-one-participant-out (lopo)")
+    folds = []
+    for i, p in enumerate(names):
+        rng = np.random.default_rng([seed, 0x1090, i])
+        test = np.flatnonzero(participants == p)
+        rest = np.flatnonzero(participants != p)
+        train, val = stratified_parts(rest, labels, (1 - val_fraction, val_fraction), rng)
+        folds.append(Fold(p, train, val, test, [p]))
+    return folds
+
+
+def group_kfold(labels: np.ndarray, participants: np.ndarray, seed: int, k: int = 10,
+                heldout_fraction: float = 0.1, val_fraction: float = 0.15) -> list[Fold]:
+    names = _check_participants(participants, 3, "group-kfold")
+    if k < 2:
+        raise UserError(f"group-kfold needs at least 2 folds, got {k}")
+    rng = np.random.default_rng([seed, 0x6F0])
+    order = [names[i] for i in rng.permutation(len(names))]
+    n_held = min(max(1, int(round(len(names) * heldout_fraction))), len(names) - 2)
+    held, rest = sorted(order[:n_held]), order[n_held:]
+    k = min(k, len(rest))
+    groups = [sorted(rest[i::k]) for i in range(k)]
+    heldout = np.flatnonzero(np.isin(participants, held))
+    folds = []
+    for i, group in enumerate(groups):
+        test = np.flatnonzero(np.isin(participants, group))
+        train_pool = np.flatnonzero(~np.isin(participants, group + held))
+        frng = np.random.default_rng([seed, 0x6F1, i])
+        train, val = stratified_parts(train_pool, labels, (1 - val_fraction, val_fraction), frng)
+        folds.append(Fold(f"fold{i + 1}", train, val, test, group, heldout))
+    return folds
+
+
+def make_folds(protocol: str, labels: np.ndarray, participants: np.ndarray, seed: int,
+               k: int = 10, heldout_fraction: float = 0.1, val_fraction: float = 0.15,
+               fractions: tuple[float, float, float] = (0.7, 0.2, 0.1)) -> list[Fold]:
+    """The folds of ``protocol`` (one of :data:`PROTOCOLS`)."""
+    if protocol == "all-inclusive":
+        return all_inclusive(labels, seed, fractions)
+    if protocol == "lopo":
+        return lopo(labels, participants, seed, val_fraction)
+    if protocol == "group-kfold":
+        return group_kfold(labels, participants, seed, k, heldout_fraction, val_fraction)
+    raise UserError(f"unknown evaluation protocol {protocol!r} (available: {', '.join(PROTOCOLS)})")

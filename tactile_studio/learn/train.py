@@ -1,0 +1,188 @@
+"""The training loop shared by every torch model (generic over the registry's ModelSpec).
+
+Optimiser and schedule come from the model's ``TrainDefaults`` for the preset, with
+``--set`` overrides (``lr``, ``batch_size``, ``epochs``/``max_epochs``, ``patience``,
+``weight_decay``, ``momentum``, ``optimizer``). Early stopping watches the validation
+loss (the validation set comes from training participants only); the weights of the
+best epoch are kept and returned. Seeds are fixed per fold; the device is CUDA when
+available unless asked otherwise.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken
+
+TRAIN_KEYS = ("optimizer", "lr", "batch_size", "max_epochs", "epochs", "patience",
+              "weight_decay", "momentum")
+OPTIMIZERS = ("adam", "adamw", "sgd")
+
+
+@dataclass(frozen=True)
+class TrainSettings:
+    optimizer: str
+    lr: float
+    batch_size: int
+    max_epochs: int
+    patience: int
+    weight_decay: float = 0.0
+    momentum: float = 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def train_settings(defaults: Any, overrides: dict[str, Any],
+                   epochs: int | None = None) -> TrainSettings:
+    """``TrainDefaults`` + training overrides (typed like the defaults) + ``--epochs``."""
+    s = TrainSettings(**{k: getattr(defaults, k) for k in TrainSettings.__dataclass_fields__})
+    changes: dict[str, Any] = {}
+    for key, value in overrides.items():
+        field = "max_epochs" if key == "epochs" else key
+        default = getattr(s, field)
+        try:
+            changes[field] = type(default)(float(value) if type(default) is int else value)
+        except (TypeError, ValueError):
+            raise UserError(f"training option {key}={value!r} is not a valid "
+                            f"{type(default).__name__}") from None
+        if isinstance(default, int) and changes[field] != float(value):
+            raise UserError(f"training option {key}={value!r} must be a whole number")
+    if epochs is not None:
+        changes["max_epochs"] = int(epochs)
+    s = replace(s, **changes)
+    if s.optimizer not in OPTIMIZERS:
+        raise UserError(f"unknown optimizer {s.optimizer!r} (available: {', '.join(OPTIMIZERS)})")
+    if s.lr <= 0 or s.batch_size < 1 or s.max_epochs < 1 or s.patience < 1:
+        raise UserError("lr, batch_size, epochs and patience must be positive")
+    return s
+
+
+def pick_device(preference: str = "auto") -> torch.device:
+    if preference == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if preference.startswith("cuda") and not torch.cuda.is_available():
+        raise UserError(f"device {preference!r} asked for but CUDA is not available")
+    try:
+        return torch.device(preference)
+    except RuntimeError:
+        raise UserError(f"unknown device {preference!r} (use auto, cpu or cuda)") from None
+
+
+def make_optimizer(model: nn.Module, s: TrainSettings) -> torch.optim.Optimizer:
+    params = model.parameters()
+    if s.optimizer == "sgd":
+        return torch.optim.SGD(params, lr=s.lr, momentum=s.momentum, weight_decay=s.weight_decay)
+    if s.optimizer == "adamw":
+        return torch.optim.AdamW(params, lr=s.lr, weight_decay=s.weight_decay)
+    return torch.optim.Adam(params, lr=s.lr, weight_decay=s.weight_decay)
+
+
+def _batches(n: int, size: int, rng: np.random.Generator | None) -> list[np.ndarray]:
+    order = rng.permutation(n) if rng is not None else np.arange(n)
+    out = [order[i:i + size] for i in range(0, n, size)]
+    if len(out) > 1 and len(out[-1]) == 1:  # batch norm cannot train on one sample
+        out[-2] = np.concatenate([out[-2], out.pop()])
+    return out
+
+
+def _evaluate(model: nn.Module, x: np.ndarray, y: np.ndarray, device: torch.device,
+              batch_size: int) -> tuple[float, float]:
+    if len(y) == 0:
+        return float("nan"), float("nan")
+    probs = predict_proba(model, x, device, batch_size)
+    p = np.clip(probs[np.arange(len(y)), y], 1e-12, None)
+    return float(-np.log(p).mean()), float((probs.argmax(axis=1) == y).mean())
+
+
+def predict_proba(model: nn.Module, x: np.ndarray, device: torch.device | str = "cpu",
+                  batch_size: int = 256) -> np.ndarray:
+    """Class probabilities for samples ``x`` (S, C, T, R, X), in eval mode."""
+    model.eval()
+    out = []
+    with torch.no_grad():
+        for i in range(0, len(x), batch_size):
+            xb = torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size])).to(device)
+            out.append(torch.softmax(model(xb).float(), dim=1).cpu().numpy())
+    if not out:
+        return np.zeros((0, 0), dtype=np.float32)
+    return np.concatenate(out)
+
+
+def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
+        val: tuple[np.ndarray, np.ndarray], s: TrainSettings, seed: int,
+        device: torch.device, cancel: CancelToken | None = None,
+        on_epoch: Callable[[dict[str, Any]], None] | None = None,
+        ) -> tuple[dict[str, torch.Tensor], list[dict[str, Any]], int]:
+    """Train with early stopping; returns (best state dict, history, best epoch)."""
+    torch.manual_seed(seed)
+    rng = np.random.default_rng([seed, 0x7EA])
+    model.to(device)
+    opt = make_optimizer(model, s)
+    loss_fn = nn.CrossEntropyLoss()
+    xt, yt = train
+    xv, yv = val
+    history: list[dict[str, Any]] = []
+    best_loss, best_epoch, best_state, stale = float("inf"), 0, None, 0
+    for epoch in range(1, s.max_epochs + 1):
+        t0 = time.perf_counter()
+        model.train()
+        total, correct, count = 0.0, 0, 0
+        for idx in _batches(len(yt), s.batch_size, rng):
+            if cancel is not None:
+                cancel.check()
+            xb = torch.from_numpy(xt[idx]).to(device)
+            yb = torch.from_numpy(yt[idx]).to(device)
+            opt.zero_grad(set_to_none=True)
+            logits = model(xb)
+            loss = loss_fn(logits, yb)
+            loss.backward()
+            opt.step()
+            total += float(loss.detach()) * len(idx)
+            correct += int((logits.argmax(1) == yb).sum())
+            count += len(idx)
+        val_loss, val_acc = _evaluate(model, xv, yv, device, max(s.batch_size, 64))
+        watch = val_loss if np.isfinite(val_loss) else total / count
+        rec = {"epoch": epoch, "train_loss": total / count, "train_acc": correct / count,
+               "val_loss": val_loss, "val_acc": val_acc,
+               "seconds": time.perf_counter() - t0}
+        history.append(rec)
+        if watch < best_loss - 1e-6:
+            best_loss, best_epoch, stale = watch, epoch, 0
+            best_state = copy.deepcopy({k: v.detach().cpu() for k, v in model.state_dict().items()})
+        else:
+            stale += 1
+        rec["best_epoch"] = best_epoch
+        if on_epoch is not None:
+            on_epoch(rec)
+        if stale >= s.patience:
+            break
+    if best_state is None:  # the loss never became finite: keep the last weights
+        best_state = {k: v.detach().cpu().clone() for k, v in model.state_dict().items()}
+        best_epoch = len(history)
+    model.load_state_dict(best_state)
+    return best_state, history, best_epoch
+
+
+def save_weights(state: dict[str, torch.Tensor], path) -> None:
+    """safetensors file of a state dict (contiguous, unshared copies)."""
+    from safetensors.torch import save_file
+
+    save_file({k: v.detach().cpu().contiguous().clone() for k, v in state.items()}, str(path))
+
+
+def load_weights(model: nn.Module, path) -> nn.Module:
+    """Load safetensors weights into ``model`` (no pickle involved)."""
+    from safetensors.torch import load_file
+
+    model.load_state_dict(load_file(str(path)))
+    return model

@@ -1,0 +1,93 @@
+"""Session files from virtual participants, made directly with the simulator.
+
+Each participant is one session file: 1 s of idle (its mean is the recorded baseline),
+then ``blocks`` blocks of the gestures in a shuffled order, each trial ``trial_s`` long
+with a short idle gap, written with SessionWriter + add_trial exactly as the collection
+runner writes them. Participants differ by the simulator's per-participant style.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from tactile_studio.sensor.layout import get_layout
+from tactile_studio.simulate import GESTURE_NAMES, SensorSimulator, SimConfig
+from tactile_studio.storage.session_writer import SessionWriter
+
+
+def trial_record(i: int, gesture: str, start: int, stop: int, rate: float = 43.0,
+                 block: int = 0, status: str = "ok") -> dict:
+    return {"index": i, "block": block, "gesture": gesture, "key": str(i % 9 + 1),
+            "start_sample": start, "end_sample": stop, "start_time": start / rate,
+            "end_time": stop / rate, "status": status, "reason": None, "flags": []}
+
+
+def write_participant(path: Path, participant: str, style_seed: int, gestures=GESTURE_NAMES,
+                      blocks: int = 3, trial_s: float = 2.0, gap_s: float = 0.4,
+                      rate: float = 43.0, sensor_seed: int = 7,
+                      extra_trials: list[dict] | None = None, **sim: object) -> Path:
+    """One session of ``blocks`` x ``gestures`` trials by one virtual participant."""
+    simulator = SensorSimulator(SimConfig(rate=rate, seed=sensor_seed, gesture="idle",
+                                          style_seed=style_seed, **sim))
+    rng = np.random.default_rng([style_seed, 11])
+    lead, trial_n, gap_n = int(rate), round(trial_s * rate), round(gap_s * rate)
+    plan, frame = [], lead
+    for b in range(blocks):
+        for g in rng.permutation(len(gestures)):
+            simulator.perform(gestures[g], trial_s, at_frame=frame)
+            plan.append((b, gestures[g], frame))
+            frame += trial_n + gap_n
+    raw = simulator.step(frame)
+    t = np.arange(frame) / rate
+    meta = {"participant": participant, "protocol": "test-protocol", "condition": "FLAT",
+            "gestures": list(gestures), "source": "test:simulator"}
+    with SessionWriter(path, simulator.layout, {"name": "simulated"}, meta) as w:
+        w.append_frames(raw, t, 1.7e9 + t)
+        w.add_baseline(raw[:lead].mean(axis=0), frame=0)
+        for i, (b, g, start) in enumerate(plan):
+            w.add_trial(trial_record(i, g, start, start + trial_n, rate, b))
+        for extra in extra_trials or []:
+            w.add_trial(extra)
+    return path
+
+
+def make_dataset_folder(folder: Path, participants: int = 4, blocks: int = 3,
+                        gestures=GESTURE_NAMES, trial_s: float = 2.0,
+                        first_style: int = 101, **kw: object) -> list[Path]:
+    """``participants`` session files P01.. in ``folder`` (created)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    return [write_participant(folder / f"P{p + 1:02d}.h5", f"P{p + 1:02d}", first_style + p,
+                              gestures, blocks, trial_s, **kw)
+            for p in range(participants)]
+
+
+def write_pressure_session(path: Path, participant: str, lengths: list[int],
+                           layout_name: str = "cost-8x8", seed: int = 0) -> Path:
+    """A pressure-only (CoST-like) session: trials of the given lengths, two gestures
+    that differ in where and how hard they press."""
+    layout = get_layout(layout_name)
+    rng = np.random.default_rng(seed)
+    rows, cols = layout.rows, layout.cols
+    frames, trials, pos = [np.full((10, layout.n_channels), 100.0)], [], 10
+    for i, n in enumerate(lengths):
+        g = ("pat", "stroke")[i % 2]
+        x = np.full((n, rows, cols), 100.0) + rng.normal(0, 2, (n, rows, cols))
+        if g == "pat":
+            x[:, 2:5, 2:5] += 300 * np.abs(np.sin(np.linspace(0, 6, n)))[:, None, None]
+        else:
+            col = (np.linspace(0, cols - 1, n)).astype(int)
+            x[np.arange(n), 4, col] += 150
+        frames.append(x.reshape(n, -1))
+        trials.append(trial_record(i, g, pos, pos + n, 135.0))
+        pos += n
+    raw = np.concatenate(frames).astype(np.float32)
+    t = np.arange(len(raw)) / 135.0
+    meta = {"participant": participant, "gestures": ["pat", "stroke"], "source": "test"}
+    with SessionWriter(path, layout, {"name": "test"}, meta) as w:
+        w.append_frames(raw, t, t)
+        w.add_baseline(np.full(layout.n_channels, 100.0), frame=0)
+        for tr in trials:
+            w.add_trial(tr)
+    return path

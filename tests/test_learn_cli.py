@@ -1,0 +1,188 @@
+"""The learning CLI: train / evaluate / ablate / export-model, one-line errors, Ctrl-C.
+
+Mostly the fast rf/knn baselines; one small cnn1d run for export and a subprocess for
+Ctrl-C. Budget: about 30 s on 2 cores.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from learn_fixtures import (
+    make_dataset_folder,
+    trial_record,
+    write_participant,
+    write_pressure_session,
+)
+
+from tactile_studio.cli import main
+
+GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("cli")
+    make_dataset_folder(root / "data", participants=3, blocks=3, gestures=GESTURES3)
+    return root
+
+
+def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_train_evaluate_and_resume(data, capsys, tmp_path):
+    out = tmp_path / "run"
+    code, stdout, err = run_cli(capsys, "train", "--data", data / "data", "--model", "rf",
+                                "--preset", "tiny", "--eval", "lopo", "--out", out,
+                                "--cache-dir", data / "cache", "--set", "n_estimators=40")
+    assert code == 0, err
+    assert "accuracy" in stdout and "P03" in stdout and str(out) in stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["accuracy"] > 0.6 and len(metrics["per_fold"]) == 3
+    for name in ("config.json", "confusion_matrix.csv", "confusion_matrix.png"):
+        assert (out / name).is_file()
+    code, stdout, _ = run_cli(capsys, "evaluate", out)
+    assert code == 0 and "folds mode" in stdout
+    assert f"{metrics['accuracy']:.3f}" in stdout
+    # a new participant's data: every fold model scores it (external mode)
+    (tmp_path / "new").mkdir()
+    write_participant(tmp_path / "new" / "P09.h5", "P09", 909, gestures=GESTURES3, blocks=2)
+    code, stdout, _ = run_cli(capsys, "evaluate", out, "--data", tmp_path / "new",
+                              "--cache-dir", data / "cache")
+    assert code == 0 and "external mode" in stdout
+    # re-running into the same folder resumes (nothing left to train) ...
+    code, stdout, _ = run_cli(capsys, "train", "--data", data / "data", "--model", "rf",
+                              "--preset", "tiny", "--eval", "lopo", "--out", out,
+                              "--cache-dir", data / "cache", "--set", "n_estimators=40")
+    assert code == 0 and f"{metrics['accuracy']:.3f}" in stdout
+    # ... but a different run there is refused
+    code, _, err = run_cli(capsys, "train", "--data", data / "data", "--model", "knn",
+                           "--eval", "lopo", "--out", out, "--cache-dir", data / "cache")
+    assert code == 1 and "holds a different run" in err
+
+
+def test_ablate_prints_table(data, capsys, tmp_path):
+    code, stdout, err = run_cli(capsys, "ablate", "--data", data / "data", "--model", "knn",
+                                "--preset", "tiny", "--eval", "all-inclusive",
+                                "--cache-dir", data / "cache", "--out", tmp_path / "abl")
+    assert code == 0, err
+    lines = stdout.strip().splitlines()
+    assert lines[0].startswith("ablation: knn")
+    assert [ln.split()[0] for ln in lines[2:]] == ["normal", "shear", "both"]
+    assert all(float(ln.split()[1]) > 0.5 for ln in lines[2:])
+    assert {p.name for p in (tmp_path / "abl").iterdir()} == {"normal", "shear", "both"}
+
+
+def test_export_model_cli(data, capsys, tmp_path):
+    out = tmp_path / "cnn1d"
+    code, _, err = run_cli(capsys, "train", "--data", data / "data", "--model", "cnn1d",
+                           "--preset", "tiny", "--eval", "all-inclusive", "--epochs", "10",
+                           "--threads", "1", "--out", out, "--cache-dir", data / "cache")
+    assert code == 0, err
+    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "onnx")
+    assert code == 0, err
+    assert "max |logit diff|" in stdout and "test accuracy" in stdout
+    assert (out / "export" / "r0-all.onnx").is_file()
+    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "int8")
+    assert code == 0, err
+    assert "change" in stdout and "KiB" in stdout
+
+
+def _one_line_error(capsys, *argv) -> str:
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 1
+    lines = err.strip().splitlines()  # progress bar lines, then the error on its own line
+    assert lines[-1].startswith("tactile-studio: error:") and "Traceback" not in err, err
+    assert sum("error" in ln for ln in lines) == 1
+    return lines[-1]
+
+
+def test_bad_inputs_give_one_line_errors(data, capsys, tmp_path):
+    d, c = data / "data", data / "cache"
+    assert "unknown model 'resnet'" in _one_line_error(
+        capsys, "train", "--data", d, "--model", "resnet", "--out", tmp_path / "a")
+    assert "unknown option 'wings'" in _one_line_error(
+        capsys, "train", "--data", d, "--model", "cnn3d", "--preset", "tiny", "--set",
+        "wings=3", "--out", tmp_path / "b", "--cache-dir", c)
+    assert "bad --set" in _one_line_error(
+        capsys, "train", "--data", d, "--model", "rf", "--set", "oops", "--out", tmp_path / "b2")
+    single = tmp_path / "single"
+    single.mkdir()
+    write_participant(single / "P01.h5", "P01", 3, gestures=GESTURES3, blocks=1)
+    assert "at least 2 participants" in _one_line_error(
+        capsys, "train", "--data", single, "--model", "rf", "--eval", "lopo",
+        "--out", tmp_path / "c", "--cache-dir", c)
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    write_participant(mixed / "a.h5", "P01", 3, gestures=GESTURES3, blocks=1)
+    write_pressure_session(mixed / "b.h5", "S2", [30, 30])
+    assert "mismatched layouts" in _one_line_error(
+        capsys, "train", "--data", mixed, "--model", "rf", "--out", tmp_path / "d",
+        "--cache-dir", c)
+    empty = tmp_path / "notrials"
+    empty.mkdir()
+    write_participant(empty / "a.h5", "P01", 3, gestures=GESTURES3, blocks=0,
+                      extra_trials=[trial_record(0, "Poke", 0, 30, status="discarded")])
+    assert "no trials" in _one_line_error(
+        capsys, "train", "--data", empty, "--model", "rf", "--out", tmp_path / "e",
+        "--cache-dir", c)
+    cost = tmp_path / "cost"
+    cost.mkdir()
+    write_pressure_session(cost / "s1.h5", "S1", [30, 40])
+    assert "pressure only" in _one_line_error(
+        capsys, "train", "--data", cost, "--model", "rf", "--channels", "shear",
+        "--out", tmp_path / "f", "--cache-dir", c)
+    assert "no such file or folder" in _one_line_error(
+        capsys, "train", "--data", tmp_path / "nowhere", "--model", "rf", "--out", tmp_path / "g")
+    assert "no such run folder" in _one_line_error(capsys, "evaluate", tmp_path / "nowhere")
+    assert not (tmp_path / "a").exists()  # nothing written for a run that never started
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_finished_folds(data, tmp_path):
+    out = tmp_path / "run"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tactile_studio", "train", "--data", str(data / "data"),
+         "--model", "cnn3d", "--preset", "tiny", "--eval", "lopo", "--epochs", "60",
+         "--set", "patience=60", "--threads", "1", "--out", str(out),
+         "--cache-dir", str(data / "cache")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 240
+        while not list(out.glob("folds/*/fold.json")) and proc.poll() is None:
+            assert time.monotonic() < deadline, "no fold finished in time"
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)  # Ctrl-C during the second fold
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "cancelled; finished work was kept" in err and "Traceback" not in err
+    finished = list(out.glob("folds/*/fold.json"))
+    assert 1 <= len(finished) < 3
+    partial = json.loads((out / "metrics.json").read_text())
+    assert partial["complete"] is False and len(partial["per_fold"]) == len(finished)
+
+
+def test_end_to_end_from_collected_sessions(capsys, tmp_path):
+    """Sessions recorded by `collect --virtual-participant`, then `train` on them."""
+    for p in ("P01", "P02", "P03"):
+        code, _, err = run_cli(capsys, "collect", "--protocol", "shear9", "--participant", p,
+                               "--virtual-participant", "--speed", "0", "--blocks", "2",
+                               "--out", tmp_path / "sessions")
+        assert code == 0, err
+    code, stdout, err = run_cli(capsys, "train", "--data", tmp_path / "sessions", "--model", "rf",
+                                "--preset", "tiny", "--eval", "lopo", "--out", tmp_path / "run",
+                                "--cache-dir", tmp_path / "cache")
+    assert code == 0, err
+    m = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert len(m["labels"]) == 9 and len(m["per_fold"]) == 3
+    assert m["accuracy"] > 3 / 9
