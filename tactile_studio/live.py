@@ -6,10 +6,13 @@ cell and the strip-chart history; the widgets only draw the answers. Keeping thi
 every piece of stress maths in the core. :class:`LiveController` owns the device, the
 engine and the recorder for one live screen. :class:`RateMeter` and
 :class:`LatencyMeter` measure display fps and device-to-paint latency.
+:func:`run_discovery` is the device panel's "Scan" (serial ports, BLE peripherals).
 """
 
 from __future__ import annotations
 
+import inspect
+import logging
 import math
 import os
 import time
@@ -19,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
@@ -393,6 +397,87 @@ class LiveStatus:
     reconnect_attempts: int = 0
     recording: str | None = None
     recorded_frames: int = 0
+
+    def state_text(self) -> str:
+        """One line such as 'serial: reconnecting (attempt 3)' or 'No device connected'."""
+        if self.device is None:
+            return "No device connected"
+        state = self.state
+        if state == "reconnecting":
+            state += f" (attempt {self.reconnect_attempts})"
+        return f"{self.device}: {state}"
+
+    def malformed_text(self) -> str:
+        """Dropped input by kind, most frequent first: "3 short, 1 non_numeric" (or "none")."""
+        return format_malformed(self.malformed_by_kind)
+
+    def detail_lines(self) -> list[str]:
+        """The device panel's lines under the state (empty without a device)."""
+        if self.device is None:
+            return []
+        return [f"{self.measured_rate_hz:.1f} Hz measured · {self.frames} frames",
+                f"malformed: {self.malformed_text()}",
+                f"dropped {self.dropped} · gaps {self.gaps} · reconnects {self.reconnects}"
+                f" (attempts {self.reconnect_attempts})"]
+
+
+def format_malformed(by_kind: dict[str, int]) -> str:
+    """Counts by kind as '3 short, 1 non_numeric': most frequent first, ties by name;
+    'none' when nothing was dropped."""
+    counts = sorted(((int(n), str(k)) for k, n in by_kind.items() if n),
+                    key=lambda nk: (-nk[0], nk[1]))
+    return ", ".join(f"{n} {k}" for n, k in counts) or "none"
+
+
+# ---- discovery: the device panel's "Scan" -------------------------------------------
+def discover_setting(cls: type[DevicePlugin] | None) -> str | None:
+    """The setting a plugin can fill from a scan (duck-typed ``discover`` +
+    ``discover_setting`` hooks, see docs/devices.md), or None."""
+    name = getattr(cls, "discover_setting", None)
+    if cls is None or not name or not callable(getattr(cls, "discover", None)):
+        return None
+    return name if any(s.name == name for s in cls.settings_schema) else None
+
+
+def discover_is_instant(cls: type[DevicePlugin]) -> bool:
+    """True when ``discover`` waits for nothing (its ``timeout`` defaults to 0, as for
+    serial ports), so a panel may run it as soon as the plugin is chosen; a radio scan
+    (BLE) runs only when asked."""
+    timeout = inspect.signature(cls.discover).parameters.get("timeout")
+    return timeout is None or timeout.default in (0, 0.0)
+
+
+def discover_kwargs(cls: type[DevicePlugin], texts: dict[str, str]) -> dict[str, Any]:
+    """Arguments for ``cls.discover`` from the settings form: parameters named like a
+    setting take its value (``timeout`` takes ``scan_timeout``); a value that does not
+    parse is left out, so the hook's default applies (the form shows the error)."""
+    schema = {s.name: s for s in cls.settings_schema}
+    out: dict[str, Any] = {}
+    for param in inspect.signature(cls.discover).parameters:
+        key = "scan_timeout" if param == "timeout" and "scan_timeout" in schema else param
+        setting = schema.get(key)
+        if setting is None or key == discover_setting(cls):
+            continue
+        text = texts.get(key, "")
+        try:
+            out[param] = setting.default if text == "" else setting.parse(text, cls.name)
+        except UserError:
+            continue
+    return out
+
+
+def run_discovery(cls: type[DevicePlugin],
+                  texts: dict[str, str]) -> tuple[list[tuple[str, str]], str | None]:
+    """Scan with the form's settings: ((value, label) choices, None) or ([], one-line
+    error). Blocks (a BLE scan listens for seconds): call it from a worker thread."""
+    try:
+        found = cls.discover(**discover_kwargs(cls, texts))
+    except UserError as exc:
+        return [], " ".join(str(exc).split())
+    except Exception as exc:  # a plugin bug: full traceback in the log, one line shown
+        logging.getLogger(__name__).error("device discovery failed", exc_info=exc)
+        return [], f"{cls.name}: scan failed ({type(exc).__name__}: {exc})"
+    return [(str(value), str(label)) for value, label in found], None
 
 
 class LiveController:

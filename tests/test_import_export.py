@@ -360,6 +360,9 @@ def test_bad_inputs_give_one_line_errors(tmp_path, capsys):
     assert_one_line_error(*run_cli(capsys, "import", "cost", str(src),
                                    "--out", str(tmp_path))[::2], "already exists",
                           after_progress=True)
+    assert main(["import", "cost", str(src), "--out", str(tmp_path / "new" / "dir")]) == 0
+    assert len(list((tmp_path / "new" / "dir").glob("*.h5"))) == 2  # the folder was made
+    capsys.readouterr()
     assert_one_line_error(*run_cli(capsys, "import", "cost", str(src),
-                                   "--out", str(tmp_path / "missing"))[::2], "does not exist")
+                                   "--out", str(notcsv / "sub"))[::2], "cannot create")
     assert main(["import", "cost", str(src), "--out", str(tmp_path), "--force"]) == 0

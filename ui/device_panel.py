@@ -3,6 +3,8 @@
 The settings form is generated from the plugin's ``settings_schema`` and validated with
 the schema's own ``Setting.parse`` as the user types, so the rules live in one place
 (the core) and an invalid value shows its one-line message before anything connects.
+A plugin with a ``discover`` hook gets a "Scan" drop-down for its ``discover_setting``
+(ui/device_discovery.py); serial ports are listed as soon as the plugin is chosen.
 """
 
 from __future__ import annotations
@@ -12,8 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QSize, Qt, Signal
-from PySide6.QtGui import QPainter
+from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -33,7 +34,8 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.contract import DevicePlugin, Setting
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.live import LiveController, LiveStatus
+from tactile_studio.live import LiveController, LiveStatus, discover_setting
+from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.settings import app_settings
 
 LAST_DIR_KEY = "record/last_dir"
@@ -41,21 +43,6 @@ LAST_DIR_KEY = "record/last_dir"
 
 def _one_line(text: str) -> str:
     return " ".join(str(text).split())
-
-
-class ElidedLabel(QLabel):
-    """One line of text, cut with "…" to the width it gets; the full text is the tooltip."""
-
-    def paintEvent(self, event) -> None:  # noqa: ANN001 - Qt signature
-        painter = QPainter(self)
-        rect = self.contentsRect()
-        text = self.fontMetrics().elidedText(self.text(), Qt.TextElideMode.ElideRight,
-                                             rect.width())
-        painter.setPen(self.palette().color(self.foregroundRole()))
-        painter.drawText(rect, int(self.alignment()), text)
-
-    def minimumSizeHint(self) -> QSize:
-        return QSize(10, super().minimumSizeHint().height())
 
 
 class _Field:
@@ -137,7 +124,8 @@ class DevicePanel(QWidget):
         super().__init__(parent)
         self.controller = controller
         self.plugins = available_plugins()
-        self._fields: dict[str, _Field] = {}
+        self._fields: dict[str, _Field | DiscoverField] = {}
+        self.discover_field: DiscoverField | None = None
         self._form_error: str | None = None
 
         self.device_box = QComboBox()
@@ -231,18 +219,28 @@ class DevicePanel(QWidget):
         return True
 
     def _rebuild_form(self) -> None:
+        if self.discover_field is not None:
+            self.discover_field.forget()
+            self.discover_field = None
         while self.form.rowCount():
             self.form.removeRow(0)
         self._fields.clear()
         cls = self.plugin()
         self.description.setText(getattr(cls, "description", "") or "")
         self.description.setVisible(bool(self.description.text()))
+        scan_name = discover_setting(cls)
         for setting in (cls.settings_schema if cls else ()):
-            field = _Field(setting, self._validate)
+            if setting.name == scan_name:
+                field = DiscoverField(setting, cls, self._validate, self.values)
+                self.discover_field = field
+            else:
+                field = _Field(setting, self._validate)
             self._fields[setting.name] = field
             self.form.addRow(setting.name, field.widget)
         self.form_box.setVisible(bool(self._fields))
         self._validate()
+        if self.discover_field is not None and self.discover_field.instant:
+            self.discover_field.scan()
 
     def values(self) -> dict[str, str]:
         """The form as text, as ``--set key=value`` would give it (empty = default)."""
@@ -362,24 +360,11 @@ class DevicePanel(QWidget):
     # ---- live state --------------------------------------------------------------------
     def refresh(self, st: LiveStatus) -> None:
         """Show the connection state; called a few times a second by the owner."""
-        state = st.state
-        if st.state == "reconnecting":
-            state = f"reconnecting (attempt {st.reconnect_attempts})"
-        self.state_label.setText(f"{st.device}: {state}" if st.device else "No device connected")
+        self.state_label.setText(st.state_text())
         self.state_label.setProperty("state", st.state)
         self.state_label.style().unpolish(self.state_label)
         self.state_label.style().polish(self.state_label)
-        if st.device is None:
-            self.detail_label.setText("")
-        else:
-            malformed = ", ".join(f"{k} {v}" for k, v in sorted(st.malformed_by_kind.items()))
-            lines = [
-                f"{st.measured_rate_hz:.1f} Hz measured · {st.frames} frames",
-                f"malformed: {malformed or 'none'}",
-                f"dropped {st.dropped} · gaps {st.gaps} · reconnects {st.reconnects}"
-                f" (attempts {st.reconnect_attempts})",
-            ]
-            self.detail_label.setText("\n".join(lines))
+        self.detail_label.setText("\n".join(st.detail_lines()))
         if st.error:
             prefixed = st.error.startswith(f"{st.device}:")
             self.show_error(st.error if prefixed else f"{st.device}: {st.error}")

@@ -27,9 +27,7 @@ class LiveStatusBar(QStatusBar):
 
     def update_status(self, st: LiveStatus, display_fps: float,
                       latency_ms: float | None) -> None:
-        text = f"{st.device}: {st.state}" if st.device else "No device connected"
-        if st.state == "reconnecting":
-            text += f" (attempt {st.reconnect_attempts})"
+        text = st.state_text()
         if st.error:
             text += f" — {st.error}"
         if st.recording:
@@ -42,6 +40,7 @@ class LiveStatusBar(QStatusBar):
         self.rate.setText(f"{st.measured_rate_hz:6.1f} Hz")
         self.fps.setText(f"display {display_fps:4.0f} fps")
         self.malformed.setText(f"malformed {st.malformed}")
+        self.malformed.setToolTip(f"Malformed input dropped, by kind: {st.malformed_text()}")
         self.dropped.setText(f"dropped {st.dropped}")
         self.latency.setText("latency –" if latency_ms is None
                              else f"latency {latency_ms:5.1f} ms")

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 
 
@@ -67,7 +68,16 @@ def _bar(label: str) -> Iterator[_Bar]:
         bar.end_line()
 
 
+def _make_out_dir(out: str) -> None:
+    """Create the output folder (and parents) like any export tool would."""
+    try:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{out}: cannot create output folder ({exc.strerror})") from None
+
+
 def cmd_import(args: argparse.Namespace) -> int:
+    _make_out_dir(args.out)
     from tactile_studio.storage.importers import import_cost, import_haart, import_shearsense
 
     token = CancelToken()
@@ -87,6 +97,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    _make_out_dir(args.out)
     from tactile_studio.storage.exporters import export_session
 
     token = CancelToken()

@@ -108,7 +108,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     lines = [
         f"file:       {summary['path']}",
         f"layout:     {summary['layout']}",
-        f"device:     {device.get('plugin', '?')} {device.get('settings', '')}",
+        f"device:     {device.get('plugin', '?')} {device.get('settings') or ''}".rstrip(),
+        *([f"source:     {meta['source']}"] if meta.get("source") else []),
         f"created:    {meta.get('created', '?')}   app {meta.get('app_version', '?')}",
         f"frames:     {summary['frames']} over {summary['duration_s']:.2f} s "
         f"({summary['rate_hz']:.2f} Hz)",

@@ -104,7 +104,8 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
                 raise UserError(f"{s.path}: trial {t['index']} has no one-letter key "
                                 f"({key!r}); the ShearSense CSV labels rows by key")
             labels[t["start_sample"]:t["end_sample"]] = ord(key)
-        raw, times, baseline = s.raw(), s.column("host_time"), s.baseline(0)
+        raw, baseline = s.raw(), s.baseline(0)
+        times = _frame_times(s)
     def shown(fraction: float, message: str = "") -> None:
         progress(fraction, message.replace(f".{out.name}.part", out.name))
     return _atomic(out, lambda tmp: write_shearsense_csv(
@@ -224,6 +225,18 @@ def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
     _atomic(out, write)
     progress(1.0, f"{out.name}: {len(rows)} trials")
     return out
+
+
+def _frame_times(s: Session) -> np.ndarray:
+    """Unix time of each frame on the device's clock, anchored at the first host time.
+
+    For devices without a clock the two are the same; for the simulator or a replay
+    running faster than real time this keeps the real spacing of the frames.
+    """
+    host, dev = s.column("host_time"), s.column("device_time")
+    if len(dev) == 0:
+        return host
+    return host[0] + (dev - dev[0])
 
 
 def export_session(path: str | os.PathLike, fmt: str, out_dir: str | os.PathLike,
