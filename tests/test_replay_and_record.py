@@ -1,0 +1,113 @@
+"""The replay plugin and the `record` command, end to end through real files."""
+
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+import pytest
+
+from tactile_studio.cli import main
+from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
+from tactile_studio.devices.registry import create_device
+from tactile_studio.errors import DeviceNotFound, UserError
+from tactile_studio.storage import Recorder, Session
+from tactile_studio.storage.shearsense import write_shearsense_csv
+
+
+def record_simulated(path, seconds="1", *extra):
+    assert main(["record", "--device", "simulated", "--set", "speed=0", "--set", "seed=3",
+                 *extra, "--seconds", seconds, "--out", str(path)]) == 0
+
+
+def wait_finished(engine, timeout=30.0):
+    end = time.monotonic() + timeout
+    while engine.state != FINISHED:
+        assert time.monotonic() < end, f"engine still {engine.state}"
+        time.sleep(0.01)
+
+
+def test_record_command_writes_a_session_that_info_describes(tmp_path, capsys):
+    out = tmp_path / "sim.h5"
+    record_simulated(out, "1", "--notes", "bench A")
+    capsys.readouterr()
+    assert main(["info", str(out), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames"] > 43 and info["rate_hz"] == pytest.approx(43.0, rel=1e-6)
+    assert info["metadata"]["device"]["plugin"] == "simulated"
+    assert info["metadata"]["device"]["settings"]["seed"] == 3
+    assert info["metadata"]["notes"] == "bench A" and info["closed_cleanly"]
+    assert [e["kind"] for e in info["events"]][:2] == ["connect", "tare"]
+    assert info["malformed"] == 0 and info["gaps"] == 0
+
+
+def test_record_refuses_to_overwrite_and_reports_bad_settings(tmp_path, capsys):
+    out = tmp_path / "sim.h5"
+    out.write_bytes(b"precious")
+    assert main(["record", "--seconds", "1", "--out", str(out)]) == 1
+    assert "already exists" in capsys.readouterr().err and out.read_bytes() == b"precious"
+    assert main(["record", "--set", "rate=fast", "--seconds", "1",
+                 "--out", str(tmp_path / "x.h5")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == "tactile-studio: error: device simulated: setting rate: 'fast' is not a valid float"
+    assert main(["record", "--device", "warp-drive", "--seconds", "1",
+                 "--out", str(tmp_path / "y.h5")]) == 1
+    assert "unknown device 'warp-drive'" in capsys.readouterr().err
+    assert not (tmp_path / "x.h5").exists() and not (tmp_path / "y.h5").exists()
+
+
+def test_replay_of_a_session_reproduces_frames_and_timing(tmp_path):
+    src = tmp_path / "src.h5"
+    record_simulated(src)
+    with Session(src) as s:
+        raw, dev_t = s.raw(), s.column("device_time")
+    engine = AcquisitionEngine(create_device("replay", {"path": str(src), "speed": "0"}))
+    copy = tmp_path / "copy.h5"
+    rec = Recorder(engine, copy).start()
+    engine.start()
+    wait_finished(engine)
+    engine.stop()
+    rec.stop()
+    with Session(copy) as c:
+        assert np.array_equal(c.raw(), raw)
+        assert np.allclose(c.column("device_time"), dev_t - dev_t[0])
+        assert np.array_equal(c.column("seq"), np.arange(len(raw)))
+        assert c.layout.name == "shearsense-6x6"
+
+
+def test_replay_loops_with_continuous_time_and_sequence(tmp_path):
+    src = tmp_path / "src.h5"
+    record_simulated(src, "0.5")
+    with Session(src) as s:
+        n = s.n_frames
+    engine = AcquisitionEngine(create_device("replay", {"path": str(src), "speed": "0",
+                                                        "loop": "true"}))
+    engine.start()
+    assert engine.wait_frames(3 * n + 5, timeout=30)
+    engine.stop()
+    chunk = engine.read_since(0, 3 * n)
+    assert np.array_equal(chunk.seq, np.arange(3 * n)) and engine.gaps == 0
+    assert np.array_equal(chunk.raw[n:2 * n], chunk.raw[:n])
+    assert np.all(np.diff(chunk.device_time) > 0)
+
+
+def test_replay_of_a_shearsense_csv(tmp_path):
+    rng = np.random.default_rng(0)
+    raw = rng.integers(20000, 40000, size=(50, 180)).astype(np.uint16)
+    times = 1.7e9 + np.arange(50) / 44.0
+    csv = tmp_path / "P01_test_FLAT.csv"
+    write_shearsense_csv(csv, raw, times, np.zeros(50, int), raw[0].astype(float))
+    engine = AcquisitionEngine(create_device("replay", {"path": str(csv), "speed": "0"}))
+    engine.start()
+    wait_finished(engine)
+    chunk = engine.read_since(0)
+    assert np.array_equal(chunk.raw, raw)
+    assert np.allclose(chunk.device_time, times - times[0])
+
+
+def test_replay_errors_are_one_line(tmp_path):
+    with pytest.raises(DeviceNotFound, match="nothing.h5: no such file"):
+        create_device("replay", {"path": str(tmp_path / "nothing.h5")})
+    with pytest.raises(UserError, match="path is required"):
+        create_device("replay", {})
