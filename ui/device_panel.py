@@ -383,7 +383,7 @@ class DevicePanel(QWidget):
 
     def _update_buttons(self, st: LiveStatus) -> None:
         live = st.state in ("connecting", "running", "reconnecting")
-        self.connect_button.setText("Reconnect" if live else "Connect")
+        self.connect_button.setText("Restart" if live else "Connect")
         self.connect_button.setToolTip("Restart the device with the settings above" if live
                                        else "Start streaming from the device")
         self.disconnect_button.setEnabled(st.device is not None and st.state != "stopped")
