@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from tactile_studio.cli import main
 from tactile_studio.errors import SessionFileError
 from tactile_studio.protocol.protocol_file import load_protocol
@@ -80,21 +82,99 @@ def test_headless_session_and_determinism(tmp_path: Path, capsys) -> None:
     assert [t["gesture"] for t in ta] != [t["gesture"] for t in tc]
 
 
-def test_without_a_virtual_participant_it_points_to_the_gui(tmp_path: Path, capsys) -> None:
-    code, _, err = _main(capsys, "--protocol", "shear9", "--participant", "P01",
-                         "--out", str(tmp_path))
-    lines = err.strip().splitlines()
-    assert code == 1 and len(lines) == 1
-    assert "GUI" in lines[0] and "tactile-studio gui" in lines[0]
-    code, _, err = _main(capsys, "--protocol", "shear10", "--participant", "P01",
-                         "--virtual-participant", "--out", str(tmp_path))
-    assert code == 1 and "unknown protocol 'shear10'" in err
-    code, _, err = _main(capsys, "--protocol", "shear9", "--participant", "P 1",
-                         "--virtual-participant", "--out", str(tmp_path))
-    assert code == 1 and "bad participant id" in err
-    code, _, err = _main(capsys, "--virtual-participant", "--resume", str(tmp_path / "no.h5"))
-    assert code == 1 and "no such file" in err
-    assert not list(tmp_path.glob("*.h5"))
+def test_bad_arguments_are_one_line_errors_before_any_window(tmp_path: Path, capsys) -> None:
+    for mode in (["--virtual-participant"], []):  # headless, and the console path
+        code, _, err = _main(capsys, "--protocol", "shear10", "--participant", "P01", *mode,
+                             "--out", str(tmp_path))
+        assert code == 1 and "unknown protocol 'shear10'" in err
+        code, _, err = _main(capsys, "--protocol", "shear9", "--participant", "P 1", *mode,
+                             "--out", str(tmp_path))
+        assert code == 1 and "bad participant id" in err
+        code, _, err = _main(capsys, *mode, "--resume", str(tmp_path / "no.h5"))
+        assert code == 1 and "no such file" in err
+        assert len(err.strip().splitlines()) == 1
+    base = ["--protocol", "shear9", "--participant", "P01", "--out", str(tmp_path / "x")]
+    for extra, message in ((["--set", "noise=3"], "--set needs --device"),
+                           (["--device", "simulated", "--set", "bogus=1"], "unknown setting 'bogus'"),
+                           (["--device", "serial", "--speed", "2"], "--speed applies to the simulated"),
+                           (["--blocks", "0"], "--blocks must be at least 1")):
+        code, _, err = _main(capsys, *base, *extra)
+        assert code == 1 and message in err and len(err.strip().splitlines()) == 1, err
+    assert not list(tmp_path.glob("**/*.h5"))
+
+
+def _run_console_cli(capsys, *args: str):
+    """``collect`` without --virtual-participant: the real command, its event loop ended
+    at once by a timer; returns the exit code, stderr and the console it opened."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication
+
+    from tactile_studio.ui.collect_console import CollectConsole
+
+    app = QApplication.instance()
+    before = {id(w) for w in app.topLevelWidgets()}
+    timer = QTimer(singleShot=True, interval=0)
+    timer.timeout.connect(lambda: app.exit(0))  # (quit() would close the windows too)
+    timer.start()
+    try:
+        code, _, err = _main(capsys, *args)
+    finally:
+        timer.stop()  # an error before the event loop must not end a later test's loop
+    opened = [w for w in app.topLevelWidgets()
+              if isinstance(w, CollectConsole) and id(w) not in before and w.isVisible()]
+    return code, err, opened
+
+
+def test_without_a_virtual_participant_the_console_opens_pre_filled(
+        tmp_path: Path, capsys, qtbot, monkeypatch) -> None:
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    out = tmp_path / "new folder"
+    code, err, opened = _run_console_cli(
+        capsys, "--protocol", "shear9", "--participant", "P01", "--device", "simulated",
+        "--set", "noise=5", "--blocks", "2", "--seed", "7", "--condition", "FLAT",
+        "--out", str(out))
+    assert code == 0, err
+    assert len(opened) == 1
+    console = opened[0]
+    s = console.setup
+    assert s.protocol.currentData() == "shear9" and "9 gestures" in s.protocol_info.text()
+    assert s.participant.text() == "P01" and s.condition.text() == "FLAT"
+    assert (s.blocks.value(), s.seed.value()) == (2, 7)
+    assert s.device.currentData() == "simulated" and s.device_settings.text() == "noise=5"
+    assert s.out_dir.text() == str(out) and out.is_dir()  # made, as the form needs it
+    assert console.stack.currentIndex() == 0 and console.session is None  # not started
+    choice = s.choice()  # what "Open session" would start
+    assert (choice.protocol.blocks, choice.seed, choice.device_settings) == \
+        (2, 7, {"noise": "5"})
+    # the experimenter opens it; then, closed mid-session, the command resumes it
+    assert console.start_session(choice)
+    path = console.session.path
+    console.close()
+    code, err, opened = _run_console_cli(capsys, "--resume", str(path))
+    assert code == 0, err
+    resumed = opened[0]
+    assert resumed.stack.currentIndex() == 1 and resumed.session.path == path
+    assert resumed.setup.device.currentData() == "simulated"
+    assert resumed.setup.device_settings.text() == "noise=5"  # the file's, minus defaults
+    assert resumed.runner.participant == "P01"
+    resumed.close()
+    with Session(path) as sess:
+        assert sess.metadata["resumes"] == 1 and sess.metadata["condition"] == "FLAT"
+    code, err, opened = _run_console_cli(capsys, "--protocol", "shear9", "--participant", "P01",
+                                         "--device", "replay", "--out", str(out))
+    assert code == 1 and "cannot run a collection session" in err and not opened
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="X11/Wayland check")
+def test_console_without_a_display_is_a_one_line_error(tmp_path: Path, capsys,
+                                                        monkeypatch) -> None:
+    for name in ("DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"):
+        monkeypatch.delenv(name, raising=False)
+    code, out, err = _main(capsys, "--protocol", "shear9", "--participant", "P01",
+                           "--device", "simulated", "--out", str(tmp_path / "o"))
+    assert code == 1 and out == ""
+    assert err.count("\n") == 1 and "no display" in err and "--virtual-participant" in err
+    assert not (tmp_path / "o").exists()
 
 
 def test_resume_refuses_a_mismatch_or_a_complete_session(tmp_path: Path, capsys) -> None:

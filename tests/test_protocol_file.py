@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -72,7 +73,9 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
     (lambda t: t.replace('key = "r"', 'key = "rr"'), "mini.toml: gestures[1].key: must be one printable"),
     (lambda t: t.replace('definition = "Rub it."', ''), "mini.toml: gestures[1].definition: missing"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = " "'), "gestures[1].definition: must not be empty"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "nope.png"'), "gestures[1].image: no such file"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "nope.png"'), "gestures[1].image: no such file 'nope.png'"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "notes.txt"'), "gestures[1].image: 'notes.txt' is not an image"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = ""'), "gestures[1].image: must not be empty"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'), "gestures[1].colour: unknown field"),
     (lambda t: t.replace("blocks = 3", "blocks = 0"), "mini.toml: blocks: 0 is out of range"),
     (lambda t: t.replace("blocks = 3", 'blocks = "many"'), "mini.toml: blocks: expected a whole number"),
@@ -96,6 +99,47 @@ def test_validation_names_the_field(tmp_path: Path, edit, message: str) -> None:
     assert message in str(err.value)
     assert "\n" not in str(err.value)
     assert isinstance(err.value, UserError)
+
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_shear9_ships_a_pictogram_per_gesture_as_package_data() -> None:
+    images = [Path(g.image) for g in load_protocol("shear9").gestures]
+    assert len(images) == 9 and len(set(images)) == 9
+    for image in images:
+        assert image.is_absolute() and image.read_bytes()[:8] == PNG_MAGIC
+        assert 1_000 < image.stat().st_size < 100_000  # small, not empty
+    assert len({i.read_bytes() for i in images}) == 9  # nine different pictures
+    # installed too: every image matches a package-data glob of tactile_studio.resources
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    resources = ROOT / "resources"
+    shipped = {p.resolve() for pattern in config["package-data"]["tactile_studio.resources"]
+               for p in resources.glob(pattern)}
+    missing = sorted(str(i.relative_to(resources)) for i in images if i.resolve() not in shipped)
+    assert not missing, f"add to package-data: {missing}"
+
+
+def test_image_paths_are_relative_to_the_protocol_file(tmp_path: Path, monkeypatch) -> None:
+    folder = tmp_path / "lab"
+    (folder / "pics").mkdir(parents=True)
+    (folder / "pics" / "rub.png").write_bytes(PNG_MAGIC)
+    (folder / "mini.toml").write_text(GOOD.replace('definition = "Rub it."',
+                                                   'definition = "Rub it."\nimage = "pics/rub.png"'))
+    monkeypatch.chdir(tmp_path)
+    p = load_protocol("lab/mini.toml")
+    rub = p.gesture_by_name("Rub")
+    assert Path(rub.image) == folder / "pics" / "rub.png" and Path(rub.image).is_absolute()
+    assert p.gesture_by_name("Poke").image is None
+    monkeypatch.chdir(folder / "pics")  # a session stores the path; it still resolves
+    assert protocol_from_dict(p.to_dict(), "again").gestures == p.gestures
+    assert p.with_overrides(blocks=1).gestures == p.gestures
+    (folder / "pics" / "rub.png").unlink()  # resuming elsewhere: not checked, not refused
+    restored = protocol_from_dict(p.to_dict(), "session", check_images=False)
+    assert restored.gesture_by_name("Rub").image == rub.image
+    with pytest.raises(ProtocolError, match=r"mini.toml: gestures\[1\].image: no such file"):
+        load_protocol(folder / "mini.toml")
 
 
 def test_missing_protocols_are_user_errors(tmp_path: Path) -> None:

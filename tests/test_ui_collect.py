@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QColor, QImage
 from PySide6.QtWidgets import QFileDialog
 
 from tactile_studio.protocol.snapshot import State
@@ -41,6 +42,7 @@ length_s = 0.05
 name = "Poke"
 key = "p"
 definition = "Press one fingertip firmly into the sensor and lift it again, once."
+image = "pics/poke.png"
 
 [[gestures]]
 name = "Twist"
@@ -58,11 +60,23 @@ BUSY = (State.RECORDING, State.TRIAL_END)
 SEEN_RECORDING: list[str] = []  # trials whose countdown screen the test saw
 
 
+MAGENTA = QColor(255, 0, 255)
+
+
+def solid_png(path, width: int, height: int, color: QColor = MAGENTA) -> str:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    image = QImage(width, height, QImage.Format.Format_RGB32)
+    image.fill(color)
+    assert image.save(str(path))
+    return str(path)
+
+
 @pytest.fixture
-def env(tmp_path, monkeypatch):
+def env(tmp_path, monkeypatch, qapp):
     monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
     proto = tmp_path / "mini3.toml"
     proto.write_text(MINI)
+    solid_png(tmp_path / "pics" / "poke.png", 60, 40)
     out = tmp_path / "data"
     out.mkdir()
     return proto, out
@@ -165,6 +179,9 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert "free_play" in states
     view = console.participant.view
     assert view.block_label == "Block 1 of 3" and len(view.cards) == 3
+    # the protocol's image (relative to the protocol file) reaches the participant's card
+    assert {c.name: c.image for c in view.cards} == {
+        "Poke": str(proto.parent / "pics" / "poke.png"), "Twist": None, "Tickle": None}
     first = snap(console).gestures[0]
 
     # 1. a trial without touching: flagged, held, highlighted, prompted; then redone
@@ -356,3 +373,45 @@ def test_main_window_menu_opens_a_console_on_the_live_engine(qtbot, env):
     with Session(path) as sess:
         assert sess.metadata["participant"] == "P02"
     window.shutdown()
+
+
+def _magenta_box(image: QImage) -> tuple[int, int, int, int] | None:
+    """Bounding box (left, top, width, height) of the pure magenta pixels."""
+    arr = np.frombuffer(image.convertToFormat(QImage.Format.Format_RGB32).constBits(),
+                        np.uint8).reshape(image.height(), image.width(), 4)
+    hit = (arr[..., 2] > 240) & (arr[..., 1] < 15) & (arr[..., 0] > 240)  # BGRA
+    if not hit.any():
+        return None
+    ys, xs = np.nonzero(hit)
+    return int(xs.min()), int(ys.min()), int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1
+
+
+@pytest.mark.parametrize("size", [(1600, 900), (800, 450)])
+def test_card_image_is_scaled_to_fit_with_its_aspect(qtbot, tmp_path, size):
+    wide = solid_png(tmp_path / "wide.png", 300, 100)   # 3:1
+    screen = ParticipantScreen()
+    qtbot.addWidget(screen)
+    screen.resize(*size)
+
+    def grab(image: str | None, done: bool = False, mode: str = "waiting") -> QImage:
+        cards = [Card("a", "Alpha", "Do alpha to the sensor, gently.", done, False, image),
+                 Card("b", "Beta", "Do beta.")]
+        screen.show_view(ParticipantView(mode, "Title", "", "Block 1 of 2", 0, 2, cards))
+        return screen.grab().toImage()
+
+    left, top, w, h = _magenta_box(grab(wide))
+    assert w / h == pytest.approx(3.0, rel=0.08)  # aspect kept
+    assert w >= 0.15 * size[0] / 2  # grows with the screen, at the card's right
+    assert left > 0.25 * size[0] and left + w < size[0] / 2
+    # the same size while recording (compact cards), since it fits the card's width
+    assert _magenta_box(grab(wide, mode="recording"))[2] <= w + 1
+    assert _magenta_box(grab(wide, done=True)) is None  # a done card's image is dimmed
+    tall = solid_png(tmp_path / "tall.png", 50, 100)   # 1:2 fits the height instead
+    _, _, tw, th = _magenta_box(grab(tall))
+    assert th / tw == pytest.approx(2.0, rel=0.08) and th > tw
+    # an unreadable or missing image is left out: the card looks as if it had none
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not a png")
+    plain = grab(None)
+    assert grab(str(junk)) == plain and grab(str(tmp_path / "gone.png")) == plain
+    assert grab(wide) != plain

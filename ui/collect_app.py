@@ -3,7 +3,8 @@
 ``add_collection_menu`` puts "New collection session..." and "Resume collection
 session..." into a menu; the console then shares the main window's live engine when it
 is streaming. ``run_console`` is what ``tactile-studio collect`` (without
-``--virtual-participant``) can call to open the console pre-filled, or resuming a file.
+``--virtual-participant``) calls to open the console pre-filled, or resuming a file;
+``build_console`` is its event-loop-free part (tests check the pre-filled form).
 """
 
 from __future__ import annotations
@@ -18,9 +19,11 @@ from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QMenu, QWidget
 
 from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.errors import UserError
 from tactile_studio.ui.collect_console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
+_RUNNING: list[CollectConsole] = []  # consoles opened by run_console
 
 
 def open_console(live: LiveSource | None = None, resume: bool = False,
@@ -53,19 +56,31 @@ def add_collection_menu(window: QWidget, menu: QMenu, live: LiveSource | None = 
     menu.addAction(resume)
 
 
-def run_console(protocol: str | os.PathLike | None = None, participant: str = "",
-                device: str | None = None, device_settings: dict[str, Any] | None = None,
-                out_dir: str | os.PathLike | None = None, blocks: int | None = None,
-                seed: int | None = None, resume: str | os.PathLike | None = None) -> int:
-    """Open the console pre-filled (or resuming ``resume``) and run until it is closed.
+def _text(value: Any) -> str:
+    """A setting as the form shows it: 5.0 as 5, other floats exactly."""
+    if isinstance(value, float):
+        return str(int(value)) if value.is_integer() else repr(value)
+    return str(value)
 
-    The form stays editable: the experimenter checks it and clicks "Open session".
+
+def build_console(protocol: str | os.PathLike | None = None, participant: str = "",
+                  device: str | None = None, device_settings: dict[str, Any] | None = None,
+                  out_dir: str | os.PathLike | None = None, blocks: int | None = None,
+                  seed: int | None = None, condition: str = "",
+                  resume: str | os.PathLike | None = None) -> CollectConsole:
+    """A shown console with its setup form pre-filled (or resuming ``resume``).
+
+    The form stays editable: the experimenter checks it and clicks "Open session". A
+    resume that fails shows its one-line error under the form. Needs a QApplication.
     """
-    from tactile_studio.ui.app import ensure_app
-
-    app = ensure_app()
     console = CollectConsole()
     s = console.setup
+    if device and s.device.findData(device) < 0:
+        usable = [s.device.itemData(i) for i in range(s.device.count())]
+        console.close()
+        console.deleteLater()
+        raise UserError(f"device {device!r} cannot run a collection session "
+                        f"(usable: {', '.join(str(u) for u in usable if u)})")
     if protocol is not None:
         text = str(protocol)
         if s.protocol.findData(text) >= 0:
@@ -74,17 +89,37 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
             s.set_protocol_file(str(Path(text).resolve()))
     if participant:
         s.participant.setText(participant)
+    if condition:
+        s.condition.setText(condition)
     if device:
-        s.device.setCurrentIndex(max(0, s.device.findData(device)))
+        s.device.setCurrentIndex(s.device.findData(device))
     if device_settings:
-        s.device_settings.setText(" ".join(f"{k}={v}" for k, v in device_settings.items()))
+        s.device_settings.setText(" ".join(f"{k}={_text(v)}" for k, v in device_settings.items()))
     if out_dir is not None:
         s.out_dir.setText(str(out_dir))
     if blocks is not None:
         s.blocks.setValue(int(blocks))
     if seed is not None:
         s.seed.setValue(int(seed))
+    console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
     console.show()
     if resume is not None:
         console.resume_from(resume)
+    return console
+
+
+def run_console(protocol: str | os.PathLike | None = None, participant: str = "",
+                device: str | None = None, device_settings: dict[str, Any] | None = None,
+                out_dir: str | os.PathLike | None = None, blocks: int | None = None,
+                seed: int | None = None, condition: str = "",
+                resume: str | os.PathLike | None = None) -> int:
+    """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
+    from tactile_studio.ui.app import ensure_app
+
+    app = ensure_app()
+    console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
+                            seed, condition, resume)
+    # held until the window is closed (and deleted), also if the loop ends first
+    _RUNNING.append(console)
+    console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))
     return int(app.exec())

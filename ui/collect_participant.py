@@ -3,17 +3,34 @@
 Everything is painted relative to the widget's size, so the same widget works full
 screen on a participant monitor and as the scaled mirror in the experimenter console.
 It only draws a :class:`ParticipantView` (built from the runner's snapshot by
-``collect_view``) and forwards key presses; it holds no protocol logic.
+``collect_view``) and forwards key presses; it holds no protocol logic. A gesture's
+image (from the protocol file) sits at the right of its card, scaled to fit with its
+aspect kept; an image that cannot be read is left out (logged once), never an error
+mid-session.
 """
 
 from __future__ import annotations
 
+import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-from PySide6.QtCore import QRectF, Qt, QVariantAnimation, Signal
-from PySide6.QtGui import QColor, QFont, QFontMetricsF, QKeyEvent, QPainter, QPainterPath, QPen
+from PySide6.QtCore import QRectF, QSize, Qt, QVariantAnimation, Signal
+from PySide6.QtGui import (
+    QColor,
+    QFont,
+    QFontMetricsF,
+    QImage,
+    QImageReader,
+    QKeyEvent,
+    QPainter,
+    QPainterPath,
+    QPen,
+    QPixmap,
+)
 from PySide6.QtWidgets import QWidget
+
+log = logging.getLogger(__name__)
 
 BG = QColor("#1b1f2a")
 SURROUND = QColor("#0e1016")
@@ -37,6 +54,7 @@ class Card:
     definition: str = ""
     done: bool = False
     active: bool = False
+    image: str | None = None  # file path; drawn at the card's right when it can be read
 
 
 @dataclass
@@ -104,6 +122,8 @@ class ParticipantScreen(QWidget):
         # same layout the participant sees; None fills the widget
         self.aspect: float | None = 16 / 9 if mirror else None
         self.view = ParticipantView()
+        self._sources: dict[str, QImage | None] = {}    # path -> image (None: unreadable)
+        self._scaled: dict[tuple[str, int, int], QPixmap] = {}
         self._flash = 0.0
         self._anim = QVariantAnimation(self)
         self._anim.setStartValue(1.0)
@@ -187,6 +207,8 @@ class ParticipantScreen(QWidget):
             body.setBottom(body.bottom() - hint_h - 10 * u)
         if v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
             stage_h = body.height() * (0.36 if v.mode in ("recording", "trial_end") else 0.22)
+            if v.mode == "waiting" and any(self._readable(c) for c in v.cards):
+                stage_h = body.height() * 0.16  # cards with images need the room for text
             self._paint_stage(p, QRectF(body.left(), body.top(), body.width(), stage_h), u)
             grid = QRectF(body.left(), body.top() + stage_h + 16 * u, body.width(),
                           body.height() - stage_h - 16 * u)
@@ -296,7 +318,7 @@ class ParticipantScreen(QWidget):
         """The block's gestures; ``compact`` (during a trial) leaves out the definitions."""
         cards = self.view.cards
         if compact:
-            cards = [Card(c.key, c.name, "", c.done, c.active) for c in cards]
+            cards = [replace(c, definition="") for c in cards]
         cols, rows = _grid(len(cards), r.width(), r.height())
         gap = 18 * u
         cw = (r.width() - gap * (cols - 1)) / cols
@@ -311,19 +333,83 @@ class ParticipantScreen(QWidget):
         def_px = min(30 * u, ch * 0.16)
         for card, cr in zip(cards, rects):
             if card.definition and not card.done:
-                f = _fit_font(card.definition, self._definition_rect(cr, u), def_px)
+                f = _fit_font(card.definition, self._definition_rect(cr, card, u), def_px)
                 def_px = min(def_px, float(f.pixelSize()))
         for card, cr in zip(cards, rects):
             self._paint_card(p, cr, card, u, def_px)
 
     @staticmethod
     def _badge_side(r: QRectF, u: float) -> float:
-        return min(r.height() * 0.36, 84 * u)
+        return min(r.height() * 0.32, 84 * u)
 
-    def _definition_rect(self, r: QRectF, u: float) -> QRectF:
+    def _image_rect(self, r: QRectF, c: Card, u: float) -> QRectF | None:
+        """Where the card's image goes (a square at the right), None without one."""
+        if not self._readable(c):
+            return None
+        pad = 18 * u
+        side = min(r.height() - 2 * pad, r.width() * 0.23)
+        if side < 16:
+            return None
+        return QRectF(r.right() - pad - side, r.center().y() - side / 2, side, side)
+
+    def _text_right(self, r: QRectF, c: Card, u: float) -> float:
+        img = self._image_rect(r, c, u)
+        return r.right() - 18 * u if img is None else img.left() - 16 * u
+
+    def _definition_rect(self, r: QRectF, c: Card, u: float) -> QRectF:
         pad = 18 * u
         top = r.top() + pad + self._badge_side(r, u) + pad * 0.7
-        return QRectF(r.left() + pad, top, r.width() - 2 * pad, r.bottom() - pad * 0.8 - top)
+        return QRectF(r.left() + pad, top, self._text_right(r, c, u) - r.left() - pad,
+                      r.bottom() - pad * 0.8 - top)
+
+    # ---- images -----------------------------------------------------------------------
+    def _readable(self, c: Card) -> bool:
+        return bool(c.image) and self._source(c.image or "") is not None
+
+    def _source(self, path: str) -> QImage | None:
+        if path not in self._sources:
+            image = QImage(path)
+            if image.isNull():
+                log.warning("participant screen: cannot read gesture image %s", path)
+            self._sources[path] = None if image.isNull() else image
+        return self._sources[path]
+
+    def _pixmap(self, path: str, box: QRectF) -> QPixmap | None:
+        """``path`` scaled to fit ``box`` (aspect kept, device pixels), cached per size."""
+        source = self._source(path)
+        if source is None:
+            return None
+        dpr = self.devicePixelRatioF()
+        key = (path, round(box.width() * dpr), round(box.height() * dpr))
+        pm = self._scaled.get(key)
+        if pm is None:
+            if len(self._scaled) > 64:  # resized many times: start over
+                self._scaled.clear()
+            size = source.size().scaled(QSize(key[1], key[2]), Qt.AspectRatioMode.KeepAspectRatio)
+            if path.lower().endswith(".svg"):  # vector: render at the size, not upscale
+                reader = QImageReader(path)
+                reader.setScaledSize(size)
+                image = reader.read()
+            else:
+                image = source.scaled(size, Qt.AspectRatioMode.KeepAspectRatio,
+                                      Qt.TransformationMode.SmoothTransformation)
+            pm = QPixmap.fromImage(image)
+            pm.setDevicePixelRatio(dpr)
+            self._scaled[key] = pm
+        return pm
+
+    def _paint_image(self, p: QPainter, box: QRectF, c: Card) -> None:
+        pm = self._pixmap(c.image or "", box)
+        if pm is None:
+            return
+        dpr = pm.devicePixelRatio()
+        w, h = pm.width() / dpr, pm.height() / dpr
+        p.save()
+        if c.done:
+            p.setOpacity(0.3)
+        p.drawPixmap(QRectF(box.center().x() - w / 2, box.center().y() - h / 2, w, h), pm,
+                     QRectF(pm.rect()))
+        p.restore()
 
     def _paint_card(self, p: QPainter, r: QRectF, c: Card, u: float, def_px: float) -> None:
         radius = 16 * u
@@ -346,7 +432,11 @@ class ParticipantScreen(QWidget):
         p.setFont(_fit_font(key_txt, b.adjusted(4, 4, -4, -4), badge * 0.62, bold=True,
                             wrap=False))
         p.drawText(b, Qt.AlignmentFlag.AlignCenter, key_txt)
-        name_r = QRectF(b.right() + pad, r.top() + pad, r.right() - b.right() - 2 * pad, badge)
+        img = self._image_rect(r, c, u)
+        if img is not None:
+            self._paint_image(p, img, c)
+        name_r = QRectF(b.right() + pad, r.top() + pad,
+                        self._text_right(r, c, u) - b.right() - pad, badge)
         p.setPen(DIM if c.done else TEXT)
         p.setFont(_fit_font(c.name, name_r, badge * 0.5, bold=True))
         p.drawText(name_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
@@ -358,7 +448,7 @@ class ParticipantScreen(QWidget):
                        f"key {c.key.upper()}  \u00b7  done")
             return
         if c.definition:
-            d = self._definition_rect(r, u)
+            d = self._definition_rect(r, c, u)
             if d.height() > 6:
                 p.setPen(MUTED)
                 p.setFont(_font(def_px))

@@ -33,7 +33,7 @@ def _steps(seconds: float | None, per_s: int) -> float | None:
 
 def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     """The participant screen for a runner snapshot (``protocol`` gives countdown totals)."""
-    cards = [Card(g.key, g.name, g.definition, bool(g.done), bool(g.current))
+    cards = [Card(g.key, g.name, g.definition, bool(g.done), bool(g.current), g.image)
              for g in snap.gestures]
     state = snap.state
     v = ParticipantView(mode=state, block_label=_block_label(snap), cards=cards,

@@ -1,5 +1,10 @@
 """``tactile-studio collect``: a whole collection session headless, with a virtual
-participant on the simulated sensor (interactive collection is the GUI's)."""
+participant on the simulated sensor; without ``--virtual-participant`` it opens the
+experimenter console pre-filled from the options (or resuming ``--resume FILE``).
+
+Arguments are checked here, before any window, so mistakes are one line; Qt is imported
+only on the console path, so ``tactile_studio.cli`` stays Qt-free.
+"""
 
 from __future__ import annotations
 
@@ -9,8 +14,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli.gui import require_display
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
-from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.protocol.collect import (
@@ -20,7 +26,7 @@ from tactile_studio.protocol.collect import (
     read_resume_info,
     resume_session,
 )
-from tactile_studio.protocol.protocol_file import load_protocol
+from tactile_studio.protocol.protocol_file import Protocol, load_protocol
 from tactile_studio.protocol.runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
 
@@ -30,17 +36,21 @@ TICK_S = 0.002
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "collect", help="run a gesture-collection session headless (virtual participant)",
-        description="Run a collection protocol headless. Interactive sessions with a real "
-                    "participant run in the GUI (tactile-studio gui, Collect).")
+        "collect", help="run a gesture-collection session (console, or headless)",
+        description="Open the experimenter console pre-filled with these options (or "
+                    "resuming --resume FILE), or with --virtual-participant run the whole "
+                    "session headless on the simulated sensor.")
     p.add_argument("--protocol", help="protocol name (shear9, cost14, haart7) or .toml path")
     p.add_argument("--participant", help="participant id, e.g. P01")
-    p.add_argument("--device", default=None, help="device plugin (default: simulated)")
+    p.add_argument("--device", default=None,
+                   help="device plugin (headless default: simulated; the console preselects "
+                        "the last one used)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
     p.add_argument("--virtual-participant", action="store_true",
                    help="a simulated participant presses the keys and performs the gestures")
     p.add_argument("--speed", type=float, default=None,
-                   help=f"simulator speed, x real time (default {DEFAULT_SPEED:g})")
+                   help=f"simulator speed, x real time (headless default {DEFAULT_SPEED:g}, "
+                        "console 1)")
     p.add_argument("--blocks", type=int, default=None, help="run only the first N blocks")
     p.add_argument("--seed", type=int, default=None, help="randomisation and simulation seed")
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
@@ -63,34 +73,93 @@ def _device_settings(args: argparse.Namespace, name: str, seed: int,
     return settings
 
 
+def _check_resume(args: argparse.Namespace) -> dict[str, Any]:
+    """The resume info of ``--resume FILE``, refusing options that contradict the file."""
+    info = read_resume_info(args.resume)
+    protocol, participant, seed = info["protocol"], info["participant"], info["seed"]
+    if args.protocol and args.protocol not in (protocol.name, str(protocol.source)):
+        raise UserError(f"{args.resume}: was recorded with protocol {protocol.name}, "
+                        f"not {args.protocol}")
+    if args.participant and args.participant != participant:
+        raise UserError(f"{args.resume}: belongs to participant {participant}, "
+                        f"not {args.participant}")
+    if args.seed is not None and args.seed != seed:
+        raise UserError(f"{args.resume}: was recorded with seed {seed}, not {args.seed}")
+    return info
+
+
+def _new_session(args: argparse.Namespace) -> tuple[Protocol, str, int]:
+    """Protocol (with --blocks applied), participant and seed of a new session."""
+    if not args.protocol or not args.participant:
+        raise UserError("collect needs --protocol and --participant (or --resume FILE)")
+    protocol = load_protocol(args.protocol)
+    if args.blocks is not None:
+        if args.blocks < 1:
+            raise UserError(f"--blocks must be at least 1, got {args.blocks}")
+        protocol = protocol.with_overrides(blocks=min(args.blocks, protocol.blocks))
+    return protocol, check_participant(args.participant), 0 if args.seed is None else args.seed
+
+
+def console_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The keyword arguments of ``run_console`` for these options, all checked (Qt-free).
+
+    Resuming keeps the file's device settings that differ from the plugin's defaults,
+    except the simulator's speed and scripted gesture (a virtual participant's, not an
+    interactive session's).
+    """
+    if args.resume:
+        old = _check_resume(args)["device"]
+        name = args.device or old.get("plugin") or None
+        settings: dict[str, Any] = {}
+        if name is not None and name == old.get("plugin"):
+            defaults = {s.name: s.default for s in plugin_class(name).settings_schema}
+            settings = {k: v for k, v in (old.get("settings") or {}).items()
+                        if k in defaults and defaults[k] != v}
+            if name == "simulated":
+                settings.pop("speed", None)
+                settings.pop("gesture", None)
+        options: dict[str, Any] = {"resume": str(Path(args.resume).resolve())}
+    else:
+        protocol, participant, _ = _new_session(args)
+        name, settings = args.device, {}
+        out = Path(args.out).expanduser().resolve()
+        out.mkdir(parents=True, exist_ok=True)  # the form refuses a missing folder
+        options = {"protocol": args.protocol, "participant": participant, "out_dir": str(out),
+                   "blocks": protocol.blocks if args.blocks is not None else None,
+                   "seed": args.seed, "condition": args.condition}
+    if args.speed is not None:
+        if name != "simulated":
+            raise UserError("--speed applies to the simulated device only")
+        settings["speed"] = args.speed
+    settings.update(parse_set_options(args.set))
+    if settings and name is None:
+        raise UserError("--set needs --device")
+    if name is not None:
+        plugin_class(name).validate_settings(dict(settings))
+    options.update(device=name, device_settings=settings)
+    return options
+
+
+def run_console_command(args: argparse.Namespace) -> int:
+    """Open the experimenter console pre-filled (a real participant presses the keys)."""
+    require_display("add --virtual-participant for a headless session")
+    options = console_options(args)
+    from tactile_studio.ui.collect_app import run_console
+
+    return run_console(**options)
+
+
 def run(args: argparse.Namespace) -> int:
     if not args.virtual_participant:
-        raise UserError("interactive collection needs the GUI: run `tactile-studio gui` and "
-                        "open Collect (or add --virtual-participant for a headless session)")
+        return run_console_command(args)
     if args.resume:
-        info = read_resume_info(args.resume)
+        info = _check_resume(args)
         protocol, participant, seed = info["protocol"], info["participant"], info["seed"]
-        if args.protocol and args.protocol not in (protocol.name, str(protocol.source)):
-            raise UserError(f"{args.resume}: was recorded with protocol {protocol.name}, "
-                            f"not {args.protocol}")
-        if args.participant and args.participant != participant:
-            raise UserError(f"{args.resume}: belongs to participant {participant}, "
-                            f"not {args.participant}")
-        if args.seed is not None and args.seed != seed:
-            raise UserError(f"{args.resume}: was recorded with seed {seed}, not {args.seed}")
         old_dev = info["device"]
         name = args.device or old_dev.get("plugin") or "simulated"
         base = old_dev.get("settings") if old_dev.get("plugin") == name else None
     else:
-        if not args.protocol or not args.participant:
-            raise UserError("collect needs --protocol and --participant (or --resume FILE)")
-        protocol = load_protocol(args.protocol)
-        if args.blocks is not None:
-            if args.blocks < 1:
-                raise UserError(f"--blocks must be at least 1, got {args.blocks}")
-            protocol = protocol.with_overrides(blocks=min(args.blocks, protocol.blocks))
-        participant = check_participant(args.participant)
-        seed = 0 if args.seed is None else args.seed
+        protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
     device = create_device(name, _device_settings(args, name, seed, base))
     if not hasattr(device, "perform"):

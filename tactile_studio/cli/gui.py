@@ -29,7 +29,7 @@ def _last_device() -> str:
 
 
 def cmd_gui(args: argparse.Namespace) -> int:
-    _require_display()
+    require_display()
     device = args.device or DEFAULT_DEVICE
     if device == "last":
         device = _last_device()
@@ -54,12 +54,15 @@ def cmd_snapshot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _require_display() -> None:
+def require_display(
+        instead: str = "use `tactile-studio snapshot` (or QT_QPA_PLATFORM=offscreen) on a "
+                       "headless machine") -> None:
+    """A one-line error, not a Qt abort, when a window cannot be shown; ``instead`` is
+    what to do on a headless machine (every command that opens a window calls this)."""
     if sys.platform.startswith("linux") and not (
             os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
             or os.environ.get("QT_QPA_PLATFORM")):
-        raise UserError("no display: run on a desktop, or use `tactile-studio snapshot` "
-                        "(or QT_QPA_PLATFORM=offscreen) on a headless machine")
+        raise UserError(f"no display: run on a desktop, or {instead}")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:

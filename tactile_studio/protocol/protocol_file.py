@@ -20,6 +20,7 @@ from typing import Any
 from tactile_studio.errors import UserError
 
 RANDOMISATION_MODES = ("shuffle_per_block", "fixed")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".webp", ".svg")  # what Qt reads
 
 
 class ProtocolError(UserError):
@@ -69,7 +70,9 @@ class Protocol:
         """A copy with some fields changed, validated like a file (tests, --blocks)."""
         data = self.to_dict()
         data.update(changes)
-        return protocol_from_dict(data, self.source or f"{self.name}.toml")
+        # images were checked when this protocol was loaded (or deliberately not, on resume)
+        return protocol_from_dict(data, self.source or f"{self.name}.toml",
+                                  check_images="gestures" in changes)
 
     def to_dict(self) -> dict[str, Any]:
         """The flat form stored in session metadata, so a resume needs no file on disk."""
@@ -92,7 +95,8 @@ def _find(name_or_path: str | Path) -> tuple[str, bytes, Path | None]:
     if text.endswith(".toml") or path.parent != Path("."):
         if not path.is_file():
             raise ProtocolError(f"{path}: no such protocol file")
-        return path.name, path.read_bytes(), path.parent
+        # absolute, so image paths stored in a session still resolve from another cwd
+        return path.name, path.read_bytes(), path.parent.resolve()
     res = resources.files("tactile_studio.resources") / "protocols" / f"{text}.toml"
     if not res.is_file():
         known = ", ".join(list_protocols())
@@ -207,8 +211,10 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         if item.get("image") is not None:
             image = gv.text(item, "image")
             path = Path(image) if folder is None else folder / image
+            if check_images and path.suffix.lower() not in IMAGE_SUFFIXES:
+                gv.fail("image", f"{image!r} is not an image (use {', '.join(IMAGE_SUFFIXES)})")
             if check_images and not path.is_file():
-                gv.fail("image", f"no such file {image!r}")
+                gv.fail("image", f"no such file {image!r} (relative to the protocol file)")
             image = str(path)
         out.append(Gesture(name, key, definition, image))
     return tuple(out)
