@@ -1,11 +1,14 @@
-"""ONNX export and int8 quantisation of the models (tiny presets).
+"""ONNX export and int8 ONNX quantisation of the models (tiny presets).
 
-Budget: ~20 s on one thread of 2 shared cores.
+Budget: ~30 s on one thread of 2 shared cores.
 """
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
+import onnx
 import pytest
 import torch
 import torch.nn.functional as F
@@ -13,9 +16,9 @@ import torch.nn.functional as F
 from tactile_studio.errors import UserError
 from tactile_studio.learn.export import (
     export_onnx,
+    int8_format,
     load_onnx_predictor,
-    model_size_bytes,
-    quantize_int8,
+    quantize_onnx_int8,
 )
 from tactile_studio.learn.models import MODELS
 
@@ -27,7 +30,9 @@ def _threads():
 
 def _separable(spec, n_classes: int, per_class: int, grid, channels: int, seed: int):
     """Each class a fixed random pattern (a static part plus a changing part) under unit
-    noise: z-scored-like data standing in for gestures that differ in where and how."""
+    noise: z-scored-like data standing in for gestures that differ in where and how. The
+    signal is weak enough that decisions are close (float accuracy 75-100%), so an int8
+    model that drifts flips predictions (mts3d in the QOperator format: 55% agreement)."""
     rng = np.random.default_rng(1234)  # templates shared by train and test draws
     t = spec.view("tiny").frames
     spatial = rng.normal(size=(n_classes, channels, 1, *grid))
@@ -35,7 +40,7 @@ def _separable(spec, n_classes: int, per_class: int, grid, channels: int, seed: 
     templates = (spatial + moving).astype(np.float32)
     noise = np.random.default_rng(seed)
     y = np.repeat(np.arange(n_classes), per_class)
-    x = templates[y] * 0.8 + noise.normal(size=(len(y), channels, t, *grid)).astype(np.float32)
+    x = templates[y] * 0.3 + noise.normal(size=(len(y), channels, t, *grid)).astype(np.float32)
     return torch.from_numpy(x), torch.from_numpy(y)
 
 
@@ -77,35 +82,58 @@ def test_loading_a_missing_or_broken_onnx_file_is_a_user_error(tmp_path):
 def _train(model, x, y, lr: float, steps: int) -> None:
     opt = torch.optim.Adam(model.parameters(), lr=lr)
     model.train()
+    gen = torch.Generator().manual_seed(0)
     for _ in range(steps):
+        order = torch.randperm(len(x), generator=gen)  # mixed classes in every batch
         for i in range(0, len(x), 16):
+            batch = order[i:i + 16]
             opt.zero_grad()
-            F.cross_entropy(model(x[i:i + 16]), y[i:i + 16]).backward()
+            F.cross_entropy(model(x[batch]), y[batch]).backward()
             opt.step()
     model.eval()
 
 
-@pytest.mark.parametrize("name, grid, channels", [("cnn1d", (6, 6), 1),
-                                                  ("cnn_transformer", (6, 6), 3)])
-def test_int8_model_agrees_with_float_and_is_smaller(name, grid, channels):
+@pytest.mark.parametrize("name", list(MODELS))
+def test_int8_onnx_file_loads_back_agrees_with_float_and_is_smaller(name, tmp_path, caplog):
     spec = MODELS[name]
+    assert spec.quantizable
+    grid, channels = (6, 6), (1 if name == "cnn1d" else 3)
     torch.manual_seed(0)
     x_train, y_train = _separable(spec, 4, 16, grid, channels, seed=1)
     x_test, y_test = _separable(spec, 4, 16, grid, channels, seed=2)
     model = spec.build(4, channels, grid, "tiny")
     _train(model, x_train, y_train, spec.train_defaults("tiny").lr, steps=10)
-    q = quantize_int8(model, calibration=x_train)
+    float_path = export_onnx(model, x_train[:1], tmp_path / "float.onnx",
+                             metadata={"labels": "a,b,c,d"})
+    with caplog.at_level(logging.DEBUG):
+        path = quantize_onnx_int8(float_path, tmp_path / "m.int8.onnx", x_train.numpy(),
+                                  quant_format=int8_format(name))
+    assert not caplog.records  # onnxruntime's advice would land on the CLI's stderr
+    assert path.is_file() and path.stat().st_size < float_path.stat().st_size
+    predict = load_onnx_predictor(path)
+    assert predict.metadata["labels"] == "a,b,c,d"
+    assert "int8" in predict.metadata["quantization"]
     with torch.inference_mode():
-        fp = model(x_test)
-        i8 = q(x_test)
-    float_acc = (fp.argmax(1) == y_test).float().mean().item()
-    int8_acc = (i8.argmax(1) == y_test).float().mean().item()
-    agreement = (fp.argmax(1) == i8.argmax(1)).float().mean().item()
+        fp = model(x_test).numpy().argmax(1)
+    i8 = predict(x_test.numpy()).argmax(1)
+    float_acc = (fp == y_test.numpy()).mean()
     assert float_acc >= 0.7, float_acc  # the float model learnt something to compare with
-    assert agreement >= 0.9, agreement
-    assert int8_acc >= float_acc - 0.1
-    assert model_size_bytes(q) < model_size_bytes(model)
-    # the convolutions really are int8 now, and the float original is untouched
-    kinds = {type(m).__module__ for m in q.modules()}
-    assert any("quantized" in k for k in kinds)
-    assert not any("quantized" in type(m).__module__ for m in model.modules())
+    assert (fp == i8).mean() >= 0.9
+    assert (i8 == y_test.numpy()).mean() >= float_acc - 0.1
+    # every weight matrix / kernel is stored as 8-bit integers in the file
+    proto = onnx.load(str(path))
+    int8_values = sum(int(np.prod(t.dims)) for t in proto.graph.initializer
+                      if t.data_type in (onnx.TensorProto.INT8, onnx.TensorProto.UINT8))
+    assert int8_values >= sum(p.numel() for p in model.parameters() if p.dim() >= 2)
+    assert {n.op_type for n in proto.graph.node} & {"QLinearConv", "QuantizeLinear"}
+
+
+def test_int8_needs_calibration_samples_and_a_known_format(tmp_path):
+    model = MODELS["cnn1d"].build(3, 1, (6, 6), "tiny").eval()
+    float_path = export_onnx(model, torch.zeros(1, *model.input_shape), tmp_path / "f.onnx")
+    with pytest.raises(UserError, match="no calibration samples"):
+        quantize_onnx_int8(float_path, tmp_path / "q.onnx", np.zeros((0, *model.input_shape)))
+    with pytest.raises(ValueError, match="unknown int8 format"):
+        quantize_onnx_int8(float_path, tmp_path / "q.onnx", np.zeros((4, *model.input_shape)),
+                           quant_format="fp4")
+    assert not (tmp_path / "q.onnx").exists()

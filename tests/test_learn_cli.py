@@ -1,18 +1,20 @@
 """The learning CLI: train / evaluate / ablate / export-model, one-line errors, Ctrl-C.
 
-Mostly the fast rf/knn baselines; one small cnn1d run for export and a subprocess for
-Ctrl-C. Budget: about 30 s on 2 cores.
+Mostly the fast rf/knn baselines; one small cnn1d run for export (ONNX and int8 ONNX)
+and a subprocess for Ctrl-C. Budget: about 30 s on 2 cores.
 """
 
 from __future__ import annotations
 
 import json
+import shutil
 import signal
 import subprocess
 import sys
 import time
 
 import pytest
+import torch
 from learn_fixtures import (
     make_dataset_folder,
     trial_record,
@@ -21,6 +23,8 @@ from learn_fixtures import (
 )
 
 from tactile_studio.cli import main
+from tactile_studio.learn.evaluate import load_run_data
+from tactile_studio.learn.export import load_onnx_predictor
 
 GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
 
@@ -87,13 +91,39 @@ def test_export_model_cli(data, capsys, tmp_path):
                            "--preset", "tiny", "--eval", "all-inclusive", "--epochs", "10",
                            "--threads", "1", "--out", out, "--cache-dir", data / "cache")
     assert code == 0, err
-    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "onnx")
+    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "onnx", "--threads", "1")
     assert code == 0, err
     assert "max |logit diff|" in stdout and "test accuracy" in stdout
     assert (out / "export" / "r0-all.onnx").is_file()
-    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "int8")
+    code, stdout, err = run_cli(capsys, "export-model", out, "--format", "int8", "--threads", "1")
     assert code == 0, err
-    assert "change" in stdout and "KiB" in stdout
+    assert "qoperator quantisation" in stdout and "KiB" in stdout
+    report = json.loads((out / "export" / "int8.json").read_text())
+    assert f"change {report['accuracy_change']:+.4f}" in stdout
+    path = out / "export" / "r0-all.int8.onnx"
+    fold = report["folds"][0]
+    assert fold["path"] == str(path)
+    assert fold["size_bytes"] == path.stat().st_size < fold["float_size_bytes"]
+    assert fold["changed_predictions"] <= fold["n"] // 2
+    # the file loads back on its own and predicts like the float fold model
+    predict = load_onnx_predictor(path, threads=1)
+    _, _, records, ds, learner, info = load_run_data(out, device="cpu")
+    assert json.loads(predict.metadata["labels"]) == ds.label_names
+    x = learner.apply_norm(learner.samples(ds)[0], records[0]["norm"])
+    float_model = learner.load(path.parents[1] / "folds" / "r0-all" / "model.safetensors", info)
+    with torch.no_grad():
+        expected = float_model.model(torch.from_numpy(x)).argmax(1).numpy()
+    assert (predict(x).argmax(1) == expected).mean() >= 0.8
+    # a wrong format, or a run whose weights are gone: one-line errors
+    assert "unknown export format 'fp16'" in _one_line_error(
+        capsys, "export-model", out, "--format", "fp16")
+    bare = tmp_path / "bare"
+    shutil.copytree(out, bare, ignore=shutil.ignore_patterns("model.safetensors", "export"))
+    assert "no finished folds" in _one_line_error(capsys, "export-model", bare, "--format", "int8")
+    damaged = tmp_path / "damaged"
+    shutil.copytree(out, damaged, ignore=shutil.ignore_patterns("export"))
+    (damaged / "folds" / "r0-all" / "model.safetensors").write_bytes(b"not weights")
+    assert "cannot load model weights" in _one_line_error(capsys, "evaluate", damaged)
 
 
 def _one_line_error(capsys, *argv) -> str:

@@ -153,10 +153,12 @@ def cmd_export(args: argparse.Namespace) -> int:
     bar = _Bar("export")
     try:
         with ctrl_c_cancels(token):
-            report = export_run(args.run, args.format, args.data, args.cache_dir, bar, token)
+            report = export_run(args.run, args.format, args.data, args.cache_dir, bar, token,
+                                threads=args.threads or 0)
     finally:
         bar.close()
-    print(f"{args.format} export of {report['model']} ({len(report['folds'])} fold model(s))")
+    print(f"{args.format} export of {report['model']} ({len(report['folds'])} fold model(s))"
+          + (f", {report['quant_format']} quantisation" if "quant_format" in report else ""))
     for f in report["folds"]:
         extra = f"  max |logit diff| {f['max_abs_diff']:.2e}" if "max_abs_diff" in f else ""
         size = (f"  size {f['size_bytes'] / 1024:.1f} KiB (float {f['float_size_bytes'] / 1024:.1f} KiB)"
@@ -193,9 +195,13 @@ def register(subparsers) -> None:
                    help="keep one run folder per channel set under DIR")
     p.set_defaults(func=cmd_ablate)
 
-    p = subparsers.add_parser("export-model", help="export a run's models to ONNX or int8")
+    p = subparsers.add_parser("export-model", help="export a run's models to ONNX or int8 ONNX")
     p.add_argument("run", metavar="RUN")
-    p.add_argument("--format", choices=("onnx", "int8"), required=True)
+    # checked by export_run, so a wrong value is the usual one-line error
+    p.add_argument("--format", required=True, metavar="onnx|int8",
+                   help="onnx: RUN/export/<fold>.onnx; int8: RUN/export/<fold>.int8.onnx")
     p.add_argument("--data", nargs="+", default=None, metavar="PATH")
     p.add_argument("--cache-dir", default=None)
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch and onnxruntime CPU threads (1 is fastest on a busy machine)")
     p.set_defaults(func=cmd_export)

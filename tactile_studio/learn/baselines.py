@@ -108,7 +108,12 @@ class BaselineModel:
         from safetensors.numpy import load_file
 
         model = cls(name, options, n_classes)
-        model.tensors = load_file(str(path))
+        from safetensors import SafetensorError
+
+        try:
+            model.tensors = load_file(str(path))
+        except (OSError, SafetensorError) as exc:
+            raise UserError(f"{path}: damaged or unreadable weights file ({exc})") from None
         return model
 
 

@@ -182,7 +182,12 @@ def save_weights(state: dict[str, torch.Tensor], path) -> None:
 
 def load_weights(model: nn.Module, path) -> nn.Module:
     """Load safetensors weights into ``model`` (no pickle involved)."""
+    from safetensors import SafetensorError
     from safetensors.torch import load_file
 
-    model.load_state_dict(load_file(str(path)))
+    try:
+        model.load_state_dict(load_file(str(path)))
+    except (OSError, RuntimeError, SafetensorError) as exc:  # missing, damaged, or not this model's
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise UserError(f"{path}: cannot load model weights ({first[:160]})") from None
     return model

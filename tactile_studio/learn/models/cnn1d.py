@@ -69,5 +69,4 @@ def build(
     features = in_channels * grid[0] * grid[1]
     model = CNN1D(n_classes, features, frames, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
-    model.quant_stacks = ("net",)  # conv stacks export.quantize_int8 makes int8
     return model

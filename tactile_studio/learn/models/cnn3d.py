@@ -90,5 +90,4 @@ def build(
         )
     model = CNN3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
-    model.quant_stacks = ("features",)  # conv stacks export.quantize_int8 makes int8
     return model

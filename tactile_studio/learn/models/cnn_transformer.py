@@ -135,5 +135,4 @@ def build(
         raise UserError("model 'cnn_transformer': filters needs 4 values, e.g. filters=64,128,256,512")
     model = CNNTransformer(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
-    model.quant_stacks = ("frame_cnn.convs",)  # conv stacks export.quantize_int8 makes int8
     return model

@@ -108,5 +108,4 @@ def build(
         raise UserError("model 'mts3d': needs at least 2 stages")
     model = MTS3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
-    model.quant_stacks = ()  # conv stacks export.quantize_int8 makes int8
     return model

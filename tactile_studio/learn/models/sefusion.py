@@ -137,5 +137,4 @@ def build(
     opts = resolve_options("sefusion", preset, OPTIONS, overrides, CHOICES)
     model = SEFusion(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
-    model.quant_stacks = ()  # conv stacks export.quantize_int8 makes int8
     return model
