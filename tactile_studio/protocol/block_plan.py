@@ -1,0 +1,99 @@
+"""Which gestures the collection runner still has to collect, round by round.
+
+A session is a list of rounds: practice rounds (block -1, at most one gesture set each)
+and then the blocks in their randomised orders. For each round the plan knows which
+gestures are done, which scheduled breaks were taken and where a resumed session picks
+up. Pure bookkeeping (no clock, no file, no device), so the runner's state machine only
+asks questions of it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class BlockPlan:
+    """Practice rounds then blocks; ``index`` is the round being collected."""
+
+    def __init__(self, orders: list[list[str]], practice: list[str], per_round: int,
+                 break_every: int) -> None:
+        n = per_round
+        self.rounds: list[tuple[int, list[str]]] = [
+            (-1, practice[i:i + n]) for i in range(0, len(practice), n)]
+        self.rounds += [(b, order) for b, order in enumerate(orders)]
+        self.done: list[set[str]] = [set() for _ in self.rounds]
+        self.index = 0
+        self.n_blocks = len(orders)
+        self.break_every = break_every
+        self.breaks_taken: set[int] = set()
+
+    def restore(self, trials: list[dict[str, Any]]) -> None:
+        """Mark the gestures of a resumed session's trials done (redone ones excepted),
+        skip practice, and move to the first round with gestures left."""
+        round_of = {b: i for i, (b, _) in enumerate(self.rounds) if b >= 0}
+        for i, (b, gestures) in enumerate(self.rounds):
+            if b < 0:
+                self.done[i] = set(gestures)  # practice is not repeated on resume
+        for t in trials:
+            if t.get("status") != "redone" and int(t["block"]) in round_of:
+                self.done[round_of[int(t["block"])]].add(t["gesture"])
+        self.index = next((i for i in range(len(self.rounds)) if self.remaining(i)),
+                          len(self.rounds) - 1)
+        self.breaks_taken = {b for b, _ in self.rounds if 0 <= b < self.rounds[self.index][0]}
+
+    @property
+    def block(self) -> int:
+        """The current round's block (0-based; -1 for practice)."""
+        return self.rounds[self.index][0]
+
+    @property
+    def gestures(self) -> list[str]:
+        """The current round's gestures in their planned order."""
+        return self.rounds[self.index][1]
+
+    def remaining(self, i: int | None = None) -> list[str]:
+        """Gestures of round ``i`` (default: the current one) not done yet, in order."""
+        i = self.index if i is None else i
+        return [g for g in self.rounds[i][1] if g not in self.done[i]]
+
+    def is_done(self, gesture: str) -> bool:
+        return gesture in self.done[self.index]
+
+    def mark_done(self, gesture: str) -> None:
+        self.done[self.index].add(gesture)
+
+    def reopen(self, block: int, gesture: str) -> None:
+        """Put a redone trial's gesture back: its round (the latest one of ``block``
+        where it is done) becomes the current round again."""
+        i = next(i for i in range(min(self.index, len(self.rounds) - 1), -1, -1)
+                 if self.rounds[i][0] == block and gesture in self.done[i])
+        self.done[i].discard(gesture)
+        self.index = i
+
+    def is_last_round(self) -> bool:
+        return self.index + 1 >= len(self.rounds)
+
+    def advance(self) -> None:
+        self.index += 1
+
+    def break_after(self, block: int) -> bool:
+        """True if a scheduled break follows the completion of ``block`` (0-based)."""
+        k = self.break_every
+        return (k > 0 and block >= 0 and (block + 1) % k == 0 and block + 1 < self.n_blocks
+                and block not in self.breaks_taken)
+
+    def take_break(self, block: int) -> None:
+        self.breaks_taken.add(block)
+
+    def upcoming(self, n: int, skip: str | None = None) -> list[tuple[int, str]]:
+        """The next ``n`` (block, gesture) pairs in the planned order, leaving out
+        ``skip`` in the current round (the running trial)."""
+        out: list[tuple[int, str]] = []
+        for i in range(self.index, len(self.rounds)):
+            for g in self.remaining(i):
+                if i == self.index and g == skip:
+                    continue
+                out.append((self.rounds[i][0], g))
+                if len(out) >= n:
+                    return out
+        return out

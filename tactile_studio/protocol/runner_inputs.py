@@ -1,0 +1,180 @@
+"""The collection runner's inputs: the participant's key and the experimenter's verbs.
+
+Each verb either acts and returns True, or refuses with a one-line hint (``runner.hint``
+and a "hint" event) and returns False; none raises for a wrong moment. The state
+transitions they trigger live in :mod:`tactile_studio.protocol.runner`.
+"""
+
+from __future__ import annotations
+
+from tactile_studio.protocol.snapshot import State
+
+
+class RunnerInputs:
+    """Input methods of :class:`~tactile_studio.protocol.runner.CollectionRunner`.
+
+    A mixin: it uses the runner's state (``state``, ``trials``, ``_plan``...) and its
+    transitions (``_begin_trial``, ``_after_trial``, ``_enter_break``...).
+    """
+
+    def start(self) -> bool:
+        """Leave setup: free play, practice, then block 1 (once the baseline is ready)."""
+        if self.state != State.SETUP:
+            return self._refuse("the session has already started")
+        self._start_requested = True
+        self.tick()
+        return True
+
+    def key(self, k: str, at_frame: int | None = None) -> bool:
+        """The participant's key. Starts a trial of a remaining gesture of the block."""
+        if self.state not in State.KEY_STATES:
+            return self._refuse(self._why_no_key())
+        if self.state == State.REVIEW:
+            if self._held():
+                return self._refuse("the experimenter is checking the last trial")
+            self._after_trial()  # a pending pause or break, or the next block, comes first
+            if self.state not in State.KEY_STATES:
+                return self._refuse(self._why_no_key())
+        gesture = self.protocol.gesture_by_key(k) if isinstance(k, str) and len(k) == 1 else None
+        if gesture is None:
+            return self._refuse(f"'{k}' is not a gesture key")
+        if gesture.name not in self._plan.gestures:
+            return self._refuse(f"{gesture.name} ({gesture.key}) is not part of this practice round")
+        if self._plan.is_done(gesture.name):
+            left = ", ".join(f"{g} ({self.protocol.gesture_by_name(g).key})"
+                             for g in self._plan.remaining())
+            return self._refuse(f"{gesture.name} ({gesture.key}) is already done in this block; "
+                                f"remaining: {left}")
+        newest = self.engine.frames - 1
+        if newest < 0:
+            return self._refuse("no data from the sensor yet")
+        start = newest if at_frame is None else int(at_frame)
+        if start > newest or start < self._min_start:
+            raise ValueError(f"trial start frame {start} outside {self._min_start}..{newest}")
+        self._begin_trial(gesture.name, gesture.key, start)
+        return True
+
+    def proceed(self) -> bool:
+        """The experimenter's Continue: ends free play, ends a break after its minimum,
+        accepts a held flagged trial, or starts the session."""
+        if self.state == State.SETUP:
+            return self.start()
+        if self.state == State.FREE_PLAY:
+            self._after_free_play()
+            return True
+        if self.state == State.BREAK:
+            left = self._phase_until - self.clock()
+            if left > 0:
+                return self._refuse(f"the break has {left:.0f} s of its minimum left")
+            self._end_break()
+            return True
+        if self.state == State.REVIEW:
+            self._after_trial()
+            return True
+        return self._refuse(f"nothing to continue in state {self.state}")
+
+    def redo_last(self, reason: str | None = None) -> bool:
+        """Mark the last trial redone and put its gesture back into its block."""
+        if self.state in (State.SETUP, State.FREE_PLAY, State.RECORDING, State.ABORTED):
+            return self._refuse("no finished trial to redo now")
+        if self._pending is not None:
+            return self._refuse("wait until the trial is saved")
+        if not self.trials:
+            return self._refuse("no trial to redo yet")
+        last = self.trials[-1]
+        if last["status"] == "redone":
+            return self._refuse(f"trial {last['index']} is already marked redone")
+        self._update_trial(last, status="redone", reason=reason or None)
+        self._plan.reopen(last["block"], last["gesture"])
+        self.redo_prompt = ""
+        self.hint = f"redo: {last['gesture']} ({last['key']})"
+        if self.state in (State.BLOCK_START, State.WAITING, State.REVIEW, State.FINISHED):
+            self._set_state(State.WAITING)
+        elif self.state == State.PAUSED and self._paused_from in (State.BLOCK_START, State.REVIEW):
+            self._paused_from = State.WAITING
+        return True
+
+    def discard(self, index: int, reason: str) -> bool:
+        """Mark trial ``index`` discarded with ``reason``; it is not collected again."""
+        if not reason or not reason.strip():
+            return self._refuse("give a reason to discard a trial")
+        trial = next((t for t in self.trials if t["index"] == index), None)
+        if trial is None:
+            return self._refuse(f"no trial {index}")
+        if trial["status"] != "ok":
+            return self._refuse(f"trial {index} is already {trial['status']}")
+        self._update_trial(trial, status="discarded", reason=reason.strip())
+        return True
+
+    def pause(self) -> bool:
+        if self.state in State.DONE or self.state in (State.PAUSED, State.SETUP):
+            return self._refuse(f"cannot pause in state {self.state}")
+        if self.state in (State.RECORDING, State.TRIAL_END):
+            self._pause_pending = True
+            self.hint = "pausing after this trial"
+            return True
+        self._enter_pause(self.state)
+        return True
+
+    def resume(self) -> bool:
+        if self.state != State.PAUSED:
+            if self._pause_pending:
+                self._pause_pending = False
+                return True
+            return self._refuse("not paused")
+        paused_for = self.clock() - self._paused_at
+        self._phase_until += paused_for
+        self._log("resume", paused_s=round(paused_for, 3))
+        target, self._paused_from = self._paused_from or State.WAITING, None
+        self.hint = ""
+        self._set_state(target)
+        return True
+
+    def skip_to_break(self) -> bool:
+        """Take a break now (after a running trial); the block goes on after it."""
+        if self.state in (State.RECORDING, State.TRIAL_END):
+            self._break_pending = True
+            self.hint = "break after this trial"
+            return True
+        if self.state not in State.KEY_STATES:
+            return self._refuse(f"cannot start a break in state {self.state}")
+        self._enter_break(scheduled=False)
+        return True
+
+    def add_note(self, text: str) -> bool:
+        text = " ".join(str(text).split())
+        if not text:
+            return self._refuse("empty note")
+        self.notes.append(text)
+        last = self.trials[-1]["index"] if self.trials else None
+        self._log("note", text=text, after_trial=last)
+        self.writer.update_metadata(notes="\n".join(self.notes))
+        self.writer.flush()
+        self._emit("note", text=text)
+        return True
+
+    def abort(self) -> bool:
+        """Stop the session; a running trial is dropped, finished ones stay in the file."""
+        if self.state in State.DONE:
+            return self._refuse(f"the session is already {self.state}")
+        if self._pending is not None:
+            self._write_pending(force=True)
+        if self._current is not None:
+            self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
+            self._current = None
+        self._log("abort", trials=len(self.trials))
+        self.writer.flush()
+        self._set_state(State.ABORTED)
+        return True
+
+    def _why_no_key(self) -> str:
+        return {
+            State.SETUP: "the session has not started",
+            State.FREE_PLAY: "free play: no keys needed yet",
+            State.RECORDING: "a trial is running",
+            State.TRIAL_END: "wait for the beep to finish",
+            State.BREAK: "break: wait for the experimenter",
+            State.PAUSED: "paused",
+            State.FINISHED: "the session is complete",
+            State.ABORTED: "the session was stopped",
+        }.get(self.state, f"not now ({self.state})")
