@@ -9,7 +9,7 @@ fitted model with safetensors. The experiment code only talks to this interface.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -99,7 +99,7 @@ class TorchLearner:
         return {"kind": "torch", "description": self.spec.description,
                 "view": {"kind": self.view.kind, "frames": self.view.frames,
                          "stride": self.view.stride},
-                "train": self.settings.to_dict(), "model_options": self.model_overrides,
+                "train": asdict(self.settings), "model_options": self.model_overrides,
                 "device": str(self.device)}
 
     def build(self, info: DataInfo):

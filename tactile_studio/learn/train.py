@@ -13,7 +13,7 @@ from __future__ import annotations
 import copy
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -22,24 +22,15 @@ from torch import nn
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken
+from tactile_studio.learn.models import TrainDefaults
 
 TRAIN_KEYS = ("optimizer", "lr", "batch_size", "max_epochs", "epochs", "patience",
               "weight_decay", "momentum")
 OPTIMIZERS = ("adam", "adamw", "sgd")
 
 
-@dataclass(frozen=True)
-class TrainSettings:
-    optimizer: str
-    lr: float
-    batch_size: int
-    max_epochs: int
-    patience: int
-    weight_decay: float = 0.0
-    momentum: float = 0.0
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+# The settings a fold trains with have exactly the fields of a model's defaults.
+TrainSettings = TrainDefaults
 
 
 def train_settings(defaults: Any, overrides: dict[str, Any],
