@@ -20,6 +20,7 @@ import warnings
 from collections.abc import Callable
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -84,15 +85,23 @@ def export_onnx(
 
     path = Path(path)
     proto = onnx.load_model_from_string(onnx_bytes(model, example_input))
-    for key, value in (metadata or {}).items():
+    onnx.checker.check_model(proto)
+    return _save_onnx(proto, metadata or {}, path, "ONNX model")
+
+
+def _save_onnx(proto: Any, metadata: dict[str, str], path: Path, what: str) -> Path:
+    """Replace the file's metadata_props with ``metadata`` and write it (one-line errors)."""
+    import onnx
+
+    del proto.metadata_props[:]
+    for key, value in metadata.items():
         entry = proto.metadata_props.add()
         entry.key, entry.value = str(key), str(value)
-    onnx.checker.check_model(proto)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         onnx.save_model(proto, str(path))
     except OSError as exc:
-        raise UserError(f"{path}: cannot write the ONNX model ({exc.strerror or exc})") from None
+        raise UserError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
     return path
 
 
@@ -220,16 +229,7 @@ def quantize_onnx_int8(
     meta = {p.key: p.value for p in source.metadata_props}
     meta["quantization"] = (f"int8 static {quant_format}, per-channel 7-bit weights, uint8 "
                             f"activations calibrated on {len(calibration)} samples")
-    del proto.metadata_props[:]
-    for key, value in meta.items():
-        entry = proto.metadata_props.add()
-        entry.key, entry.value = key, value
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        onnx.save_model(proto, str(path))
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write the int8 model ({exc.strerror or exc})") from None
-    return path
+    return _save_onnx(proto, meta, path, "int8 model")
 
 
 def model_size_bytes(model: nn.Module) -> int:
