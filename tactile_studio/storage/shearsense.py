@@ -28,6 +28,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.storage.input_files import check_input_file
 
 N_CHANNELS = 180
 N_FIELDS = N_CHANNELS + 3  # time, channels, touched, label
@@ -271,13 +272,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
     """Read a ShearSense CSV; malformed rows are skipped and counted by kind."""
     path = Path(path)
     progress = progress or no_progress
-    if not path.exists():
-        raise ShearSenseError(f"{path}: no such file")
-    if path.is_dir():
-        raise ShearSenseError(f"{path}: is a folder, not a ShearSense CSV")
-    size = path.stat().st_size
-    if size == 0:
-        raise ShearSenseError(f"{path}: empty file, not a ShearSense CSV")
+    size = check_input_file(path, "ShearSense CSV", ShearSenseError)
     rows = _Rows()
     try:
         fh = open(path, "rb")

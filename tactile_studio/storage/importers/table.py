@@ -20,6 +20,7 @@ import numpy as np
 
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.storage.importers._common import ImportFormatError, norm_name
+from tactile_studio.storage.input_files import check_input_file
 
 _CHANNEL = re.compile(r"^(?:ch|channel|c|taxel|sensor)?(\d+)$")
 _BLOCK_BYTES = 4 << 20
@@ -77,11 +78,7 @@ def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
     """Read a dataset table; see the module docstring. ``what`` names the format."""
     path = Path(path)
     progress = progress or no_progress
-    if not path.exists():
-        raise ImportFormatError(f"{path}: no such file")
-    if path.is_dir():
-        raise ImportFormatError(f"{path}: is a folder, not a {what} CSV")
-    size = path.stat().st_size
+    size = check_input_file(path, f"{what} CSV", ImportFormatError)
     with open(path, "rb") as fh:
         first = fh.readline(1 << 20)
         text = first.decode("utf-8", errors="replace").lstrip("\ufeff").strip()
