@@ -112,7 +112,9 @@ def _run_console_cli(capsys, *args: str):
     from tactile_studio.ui.collect_console import CollectConsole
 
     app = QApplication.instance()
-    before = {id(w) for w in app.topLevelWidgets()}
+    # Hold the widgets themselves, not their id()s: a wrapper freed meanwhile could hand
+    # its address to the new console and hide it.
+    before = list(app.topLevelWidgets())
     timer = QTimer(singleShot=True, interval=0)
     timer.timeout.connect(lambda: app.exit(0))  # (quit() would close the windows too)
     timer.start()
@@ -121,7 +123,8 @@ def _run_console_cli(capsys, *args: str):
     finally:
         timer.stop()  # an error before the event loop must not end a later test's loop
     opened = [w for w in app.topLevelWidgets()
-              if isinstance(w, CollectConsole) and id(w) not in before and w.isVisible()]
+              if isinstance(w, CollectConsole) and not any(w is b for b in before)
+              and w.isVisible()]
     return code, err, opened
 
 
