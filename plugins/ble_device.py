@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.ble_payload import Reassembler
-from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
+from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting, layout_setting
 from tactile_studio.devices.discovery import bluetooth_unavailable, find_ble, scan_ble
-from tactile_studio.errors import DeviceError, DeviceLost, DeviceNotFound, SettingsError, UserError
-from tactile_studio.sensor.layout import Layout, get_layout
+from tactile_studio.errors import DeviceError, DeviceLost, DeviceNotFound, SettingsError
+from tactile_studio.sensor.layout import Layout
 
 SERVICE_UUID = "f0e1c000-7a57-4c1e-8d5e-5a5e0000c0de"
 FRAME_CHAR_UUID = "f0e1c001-7a57-4c1e-8d5e-5a5e0000c0de"
@@ -72,10 +72,7 @@ class BleDevice(DevicePlugin):
                 except (ValueError, TypeError, AttributeError):
                     raise SettingsError(f"device ble: setting {key}: {value!r} is not a "
                                         "UUID") from None
-        try:
-            self._layout = get_layout(self.settings["layout"])
-        except UserError as exc:
-            raise SettingsError(f"device ble: setting layout: {exc}") from None
+        self._layout = layout_setting("ble", self.settings["layout"])
         self._backends = bleak_backends or TEST_BACKENDS or (None, None)
         self.reassembler = Reassembler(self._layout.n_channels)
         self._queue: queue.Queue[Any] = queue.Queue()

@@ -21,11 +21,11 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
+from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting, layout_setting
 from tactile_studio.devices.discovery import list_serial_ports
 from tactile_studio.devices.line_decoder import LineDecoder
-from tactile_studio.errors import BadData, DeviceLost, DeviceNotFound, SettingsError, UserError
-from tactile_studio.sensor.layout import Layout, get_layout
+from tactile_studio.errors import BadData, DeviceLost, DeviceNotFound, SettingsError
+from tactile_studio.sensor.layout import Layout
 
 READ_TIMEOUT_S = 0.05     # one pyserial wait; read() returns within ~2 of these
 BAD_START_LINES = 100     # this many bad lines after opening and no good one: BadData
@@ -57,10 +57,7 @@ class SerialDevice(DevicePlugin):
 
     def __init__(self, **settings: Any) -> None:
         super().__init__(**settings)
-        try:
-            self._layout = get_layout(self.settings["layout"])
-        except UserError as exc:
-            raise SettingsError(f"device serial: setting layout: {exc}") from None
+        self._layout = layout_setting("serial", self.settings["layout"])
         channels = self.settings["channels"] or self._layout.n_channels
         if channels != self._layout.n_channels:
             raise SettingsError(f"device serial: channels={channels} but layout "

@@ -21,8 +21,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from tactile_studio.errors import SettingsError
-from tactile_studio.sensor.layout import Layout
+from tactile_studio.errors import SettingsError, UserError
+from tactile_studio.sensor.layout import Layout, get_layout
 
 _TYPES = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
 
@@ -72,6 +72,14 @@ class Setting:
             rng = f" (range {self.minimum if self.minimum is not None else ''}.."
             rng += f"{self.maximum if self.maximum is not None else ''})"
         return f"{self.name}={self.default!r} ({self.kind}{extra}){rng}  {self.help}"
+
+
+def layout_setting(device: str, name: str) -> Layout:
+    """The layout named by a device's ``layout`` setting, as a setting error if unknown."""
+    try:
+        return get_layout(name)
+    except UserError as exc:
+        raise SettingsError(f"device {device}: setting layout: {exc}") from None
 
 
 @dataclass
