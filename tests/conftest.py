@@ -3,6 +3,13 @@
 from __future__ import annotations
 
 import os
+import tempfile
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("TACTILE_STUDIO_TESTING", "1")
+# the app's data, cache and config folders (tactile_studio.paths) live in one temporary
+# folder per test run; tests that need their own set them with monkeypatch
+_APPDIRS = tempfile.mkdtemp(prefix="tactile-studio-appdirs-")
+for _name in ("DATA", "CACHE", "CONFIG"):
+    os.environ.setdefault(f"TACTILE_STUDIO_{_name}_DIR", os.path.join(_APPDIRS, _name.lower()))
+
