@@ -17,6 +17,7 @@ import errno
 import os
 import time
 from collections import Counter
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -74,12 +75,13 @@ class SerialDevice(DevicePlugin):
         self._bad_since_open = 0
         self._bytes_since_open = 0
 
+    supports_discover = True
     discover_setting = "port"
+    discover_instant = True
 
     @classmethod
-    def discover(cls, timeout: float = 0.0) -> list[tuple[str, str]]:
-        """(port, label) choices for the ``port`` setting, for a device panel's list.
-        Duck-typed hook (not in the base contract): blocks briefly, call from a worker."""
+    def discover(cls, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """(port, label) choices for the ``port`` setting: every port the OS lists."""
         return [(dev, " ".join(x for x in (dev, desc, f"[{vp}]" if vp else "") if x))
                 for dev, desc, vp in list_serial_ports()]
 
