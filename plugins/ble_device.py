@@ -21,6 +21,7 @@ import queue
 import threading
 import time
 from collections import Counter
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -83,16 +84,18 @@ class BleDevice(DevicePlugin):
         self._lost: str | None = None
         self._reported: Counter[str] = Counter()
 
+    supports_discover = True
     discover_setting = "address"
+    discover_instant = False  # a radio scan listens for scan_timeout seconds
 
     @classmethod
-    def discover(cls, timeout: float = 5.0, name: str = "ShearSense",
-                 service_uuid: str = SERVICE_UUID) -> list[tuple[str, str]]:
-        """(address, label) choices for the ``address`` setting, strongest first.
-        Duck-typed hook (not in the base contract): scans for ``timeout`` s, so call it
-        from a worker; raises DeviceNotFound without an adapter."""
+    def discover(cls, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """(address, label) choices for the ``address`` setting, strongest first: scans
+        for ``scan_timeout`` s with the ``name`` and ``service_uuid`` filters; raises
+        DeviceNotFound without an adapter."""
         backend = TEST_BACKENDS[1] if TEST_BACKENDS else None
-        found = scan_ble(timeout, name, service_uuid, backend=backend)
+        found = scan_ble(settings["scan_timeout"], settings["name"], settings["service_uuid"],
+                         backend=backend)
         return [(addr, f"{label or '?'} {addr} ({rssi} dBm)") for addr, label, rssi in found]
 
     @property

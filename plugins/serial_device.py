@@ -17,12 +17,17 @@ import errno
 import os
 import time
 from collections import Counter
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting, layout_setting
-from tactile_studio.devices.discovery import list_serial_ports
+from tactile_studio.devices.discovery import (
+    describe_serial_ports,
+    list_serial_ports,
+    pick_serial_port,
+)
 from tactile_studio.devices.line_decoder import LineDecoder
 from tactile_studio.errors import BadData, DeviceLost, DeviceNotFound, SettingsError
 from tactile_studio.sensor.layout import Layout
@@ -33,11 +38,7 @@ BAD_START_BYTES = 256 * 1024
 
 
 def _describe_ports() -> str:
-    ports = list_serial_ports()
-    if not ports:
-        return "no serial ports found"
-    return "found: " + ", ".join(f"{dev} ({desc or '?'}{' ' + vp if vp else ''})"
-                                 for dev, desc, vp in ports)
+    return describe_serial_ports(list_serial_ports())
 
 
 class SerialDevice(DevicePlugin):
@@ -46,7 +47,7 @@ class SerialDevice(DevicePlugin):
     supports_reconnect = True
     settings_schema = (
         Setting("port", "str", "", "serial port, e.g. /dev/ttyUSB0 or COM3; empty: the only "
-                "port there is (`tactile-studio ports` lists them)"),
+                "USB serial device there is (`tactile-studio ports` lists them)"),
         Setting("baud", "int", 500000, "baud rate", minimum=50, maximum=12_000_000),
         Setting("layout", "str", "shearsense-6x6", "sensor layout (channel count and order)"),
         Setting("channels", "int", 0, "values per line; 0: the layout's channel count",
@@ -57,10 +58,11 @@ class SerialDevice(DevicePlugin):
 
     def __init__(self, **settings: Any) -> None:
         super().__init__(**settings)
-        self._layout = layout_setting("serial", self.settings["layout"])
+        where = f"serial (port {self.settings['port']})" if self.settings["port"] else "serial"
+        self._layout = layout_setting(where, self.settings["layout"])
         channels = self.settings["channels"] or self._layout.n_channels
         if channels != self._layout.n_channels:
-            raise SettingsError(f"device serial: channels={channels} but layout "
+            raise SettingsError(f"device {where}: channels={channels} but layout "
                                 f"{self._layout.name} has {self._layout.n_channels} channels")
         max_value = int(self._layout.raw_max)
         self.decoder = LineDecoder(channels, max_value, self._layout.raw_dtype)
@@ -73,12 +75,13 @@ class SerialDevice(DevicePlugin):
         self._bad_since_open = 0
         self._bytes_since_open = 0
 
+    supports_discover = True
     discover_setting = "port"
+    discover_instant = True
 
     @classmethod
-    def discover(cls, timeout: float = 0.0) -> list[tuple[str, str]]:
-        """(port, label) choices for the ``port`` setting, for a device panel's list.
-        Duck-typed hook (not in the base contract): blocks briefly, call from a worker."""
+    def discover(cls, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """(port, label) choices for the ``port`` setting: every port the OS lists."""
         return [(dev, " ".join(x for x in (dev, desc, f"[{vp}]" if vp else "") if x))
                 for dev, desc, vp in list_serial_ports()]
 
@@ -100,10 +103,7 @@ class SerialDevice(DevicePlugin):
         port = self.settings["port"].strip()
         if port:
             return port
-        ports = list_serial_ports()
-        if len(ports) == 1:
-            return ports[0][0]
-        raise DeviceNotFound("serial: no port set (use --set port=...); " + _describe_ports())
+        return pick_serial_port(list_serial_ports())
 
     def open(self) -> None:
         import serial

@@ -19,8 +19,8 @@ from __future__ import annotations
 from tactile_studio.live_controller import LiveController
 from tactile_studio.live_discovery import (
     discover_is_instant,
-    discover_kwargs,
     discover_setting,
+    discover_settings,
     run_discovery,
 )
 from tactile_studio.live_meters import LatencyMeter, RateMeter
@@ -39,6 +39,6 @@ from tactile_studio.live_view import (
 __all__ = [
     "QUANTITIES", "QUANTITY_LABELS", "CellReadout", "History", "LatencyMeter",
     "LiveController", "LiveFrame", "LiveStatus", "LiveView", "RateMeter", "_Trail",
-    "discover_is_instant", "discover_kwargs", "discover_setting", "format_malformed",
+    "discover_is_instant", "discover_setting", "discover_settings", "format_malformed",
     "parse_taxel_name", "run_discovery",
 ]

@@ -181,4 +181,6 @@ def test_discover_hook_lists_addresses_for_the_device_panel(monkeypatch):
     FakePeripheral("AA:09", "ShearSense-09", rssi=-61).install()
     FakePeripheral("AA:10", "Other", services=("180d",)).install()
     assert BleDevice.discover_setting == "address"
-    assert BleDevice.discover(0.1) == [("AA:09", "ShearSense-09 AA:09 (-61 dBm)")]
+    assert BleDevice.supports_discover and not BleDevice.discover_instant
+    settings = BleDevice.validate_settings({"scan_timeout": 0.1})
+    assert BleDevice.discover(settings) == [("AA:09", "ShearSense-09 AA:09 (-61 dBm)")]

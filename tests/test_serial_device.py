@@ -159,4 +159,6 @@ def test_discover_hook_lists_ports_as_the_os_reports_them():
     assert all(isinstance(d, str) and isinstance(desc, str) for d, desc, _ in ports)
     assert all(vp == "" or len(vp) == 9 and vp[4] == ":" for _, _, vp in ports)
     assert SerialDevice.discover_setting == "port"
-    assert [value for value, _ in SerialDevice.discover()] == [d for d, _, _ in ports]
+    assert SerialDevice.supports_discover and SerialDevice.discover_instant
+    found = SerialDevice.discover(SerialDevice.validate_settings({}))
+    assert [value for value, _ in found] == [d for d, _, _ in ports]

@@ -16,6 +16,8 @@ from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
 
+FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("devices", help="list device plugins and their settings")
@@ -58,11 +60,13 @@ def cmd_record(args: argparse.Namespace) -> int:
     # The recorder exists before the engine starts so the connect and tare events are kept.
     recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
     engine.start()
-    if not engine.wait_frames(1, timeout=10.0):
+    if not engine.wait_frames(1, timeout=FIRST_FRAME_TIMEOUT_S):
         engine.stop()
         recorder.stop()
         out.unlink(missing_ok=True)
-        raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
+        raise UserError(engine.error or f"{device_label(device)}: no frames within "
+                        f"{FIRST_FRAME_TIMEOUT_S:g} s "
+                        "(is it switched on and sending?)")
     progress = TerminalProgress(f"recording {out.name}")
     token = CancelToken()
     start = time.monotonic()
@@ -82,6 +86,15 @@ def cmd_record(args: argparse.Namespace) -> int:
     if engine.state == ERROR:
         raise UserError(f"recording stopped early: {engine.error} (frames so far are in {out})")
     return 0
+
+
+def device_label(device: Any) -> str:
+    """"device serial on /dev/ttyUSB0": the plugin and where it is connected (port, BLE
+    address or replayed file), for messages about a device that went quiet."""
+    info = device.info()
+    settings = info.get("settings", {})
+    where = info.get("port") or info.get("address") or settings.get("path") or ""
+    return f"device {info.get('plugin', '?')} on {where}" if where else f"device {info.get('plugin', '?')}"
 
 
 def _trial_table(trials: list[dict[str, Any]]) -> str:

@@ -1,6 +1,7 @@
 """Device plugins: the public contract, the registry, and the acquisition engine."""
 
-from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
+from tactile_studio.devices.conformance import PluginCheckError, check_plugin
+from tactile_studio.devices.contract import OPTIONAL_HOOKS, DevicePlugin, FrameBatch, Setting
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import (
     DEFAULT_DEVICE,
@@ -12,7 +13,7 @@ from tactile_studio.devices.registry import (
 from tactile_studio.devices.ring import FrameChunk, RingBuffer
 
 __all__ = [
-    "DEFAULT_DEVICE", "AcquisitionEngine", "DevicePlugin", "FrameBatch", "FrameChunk",
-    "RingBuffer", "Setting", "available_plugins", "create_device", "parse_set_options",
-    "plugin_class",
+    "DEFAULT_DEVICE", "OPTIONAL_HOOKS", "AcquisitionEngine", "DevicePlugin", "FrameBatch",
+    "FrameChunk", "PluginCheckError", "RingBuffer", "Setting", "available_plugins",
+    "check_plugin", "create_device", "parse_set_options", "plugin_class",
 ]

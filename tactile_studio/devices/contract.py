@@ -11,11 +11,17 @@ The acquisition engine drives it from its own thread::
 
 ``read`` raises ``DeviceLost`` when the device goes away; if ``supports_reconnect`` the
 engine then calls ``reopen()`` with backoff until it succeeds or the user stops.
+
+Optional hooks (listed in ``OPTIONAL_HOOKS``) are declared by a capability flag on the
+class and have a fixed signature; a plugin that does not set the flag does not have the
+hook. :func:`tactile_studio.devices.check_plugin` checks both the required contract and
+every declared hook. docs/plugins.md walks through a complete third-party plugin.
 """
 
 from __future__ import annotations
 
 import abc
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -87,9 +93,14 @@ class FrameBatch:
     """Frames read in one call.
 
     ``raw``: (n, n_channels) counts in the layout's dtype. ``device_time``: (n,) seconds
-    on the device's clock (or None: the engine uses host time). ``seq``: (n,) device
-    sequence numbers (or None: no gap detection from the device). ``malformed``: bad
-    input dropped while reading, counted by kind (e.g. {"short": 2, "non_numeric": 1}).
+    on the device's clock, non-decreasing (or None: the engine uses ``host_time``).
+    ``seq``: (n,) device sequence numbers (or None: no gap detection from the device).
+    ``malformed``: bad input dropped while reading, counted by kind (e.g. {"short": 2,
+    "non_numeric": 1}). ``host_time``: (n,) host wall-clock seconds (``time.time()``,
+    Unix epoch) when each frame arrived, non-decreasing; give it when frames are received
+    at different moments within one ``read`` (a serial line, a BLE notification), so the
+    session file keeps the real arrival times. None: the engine stamps every frame of
+    the batch with the moment it ingests the batch.
     """
 
     raw: np.ndarray
@@ -102,6 +113,24 @@ class FrameBatch:
         return int(self.raw.shape[0])
 
 
+@dataclass(frozen=True)
+class OptionalHook:
+    """An optional plugin hook: present when the class sets ``flag`` to True, and then
+    defined (overriding the base) with exactly ``params`` after ``cls``/``self``."""
+
+    name: str
+    flag: str
+    params: tuple[str, ...]
+    kind: str = "classmethod"  # classmethod | method
+    attributes: tuple[str, ...] = ()  # class attributes the hook needs, checked too
+
+
+OPTIONAL_HOOKS: tuple[OptionalHook, ...] = (
+    OptionalHook("discover", "supports_discover", ("settings",),
+                 attributes=("discover_setting", "discover_instant")),
+)
+
+
 class DevicePlugin(abc.ABC):
     """Base class of every device plugin (simulated, replay, serial, BLE, third party)."""
 
@@ -109,6 +138,25 @@ class DevicePlugin(abc.ABC):
     description: ClassVar[str] = ""
     settings_schema: ClassVar[tuple[Setting, ...]] = ()
     supports_reconnect: ClassVar[bool] = False
+
+    # ---- optional hook: discover (a "Scan" list for one setting) ----------------------
+    supports_discover: ClassVar[bool] = False
+    discover_setting: ClassVar[str] = ""  # the setting a chosen value goes into
+    discover_instant: ClassVar[bool] = False  # True: waits for nothing (lists ports)
+
+    @classmethod
+    def discover(cls, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
+        """(value, label) choices for the ``discover_setting`` (serial ports, BLE
+        addresses), for a device panel's drop-down; declared by ``supports_discover``.
+
+        ``settings`` are the form's settings as ``validate_settings`` returns them
+        (defaults filled in), so a scan can use filters such as a name prefix or a scan
+        time. Unless ``discover_instant``, it may block for seconds: callers run it off
+        the GUI thread. Raise a ``UserError`` (e.g. ``DeviceNotFound``) with one line
+        when scanning is impossible.
+        """
+        raise NotImplementedError(f"device {cls.name}: no discover hook "
+                                  "(supports_discover is False)")
 
     def __init__(self, **settings: Any) -> None:
         self.settings = self.validate_settings(settings)

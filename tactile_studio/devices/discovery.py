@@ -8,21 +8,57 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from collections.abc import Iterable
 from typing import Any
 
 from tactile_studio.errors import DeviceNotFound
 
+SerialPort = tuple[str, str, str]  # (device, description, "VID:PID" or "")
 
-def list_serial_ports() -> list[tuple[str, str, str]]:
-    """Every serial port the OS knows: (device, description, "VID:PID" or "")."""
-    from serial.tools import list_ports
 
+def serial_ports_from(infos: Iterable[Any]) -> list[SerialPort]:
+    """(device, description, "VID:PID" or "") of pyserial ``ListPortInfo`` records, sorted.
+    A VID:PID means a USB device; legacy ports (``/dev/ttyS0``, COM1) have none."""
     found = []
-    for p in sorted(list_ports.comports(), key=lambda p: p.device):
+    for p in sorted(infos, key=lambda p: p.device):
         vid_pid = f"{p.vid:04X}:{p.pid:04X}" if p.vid is not None and p.pid is not None else ""
         desc = p.description if p.description and p.description != "n/a" else ""
         found.append((p.device, desc, vid_pid))
     return found
+
+
+def list_serial_ports() -> list[SerialPort]:
+    """Every serial port the OS knows: (device, description, "VID:PID" or "")."""
+    from serial.tools import list_ports
+
+    return serial_ports_from(list_ports.comports())
+
+
+def describe_serial_ports(ports: list[SerialPort]) -> str:
+    """One line naming every port, e.g. "found: /dev/ttyS0 (not USB), /dev/ttyUSB0 (CP2102
+    USB to UART, 10C4:EA60)"."""
+    if not ports:
+        return "no serial ports found"
+    parts = []
+    for dev, desc, vid_pid in ports:
+        what = ", ".join(x for x in (desc, vid_pid or "not USB") if x)
+        parts.append(f"{dev} ({what})")
+    return "found: " + ", ".join(parts)
+
+
+def pick_serial_port(ports: list[SerialPort]) -> str:
+    """The port to open when none is set: the one USB serial device, if exactly one.
+
+    Legacy ports without a VID:PID are never picked (they exist on most PCs and are never
+    the receiver); with none or several USB devices the user must choose, and the error
+    lists what was found.
+    """
+    usb = [dev for dev, _, vid_pid in ports if vid_pid]
+    if len(usb) == 1:
+        return usb[0]
+    why = "no USB serial device" if not usb else f"{len(usb)} USB serial devices"
+    raise DeviceNotFound(f"serial: no port set and {why} ({describe_serial_ports(ports)}); "
+                         "choose one with --set port=... (`tactile-studio ports` lists them)")
 
 
 def bluetooth_unavailable(exc: BaseException) -> DeviceNotFound:

@@ -118,8 +118,9 @@ class RunFolder:
         write_json(self.path / METRICS, metrics)
         write_confusion_csv(self.path / "confusion_matrix.csv", metrics["labels"],
                             metrics["confusion_matrix"])
+        unit = "windows" if "n_trials" in metrics else "trials"  # windowed models vote later
         plots.confusion_png(self.path / "confusion_matrix.png", metrics["labels"],
-                            metrics["confusion_matrix"], metrics.get("confusion_counts"), title)
+                            metrics["confusion_counts"], title, unit)
         if any(r.get("history") for r in records):
             plots.curves_png(self.path / "training_curves.png", records, title)
 
