@@ -273,6 +273,65 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert len(SEEN_RECORDING) >= 5  # the countdown was on screen during the trials
 
 
+def open_mini(qtbot, console: CollectConsole, proto, out, blocks: int) -> None:
+    s = console.setup
+    s.set_protocol_file(str(proto))
+    s.blocks.setValue(blocks)
+    qtbot.keyClicks(s.participant, "P05")
+    s.out_dir.setText(str(out))
+    fill_device(qtbot, console)
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    click(qtbot, console, "primary")  # Start
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+
+
+def test_prompted_order_is_enforced_by_key_presses(qtbot, env):
+    proto, out = env
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    order = console.runner.orders[0]
+    keys = {g.name: g.key for g in console.protocol.gestures}
+    for i, name in enumerate(order):
+        view = console.participant.view
+        # the prompted gesture is shown large, the block's cards marked done/next/upcoming
+        assert view.mode == "waiting" and view.prompt is not None
+        assert view.prompt.name == name and view.prompt.key == keys[name]
+        assert view.title == f"Next: {name}" and console.mirror.view == view
+        assert [c.note for c in view.cards] == \
+            ["done"] * i + ["next"] + ["upcoming"] * (len(order) - i - 1)
+        assert f"next is {name} ({keys[name].upper()})" in console.state.text()
+        refusal = f"Next is {name} \u2013 press {keys[name].upper()}"
+        for wrong in [*order[:i], *order[i + 1:]]:  # done or upcoming: refused, named
+            qtbot.keyClick(console.participant, keys[wrong])
+            assert snap(console).state == State.WAITING and len(snap(console).trials) == i
+            assert console.participant.view.hint.endswith(refusal)
+            assert console.hint_label.text().endswith(refusal)
+        qtbot.keyClick(console.participant, "x")  # not a gesture key: named too
+        assert console.participant.view.hint == f"'x' is not a gesture key. {refusal}"
+        trial = do_trial(qtbot, console, name, keys[name])  # the prompted key starts it
+        assert trial["gesture"] == name and trial["status"] == "ok"
+    qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
+    assert [t["gesture"] for t in snap(console).trials] == order
+
+
+def test_free_order_protocol_takes_any_remaining_key(qtbot, env):
+    proto, out = env
+    proto.write_text(MINI.replace('free_play_s = 0.3', 'free_play_s = 0.3\norder = "free"'))
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    order = console.runner.orders[0]
+    keys = {g.name: g.key for g in console.protocol.gestures}
+    assert console.participant.view.prompt is None
+    assert "free order" in console.state.text() and "free order" in console.progress_label.text()
+    for name in reversed(order):  # any remaining gesture's key starts its trial
+        assert do_trial(qtbot, console, name, keys[name])["gesture"] == name
+    qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
+    assert [t["gesture"] for t in snap(console).trials] == order[::-1]
+    with Session(console.session.path if console.session else console._closed_session_path) as f:
+        assert f.metadata["trial_order"] == "free"
+
+
 def test_setup_errors_are_one_line_and_nothing_opens(qtbot, env, tmp_path):
     _, out = env
     console = make_console(qtbot)

@@ -55,6 +55,7 @@ class Card:
     done: bool = False
     active: bool = False
     image: str | None = None  # file path; drawn at the card's right when it can be read
+    note: str = ""            # "next" / "upcoming" under the name of a compact card
 
 
 @dataclass
@@ -76,6 +77,7 @@ class ParticipantView:
     countdown_total_s: float | None = None
     hint: str = ""                          # e.g. a refused key
     footer: str = ""
+    prompt: Card | None = None              # the prompted gesture, drawn large (waiting)
 
 
 def _grid(n: int, w: float, h: float, aspect: float = 2.1) -> tuple[int, int]:
@@ -205,7 +207,13 @@ class ParticipantScreen(QWidget):
             self._paint_hint(p, QRectF(body.left(), body.bottom() - hint_h, body.width(),
                                        hint_h), u)
             body.setBottom(body.bottom() - hint_h - 10 * u)
-        if v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
+        if v.mode == "waiting" and v.prompt is not None:
+            prompt_h = body.height() * 0.6
+            self._paint_prompt(p, QRectF(body.left(), body.top(), body.width(), prompt_h), u)
+            strip = QRectF(body.left(), body.top() + prompt_h + 18 * u, body.width(),
+                           body.height() - prompt_h - 18 * u)
+            self._paint_cards(p, strip, u, compact=True)
+        elif v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
             stage_h = body.height() * (0.36 if v.mode in ("recording", "trial_end") else 0.22)
             if v.mode == "waiting" and any(self._readable(c) for c in v.cards):
                 stage_h = body.height() * 0.16  # cards with images need the room for text
@@ -285,6 +293,57 @@ class ParticipantScreen(QWidget):
             p.setFont(_fit_font(v.subtitle, sub_r, (40 if big else 32) * u))
             p.drawText(sub_r, int(align | Qt.AlignmentFlag.AlignTop | Qt.TextFlag.TextWordWrap),
                        v.subtitle)
+
+    def _paint_prompt(self, p: QPainter, r: QRectF, u: float) -> None:
+        """The prompted gesture as one large card: key, name, how to start, definition
+        and image, outlined in amber."""
+        c = self.view.prompt
+        assert c is not None
+        p.setBrush(PANEL)
+        p.setPen(QPen(ACTIVE, max(2.0, 6 * u)))
+        p.drawRoundedRect(r, 22 * u, 22 * u)
+        pad = 34 * u
+        inner = r.adjusted(pad, pad * 0.8, -pad, -pad * 0.8)
+        img = None
+        if self._readable(c):
+            side = min(inner.height(), inner.width() * 0.3)
+            img = QRectF(inner.right() - side, inner.center().y() - side / 2, side, side)
+            self._paint_image(p, img, c)
+            inner.setRight(img.left() - pad)
+        label_h = 40 * u
+        p.setPen(ACTIVE)
+        p.setFont(_font(30 * u, bold=True))
+        p.drawText(QRectF(inner.left(), inner.top(), inner.width(), label_h),
+                   Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, "NEXT GESTURE")
+        top = inner.top() + label_h + 10 * u
+        badge = min((inner.bottom() - top) * 0.5, 190 * u)
+        b = QRectF(inner.left(), top, badge, badge)
+        path = QPainterPath()
+        path.addRoundedRect(b, 18 * u, 18 * u)
+        p.fillPath(path, ACTIVE)
+        p.setPen(QColor("#10131a"))
+        key_txt = c.key.upper()
+        p.setFont(_fit_font(key_txt, b.adjusted(6, 6, -6, -6), badge * 0.7, bold=True, wrap=False))
+        p.drawText(b, Qt.AlignmentFlag.AlignCenter, key_txt)
+        text_l = b.right() + pad
+        name_r = QRectF(text_l, top, inner.right() - text_l, badge * 0.62)
+        p.setPen(TEXT)
+        p.setFont(_fit_font(c.name, name_r, 110 * u, bold=True))
+        p.drawText(name_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
+                               | Qt.TextFlag.TextWordWrap), c.name)
+        how_r = QRectF(text_l, name_r.bottom(), name_r.width(), badge - name_r.height())
+        p.setPen(MUTED)
+        p.setFont(_fit_font(self.view.subtitle, how_r, 34 * u))
+        p.drawText(how_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
+                              | Qt.TextFlag.TextWordWrap), self.view.subtitle)
+        if c.definition:
+            d = QRectF(inner.left(), b.bottom() + 20 * u, inner.width(),
+                       inner.bottom() - b.bottom() - 20 * u)
+            if d.height() > 8:
+                p.setPen(TEXT)
+                p.setFont(_fit_font(c.definition, d, 42 * u))
+                p.drawText(d, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop
+                                  | Qt.TextFlag.TextWordWrap), c.definition)
 
     def _paint_dial(self, p: QPainter, r: QRectF, u: float) -> None:
         v = self.view
@@ -447,6 +506,13 @@ class ParticipantScreen(QWidget):
                        Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop,
                        f"key {c.key.upper()}  \u00b7  done")
             return
+        if c.note and not c.definition:
+            p.setPen(ACTIVE if c.active else MUTED)
+            note = f"key {c.key.upper()}  \u00b7  {c.note}"
+            note_r = QRectF(name_r.left(), name_r.bottom() + 2, name_r.width(), def_px * 2)
+            p.setFont(_fit_font(note, note_r, min(def_px, badge * 0.34), bold=c.active,
+                                wrap=False))
+            p.drawText(note_r, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop, note)
         if c.definition:
             d = self._definition_rect(r, c, u)
             if d.height() > 6:
