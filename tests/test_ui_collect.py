@@ -58,6 +58,7 @@ SIM = "speed=8 gesture=idle"
 WAIT_MS = 15_000
 BUSY = (State.RECORDING, State.TRIAL_END)
 SEEN_RECORDING: list[str] = []  # trials whose countdown screen the test saw
+SEEN_PROMPTS: dict[str, str | None] = {}  # prompted gesture -> the image on its large card
 
 
 MAGENTA = QColor(255, 0, 255)
@@ -119,6 +120,10 @@ def do_trial(qtbot, console: CollectConsole, name: str, key: str, perform: bool 
     if perform:
         console.engine.device.perform(name, duration_s=1.0)
     target = console.participant if via_participant else console
+    prompt = console.participant.view.prompt
+    if prompt is not None:
+        assert prompt.name == name  # the test follows the prompt
+        SEEN_PROMPTS[prompt.name] = prompt.image
     qtbot.keyClick(target, key)
     view = console.participant.view
     if snap(console).state == State.RECORDING:  # (a starved test thread may miss it)
@@ -153,6 +158,7 @@ def continue_after_break(qtbot, console: CollectConsole) -> None:
 def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monkeypatch):
     proto, out = env
     SEEN_RECORDING.clear()
+    SEEN_PROMPTS.clear()
     console = make_console(qtbot)
     s = console.setup
     # protocol from a file, through the "From file..." entry and its dialog
@@ -180,8 +186,9 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     view = console.participant.view
     assert view.block_label == "Block 1 of 3" and len(view.cards) == 3
     # the protocol's image (relative to the protocol file) reaches the participant's card
-    assert {c.name: c.image for c in view.cards} == {
-        "Poke": str(proto.parent / "pics" / "poke.png"), "Twist": None, "Tickle": None}
+    images = {"Poke": str(proto.parent / "pics" / "poke.png"), "Twist": None, "Tickle": None}
+    assert {g.name: g.image for g in snap(console).gestures} == images
+    assert view.prompt.image == images[view.prompt.name]  # on the large prompted card
     first = snap(console).gestures[0]
 
     # 1. a trial without touching: flagged, held, highlighted, prompted; then redone
@@ -271,6 +278,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert len(beeps) == len(trials) == 10
     assert {(b.frequency_hz, b.length_s) for b in beeps} == {(880.0, 0.05)}
     assert len(SEEN_RECORDING) >= 5  # the countdown was on screen during the trials
+    assert SEEN_PROMPTS == images  # every gesture was prompted, with its image
 
 
 def open_mini(qtbot, console: CollectConsole, proto, out, blocks: int) -> None:
@@ -404,6 +412,14 @@ def test_participant_screen_draws_every_mode_at_any_size(qtbot, size):
                                          hint="K is already done" if mode == "waiting" else ""))
         image = screen.grab().toImage()
         assert image.width() == size[0] and image != blank
+    # prompted order: the next gesture large above the block's compact cards
+    strip = [Card(c.key, c.name, c.definition, c.done, i == 1, note="next" if i == 1 else "")
+             for i, c in enumerate(cards)]
+    screen.show_view(ParticipantView("waiting", "Next: B", "Press B as you start it.",
+                                     "Block 2 of 52", 1, 14, strip, hint="Next is B",
+                                     prompt=Card("b", "B", "A long definition. " * 8)))
+    prompted = screen.grab().toImage()
+    assert prompted != image and prompted != blank
 
 
 def test_main_window_menu_opens_a_console_on_the_live_engine(qtbot, env):
