@@ -54,7 +54,7 @@ name = "Tickle"
 key = "k"
 definition = "Tickle the sensor with quick, light movements of your fingertips."
 """
-SIM = "speed=8 gesture=idle"
+SIM = {"speed": "8", "gesture": "idle"}
 WAIT_MS = 15_000
 BUSY = (State.RECORDING, State.TRIAL_END)
 SEEN_RECORDING: list[str] = []  # trials whose countdown screen the test saw
@@ -93,8 +93,10 @@ def make_console(qtbot) -> CollectConsole:
 def fill_device(qtbot, console: CollectConsole) -> None:
     s = console.setup
     s.device.setCurrentIndex(s.device.findData("simulated"))
-    s.device_settings.clear()
-    qtbot.keyClicks(s.device_settings, SIM)
+    for name, value in SIM.items():  # typed into the plugin's generated form
+        editor = s.device_form.fields[name].editor
+        editor.clear()
+        qtbot.keyClicks(editor, value)
 
 
 def snap(console: CollectConsole):
