@@ -209,7 +209,9 @@ class CollectSetup(QWidget):
                if p.break_every else "no breaks")
         self.protocol_info.setText(
             f"{p.title}: {len(p.gestures)} gestures, {p.trial_s:g} s trials, {brk}, "
-            f"{p.free_play_s:g} s free play")
+            f"{p.free_play_s:g} s free play; "
+            + ("the screen prompts each block's random order" if p.order == "prompted"
+               else "free order within a block (any gesture not done yet)"))
 
     # ---- folders ----------------------------------------------------------------------
     def _last_dir(self) -> str:
