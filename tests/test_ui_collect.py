@@ -492,3 +492,24 @@ def test_card_image_is_scaled_to_fit_with_its_aspect(qtbot, tmp_path, size):
     plain = grab(None)
     assert grab(str(junk)) == plain and grab(str(tmp_path / "gone.png")) == plain
     assert grab(wide) != plain
+
+
+def test_console_numbers_blocks_from_one_and_names_practice(qtbot, env, tmp_path):
+    proto, out = env
+    proto.write_text(MINI.replace("free_play_s = 0.3", "free_play_s = 0.0\npractice_trials = 1"))
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    s = snap(console)
+    assert s.practice and console.participant.view.block_label == "Practice"
+    assert "practice \u00b7" in console.progress_label.text()
+    assert "block 0" not in console.progress_label.text()
+    g = next(x for x in s.gestures if x.name == s.prompted)
+    do_trial(qtbot, console, g.name, g.key)
+    qtbot.waitUntil(lambda: not snap(console).practice, timeout=WAIT_MS)
+    assert console.log.item(0, 1).text() == "practice"
+    s = snap(console)
+    assert console.participant.view.block_label == "Block 1 of 1"
+    assert "block 1 of 1" in console.progress_label.text()
+    g = next(x for x in s.gestures if x.name == s.prompted)
+    do_trial(qtbot, console, g.name, g.key)
+    assert console.log.item(1, 1).text() == "1"  # stored 0-based, shown 1-based
