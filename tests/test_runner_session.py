@@ -32,6 +32,7 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
         order = s.metadata["block_order"]
         assert s.metadata["participant"] == "P07" and s.metadata["source"] == "collect"
         assert s.metadata["gestures"] == protocol.gesture_names
+        assert s.metadata["trial_order"] == "prompted"
         assert s.closed_cleanly
         assert [t["status"] for t in trials] == ["ok"] * 18
         assert [t["index"] for t in trials] == list(range(18))

@@ -110,3 +110,18 @@ def test_the_shared_form_builds_every_kind(qtbot):
     assert form.changed_values() == {"path": "/data/my session.h5", "loop": "true"}
     form.set_plugin(None)
     assert form.fields == {} and form.values() == {}
+
+
+def test_the_collect_command_prefills_the_form_with_a_spaced_name(qtbot, tmp_path, monkeypatch):
+    from tactile_studio.ui.collect_app import build_console
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    console = build_console("shear9", "P01", device="ble",
+                            device_settings={"name": "Shear Sense 2", "scan_timeout": 2.0},
+                            out_dir=tmp_path)
+    qtbot.addWidget(console)
+    s = console.setup
+    assert s.device.currentData() == "ble"
+    assert s.device_form.fields["name"].text() == "Shear Sense 2"
+    assert s.device_choice() == ("ble", {"name": "Shear Sense 2", "scan_timeout": "2"})
+    assert console.session is None  # nothing connects before "Open session"
