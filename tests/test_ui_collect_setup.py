@@ -65,6 +65,14 @@ def test_a_ble_name_with_a_space_reaches_the_session(qtbot, settings, tmp_path):
     assert choice.device_settings == {"name": "Shear Sense 2", "scan_timeout": "2.5"}
     plugin_class("ble").validate_settings(dict(choice.device_settings))  # the core accepts it
     assert settings.value(KEY_DEVICE) == "ble"
+    # the next session's form starts with that device and those settings
+    again = make_setup(qtbot, settings)
+    assert again.device_choice() == ("ble", {"name": "Shear Sense 2", "scan_timeout": "2.5"})
+    again.device.setCurrentIndex(again.device.findData("simulated"))
+    assert again.device_choice() == ("simulated", {})
+    # the collect command's settings replace the remembered ones
+    assert again.set_device("ble", {"scan_timeout": "9"})
+    assert again.device_choice() == ("ble", {"scan_timeout": "9"})
 
 
 def test_a_bad_value_is_named_highlighted_and_nothing_starts(qtbot, settings, tmp_path):

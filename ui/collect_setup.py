@@ -35,12 +35,14 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.protocol_file import Protocol, list_protocols, load_protocol
+from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
 
 LIVE_DEVICE = "(the live device)"
 KEY_OUT_DIR = "collect/out_dir"
 KEY_LAST_DIR = "collect/last_dir"
 KEY_DEVICE = "collect/device"
+KEY_DEVICE_VALUES = "collect/device_values/"  # + plugin name: its non-default settings
 KEY_PROTOCOL = "collect/protocol"
 DEFAULT_PROTOCOL = "shear9"
 DEFAULT_DEVICE = "simulated"
@@ -237,7 +239,12 @@ class CollectSetup(QWidget):
     # ---- choices ----------------------------------------------------------------------
     # ---- device -----------------------------------------------------------------------
     def _on_device_changed(self) -> None:
-        self.device_form.set_plugin(self.plugins.get(self.device.currentData() or ""))
+        """The chosen plugin's form, with the settings last used with it."""
+        name = self.device.currentData() or ""
+        self.device_form.set_plugin(self.plugins.get(name))
+        if name:
+            saved = get_json(self.settings, KEY_DEVICE_VALUES + name, {})
+            self.device_form.set_values(saved if isinstance(saved, dict) else {})
         self._check_device()
 
     def _check_device(self) -> str | None:
@@ -247,12 +254,14 @@ class CollectSetup(QWidget):
         return error
 
     def set_device(self, name: str, values: dict[str, Any] | None = None) -> bool:
-        """Choose plugin ``name`` and fill its form; False if it cannot run a session."""
+        """Choose plugin ``name`` with exactly ``values`` over its defaults (what the
+        ``collect`` command passes); False if it cannot run a session."""
         i = self.device.findData(name)
         if i < 0:
             return False
         if i != self.device.currentIndex():
             self.device.setCurrentIndex(i)
+        self.device_form.set_plugin(self.plugins[name])
         self.device_form.set_values(values or {})
         self._check_device()
         return True
@@ -293,4 +302,5 @@ class CollectSetup(QWidget):
         self.settings.setValue(KEY_PROTOCOL, self.protocol.currentData() or "")
         if choice.device:
             self.settings.setValue(KEY_DEVICE, choice.device)
+            set_json(self.settings, KEY_DEVICE_VALUES + choice.device, choice.device_settings)
         self.startRequested.emit(choice)
