@@ -18,7 +18,6 @@ from dataclasses import dataclass, field, replace
 from PySide6.QtCore import QRectF, QSize, Qt, QVariantAnimation, Signal
 from PySide6.QtGui import (
     QColor,
-    QFont,
     QFontMetricsF,
     QImage,
     QImageReader,
@@ -30,20 +29,24 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QWidget
 
+from tactile_studio.ui.collect_paint import (
+    ACCENT,
+    ACTIVE,
+    BG,
+    DIM,
+    GOOD,
+    MUTED,
+    PANEL,
+    PANEL_DONE,
+    SURROUND,
+    TEXT,
+    WARN,
+    _fit_font,
+    _font,
+    paint_prompt,
+)
+
 log = logging.getLogger(__name__)
-
-BG = QColor("#1b1f2a")
-SURROUND = QColor("#0e1016")
-PANEL = QColor("#262c3b")
-PANEL_DONE = QColor("#20242f")
-TEXT = QColor("#f3f5f9")
-MUTED = QColor("#aab2c3")
-DIM = QColor("#5d6577")
-ACCENT = QColor("#5b9bff")
-ACTIVE = QColor("#ffb547")
-GOOD = QColor("#46c98b")
-WARN = QColor("#ff7a66")
-
 
 @dataclass
 class Card:
@@ -90,26 +93,6 @@ def _grid(n: int, w: float, h: float, aspect: float = 2.1) -> tuple[int, int]:
         if size > best_size + 1e-6:
             best, best_size = (cols, rows), size
     return best
-
-
-def _font(px: float, bold: bool = False) -> QFont:
-    f = QFont()
-    f.setPixelSize(max(6, int(px)))
-    f.setBold(bold)
-    return f
-
-
-def _fit_font(text: str, rect: QRectF, px: float, bold: bool = False,
-              wrap: bool = True, min_px: float = 7) -> QFont:
-    """The largest font up to ``px`` in which ``text`` fits ``rect``."""
-    flags = int(Qt.TextFlag.TextWordWrap) if wrap else 0
-    while px > min_px:
-        f = _font(px, bold)
-        br = QFontMetricsF(f).boundingRect(rect, flags, text)
-        if br.width() <= rect.width() + 0.5 and br.height() <= rect.height() + 0.5:
-            return f
-        px *= 0.92
-    return _font(min_px, bold)
 
 
 class ParticipantScreen(QWidget):
@@ -295,55 +278,10 @@ class ParticipantScreen(QWidget):
                        v.subtitle)
 
     def _paint_prompt(self, p: QPainter, r: QRectF, u: float) -> None:
-        """The prompted gesture as one large card: key, name, how to start, definition
-        and image, outlined in amber."""
-        c = self.view.prompt
-        assert c is not None
-        p.setBrush(PANEL)
-        p.setPen(QPen(ACTIVE, max(2.0, 6 * u)))
-        p.drawRoundedRect(r, 22 * u, 22 * u)
-        pad = 34 * u
-        inner = r.adjusted(pad, pad * 0.8, -pad, -pad * 0.8)
-        img = None
-        if self._readable(c):
-            side = min(inner.height(), inner.width() * 0.3)
-            img = QRectF(inner.right() - side, inner.center().y() - side / 2, side, side)
-            self._paint_image(p, img, c)
-            inner.setRight(img.left() - pad)
-        label_h = 40 * u
-        p.setPen(ACTIVE)
-        p.setFont(_font(30 * u, bold=True))
-        p.drawText(QRectF(inner.left(), inner.top(), inner.width(), label_h),
-                   Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, "NEXT GESTURE")
-        top = inner.top() + label_h + 10 * u
-        badge = min((inner.bottom() - top) * 0.5, 190 * u)
-        b = QRectF(inner.left(), top, badge, badge)
-        path = QPainterPath()
-        path.addRoundedRect(b, 18 * u, 18 * u)
-        p.fillPath(path, ACTIVE)
-        p.setPen(QColor("#10131a"))
-        key_txt = c.key.upper()
-        p.setFont(_fit_font(key_txt, b.adjusted(6, 6, -6, -6), badge * 0.7, bold=True, wrap=False))
-        p.drawText(b, Qt.AlignmentFlag.AlignCenter, key_txt)
-        text_l = b.right() + pad
-        name_r = QRectF(text_l, top, inner.right() - text_l, badge * 0.62)
-        p.setPen(TEXT)
-        p.setFont(_fit_font(c.name, name_r, 110 * u, bold=True))
-        p.drawText(name_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
-                               | Qt.TextFlag.TextWordWrap), c.name)
-        how_r = QRectF(text_l, name_r.bottom(), name_r.width(), badge - name_r.height())
-        p.setPen(MUTED)
-        p.setFont(_fit_font(self.view.subtitle, how_r, 34 * u))
-        p.drawText(how_r, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter
-                              | Qt.TextFlag.TextWordWrap), self.view.subtitle)
-        if c.definition:
-            d = QRectF(inner.left(), b.bottom() + 20 * u, inner.width(),
-                       inner.bottom() - b.bottom() - 20 * u)
-            if d.height() > 8:
-                p.setPen(TEXT)
-                p.setFont(_fit_font(c.definition, d, 42 * u))
-                p.drawText(d, int(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop
-                                  | Qt.TextFlag.TextWordWrap), c.definition)
+        card = self.view.prompt
+        assert card is not None
+        image = (lambda box: self._paint_image(p, box, card)) if self._readable(card) else None
+        paint_prompt(p, r, u, card, self.view.subtitle, image)
 
     def _paint_dial(self, p: QPainter, r: QRectF, u: float) -> None:
         v = self.view

@@ -46,7 +46,7 @@ def _steps(seconds: float | None, per_s: int) -> float | None:
 def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     """The participant screen for a runner snapshot (``protocol`` gives countdown totals)."""
     state = snap.state
-    prompted = getattr(snap, "prompted", None)
+    prompted = snap.prompted
     cards = [Card(g.key, g.name, g.definition, bool(g.done), bool(g.current), g.image,
                   _note(g, prompted, state)) for g in snap.gestures]
     v = ParticipantView(mode=state, block_label=_block_label(snap), cards=cards,
@@ -111,11 +111,12 @@ def state_label(snap: Any) -> str:
              "trial_review": "Review the last trial", "break": "Break",
              "paused": "Paused", "finished": "Finished", "aborted": "Aborted"}
     text = names.get(snap.state, snap.state)
-    prompted = getattr(snap, "prompted", None)
+    prompted = snap.prompted
     nxt = f"{prompted} ({snap.prompted_key.upper()})" if prompted else ""
-    if snap.state == "waiting_for_key":
-        text = (f"Waiting for the participant: next is {nxt}" if nxt else
-                "Waiting for the participant's key (free order)")
+    if snap.state == "waiting_for_key" and nxt:
+        text = f"Waiting for the participant: next is {nxt}"
+    elif snap.state == "waiting_for_key" and snap.order == "free":
+        text = "Waiting for the participant's key (free order)"
     if snap.state == "trial_recording" and snap.current_gesture:
         text += f": {snap.current_gesture}"
         if nxt:
@@ -142,9 +143,8 @@ def progress_text(snap: Any) -> str:
     """Trials, block (1-based; "practice" before block 1) and ETA, for the console."""
     where = ("practice" if snap.practice
              else f"block {snap.block_number} of {snap.blocks_total}")
-    order = getattr(snap, "order", "prompted")
     return (f"{snap.trials_done} of {snap.trials_total} trials \u00b7 {where} \u00b7 "
-            f"{order} order \u00b7 ETA {format_eta(snap.eta_s)}")
+            f"{snap.order} order \u00b7 ETA {format_eta(snap.eta_s)}")
 
 
 def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:
