@@ -50,3 +50,26 @@ def test_restore_skips_practice_ignores_redone_trials_and_counts_past_breaks():
     assert plan.block == 1 and plan.remaining() == ["c", "b"]
     assert plan.remaining(0) == [] and plan.breaks_taken == {0}
     assert not plan.is_last_round()
+
+
+def test_the_prompted_gesture_is_the_first_left_and_a_redone_one_comes_first():
+    plan = BlockPlan(ORDERS, [], per_round=3, break_every=0)
+    assert plan.prompted == "a"
+    plan.mark_done("a")
+    assert plan.prompted == "b"
+    # a resumed file from free order may have gaps: the first one left is prompted
+    gappy = BlockPlan(ORDERS, [], per_round=3, break_every=0)
+    gappy.restore([{"block": 0, "gesture": "b", "status": "ok"}])
+    assert gappy.prompted == "a" and gappy.remaining() == ["a", "c"]
+    gappy.mark_done("a")
+    gappy.mark_done("c")
+    gappy.reopen(0, "c")  # redo of the last trial (c): prompted before nothing else
+    assert gappy.prompted == "c"
+    gappy.mark_done("c")
+    assert gappy.prompted is None and gappy.redo_first == {}
+    full = BlockPlan(ORDERS, [], per_round=3, break_every=0)
+    full.mark_done("a")
+    full.mark_done("c")  # free order: a, c done, b left
+    full.reopen(0, "c")
+    assert full.remaining() == ["c", "b"] and full.prompted == "c"
+    assert [r for _, r in full.rounds_ahead()][:2] == [["c", "b"], ["c", "a", "b"]]

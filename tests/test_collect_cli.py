@@ -143,7 +143,9 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     assert s.protocol.currentData() == "shear9" and "9 gestures" in s.protocol_info.text()
     assert s.participant.text() == "P01" and s.condition.text() == "FLAT"
     assert (s.blocks.value(), s.seed.value()) == (2, 7)
-    assert s.device.currentData() == "simulated" and s.device_settings.text() == "noise=5"
+    assert s.device.currentData() == "simulated"
+    assert s.device_form.fields["noise"].text() == "5"
+    assert s.device_form.changed_values() == {"noise": "5"}
     assert s.out_dir.text() == str(out) and out.is_dir()  # made, as the form needs it
     assert console.stack.currentIndex() == 0 and console.session is None  # not started
     choice = s.choice()  # what "Open session" would start
@@ -158,7 +160,8 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     resumed = opened[0]
     assert resumed.stack.currentIndex() == 1 and resumed.session.path == path
     assert resumed.setup.device.currentData() == "simulated"
-    assert resumed.setup.device_settings.text() == "noise=5"  # the file's, minus defaults
+    # the file's settings, minus defaults
+    assert resumed.setup.device_form.changed_values() == {"noise": "5"}
     assert resumed.runner.participant == "P01"
     resumed.close()
     with Session(path) as sess:

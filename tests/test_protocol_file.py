@@ -65,6 +65,13 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
     assert again.to_dict() == p.to_dict()
     small = p.with_overrides(blocks=1, break_min_s=0.5)
     assert (small.blocks, small.break_min_s, small.gestures) == (1, 0.5, p.gestures)
+    assert p.order == "prompted"  # the default: the screen prompts the block's order
+    f.write_text(GOOD.replace('name = "mini"', 'name = "mini"\norder = "free"'))
+    free = load_protocol(f)
+    assert free.order == "free" and protocol_from_dict(free.to_dict(), "x").order == "free"
+    old = {k: v for k, v in p.to_dict().items() if k != "order"}  # a session from before
+    assert protocol_from_dict(old, "old").order == "prompted"
+    assert {load_protocol(n).order for n in list_protocols()} == {"prompted"}
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -87,6 +94,8 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
     (lambda t: t + '\n[beep]\nfrequency_hz = 5\n', "mini.toml: beep.frequency_hz: 5 is out of range"),
     (lambda t: t + '\n[randomisation]\nmode = "latin"\n', "mini.toml: randomisation.mode: unknown mode 'latin'"),
     (lambda t: t.replace('name = "mini"', 'name = "mini"\ntrials = 4'), "mini.toml: trials: unknown field"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = "random"'), "mini.toml: order: unknown order 'random' (use prompted or free)"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = 1'), "mini.toml: order: expected text"),
     (lambda t: t.split("[[gestures]]")[0], "mini.toml: gestures: missing"),
     (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"), "mini.toml: breaks: must be a table"),
     (lambda t: t + "\nblocks = [", "mini.toml: not valid TOML"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from collect_fixtures import do_trial, drive, make_rig, mini_protocol, perform_soon, start
 
 from tactile_studio.protocol.protocol_file import load_protocol
@@ -31,6 +32,7 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
         order = s.metadata["block_order"]
         assert s.metadata["participant"] == "P07" and s.metadata["source"] == "collect"
         assert s.metadata["gestures"] == protocol.gesture_names
+        assert s.metadata["trial_order"] == "prompted"
         assert s.closed_cleanly
         assert [t["status"] for t in trials] == ["ok"] * 18
         assert [t["index"] for t in trials] == list(range(18))
@@ -53,8 +55,30 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
             b["start_sample"] >= a["end_sample"] for a, b in zip(trials, trials[1:]))
 
 
-def test_refused_keys_leave_a_visible_hint(tmp_path: Path) -> None:
-    rig = make_rig(tmp_path, mini_protocol())
+def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> None:
+    protocol = mini_protocol(n_gestures=4, blocks=2, order="free")
+    rig = make_rig(tmp_path, protocol, "P03", speed=60.0)
+    vp = VirtualParticipant(rig.runner, rig.device, "P03", seed=0)
+    vp.prepare()
+    try:
+        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
+    finally:
+        rig.close()
+    names = protocol.gesture_names
+    with Session(rig.session.path) as s:
+        order = s.metadata["block_order"]
+        assert s.metadata["trial_order"] == "free"
+        assert any(o != names for o in order)  # so the habit differs from the prompts
+        for b in (0, 1):  # free order: the protocol's order, whatever the block's was
+            assert [t["gesture"] for t in s.trials if t["block"] == b] == names
+        for t in s.trials:
+            seq = s.column("seq", t["start_sample"], t["end_sample"])
+            assert rig.device.gesture_at(int(seq[len(seq) // 2])) == t["gesture"]
+
+
+@pytest.mark.parametrize("order", ["prompted", "free"])
+def test_refused_keys_leave_a_visible_hint(tmp_path: Path, order: str) -> None:
+    rig = make_rig(tmp_path, mini_protocol(order=order))
     r = rig.runner
     try:
         assert not r.key("p") and "not started" in r.snapshot().hint
@@ -66,17 +90,68 @@ def test_refused_keys_leave_a_visible_hint(tmp_path: Path) -> None:
         assert [g.done for g in snap.gestures].count(True) == 1
         assert not r.key(key)
         hint = r.snapshot().hint
-        assert f"{first} ({key}) is already done in this block" in hint
-        assert all(g in hint for g in r.snapshot().remaining)
+        nxt = r.snapshot().remaining[0]
+        if order == "free":
+            assert f"{first} ({key}) is already done in this block" in hint
+            assert all(g in hint for g in r.snapshot().remaining)
+        else:  # the refusal names the prompted gesture and its key
+            nkey = r.protocol.gesture_by_name(nxt).key.upper()
+            assert hint == f"{first} is already done in this block. Next is {nxt} \u2013 press {nkey}"
         assert r.state == "waiting_for_key" and len(r.trials) == 1
         assert not r.key("z") and "'z' is not a gesture key" in r.snapshot().hint
+        assert ("Next is" in r.snapshot().hint) == (order == "prompted")
         assert not r.key("Shift") and "not a gesture key" in r.snapshot().hint
-        other = r.snapshot().remaining[0]
-        assert r.key(r.protocol.gesture_by_name(other).key.upper())  # case-insensitive
+        assert r.key(r.protocol.gesture_by_name(nxt).key.upper())  # case-insensitive
         assert r.snapshot().hint == "" and r.state == "trial_recording"
         assert not r.key(key) and "a trial is running" in r.snapshot().hint
     finally:
         rig.close()
+
+
+def test_prompted_order_is_enforced_block_by_block(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=3, blocks=2))
+    r = rig.runner
+    try:
+        start(rig)
+        orders = r.orders
+        for b, order in enumerate(orders):
+            for i, g in enumerate(order):
+                snap = r.snapshot()
+                assert snap.prompted == g and snap.remaining[0] == g
+                assert [v.name for v in snap.gestures if v.prompted] == [g]
+                k = r.protocol.gesture_by_name(g).key
+                assert f"next is {g} \u2013 press {k.upper()}" in snap.message
+                for other in order[i + 1:]:  # an upcoming gesture's key is refused
+                    assert not r.key(r.protocol.gesture_by_name(other).key)
+                    assert r.snapshot().hint == f"Next is {g} \u2013 press {k.upper()}"
+                    assert r.state in ("block_start", "waiting_for_key")  # no trial began
+                assert do_trial(rig, g)["gesture"] == g  # the prompted key starts it
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert s.metadata["trial_order"] == "prompted"
+        assert s.metadata["protocol_spec"]["order"] == "prompted"
+        for b in (0, 1):
+            assert [t["gesture"] for t in s.trials if t["block"] == b] == orders[b]
+
+
+def test_free_order_takes_any_remaining_gesture(tmp_path: Path) -> None:
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=3, blocks=1, order="free"))
+    r = rig.runner
+    try:
+        start(rig)
+        order = r.orders[0]
+        assert r.snapshot().prompted is None
+        assert not any(v.prompted for v in r.snapshot().gestures)
+        assert "press the key of a gesture" in r.snapshot().message
+        for g in reversed(order):  # against the stored order: every key is taken
+            assert do_trial(rig, g)["gesture"] == g
+        assert r.state == "finished"
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert s.metadata["trial_order"] == "free"
+        assert [t["gesture"] for t in s.trials] == order[::-1]
 
 
 def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path) -> None:
@@ -88,6 +163,7 @@ def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path)
         t0 = do_trial(rig, g0)
         assert r.redo_last("participant hesitated")
         assert r.snapshot().remaining[0] == g0 and "redo" in r.snapshot().hint
+        assert r.snapshot().prompted == g0 and f"Next is {g0}" in r.snapshot().hint
         t1 = do_trial(rig, g0)
         assert t1["index"] == t0["index"] + 1 and t1["gesture"] == g0
         g1 = r.snapshot().remaining[0]
@@ -95,10 +171,14 @@ def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path)
         assert r.snapshot().block_number == 2
         assert r.redo_last()  # the last trial belongs to block 1: reopen it for g1
         snap = r.snapshot()
-        assert (snap.block_number, snap.remaining) == (1, (g1,))
+        assert (snap.block_number, snap.remaining, snap.prompted) == (1, (g1,), g1)
+        b2_first = r.orders[1][0]
+        assert not r.key(r.protocol.gesture_by_name(g0).key)
+        assert r.snapshot().hint.endswith(f"Next is {g1} \u2013 press "
+                                          f"{r.protocol.gesture_by_name(g1).key.upper()}")
         redo = do_trial(rig, g1)
         assert redo["block"] == 0
-        assert r.snapshot().block_number == 2
+        assert r.snapshot().block_number == 2 and r.snapshot().prompted == b2_first
     finally:
         rig.close()
     with Session(rig.session.path) as s:
@@ -117,7 +197,10 @@ def test_discard_needs_a_reason_and_is_not_collected_again(tmp_path: Path) -> No
         t0 = do_trial(rig, g0)
         assert not r.discard(t0["index"], "  ") and "reason" in r.snapshot().hint
         assert not r.discard(99, "x") and "no trial 99" in r.snapshot().hint
+        prompted = r.snapshot().prompted
+        assert prompted == r.orders[0][1]
         assert r.discard(t0["index"], "participant sneezed")
+        assert r.snapshot().prompted == prompted  # a discard does not change the prompt
         assert not r.discard(t0["index"], "again") and "already discarded" in r.snapshot().hint
         assert g0 not in r.snapshot().remaining
         assert r.snapshot().trials[0]["status"] == "discarded"

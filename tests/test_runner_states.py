@@ -173,6 +173,9 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
         r2.start()
         drive(rig2, lambda: r2.state == "waiting_for_key")
         assert r2.snapshot().remaining == (order[0][2],)
+        assert r2.snapshot().prompted == order[0][2]  # the stored order goes on
+        assert not r2.key(r2.protocol.gesture_by_name(order[0][0]).key)
+        assert f"Next is {order[0][2]}" in r2.snapshot().hint
         for g in [order[0][2], *order[1]]:
             do_trial(rig2, g)
         assert r2.state == "finished"

@@ -54,10 +54,11 @@ name = "Tickle"
 key = "k"
 definition = "Tickle the sensor with quick, light movements of your fingertips."
 """
-SIM = "speed=8 gesture=idle"
+SIM = {"speed": "8", "gesture": "idle"}
 WAIT_MS = 15_000
 BUSY = (State.RECORDING, State.TRIAL_END)
 SEEN_RECORDING: list[str] = []  # trials whose countdown screen the test saw
+SEEN_PROMPTS: dict[str, str | None] = {}  # prompted gesture -> the image on its large card
 
 
 MAGENTA = QColor(255, 0, 255)
@@ -92,8 +93,10 @@ def make_console(qtbot) -> CollectConsole:
 def fill_device(qtbot, console: CollectConsole) -> None:
     s = console.setup
     s.device.setCurrentIndex(s.device.findData("simulated"))
-    s.device_settings.clear()
-    qtbot.keyClicks(s.device_settings, SIM)
+    for name, value in SIM.items():  # typed into the plugin's generated form
+        editor = s.device_form.fields[name].editor
+        editor.clear()
+        qtbot.keyClicks(editor, value)
 
 
 def snap(console: CollectConsole):
@@ -119,6 +122,10 @@ def do_trial(qtbot, console: CollectConsole, name: str, key: str, perform: bool 
     if perform:
         console.engine.device.perform(name, duration_s=1.0)
     target = console.participant if via_participant else console
+    prompt = console.participant.view.prompt
+    if prompt is not None:
+        assert prompt.name == name  # the test follows the prompt
+        SEEN_PROMPTS[prompt.name] = prompt.image
     qtbot.keyClick(target, key)
     view = console.participant.view
     if snap(console).state == State.RECORDING:  # (a starved test thread may miss it)
@@ -153,6 +160,7 @@ def continue_after_break(qtbot, console: CollectConsole) -> None:
 def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monkeypatch):
     proto, out = env
     SEEN_RECORDING.clear()
+    SEEN_PROMPTS.clear()
     console = make_console(qtbot)
     s = console.setup
     # protocol from a file, through the "From file..." entry and its dialog
@@ -180,8 +188,9 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     view = console.participant.view
     assert view.block_label == "Block 1 of 3" and len(view.cards) == 3
     # the protocol's image (relative to the protocol file) reaches the participant's card
-    assert {c.name: c.image for c in view.cards} == {
-        "Poke": str(proto.parent / "pics" / "poke.png"), "Twist": None, "Tickle": None}
+    images = {"Poke": str(proto.parent / "pics" / "poke.png"), "Twist": None, "Tickle": None}
+    assert {g.name: g.image for g in snap(console).gestures} == images
+    assert view.prompt.image == images[view.prompt.name]  # on the large prompted card
     first = snap(console).gestures[0]
 
     # 1. a trial without touching: flagged, held, highlighted, prompted; then redone
@@ -271,6 +280,66 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert len(beeps) == len(trials) == 10
     assert {(b.frequency_hz, b.length_s) for b in beeps} == {(880.0, 0.05)}
     assert len(SEEN_RECORDING) >= 5  # the countdown was on screen during the trials
+    assert SEEN_PROMPTS == images  # every gesture was prompted, with its image
+
+
+def open_mini(qtbot, console: CollectConsole, proto, out, blocks: int) -> None:
+    s = console.setup
+    s.set_protocol_file(str(proto))
+    s.blocks.setValue(blocks)
+    qtbot.keyClicks(s.participant, "P05")
+    s.out_dir.setText(str(out))
+    fill_device(qtbot, console)
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    click(qtbot, console, "primary")  # Start
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+
+
+def test_prompted_order_is_enforced_by_key_presses(qtbot, env):
+    proto, out = env
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    order = console.runner.orders[0]
+    keys = {g.name: g.key for g in console.protocol.gestures}
+    for i, name in enumerate(order):
+        view = console.participant.view
+        # the prompted gesture is shown large, the block's cards marked done/next/upcoming
+        assert view.mode == "waiting" and view.prompt is not None
+        assert view.prompt.name == name and view.prompt.key == keys[name]
+        assert view.title == f"Next: {name}" and console.mirror.view == view
+        assert [c.note for c in view.cards] == \
+            ["done"] * i + ["next"] + ["upcoming"] * (len(order) - i - 1)
+        assert f"next is {name} ({keys[name].upper()})" in console.state.text()
+        refusal = f"Next is {name} \u2013 press {keys[name].upper()}"
+        for wrong in [*order[:i], *order[i + 1:]]:  # done or upcoming: refused, named
+            qtbot.keyClick(console.participant, keys[wrong])
+            assert snap(console).state == State.WAITING and len(snap(console).trials) == i
+            assert console.participant.view.hint.endswith(refusal)
+            assert console.hint_label.text().endswith(refusal)
+        qtbot.keyClick(console.participant, "x")  # not a gesture key: named too
+        assert console.participant.view.hint == f"'x' is not a gesture key. {refusal}"
+        trial = do_trial(qtbot, console, name, keys[name])  # the prompted key starts it
+        assert trial["gesture"] == name and trial["status"] == "ok"
+    qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
+    assert [t["gesture"] for t in snap(console).trials] == order
+
+
+def test_free_order_protocol_takes_any_remaining_key(qtbot, env):
+    proto, out = env
+    proto.write_text(MINI.replace('free_play_s = 0.3', 'free_play_s = 0.3\norder = "free"'))
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    order = console.runner.orders[0]
+    keys = {g.name: g.key for g in console.protocol.gestures}
+    assert console.participant.view.prompt is None
+    assert "free order" in console.state.text() and "free order" in console.progress_label.text()
+    for name in reversed(order):  # any remaining gesture's key starts its trial
+        assert do_trial(qtbot, console, name, keys[name])["gesture"] == name
+    qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
+    assert [t["gesture"] for t in snap(console).trials] == order[::-1]
+    with Session(console.session.path if console.session else console._closed_session_path) as f:
+        assert f.metadata["trial_order"] == "free"
 
 
 def test_setup_errors_are_one_line_and_nothing_opens(qtbot, env, tmp_path):
@@ -345,6 +414,14 @@ def test_participant_screen_draws_every_mode_at_any_size(qtbot, size):
                                          hint="K is already done" if mode == "waiting" else ""))
         image = screen.grab().toImage()
         assert image.width() == size[0] and image != blank
+    # prompted order: the next gesture large above the block's compact cards
+    strip = [Card(c.key, c.name, c.definition, c.done, i == 1, note="next" if i == 1 else "")
+             for i, c in enumerate(cards)]
+    screen.show_view(ParticipantView("waiting", "Next: B", "Press B as you start it.",
+                                     "Block 2 of 52", 1, 14, strip, hint="Next is B",
+                                     prompt=Card("b", "B", "A long definition. " * 8)))
+    prompted = screen.grab().toImage()
+    assert prompted != image and prompted != blank
 
 
 def test_main_window_menu_opens_a_console_on_the_live_engine(qtbot, env):
@@ -415,3 +492,24 @@ def test_card_image_is_scaled_to_fit_with_its_aspect(qtbot, tmp_path, size):
     plain = grab(None)
     assert grab(str(junk)) == plain and grab(str(tmp_path / "gone.png")) == plain
     assert grab(wide) != plain
+
+
+def test_console_numbers_blocks_from_one_and_names_practice(qtbot, env, tmp_path):
+    proto, out = env
+    proto.write_text(MINI.replace("free_play_s = 0.3", "free_play_s = 0.0\npractice_trials = 1"))
+    console = make_console(qtbot)
+    open_mini(qtbot, console, proto, out, blocks=1)
+    s = snap(console)
+    assert s.practice and console.participant.view.block_label == "Practice"
+    assert "practice \u00b7" in console.progress_label.text()
+    assert "block 0" not in console.progress_label.text()
+    g = next(x for x in s.gestures if x.name == s.prompted)
+    do_trial(qtbot, console, g.name, g.key)
+    qtbot.waitUntil(lambda: not snap(console).practice, timeout=WAIT_MS)
+    assert console.log.item(0, 1).text() == "practice"
+    s = snap(console)
+    assert console.participant.view.block_label == "Block 1 of 1"
+    assert "block 1 of 1" in console.progress_label.text()
+    g = next(x for x in s.gestures if x.name == s.prompted)
+    do_trial(qtbot, console, g.name, g.key)
+    assert console.log.item(1, 1).text() == "1"  # stored 0-based, shown 1-based

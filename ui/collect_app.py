@@ -92,9 +92,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
     if condition:
         s.condition.setText(condition)
     if device:
-        s.device.setCurrentIndex(s.device.findData(device))
-    if device_settings:
-        s.device_settings.setText(" ".join(f"{k}={_text(v)}" for k, v in device_settings.items()))
+        s.set_device(device, {k: _text(v) for k, v in (device_settings or {}).items()})
     if out_dir is not None:
         s.out_dir.setText(str(out_dir))
     if blocks is not None:

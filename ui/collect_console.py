@@ -202,7 +202,11 @@ class CollectConsole(QMainWindow):
 
     def resume_from(self, path: str | Path) -> bool:
         """Continue a killed or closed session file at its next trial."""
-        device, dev_settings = self.setup.device_choice()
+        try:
+            device, dev_settings = self.setup.device_choice()
+        except UserError as exc:
+            self.setup.error.setText(str(exc))
+            return False
         return self._open(lambda eng: resume_session(
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
             hold_flagged=self.setup.hold_flagged.isChecked(),

@@ -18,7 +18,6 @@ from dataclasses import dataclass, field, replace
 from PySide6.QtCore import QRectF, QSize, Qt, QVariantAnimation, Signal
 from PySide6.QtGui import (
     QColor,
-    QFont,
     QFontMetricsF,
     QImage,
     QImageReader,
@@ -30,20 +29,24 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QWidget
 
+from tactile_studio.ui.collect_paint import (
+    ACCENT,
+    ACTIVE,
+    BG,
+    DIM,
+    GOOD,
+    MUTED,
+    PANEL,
+    PANEL_DONE,
+    SURROUND,
+    TEXT,
+    WARN,
+    _fit_font,
+    _font,
+    paint_prompt,
+)
+
 log = logging.getLogger(__name__)
-
-BG = QColor("#1b1f2a")
-SURROUND = QColor("#0e1016")
-PANEL = QColor("#262c3b")
-PANEL_DONE = QColor("#20242f")
-TEXT = QColor("#f3f5f9")
-MUTED = QColor("#aab2c3")
-DIM = QColor("#5d6577")
-ACCENT = QColor("#5b9bff")
-ACTIVE = QColor("#ffb547")
-GOOD = QColor("#46c98b")
-WARN = QColor("#ff7a66")
-
 
 @dataclass
 class Card:
@@ -55,6 +58,7 @@ class Card:
     done: bool = False
     active: bool = False
     image: str | None = None  # file path; drawn at the card's right when it can be read
+    note: str = ""            # "next" / "upcoming" under the name of a compact card
 
 
 @dataclass
@@ -76,6 +80,7 @@ class ParticipantView:
     countdown_total_s: float | None = None
     hint: str = ""                          # e.g. a refused key
     footer: str = ""
+    prompt: Card | None = None              # the prompted gesture, drawn large (waiting)
 
 
 def _grid(n: int, w: float, h: float, aspect: float = 2.1) -> tuple[int, int]:
@@ -88,26 +93,6 @@ def _grid(n: int, w: float, h: float, aspect: float = 2.1) -> tuple[int, int]:
         if size > best_size + 1e-6:
             best, best_size = (cols, rows), size
     return best
-
-
-def _font(px: float, bold: bool = False) -> QFont:
-    f = QFont()
-    f.setPixelSize(max(6, int(px)))
-    f.setBold(bold)
-    return f
-
-
-def _fit_font(text: str, rect: QRectF, px: float, bold: bool = False,
-              wrap: bool = True, min_px: float = 7) -> QFont:
-    """The largest font up to ``px`` in which ``text`` fits ``rect``."""
-    flags = int(Qt.TextFlag.TextWordWrap) if wrap else 0
-    while px > min_px:
-        f = _font(px, bold)
-        br = QFontMetricsF(f).boundingRect(rect, flags, text)
-        if br.width() <= rect.width() + 0.5 and br.height() <= rect.height() + 0.5:
-            return f
-        px *= 0.92
-    return _font(min_px, bold)
 
 
 class ParticipantScreen(QWidget):
@@ -205,7 +190,13 @@ class ParticipantScreen(QWidget):
             self._paint_hint(p, QRectF(body.left(), body.bottom() - hint_h, body.width(),
                                        hint_h), u)
             body.setBottom(body.bottom() - hint_h - 10 * u)
-        if v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
+        if v.mode == "waiting" and v.prompt is not None:
+            prompt_h = body.height() * 0.6
+            self._paint_prompt(p, QRectF(body.left(), body.top(), body.width(), prompt_h), u)
+            strip = QRectF(body.left(), body.top() + prompt_h + 18 * u, body.width(),
+                           body.height() - prompt_h - 18 * u)
+            self._paint_cards(p, strip, u, compact=True)
+        elif v.mode in ("waiting", "recording", "trial_end", "review", "block_start") and v.cards:
             stage_h = body.height() * (0.36 if v.mode in ("recording", "trial_end") else 0.22)
             if v.mode == "waiting" and any(self._readable(c) for c in v.cards):
                 stage_h = body.height() * 0.16  # cards with images need the room for text
@@ -285,6 +276,12 @@ class ParticipantScreen(QWidget):
             p.setFont(_fit_font(v.subtitle, sub_r, (40 if big else 32) * u))
             p.drawText(sub_r, int(align | Qt.AlignmentFlag.AlignTop | Qt.TextFlag.TextWordWrap),
                        v.subtitle)
+
+    def _paint_prompt(self, p: QPainter, r: QRectF, u: float) -> None:
+        card = self.view.prompt
+        assert card is not None
+        image = (lambda box: self._paint_image(p, box, card)) if self._readable(card) else None
+        paint_prompt(p, r, u, card, self.view.subtitle, image)
 
     def _paint_dial(self, p: QPainter, r: QRectF, u: float) -> None:
         v = self.view
@@ -447,6 +444,13 @@ class ParticipantScreen(QWidget):
                        Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop,
                        f"key {c.key.upper()}  \u00b7  done")
             return
+        if c.note and not c.definition:
+            p.setPen(ACTIVE if c.active else MUTED)
+            note = f"key {c.key.upper()}  \u00b7  {c.note}"
+            note_r = QRectF(name_r.left(), name_r.bottom() + 2, name_r.width(), def_px * 2)
+            p.setFont(_fit_font(note, note_r, min(def_px, badge * 0.34), bold=c.active,
+                                wrap=False))
+            p.drawText(note_r, Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop, note)
         if c.definition:
             d = self._definition_rect(r, c, u)
             if d.height() > 6:

@@ -4,6 +4,10 @@ It only collects choices and hands them on (``startRequested`` / ``resumeRequest
 loading and validating the protocol is the core's ``load_protocol`` (its one-line
 errors are shown under the form). Folders and files are remembered in QSettings so
 the dialogs open where the experimenter last was.
+
+The device defaults to the main window's live device when there is one, else the one
+last used for a session, else ``simulated``. Its settings are the plugin's own form
+(ui/settings_form.py, as in the device panel), checked as they are typed.
 """
 
 from __future__ import annotations
@@ -28,16 +32,20 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.devices.registry import available_plugins, parse_set_options
+from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.protocol_file import Protocol, list_protocols, load_protocol
+from tactile_studio.ui.settings import get_json, set_json
+from tactile_studio.ui.settings_form import SettingsForm
 
 LIVE_DEVICE = "(the live device)"
 KEY_OUT_DIR = "collect/out_dir"
 KEY_LAST_DIR = "collect/last_dir"
 KEY_DEVICE = "collect/device"
+KEY_DEVICE_VALUES = "collect/device_values/"  # + plugin name: its non-default settings
 KEY_PROTOCOL = "collect/protocol"
 DEFAULT_PROTOCOL = "shear9"
+DEFAULT_DEVICE = "simulated"
 _FROM_FILE = "From file\u2026"
 
 
@@ -92,17 +100,25 @@ class CollectSetup(QWidget):
         out_row = QHBoxLayout()
         out_row.addWidget(self.out_dir, 1)
         out_row.addWidget(browse)
+        self.plugins = {name: cls for name, cls in available_plugins().items()
+                        if not isinstance(cls, Exception) and name != "replay"}
         self.device = QComboBox()
         if live_device:
             self.device.addItem(f"{LIVE_DEVICE} {live_device}", None)
-        for name, cls in available_plugins().items():
-            if not isinstance(cls, Exception) and name != "replay":
-                self.device.addItem(name, name)
+        for name in self.plugins:
+            self.device.addItem(name, name)
+        self.device_form = SettingsForm("Device settings")
+        self.device_form.changed.connect(self._check_device)
+        self.device_error = QLabel()
+        self.device_error.setWordWrap(True)
+        self.device_error.setStyleSheet("color: #c0392b;")
+        self.device_error.hide()
+        self.device.currentIndexChanged.connect(self._on_device_changed)
         saved = settings.value(KEY_DEVICE)
-        if saved and not live_device and self.device.findData(saved) >= 0:
-            self.device.setCurrentIndex(self.device.findData(saved))
-        self.device_settings = QLineEdit()
-        self.device_settings.setPlaceholderText("key=value ...   e.g. port=/dev/ttyUSB0")
+        if not live_device:
+            default = saved if self.device.findData(saved) >= 0 else DEFAULT_DEVICE
+            self.device.setCurrentIndex(max(0, self.device.findData(default)))
+        self._on_device_changed()
         self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
@@ -116,7 +132,8 @@ class CollectSetup(QWidget):
         form.addRow("Order seed", self.seed)
         form.addRow("Output folder", out_row)
         form.addRow("Device", self.device)
-        form.addRow("Device settings", self.device_settings)
+        form.addRow(self.device_form)
+        form.addRow("", self.device_error)
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
 
@@ -194,7 +211,9 @@ class CollectSetup(QWidget):
                if p.break_every else "no breaks")
         self.protocol_info.setText(
             f"{p.title}: {len(p.gestures)} gestures, {p.trial_s:g} s trials, {brk}, "
-            f"{p.free_play_s:g} s free play")
+            f"{p.free_play_s:g} s free play; "
+            + ("the screen prompts each block's random order" if p.order == "prompted"
+               else "free order within a block (any gesture not done yet)"))
 
     # ---- folders ----------------------------------------------------------------------
     def _last_dir(self) -> str:
@@ -218,9 +237,43 @@ class CollectSetup(QWidget):
             self.resumeRequested.emit(path)
 
     # ---- choices ----------------------------------------------------------------------
+    # ---- device -----------------------------------------------------------------------
+    def _on_device_changed(self) -> None:
+        """The chosen plugin's form, with the settings last used with it."""
+        name = self.device.currentData() or ""
+        self.device_form.set_plugin(self.plugins.get(name))
+        if name:
+            saved = get_json(self.settings, KEY_DEVICE_VALUES + name, {})
+            self.device_form.set_values(saved if isinstance(saved, dict) else {})
+        self._check_device()
+
+    def _check_device(self) -> str | None:
+        error = self.device_form.first_error()
+        self.device_error.setText(error or "")
+        self.device_error.setVisible(bool(error))
+        return error
+
+    def set_device(self, name: str, values: dict[str, Any] | None = None) -> bool:
+        """Choose plugin ``name`` with exactly ``values`` over its defaults (what the
+        ``collect`` command passes); False if it cannot run a session."""
+        i = self.device.findData(name)
+        if i < 0:
+            return False
+        if i != self.device.currentIndex():
+            self.device.setCurrentIndex(i)
+        self.device_form.set_plugin(self.plugins[name])
+        self.device_form.set_values(values or {})
+        self._check_device()
+        return True
+
     def device_choice(self) -> tuple[str | None, dict[str, Any]]:
-        """The chosen plugin (None = the shared live engine) and its settings."""
-        return self.device.currentData(), parse_set_options(self.device_settings.text().split())
+        """The chosen plugin (None = the shared live engine) and the settings that differ
+        from its defaults; a bad value is a one-line UserError."""
+        name = self.device.currentData()
+        error = self._check_device()
+        if error:
+            raise UserError(f"device {name}: {error}")
+        return name, self.device_form.changed_values() if name else {}
 
     def choice(self) -> SetupChoice:
         """The form's values, validated (UserError with a one-line message)."""
@@ -249,4 +302,5 @@ class CollectSetup(QWidget):
         self.settings.setValue(KEY_PROTOCOL, self.protocol.currentData() or "")
         if choice.device:
             self.settings.setValue(KEY_DEVICE, choice.device)
+            set_json(self.settings, KEY_DEVICE_VALUES + choice.device, choice.device_settings)
         self.startRequested.emit(choice)

@@ -7,6 +7,7 @@ the painting code and the console stay free of protocol logic.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAG_TEXT
@@ -14,6 +15,17 @@ from tactile_studio.ui.collect_participant import Card, ParticipantView
 
 _WAIT_TITLE = "Press the key of the gesture you will do next"
 _WAIT_SUB = "Then start it at once and keep going until the beep."
+
+
+def _note(g: Any, prompted: str | None, state: str) -> str:
+    """Under a compact card's name in prompted order: next / now / upcoming ("" free)."""
+    if prompted is None and not (state == "trial_recording" and g.current):
+        return ""
+    if g.done:
+        return "done"
+    if g.current:
+        return "now"
+    return "next" if g.name == prompted else "upcoming"
 
 
 def _block_label(snap: Any) -> str:
@@ -33,9 +45,10 @@ def _steps(seconds: float | None, per_s: int) -> float | None:
 
 def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     """The participant screen for a runner snapshot (``protocol`` gives countdown totals)."""
-    cards = [Card(g.key, g.name, g.definition, bool(g.done), bool(g.current), g.image)
-             for g in snap.gestures]
     state = snap.state
+    prompted = snap.prompted
+    cards = [Card(g.key, g.name, g.definition, bool(g.done), bool(g.current), g.image,
+                  _note(g, prompted, state)) for g in snap.gestures]
     v = ParticipantView(mode=state, block_label=_block_label(snap), cards=cards,
                         done_in_block=sum(c.done for c in cards), n_in_block=len(cards),
                         hint=snap.hint or "")
@@ -50,6 +63,15 @@ def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     elif state == "block_start":
         title = "Practice" if snap.practice else f"Block {snap.block_number}"
         sub = "Get ready"
+    elif state == "waiting_for_key" and prompted:
+        v.mode = "waiting"
+        g = next(g for g in snap.gestures if g.name == prompted)
+        v.prompt = Card(g.key, g.name, g.definition, False, True, g.image)
+        # the strip below the prompt: key, name and done/next/upcoming (the image and
+        # the definition are on the large card)
+        v.cards = [replace(c, active=c.name == prompted, image=None) for c in cards]
+        title = f"Next: {g.name}"
+        sub = f"Press {g.key.upper()} as you start it, then keep going until the beep."
     elif state == "waiting_for_key":
         v.mode = "waiting"
         title, sub = _WAIT_TITLE, _WAIT_SUB
@@ -89,8 +111,16 @@ def state_label(snap: Any) -> str:
              "trial_review": "Review the last trial", "break": "Break",
              "paused": "Paused", "finished": "Finished", "aborted": "Aborted"}
     text = names.get(snap.state, snap.state)
+    prompted = snap.prompted
+    nxt = f"{prompted} ({snap.prompted_key.upper()})" if prompted else ""
+    if snap.state == "waiting_for_key" and nxt:
+        text = f"Waiting for the participant: next is {nxt}"
+    elif snap.state == "waiting_for_key" and snap.order == "free":
+        text = "Waiting for the participant's key (free order)"
     if snap.state == "trial_recording" and snap.current_gesture:
         text += f": {snap.current_gesture}"
+        if nxt:
+            text += f" \u00b7 then {nxt}"
     if snap.state == "paused" and snap.paused_state:
         text += f" (in {names.get(snap.paused_state, snap.paused_state).lower()})"
     if snap.state == "trial_review" and snap.can_continue:
@@ -110,8 +140,11 @@ def format_eta(seconds: float | None) -> str:
 
 
 def progress_text(snap: Any) -> str:
-    return (f"{snap.trials_done} of {snap.trials_total} trials \u00b7 "
-            f"block {snap.block_number} of {snap.blocks_total} \u00b7 ETA {format_eta(snap.eta_s)}")
+    """Trials, block (1-based; "practice" before block 1) and ETA, for the console."""
+    where = ("practice" if snap.practice
+             else f"block {snap.block_number} of {snap.blocks_total}")
+    return (f"{snap.trials_done} of {snap.trials_total} trials \u00b7 {where} \u00b7 "
+            f"{snap.order} order \u00b7 ETA {format_eta(snap.eta_s)}")
 
 
 def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:

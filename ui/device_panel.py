@@ -1,10 +1,11 @@
 """Choose a device plugin, edit its settings, connect, tare and record.
 
-The settings form is generated from the plugin's ``settings_schema`` and validated with
-the schema's own ``Setting.parse`` as the user types, so the rules live in one place
-(the core) and an invalid value shows its one-line message before anything connects.
-A plugin with a ``discover`` hook gets a "Scan" drop-down for its ``discover_setting``
-(ui/device_discovery.py); serial ports are listed as soon as the plugin is chosen.
+The settings form (ui/settings_form.py, shared with the collection setup) is generated
+from the plugin's ``settings_schema`` and validated with the schema's own
+``Setting.parse`` as the user types, so an invalid value shows its one-line message
+before anything connects. A plugin with a ``discover`` hook gets a "Scan" drop-down for
+its ``discover_setting`` (ui/device_discovery.py); serial ports are listed as soon as the
+plugin is chosen.
 """
 
 from __future__ import annotations
@@ -16,97 +17,25 @@ from typing import Any
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
-    QCheckBox,
     QComboBox,
     QFileDialog,
-    QFormLayout,
-    QGroupBox,
     QHBoxLayout,
     QLabel,
-    QLineEdit,
     QPushButton,
     QSizePolicy,
-    QToolButton,
     QVBoxLayout,
     QWidget,
 )
 
-from tactile_studio.devices.contract import DevicePlugin, Setting
+from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.live import LiveController, LiveStatus, discover_setting
+from tactile_studio.live import LiveController, LiveStatus
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.settings import app_settings
+from tactile_studio.ui.settings_form import SettingField, SettingsForm, one_line
 
 LAST_DIR_KEY = "record/last_dir"
-
-
-def _one_line(text: str) -> str:
-    return " ".join(str(text).split())
-
-
-class _Field:
-    """One generated form row: the editor widget and how to read/write its text."""
-
-    def __init__(self, setting: Setting, on_change: Any) -> None:
-        self.setting = setting
-        self.widget: QWidget
-        default = "" if setting.default is None else str(setting.default)
-        if setting.kind == "bool":
-            self.editor = QCheckBox()
-            self.editor.setChecked(bool(setting.default))
-            self.editor.toggled.connect(on_change)
-            self.widget = self.editor
-        elif setting.kind == "choice":
-            self.editor = QComboBox()
-            self.editor.addItems(list(setting.choices))
-            self.editor.setCurrentText(default)
-            self.editor.currentTextChanged.connect(on_change)
-            self.widget = self.editor
-        else:
-            self.editor = QLineEdit(default)
-            self.editor.textChanged.connect(on_change)
-            self.widget = self.editor
-            if setting.kind == "path":
-                browse = QToolButton(text="…")
-                browse.clicked.connect(self._browse)
-                row = QWidget()
-                lay = QHBoxLayout(row)
-                lay.setContentsMargins(0, 0, 0, 0)
-                lay.addWidget(self.editor, 1)
-                lay.addWidget(browse)
-                self.widget = row
-        tip = setting.help or setting.name
-        if setting.minimum is not None or setting.maximum is not None:
-            tip += f" (range {setting.minimum if setting.minimum is not None else ''}.."
-            tip += f"{setting.maximum if setting.maximum is not None else ''})"
-        self.widget.setToolTip(tip)
-
-    def _browse(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self.widget, f"Choose {self.setting.name}",
-                                              self.text())
-        if path:
-            self.set_text(path)
-
-    def text(self) -> str:
-        if isinstance(self.editor, QCheckBox):
-            return "true" if self.editor.isChecked() else "false"
-        if isinstance(self.editor, QComboBox):
-            return self.editor.currentText()
-        return self.editor.text().strip()
-
-    def set_text(self, text: str) -> None:
-        if isinstance(self.editor, QCheckBox):
-            self.editor.setChecked(str(text).lower() in {"1", "true", "yes", "on"})
-        elif isinstance(self.editor, QComboBox):
-            self.editor.setCurrentText(str(text))
-        else:
-            self.editor.setText(str(text))
-
-    def set_invalid(self, bad: bool) -> None:
-        self.editor.setProperty("invalid", bad)
-        self.editor.style().unpolish(self.editor)
-        self.editor.style().polish(self.editor)
 
 
 class DevicePanel(QWidget):
@@ -124,8 +53,6 @@ class DevicePanel(QWidget):
         super().__init__(parent)
         self.controller = controller
         self.plugins = available_plugins()
-        self._fields: dict[str, _Field | DiscoverField] = {}
-        self.discover_field: DiscoverField | None = None
         self._form_error: str | None = None
 
         self.device_box = QComboBox()
@@ -134,7 +61,7 @@ class DevicePanel(QWidget):
                 self.device_box.addItem(f"{name} (failed to load)", name)
                 item = self.device_box.model().item(self.device_box.count() - 1)
                 item.setEnabled(False)
-                item.setToolTip(_one_line(cls))
+                item.setToolTip(one_line(cls))
             else:
                 self.device_box.addItem(name, name)
         self.device_box.currentIndexChanged.connect(self._rebuild_form)
@@ -142,9 +69,8 @@ class DevicePanel(QWidget):
         self.description.setWordWrap(True)
         self.description.setObjectName("hint")
 
-        self.form_box = QGroupBox("Settings")
-        self.form = QFormLayout(self.form_box)
-        self.form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        self.form_box = SettingsForm("Settings")
+        self.form_box.changed.connect(self._validate)
 
         self.error_label = ElidedLabel()
         self.error_label.setObjectName("error")
@@ -212,56 +138,34 @@ class DevicePanel(QWidget):
             self.device_box.setCurrentIndex(i)
         else:
             self._rebuild_form()
-        for key, value in (values or {}).items():
-            if key in self._fields and value is not None:
-                self._fields[key].set_text(str(value))
+        self.form_box.set_values(values or {})
         self._validate()
         return True
 
+    @property
+    def _fields(self) -> dict[str, SettingField | DiscoverField]:
+        return self.form_box.fields
+
+    @property
+    def discover_field(self) -> DiscoverField | None:
+        return self.form_box.discover_field
+
     def _rebuild_form(self) -> None:
-        if self.discover_field is not None:
-            self.discover_field.forget()
-            self.discover_field = None
-        while self.form.rowCount():
-            self.form.removeRow(0)
-        self._fields.clear()
         cls = self.plugin()
         self.description.setText(getattr(cls, "description", "") or "")
         self.description.setVisible(bool(self.description.text()))
-        scan_name = discover_setting(cls)
-        for setting in (cls.settings_schema if cls else ()):
-            if setting.name == scan_name:
-                field = DiscoverField(setting, cls, self._validate, self.values)
-                self.discover_field = field
-            else:
-                field = _Field(setting, self._validate)
-            self._fields[setting.name] = field
-            self.form.addRow(setting.name, field.widget)
-        self.form_box.setVisible(bool(self._fields))
+        self.form_box.set_plugin(cls)
         self._validate()
-        if self.discover_field is not None and self.discover_field.instant:
-            self.discover_field.scan()
 
     def values(self) -> dict[str, str]:
         """The form as text, as ``--set key=value`` would give it (empty = default)."""
-        return {name: f.text() for name, f in self._fields.items() if f.text() != ""}
+        return self.form_box.values()
 
     def _validate(self, *_: object) -> bool:
-        cls, first = self.plugin(), None
-        for name, field in self._fields.items():
-            text = field.text()
-            try:
-                if text != "":
-                    field.setting.parse(text, cls.name if cls else "")
-                field.set_invalid(False)
-            except UserError as exc:
-                field.set_invalid(True)
-                # the field is highlighted, so "device x: setting " need not be repeated
-                first = first or _one_line(exc).replace(
-                    f"device {cls.name if cls else ''}: setting ", "", 1)
+        first = self.form_box.first_error()
         self._form_error = first
         self.show_error(first)
-        self.connect_button.setEnabled(cls is not None and first is None)
+        self.connect_button.setEnabled(self.plugin() is not None and first is None)
         return first is None
 
     def is_valid(self) -> bool:
@@ -271,7 +175,7 @@ class DevicePanel(QWidget):
     def show_error(self, message: str | None) -> None:
         """Show one line of error text under the form (None hides it)."""
         if message:
-            self.error_label.setText(_one_line(message))
+            self.error_label.setText(one_line(message))
             self.error_label.setToolTip(message)
         self.error_label.setVisible(bool(message))
 
@@ -287,7 +191,7 @@ class DevicePanel(QWidget):
         try:
             self.controller.connect(name, self.values())
         except UserError as exc:
-            self.show_error(_one_line(exc))
+            self.show_error(one_line(exc))
             return False
         self.show_error(None)
         self.engineChanged.emit()
@@ -334,7 +238,7 @@ class DevicePanel(QWidget):
         try:
             self.controller.start_recording(path)
         except UserError as exc:
-            self.show_error(_one_line(exc))
+            self.show_error(one_line(exc))
             self.record_button.setChecked(False)
             return False
         self.show_error(None)

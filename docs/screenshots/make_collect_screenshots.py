@@ -1,10 +1,11 @@
 """Screenshots of the collection screens from a real session on the simulated sensor.
 
 ``QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_collect_screenshots.py
-[OUT_DIR]`` (default: this folder) writes collect-*.png: the setup step, the participant screen waiting for a key, with a
-refused key, during a trial countdown and in a break, and the experimenter console
-mid-session with a flagged trial waiting for a decision. Works headless
-(QT_QPA_PLATFORM=offscreen); takes about 15 s.
+[OUT_DIR]`` (default: this folder) writes collect-*.png: the setup step (with the
+simulator's settings form), the participant screen prompting the next gesture, refusing
+another gesture's key, during a trial countdown and in a break, and the experimenter
+console waiting for the prompted gesture and with a flagged trial waiting for a
+decision. Works headless (QT_QPA_PLATFORM=offscreen); takes about 20 s.
 """
 
 from __future__ import annotations
@@ -53,8 +54,7 @@ def main(argv: list[str] | None = None) -> int:
     s = console.setup
     s.participant.setText("P01")
     s.out_dir.setText(str(tmp))
-    s.device.setCurrentIndex(s.device.findData("simulated"))
-    s.device_settings.setText("speed=4 gesture=idle seed=3")
+    s.set_device("simulated", {"speed": "4", "gesture": "idle", "seed": "3"})
     s.blocks.setValue(2)
     _settle(app, 0.2)
     console.grab().save(str(out / "collect-setup.png"))
@@ -89,9 +89,12 @@ def main(argv: list[str] | None = None) -> int:
     _settle(app, 0.6)  # let the beep's flash fade
     screen.grab().save(str(out / "collect-participant-waiting.png"))
 
-    console.forward_key(gestures[0].key)  # already done: refused with a hint
+    console.forward_key(gestures[5].key)  # an upcoming gesture: refused, the prompt named
     _settle(app, 0.1)
     screen.grab().save(str(out / "collect-participant-refused.png"))
+    dev.perform("Constant Touch", duration_s=12.0)  # something on the heatmap
+    _settle(app, 0.8)
+    console.grab().save(str(out / "collect-console.png"))
 
     dev.perform(gestures[3].name, duration_s=2.4)
     console.forward_key(gestures[3].key)
@@ -109,7 +112,7 @@ def main(argv: list[str] | None = None) -> int:
     trial(gestures[6], perform=False)  # nobody touched: flagged and held for a decision
     dev.perform("Circular Stroke", duration_s=6.0)
     _settle(app, 1.0)
-    console.grab().save(str(out / "collect-console.png"))
+    console.grab().save(str(out / "collect-console-flagged.png"))
     console.redo_last()
     for g in snap().gestures:
         if not g.done:

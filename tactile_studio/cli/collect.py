@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--participant", help="participant id, e.g. P01")
     p.add_argument("--device", default=None,
                    help="device plugin (headless default: simulated; the console preselects "
-                        "the last one used)")
+                        "the last one used, else simulated)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
     p.add_argument("--virtual-participant", action="store_true",
                    help="a simulated participant presses the keys and performs the gestures")

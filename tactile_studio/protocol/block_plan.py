@@ -5,6 +5,10 @@ and then the blocks in their randomised orders. For each round the plan knows wh
 gestures are done, which scheduled breaks were taken and where a resumed session picks
 up. Pure bookkeeping (no clock, no file, no device), so the runner's state machine only
 asks questions of it.
+
+The prompted gesture of a round is the first of ``remaining()``: the round's planned
+order without the done gestures, except that a redone gesture comes first (it was the
+last one done, so it is normally first anyway; a resumed older file may have gaps).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ class BlockPlan:
         self.n_blocks = len(orders)
         self.break_every = break_every
         self.breaks_taken: set[int] = set()
+        self.redo_first: dict[int, str] = {}  # round index -> its reopened gesture
 
     def restore(self, trials: list[dict[str, Any]]) -> None:
         """Mark the gestures of a resumed session's trials done (redone ones excepted),
@@ -52,15 +57,29 @@ class BlockPlan:
         return self.rounds[self.index][1]
 
     def remaining(self, i: int | None = None) -> list[str]:
-        """Gestures of round ``i`` (default: the current one) not done yet, in order."""
+        """Gestures of round ``i`` (default: the current one) not done yet, in the order
+        they are prompted (a redone gesture first, then the planned order)."""
         i = self.index if i is None else i
-        return [g for g in self.rounds[i][1] if g not in self.done[i]]
+        left = [g for g in self.rounds[i][1] if g not in self.done[i]]
+        first = self.redo_first.get(i)
+        if first in left and left[0] != first:
+            left.remove(first)
+            left.insert(0, first)
+        return left
+
+    @property
+    def prompted(self) -> str | None:
+        """The gesture the screen prompts now (None when the round is complete)."""
+        left = self.remaining()
+        return left[0] if left else None
 
     def is_done(self, gesture: str) -> bool:
         return gesture in self.done[self.index]
 
     def mark_done(self, gesture: str) -> None:
         self.done[self.index].add(gesture)
+        if self.redo_first.get(self.index) == gesture:
+            del self.redo_first[self.index]
 
     def reopen(self, block: int, gesture: str) -> None:
         """Put a redone trial's gesture back: its round (the latest one of ``block``
@@ -68,6 +87,7 @@ class BlockPlan:
         i = next(i for i in range(min(self.index, len(self.rounds) - 1), -1, -1)
                  if self.rounds[i][0] == block and gesture in self.done[i])
         self.done[i].discard(gesture)
+        self.redo_first[i] = gesture
         self.index = i
 
     def is_last_round(self) -> bool:
@@ -84,6 +104,10 @@ class BlockPlan:
 
     def take_break(self, block: int) -> None:
         self.breaks_taken.add(block)
+
+    def rounds_ahead(self) -> list[tuple[int, list[str]]]:
+        """(block, remaining gestures) of the current round and every later one."""
+        return [(self.rounds[i][0], self.remaining(i)) for i in range(self.index, len(self.rounds))]
 
     def upcoming(self, n: int, skip: str | None = None) -> list[tuple[int, str]]:
         """The next ``n`` (block, gesture) pairs in the planned order, leaving out

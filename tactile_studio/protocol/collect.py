@@ -106,7 +106,7 @@ def session_metadata(protocol: Protocol, participant: str, seed: int, orders: li
         "gestures": protocol.gesture_names, "source": "collect",
         "protocol_spec": protocol.to_dict(), "seed": int(seed),
         "order_seed": order_seed(protocol, participant, seed),
-        "block_order": orders, "practice_order": practice,
+        "block_order": orders, "practice_order": practice, "trial_order": protocol.order,
     }
 
 

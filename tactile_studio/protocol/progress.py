@@ -45,10 +45,15 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
                     or (state == State.BREAK and phase_left <= 0)
                     or r.held)
     done = r.round_done()
+    remaining = tuple(r.round_remaining())
+    prompted = None
+    if p.order == "prompted" and state not in State.DONE and state != State.SETUP:
+        running = cur["gesture"] if cur is not None else None
+        prompted = next((n for n in remaining if n != running), None)
     gestures = tuple(
-        GestureView(g.name, g.key, g.definition, g.image, g.name in done, g.name == current)
+        GestureView(g.name, g.key, g.definition, g.image, g.name in done, g.name == current,
+                    g.name == prompted)
         for g in (p.gesture_by_name(n) for n in r.round_gestures))
-    remaining = tuple(n for n in r.round_gestures if n not in done)
     total = sum(len(o) for o in r.orders)
     blocks_done = {(t["block"], t["gesture"]) for t in r.trials
                    if t["block"] >= 0 and t["status"] != "redone"}
@@ -59,8 +64,10 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
         eta += phase_left
     if state in State.DONE:
         eta = 0.0
+    prompted_key = p.gesture_by_name(prompted).key if prompted else None
     fields = {"practice": r.practice, "block_number": r.block + 1,
-              "blocks_total": len(r.orders), "current_gesture": current}
+              "blocks_total": len(r.orders), "current_gesture": current,
+              "prompted": prompted, "prompted_key": prompted_key}
     trials = tuple(dict(t) for t in r.trials)
     return RunnerSnapshot(
         state=state, paused_state=r.paused_state, participant=r.participant,
@@ -74,4 +81,5 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
         trials=trials, last_trial=trials[-1] if trials else None,
         trials_done=trials_done, trials_total=total,
         progress=trials_done / total if total else 1.0, eta_s=round(eta, 1),
-        notes=tuple(r.notes), beeps=r.beeps)
+        notes=tuple(r.notes), beeps=r.beeps, order=p.order, prompted=prompted,
+        prompted_key=prompted_key)

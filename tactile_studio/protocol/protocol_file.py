@@ -1,7 +1,8 @@
 """Collection protocols as TOML files, validated field by field.
 
 A protocol says which gestures are collected (name, key, definition, optional image),
-how long a trial is, how many blocks, how blocks are randomised, when breaks come, the
+how long a trial is, how many blocks, how blocks are randomised, whether the block's
+order is prompted one gesture at a time (the default) or free, when breaks come, the
 free play and practice at the start, and the beep. Shipped protocols live in
 ``tactile_studio.resources/protocols``; any other ``.toml`` path works too. Every problem
 is one ``UserError`` line naming the file and the field, e.g.
@@ -20,6 +21,9 @@ from typing import Any
 from tactile_studio.errors import UserError
 
 RANDOMISATION_MODES = ("shuffle_per_block", "fixed")
+# "prompted": the screen prompts the next gesture of the block's order and only its key
+# starts the trial; "free": any gesture of the block not done yet, in any order
+ORDER_MODES = ("prompted", "free")
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".webp", ".svg")  # what Qt reads
 
 
@@ -47,6 +51,7 @@ class Protocol:
     practice_trials: int = 0
     randomisation: str = "shuffle_per_block"
     seed: int = 0
+    order: str = "prompted"
     break_every: int = 0
     break_min_s: float = 0.0
     beep_hz: float = 1000.0
@@ -120,8 +125,8 @@ def load_protocol(name_or_path: str | Path) -> Protocol:
 def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protocol:
     v = _Validator(label)
     v.known(raw, "", {"name", "title", "description", "trial_s", "blocks", "free_play_s",
-                      "practice_trials", "randomisation", "breaks", "beep", "quality",
-                      "gestures"})
+                      "practice_trials", "order", "randomisation", "breaks", "beep",
+                      "quality", "gestures"})
     rnd = v.table(raw, "randomisation")
     brk = v.table(raw, "breaks")
     beep = v.table(raw, "beep")
@@ -131,7 +136,8 @@ def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protoco
     v.known(beep, "beep.", {"frequency_hz", "length_s"})
     v.known(qual, "quality.", {"min_contact_fraction", "centre_fraction"})
     flat = {k: raw[k] for k in ("name", "title", "description", "trial_s", "blocks",
-                                "free_play_s", "practice_trials", "gestures") if k in raw}
+                                "free_play_s", "practice_trials", "order", "gestures")
+            if k in raw}
     rename = {("randomisation", "mode"): "randomisation", ("randomisation", "seed"): "seed",
               ("breaks", "every_blocks"): "break_every", ("breaks", "min_s"): "break_min_s",
               ("beep", "frequency_hz"): "beep_hz", ("beep", "length_s"): "beep_s",
@@ -159,6 +165,9 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
     mode = v.text(data, "randomisation", default="shuffle_per_block")
     if mode not in RANDOMISATION_MODES:
         v.fail("randomisation", f"unknown mode {mode!r} (use {' or '.join(RANDOMISATION_MODES)})")
+    order = v.text(data, "order", default="prompted")
+    if order not in ORDER_MODES:
+        v.fail("order", f"unknown order {order!r} (use {' or '.join(ORDER_MODES)})")
     return Protocol(
         name=name,
         title=v.text(data, "title", default=name),
@@ -169,6 +178,7 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
         free_play_s=v.number(data, "free_play_s", low=0.0, high=3600.0, default=0.0),
         practice_trials=v.integer(data, "practice_trials", low=0, high=1000, default=0),
         randomisation=mode,
+        order=order,
         seed=v.integer(data, "seed", low=-(2**62), high=2**62, default=0),
         break_every=v.integer(data, "break_every", low=0, high=10_000, default=0),
         break_min_s=v.number(data, "break_min_s", low=0.0, high=86_400.0, default=0.0),

@@ -2,8 +2,9 @@
 
 It is driven by ``tick()`` (a GUI timer, or the headless loop) and by input methods
 (``key``, ``redo_last``, ``discard``, ``pause``...; in :mod:`.runner_inputs`). Trials are
-sample-accurate: a key starts a trial at the newest engine frame (or at an explicit
-frame), and the trial ends exactly ``round(trial_s * nominal_rate)`` frames later,
+sample-accurate: a key (the prompted gesture's; with the protocol's ``order = "free"``
+any gesture of the block not done yet) starts a trial at the newest engine frame (or at
+an explicit frame), and the trial ends exactly ``round(trial_s * nominal_rate)`` frames later,
 counted on the engine's stream, never on a clock. The injected clock (:mod:`.clock`) only
 times free play, the beep and breaks. Which gestures are left in which block is kept by
 :class:`~tactile_studio.protocol.block_plan.BlockPlan`. Every finished trial is written
@@ -349,6 +350,14 @@ class CollectionRunner(RunnerInputs):
 
     def round_done(self) -> set[str]:
         return set(self._plan.done[self._plan.index])
+
+    def round_remaining(self) -> list[str]:
+        """The current round's gestures not done yet, in the order they are prompted."""
+        return self._plan.remaining()
+
+    def rounds_ahead(self) -> list[tuple[int, list[str]]]:
+        """(block, remaining gestures) of the current round and every later one."""
+        return self._plan.rounds_ahead()
 
     @property
     def practice(self) -> bool:

@@ -26,7 +26,9 @@ class RunnerInputs:
         return True
 
     def key(self, k: str, at_frame: int | None = None) -> bool:
-        """The participant's key. Starts a trial of a remaining gesture of the block."""
+        """The participant's key. With the protocol's ``order = "prompted"`` (default)
+        only the prompted gesture's key starts a trial; with ``"free"`` the key of any
+        gesture of the block not done yet does."""
         if self.state not in State.KEY_STATES:
             return self._refuse(self._why_no_key())
         if self.state == State.REVIEW:
@@ -35,9 +37,16 @@ class RunnerInputs:
             self._after_trial()  # a pending pause or break, or the next block, comes first
             if self.state not in State.KEY_STATES:
                 return self._refuse(self._why_no_key())
+        prompted = self.protocol.order == "prompted"
         gesture = self.protocol.gesture_by_key(k) if isinstance(k, str) and len(k) == 1 else None
         if gesture is None:
-            return self._refuse(f"'{k}' is not a gesture key")
+            then = f". {self.next_prompt()}" if prompted else ""
+            return self._refuse(f"'{k}' is not a gesture key{then}")
+        if prompted and gesture.name != self._plan.prompted:
+            if self._plan.is_done(gesture.name):
+                return self._refuse(f"{gesture.name} is already done in this block. "
+                                    f"{self.next_prompt()}")
+            return self._refuse(self.next_prompt())
         if gesture.name not in self._plan.gestures:
             return self._refuse(f"{gesture.name} ({gesture.key}) is not part of this practice round")
         if self._plan.is_done(gesture.name):
@@ -53,6 +62,13 @@ class RunnerInputs:
             raise ValueError(f"trial start frame {start} outside {self._min_start}..{newest}")
         self._begin_trial(gesture.name, gesture.key, start)
         return True
+
+    def next_prompt(self) -> str:
+        """The refusal's second half: "Next is Twist \u2013 press T" ("" if none is due)."""
+        name = self._plan.prompted
+        if name is None:
+            return ""
+        return f"Next is {name} \u2013 press {self.protocol.gesture_by_name(name).key.upper()}"
 
     def proceed(self) -> bool:
         """The experimenter's Continue: ends free play, ends a break after its minimum,
@@ -88,6 +104,8 @@ class RunnerInputs:
         self._plan.reopen(last["block"], last["gesture"])
         self.redo_prompt = ""
         self.hint = f"redo: {last['gesture']} ({last['key']})"
+        if self.protocol.order == "prompted":  # the redone gesture is prompted next
+            self.hint = f"Please redo it. {self.next_prompt()}"
         if self.state in (State.BLOCK_START, State.WAITING, State.REVIEW, State.FINISHED):
             self._set_state(State.WAITING)
         elif self.state == State.PAUSED and self._paused_from in (State.BLOCK_START, State.REVIEW):

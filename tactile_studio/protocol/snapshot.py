@@ -41,6 +41,7 @@ class GestureView:
     image: str | None
     done: bool
     current: bool  # being recorded now (or just recorded)
+    prompted: bool = False  # the next gesture to do (order = "prompted" only)
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,9 @@ class RunnerSnapshot:
     eta_s: float
     notes: tuple[str, ...] = field(default_factory=tuple)
     beeps: int = 0
+    order: str = "prompted"          # the protocol's order: "prompted" or "free"
+    prompted: str | None = None      # the gesture whose key starts the next trial
+    prompted_key: str | None = None
 
 
 def participant_message(state: str, snap: dict[str, Any]) -> str:
@@ -83,6 +87,9 @@ def participant_message(state: str, snap: dict[str, Any]) -> str:
         return "Free play: touch the sensor any way you like."
     if state in (State.BLOCK_START, State.WAITING, State.REVIEW):
         what = "Practice" if snap["practice"] else f"Block {snap['block_number']} of {snap['blocks_total']}"
+        if snap.get("prompted"):
+            return (f"{what}: next is {snap['prompted']} \u2013 press "
+                    f"{snap['prompted_key'].upper()} as you start it.")
         return f"{what}: press the key of a gesture as you start it."
     if state == State.RECORDING:
         return f"Perform: {snap['current_gesture']}"

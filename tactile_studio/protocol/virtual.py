@@ -1,7 +1,10 @@
 """A virtual participant: presses the keys and performs the gestures on the simulator.
 
-It follows the participant screen like a person would: it does the block's remaining
-gestures in the order shown, pressing each gesture's key as it starts the gesture.
+It follows the participant screen like a person would: with the protocol's
+``order = "prompted"`` it does each prompted gesture in turn (the block's stored order,
+a redone gesture first); with ``order = "free"`` it does the block's remaining gestures
+in the protocol file's order, like a participant who always goes the same way round (the
+habit prompted order exists to break). It presses each gesture's key as it starts it.
 Everything it does is keyed by frame index and drawn from generators seeded by
 (participant, seed), never by wall-clock time: it schedules each performance on the
 simulated sensor at a planned frame ahead of the stream and presses the key with that
@@ -100,12 +103,27 @@ class VirtualParticipant:
             f += self.n + round(rng.uniform(0.3, 0.8) * self.rate)
         frame = self.start_frame + fp_frames + round(1.0 * self.rate)
         prev: int | None = None
-        for block, gesture in r.upcoming(1 << 30):
-            if prev is not None and block != prev and r.break_after(prev):
-                frame += round((r.protocol.break_min_s + 2.0) * self.rate)
-            frame = self._plan(block, gesture, frame + self._gap())
-            frame += self.n + self._beep_frames
-            prev = block
+        for block, gestures in r.rounds_ahead():
+            for gesture in self._own_order(gestures):
+                if prev is not None and block != prev and r.break_after(prev):
+                    frame += round((r.protocol.break_min_s + 2.0) * self.rate)
+                frame = self._plan(block, gesture, frame + self._gap())
+                frame += self.n + self._beep_frames
+                prev = block
+
+    def _own_order(self, gestures: list[str]) -> list[str]:
+        """The order it does a round's remaining gestures in (see the module docstring)."""
+        if self.runner.protocol.order == "prompted":
+            return list(gestures)
+        rank = {name: i for i, name in enumerate(self.runner.protocol.gesture_names)}
+        return sorted(gestures, key=rank.__getitem__)
+
+    def _next(self) -> tuple[int, str] | None:
+        """The (block, gesture) it does next: the first of the next round with any left."""
+        for block, gestures in self.runner.rounds_ahead():
+            if gestures:
+                return block, self._own_order(gestures)[0]
+        return None
 
     def _gap(self) -> int:
         """Frames from the previous beep to the next key press: reading and reacting."""
@@ -144,10 +162,10 @@ class VirtualParticipant:
             return False
         if r.state not in State.KEY_STATES or r.held:
             return False
-        nxt = r.upcoming(1)
-        if not nxt:
+        nxt = self._next()
+        if nxt is None:
             return False
-        block, gesture = nxt[0]
+        block, gesture = nxt
         i = next((i for i, p in enumerate(self._plans) if p[:2] == (block, gesture)), None)
         if i is None:  # off the plan (a redo): do it now
             self._plan(block, gesture, self.device.next_frame + self._gap())
