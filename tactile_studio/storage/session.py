@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import uuid
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +18,15 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.session_writer import FORMAT
+
+# Namespace of the derived session ids (uuid5): imports and files from before ids existed.
+SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
+FINGERPRINT_FRAMES = 64
+
+
+def derived_session_id(text: str) -> str:
+    """A stable session id (uuid5) for ``text``: the same input gives the same id."""
+    return str(uuid.uuid5(SESSION_ID_NAMESPACE, text))
 
 
 @dataclass
@@ -169,6 +180,22 @@ class Session:
         return self.journal.trials
 
     @property
+    def session_id(self) -> str:
+        """The id in the metadata; for files written before ids existed, one derived
+        from what a resume copies unchanged (creation time, participant, the first
+        frames), so a file, its copies and its resume backups share it."""
+        sid = self.metadata.get("session_id")
+        if sid:
+            return str(sid)
+        n = min(self.n_frames, FINGERPRINT_FRAMES)
+        h = hashlib.sha256()
+        for key in ("created", "participant", "source"):
+            h.update(f"{key}={self.metadata.get(key, '')};".encode())
+        h.update(np.ascontiguousarray(self.raw(0, n)).tobytes())
+        h.update(np.ascontiguousarray(self.column("device_time", 0, n)).tobytes())
+        return derived_session_id(f"fingerprint:{h.hexdigest()}")
+
+    @property
     def closed_cleanly(self) -> bool:
         return self.journal.closed
 
@@ -213,6 +240,7 @@ class Session:
         by_kind_total = Counter(by_kind)
         out: dict[str, Any] = {
             "path": str(self.path),
+            "session_id": self.session_id,
             "frames": n,
             "duration_s": round(duration, 4),
             "rate_hz": round(rate, 3),

@@ -18,6 +18,7 @@ Malformed rows are skipped and counted by kind:
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 from collections import Counter
@@ -60,6 +61,7 @@ class ShearSenseData:
     baseline: np.ndarray
     malformed_by_kind: dict[str, int] = field(default_factory=dict)
     baseline_from_row: bool = True  # False: no baseline row, mean of first 100 frames used
+    sha256: str = ""  # of the file's bytes: imports derive the session id from it
 
     @property
     def n_frames(self) -> int:
@@ -278,15 +280,18 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         fh = open(path, "rb")
     except OSError as exc:
         raise ShearSenseError(f"{path}: cannot be read ({exc.strerror})") from None
+    digest = hashlib.sha256()
     with fh:
         header = fh.readline(1 << 20)
         _check_header(path, header)
+        digest.update(header)
         done = len(header)
         rest = b""
         while True:
             if cancel is not None:
                 cancel.check()
             chunk = fh.read(_BLOCK_BYTES)
+            digest.update(chunk)
             data = rest + chunk
             if not chunk:
                 if data.strip():
@@ -317,7 +322,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         path=path, raw=raw, times=times, touched=touched, labels=labels,
         baseline=baseline.astype(np.float64),
         malformed_by_kind={k: int(rows.kinds[k]) for k in MALFORMED_KINDS if rows.kinds[k]},
-        baseline_from_row=baseline_from_row,
+        baseline_from_row=baseline_from_row, sha256=digest.hexdigest(),
     )
 
 

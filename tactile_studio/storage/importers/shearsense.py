@@ -13,6 +13,7 @@ from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers._common import (
     check_outputs,
     frame_interval,
+    import_session_id,
     labelled_runs,
     load_protocol_or_none,
     run_jobs,
@@ -66,6 +67,7 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
     gestures = list(protocol.gesture_names) if protocol is not None else []
     gestures += sorted({t["gesture"] for t in trials} - set(gestures))
     metadata = {
+        "session_id": import_session_id("shearsense", data.sha256),
         "participant": participant or csv.stem, "condition": condition,
         "protocol": PROTOCOL if protocol is not None else "", "gestures": gestures,
         "source": "import:shearsense", "original_file": csv.name,
