@@ -20,6 +20,7 @@ from tactile_studio.storage.importers._common import (
     slice_progress,
     write_session,
 )
+from tactile_studio.storage.session import measured_rate_hz
 from tactile_studio.storage.shearsense import (
     ShearSenseData,
     ShearSenseError,
@@ -73,8 +74,9 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
         "source": "import:shearsense", "original_file": csv.name,
         "malformed_rows": data.n_malformed, "baseline_from_row": data.baseline_from_row,
     }
+    # the same measured figure `info` shows in its header: frames over the time spanned
     device = {"plugin": "import", "format": "shearsense-csv", "file": str(csv),
-              "rate_hz": round(1.0 / frame_interval(data.times, 1.0 / RATE_HZ), 3)}
+              "rate_hz": round(measured_rate_hz(data.times) or RATE_HZ, 3)}
     write_session(out, SHEARSENSE_6X6, device, metadata, data.raw, data.times, data.baseline,
                   trials, counters={"malformed_by_kind": dict(data.malformed_by_kind)},
                   progress=slice_progress(progress, 0.7, 1.0), cancel=cancel)
