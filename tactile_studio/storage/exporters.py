@@ -21,6 +21,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.importers._common import check_outputs, frame_interval
+from tactile_studio.storage.importers.maps import normalise_participant
 from tactile_studio.storage.session import Session, user_block
 from tactile_studio.storage.shearsense import (
     N_CHANNELS,
@@ -79,7 +80,8 @@ def shearsense_csv_name(session: Session) -> str:
     name = session.path.stem
     participant = str(session.metadata.get("participant") or "")
     condition = str(session.metadata.get("condition") or "")
-    if participant and parse_shearsense_name(f"{name}.csv")[0] != participant:
+    named = parse_shearsense_name(f"{name}.csv")[0]
+    if participant and normalise_participant(named) != normalise_participant(participant):
         name = f"{participant}_{name}"
     if condition and parse_shearsense_name(f"{name}.csv")[1] != condition.upper():
         name = f"{name}_{condition.upper()}"
