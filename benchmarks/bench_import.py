@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tactile_studio.storage import shearsense as ss
 from tactile_studio.storage.importers import import_shearsense_file
 from tactile_studio.storage.shearsense import HEADER, read_shearsense_csv, write_shearsense_csv
 
@@ -88,6 +89,16 @@ def main(rows: int = 100_000) -> None:
         real, bad = real_format_csv(Path(tmp) / "P02_real_FLAT.csv", rows)
         print(f"  real-format file: {real.stat().st_size / 1e6:.0f} MB, {bad} malformed rows")
         _parse_rate(real, rows, "real format (decimals)")
+        small, _ = real_format_csv(Path(tmp) / "P03_small_FLAT.csv", 5000)
+        ss.FAST_DECIMALS = False  # the per-field reference path, for comparison
+        try:
+            t0 = time.perf_counter()
+            read_shearsense_csv(small)
+            dt = time.perf_counter() - t0
+        finally:
+            ss.FAST_DECIMALS = True
+        print(f"  parse real format, reference path (float() per decimal field): "
+              f"{5000 / dt:10.0f} rows/s (5000 rows)")
         t0 = time.perf_counter()
         import_shearsense_file(path, Path(tmp) / "s.h5")
         dt = time.perf_counter() - t0
