@@ -60,6 +60,8 @@ def test_resumed_session_keeps_its_id_and_a_dataset_counts_each_trial_once(tmp_p
         assert b.metadata["session_id"] == sid  # the original and its resume: one session
         assert len(b.trials) == 2 and len(s.trials) == 6
         assert s.metadata["resumes"] == 1
+    assert main(["info", str(path)]) == 0
+    assert f"session:    {sid}" in capsys.readouterr().out
     # a copy of the finished session in another folder is the same session again
     (data / "copy").mkdir()
     shutil.copy2(path, data / "copy" / "again.h5")
@@ -86,6 +88,8 @@ def test_resumed_session_keeps_its_id_and_a_dataset_counts_each_trial_once(tmp_p
     resolved = json.loads((tmp_path / "run" / "config.json").read_text())["resolved"]
     assert resolved["dataset"]["trials"] == 6 + 2 * 6
     assert len(resolved["dataset"]["skipped"]) == 2
+    assert main(["evaluate", str(tmp_path / "run")]) == 0
+    assert "data: skipped 1 resume backup, 1 duplicate session" in capsys.readouterr().out
     # from the cache the same files are left out and reported
     ds2 = build_dataset([data], cache_dir=tmp_path / "cache")
     assert len(ds2) == 18 and len(ds2.skipped) == 2

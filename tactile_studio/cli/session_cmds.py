@@ -102,6 +102,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     device = meta.get("device", {})
     lines = [
         f"file:       {summary['path']}",
+        f"session:    {summary['session_id']}",
         f"layout:     {summary['layout']}",
         f"device:     {device.get('plugin', '?')} {device.get('settings') or ''}".rstrip(),
         *([f"source:     {meta['source']}"] if meta.get("source") else []),
