@@ -272,7 +272,10 @@ def _parse_block(data: bytes, kinds: Counter) -> np.ndarray:
         bad[cell[dot0[cell]] // N_FIELDS] = True                    # another beside ".0"
         if FAST_DECIMALS:
             slow = _decimals(buf, flat, cell, dots, starts, ends)
-            exact = np.union1d(exact[~np.isin(exact, cell)], slow)
+            if len(exact):  # rare: long fields; those with a point are handled above
+                exact = exact[~np.isin(exact, cell)]
+            if len(slow):
+                exact = np.union1d(exact, slow)
         else:
             exact = np.union1d(exact, cell)
     exact = exact[exact % N_FIELDS != 0]        # times are all read exactly below
