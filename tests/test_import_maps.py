@@ -87,6 +87,11 @@ def test_maps_inline_and_from_toml(tmp_path, capsys, files):
     assert main(["info", "--json", str(tmp_path / "out" / "P8_FLAT.h5")]) == 0
     assert json.loads(capsys.readouterr().out)["unmapped_keys"] == ["z"]
 
+    # a file name without a P-number keeps its stem, which the map can rename too
+    other = _csv(tmp_path / "src", "recording 3.csv", 11)
+    stdout, people = _import(capsys, tmp_path, [other], "--participant-map", "Recording 3=P11")
+    assert people["recording 3.csv"][0] == "P11" and "recording 3 -> P11" in stdout
+
     (tmp_path / "g.toml").write_text('[gestures]\nr = "Rub"\n122 = "Zigzag"\n')
     (tmp_path / "p.toml").write_text('PILOT = "P00"\n"p08" = "P01"\n')
     stdout, people = _import(capsys, tmp_path, files, "--gestures", str(tmp_path / "g.toml"),

@@ -106,8 +106,8 @@ def file_participant(csv: Path, participant_map: dict[str, str] | None = None
     """(as spelled in the file name, participant id): normalised (case, zero padding)
     and then mapped; the file's stem when its name names no participant."""
     spelled = parse_shearsense_name(csv)[0]
-    norm = normalise_participant(spelled)
-    pid = (participant_map or {}).get(norm, norm) or csv.stem
+    base = normalise_participant(spelled) if spelled else csv.stem
+    pid = (participant_map or {}).get(normalise_participant(base), base)
     return spelled or csv.stem, pid
 
 
