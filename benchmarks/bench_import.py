@@ -68,11 +68,11 @@ def real_format_csv(path: Path, rows: int, seed: int = 0) -> tuple[Path, int]:
     return path, malformed
 
 
-def _parse_rate(path: Path, rows: int, label: str) -> None:
+def _parse_rate(path: Path, rows: int, label: str, digest: bool = False) -> None:
     best = cpu = float("inf")
     for _ in range(3):
         t0, c0 = time.perf_counter(), time.process_time()
-        data = read_shearsense_csv(path)
+        data = read_shearsense_csv(path, digest=digest)
         best = min(best, time.perf_counter() - t0)
         cpu = min(cpu, time.process_time() - c0)
     assert data.n_frames == rows, (data.n_frames, rows)
@@ -89,6 +89,8 @@ def main(rows: int = 100_000) -> None:
         real, bad = real_format_csv(Path(tmp) / "P02_real_FLAT.csv", rows)
         print(f"  real-format file: {real.stat().st_size / 1e6:.0f} MB, {bad} malformed rows")
         _parse_rate(real, rows, "real format (decimals)")
+        _parse_rate(real, rows, "real format + SHA-256 of the file, as import reads it",
+                    digest=True)
         small, _ = real_format_csv(Path(tmp) / "P03_small_FLAT.csv", 5000)
         ss.FAST_DECIMALS = False  # the per-field reference path, for comparison
         try:

@@ -4,6 +4,7 @@ per-line Python reading give: frames, times, labels, baseline and malformed coun
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections import Counter
 
@@ -84,14 +85,15 @@ def python_reading(path):
 def test_fast_decimals_equal_the_reference_and_plain_python(tmp_path, monkeypatch, block_bytes):
     path = tricky_csv(tmp_path / "P01_tricky_FLAT.csv")
     monkeypatch.setattr(ss, "_BLOCK_BYTES", block_bytes)
-    fast = read_shearsense_csv(path)
+    fast = read_shearsense_csv(path, digest=True)
     monkeypatch.setattr(ss, "FAST_DECIMALS", False)
-    ref = read_shearsense_csv(path)
+    ref = read_shearsense_csv(path, digest=True)
     for name in ("raw", "times", "touched", "labels", "baseline"):
         a, b = getattr(fast, name), getattr(ref, name)
         assert a.dtype == b.dtype and np.array_equal(a, b), name
     assert fast.malformed_by_kind == ref.malformed_by_kind
     assert fast.baseline_from_row and fast.sha256 == ref.sha256
+    assert fast.sha256 == hashlib.sha256(path.read_bytes()).hexdigest()
 
     rows, kinds = python_reading(path)
     assert fast.malformed_by_kind == kinds

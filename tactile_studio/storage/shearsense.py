@@ -67,7 +67,7 @@ class ShearSenseData:
     baseline: np.ndarray
     malformed_by_kind: dict[str, int] = field(default_factory=dict)
     baseline_from_row: bool = True  # False: no baseline row, mean of first 100 frames used
-    sha256: str = ""  # of the file's bytes: imports derive the session id from it
+    sha256: str = ""  # of the file's bytes when asked for (imports derive the session id)
 
     @property
     def n_frames(self) -> int:
@@ -325,8 +325,8 @@ class _Rows:
 
 
 class _FileHash:
-    """SHA-256 of a file computed by a thread beside the parse (the file is in the page
-    cache by then, and hashing the 150 MB of a real file alone takes ~0.2 s)."""
+    """SHA-256 of a file computed by a thread beside the parse: hashlib releases the GIL,
+    and hashing the 150 MB of a real file alone takes ~0.2 s."""
 
     def __init__(self, path: Path) -> None:
         self._path = path
@@ -351,8 +351,12 @@ class _FileHash:
 
 
 def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = None,
-                        cancel: CancelToken | None = None) -> ShearSenseData:
-    """Read a ShearSense CSV; malformed rows are skipped and counted by kind."""
+                        cancel: CancelToken | None = None,
+                        digest: bool = False) -> ShearSenseData:
+    """Read a ShearSense CSV; malformed rows are skipped and counted by kind.
+
+    ``digest``: also hash the file's bytes (``sha256``; imports derive the session id
+    from it), in a thread beside the parse."""
     path = Path(path)
     progress = progress or no_progress
     size = check_input_file(path, "ShearSense CSV", ShearSenseError)
@@ -361,7 +365,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         fh = open(path, "rb")
     except OSError as exc:
         raise ShearSenseError(f"{path}: cannot be read ({exc.strerror})") from None
-    hasher = _FileHash(path)  # in a thread: hashlib releases the GIL while it hashes
+    hasher = _FileHash(path) if digest else None
     with fh:
         header = fh.readline(1 << 20)
         _check_header(path, header)
@@ -401,7 +405,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         path=path, raw=raw, times=times, touched=touched, labels=labels,
         baseline=baseline.astype(np.float64),
         malformed_by_kind={k: int(rows.kinds[k]) for k in MALFORMED_KINDS if rows.kinds[k]},
-        baseline_from_row=baseline_from_row, sha256=hasher.result(),
+        baseline_from_row=baseline_from_row, sha256=hasher.result() if hasher else "",
     )
 
 

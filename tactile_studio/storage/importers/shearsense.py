@@ -124,7 +124,7 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
     what the summary prints."""
     csv, out = Path(csv), Path(out)
     progress = progress or no_progress
-    data = read_shearsense_csv(csv, slice_progress(progress, 0.0, 0.7), cancel)
+    data = read_shearsense_csv(csv, slice_progress(progress, 0.0, 0.7), cancel, digest=True)
     protocol = load_protocol_or_none(PROTOCOL)
     custom = key_names is not None
     names = dict(key_names) if custom else default_key_names(protocol)
