@@ -3,6 +3,11 @@
 Frames come out at their original timing (``speed=1``), faster (``speed=10``), or as
 fast as the consumer takes them (``speed=0``), optionally looping. Device time keeps
 growing across loops so downstream rate and gap logic sees one continuous stream.
+
+Malformed rows of a ShearSense CSV (skipped by the reader, counted by kind exactly as
+``import`` counts them) are reported through ``FrameBatch.malformed`` with the first
+batch of every pass, so the device panel and ``record`` show them like a serial
+device's bad lines.
 """
 
 from __future__ import annotations
@@ -17,22 +22,24 @@ from tactile_studio.errors import DeviceNotFound, UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 
 
-def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray]:
-    """(layout, raw, times) from a session (.h5) or a ShearSense CSV."""
+def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int]]:
+    """(layout, raw, times, malformed rows by kind) from a session (.h5) or a
+    ShearSense CSV."""
     if not path.exists():
         raise DeviceNotFound(f"replay: {path}: no such file")
     if path.suffix.lower() == ".csv":
         from tactile_studio.storage.shearsense import read_shearsense_csv
 
         data = read_shearsense_csv(path)
-        return SHEARSENSE_6X6, data.raw, np.asarray(data.times, dtype=np.float64)
+        return (SHEARSENSE_6X6, data.raw, np.asarray(data.times, dtype=np.float64),
+                dict(data.malformed_by_kind))
     from tactile_studio.storage.session import Session
 
     with Session(path) as s:
         times = s.column("device_time")
         if len(times) >= 2 and not np.all(np.diff(times) >= 0):
             times = s.column("host_time")
-        return s.layout, s.raw(), times
+        return s.layout, s.raw(), times, {}
 
 
 class ReplayDevice(DevicePlugin):
@@ -50,7 +57,7 @@ class ReplayDevice(DevicePlugin):
         if not self.settings["path"]:
             raise UserError("device replay: setting path is required (--set path=FILE)")
         self._path = Path(self.settings["path"]).expanduser()
-        self._layout, self._raw, times = _load(self._path)
+        self._layout, self._raw, times, self._malformed = _load(self._path)
         if len(self._raw) == 0:
             raise UserError(f"replay: {self._path}: has no frames")
         self._rel_t = times - times[0]
@@ -99,9 +106,10 @@ class ReplayDevice(DevicePlugin):
         start, stop = self._pos, max(self._pos, due)
         n_total = len(self._raw)
         seq = self._loops * n_total + np.arange(start, stop)
+        first_of_pass = start == 0 and stop > 0
         batch = FrameBatch(raw=self._raw[start:stop],
                            device_time=self._rel_t[start:stop] + self._loops * self._period,
-                           seq=seq)
+                           seq=seq, malformed=dict(self._malformed) if first_of_pass else {})
         self._pos = stop
         if self._pos >= n_total:
             if self.settings["loop"]:

@@ -19,6 +19,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     fmt = p.add_subparsers(dest="import_format", metavar="FORMAT", required=True)
     s = fmt.add_parser("shearsense", help="the old collection software's CSVs")
     s.add_argument("files", nargs="+", help="P<participant>...<FLAT|PILLOW>.csv files")
+    s.add_argument("--gestures", metavar="MAP", default=None,
+                   help="pressed key -> gesture name: a .toml file or key=Name,... (keys as "
+                        "characters or codes, e.g. r=Rub or 114=Rub); default: shear9's keys")
+    s.add_argument("--participant-map", metavar="MAP", default=None,
+                   help="file-name participant -> id: a .toml file or old=new,... (names are "
+                        "first normalised: upper case, P8 = P08)")
     c = fmt.add_parser("cost", help="the CoST dataset (CoST.csv)")
     c.add_argument("files", nargs=1, metavar="file", help="CoST.csv")
     h = fmt.add_parser("haart", help="the HAART dataset (training.csv, testWITHLABELS.csv)")
@@ -87,11 +93,21 @@ def cmd_import(args: argparse.Namespace) -> int:
             print(f"wrote {path}", flush=True)
 
         if args.import_format == "shearsense":
-            out = import_shearsense(args.files, args.out, bar, token, args.force, done)
+            from tactile_studio.storage.importers.maps import gesture_key_map, participant_map
+            from tactile_studio.storage.importers.shearsense import ShearSenseImport
+
+            keys = gesture_key_map(args.gestures) if args.gestures else None
+            people = participant_map(args.participant_map) if args.participant_map else None
+            report = ShearSenseImport()
+            out = import_shearsense(args.files, args.out, bar, token, args.force, done,
+                                    key_names=keys, participant_map=people, report=report)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:
             out = import_haart(args.files, args.out, bar, token, args.force, done)
+    if args.import_format == "shearsense":
+        for line in report.lines():
+            print(line)
     print(f"imported {len(out)} session(s) into {args.out}")
     return 0
 

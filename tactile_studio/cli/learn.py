@@ -93,6 +93,14 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
         print(f"run folder: {out}")
 
 
+def _print_skipped(skipped: list[dict[str, Any]]) -> None:
+    """Say which session files the dataset left out (resume backups, duplicates)."""
+    from tactile_studio.storage.session_set import describe_skipped
+
+    if skipped:
+        print(f"data: {describe_skipped(skipped)}")
+
+
 def cmd_train(args: argparse.Namespace) -> int:
     from tactile_studio.learn.experiment import run_experiment
 
@@ -103,6 +111,7 @@ def cmd_train(args: argparse.Namespace) -> int:
             result = run_experiment(_config(args, args.channels), args.out, bar, token)
     finally:
         bar.close()
+    _print_skipped(result.dataset.get("skipped", []))
     _print_summary(result.metrics, result.out)
     return 0
 
@@ -117,6 +126,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
             m = rescore_run(args.run, args.data, args.cache_dir, bar, token)
     finally:
         bar.close()
+    _print_skipped(m.get("dataset_skipped", []))
     print(f"re-scored from saved weights ({m['mode']} mode)")
     _print_summary(m)
     return 0
@@ -136,6 +146,8 @@ def cmd_ablate(args: argparse.Namespace) -> int:
             finally:
                 bar.close()
             rows.append((channels, res.metrics))
+    if rows:
+        _print_skipped(res.dataset.get("skipped", []))
     keys = ["accuracy", "f1_macro", "balanced_accuracy", "kappa"]
     if any("trial_accuracy" in m for _, m in rows):
         keys.insert(1, "trial_accuracy")

@@ -97,21 +97,16 @@ def device_label(device: Any) -> str:
     return f"device {info.get('plugin', '?')} on {where}" if where else f"device {info.get('plugin', '?')}"
 
 
-def _trial_table(trials: list[dict[str, Any]]) -> str:
-    try:  # the collection runner's formatter when present
-        from tactile_studio.protocol.report import trial_table
-        return trial_table(trials)
-    except ImportError:
-        counts: dict[tuple[str, str], int] = {}
-        for t in trials:
-            key = (str(t.get("gesture")), str(t.get("status")))
-            counts[key] = counts.get(key, 0) + 1
-        return "\n".join(f"  {g:<20} {s:<10} {n}" for (g, s), n in sorted(counts.items()))
+def _trial_table(trials: list[dict[str, Any]], gestures: list[str]) -> str:
+    """Trials per gesture in the protocol's order (``trials`` as in the journal)."""
+    from tactile_studio.protocol.report import trial_table
+    return trial_table(trials, gestures)
 
 
 def cmd_info(args: argparse.Namespace) -> int:
     with Session(args.file) as s:
         summary = s.summary()
+        table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
     if args.json:
         json.dump(summary, sys.stdout, indent=2, default=str)
         print()
@@ -120,6 +115,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     device = meta.get("device", {})
     lines = [
         f"file:       {summary['path']}",
+        f"session:    {summary['session_id']}",
         f"layout:     {summary['layout']}",
         f"device:     {device.get('plugin', '?')} {device.get('settings') or ''}".rstrip(),
         *([f"source:     {meta['source']}"] if meta.get("source") else []),
@@ -137,8 +133,11 @@ def cmd_info(args: argparse.Namespace) -> int:
         lines.append(f"participant: {meta['participant']}")
     if meta.get("notes"):
         lines.append(f"notes:      {meta['notes']}")
-    if summary.get("trials"):
+    if summary["unmapped_keys"]:
+        lines.append(f"unmapped keys: {', '.join(summary['unmapped_keys'])} "
+                     "(no gesture name; trials keep the key)")
+    if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
-        lines.append(_trial_table(summary["trials"]))
+        lines.append(table)
     print("\n".join(lines))
     return 0

@@ -22,6 +22,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_set import SessionSet, describe_skipped, select_sessions
 
 GRIDS = ("physical", "virtual")
 CHANNEL_SETS = ("normal", "shear", "both")
@@ -54,6 +55,7 @@ class TrialDataset:
     channel_names: list[str] = field(default_factory=list)
     sources: list[str] = field(default_factory=list)
     fingerprint: str = ""
+    skipped: list[dict] = field(default_factory=list)  # resume backups, duplicate sessions
 
     def __len__(self) -> int:
         return len(self.trials)
@@ -116,28 +118,16 @@ class TrialDataset:
             "channels": self.channels, "channel_names": self.channel_names,
             "frames_min": int(lengths.min()), "frames_max": int(lengths.max()),
             "fingerprint": self.fingerprint,
+            "skipped": list(self.skipped), "skipped_text": describe_skipped(self.skipped),
         }
 
 
 def find_session_files(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], Path | None]:
-    """Session files from folders (recursive ``*.h5``) and files; also the common root
-    folder that trial uids are made relative to."""
-    if not paths:
-        raise UserError("no data given: pass a folder or session files")
-    files: list[Path] = []
-    for p in map(Path, paths):
-        if p.is_dir():
-            found = sorted(q for q in p.rglob("*.h5") if q.is_file())
-            if not found:
-                raise UserError(f"{p}: no session files (*.h5) in this folder")
-            files.extend(found)
-        elif p.is_file():
-            files.append(p)
-        else:
-            raise UserError(f"{p}: no such file or folder")
-    files = sorted({f.resolve() for f in files})
-    root = Path(os.path.commonpath([f.parent for f in files])) if files else None
-    return files, root
+    """Session files from folders (recursive ``*.h5``) and files, without resume
+    backups and duplicate sessions (see :mod:`tactile_studio.storage.session_set`); also
+    the common root folder that trial uids are made relative to."""
+    chosen = select_sessions(paths)
+    return chosen.files, chosen.root
 
 
 def _trial_rate(session: Session, trial: dict, start: int, stop: int) -> float:
@@ -169,11 +159,15 @@ def _label_order(sessions_meta: list[dict], gestures_seen: list[str]) -> list[st
 
 def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
                   progress: ProgressFn = no_progress,
-                  cancel: CancelToken | None = None) -> TrialDataset:
-    """Decode every ``ok`` trial of the session files (no cache; see :func:`build_dataset`)."""
+                  cancel: CancelToken | None = None,
+                  chosen: SessionSet | None = None) -> TrialDataset:
+    """Decode every ``ok`` trial of the session files (no cache; see :func:`build_dataset`).
+
+    ``chosen``: the files already selected from ``paths`` (:func:`select_sessions`)."""
     if grid not in GRIDS:
         raise UserError(f"unknown grid {grid!r} (available: {', '.join(GRIDS)})")
-    files, root = find_session_files(paths)
+    chosen = chosen or select_sessions(paths)
+    files, root = chosen.files, chosen.root
     virtual = grid == "virtual"
     layout_name: str | None = None
     first_file: Path | None = None
@@ -219,7 +213,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
         trials=trials, labels=np.array([index[g] for g in gestures], dtype=np.int64),
         participants=np.array(participants), uids=uids, rates=np.array(rates, dtype=np.float64),
         label_names=label_names, layout=str(layout_name), grid=grid, has_shear=has_shear,
-        sources=[str(f) for f in files])
+        sources=[str(f) for f in files], skipped=list(chosen.skipped))
 
 
 def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
@@ -232,11 +226,11 @@ def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
     """
     from tactile_studio.learn import cache
 
-    files, _ = find_session_files(paths)
-    key = cache.dataset_key(files, grid)
+    chosen = select_sessions(paths)
+    key = cache.dataset_key(chosen.files, grid)
     ds = cache.load(key, cache_dir) if use_cache else None
     if ds is None:
-        ds = read_sessions(paths, grid, progress, cancel)
+        ds = read_sessions(paths, grid, progress, cancel, chosen)
         if use_cache:
             try:
                 cache.save(ds, key, cache_dir)
@@ -245,6 +239,7 @@ def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
     else:
         progress(1.0, "dataset from cache")
     ds.fingerprint = key
+    ds.skipped = list(chosen.skipped)
     return ds.select(channels)
 
 

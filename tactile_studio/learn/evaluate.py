@@ -84,6 +84,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
               "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
+    metrics["dataset_skipped"] = list(ds.skipped)  # resume backups, duplicate sessions
     write_json(Path(run) / "rescore.json", metrics)
     progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
     return metrics

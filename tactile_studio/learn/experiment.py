@@ -118,6 +118,7 @@ class RunResult:
     out: Path | None
     folds: list[dict[str, Any]]
     complete: bool
+    dataset: dict[str, Any] = field(default_factory=dict)  # TrialDataset.summary()
 
 
 Listener = Callable[[Any], None]
@@ -342,4 +343,5 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     if folder is not None:
         folder.write_results(metrics, records, title)
     progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
-    return RunResult(metrics, config, Path(out) if out is not None else None, records, True)
+    return RunResult(metrics, config, Path(out) if out is not None else None, records, True,
+                     resolved["dataset"])

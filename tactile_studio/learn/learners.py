@@ -108,7 +108,15 @@ class TorchLearner:
 
     def check(self, info: DataInfo) -> None:
         """Build once so bad model options fail before any training."""
-        self.build(info)
+        from tactile_studio.learn.models._common import UnknownOptionError
+
+        try:
+            self.build(info)
+        except UnknownOptionError as exc:
+            raise UserError(
+                f"unknown option '{exc.key}' for model '{exc.model}' (model options: "
+                f"{', '.join(exc.allowed)}; training options: {', '.join(TRAIN_KEYS)})"
+            ) from None
 
     def samples(self, ds) -> tuple[np.ndarray, np.ndarray]:
         return views.make_samples(ds.trials, self.view.kind, self.view.frames, self.view.stride)

@@ -184,6 +184,7 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     backup = _backup_path(path)
     with Session(path) as old:
         meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
+        meta["session_id"] = old.session_id  # kept (derived once for files without one)
         meta["resumes"] = int(meta.get("resumes", 0)) + 1
         n = old.n_frames
         if tmp.exists():

@@ -21,7 +21,8 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.importers._common import check_outputs, frame_interval
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.importers.maps import normalise_participant
+from tactile_studio.storage.session import Session, user_block
 from tactile_studio.storage.shearsense import (
     N_CHANNELS,
     parse_shearsense_name,
@@ -79,7 +80,8 @@ def shearsense_csv_name(session: Session) -> str:
     name = session.path.stem
     participant = str(session.metadata.get("participant") or "")
     condition = str(session.metadata.get("condition") or "")
-    if participant and parse_shearsense_name(f"{name}.csv")[0] != participant:
+    named = parse_shearsense_name(f"{name}.csv")[0]
+    if participant and normalise_participant(named) != normalise_participant(participant):
         name = f"{participant}_{name}"
     if condition and parse_shearsense_name(f"{name}.csv")[1] != condition.upper():
         name = f"{name}_{condition.upper()}"
@@ -150,7 +152,7 @@ def export_npz(path: str | os.PathLike, out_dir: str | os.PathLike, all_trials: 
                 x=x, label=np.int64(labels.index(gesture)), gesture=np.str_(gesture),
                 participant=np.str_(meta.get("participant") or ""),
                 condition=np.str_(meta.get("condition") or ""),
-                index=np.int64(t["index"]), block=np.int64(t.get("block", -1)),
+                index=np.int64(t["index"]), block=np.int64(user_block(t.get("block", -1))),
                 status=np.str_(t.get("status", "")), key=np.str_(t.get("key") or ""),
                 start_sample=np.int64(t["start_sample"]), end_sample=np.int64(t["end_sample"]),
                 gestures=np.array(labels, dtype=str), session=np.str_(s.path.name),
@@ -183,7 +185,8 @@ def trial_row(s: Session, t: dict[str, Any], labels: list[str], rate: float) -> 
     row: dict[str, Any] = {
         "session": s.path.name, "participant": meta.get("participant", ""),
         "condition": meta.get("condition", ""), "protocol": meta.get("protocol", ""),
-        "index": t["index"], "block": t.get("block", ""), "gesture": t["gesture"],
+        "index": t["index"], "block": user_block(t.get("block", -1)),
+        "gesture": t["gesture"],
         "label": labels.index(str(t["gesture"])), "key": t.get("key", ""),
         "status": t.get("status", ""), "reason": t.get("reason") or "",
         "flags": ";".join(t.get("flags") or []), "start_sample": t["start_sample"],

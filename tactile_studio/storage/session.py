@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
+import uuid
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -16,6 +18,47 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.session_writer import FORMAT
+
+# Namespace of the derived session ids (uuid5): imports and files from before ids existed.
+SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
+FINGERPRINT_FRAMES = 64
+
+
+def user_block(block: Any) -> int:
+    """The block number users see: blocks count from 1, practice is block 0.
+
+    The journal keeps the runner's own numbering (0-based, practice -1); every
+    user-facing output (console, ``info``, ``info --json``, NPZ and CSV exports)
+    goes through this function.
+    """
+    try:
+        b = int(block)
+    except (TypeError, ValueError):
+        return 0
+    return b + 1 if b >= 0 else 0
+
+
+def _user_blocks(record: dict[str, Any]) -> dict[str, Any]:
+    out = dict(record)
+    for key in ("block", "after_block"):
+        if key in out and out[key] is not None:
+            out[key] = user_block(out[key])
+    return out
+
+
+def measured_rate_hz(times: np.ndarray) -> float:
+    """Frames per second over a recording: (frames - 1) / time spanned; 0 when it
+    cannot be measured. ``info`` and the importers' device metadata both use it."""
+    n = len(times)
+    if n < 2:
+        return 0.0
+    span = float(times[-1] - times[0])
+    return (n - 1) / span if span > 0 else 0.0
+
+
+def derived_session_id(text: str) -> str:
+    """A stable session id (uuid5) for ``text``: the same input gives the same id."""
+    return str(uuid.uuid5(SESSION_ID_NAMESPACE, text))
 
 
 @dataclass
@@ -169,6 +212,22 @@ class Session:
         return self.journal.trials
 
     @property
+    def session_id(self) -> str:
+        """The id in the metadata; for files written before ids existed, one derived
+        from what a resume copies unchanged (creation time, participant, the first
+        frames), so a file, its copies and its resume backups share it."""
+        sid = self.metadata.get("session_id")
+        if sid:
+            return str(sid)
+        n = min(self.n_frames, FINGERPRINT_FRAMES)
+        h = hashlib.sha256()
+        for key in ("created", "participant", "source"):
+            h.update(f"{key}={self.metadata.get(key, '')};".encode())
+        h.update(np.ascontiguousarray(self.raw(0, n)).tobytes())
+        h.update(np.ascontiguousarray(self.column("device_time", 0, n)).tobytes())
+        return derived_session_id(f"fingerprint:{h.hexdigest()}")
+
+    @property
     def closed_cleanly(self) -> bool:
         return self.journal.closed
 
@@ -200,19 +259,17 @@ class Session:
         n = self.n_frames
         duration = rate = 0.0
         if n >= 2:
-            t = self.column("device_time", 0, n)
-            span = float(t[-1] - t[0])
-            if span <= 0:
-                t = self.column("host_time", 0, n)
-                span = float(t[-1] - t[0])
-            if span > 0:
-                duration = span * n / (n - 1)
-                rate = (n - 1) / span
+            rate = measured_rate_hz(self.column("device_time", 0, n))
+            if rate <= 0:
+                rate = measured_rate_hz(self.column("host_time", 0, n))
+            if rate > 0:
+                duration = n / rate
         counters = self.journal.counters
         by_kind = dict(counters.get("malformed_by_kind", {}))
         by_kind_total = Counter(by_kind)
         out: dict[str, Any] = {
             "path": str(self.path),
+            "session_id": self.session_id,
             "frames": n,
             "duration_s": round(duration, 4),
             "rate_hz": round(rate, 3),
@@ -222,10 +279,22 @@ class Session:
             "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
             "closed_cleanly": self.closed_cleanly,
             "layout": self.layout.name,
-            "events": self.events,
+            "events": [_user_blocks(e) for e in self.events],
             "metadata": self.metadata,
+            # always present, a list (empty for a session without trials)
+            "participant": self.metadata.get("participant"),
+            "gestures": self.gesture_order(),
+            "unmapped_keys": list(self.metadata.get("unmapped_keys") or []),
+            "trials": [_user_blocks(t) for t in self.trials],
         }
-        if self.trials:
-            out["participant"] = self.metadata.get("participant")
-            out["trials"] = self.trials
         return out
+
+    def gesture_order(self) -> list[str]:
+        """The session's label order: the protocol's (metadata ``gestures``), then any
+        other gesture its trials name, sorted."""
+        names: list[str] = []
+        for g in self.metadata.get("gestures") or []:
+            g = g.get("name", "") if isinstance(g, dict) else g
+            if g and str(g) not in names:
+                names.append(str(g))
+        return names + sorted({str(t.get("gesture")) for t in self.trials} - set(names))

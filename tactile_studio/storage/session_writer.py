@@ -17,6 +17,7 @@ import json
 import os
 import threading
 import time
+import uuid
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +78,7 @@ class SessionWriter:
         self._last_flush = time.monotonic()
         self._closed = False
         self.metadata: dict[str, Any] = {
+            "session_id": str(uuid.uuid4()),  # callers (resume, imports) may pass their own
             "schema_version": SCHEMA_VERSION,
             "app_version": __version__,
             "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),

@@ -6,8 +6,13 @@ then one row per frame: Unix time, 180 raw counts, touched 0/1 and the label as 
 code (0 = none, 114 = 'r').
 
 Real files hold ~100k rows, so parsing is vectorised over byte blocks (numpy digit
-arithmetic instead of per-value ``float()``; see benchmarks/bench_import.py). Only the time column and fields with a decimal point go through
-Python's ``float`` so that values round-trip exactly.
+arithmetic instead of per-value ``float()``; see benchmarks/bench_import.py), including
+the old software's decimal counts ("1491.0") and other short decimals, exactly as
+``float()`` reads them. Only fields the word arithmetic cannot take (more than 15
+digits, e.g. a baseline mean) go through Python's ``float``; times are read with numpy's
+correctly rounded text cast, so values round-trip exactly. ``FAST_DECIMALS = False``
+selects the reference path (every field with a decimal point through ``float``), which
+tests compare against.
 
 Malformed rows are skipped and counted by kind:
 
@@ -18,8 +23,10 @@ Malformed rows are skipped and counted by kind:
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
+import threading
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +44,7 @@ HEADER = ["time (s)", *(f"Channel{i}" for i in range(N_CHANNELS)), "touched", "l
 MALFORMED_KINDS = ("short_row", "long_row", "merged_number", "unparsable")
 
 _BLOCK_BYTES = 1 << 20
-_COMMA, _NL, _DOT = 44, 10, 46
+_COMMA, _NL, _DOT, _ZERO = 44, 10, 46, 48
 _ALLOWED = np.zeros(256, dtype=bool)
 _ALLOWED[48:58] = True
 _ALLOWED[[_COMMA, _NL, _DOT]] = True
@@ -60,6 +67,7 @@ class ShearSenseData:
     baseline: np.ndarray
     malformed_by_kind: dict[str, int] = field(default_factory=dict)
     baseline_from_row: bool = True  # False: no baseline row, mean of first 100 frames used
+    sha256: str = ""  # of the file's bytes when asked for (imports derive the session id)
 
     @property
     def n_frames(self) -> int:
@@ -145,6 +153,34 @@ def _swar_uint(buf: bytes, ends: np.ndarray, lens: np.ndarray) -> np.ndarray:
     return x
 
 
+_POW10 = 10.0 ** np.arange(16)
+FAST_DECIMALS = True  # False: every field with a point goes through float() (the reference)
+
+
+def _decimals(buf: bytes, flat: np.ndarray, cell: np.ndarray, dots: np.ndarray,
+              starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Fields with one decimal point (other than "N.0") into ``flat``; returns the
+    cells left for the exact per-field path.
+
+    The digits on each side of the point are read with the word arithmetic, joined
+    into one integer m and divided by 10**k (k digits after the point). With m < 2**53
+    both are exact doubles and IEEE division rounds correctly, so the result equals
+    ``float(text)`` bit for bit. Longer fields (a baseline mean with many decimals)
+    and a lone "." (not a number) take the exact path.
+    """
+    int_len = dots - starts[cell]
+    frac_len = ends[cell] - dots - 1
+    digits = int_len + frac_len
+    fast = (int_len <= 8) & (frac_len <= 8) & (digits <= 15) & (digits > 0)  # not a lone "."
+    c, d = cell[fast], dots[fast]
+    whole = _swar_uint(buf, d, int_len[fast])
+    frac = _swar_uint(buf, ends[c], frac_len[fast])
+    k = frac_len[fast]
+    mant = whole * (10 ** k).astype(np.uint64) + frac
+    flat[c] = mant.astype(np.float64) / _POW10[k]
+    return cell[~fast]
+
+
 def _exact(text: bytes) -> float:
     try:
         return float(text)
@@ -208,19 +244,40 @@ def _parse_block(data: bytes, kinds: Counter) -> np.ndarray:
         ends, starts, lens = ends[keep], starts[keep], lens[keep]
     n = lens.reshape(rows, N_FIELDS)
     s = starts.reshape(rows, N_FIELDS)
-    values = _swar_uint(buf, ends, lens)
+    # "1491.0" (how the old software wrote every count) is the integer before ".0":
+    # read it by moving the field's end two bytes back. Other points: see _decimals.
+    isdot = b == _DOT
+    if FAST_DECIMALS and b"." in data:
+        dot0 = (lens >= 2) & isdot[ends - 2] & (b[ends - 1] == _ZERO)
+        shift = 2 * dot0
+        values = _swar_uint(buf, ends - shift, lens - shift)
+        exact = np.flatnonzero(lens - shift > 8)
+        isdot[ends[dot0] - 2] = False        # these points are done with
+    else:
+        dot0 = np.zeros(len(ends), dtype=bool)
+        values = _swar_uint(buf, ends, lens)
+        exact = np.flatnonzero(lens > 8)
     values = values.astype(np.float64).reshape(rows, N_FIELDS)
     bad = np.zeros(rows, dtype=bool)
     bad[np.flatnonzero(lens == 0) // N_FIELDS] = True
-    # Fields the word arithmetic cannot take are read exactly: a decimal point (a mean
-    # baseline, labels like 114.0) or more than 8 characters (merged or zero-padded).
-    exact = np.flatnonzero(lens > 8)
-    dots = np.flatnonzero(b == _DOT)
+    # Fields the word arithmetic cannot take are read exactly: more than 8 digits
+    # (merged or zero-padded) and, on the reference path, any decimal point.
+    flat = values.reshape(-1)
+    dots = np.flatnonzero(isdot)
     if len(dots):
         cell = np.minimum(np.searchsorted(ends, dots), len(ends) - 1)
-        cell = cell[(starts[cell] <= dots) & (ends[cell] > dots)]  # dots of kept rows
+        mine = (starts[cell] <= dots) & (ends[cell] > dots)    # dots of kept rows
+        cell, dots = cell[mine], dots[mine]
         bad[cell[1:][cell[1:] == cell[:-1]] // N_FIELDS] = True    # two in one field
-        exact = np.union1d(exact, cell)
+        bad[cell[dot0[cell]] // N_FIELDS] = True                    # another beside ".0"
+        if FAST_DECIMALS:
+            slow = _decimals(buf, flat, cell, dots, starts, ends)
+            if len(exact):  # rare: long fields; those with a point are handled above
+                exact = exact[~np.isin(exact, cell)]
+            if len(slow):
+                exact = np.union1d(exact, slow)
+        else:
+            exact = np.union1d(exact, cell)
     exact = exact[exact % N_FIELDS != 0]        # times are all read exactly below
     flat = values.reshape(-1)
     for fi in exact.tolist():
@@ -267,9 +324,39 @@ class _Rows:
         return np.concatenate(parts) if parts else empty
 
 
+class _FileHash:
+    """SHA-256 of a file computed by a thread beside the parse: hashlib releases the GIL,
+    and hashing the 150 MB of a real file alone takes ~0.2 s."""
+
+    def __init__(self, path: Path) -> None:
+        self._path = path
+        self._digest = hashlib.sha256()
+        self._error: OSError | None = None
+        self._thread = threading.Thread(target=self._run, args=(path,), daemon=True)
+        self._thread.start()
+
+    def _run(self, path: Path) -> None:
+        try:
+            with open(path, "rb") as fh:
+                for block in iter(lambda: fh.read(_BLOCK_BYTES), b""):
+                    self._digest.update(block)
+        except OSError as exc:
+            self._error = exc
+
+    def result(self) -> str:
+        self._thread.join()
+        if self._error is not None:
+            raise ShearSenseError(f"{self._path}: cannot be read ({self._error.strerror})")
+        return self._digest.hexdigest()
+
+
 def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = None,
-                        cancel: CancelToken | None = None) -> ShearSenseData:
-    """Read a ShearSense CSV; malformed rows are skipped and counted by kind."""
+                        cancel: CancelToken | None = None,
+                        digest: bool = False) -> ShearSenseData:
+    """Read a ShearSense CSV; malformed rows are skipped and counted by kind.
+
+    ``digest``: also hash the file's bytes (``sha256``; imports derive the session id
+    from it), in a thread beside the parse."""
     path = Path(path)
     progress = progress or no_progress
     size = check_input_file(path, "ShearSense CSV", ShearSenseError)
@@ -278,6 +365,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         fh = open(path, "rb")
     except OSError as exc:
         raise ShearSenseError(f"{path}: cannot be read ({exc.strerror})") from None
+    hasher = _FileHash(path) if digest else None
     with fh:
         header = fh.readline(1 << 20)
         _check_header(path, header)
@@ -317,7 +405,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         path=path, raw=raw, times=times, touched=touched, labels=labels,
         baseline=baseline.astype(np.float64),
         malformed_by_kind={k: int(rows.kinds[k]) for k in MALFORMED_KINDS if rows.kinds[k]},
-        baseline_from_row=baseline_from_row,
+        baseline_from_row=baseline_from_row, sha256=hasher.result() if hasher else "",
     )
 
 

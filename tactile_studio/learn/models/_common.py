@@ -45,6 +45,15 @@ def _coerce(model: str, key: str, value: object, default: object) -> object:
         ) from None
 
 
+class UnknownOptionError(UserError):
+    """A ``--set`` key the model does not have; the learner adds the training options."""
+
+    def __init__(self, model: str, key: str, allowed: list[str]) -> None:
+        self.model, self.key, self.allowed = model, key, list(allowed)
+        super().__init__(f"unknown option '{key}' for model '{model}' "
+                         f"(allowed: {', '.join(allowed)})")
+
+
 def resolve_options(
     model: str,
     preset: str,
@@ -57,9 +66,7 @@ def resolve_options(
     options = dict(presets[preset])
     for key, value in overrides.items():
         if key not in options:
-            raise UserError(
-                f"unknown option '{key}' for model '{model}' (allowed: {', '.join(options)})"
-            )
+            raise UnknownOptionError(model, key, list(options))
         options[key] = _coerce(model, key, value, options[key])
         if choices and key in choices and options[key] not in choices[key]:
             raise UserError(

@@ -3,6 +3,7 @@ gesture names from the shipped protocols, progress slices."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -70,6 +71,24 @@ def load_protocol_or_none(name: str) -> Any:
         return load_protocol(name)
     except (ImportError, UserError):
         return None
+
+
+def file_sha256(path: Path) -> str:
+    """Hash of a file's bytes (1 MB blocks)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def import_session_id(fmt: str, sha256: str, part: str = "") -> str:
+    """The deterministic session id of an import: the same source file (and subject,
+    for datasets split per subject) imported twice gets the same id, so datasets
+    recognise the second copy."""
+    from tactile_studio.storage.session import derived_session_id
+
+    return derived_session_id(f"import:{fmt}:{sha256}:{part}")
 
 
 def participant_id(subject: str) -> str:

@@ -35,6 +35,8 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
 from tactile_studio.storage.importers._common import (
     check_outputs,
+    file_sha256,
+    import_session_id,
     load_protocol_or_none,
     norm_name,
     participant_id,
@@ -169,6 +171,7 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     check_outputs(list(outputs.values()), force)
     extra = [r for r in ("variant", "substrate", "cover") if r in table.meta]
     malformed = sum(table.malformed_by_kind.values())
+    sha = file_sha256(path)
 
     def job(subject: str):  # noqa: ANN202
         mine = [(s, e) for s, e in bounds if subjects[s] == subject]
@@ -190,6 +193,7 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
         times = np.arange(len(rows), dtype=np.float64) / spec.rate_hz
         participant = participant_id(subject)
         metadata = {
+            "session_id": import_session_id(spec.name, sha, str(subject)),
             "participant": participant, "subject": subject, "condition": "",
             "protocol": spec.protocol if protocol is not None else "",
             "gestures": gestures + sorted({t["gesture"] for t in trials} - set(gestures)),

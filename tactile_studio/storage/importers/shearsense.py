@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -13,12 +14,15 @@ from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers._common import (
     check_outputs,
     frame_interval,
+    import_session_id,
     labelled_runs,
     load_protocol_or_none,
     run_jobs,
     slice_progress,
     write_session,
 )
+from tactile_studio.storage.importers.maps import normalise_participant
+from tactile_studio.storage.session import measured_rate_hz
 from tactile_studio.storage.shearsense import (
     ShearSenseData,
     ShearSenseError,
@@ -30,18 +34,62 @@ PROTOCOL = "shear9"
 RATE_HZ = 43.0  # the paper's nominal rate, only used when a file has < 2 frames
 
 
-def shearsense_trials(data: ShearSenseData, protocol: Any = None) -> list[dict[str, Any]]:
-    """One ok trial per labelled run; the label's key names the gesture via ``protocol``.
+@dataclass
+class ShearSenseImport:
+    """What an import did, for the summary the user reads: the participant each file
+    name became, files without a labelled run, and keys no gesture name was given for."""
+
+    participants: dict[str, str] = field(default_factory=dict)  # as spelled -> id used
+    empty_files: list[str] = field(default_factory=list)
+    unmapped_keys: dict[str, list[str]] = field(default_factory=dict)  # key -> files
+    key_names: dict[str, str] = field(default_factory=dict)  # the gesture map used
+    custom_keys: bool = False  # key_names came from --gestures, not shear9
+
+    def lines(self) -> list[str]:
+        """The summary as printed by ``import shearsense``."""
+        out = []
+        if self.custom_keys:
+            out.append("gesture keys: " + ", ".join(f"{k}={v}" for k, v in self.key_names.items()))
+        if self.participants:
+            shown = ", ".join(f"{k} -> {v}" if k != v else v
+                              for k, v in sorted(self.participants.items()))
+            out.append(f"participants: {shown}")
+        if self.empty_files:
+            out.append(f"{len(self.empty_files)} file(s) with no labelled runs (0 trials): "
+                       + ", ".join(self.empty_files))
+        for key, files in sorted(self.unmapped_keys.items()):
+            out.append(f"key {key!r} (code {ord(key) if len(key) == 1 else key}) has no "
+                       f"gesture name, trials keep the key: {len(files)} file(s) "
+                       f"({', '.join(files[:3])}{', ...' if len(files) > 3 else ''})")
+        return out
+
+
+def default_key_names(protocol: Any = None) -> dict[str, str]:
+    """The shear9 protocol's key -> gesture name map (empty if it cannot be loaded)."""
+    protocol = protocol if protocol is not None else load_protocol_or_none(PROTOCOL)
+    return {g.key: g.name for g in protocol.gestures} if protocol is not None else {}
+
+
+def _key_text(code: int) -> str:
+    return chr(code) if 0 < code < 0x110000 else str(code)
+
+
+def shearsense_trials(data: ShearSenseData, protocol: Any = None,
+                      key_names: dict[str, str] | None = None) -> list[dict[str, Any]]:
+    """One ok trial per labelled run; ``key_names`` (default: ``protocol``'s keys) names
+    the gesture of the run's key; a key without a name keeps the key as its gesture.
 
     ``block`` is the running count of runs: the old CSV does not record blocks.
     """
+    if key_names is None:
+        key_names = default_key_names(protocol) if protocol is not None else {}
     dt = frame_interval(data.times, 1.0 / RATE_HZ)
     trials = []
     for i, (s, e, code) in enumerate(labelled_runs(data.labels)):
-        key = chr(code) if 0 < code < 0x110000 else str(code)
-        g = protocol.gesture_by_key(key) if protocol is not None else None
+        key = _key_text(code)
+        name = key_names.get(key) or key_names.get(key.lower())
         trials.append({
-            "index": i, "block": i, "gesture": g.name if g is not None else key, "key": key,
+            "index": i, "block": i, "gesture": name or key, "key": key,
             "start_sample": s, "end_sample": e,
             "start_time": float(data.times[s]), "end_time": float(data.times[e - 1]) + dt,
             "status": "ok", "reason": None, "flags": [],
@@ -53,29 +101,64 @@ def session_name(csv: Path) -> str:
     return f"{csv.stem}.h5"
 
 
+def file_participant(csv: Path, participant_map: dict[str, str] | None = None
+                     ) -> tuple[str, str]:
+    """(as spelled in the file name, participant id): normalised (case, zero padding)
+    and then mapped; the file's stem when its name names no participant."""
+    spelled = parse_shearsense_name(csv)[0]
+    base = normalise_participant(spelled) if spelled else csv.stem
+    pid = (participant_map or {}).get(normalise_participant(base), base)
+    return spelled or csv.stem, pid
+
+
 def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
                            progress: ProgressFn | None = None,
-                           cancel: CancelToken | None = None) -> Path:
-    """One ShearSense CSV -> one session file at ``out``."""
+                           cancel: CancelToken | None = None,
+                           key_names: dict[str, str] | None = None,
+                           participant_map: dict[str, str] | None = None,
+                           report: ShearSenseImport | None = None) -> Path:
+    """One ShearSense CSV -> one session file at ``out``.
+
+    ``key_names``: key -> gesture name (default: the shear9 protocol's);
+    ``participant_map``: normalised file-name participant -> id; ``report`` collects
+    what the summary prints."""
     csv, out = Path(csv), Path(out)
     progress = progress or no_progress
-    data = read_shearsense_csv(csv, slice_progress(progress, 0.0, 0.7), cancel)
+    data = read_shearsense_csv(csv, slice_progress(progress, 0.0, 0.7), cancel, digest=True)
     protocol = load_protocol_or_none(PROTOCOL)
-    participant, condition = parse_shearsense_name(csv)
-    trials = shearsense_trials(data, protocol)
-    gestures = list(protocol.gesture_names) if protocol is not None else []
+    custom = key_names is not None
+    names = dict(key_names) if custom else default_key_names(protocol)
+    spelled, participant = file_participant(csv, participant_map)
+    condition = parse_shearsense_name(csv)[1]
+    trials = shearsense_trials(data, protocol, names)
+    unmapped = sorted({t["key"] for t in trials if t["gesture"] == t["key"]
+                       and t["key"] not in names and t["key"].lower() not in names})
+    if custom:
+        gestures = list(dict.fromkeys(names.values()))
+    else:
+        gestures = list(protocol.gesture_names) if protocol is not None else []
     gestures += sorted({t["gesture"] for t in trials} - set(gestures))
     metadata = {
-        "participant": participant or csv.stem, "condition": condition,
-        "protocol": PROTOCOL if protocol is not None else "", "gestures": gestures,
+        "session_id": import_session_id("shearsense", data.sha256),
+        "participant": participant, "participant_as_named": spelled, "condition": condition,
+        "protocol": PROTOCOL if protocol is not None and not custom else "",
+        "gestures": gestures, "gesture_keys": names, "unmapped_keys": unmapped,
         "source": "import:shearsense", "original_file": csv.name,
         "malformed_rows": data.n_malformed, "baseline_from_row": data.baseline_from_row,
     }
+    # the same measured figure `info` shows in its header: frames over the time spanned
     device = {"plugin": "import", "format": "shearsense-csv", "file": str(csv),
-              "rate_hz": round(1.0 / frame_interval(data.times, 1.0 / RATE_HZ), 3)}
+              "rate_hz": round(measured_rate_hz(data.times) or RATE_HZ, 3)}
     write_session(out, SHEARSENSE_6X6, device, metadata, data.raw, data.times, data.baseline,
                   trials, counters={"malformed_by_kind": dict(data.malformed_by_kind)},
                   progress=slice_progress(progress, 0.7, 1.0), cancel=cancel)
+    if report is not None:
+        report.key_names, report.custom_keys = names, custom
+        report.participants[spelled] = participant
+        if not trials:
+            report.empty_files.append(csv.name)
+        for key in unmapped:
+            report.unmapped_keys.setdefault(key, []).append(csv.name)
     progress(1.0, f"{out.name}: {data.n_frames} frames, {len(trials)} trials")
     return out
 
@@ -83,8 +166,12 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
 def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
                       progress: ProgressFn | None = None, cancel: CancelToken | None = None,
                       force: bool = False,
-                      on_done: Callable[[Path], None] | None = None) -> list[Path]:
-    """Import CSVs in order; on cancel the sessions finished so far stay on disk."""
+                      on_done: Callable[[Path], None] | None = None,
+                      key_names: dict[str, str] | None = None,
+                      participant_map: dict[str, str] | None = None,
+                      report: ShearSenseImport | None = None) -> list[Path]:
+    """Import CSVs in order; on cancel the sessions finished so far stay on disk.
+    See :func:`import_shearsense_file` for ``key_names``, ``participant_map``, ``report``."""
     out_dir = Path(out_dir)
     for f in files:
         if not Path(f).is_file():
@@ -95,7 +182,9 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
     if len(set(targets)) != len(targets):
         raise _dup_error(pairs)
     check_outputs(targets, force)
-    jobs = [lambda p, c=c, o=o: import_shearsense_file(c, o, p, cancel) for c, o in pairs]
+    jobs = [lambda p, c=c, o=o: import_shearsense_file(c, o, p, cancel, key_names,
+                                                       participant_map, report)
+            for c, o in pairs]
     return run_jobs(jobs, progress, on_done=on_done)
 
 

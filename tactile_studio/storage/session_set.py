@@ -1,0 +1,119 @@
+"""Choosing the session files of a dataset so that no session counts twice.
+
+A resume keeps the original file as ``NAME.bak-N.h5`` beside the resumed one, and the
+same recording can sit in two folders (a copy, the same source imported twice). Both
+would put copies of a participant's trials into a dataset, possibly on both sides of a
+train/test split. So a folder scan skips resume backups, and files sharing a
+``session_id`` (see :attr:`Session.session_id`) are reduced to one: a non-backup before
+a backup, then a cleanly closed file, then the one with more trials, more frames, the
+newest modification time and finally the first path in sort order. What was skipped is returned so it can be reported.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.errors import UserError
+from tactile_studio.storage.session import Session
+
+BACKUP_RE = re.compile(r"\.bak-\d+$")
+
+
+def is_resume_backup(path: Path) -> bool:
+    """``P01_shear9_...bak-2.h5``: the original a resume kept beside the session."""
+    return bool(BACKUP_RE.search(Path(path).stem))
+
+
+@dataclass
+class SessionSet:
+    """The files to read, the common root folder and what was left out (and why)."""
+
+    files: list[Path]
+    root: Path | None
+    skipped: list[dict[str, Any]] = field(default_factory=list)
+
+    def describe_skipped(self) -> str:
+        return describe_skipped(self.skipped)
+
+
+def describe_skipped(skipped: list[dict[str, Any]]) -> str:
+    """One line: ``skipped 1 resume backup, 1 duplicate session (b.h5: same session_id
+    as a.h5)``; empty when nothing was skipped."""
+    if not skipped:
+        return ""
+    backups = [s for s in skipped if s["reason"] == "resume backup"]
+    dups = [s for s in skipped if s["reason"] == "duplicate session"]
+    parts = []
+    if backups:
+        parts.append(f"{len(backups)} resume backup{'s' if len(backups) != 1 else ''}")
+    if dups:
+        shown = "; ".join(f"{d['file']}: same session_id as {d['kept']}" for d in dups[:3])
+        more = f"; {len(dups) - 3} more" if len(dups) > 3 else ""
+        parts.append(f"{len(dups)} duplicate session{'s' if len(dups) != 1 else ''} "
+                     f"({shown}{more})")
+    return "skipped " + ", ".join(parts)
+
+
+def _scan(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], list[Path]]:
+    """(files, backups found in folders): folders recursively (``*.h5``), files as given."""
+    if not paths:
+        raise UserError("no data given: pass a folder or session files")
+    files: list[Path] = []
+    backups: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(q for q in p.rglob("*.h5") if q.is_file())
+            if not found:
+                raise UserError(f"{p}: no session files (*.h5) in this folder")
+            for q in found:
+                (backups if is_resume_backup(q) else files).append(q)
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise UserError(f"{p}: no such file or folder")
+    files = sorted({f.resolve() for f in files})
+    backups = sorted({b.resolve() for b in backups} - set(files))
+    return files, backups
+
+
+def _rank(path: Path, s: Session) -> tuple:
+    ok = sum(1 for t in s.trials if t.get("status", "ok") == "ok")
+    return (not is_resume_backup(path), s.closed_cleanly, ok, s.n_frames,
+            path.stat().st_mtime_ns)
+
+
+def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
+    """The session files under ``paths`` with resume backups and duplicates left out."""
+    files, backups = _scan(paths)
+    every = files + backups
+    shown_root = Path(os.path.commonpath([f.parent for f in every])) if every else None
+
+    def rel(p: Path) -> str:
+        return p.relative_to(shown_root).as_posix() if shown_root else p.name
+
+    skipped: list[dict[str, Any]] = [
+        {"file": rel(b), "reason": "resume backup"} for b in backups]
+    by_id: dict[str, list[tuple[tuple, Path]]] = {}
+    for f in files:
+        with Session(f) as s:
+            by_id.setdefault(s.session_id, []).append((_rank(f, s), f))
+    keep: list[Path] = []
+    for sid, group in by_id.items():
+        group.sort(key=lambda g: g[1])                  # equal ranks: first path wins
+        group.sort(key=lambda g: g[0], reverse=True)
+        best = group[0][1]
+        keep.append(best)
+        skipped += [{"file": rel(f), "reason": "duplicate session", "session_id": sid,
+                     "kept": rel(best)} for _, f in group[1:]]
+    keep.sort()
+    # Trial uids are relative to the kept files' folder, as before backups were skipped.
+    root = Path(os.path.commonpath([f.parent for f in keep])) if keep else None
+    return SessionSet(keep, root, skipped)
+
+
+__all__ = ["SessionSet", "describe_skipped", "is_resume_backup", "select_sessions"]

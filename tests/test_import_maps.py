@@ -1,0 +1,118 @@
+"""``import shearsense`` names: participants normalised and mapped, gesture key maps,
+and a summary that lists files without trials and keys without a gesture name."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from tactile_studio.cli import main
+from tactile_studio.storage.importers.maps import (
+    MapError,
+    gesture_key_map,
+    normalise_participant,
+    participant_map,
+)
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.shearsense import write_shearsense_csv
+
+
+def _csv(folder, name, seed, keys="rpz"):
+    rng = np.random.default_rng(seed)
+    raw = rng.integers(30000, 30200, size=(60 + 40 * len(keys), 180)).astype(np.uint16)
+    labels = np.zeros(len(raw), dtype=np.int64)
+    for i, k in enumerate(keys):
+        labels[30 + 40 * i: 60 + 40 * i] = ord(k)
+    return write_shearsense_csv(folder / name, raw, 1.7e9 + np.arange(len(raw)) / 43, labels,
+                                raw[:5].mean(axis=0))
+
+
+@pytest.fixture
+def files(tmp_path):
+    src = tmp_path / "src"
+    src.mkdir()
+    names = ["Pilot_FLAT.csv", "PILOT_PILLOW.csv", "P8_FLAT.csv", "P08_PILLOW.csv"]
+    out = [_csv(src, n, i) for i, n in enumerate(names)]
+    out.append(_csv(src, "P09_FLAT.csv", 9, keys=""))  # nothing labelled
+    return out
+
+
+def _import(capsys, tmp_path, files, *extra):
+    out = tmp_path / "out"
+    code = main(["import", "shearsense", *map(str, files), "--out", str(out), "--force", *extra])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    people = {}
+    for f in files:
+        with Session(out / f"{f.stem}.h5") as s:
+            people[f.name] = (s.metadata["participant"], [t["gesture"] for t in s.trials],
+                              s.metadata["unmapped_keys"])
+    return stdout, people
+
+
+def test_normalise_participant():
+    assert [normalise_participant(n) for n in ("Pilot", "PILOT", "P8", "p08", "P008", "P123",
+                                               "PA1", "")] == \
+        ["PILOT", "PILOT", "P08", "P08", "P08", "P123", "PA1", ""]
+
+
+def test_default_import_normalises_participants_and_reports_gaps(tmp_path, capsys, files):
+    stdout, people = _import(capsys, tmp_path, files)
+    assert {k: v[0] for k, v in people.items()} == {
+        "Pilot_FLAT.csv": "PILOT", "PILOT_PILLOW.csv": "PILOT", "P8_FLAT.csv": "P08",
+        "P08_PILLOW.csv": "P08", "P09_FLAT.csv": "P09"}
+    assert "participants: P08, P09, P8 -> P08, PILOT, Pilot -> PILOT" in stdout
+    assert "1 file(s) with no labelled runs (0 trials): P09_FLAT.csv" in stdout
+    assert "key 'z' (code 122) has no gesture name, trials keep the key: 4 file(s)" in stdout
+    assert people["P8_FLAT.csv"][1] == ["Back & Forth Rub", "Poke", "z"]  # shear9's keys
+    assert people["P8_FLAT.csv"][2] == ["z"]
+    assert "gesture keys:" not in stdout
+
+
+def test_maps_inline_and_from_toml(tmp_path, capsys, files):
+    stdout, people = _import(capsys, tmp_path, files, "--participant-map", "pilot=P00,P8=P07",
+                             "--gestures", "r=Rub,112=Press")
+    assert {v[0] for k, v in people.items() if "ilot" in k.lower()} == {"P00"}
+    assert people["P8_FLAT.csv"][0] == people["P08_PILLOW.csv"][0] == "P07"
+    assert people["P8_FLAT.csv"][1] == ["Rub", "Press", "z"]
+    assert "Pilot -> P00" in stdout and "P8 -> P07" in stdout
+    assert "gesture keys: r=Rub, p=Press" in stdout
+    with Session(tmp_path / "out" / "P8_FLAT.h5") as s:
+        assert s.metadata["gestures"] == ["Rub", "Press", "z"]
+        assert s.metadata["protocol"] == ""  # not shear9's names any more
+    assert main(["info", str(tmp_path / "out" / "P8_FLAT.h5")]) == 0
+    assert "unmapped keys: z" in capsys.readouterr().out
+    assert main(["info", "--json", str(tmp_path / "out" / "P8_FLAT.h5")]) == 0
+    assert json.loads(capsys.readouterr().out)["unmapped_keys"] == ["z"]
+
+    # a file name without a P-number keeps its stem, which the map can rename too
+    other = _csv(tmp_path / "src", "recording 3.csv", 11)
+    stdout, people = _import(capsys, tmp_path, [other], "--participant-map", "Recording 3=P11")
+    assert people["recording 3.csv"][0] == "P11" and "recording 3 -> P11" in stdout
+
+    (tmp_path / "g.toml").write_text('[gestures]\nr = "Rub"\n122 = "Zigzag"\n')
+    (tmp_path / "p.toml").write_text('PILOT = "P00"\n"p08" = "P01"\n')
+    stdout, people = _import(capsys, tmp_path, files, "--gestures", str(tmp_path / "g.toml"),
+                             "--participant-map", str(tmp_path / "p.toml"))
+    assert people["P08_PILLOW.csv"][0] == "P01" and people["Pilot_FLAT.csv"][0] == "P00"
+    assert people["P8_FLAT.csv"][1] == ["Rub", "p", "Zigzag"]
+    assert "key 'p' (code 112) has no gesture name" in stdout
+
+
+def test_bad_maps_are_one_line_errors(tmp_path, capsys, files):
+    for opt, value, words in [("--gestures", "r", "not old=new"),
+                              ("--gestures", "rr=Rub", "one character"),
+                              ("--gestures", str(tmp_path / "missing.toml"), "no such file"),
+                              ("--participant-map", "P8=bad id!", "bad participant id")]:
+        code = main(["import", "shearsense", str(files[0]), "--out", str(tmp_path / "o"),
+                     opt, value])
+        err = capsys.readouterr().err.strip()
+        assert code == 1 and words in err and len(err.splitlines()) == 1, err
+    (tmp_path / "bad.toml").write_text("r = [1, 2]\n")
+    with pytest.raises(MapError, match="must map to a name"):
+        gesture_key_map(str(tmp_path / "bad.toml"))
+    with pytest.raises(MapError, match="not a readable TOML"):
+        (tmp_path / "worse.toml").write_text("r = \n")
+        participant_map(str(tmp_path / "worse.toml"))

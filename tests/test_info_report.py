@@ -1,0 +1,109 @@
+"""What ``info`` and the exports report: 1-based blocks (practice = block 0) everywhere,
+gestures in the protocol's order, a stable ``info --json`` shape, one measured rate."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+
+from tactile_studio.cli import main
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.storage.session import Session, user_block
+from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.shearsense import write_shearsense_csv
+
+# protocol order, deliberately not alphabetical
+GESTURES = ["Poke", "Wide Pinch", "Heavy Pat"]
+
+
+def _collected(path, with_trials: bool = True):
+    """A collection-like session: a practice trial (journal block -1), then blocks 0, 1."""
+    rng = np.random.default_rng(3)
+    raw = rng.integers(30000, 30100, size=(400, 180)).astype(np.uint16)
+    meta = {"participant": "P05", "gestures": GESTURES, "protocol": "shear9",
+            "source": "collect"}
+    plan = [(-1, "Heavy Pat", "h"), (0, "Heavy Pat", "h"), (0, "Wide Pinch", "w"),
+            (0, "Poke", "p"), (1, "Poke", "p")]
+    with SessionWriter(path, SHEARSENSE_6X6, {"plugin": "test"}, meta) as w:
+        w.add_baseline(raw[:30].mean(axis=0), 0)
+        t = 1.7e9 + np.arange(400) / 43.0
+        w.append_frames(raw, t, t)
+        w.add_event("block_start", frame=0, block=0)
+        if with_trials:
+            for i, (b, g, k) in enumerate(plan):
+                s = 20 + 70 * i
+                w.add_trial({"index": i, "block": b, "gesture": g, "key": k, "start_sample": s,
+                             "end_sample": s + 43, "start_time": t[s], "end_time": t[s] + 1.0,
+                             "status": "ok", "reason": None, "flags": []})
+    return path
+
+
+def _info(capsys, *args) -> str:
+    assert main(["info", *map(str, args)]) == 0
+    return capsys.readouterr().out
+
+
+def test_user_block_numbering():
+    assert [user_block(b) for b in (-1, 0, 1, 7, None, "x")] == [0, 1, 2, 8, 0, 0]
+
+
+def test_blocks_are_one_based_in_info_json_npz_and_csv(tmp_path, capsys):
+    path = _collected(tmp_path / "s.h5")
+    js = json.loads(_info(capsys, path, "--json"))
+    assert [t["block"] for t in js["trials"]] == [0, 1, 1, 1, 2]
+    assert [e["block"] for e in js["events"] if e["kind"] == "block_start"] == [1]
+    with Session(path) as s:  # the journal keeps the runner's numbering
+        assert [t["block"] for t in s.trials] == [-1, 0, 0, 0, 1]
+    text = _info(capsys, path)
+    assert "blocks: 2 (1..2)" in text and "practice trials: 1" in text
+
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["export", str(path), "--format", "npz", "--out", str(out)]) == 0
+    blocks = {}
+    for f in sorted(out.glob("*.npz")):
+        with np.load(f) as z:
+            blocks[int(z["index"])] = int(z["block"])
+    assert blocks == {0: 0, 1: 1, 2: 1, 3: 1, 4: 2}
+    assert main(["export", str(path), "--format", "csv-trials", "--out", str(out)]) == 0
+    with open(out / "s_trials.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["block"]) for r in rows] == [0, 1, 1, 1, 2]
+    capsys.readouterr()
+
+
+def test_info_lists_gestures_in_protocol_order(tmp_path, capsys):
+    text = _info(capsys, _collected(tmp_path / "s.h5"))
+    rows = [ln for ln in text.splitlines() if ln.startswith(tuple(GESTURES))]
+    assert [next(g for g in GESTURES if r.startswith(g)) for r in rows] == GESTURES
+
+
+def test_info_json_has_the_same_shape_with_and_without_trials(tmp_path, capsys):
+    full = json.loads(_info(capsys, _collected(tmp_path / "a.h5"), "--json"))
+    empty = json.loads(_info(capsys, _collected(tmp_path / "b.h5", with_trials=False), "--json"))
+    assert set(full) == set(empty)
+    for key in ("trials", "gestures", "unmapped_keys", "events"):
+        assert isinstance(full[key], list) and isinstance(empty[key], list), key
+    assert empty["trials"] == [] and len(full["trials"]) == 5
+    assert full["participant"] == empty["participant"] == "P05"
+    assert full["gestures"] == GESTURES
+    assert full["session_id"] and full["session_id"] != empty["session_id"]
+
+
+def test_imported_rate_is_one_measured_figure(tmp_path, capsys):
+    rng = np.random.default_rng(5)
+    raw = rng.integers(20000, 30000, size=(500, 180)).astype(np.uint16)
+    times = 1.7e9 + np.arange(500) / 44.0
+    times[250:] += 3.0  # a pause: mean and median frame rates now differ
+    labels = np.zeros(500, dtype=np.int64)
+    labels[100:180] = ord("p")
+    src = write_shearsense_csv(tmp_path / "P01_FLAT.csv", raw, times, labels, raw[:5].mean(0))
+    assert main(["import", "shearsense", str(src), "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    js = json.loads(_info(capsys, tmp_path / "P01_FLAT.h5", "--json"))
+    assert js["rate_hz"] == js["metadata"]["device"]["rate_hz"]
+    assert abs(js["rate_hz"] - 499 / (times[-1] - times[0])) < 1e-3
+    text = _info(capsys, tmp_path / "P01_FLAT.h5")
+    assert f"({js['rate_hz']:.2f} Hz)" in text

@@ -1,0 +1,153 @@
+"""Session identity: every file has a session_id, resume keeps it, imports derive it from
+the source, and a dataset never counts a session twice (resume backups, copies)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import uuid
+from pathlib import Path
+
+import h5py
+import numpy as np
+from collect_fixtures import do_trial, drive, make_rig, mini_protocol, start
+from learn_fixtures import write_participant
+
+from tactile_studio.cli import main
+from tactile_studio.learn.dataset import build_dataset, read_sessions
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.storage.importers import import_shearsense
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_set import is_resume_backup, select_sessions
+from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.shearsense import write_shearsense_csv
+
+
+def _resumed_session(folder: Path) -> tuple[Path, Path, list[str]]:
+    """A real collection session: 2 trials, closed mid-block, resumed and finished.
+    Returns (session, backup, gestures in trial order)."""
+    protocol = mini_protocol(n_gestures=3, blocks=2)
+    rig = make_rig(folder, protocol)
+    try:
+        start(rig)
+        order = rig.runner.orders
+        for g in order[0][:2]:
+            do_trial(rig, g)
+    finally:
+        rig.close()
+    path = rig.session.path
+    rig2 = make_rig(folder, protocol, resume=path)
+    r2 = rig2.runner
+    try:
+        r2.start()
+        drive(rig2, lambda: r2.state == "waiting_for_key")
+        for g in [order[0][2], *order[1]]:
+            do_trial(rig2, g)
+        assert r2.state == "finished"
+    finally:
+        rig2.close()
+    return path, rig2.session.backup, order[0] + order[1]
+
+
+def test_resumed_session_keeps_its_id_and_a_dataset_counts_each_trial_once(tmp_path, capsys):
+    data = tmp_path / "data"
+    data.mkdir()
+    path, backup, gestures = _resumed_session(data)
+    assert is_resume_backup(backup) and backup.parent == data
+    with Session(path) as s, Session(backup) as b:
+        sid = s.session_id
+        assert uuid.UUID(sid).version == 4 and s.metadata["session_id"] == sid
+        assert b.metadata["session_id"] == sid  # the original and its resume: one session
+        assert len(b.trials) == 2 and len(s.trials) == 6
+        assert s.metadata["resumes"] == 1
+    assert main(["info", str(path)]) == 0
+    assert f"session:    {sid}" in capsys.readouterr().out
+    # a copy of the finished session in another folder is the same session again
+    (data / "copy").mkdir()
+    shutil.copy2(path, data / "copy" / "again.h5")
+
+    ds = read_sessions([data])
+    assert len(ds) == 6  # 6 trials, not 6 + 2 (backup) + 6 (copy)
+    assert len(set(ds.uids)) == 6 and all(u.startswith(path.name) for u in ds.uids)
+    assert sorted(ds.label_names[i] for i in ds.labels) == sorted(gestures)
+    kinds = sorted((s["reason"], s["file"]) for s in ds.skipped)
+    assert kinds == [("duplicate session", "copy/again.h5"), ("resume backup", backup.name)]
+    text = ds.summary()["skipped_text"]
+    assert text.startswith("skipped 1 resume backup, 1 duplicate session")
+    assert f"copy/again.h5: same session_id as {path.name}" in text
+
+    # the CLI says what it left out; two more participants make LOPO possible
+    for p, seed in (("P02", 202), ("P03", 303)):
+        write_participant(data / f"{p}.h5", p, seed, gestures=sorted(set(gestures)), blocks=2)
+    code = main(["train", "--data", str(data), "--model", "rf", "--preset", "tiny",
+                 "--eval", "lopo", "--out", str(tmp_path / "run"),
+                 "--cache-dir", str(tmp_path / "cache"), "--set", "n_estimators=10"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "data: skipped 1 resume backup, 1 duplicate session" in out
+    resolved = json.loads((tmp_path / "run" / "config.json").read_text())["resolved"]
+    assert resolved["dataset"]["trials"] == 6 + 2 * 6
+    assert len(resolved["dataset"]["skipped"]) == 2
+    assert main(["evaluate", str(tmp_path / "run")]) == 0
+    assert "data: skipped 1 resume backup, 1 duplicate session" in capsys.readouterr().out
+    # from the cache the same files are left out and reported
+    ds2 = build_dataset([data], cache_dir=tmp_path / "cache")
+    assert len(ds2) == 18 and len(ds2.skipped) == 2
+
+
+def test_a_backup_named_explicitly_loses_to_its_session(tmp_path):
+    path, backup, _ = _resumed_session(tmp_path)
+    chosen = select_sessions([backup, path])
+    assert chosen.files == [path.resolve()]
+    assert chosen.skipped[0]["reason"] == "duplicate session"
+    assert chosen.skipped[0]["file"] == backup.name
+
+
+def _old_style_file(path: Path, frames: np.ndarray) -> Path:
+    """A session as written before ids existed: no session_id in its metadata."""
+    w = SessionWriter(path, SHEARSENSE_6X6, {"plugin": "test"},
+                      {"participant": "P01", "created": "2025-01-01T00:00:00+00:00"})
+    w.metadata.pop("session_id")
+    w._record({"type": "metadata", "update": {"session_id": None}})  # noqa: SLF001
+    w.append_frames(frames, np.arange(len(frames)) / 43.0, np.arange(len(frames)) / 43.0)
+    w.close()
+    return path
+
+
+def test_files_without_an_id_get_a_stable_fingerprint(tmp_path):
+    rng = np.random.default_rng(1)
+    frames = rng.integers(20000, 30000, size=(100, 180)).astype(np.uint16)
+    a = _old_style_file(tmp_path / "a.h5", frames)
+    b = _old_style_file(tmp_path / "b.h5", frames[:80])  # the same start: a backup's view
+    c = _old_style_file(tmp_path / "c.h5", frames[::-1].copy())
+    with Session(a) as sa, Session(b) as sb, Session(c) as sc:
+        assert not sa.metadata.get("session_id")
+        assert sa.session_id == sb.session_id != sc.session_id
+        assert uuid.UUID(sa.session_id).version == 5
+        again = Session(a)
+        assert again.session_id == sa.session_id  # stable across reads
+        again.close()
+    with h5py.File(a, "r") as f:  # reading derives the id, it never writes it
+        assert json.loads(f.attrs["metadata_json"])["session_id"] is None
+
+
+def test_the_same_csv_imported_twice_is_one_session(tmp_path):
+    rng = np.random.default_rng(2)
+    raw = rng.integers(20000, 30000, size=(300, 180)).astype(np.uint16)
+    labels = np.zeros(300, dtype=np.int64)
+    labels[50:130] = ord("p")
+    labels[180:260] = ord("h")
+    csv = write_shearsense_csv(tmp_path / "P01_x_FLAT.csv", raw, 1.7e9 + np.arange(300) / 43,
+                               labels, raw[:10].mean(axis=0))
+    other = write_shearsense_csv(tmp_path / "P02_x_FLAT.csv", raw[::-1], 1.7e9 + np.arange(300) / 43,
+                                 labels, raw[:10].mean(axis=0))
+    (tmp_path / "one").mkdir()
+    (tmp_path / "two").mkdir()
+    [a] = import_shearsense([csv], tmp_path / "one")
+    [b, c] = import_shearsense([csv, other], tmp_path / "two")
+    with Session(a) as sa, Session(b) as sb, Session(c) as sc:
+        assert sa.session_id == sb.session_id != sc.session_id
+        assert uuid.UUID(sa.session_id).version == 5
+    ds = read_sessions([tmp_path / "one", tmp_path / "two"])
+    assert len(ds) == 4 and sorted(set(ds.participants)) == ["P01", "P02"]
+    assert [s["reason"] for s in ds.skipped] == ["duplicate session"]
