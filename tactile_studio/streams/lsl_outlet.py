@@ -19,6 +19,7 @@ from __future__ import annotations
 import collections
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
@@ -96,15 +97,17 @@ class LslStreamer:
         self.frame_outlet = self.marker_outlet = None  # liblsl closes them when freed
 
     # ---- markers from elsewhere ----------------------------------------------------------
-    def attach_runner(self, runner: Any) -> None:
-        """Forward a CollectionRunner's events (trials, beeps, keys, redo...) as markers.
+    def attach_runner(self, runner: Any) -> Callable[[], None]:
+        """Forward a CollectionRunner's events (trials, beeps, keys, redo...) as markers;
+        returns a function that stops forwarding.
 
         A trial start is stamped with the arrival of its first frame, a trial end with the
         arrival of its last one (``frame`` names that frame)."""
         started: list[int | None] = [None]
+        attached = [True]
 
         def on_event(event: dict[str, Any]) -> None:
-            if not self.running:
+            if not (self.running and attached[0]):
                 return
             marker = runner_marker(event)
             when = None
@@ -118,6 +121,7 @@ class LslStreamer:
             self._queue.append((time.time() if when is None else when, marker))
 
         runner.add_listener(on_event)
+        return lambda: attached.__setitem__(0, False)
 
     def push_prediction(self, label: str, probability: float | None = None,
                         scores: dict[str, float] | None = None, frame: int | None = None,
