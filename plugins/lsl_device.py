@@ -23,7 +23,7 @@ from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout, get_layout
 from tactile_studio.streams.lsl_lib import load_pylsl
 from tactile_studio.streams.lsl_meta import DECODED, read_tactile_desc
 
-REOPEN_TIMEOUT_S = 0.5
+REOPEN_TIMEOUT_S = 1.0
 READ_WAIT_S = 0.1
 
 

@@ -38,6 +38,7 @@ from tactile_studio.streams.markers import engine_marker, prediction_marker, run
 CLOCK_EVENT = "lsl_clock"
 CLOCK_TOLERANCE_S = 0.0005  # a re-measured offset that moved more than this is written
 MAX_CHUNK = 8192
+STOP_GRACE_S = 0.2
 
 
 class LslStreamer:
@@ -94,6 +95,8 @@ class LslStreamer:
         self._thread.join(5.0)
         self._drain()
         self.engine.add_event(CLOCK_EVENT, streaming=False, frame_stream=self.name)
+        if self.has_consumers():
+            time.sleep(STOP_GRACE_S)  # let connected recipients take the last chunk
         self.frame_outlet = self.marker_outlet = None  # liblsl closes them when freed
 
     # ---- markers from elsewhere ----------------------------------------------------------
