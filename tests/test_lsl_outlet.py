@@ -104,21 +104,24 @@ def test_app_and_prediction_markers_keep_their_order_and_times() -> None:
     streamer.push_marker("note", text="participant sneezed")
     streamer.push_prediction("Poke", probability=0.875, scores={"Poke": 0.875, "Tickle": 0.125},
                              frame=50, model="cnn3d")
+    while streamer.markers_sent < 4 and time.monotonic() < deadline:  # both out
+        time.sleep(0.01)
     engine.stop()
     streamer.stop()
     got.wait_count(5)
     got.stop()
     markers = [json.loads(m[0]) for m in got.samples]
-    # in the order they were pushed; within one push, by the time they refer to
-    assert [m["kind"] for m in markers] == ["connect", "tare", "prediction", "note",
+    # in the order they happened; the timestamp is the time they refer to
+    assert [m["kind"] for m in markers] == ["connect", "tare", "note", "prediction",
                                             "disconnect"]
-    pred = markers[2]
+    pred = markers[3]
     assert pred == {"kind": "prediction", "source": "inference", "label": "Poke",
                     "probability": 0.875, "scores": {"Poke": 0.875, "Tickle": 0.125},
                     "frame": 50, "model": "cnn3d"}
     frame_time = engine.read_since(50, 1).host_time[0]
-    assert got.stamps[2] == frame_time + streamer.offset.offset_s
-    assert markers[3] == {"kind": "note", "source": "app", "text": "participant sneezed"}
+    assert got.stamps[3] == frame_time + streamer.offset.offset_s
+    assert got.stamps[3] < got.stamps[2]  # frame 50 arrived before the note was made
+    assert markers[2] == {"kind": "note", "source": "app", "text": "participant sneezed"}
 
 
 def test_record_with_lsl_keeps_the_clock_offset_for_exact_alignment(tmp_path: Path,

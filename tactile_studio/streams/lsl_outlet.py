@@ -194,9 +194,8 @@ class LslStreamer:
             marker = engine_marker(event)
             if marker is not None:
                 batch.append((float(event["time"]), marker))
-        while self._queue:
+        while self._queue:  # each source in the order its markers happened
             batch.append(self._queue.popleft())
-        batch.sort(key=lambda item: item[0])  # stable: same-time markers keep their order
         for host_t, marker in batch:
             self.marker_outlet.push_sample([to_json(marker)], self.offset.to_lsl(host_t))
             self.markers_sent += 1
