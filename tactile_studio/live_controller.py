@@ -49,7 +49,15 @@ class LiveController:
         self.lsl_wanted, self.lsl_error = bool(on), None
         if not on:
             self._release_lsl()
-        elif self.engine is not None and self.engine.state != "stopped":
+            return
+        try:
+            from tactile_studio.streams import load_pylsl
+
+            load_pylsl()  # say so now, even before a device is connected
+        except UserError:
+            self.lsl_wanted = False
+            raise
+        if self.engine is not None and self.engine.state != "stopped":
             try:
                 self._start_lsl()
             except UserError:
@@ -57,9 +65,9 @@ class LiveController:
                 raise
 
     def lsl_status(self) -> str:
-        """One line for the panel: what is streamed, or why not."""
+        """Two short lines for the panel: what is streamed, or why not."""
         if self.lsl is not None:
-            return self.lsl.status_line()
+            return "\n".join(self.lsl.status_lines())
         return self.lsl_error or ""
 
     def _start_lsl(self) -> None:

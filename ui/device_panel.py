@@ -368,9 +368,9 @@ class DevicePanel(QWidget):
         self.lsl_toggle.setToolTip("Publish the frames and a marker stream on the Lab "
                                    "Streaming Layer (LabRecorder, other LSL apps)")
         self.lsl_toggle.toggled.connect(self.set_lsl)
-        self.lsl_label = ElidedLabel()
+        self.lsl_label = QLabel()
         self.lsl_label.setObjectName("detail")
-        self.lsl_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
+        self.lsl_label.setWordWrap(True)
         self.lsl_label.hide()
         lay.addWidget(self.lsl_toggle)
         lay.addWidget(self.lsl_label)

@@ -144,9 +144,14 @@ class LslStreamer:
         return bool(out is not None and out.have_consumers())
 
     def status_line(self) -> str:
-        who = "a recipient is connected" if self.has_consumers() else "no recipient yet"
-        return (f"LSL {self.name} ({self.content}): {self.frames_sent} frames, "
-                f"{self.markers_sent} markers, lost {self.lost}; {who}")
+        return ", ".join(self.status_lines())
+
+    def status_lines(self) -> list[str]:
+        """What is published and how it goes, in two short lines (the device panel)."""
+        who = "recipient connected" if self.has_consumers() else "no recipient yet"
+        lost = f" · lost {self.lost}" if self.lost else ""
+        return [f"LSL {self.name} ({self.content})",
+                f"{self.frames_sent} frames · {self.markers_sent} markers{lost} · {who}"]
 
     # ---- the thread --------------------------------------------------------------------
     def _run(self) -> None:
