@@ -70,3 +70,25 @@ def test_runner_markers_match_the_session_file(tmp_path: Path) -> None:
     assert (discard["index"], discard["reason"]) == (1, "wrong gesture")
     refused = next(m for m, _ in collect if m["kind"] == "refused")
     assert "'!' is not a gesture key" in refused["text"]
+
+
+def test_headless_collect_with_lsl_publishes_every_trial(tmp_path: Path, capsys) -> None:
+    from tactile_studio.cli import main
+
+    got = Collector("name='TactileStudio-simulated-markers'")
+    code = main(["collect", "--protocol", "shear9", "--participant", "P02", "--virtual-participant",
+                 "--blocks", "1", "--seed", "8", "--speed", "40", "--out", str(tmp_path), "--lsl",
+                 "--lsl-wait", "10"])
+    out, err = capsys.readouterr()
+    got.stop()
+    assert code == 0, err
+    assert "LSL: publishing 'TactileStudio-simulated'" in err
+    assert "LSL: a recipient is connected" in err  # so no marker was published unseen
+    with Session(Path(out.strip().splitlines()[-1])) as s:
+        trials = s.trials
+        assert any(e["kind"] == "lsl_clock" for e in s.events)
+    ends = [json.loads(m[0]) for m in got.samples]
+    ends = [m for m in ends if m["kind"] == "trial_end"]
+    assert [(m["gesture"], m["start_sample"]) for m in ends] == [
+        (t["gesture"], t["start_sample"]) for t in trials]
+    assert len(ends) == 9

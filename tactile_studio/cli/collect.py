@@ -191,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
     lsl = None
     try:
         if args.lsl:
-            lsl = start_lsl(engine)
+            lsl = start_lsl(engine, wait_s=args.lsl_wait)
             lsl.attach_runner(session.runner)
         engine.start()
         _drive(session, vp, engine)

@@ -60,7 +60,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     # The recorder exists before the engine starts so the connect and tare events are kept.
     recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
     try:
-        lsl = start_lsl(engine) if args.lsl else None
+        lsl = start_lsl(engine, wait_s=args.lsl_wait) if args.lsl else None
     except UserError:
         recorder.stop()
         out.unlink(missing_ok=True)

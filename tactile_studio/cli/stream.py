@@ -19,15 +19,31 @@ LSL_HELP = ("also publish the frames (raw counts) and a marker stream on the Lab
 
 def add_lsl_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lsl", action="store_true", help=LSL_HELP)
+    add_lsl_wait_option(parser)
 
 
-def start_lsl(engine: AcquisitionEngine, decoded: bool = False, name: str | None = None) -> Any:
-    """A started LslStreamer on ``engine`` (LslUnavailable, one line, without liblsl)."""
+def add_lsl_wait_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+                        help="before the device starts, wait up to this long for an LSL "
+                             "recipient (e.g. LabRecorder) to open the streams (default 0)")
+
+
+def start_lsl(engine: AcquisitionEngine, decoded: bool = False, name: str | None = None,
+              wait_s: float = 0.0) -> Any:
+    """A started LslStreamer on ``engine`` (LslUnavailable, one line, without liblsl);
+    waits up to ``wait_s`` for a recipient so nothing from the start is missed."""
     from tactile_studio.streams.lsl_outlet import LslStreamer
 
+    if wait_s < 0:
+        raise UserError(f"--lsl-wait must be zero or more, got {wait_s}")
     streamer = LslStreamer(engine, decoded=decoded, name=name).start()
     print(f"LSL: publishing '{streamer.name}' ({streamer.content}, source_id "
           f"{streamer.source_id}) and '{streamer.marker_name}'", file=sys.stderr)
+    if wait_s > 0:
+        print(f"LSL: waiting up to {wait_s:g} s for a recipient...", file=sys.stderr)
+        found = streamer.wait_for_recipient(wait_s)
+        print("LSL: a recipient is connected" if found else
+              "LSL: no recipient yet; starting anyway", file=sys.stderr)
     return streamer
 
 
@@ -45,6 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    "TactileStudio-DEVICE; the marker stream adds -markers)")
     p.add_argument("--seconds", type=float, default=None,
                    help="stop after this long (default: until Ctrl-C)")
+    add_lsl_wait_option(p)
     p.set_defaults(func=cmd_stream)
 
 
@@ -54,7 +71,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
     if args.name is not None and not args.name.strip():
         raise UserError("--name must not be empty")
     engine = AcquisitionEngine(create_device(args.device, parse_set_options(args.set)))
-    streamer = start_lsl(engine, decoded=args.decoded, name=args.name)
+    streamer = start_lsl(engine, decoded=args.decoded, name=args.name, wait_s=args.lsl_wait)
     engine.start()
     token = CancelToken()
     start = time.monotonic()

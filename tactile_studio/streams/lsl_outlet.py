@@ -143,6 +143,18 @@ class LslStreamer:
         out = self.frame_outlet
         return bool(out is not None and out.have_consumers())
 
+    def wait_for_recipient(self, timeout: float) -> bool:
+        """Block until some inlet (e.g. LabRecorder) has opened the frame or the marker
+        stream, or ``timeout`` s passed; True if one did."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if self.has_consumers() or (self.marker_outlet is not None
+                                        and self.marker_outlet.have_consumers()):
+                return True
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.02)
+
     def status_line(self) -> str:
         return ", ".join(self.status_lines())
 
