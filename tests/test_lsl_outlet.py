@@ -203,3 +203,18 @@ def test_stream_command_bad_arguments(capsys) -> None:
     assert "--seconds must be positive" in capsys.readouterr().err
     assert main(["stream", "--device", "nope", "--seconds", "1"]) == 1
     assert "unknown device 'nope'" in capsys.readouterr().err
+
+
+def test_the_core_and_the_plugin_import_without_pylsl() -> None:
+    import subprocess
+
+    code = ("import sys; sys.modules['pylsl'] = None\n"
+            "import tactile_studio.streams.lsl_outlet, tactile_studio.cli.stream\n"
+            "from tactile_studio.devices.registry import available_plugins\n"
+            "cls = available_plugins()['lsl']\n"
+            "assert isinstance(cls, type), cls\n"
+            "cls(name='x')  # settings are checked without liblsl\n"
+            "print('ok')\n")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60)
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr
