@@ -48,10 +48,21 @@ class LslDevice(DevicePlugin):
         Setting("source_id", "str", "", "the stream's source_id (empty: any)"),
         Setting("layout", "str", "auto", "auto (metadata, else channel count) or a layout "
                 "name, e.g. shearsense-6x6, grid-8x8"),
-        Setting("timeout", "float", 5.0, "seconds to look for the stream", minimum=0.1,
-                maximum=300.0),
+        Setting("timeout", "float", 2.0, "seconds to look for the stream (and to scan)",
+                minimum=0.1, maximum=300.0),
     )
     supports_reconnect: ClassVar[bool] = True
+    discover_setting: ClassVar[str] = "name"
+
+    @classmethod
+    def discover(cls, timeout: float = 2.0) -> list[tuple[str, str]]:
+        """Numeric LSL streams visible now, as (name, description) for the panel's Scan."""
+        pylsl = load_pylsl()
+        found = [i for i in pylsl.resolve_streams(timeout)
+                 if i.channel_format() != pylsl.cf_string]
+        return sorted((i.name(), f"{i.name()} ({i.type() or 'no type'}, {i.channel_count()} "
+                                 f"ch at {i.nominal_srate():g} Hz, {i.hostname()})")
+                      for i in found)
 
     def __init__(self, **settings: Any) -> None:
         super().__init__(**settings)
