@@ -218,3 +218,34 @@ def test_the_core_and_the_plugin_import_without_pylsl() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60)
     assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr
+
+
+def test_a_wall_clock_step_is_recorded_and_applies_from_its_frame(tmp_path: Path) -> None:
+    from tactile_studio.storage.recorder import Recorder
+
+    step = {"s": 0.0}
+    engine = _engine(seed=6)
+    rec = Recorder(engine, tmp_path / "step.h5").start()
+    streamer = LslStreamer(engine, name=unique("step"), clock_check_s=0.05,
+                           host_clock=lambda: time.time() + step["s"]).start()
+    got = Collector(f"name='{streamer.name}'")
+    got.wait_connected()
+    engine.start()
+    assert engine.wait_frames(200, timeout=20)
+    step["s"] = -2.5  # as if NTP stepped the wall clock back
+    assert engine.wait_frames(engine.frames + 200, timeout=20)
+    engine.stop()
+    got.wait_count(engine.frames)
+    streamer.stop()
+    got.stop()
+    rec.stop()
+    with Session(tmp_path / "step.h5") as s:
+        clocks = [e for e in s.events if e["kind"] == "lsl_clock" and e["streaming"]]
+        host = s.column("host_time", 0, s.n_frames)
+    assert len(clocks) == 2
+    assert clocks[1]["offset_s"] - clocks[0]["offset_s"] == pytest.approx(2.5, abs=0.01)
+    change = clocks[1]["frame"]
+    assert 200 <= change < len(host)
+    expected = np.where(np.arange(len(host)) < change, host + clocks[0]["offset_s"],
+                        host + clocks[1]["offset_s"])
+    np.testing.assert_array_equal(np.asarray(got.stamps), expected)

@@ -46,8 +46,10 @@ class LslStreamer:
 
     def __init__(self, engine: AcquisitionEngine, decoded: bool = False,
                  name: str | None = None, poll_s: float = 0.02,
-                 clock_check_s: float = 10.0) -> None:
+                 clock_check_s: float = 10.0,
+                 host_clock: Callable[[], float] = time.time) -> None:
         self.pylsl = load_pylsl()
+        self.host_clock = host_clock  # the engine's host_time clock
         self.engine = engine
         self.content = DECODED if decoded else RAW
         self.poll_s, self.clock_check_s = poll_s, clock_check_s
@@ -58,7 +60,7 @@ class LslStreamer:
         self.marker_name = f"{self.name}-markers"
         self.source_id = stable_source_id(dev, self.content, info.get("settings", {}),
                                           info.get("sensor_id"))
-        self.offset = measure_offset(self.pylsl.local_clock)
+        self.offset = measure_offset(self.pylsl.local_clock, host_clock=host_clock)
         self._last_check = time.monotonic()
         self.frame_outlet: Any = self.pylsl.StreamOutlet(frame_stream_info(
             self.pylsl, engine.layout, info, self.content, self.name, self.source_id,
@@ -219,7 +221,7 @@ class LslStreamer:
 
     def _recheck_clock(self) -> None:
         self._last_check = time.monotonic()
-        new = measure_offset(self.pylsl.local_clock)
+        new = measure_offset(self.pylsl.local_clock, host_clock=self.host_clock)
         if abs(new.offset_s - self.offset.offset_s) > CLOCK_TOLERANCE_S:
             self.offset = new
             self._clock_event(self._cursor, streaming=True)
