@@ -101,3 +101,20 @@ def test_console_toggle_streams_the_session_markers(qtbot, tmp_path) -> None:
     console.close_session()
     states = [json.loads(m[0]) for m in got.samples]
     assert {"kind": "state", "source": "collect", "state": "waiting_for_key"} in states
+
+
+def test_collect_lsl_option_pre_checks_the_console_toggle(qtbot, tmp_path) -> None:
+    from tactile_studio.cli import build_parser
+    from tactile_studio.cli.collect import console_options
+    from tactile_studio.ui.collect_app import build_console
+
+    args = build_parser().parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
+                                      "--out", str(tmp_path), "--lsl"])
+    console = build_console(**console_options(args))
+    qtbot.addWidget(console)
+    assert console.lsl_toggle.isChecked() and console._lsl is None  # noqa: SLF001 - no session yet
+    args = build_parser().parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
+                                      "--out", str(tmp_path)])
+    plain = build_console(**console_options(args))
+    qtbot.addWidget(plain)
+    assert not plain.lsl_toggle.isChecked()
