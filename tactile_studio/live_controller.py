@@ -1,4 +1,5 @@
-"""The live screen's verbs (connect, tare, record) over one device, engine and recorder."""
+"""The live screen's verbs (connect, tare, record, stream to LSL) over one device, engine
+and recorder."""
 
 from __future__ import annotations
 
@@ -20,6 +21,9 @@ class LiveController:
         self.recorder: Recorder | None = None
         self.device_name: str | None = None
         self.settings: dict[str, Any] = {}
+        self.lsl: Any = None              # the LslStreamer while streaming
+        self.lsl_wanted = False
+        self.lsl_error: str | None = None
 
     def connect(self, name: str, settings: dict[str, Any] | None = None) -> AcquisitionEngine:
         """Start streaming from a plugin. Bad settings raise SettingsError at once;
@@ -28,6 +32,7 @@ class LiveController:
         self.disconnect()
         self.device_name, self.settings = name, dict(device.settings)
         self.engine = AcquisitionEngine(device)
+        self._sync_lsl_quietly()  # before start: the connect event is a marker too
         self.engine.start()
         return self.engine
 
@@ -35,6 +40,57 @@ class LiveController:
         self.stop_recording()
         if self.engine is not None:
             self.engine.stop()
+        self._release_lsl()
+
+    # ---- Lab Streaming Layer ----------------------------------------------------------
+    def set_lsl(self, on: bool) -> None:
+        """Publish the device on LSL now and after every (re)connect; LslUnavailable
+        (one line) if liblsl cannot be loaded."""
+        self.lsl_wanted, self.lsl_error = bool(on), None
+        if not on:
+            self._release_lsl()
+            return
+        try:
+            from tactile_studio.streams import load_pylsl
+
+            load_pylsl()  # say so now, even before a device is connected
+        except UserError:
+            self.lsl_wanted = False
+            raise
+        if self.engine is not None and self.engine.state != "stopped":
+            try:
+                self._start_lsl()
+            except UserError:
+                self.lsl_wanted = False
+                raise
+
+    def lsl_status(self) -> str:
+        """Two short lines for the panel: what is streamed, or why not."""
+        if self.lsl is not None:
+            return "\n".join(self.lsl.status_lines())
+        return self.lsl_error or ""
+
+    def _start_lsl(self) -> None:
+        from tactile_studio.streams.lsl_outlet import acquire_streamer
+
+        if self.lsl is None or self.lsl.engine is not self.engine:
+            self._release_lsl()
+            self.lsl = acquire_streamer(self.engine)
+
+    def _sync_lsl_quietly(self) -> None:
+        self._release_lsl()
+        if self.lsl_wanted:
+            try:
+                self._start_lsl()
+            except UserError as exc:
+                self.lsl_error = str(exc)
+
+    def _release_lsl(self) -> None:
+        lsl, self.lsl = self.lsl, None
+        if lsl is not None:
+            from tactile_studio.streams.lsl_outlet import release_streamer
+
+            release_streamer(lsl)
 
     def tare(self) -> None:
         if self.engine is not None:

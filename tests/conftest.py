@@ -12,4 +12,6 @@ os.environ.setdefault("TACTILE_STUDIO_TESTING", "1")
 _APPDIRS = tempfile.mkdtemp(prefix="tactile-studio-appdirs-")
 for _name in ("DATA", "CACHE", "CONFIG"):
     os.environ.setdefault(f"TACTILE_STUDIO_{_name}_DIR", os.path.join(_APPDIRS, _name.lower()))
+# Lab Streaming Layer: loopback only, a session ID of its own (read when liblsl loads)
+os.environ.setdefault("LSLAPICFG", os.path.join(os.path.dirname(__file__), "lsl_api.cfg"))
 

@@ -27,10 +27,15 @@ def ensure_app(argv: list[str] | None = None) -> QApplication:
     return app  # type: ignore[return-value]
 
 
-def run_gui(device: str, settings: dict[str, Any], connect: bool = True) -> int:
-    """Show the main window connected to ``device`` and run until it is closed."""
+def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
+            lsl: bool = False) -> int:
+    """Show the main window connected to ``device`` and run until it is closed;
+    ``lsl`` switches "Stream to LSL" on."""
     app = ensure_app()
     window = MainWindow(device=device, settings=settings, connect=connect)
+    if lsl and not window.panel.set_lsl(True):
+        window.shutdown()
+        raise UserError(window.panel.error_text() or "cannot stream to LSL")
     window.show()
     return int(app.exec())
 

@@ -67,7 +67,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
                   device: str | None = None, device_settings: dict[str, Any] | None = None,
                   out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                   seed: int | None = None, condition: str = "",
-                  resume: str | os.PathLike | None = None) -> CollectConsole:
+                  resume: str | os.PathLike | None = None, lsl: bool = False) -> CollectConsole:
     """A shown console with its setup form pre-filled (or resuming ``resume``).
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
@@ -100,6 +100,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
     if seed is not None:
         s.seed.setValue(int(seed))
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+    console.lsl_toggle.setChecked(lsl)  # streams once a session is open
     console.show()
     if resume is not None:
         console.resume_from(resume)
@@ -110,13 +111,13 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
                 device: str | None = None, device_settings: dict[str, Any] | None = None,
                 out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                 seed: int | None = None, condition: str = "",
-                resume: str | os.PathLike | None = None) -> int:
+                resume: str | os.PathLike | None = None, lsl: bool = False) -> int:
     """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
     from tactile_studio.ui.app import ensure_app
 
     app = ensure_app()
     console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
-                            seed, condition, resume)
+                            seed, condition, resume, lsl=lsl)
     # held until the window is closed (and deleted), also if the loop ends first
     _RUNNING.append(console)
     console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))

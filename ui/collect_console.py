@@ -20,6 +20,7 @@ from PySide6.QtGui import QCloseEvent, QGuiApplication, QKeyEvent, QKeySequence
 from PySide6.QtWidgets import (
     QAbstractSpinBox,
     QApplication,
+    QCheckBox,
     QComboBox,
     QGridLayout,
     QGroupBox,
@@ -166,6 +167,7 @@ class CollectConsole(QMainWindow):
         lv.addWidget(self.redo_banner)
         lv.addWidget(self.hint_label)
         lv.addLayout(grid)
+        lv.addWidget(self._build_lsl_toggle())
         right = QSplitter(Qt.Orientation.Vertical)
         right.addWidget(mirror_box)
         right.addWidget(log_box)
@@ -223,6 +225,7 @@ class CollectConsole(QMainWindow):
             return False
         self.runner = self.session.runner
         self.protocol = self.runner.protocol
+        self._sync_lsl()
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
@@ -236,6 +239,7 @@ class CollectConsole(QMainWindow):
     def close_session(self) -> str | None:
         """Stop the timer and close the file cleanly (finished trials are kept)."""
         self.timer.stop()
+        self._stop_lsl()
         path = None
         if self.session is not None:
             path = str(self.session.path)
@@ -255,6 +259,48 @@ class CollectConsole(QMainWindow):
         QApplication.instance().removeEventFilter(self)
         self.participant.close()
         super().closeEvent(event)
+
+    # ---- Lab Streaming Layer (the core streams; this only forwards the toggle) -----------
+    def _build_lsl_toggle(self) -> QWidget:
+        self._lsl: Any = None
+        self._lsl_detach: Any = None
+        self.lsl_toggle = QCheckBox("Stream to LSL")
+        self.lsl_toggle.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # keys are the runner's
+        self.lsl_toggle.setToolTip("Publish the frames and the session's markers (trials, "
+                                   "beeps, keys, redo, breaks) on the Lab Streaming Layer")
+        self.lsl_toggle.toggled.connect(self._sync_lsl)
+        return self.lsl_toggle
+
+    def set_lsl(self, on: bool) -> bool:
+        """Switch streaming on or off; False if it could not start (message shown)."""
+        self.lsl_toggle.setChecked(on)
+        self._sync_lsl()
+        return self.lsl_toggle.isChecked() == on
+
+    def _sync_lsl(self, *_: object) -> None:
+        want = self.lsl_toggle.isChecked() and self.runner is not None
+        if not want or (self._lsl is not None and self._lsl.engine is not self.engine):
+            self._stop_lsl()
+        if want and self._lsl is None:
+            from tactile_studio.streams.lsl_outlet import acquire_streamer
+
+            try:
+                self._lsl = acquire_streamer(self.engine)
+            except UserError as exc:
+                self.statusBar().showMessage(str(exc))
+                self.lsl_toggle.blockSignals(True)
+                self.lsl_toggle.setChecked(False)
+                self.lsl_toggle.blockSignals(False)
+                return
+            self._lsl_detach = self._lsl.attach_runner(self.runner)
+
+    def _stop_lsl(self) -> None:
+        lsl, self._lsl = self._lsl, None
+        if lsl is not None:
+            from tactile_studio.streams.lsl_outlet import release_streamer
+
+            self._lsl_detach()
+            release_streamer(lsl)
 
     # ---- the timer ----------------------------------------------------------------------
     def tick(self) -> None:

@@ -112,6 +112,7 @@ class DevicePanel(QWidget):
         box.addWidget(self.error_label)
         box.addLayout(buttons)
         box.addLayout(buttons2)
+        box.addWidget(self._build_lsl_row())
         box.addSpacing(8)
         box.addWidget(self.state_label)
         box.addWidget(self.detail_label)
@@ -261,6 +262,44 @@ class DevicePanel(QWidget):
         self.record_button.setText("Record…")
         self.recordingChanged.emit("")
 
+    # ---- Lab Streaming Layer ------------------------------------------------------------
+    def _build_lsl_row(self) -> QWidget:
+        """The "Stream to LSL" toggle and its one-line status (the core does the work)."""
+        row = QWidget()
+        lay = QVBoxLayout(row)
+        lay.setContentsMargins(0, 0, 0, 0)
+        self.lsl_toggle = QCheckBox("Stream to LSL")
+        self.lsl_toggle.setToolTip("Publish the frames and a marker stream on the Lab "
+                                   "Streaming Layer (LabRecorder, other LSL apps)")
+        self.lsl_toggle.toggled.connect(self.set_lsl)
+        self.lsl_label = QLabel()
+        self.lsl_label.setObjectName("detail")
+        self.lsl_label.setWordWrap(True)
+        self.lsl_label.hide()
+        lay.addWidget(self.lsl_toggle)
+        lay.addWidget(self.lsl_label)
+        return row
+
+    def set_lsl(self, on: bool) -> bool:
+        """Forward the toggle to the core; False (toggle off, error shown) if refused."""
+        try:
+            self.controller.set_lsl(on)
+        except UserError as exc:
+            self.show_error(_one_line(exc))
+            on = False
+        if self.lsl_toggle.isChecked() != on:
+            self.lsl_toggle.blockSignals(True)
+            self.lsl_toggle.setChecked(on)
+            self.lsl_toggle.blockSignals(False)
+        self._show_lsl()
+        return on
+
+    def _show_lsl(self) -> None:
+        text = self.controller.lsl_status() if self.lsl_toggle.isChecked() else ""
+        self.lsl_label.setText(text)
+        self.lsl_label.setToolTip(text)
+        self.lsl_label.setVisible(bool(text))
+
     # ---- live state --------------------------------------------------------------------
     def refresh(self, st: LiveStatus) -> None:
         """Show the connection state; called a few times a second by the owner."""
@@ -283,6 +322,7 @@ class DevicePanel(QWidget):
             self.record_label.show()
         elif self.controller.recorder is None and self.record_button.isChecked():
             self._recording_stopped()
+        self._show_lsl()
         self._update_buttons(st)
 
     def _update_buttons(self, st: LiveStatus) -> None:

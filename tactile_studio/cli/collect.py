@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli.gui import require_display
+from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
 from tactile_studio.errors import Cancelled, UserError
@@ -56,6 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
     p.add_argument("--out", default=".", help="output folder (default: current folder)")
     p.add_argument("--resume", metavar="FILE", help="continue a killed or closed session")
+    add_lsl_option(p)
     p.set_defaults(func=run)
 
 
@@ -137,6 +139,11 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
+    if getattr(args, "lsl", False):
+        from tactile_studio.streams import load_pylsl
+
+        load_pylsl()  # no liblsl: one line now, not a message in the window later
+        options["lsl"] = True
     return options
 
 
@@ -181,10 +188,16 @@ def run(args: argparse.Namespace) -> int:
         print(f"writing {session.path}", file=sys.stderr)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()
-    engine.start()
+    lsl = None
     try:
+        if args.lsl:
+            lsl = start_lsl(engine, wait_s=args.lsl_wait)
+            lsl.attach_runner(session.runner)
+        engine.start()
         _drive(session, vp, engine)
     finally:
+        if lsl is not None:
+            lsl.stop()  # before the file closes: the end of streaming is recorded in it
         session.close()
         engine.stop()
     print(session.path)

@@ -34,9 +34,13 @@ def cmd_gui(args: argparse.Namespace) -> int:
     if device == "last":
         device = _last_device()
     settings = _checked_settings(device, args.set)
+    if args.lsl:
+        from tactile_studio.streams import load_pylsl
+
+        load_pylsl()  # no liblsl: one line now, not a dialog later
     from tactile_studio.ui.app import run_gui
 
-    return run_gui(device, settings, connect=not args.no_connect)
+    return run_gui(device, settings, connect=not args.no_connect, lsl=args.lsl)
 
 
 def cmd_snapshot(args: argparse.Namespace) -> int:
@@ -75,6 +79,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--set", action="append", metavar="KEY=VALUE",
                    help="device setting, repeatable (see `tactile-studio devices`)")
     p.add_argument("--no-connect", action="store_true", help="open without connecting")
+    p.add_argument("--lsl", action="store_true", help="switch on \"Stream to LSL\": frames "
+                   "and markers on the Lab Streaming Layer (see docs/lsl.md)")
     p.set_defaults(func=cmd_gui)
 
     s = subparsers.add_parser(

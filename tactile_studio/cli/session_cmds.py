@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import UserError
@@ -30,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", required=True, help="session file to write (.h5)")
     p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
+    add_lsl_option(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("info", help="summarise a session file")
@@ -59,9 +61,17 @@ def cmd_record(args: argparse.Namespace) -> int:
     engine = AcquisitionEngine(device)
     # The recorder exists before the engine starts so the connect and tare events are kept.
     recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
+    try:
+        lsl = start_lsl(engine, wait_s=args.lsl_wait) if args.lsl else None
+    except UserError:
+        recorder.stop()
+        out.unlink(missing_ok=True)
+        raise
     engine.start()
     if not engine.wait_frames(1, timeout=FIRST_FRAME_TIMEOUT_S):
         engine.stop()
+        if lsl is not None:
+            lsl.stop()
         recorder.stop()
         out.unlink(missing_ok=True)
         raise UserError(engine.error or f"{device_label(device)}: no frames within "
@@ -78,6 +88,8 @@ def cmd_record(args: argparse.Namespace) -> int:
             if elapsed >= args.seconds or engine.state in (ERROR, FINISHED):
                 break
     engine.stop()
+    if lsl is not None:
+        lsl.stop()  # its last markers and the end of streaming go into the file too
     recorder.stop()
     with Session(out) as s:
         summary = s.summary()

@@ -12,6 +12,10 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.storage.session_writer import SessionWriter
 
+# Events that state something in force until the next one (the host->LSL clock offset of a
+# running LSL outlet): a recording started later begins with the latest one, at row 0.
+CARRIED_EVENTS = ("lsl_clock",)
+
 
 class Recorder:
     """Writes every frame and event the engine produces from now on to ``path``.
@@ -36,6 +40,7 @@ class Recorder:
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         if engine.baseline is not None:
             self.writer.add_baseline(engine.baseline, 0)
+        self._carry_over()
 
     @property
     def path(self) -> os.PathLike:
@@ -60,6 +65,16 @@ class Recorder:
     def _run(self) -> None:
         while not self._stop.wait(self.poll_s):
             self._drain()
+
+    def _carry_over(self) -> None:
+        latest: dict[str, dict[str, Any]] = {}
+        for event in self.engine.events_since(0)[:self._event_cursor]:
+            if event["kind"] in CARRIED_EVENTS:
+                latest[event["kind"]] = event
+        for kind, event in latest.items():
+            if event.get("streaming", True):
+                detail = {k: v for k, v in event.items() if k not in ("kind", "frame", "time")}
+                self.writer.add_event(kind, frame=0, time_s=event["time"], carried=True, **detail)
 
     def _engine_to_row(self, frame: int) -> int:
         return max(0, frame - self.start_frame - self.dropped)
