@@ -26,10 +26,14 @@ import numpy as np
 from tactile_studio import __version__
 from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.session_compress import (
+    LIVE_CHUNK_BYTES,
+    chunk_rows,
+    compress_session_file,
+)
 
 FORMAT = "tactile-studio-session"
 SCHEMA_VERSION = 1
-FRAME_CHUNK = 256
 
 
 def _jsonable(value: Any) -> Any:
@@ -63,10 +67,12 @@ class SessionWriter:
         f.attrs["app_version"] = __version__
         f.attrs["layout"] = layout.name
         g = f.create_group("frames")
+        # uncompressed while recording (see session_compress); close() compresses
+        rows = chunk_rows(c * np.dtype(layout.raw_dtype).itemsize, LIVE_CHUNK_BYTES)
         self._raw = g.create_dataset("raw", (0, c), maxshape=(None, c), dtype=layout.raw_dtype,
-                                     chunks=(FRAME_CHUNK, c))
+                                     chunks=(rows, c))
         self._cols = {
-            name: g.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(4096,))
+            name: g.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(rows,))
             for name, dt in (("device_time", "f8"), ("host_time", "f8"), ("seq", "i8"),
                              ("index", "i8"))
         }
@@ -159,8 +165,9 @@ class SessionWriter:
                 self._f.flush()
                 self._last_flush = time.monotonic()
 
-    def close(self) -> None:
-        """Flush, close, and write human-readable copies of the journal as attributes."""
+    def close(self, compress: bool = True) -> None:
+        """Flush, close, write human-readable copies of the journal as attributes, and
+        (unless ``compress`` is False) rewrite the file compressed."""
         with self._lock:
             if self._closed:
                 return
@@ -175,6 +182,8 @@ class SessionWriter:
             f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
             f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
             f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
+        if compress:
+            compress_session_file(self.path)
 
     def __enter__(self) -> SessionWriter:
         return self
