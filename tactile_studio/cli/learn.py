@@ -37,7 +37,9 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
                    help="folder(s) searched recursively for *.h5 sessions, or session files")
     p.add_argument("--grid", choices=("physical", "virtual"), default="physical",
                    help="physical taxels or the virtual (2R-1)x(2C-1) grid")
-    p.add_argument("--cache-dir", default=None, help="dataset cache (default ~/.cache/tactile-studio)")
+    p.add_argument("--cache-dir", default=None,
+                   help="dataset cache (default: $TACTILE_STUDIO_CACHE_DIR, else the "
+                        "platform's user cache folder)")
     p.add_argument("--no-cache", action="store_true", help="decode the sessions again")
 
 
