@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli import tables
 from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import UserError
@@ -37,13 +38,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
+    rows = []
     for name, cls in available_plugins().items():
         if isinstance(cls, Exception):
-            print(f"{name}: failed to load ({cls})")
+            rows.append((name, f"failed to load ({cls})"))
             continue
-        print(f"{name}: {cls.description}")
-        for setting in cls.settings_schema:
-            print(f"    {setting.describe()}")
+        rows.append((name, cls.description))
+        rows += [("", f"  {setting.describe()}") for setting in cls.settings_schema]
+    tables.table(("plugin", "description / settings"), rows)
     return 0
 
 
@@ -63,7 +65,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         recorder.stop()
         out.unlink(missing_ok=True)
         raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
-    progress = TerminalProgress(f"recording {out.name}")
+    progress = TerminalProgress(f"recording {out.name}", total=args.seconds, unit="s")
     token = CancelToken()
     start = time.monotonic()
     with ctrl_c_cancels(token):
@@ -73,6 +75,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
             if elapsed >= args.seconds or engine.state in (ERROR, FINISHED):
                 break
+    progress.close()
     engine.stop()
     recorder.stop()
     with Session(out) as s:
@@ -127,5 +130,5 @@ def cmd_info(args: argparse.Namespace) -> int:
     if summary.get("trials"):
         lines.append(f"trials:     {len(summary['trials'])}")
         lines.append(_trial_table(summary["trials"]))
-    print("\n".join(lines))
+    tables.fields(lines)
     return 0
