@@ -38,12 +38,17 @@ def chunk_rows(row_bytes: int, target: int = CHUNK_BYTES, n_rows: int | None = N
     return rows
 
 
+COPY_BYTES = 4_000_000  # copied in slices of whole chunks, ~4 MB each: bounded memory
+
+
 def _copy_compressed(src: h5py.Dataset, dst_group: h5py.Group, name: str, n: int,
                      rows: int) -> None:
-    shape = (n, *src.shape[1:])
-    ds = dst_group.create_dataset(name, shape, maxshape=(None, *src.shape[1:]),
-                                  dtype=src.dtype, chunks=(rows, *src.shape[1:]), **FILTERS)
-    step = rows * max(1, 4_000_000 // max(1, rows * src.dtype.itemsize * int(np.prod(shape[1:]))))
+    """The first ``n`` rows of ``src`` into a new compressed dataset, chunks of ``rows``."""
+    tail = src.shape[1:]
+    ds = dst_group.create_dataset(name, (n, *tail), maxshape=(None, *tail), dtype=src.dtype,
+                                  chunks=(rows, *tail), **FILTERS)
+    chunk_bytes = rows * src.dtype.itemsize * int(np.prod(tail))
+    step = rows * max(1, COPY_BYTES // max(1, chunk_bytes))
     for i in range(0, n, step):
         j = min(n, i + step)
         ds[i:j] = src[i:j]

@@ -6,8 +6,9 @@ and a SIGKILL loses at most what came after the last flush. Everything that is n
 frame (metadata updates, events, baselines, trials, counters) goes into ``/journal``,
 an append-only byte stream of JSON lines, because SWMR forbids creating objects or
 attributes after the switch. ``close()`` additionally writes readable copies
-(``metadata_json``, ``events_json``, ``trials_json`` attributes) for other tools.
-See docs/session-format.md.
+(``metadata_json``, ``events_json``, ``trials_json`` attributes) for other tools, then
+rewrites the file once with compressed datasets (storage/session_compress.py explains why
+not while recording). See docs/session-format.md.
 """
 
 from __future__ import annotations
