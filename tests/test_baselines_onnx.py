@@ -8,6 +8,7 @@ Budget: about 15 s on 2 shared cores.
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -99,6 +100,13 @@ def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, nam
     assert json.loads(model.metadata["labels"]) == ds.label_names
     with pytest.raises(UserError, match="onnx only"):
         export_run(out, "int8")
+    # a run trained before rf/knn became ONNX files: a clear one-line error
+    old = root / f"old-{name}"
+    shutil.copytree(out, old)
+    for f in (old / "folds").glob("*/model.onnx"):
+        f.rename(f.with_name("model.safetensors"))
+    with pytest.raises(UserError, match="train the run again"):
+        rescore_run(old)
     # streaming: the newest window of frames -> features -> the ONNX model
     trial = ds.trials[0]  # (C, T, R, X)
     predictor = StreamingPredictor(model, None, window=trial.shape[1], rate=float(ds.rates[0]))
