@@ -8,12 +8,16 @@ The CLI wires Ctrl-C to the token; the GUI wires a Cancel button.
 
 from __future__ import annotations
 
+import atexit
+import os
 import signal
 import sys
 import threading
 import time
+import weakref
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from typing import Any
 
 from tactile_studio.errors import Cancelled
 
@@ -44,26 +48,146 @@ class CancelToken:
         return self._event.wait(seconds)
 
 
-class TerminalProgress:
-    """A one-line progress bar on stderr, redrawn at most 10 times a second."""
+def interactive(stream) -> bool:  # noqa: ANN001
+    """True when ``stream`` is a terminal a live display may redraw: not under CI
+    (``CI=true``), not ``TERM=dumb``, and ``isatty()``."""
+    if os.environ.get("CI", "").strip().lower() in ("1", "true", "yes"):
+        return False
+    if os.environ.get("TERM") == "dumb":
+        return False
+    isatty = getattr(stream, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except (ValueError, OSError):  # a closed stream
+        return False
 
-    def __init__(self, label: str, stream=None, width: int = 30) -> None:
+
+class TerminalProgress:
+    """Progress of a long job on stderr, called like any ``ProgressFn``.
+
+    In a terminal: a rich progress display (bar, percent, elapsed, ETA, rate, message)
+    with optional nested rows (:meth:`subtask`, e.g. a fold inside a round). Piped, under
+    CI or on a dumb terminal: plain lines, one per 10% step and one at the end, with no
+    control characters, so logs stay readable and parseable. ``total``/``unit`` turn the
+    fraction into units for the rate column (e.g. 600 ``s`` of recording).
+    """
+
+    def __init__(self, label: str, stream=None, width: int = 30,  # noqa: ANN001
+                 total: float | None = None, unit: str = "") -> None:
         self.label, self.width = label, width
         self.stream = stream or sys.stderr
-        self._last = 0.0
+        self.total, self.unit = (total, unit) if total else (100.0, "%")
+        self.live = interactive(self.stream)
+        self._progress = None
+        self._task = None
+        self._subtasks: dict[str, Any] = {}
+        self._start = time.monotonic()
+        self._step = -1
+        self._done = False
 
+    # ---- the ProgressFn interface ----------------------------------------------------
     def __call__(self, fraction: float, message: str = "") -> None:
-        now = time.monotonic()
-        if fraction < 1.0 and now - self._last < 0.1:
-            return
-        self._last = now
         fraction = min(max(fraction, 0.0), 1.0)
-        filled = int(round(self.width * fraction))
-        bar = "#" * filled + "-" * (self.width - filled)
-        self.stream.write(f"\r{self.label} [{bar}] {fraction * 100:5.1f}% {message[:50]:<50}")
+        if self._done:
+            return
+        if self.live:
+            self._rich(fraction, message)
+        else:
+            self._plain(fraction, message)
         if fraction >= 1.0:
-            self.stream.write("\n")
+            self.close()
+
+    def _plain(self, fraction: float, message: str) -> None:
+        step = int(fraction * 10)
+        if step == self._step and fraction < 1.0:
+            return
+        self._step = step
+        text = "".join(c for c in message if c.isprintable())[:80]
+        tail = f" ({time.monotonic() - self._start:.1f} s)" if fraction >= 1.0 else ""
+        self.stream.write(f"{self.label} [{fraction * 100:3.0f}%] {text}{tail}".rstrip() + "\n")
         self.stream.flush()
+
+    def _rich(self, fraction: float, message: str) -> None:
+        if self._progress is None:
+            self._progress = _rich_progress(self.stream, self.width)
+            self._progress.start()
+            _LIVE.add(self)
+            self._task = self._progress.add_task(self.label, total=self.total, unit=self.unit,
+                                                 message="")
+        self._progress.update(self._task, completed=fraction * self.total, message=message[:60])
+
+    # ---- nested rows -----------------------------------------------------------------
+    def subtask(self, key: str, label: str, completed: float, total: float | None,
+                message: str = "", unit: str = "") -> None:
+        """Create or update the nested row ``key`` (shown in a terminal only): ``total``
+        None gives an indeterminate bar (e.g. epochs until early stopping)."""
+        if not self.live or self._done:
+            return
+        if self._progress is None:
+            self._rich(0.0, "")
+        new = key not in self._subtasks
+        if new:
+            self._subtasks[key] = self._progress.add_task(f"  {label}", total=total, unit=unit,
+                                                          message="")
+        self._progress.update(self._subtasks[key], description=f"  {label}", total=total,
+                              completed=completed, message=message[:60], refresh=new)
+
+    def end_subtask(self, key: str) -> None:
+        task = self._subtasks.pop(key, None)
+        if task is not None and self._progress is not None:
+            self._progress.remove_task(task)
+
+    def close(self) -> None:
+        """Stop the display and end its line (a job that stops early: error, Ctrl-C), so
+        whatever is printed next starts on a line of its own."""
+        self._done = True
+        if self._progress is not None:
+            for key in list(self._subtasks):
+                self.end_subtask(key)
+            self._progress.stop()
+            self._progress = None
+            _LIVE.discard(self)
+
+
+_LIVE: weakref.WeakSet[TerminalProgress] = weakref.WeakSet()
+
+
+@atexit.register
+def _stop_live_displays() -> None:
+    """A job that ended by an exception without closing its display still gives the
+    terminal back (cursor shown, line ended) when the program exits."""
+    for bar in list(_LIVE):
+        bar.close()
+
+
+def _rich_progress(stream, width: int):  # noqa: ANN001, ANN202
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        Progress,
+        ProgressColumn,
+        TaskProgressColumn,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class RateColumn(ProgressColumn):
+        def render(self, task) -> Text:  # noqa: ANN001
+            speed, unit = task.speed, task.fields.get("unit", "")
+            if not speed or not unit:
+                return Text("")
+            if unit == "%" and speed < 1:
+                return Text(f"{speed * 60:.1f} %/min", style="progress.data.speed")
+            return Text(f"{speed:.1f} {unit}/s", style="progress.data.speed")
+
+    console = Console(file=stream, stderr=stream is sys.stderr)
+    return Progress(TextColumn("{task.description}"), BarColumn(bar_width=width),
+                    TaskProgressColumn(), TimeElapsedColumn(), TextColumn("ETA"),
+                    TimeRemainingColumn(), RateColumn(), TextColumn("{task.fields[message]}"),
+                    console=console, redirect_stdout=False, redirect_stderr=True,
+                    refresh_per_second=8)
 
 
 @contextmanager

@@ -210,6 +210,9 @@ def test_ctrl_c_during_cli_import_exits_130_and_keeps_finished_sessions(tmp_path
         def __init__(self, label):
             self.sent = False
 
+        def close(self):
+            pass
+
         def __call__(self, fraction, message=""):
             if "P02" in message and not self.sent:
                 self.sent = True

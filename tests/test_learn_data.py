@@ -291,9 +291,9 @@ def test_gesture_metrics_on_known_patterns():
     assert len(vec) == len(names) and np.isfinite(vec).all()
 
 
-# ---- baselines: saved without pickle, predicting like scikit-learn --------------------
+# ---- baselines: saved as ONNX (no pickle), predicting like scikit-learn ---------------
 
-def test_forest_arrays_predict_like_sklearn_and_round_trip(tmp_path):
+def test_baselines_predict_like_sklearn_and_round_trip_as_onnx(tmp_path):
     from sklearn.ensemble import RandomForestClassifier
 
     from tactile_studio.learn.baselines import BaselineModel, baseline_options
@@ -307,14 +307,14 @@ def test_forest_arrays_predict_like_sklearn_and_round_trip(tmp_path):
                                  max_features="sqrt").fit(x, y)
     xt = rng.normal(size=(50, 7))
     probs = model.predict_proba(xt)
-    np.testing.assert_allclose(probs[:, :4], ref.predict_proba(xt), atol=1e-12)
+    np.testing.assert_allclose(probs[:, :4], ref.predict_proba(xt), atol=1e-5)
     assert not probs[:, 4].any()
-    model.save(tmp_path / "rf.safetensors")
-    back = BaselineModel.load(tmp_path / "rf.safetensors", "rf", opts, 5)
+    model.save(tmp_path / "rf.onnx")
+    back = BaselineModel.load(tmp_path / "rf.onnx", "rf", opts, 5)
     np.testing.assert_array_equal(back.predict_proba(xt), probs)
     knn = BaselineModel("knn", baseline_options("knn", "tiny", {}), 5).fit(x, y, seed=0)
-    knn.save(tmp_path / "knn.safetensors")
-    again = BaselineModel.load(tmp_path / "knn.safetensors", "knn", knn.options, 5)
+    knn.save(tmp_path / "knn.onnx")
+    again = BaselineModel.load(tmp_path / "knn.onnx", "knn", knn.options, 5)
     np.testing.assert_allclose(again.predict_proba(xt), knn.predict_proba(xt))
     assert (knn.predict_proba(x).argmax(1) == y).mean() == 1.0  # distance-weighted: memorised
     with pytest.raises(UserError, match="unknown option 'trees'"):

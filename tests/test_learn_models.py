@@ -231,9 +231,11 @@ def test_export_onnx_and_int8_measure_accuracy_change(data):
     q = export_run(out, "int8")
     assert q["n"] == len(trained(data, "cnn1d", "all-inclusive")[0].folds[0]["test"])
     assert q["accuracy_export"] >= 3 * CHANCE and abs(q["accuracy_change"]) <= 0.35
-    _, rf_out = trained(data, "rf", "all-inclusive")
-    with pytest.raises(UserError, match="torch models only"):
-        export_run(rf_out, "onnx")
+    _, rf_out = trained(data, "rf", "all-inclusive")  # rf / knn: ONNX files already
+    rf = export_run(rf_out, "onnx")
+    assert rf["changed_predictions"] == 0 and (rf_out / "export" / "r0-all.onnx").is_file()
+    with pytest.raises(UserError, match="onnx only"):
+        export_run(rf_out, "int8")
 
 
 def test_bad_model_options_fail_before_training(data):

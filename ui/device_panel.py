@@ -17,6 +17,7 @@ from typing import Any
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFileDialog,
     QHBoxLayout,
@@ -285,7 +286,7 @@ class DevicePanel(QWidget):
         try:
             self.controller.set_lsl(on)
         except UserError as exc:
-            self.show_error(_one_line(exc))
+            self.show_error(one_line(exc))
             on = False
         if self.lsl_toggle.isChecked() != on:
             self.lsl_toggle.blockSignals(True)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -60,8 +59,7 @@ class _Bar:
 
     def end_line(self) -> None:
         if self.open:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
+            self.bar.close()
             self.open = False
 
 

@@ -7,29 +7,34 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli import tables
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 
 
-class _Bar(TerminalProgress):
-    """A progress bar that ends its line when the job stops early (error, Ctrl-C), so
-    the one-line message that follows starts on a line of its own."""
+def _Bar(label: str) -> TerminalProgress:  # noqa: N802 - used like the class it was
+    """Progress on stderr; ``close()`` ends it when the job stops early (error, Ctrl-C),
+    so the one-line message that follows starts on a line of its own."""
+    return TerminalProgress(label, stream=sys.stderr)
 
-    def __init__(self, label: str) -> None:
-        super().__init__(label, stream=sys.stderr)
-        self.open = False
 
-    def __call__(self, fraction: float, message: str = "") -> None:
-        super().__call__(fraction, message)
-        self.open = fraction < 1.0
+def _fold_rows(bar: TerminalProgress):  # noqa: ANN202
+    """A run_experiment listener showing the current round's folds and the current
+    fold's epochs as rows nested under the run's bar (in a terminal)."""
+    from tactile_studio.learn.experiment import EpochEvent, FoldEvent
 
-    def close(self) -> None:
-        if self.open:
-            self.stream.write("\n")
-            self.stream.flush()
-            self.open = False
+    def listener(event: Any) -> None:
+        where = f"round {event.round + 1}"
+        if isinstance(event, EpochEvent):
+            bar.subtask("fold", f"fold {event.fold + 1}/{event.n_folds} {event.fold_name}",
+                        event.record["epoch"], None, f"epoch {event.record['epoch']}")
+        elif isinstance(event, FoldEvent):
+            bar.end_subtask("fold")
+            bar.subtask("round", where, event.fold + 1, event.n_folds,
+                        f"fold {event.fold_name} accuracy {_fmt(event.metrics.get('accuracy'))}")
+    return listener
 
 
 def _add_data_options(p: argparse.ArgumentParser) -> None:
@@ -37,7 +42,9 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
                    help="folder(s) searched recursively for *.h5 sessions, or session files")
     p.add_argument("--grid", choices=("physical", "virtual"), default="physical",
                    help="physical taxels or the virtual (2R-1)x(2C-1) grid")
-    p.add_argument("--cache-dir", default=None, help="dataset cache (default ~/.cache/tactile-studio)")
+    p.add_argument("--cache-dir", default=None,
+                   help="dataset cache (default: $TACTILE_STUDIO_CACHE_DIR, else the "
+                        "platform's user cache folder)")
     p.add_argument("--no-cache", action="store_true", help="decode the sessions again")
 
 
@@ -77,18 +84,17 @@ def _fmt(v: Any) -> str:
 def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     print(f"{m['model']} · {m['protocol']} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)")
-    for key in ("accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",
-                "balanced_accuracy", "kappa"):
-        if key in m:
-            print(f"  {key:18s} {_fmt(m[key])}")
+    rows = [(key, _fmt(m[key])) for key in (
+        "accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",
+        "balanced_accuracy", "kappa") if key in m]
     if m.get("heldout"):
-        print(f"  {'heldout_accuracy':18s} {_fmt(m['heldout']['accuracy'])}")
-    if len(m.get("rounds", [])) > 1:
-        print("  (medians over " + str(len(m["rounds"])) + " rounds)")
-    for f in m["per_fold"]:
-        who = ",".join(f["test_participants"])
-        who = f" (test: {who})" if who and who != f["name"] else ""
-        print(f"    round {f['round']} fold {f['name']}{who}: accuracy {_fmt(f['accuracy'])}")
+        rows.append(("heldout_accuracy", _fmt(m["heldout"]["accuracy"])))
+    rounds = len(m.get("rounds", []))
+    value = f"median of {rounds} rounds" if rounds > 1 else "value"
+    tables.table(("metric", value), rows, right=(value,))
+    tables.table(("round", "fold", "test participants", "accuracy"),
+                 [(f["round"], f["name"], ",".join(f["test_participants"]), _fmt(f["accuracy"]))
+                  for f in m["per_fold"]], right=("round", "accuracy"))
     if out is not None:
         print(f"run folder: {out}")
 
@@ -108,7 +114,8 @@ def cmd_train(args: argparse.Namespace) -> int:
     bar = _Bar("train")
     try:
         with ctrl_c_cancels(token):
-            result = run_experiment(_config(args, args.channels), args.out, bar, token)
+            result = run_experiment(_config(args, args.channels), args.out, bar, token,
+                                    listener=_fold_rows(bar))
     finally:
         bar.close()
     _print_skipped(result.dataset.get("skipped", []))

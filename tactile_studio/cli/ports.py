@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
+from tactile_studio.cli import tables
 from tactile_studio.devices.discovery import list_serial_ports, scan_ble
 from tactile_studio.errors import UserError
 
@@ -29,8 +30,9 @@ def cmd_ports(args: argparse.Namespace) -> int:
                           for d, desc, vp in ports]))
     elif not ports:
         print("no serial ports found")
-    for dev, desc, vid_pid in [] if args.json else ports:
-        print(f"{dev:<24} {vid_pid:<10} {desc}")
+    elif ports:
+        tables.table(("port", "vid:pid", "description"),
+                     [(dev, vid_pid, desc) for dev, desc, vid_pid in ports])
     return 0
 
 

@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli import tables
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
@@ -41,13 +42,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_devices(args: argparse.Namespace) -> int:
+    rows = []
     for name, cls in available_plugins().items():
         if isinstance(cls, Exception):
-            print(f"{name}: failed to load ({cls})")
+            rows.append((name, f"failed to load ({cls})"))
             continue
-        print(f"{name}: {cls.description}")
-        for setting in cls.settings_schema:
-            print(f"    {setting.describe()}")
+        rows.append((name, cls.description))
+        rows += [("", f"  {setting.describe()}") for setting in cls.settings_schema]
+    tables.table(("plugin", "description / settings"), rows)
     return 0
 
 
@@ -77,7 +79,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(engine.error or f"{device_label(device)}: no frames within "
                         f"{FIRST_FRAME_TIMEOUT_S:g} s "
                         "(is it switched on and sending?)")
-    progress = TerminalProgress(f"recording {out.name}")
+    progress = TerminalProgress(f"recording {out.name}", total=args.seconds, unit="s")
     token = CancelToken()
     start = time.monotonic()
     with ctrl_c_cancels(token):
@@ -87,6 +89,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
             if elapsed >= args.seconds or engine.state in (ERROR, FINISHED):
                 break
+    progress.close()
     engine.stop()
     if lsl is not None:
         lsl.stop()  # its last markers and the end of streaming go into the file too
@@ -151,5 +154,5 @@ def cmd_info(args: argparse.Namespace) -> int:
     if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
         lines.append(table)
-    print("\n".join(lines))
+    tables.fields(lines)
     return 0

@@ -1,14 +1,15 @@
 """Random forest and k-nearest-neighbour baselines on handcrafted trial features.
 
-Trained with scikit-learn, but saved without pickling: a fitted forest is stored as
-plain arrays (each tree's children, split features, thresholds and leaf class
-distributions) in a safetensors file and predicted by walking those arrays with numpy,
-which gives the same probabilities as scikit-learn. k-NN stores its standardised
-training features and labels (that is all a k-NN model is).
+Trained with scikit-learn and saved as ONNX with skl2onnx (no pickle), so every model of
+a run folder, deep or not, is a file that onnxruntime loads safely and runs fast; the
+tests check that the ONNX graph predicts the labels scikit-learn predicts and the same
+probabilities (within 1e-5), and benchmarks/bench_baselines.py times both.
 """
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 
 BASELINES = ("rf", "knn")
+MODEL_FILE = "model.onnx"
 DESCRIPTIONS = {
     "rf": "random forest on handcrafted statistical/spectral features + gesture metrics",
     "knn": "k-nearest neighbours on standardised handcrafted features",
@@ -56,101 +58,152 @@ def baseline_options(name: str, preset: str, overrides: dict[str, Any]) -> dict[
 
 
 class BaselineModel:
-    """A fitted (or loaded) rf / knn over feature vectors, predicting all classes."""
+    """A fitted (or loaded) rf / knn: one ONNX file, predicted by onnxruntime.
+
+    ``fit`` trains with scikit-learn and converts the fitted estimator with skl2onnx at
+    once, so the predictions recorded at training time, ``evaluate``, ``export-model`` and
+    the streaming predictor all come from the same ONNX graph. The graph's input is the
+    trial feature vector of :func:`tactile_studio.learn.features.trial_features` (the
+    feature extraction stays in Python; ``channel_names``, ``cell_pitch`` and the feature
+    count are in the file's metadata); k-NN's standardisation is part of the graph.
+    """
+
+    kind = "features"
+    file_name = MODEL_FILE
 
     def __init__(self, name: str, options: dict[str, Any], n_classes: int) -> None:
         self.name, self.options, self.n_classes = name, options, n_classes
-        self.tensors: dict[str, np.ndarray] = {}
+        self.estimator: Any = None  # the scikit-learn estimator, after fit only
+        self.onnx: bytes = b""
+        self.metadata: dict[str, str] = {}
+        self._session: Any = None
+        self._classes = np.arange(n_classes)
 
     # ---- training --------------------------------------------------------------------
-    def fit(self, x: np.ndarray, y: np.ndarray, seed: int) -> BaselineModel:
-        if self.name == "rf":
-            from sklearn.ensemble import RandomForestClassifier
-
-            o = self.options
-            rf = RandomForestClassifier(
-                n_estimators=o["n_estimators"], max_depth=o["max_depth"] or None,
-                min_samples_leaf=o["min_samples_leaf"],
-                max_features=None if o["max_features"] == "all" else o["max_features"],
-                random_state=seed, n_jobs=1)
-            rf.fit(x, y)
-            self.tensors = _forest_arrays(rf, self.n_classes)
-        else:
-            mean = x.mean(axis=0)
-            scale = x.std(axis=0)
-            scale = np.where(scale < 1e-12, 1.0, scale)
-            self.tensors = {"x": ((x - mean) / scale).astype(np.float64),
-                            "y": y.astype(np.int64), "mean": mean, "scale": scale}
+    def fit(self, x: np.ndarray, y: np.ndarray, seed: int,
+            metadata: dict[str, str] | None = None) -> BaselineModel:
+        """Fit with scikit-learn, then convert to ONNX (``metadata`` goes into the file)."""
+        self.estimator = _estimator(self.name, self.options, len(y), seed).fit(x, y)
+        self.metadata = {"model": self.name, "options": json.dumps(self.options),
+                         "n_classes": str(self.n_classes), "n_features": str(x.shape[1]),
+                         "classes": json.dumps(self.estimator.classes_.tolist()),
+                         "input": "trial features (tactile_studio.learn.features)",
+                         **(metadata or {})}
+        self.onnx = _to_onnx(self.estimator, x, self.name, self.metadata)
+        self._open(self.onnx)
         return self
 
+    def sklearn_predict_proba(self, x: np.ndarray) -> np.ndarray:
+        """scikit-learn's own probabilities (n_classes columns); only right after ``fit``."""
+        if self.estimator is None:
+            raise ValueError("the scikit-learn estimator exists only after fit")
+        return self._expand(self.estimator.predict_proba(x))
+
     # ---- prediction ------------------------------------------------------------------
+    def _open(self, model: bytes | str) -> None:
+        from tactile_studio.learn.export import cpu_session
+
+        self._session = cpu_session(model, threads=1)
+        meta = dict(self._session.get_modelmeta().custom_metadata_map)
+        self.metadata = meta
+        self._classes = np.asarray(json.loads(meta.get("classes", "[]")), dtype=np.int64)
+        inp = self._session.get_inputs()[0]
+        self._input = inp.name
+        self._dtype = np.float64 if "double" in inp.type else np.float32
+
+    def _expand(self, probs: np.ndarray) -> np.ndarray:
+        """Columns of the classes seen in training -> all ``n_classes`` columns."""
+        out = np.zeros((len(probs), self.n_classes))
+        out[:, self._classes] = probs
+        return out
+
+    def predict_labels_and_proba(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(labels, probabilities (N, n_classes)) from the ONNX graph."""
+        if len(x) == 0:
+            return np.zeros(0, dtype=np.int64), np.zeros((0, self.n_classes))
+        labels, probs = self._session.run(None, {self._input: np.asarray(x, self._dtype)})
+        return np.asarray(labels, dtype=np.int64), self._expand(np.asarray(probs, np.float64))
+
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
-        if self.name == "rf":
-            return _forest_predict(self.tensors, x)
-        from sklearn.neighbors import KNeighborsClassifier
+        return self.predict_labels_and_proba(x)[1]
 
-        t, o = self.tensors, self.options
-        k = min(o["n_neighbors"], len(t["y"]))
-        knn = KNeighborsClassifier(n_neighbors=k, weights=o["weights"], p=o["p"])
-        knn.fit(t["x"], t["y"])
-        probs = np.zeros((len(x), self.n_classes))
-        probs[:, knn.classes_] = knn.predict_proba((x - t["mean"]) / t["scale"])
-        return probs
+    def predict_trial(self, trial: np.ndarray, rate: float) -> np.ndarray:
+        """Probabilities (n_classes,) of one trial (C, T, R, X) of decoded frames."""
+        from tactile_studio.learn.features import trial_features
 
-    # ---- persistence (safetensors, no pickle) ----------------------------------------
+        names = json.loads(self.metadata.get("channel_names", "[]"))
+        pitch = float(self.metadata.get("cell_pitch", 1.0))
+        vec, _ = trial_features(trial, names, rate, pitch)
+        return self.predict_proba(vec[None])[0]
+
+    # ---- persistence: the ONNX file itself -------------------------------------------
     def save(self, path) -> None:
-        from safetensors.numpy import save_file
-
-        save_file({k: np.ascontiguousarray(v) for k, v in self.tensors.items()}, str(path))
+        Path(path).write_bytes(self.onnx)
 
     @classmethod
     def load(cls, path, name: str, options: dict[str, Any], n_classes: int) -> BaselineModel:
-        from safetensors.numpy import load_file
-
+        path = Path(path)
+        if not path.is_file():
+            raise UserError(f"{path}: no such model file")
         model = cls(name, options, n_classes)
-        from safetensors import SafetensorError
-
         try:
-            model.tensors = load_file(str(path))
-        except (OSError, SafetensorError) as exc:
-            raise UserError(f"{path}: damaged or unreadable weights file ({exc})") from None
+            model._open(str(path))
+        except Exception as exc:  # onnxruntime raises its own untyped errors on bad files
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise UserError(f"{path}: damaged or unreadable model file ({first[:120]})") from None
+        model.onnx = path.read_bytes()
         return model
 
 
-def _forest_arrays(rf, n_classes: int) -> dict[str, np.ndarray]:
-    """Every tree's nodes, concatenated, with child indices made global."""
-    left, right, feat, thr, value, roots = [], [], [], [], [], []
-    offset = 0
-    for est in rf.estimators_:
-        tree = est.tree_
-        n = tree.node_count
-        cl, cr = tree.children_left.astype(np.int64), tree.children_right.astype(np.int64)
-        left.append(np.where(cl >= 0, cl + offset, -1))
-        right.append(np.where(cr >= 0, cr + offset, -1))
-        feat.append(tree.feature.astype(np.int64))
-        thr.append(tree.threshold.astype(np.float64))
-        v = tree.value[:, 0, :].astype(np.float64)
-        v = v / np.maximum(v.sum(axis=1, keepdims=True), 1e-12)
-        full = np.zeros((n, n_classes))
-        full[:, rf.classes_.astype(np.int64)] = v  # tree columns follow the forest's classes
-        value.append(full)
-        roots.append(offset)
-        offset += n
-    return {"left": np.concatenate(left), "right": np.concatenate(right),
-            "feature": np.concatenate(feat), "threshold": np.concatenate(thr),
-            "value": np.concatenate(value), "roots": np.array(roots, dtype=np.int64)}
+def _estimator(name: str, o: dict[str, Any], n_train: int, seed: int) -> Any:
+    if name == "rf":
+        from sklearn.ensemble import RandomForestClassifier
+
+        return RandomForestClassifier(
+            n_estimators=o["n_estimators"], max_depth=o["max_depth"] or None,
+            min_samples_leaf=o["min_samples_leaf"],
+            max_features=None if o["max_features"] == "all" else o["max_features"],
+            random_state=seed, n_jobs=1)
+    from sklearn.neighbors import KNeighborsClassifier
+    from sklearn.pipeline import make_pipeline
+    from sklearn.preprocessing import StandardScaler
+
+    knn = KNeighborsClassifier(n_neighbors=min(o["n_neighbors"], n_train),
+                               weights=o["weights"], p=o["p"])
+    return make_pipeline(StandardScaler(), knn)
 
 
-def _forest_predict(t: dict[str, np.ndarray], x: np.ndarray) -> np.ndarray:
-    """Mean leaf class distribution over trees (scikit-learn's predict_proba)."""
-    x = np.asarray(x, dtype=np.float32).astype(np.float64)  # sklearn splits on float32 X
-    rows = np.arange(len(x))[:, None]
-    node = np.broadcast_to(t["roots"][None, :], (len(x), len(t["roots"]))).copy()
-    while True:
-        inner = t["left"][node] >= 0
-        if not inner.any():
-            break
-        f = np.where(inner, t["feature"][node], 0)
-        go_left = x[rows, f] <= t["threshold"][node]
-        node = np.where(inner, np.where(go_left, t["left"][node], t["right"][node]), node)
-    return t["value"][node].mean(axis=1)
+def _to_onnx(estimator: Any, x: np.ndarray, name: str, metadata: dict[str, str]) -> bytes:
+    """skl2onnx conversion. The forest takes float32 (scikit-learn itself splits on
+    float32 features); k-NN takes float64 so its distances match scikit-learn's."""
+    from skl2onnx import to_onnx
+
+    from tactile_studio.learn.export import OPSET
+
+    dtype = np.float32 if name == "rf" else np.float64
+    proto = to_onnx(estimator, np.asarray(x[:1], dtype=dtype),
+                    options={"zipmap": False}, target_opset={"": OPSET, "ai.onnx.ml": 3})
+    if name == "knn":
+        _fix_knn_distances(proto)
+    del proto.metadata_props[:]
+    for key, value in metadata.items():
+        entry = proto.metadata_props.add()
+        entry.key, entry.value = key, str(value)
+    return proto.SerializeToString()
+
+
+def _fix_knn_distances(proto: Any) -> None:
+    """Work around skl2onnx 1.20's k-NN converter negating the neighbour distances it
+    takes from ``TopK(largest=0)``: ``max(-d, 1e-6)`` then turns ``weights="distance"``
+    into uniform votes (probabilities off by up to 0.12 in our test). The negation
+    becomes an ``Abs``, which is also right once the converter is fixed."""
+    topk = {n.output[0] for n in proto.graph.node if n.op_type == "TopK"}
+    for node in proto.graph.node:
+        if node.op_type == "Mul" and node.input[0] in topk:
+            unused = node.input[1]
+            node.op_type = "Abs"
+            del node.input[1:]
+            if not any(unused in n.input for n in proto.graph.node):
+                keep = [i for i in proto.graph.initializer if i.name != unused]
+                del proto.graph.initializer[:]
+                proto.graph.initializer.extend(keep)

@@ -18,19 +18,15 @@ from pathlib import Path
 
 import numpy as np
 
-from tactile_studio import __version__
+from tactile_studio import __version__, paths
 
 CACHE_FORMAT = 1
 
 
 def default_cache_dir() -> Path:
-    """``$TACTILE_STUDIO_CACHE_DIR``, else ``$XDG_CACHE_HOME/tactile-studio``, else
-    ``~/.cache/tactile-studio``."""
-    env = os.environ.get("TACTILE_STUDIO_CACHE_DIR")
-    if env:
-        return Path(env)
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "tactile-studio"
+    """The app's cache folder (:func:`tactile_studio.paths.cache_dir`:
+    ``$TACTILE_STUDIO_CACHE_DIR``, else the platform's user cache folder)."""
+    return paths.cache_dir()
 
 
 def _code_version() -> str:

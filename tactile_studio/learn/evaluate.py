@@ -1,6 +1,7 @@
 """Re-scoring a finished run from its saved weights (``tactile-studio evaluate``).
 
-Every fold's best-epoch weights are loaded (safetensors, no pickle) and predict again:
+Every fold's saved model is loaded (torch weights from safetensors, rf / knn as ONNX run
+by onnxruntime; no pickle) and predicts again:
 
 * ``folds`` mode — the data holds the run's test trials (found by their uids): each fold
   model re-predicts its own test trials, which reproduces the run's metrics (a check that
@@ -25,7 +26,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.dataset import build_dataset
 from tactile_studio.learn.experiment import ExperimentConfig, _predictions, summarise
 from tactile_studio.learn.learners import DataInfo, make_learner
-from tactile_studio.learn.runfolder import WEIGHTS, read_run, write_json
+from tactile_studio.learn.runfolder import model_file, read_run, write_json
 
 
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
@@ -75,7 +76,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         if cancel is not None:
             cancel.check()
         progress(0.3 + 0.7 * k / len(records), f"fold {rec['name']}")
-        fitted = learner.load(Path(rec["_dir"]) / WEIGHTS, info)
+        fitted = learner.load(model_file(rec["_dir"]), info)
         idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
                else np.arange(len(ds)))
         pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"])

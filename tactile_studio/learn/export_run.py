@@ -1,6 +1,10 @@
 """Exporting a run's fold models (``tactile-studio export-model``) and measuring the cost.
 
-Every fold's best-epoch model is exported with the functions in
+rf / knn folds are ONNX files already (skl2onnx at training time): ``onnx`` copies them to
+``RUN/export/<fold>.onnx`` with the same metadata and checks them against the probabilities
+recorded at training; they have no int8 form.
+
+Every torch fold's best-epoch model is exported with the functions in
 :mod:`tactile_studio.learn.export` and re-scored on that fold's test set:
 
 * ``onnx`` — written to ``RUN/export/<fold>.onnx`` (labels, view and normalisation in
@@ -29,7 +33,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluate import load_run_data
-from tactile_studio.learn.runfolder import WEIGHTS, write_json
+from tactile_studio.learn.runfolder import model_file, write_json
 
 ONNX_TOLERANCE = 1e-3
 
@@ -53,8 +57,11 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         run, data, cache_dir, device="cpu", progress=lambda f, m: progress(0.2 * f, m),
         cancel=cancel)
     if learner.kind != "torch":
-        raise UserError(f"model '{config.model}' is a scikit-learn baseline; export-model "
-                        "handles torch models only")
+        if fmt != "onnx":
+            raise UserError(f"model '{config.model}' is a scikit-learn baseline: it exports "
+                            "as onnx only (int8 is for torch models)")
+        return _export_baseline(run, config, resolved, records, ds, learner, info, progress,
+                                cancel, tolerance, threads)
     if fmt == "int8" and not learner.spec.quantizable:
         from tactile_studio.learn.models import MODELS
 
@@ -76,7 +83,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         mask = np.isin(owner, test)
         xt = learner.apply_norm(x[mask], rec["norm"])
         yt = ds.labels[owner[mask]]
-        fitted = learner.load(Path(rec["_dir"]) / WEIGHTS, info)
+        fitted = learner.load(model_file(rec["_dir"]), info)
         model = fitted.model.eval()
         with torch.no_grad():
             ref = model(torch.from_numpy(xt)).numpy() if len(xt) else np.zeros((0, info.n_classes))
@@ -127,6 +134,70 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / f"{fmt}.json", report)
+    progress(1.0, "exported")
+    return report
+
+
+def _export_baseline(run, config, resolved, records, ds, learner, info, progress,  # noqa: ANN001
+                     cancel, tolerance: float, threads: int) -> dict[str, Any]:
+    """rf / knn folds are ONNX files already: copy each to ``RUN/export/<fold>.onnx`` with
+    the run's metadata, run it with onnxruntime on the fold's test trials and compare with
+    the probabilities recorded when the fold was trained (the "torch" fields of the report
+    hold that reference for these models)."""
+    import onnx
+
+    from tactile_studio.learn.baselines import BaselineModel
+    from tactile_studio.learn.export import _save_onnx
+
+    x, owner = learner.samples(ds)
+    index = {u: i for i, u in enumerate(ds.uids)}
+    out_dir = Path(run) / "export"
+    folds, truth_all, before_all, after_all = [], [], [], []
+    for k, rec in enumerate(records):
+        if cancel is not None:
+            cancel.check()
+        progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
+        missing = [u for u in rec["test"] if u not in index]
+        if missing:
+            raise UserError(f"test trial {missing[0]} of fold {rec['name']} is not in the data")
+        mask = np.isin(owner, np.array([index[u] for u in rec["test"]], dtype=np.int64))
+        yt = ds.labels[owner[mask]]
+        source = model_file(rec["_dir"])
+        learner.load(source, info)  # a clear error for a damaged or pre-ONNX fold model
+        name = Path(rec["_dir"]).name
+        path = out_dir / f"{name}.onnx"
+        proto = onnx.load_model(str(source))
+        meta = {p.key: p.value for p in proto.metadata_props}
+        meta.update({"labels": json.dumps(ds.label_names), "model": config.model,
+                     "preset": config.preset, "channels": ds.channels,
+                     "view": json.dumps(resolved["model"]["view"]), "norm": json.dumps({})})
+        _save_onnx(proto, meta, path, "ONNX model")
+        exported = BaselineModel.load(path, learner.name, learner.options, info.n_classes)
+        got = exported.predict_proba(x[mask])
+        p = rec["predictions"]
+        ref = np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1)
+        if len(ref) != len(got):
+            raise UserError(f"fold {rec['name']}: the data gives {len(got)} test trials, "
+                            f"the run recorded {len(ref)}")
+        diff = float(np.abs(got - ref).max()) if len(got) else 0.0
+        if diff > tolerance:
+            raise UserError(f"{path}: ONNX probabilities differ from the run's by {diff:.3g} "
+                            f"(tolerance {tolerance:g})")
+        before, after = ref.argmax(axis=1), got.argmax(axis=1)
+        folds.append({"name": name, "n": int(len(yt)), "path": str(path), "max_abs_diff": diff,
+                      "accuracy_torch": float((before == yt).mean()) if len(yt) else 0.0,
+                      "accuracy_export": float((after == yt).mean()) if len(yt) else 0.0,
+                      "changed_predictions": int((before != after).sum())})
+        truth_all.append(yt)
+        before_all.append(before)
+        after_all.append(after)
+    y, b, a = (np.concatenate(v) for v in (truth_all, before_all, after_all))
+    report = {"model": config.model, "format": "onnx", "folds": folds, "n": int(len(y)),
+              "accuracy_torch": float((b == y).mean()) if len(y) else 0.0,
+              "accuracy_export": float((a == y).mean()) if len(y) else 0.0,
+              "changed_predictions": int((b != a).sum())}
+    report["accuracy_change"] = report["accuracy_export"] - report["accuracy_torch"]
+    write_json(out_dir / "onnx.json", report)
     progress(1.0, "exported")
     return report
 

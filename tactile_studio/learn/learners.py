@@ -3,11 +3,13 @@
 A learner turns a dataset into samples (a torch model's view of every trial, or one
 feature vector per trial for the baselines), computes normalisation statistics from the
 training samples it is given, fits, predicts class probabilities, and saves / loads its
-fitted model with safetensors. The experiment code only talks to this interface.
+fitted model (torch weights as safetensors, rf / knn as ONNX). The experiment code only
+talks to this interface.
 """
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from typing import Any
@@ -216,7 +218,12 @@ class BaselineLearner:
         if cancel is not None:
             cancel.check()
         model = baselines.BaselineModel(self.name, self.options, info.n_classes)
-        return model.fit(train[0], train[1], seed), [], 0
+        meta = {"channel_names": json.dumps(list(info.channel_names)),
+                "cell_pitch": str(info.cell_pitch)}
+        return model.fit(train[0], train[1], seed, meta), [], 0
 
     def load(self, path, info: DataInfo) -> baselines.BaselineModel:
+        if str(path).endswith(".safetensors"):
+            raise UserError(f"{path}: an rf/knn model saved before they became ONNX files; "
+                            "train the run again")
         return baselines.BaselineModel.load(path, self.name, self.options, info.n_classes)

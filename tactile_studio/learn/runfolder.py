@@ -8,7 +8,8 @@ Layout::
     RUN/confusion_matrix.png
     RUN/training_curves.png      torch models: loss and accuracy per epoch, every fold
     RUN/folds/r0-<fold>/fold.json          split (trial uids), history, predictions, metrics
-    RUN/folds/r0-<fold>/model.safetensors  best-epoch weights (or the baseline's arrays)
+    RUN/folds/r0-<fold>/model.safetensors  torch models: best-epoch weights
+    RUN/folds/r0-<fold>/model.onnx         rf / knn: the fitted model as ONNX (skl2onnx)
 
 A fold whose ``fold.json`` exists is finished (it is written last, atomically), which is
 how re-running with the same ``--out`` resumes.
@@ -27,6 +28,17 @@ from typing import Any
 from tactile_studio.errors import UserError
 
 CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
+MODEL_FILES = (WEIGHTS, "model.onnx")  # torch weights, or a baseline's ONNX file
+
+
+def model_file(fold_dir: str | os.PathLike) -> Path:
+    """The fold's saved model: ``model.safetensors`` or ``model.onnx``, whichever exists
+    (the torch name when neither does, so the error names the usual file)."""
+    d = Path(fold_dir)
+    for name in MODEL_FILES:
+        if (d / name).is_file():
+            return d / name
+    return d / WEIGHTS
 
 
 def clean_json(value: Any) -> Any:
@@ -101,14 +113,14 @@ class RunFolder:
 
     def load_fold(self, round_: int, name: str) -> dict[str, Any] | None:
         d = self.fold_dir(round_, name)
-        if (d / FOLD).is_file() and (d / WEIGHTS).is_file():
+        if (d / FOLD).is_file() and model_file(d).is_file():
             return read_json(d / FOLD)
         return None
 
     def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
         d = self.fold_dir(record["round"], record["name"])
         d.mkdir(parents=True, exist_ok=True)
-        fitted.save(d / WEIGHTS)
+        fitted.save(d / getattr(fitted, "file_name", WEIGHTS))
         write_json(d / FOLD, record)
 
     def write_results(self, metrics: dict[str, Any], records: list[dict[str, Any]],
@@ -141,7 +153,7 @@ def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, An
     cfg = read_json(run / CONFIG)
     records = []
     for d in sorted((run / "folds").glob("r*-*")):
-        if (d / FOLD).is_file() and (d / WEIGHTS).is_file():
+        if (d / FOLD).is_file() and model_file(d).is_file():
             rec = read_json(d / FOLD)
             rec["_dir"] = str(d)
             records.append(rec)

@@ -6,6 +6,9 @@ new frame goes through the per-frame CNN exactly once, its embedding is kept in 
 of the window's length, and a prediction runs only the Transformer over the ring. Any
 other model gets the generic path: the last ``window`` frames are kept, turned into the
 model's view (resample / slices / gradient sampling of that window) and fully recomputed.
+The rf / k-NN baselines (a :class:`~tactile_studio.learn.baselines.BaselineModel`, an ONNX
+graph run by onnxruntime) get the feature path: the last ``window`` frames are one trial,
+turned into its handcrafted feature vector and classified.
 """
 
 from __future__ import annotations
@@ -70,6 +73,9 @@ class StreamingPredictor:
     ``threads`` sets its intra-op threads: 1 by default, because one sample's small ops
     gain little from more and, on a busy 2-core machine, two threads stall each other
     (measured: p95 latency 5-100x worse); 0 = onnxruntime's default.
+    For an rf / k-NN ``model`` (loaded from a run folder's ``model.onnx``), ``view`` may be
+    None, ``window`` (the trial length in frames) is required, frames are decoded but not
+    z-scored, ``rate`` (Hz) feeds the spectral features, and prediction is onnxruntime.
     """
 
     def __init__(
@@ -83,19 +89,28 @@ class StreamingPredictor:
         hop: int = 1,
         backend: str = "torch",
         threads: int = 1,
+        rate: float = 43.0,
     ) -> None:
         if backend not in ("torch", "onnx"):
             raise UserError(f"unknown streaming backend {backend!r} (available: torch, onnx)")
-        self.model = model.eval()
-        self.view = view
-        self.window = int(view.frames if window is None or view.kind == "windows" else window)
+        self.features = getattr(model, "kind", None) == "features"
+        self.model = model if self.features else model.eval()
+        self.view, self.rate = view, float(rate)
+        if self.features:
+            if window is None:
+                raise UserError("an rf / knn model needs the streaming window (trial frames)")
+            self.window = int(window)
+        else:
+            self.window = int(view.frames if window is None or view.kind == "windows"
+                              else window)
         if self.window < 1 or hop < 1:
             raise UserError("streaming window and hop must be at least 1 frame")
         self.hop, self.backend, self.threads = hop, backend, threads
         self.mean = None if mean is None else np.asarray(mean, np.float32).reshape(-1, 1, 1)
         self.std = None if std is None else np.asarray(std, np.float32).reshape(-1, 1, 1)
         self.cached = (
-            view.kind == "windows"
+            not self.features
+            and view.kind == "windows"
             and callable(getattr(model, "frame_features", None))
             and callable(getattr(model, "classify_embeddings", None))
         )
@@ -177,8 +192,8 @@ class StreamingPredictor:
 
     def current_window(self) -> np.ndarray:
         """The model input (1, C, T, R, X) the next generic prediction would use."""
-        if self.cached:
-            raise ValueError("the cached path keeps embeddings, not frames")
+        if self.cached or self.features:
+            raise ValueError("only the generic path feeds a window to the model")
         trial = self._ordered().transpose(1, 0, 2, 3)  # (C, N, R, X)
         kind = "resample" if self.view.kind == "windows" else self.view.kind
         return np.ascontiguousarray(views.trial_view(trial, kind, self.view.frames)[:1],
@@ -188,6 +203,9 @@ class StreamingPredictor:
         """Probabilities (n_classes,) for the newest full window."""
         if not self.ready:
             raise ValueError(f"need {self.window} frames, have {self.frames_seen}")
+        if self.features:
+            trial = np.ascontiguousarray(self._ordered().transpose(1, 0, 2, 3))
+            return self.model.predict_trial(trial, self.rate)
         x = self._ordered()[None] if self.cached else self.current_window()
         if self.backend == "onnx":
             first, head = self._onnx(self._ring[0])  # exported at the first frame if cached

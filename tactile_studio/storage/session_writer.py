@@ -6,8 +6,9 @@ and a SIGKILL loses at most what came after the last flush. Everything that is n
 frame (metadata updates, events, baselines, trials, counters) goes into ``/journal``,
 an append-only byte stream of JSON lines, because SWMR forbids creating objects or
 attributes after the switch. ``close()`` additionally writes readable copies
-(``metadata_json``, ``events_json``, ``trials_json`` attributes) for other tools.
-See docs/session-format.md.
+(``metadata_json``, ``events_json``, ``trials_json`` attributes) for other tools, then
+rewrites the file once with compressed datasets (storage/session_compress.py explains why
+not while recording). See docs/session-format.md.
 """
 
 from __future__ import annotations
@@ -27,10 +28,14 @@ import numpy as np
 from tactile_studio import __version__
 from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.session_compress import (
+    LIVE_CHUNK_BYTES,
+    chunk_rows,
+    compress_session_file,
+)
 
 FORMAT = "tactile-studio-session"
 SCHEMA_VERSION = 1
-FRAME_CHUNK = 256
 
 
 def _jsonable(value: Any) -> Any:
@@ -64,10 +69,12 @@ class SessionWriter:
         f.attrs["app_version"] = __version__
         f.attrs["layout"] = layout.name
         g = f.create_group("frames")
+        # uncompressed while recording (see session_compress); close() compresses
+        rows = chunk_rows(c * np.dtype(layout.raw_dtype).itemsize, LIVE_CHUNK_BYTES)
         self._raw = g.create_dataset("raw", (0, c), maxshape=(None, c), dtype=layout.raw_dtype,
-                                     chunks=(FRAME_CHUNK, c))
+                                     chunks=(rows, c))
         self._cols = {
-            name: g.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(4096,))
+            name: g.create_dataset(name, (0,), maxshape=(None,), dtype=dt, chunks=(rows,))
             for name, dt in (("device_time", "f8"), ("host_time", "f8"), ("seq", "i8"),
                              ("index", "i8"))
         }
@@ -161,8 +168,9 @@ class SessionWriter:
                 self._f.flush()
                 self._last_flush = time.monotonic()
 
-    def close(self) -> None:
-        """Flush, close, and write human-readable copies of the journal as attributes."""
+    def close(self, compress: bool = True) -> None:
+        """Flush, close, write human-readable copies of the journal as attributes, and
+        (unless ``compress`` is False) rewrite the file compressed."""
         with self._lock:
             if self._closed:
                 return
@@ -177,6 +185,8 @@ class SessionWriter:
             f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
             f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
             f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
+        if compress:
+            compress_session_file(self.path)
 
     def __enter__(self) -> SessionWriter:
         return self
