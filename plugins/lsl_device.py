@@ -13,6 +13,7 @@ engine records the gap and goes on when the stream returns.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -52,12 +53,15 @@ class LslDevice(DevicePlugin):
                 minimum=0.1, maximum=300.0),
     )
     supports_reconnect: ClassVar[bool] = True
+    supports_discover: ClassVar[bool] = True
     discover_setting: ClassVar[str] = "name"
+    discover_instant: ClassVar[bool] = False  # an LSL look-up waits ``timeout`` seconds
 
     @classmethod
-    def discover(cls, timeout: float = 2.0) -> list[tuple[str, str]]:
+    def discover(cls, settings: Mapping[str, Any]) -> list[tuple[str, str]]:
         """Numeric LSL streams visible now, as (name, description) for the panel's Scan."""
         pylsl = load_pylsl()
+        timeout = float(settings.get("timeout", 2.0))
         found = [i for i in pylsl.resolve_streams(timeout)
                  if i.channel_format() != pylsl.cf_string]
         return sorted((i.name(), f"{i.name()} ({i.type() or 'no type'}, {i.channel_count()} "

@@ -24,7 +24,7 @@ from tactile_studio.plugins import ble_device
 from tactile_studio.sensor.layout import grid_layout
 from tactile_studio.storage.shearsense import write_shearsense_csv
 
-BUILT_IN = {"simulated", "replay", "serial", "ble"}
+BUILT_IN = {"simulated", "replay", "serial", "ble", "lsl"}
 
 
 def test_every_built_in_plugin_is_checked_here():
@@ -36,6 +36,18 @@ def test_every_built_in_plugin_is_checked_here():
 def test_simulated():
     seen = check_plugin(plugin_class("simulated"), {"speed": 20}, frames=10)
     assert seen["frames"] >= 10
+
+
+def test_lsl_on_a_stream_published_here():
+    from lsl_fixtures import unique
+    from test_lsl_device import Publisher
+
+    pub = Publisher(unique("check"), channels=64).start()
+    try:
+        seen = check_plugin(plugin_class("lsl"), {"name": pub.name}, frames=20, timeout_s=10)
+    finally:
+        pub.stop()
+    assert seen["frames"] >= 20
 
 
 def test_replay_of_a_small_csv(tmp_path):

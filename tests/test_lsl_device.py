@@ -149,7 +149,7 @@ def test_layout_and_sensor_id_come_from_our_outlets_metadata() -> None:
             got += len(batch)
         assert got >= 5 and batch.raw.dtype == np.float32
         assert dev.info()["sensor_id"] == "S-0042"
-        found = dict(type(dev).discover(timeout=1.0))  # the device panel's Scan
+        found = dict(type(dev).discover({"timeout": 1.0}))  # the device panel's Scan
         assert found[name].startswith(f"{name} (Tactile, 32 ch at 50 Hz, ")
     finally:
         dev.close()

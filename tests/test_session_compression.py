@@ -10,7 +10,7 @@ import numpy as np
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate.simulator import SensorSimulator
 from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.session_compress import chunk_rows
+from tactile_studio.storage.session_compress import FILTERS, chunk_rows, read_rows
 
 
 def _frames(n: int) -> np.ndarray:
@@ -86,3 +86,19 @@ def test_chunk_rows_follow_the_row_size_and_the_data_length():
     assert chunk_rows(8, n_rows=1300) == 1300
     assert chunk_rows(360, n_rows=0) == 1
     assert chunk_rows(10**9) == 64
+
+
+def test_parallel_chunk_reader_equals_h5py_on_any_slice(tmp_path):
+    """read_rows inflates gzip+shuffle chunks itself; every slice must equal h5py's."""
+    rng = np.random.default_rng(4)
+    raw = (1500 + rng.normal(0, 30, (5000, 180))).astype(np.uint16)
+    times = np.cumsum(rng.uniform(0.02, 0.03, 5000))
+    with h5py.File(tmp_path / "c.h5", "w") as f:
+        f.create_dataset("raw", data=raw, chunks=(333, 180), **FILTERS)
+        f.create_dataset("t", data=times, chunks=(700,), **FILTERS)
+        f.create_dataset("plain", data=raw, chunks=(333, 180))
+    with h5py.File(tmp_path / "c.h5", "r") as f:
+        for a, b in [(0, 5000), (1, 4999), (332, 333 * 7 + 1), (4000, 9000), (10, 20)]:
+            assert np.array_equal(read_rows(f["raw"], a, b), raw[a:b])
+            assert np.array_equal(read_rows(f["t"], a, b), times[a:b])
+            assert np.array_equal(read_rows(f["plain"], a, b), raw[a:b])

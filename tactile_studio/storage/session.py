@@ -17,6 +17,7 @@ import numpy as np
 from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
+from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_writer import FORMAT
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
@@ -233,12 +234,12 @@ class Session:
 
     def raw(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
-        return self._f["frames/raw"][start:stop]
+        return read_rows(self._f["frames/raw"], start, stop)
 
     def column(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
         """One of device_time, host_time, seq, index."""
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
-        return self._f[f"frames/{name}"][start:stop]
+        return read_rows(self._f[f"frames/{name}"], start, stop)
 
     def baseline(self, row: int = 0) -> np.ndarray:
         """The newest recorded baseline at or before ``row`` (else the first recorded
