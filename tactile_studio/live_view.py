@@ -15,7 +15,7 @@ import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.sensor.decode import compute_baseline, contact_map, decode
+from tactile_studio.sensor.decode import FrameDecoder, compute_baseline, decode
 from tactile_studio.sensor.layout import Layout
 
 QUANTITIES = ("normal", "shear_x", "shear_y", "shear")
@@ -175,6 +175,7 @@ class LiveView:
         self.engine = engine
         self._cache_key, self._cache = None, None
         self._cache_base: np.ndarray | None = None
+        self._decoder: FrameDecoder | None = None  # set-up for single frames, per baseline
         self._trail: _Trail | None = None
         self._trail_cursor = 0
         self._trail_baseline: np.ndarray | None = None
@@ -212,14 +213,17 @@ class LiveView:
         chunk = eng.latest()
         if chunk is None or base is None:
             return None
-        lay = eng.layout
-        st = decode(lay, chunk.raw, base, virtual=self.virtual)
+        dec = self._decoder
+        if (dec is None or dec.baseline is not base or dec.virtual != self.virtual
+                or dec.layout is not eng.layout):
+            dec = self._decoder = FrameDecoder(eng.layout, base, virtual=self.virtual)
+        raw = chunk.raw[-1]
+        st = dec.decode(raw)
         frame = LiveFrame(
             index=chunk.start, host_time=float(chunk.host_time[-1]), normal=st.normal[0],
             shear_x=None if st.shear_x is None else st.shear_x[0],
             shear_y=None if st.shear_y is None else st.shear_y[0],
-            units=st.units, virtual=self.virtual,
-            contact=contact_map(lay, chunk.raw, base)[0],
+            units=st.units, virtual=self.virtual, contact=dec.contact(raw),
             provisional_baseline=eng.baseline is None)
         self._cache_key, self._cache, self._cache_base = (chunk.start, self.virtual), frame, base
         return frame
