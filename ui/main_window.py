@@ -25,7 +25,7 @@ from tactile_studio.live import (
     parse_taxel_name,
 )
 from tactile_studio.ui.device_panel import DevicePanel
-from tactile_studio.ui.heatmap import HeatmapView, strip_colors
+from tactile_studio.ui.heatmap import COLOR_SCHEMES, HeatmapView, strip_colors
 from tactile_studio.ui.settings import app_settings, get_json, set_json, style_sheet
 from tactile_studio.ui.status import LiveStatusBar
 from tactile_studio.ui.stripchart import StripChart
@@ -293,6 +293,7 @@ class MainWindow(QMainWindow):
         set_json(s, "view/virtual", self.heatmap.virtual)
         set_json(s, "view/fixed_max", self.heatmap.fixed_max)
         set_json(s, "view/arrow_scale", self.heatmap.arrow_scale)
+        set_json(s, "view/colors", self.heatmap.color_scheme)
         set_json(s, "strip/taxels", self.strip_taxels)
         set_json(s, "strip/quantity", self.strip.quantity())
         self.save_device_settings()
@@ -311,6 +312,9 @@ class MainWindow(QMainWindow):
         self.heatmap.set_range(float(fixed) if fixed is not None else None)
         self.heatmap.set_arrow_scale(float(get_json(s, "view/arrow_scale",
                                                     self.heatmap.arrow_scale)))
+        scheme = get_json(s, "view/colors", self.heatmap.color_scheme)
+        if scheme in COLOR_SCHEMES:
+            self.heatmap.set_color_scheme(scheme)
         taxels = get_json(s, "strip/taxels", None)
         if isinstance(taxels, list):
             self.strip_taxels = [(int(r), int(c)) for r, c in taxels][:MAX_STRIP_TAXELS]
