@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, Qt, Signal
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QButtonGroup,
@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.ui.arrow_field import ArrowField
+from tactile_studio.ui.grid_image import GridImage
 
 BACKGROUND = "#ffffff"
 FOREGROUND = "#303030"
@@ -123,13 +124,16 @@ class HeatmapView(QWidget):
         self._label_font = QFont()
         self._label_font.setPointSizeF(10.5)
         self._label_font.setBold(True)
-        self.image = pg.ImageItem(axisOrder="row-major")
-        self.plot.addItem(self.image)
         self.cmap = pg.colormap.get(colormap)
+        self.image = GridImage(self.cmap)
+        self.image.set_levels(0.0, DEFAULT_MAX_KPA)
+        self.plot.addItem(self.image)
+        # the bar only shows the map and levels; the image is coloured by GridImage
         self.colorbar = pg.ColorBarItem(values=(0.0, DEFAULT_MAX_KPA), colorMap=self.cmap,
                                         interactive=False,
                                         width=18, colorMapMenu=False)
-        self.colorbar.setImageItem(self.image, insert_in=self.plot)
+        self.plot.layout.addItem(self.colorbar, 2, 5)  # right of the map
+        self.plot.layout.setColumnFixedWidth(4, 5)
         bar_axis = self.colorbar.axis
         bar_axis.setPen(FOREGROUND)
         bar_axis.setTextPen(FOREGROUND)
@@ -298,6 +302,8 @@ class HeatmapView(QWidget):
         cmap = diverging_colormap(lo, hi) if self._scheme == "diverging" else self.cmap
         self.colorbar.setColorMap(cmap)
         self.colorbar.setLevels((lo, hi))
+        self.image.set_colormap(cmap)
+        self.image.set_levels(lo, hi)
 
     @property
     def arrow_scale(self) -> float:
@@ -356,10 +362,11 @@ class HeatmapView(QWidget):
             self._auto_lo = min(0.0, float(np.nanmin(normal)), self._auto_lo * 0.97)
             hi = nice_ceil(self._auto_hi)
             self._apply_levels(self._auto_low(hi), hi)
-        self.image.setImage(normal, autoLevels=False)
+        self.image.set_data(normal)
         if new_shape:  # after setImage: the rect maps the image's pixels to taxel units
             self._shape = shape
-            self.image.setRect(-step / 2, -step / 2, shape[1] * step, shape[0] * step)
+            self.image.set_rect(QRectF(-step / 2, -step / 2, shape[1] * step,
+                                       shape[0] * step))
             self._update_ticks()
             self._set_view_range()
             r, c = self._hover

@@ -1,12 +1,15 @@
 """The live main window: heatmap in the middle, device panel and strip chart in docks.
 
-A QTimer at display rate pulls the newest decoded frame from a :class:`LiveView` and
-draws it — never one repaint per sample, so a 1 kHz device costs the GUI no more than a
-43 Hz one. Device-to-paint latency is measured when the heatmap has actually painted.
+A fast poll timer looks for a new frame every few milliseconds and a
+:class:`PaintPacer` draws it at once, or when a display period (1/display_hz) has passed
+since the last paint — never one repaint per sample, so a 1 kHz device costs the GUI no
+more than a 60 Hz one, and a 43 Hz frame waits milliseconds, not a display period.
+Device-to-paint latency is measured when the heatmap has actually painted.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -24,6 +27,7 @@ from tactile_studio.live import (
     RateMeter,
     parse_taxel_name,
 )
+from tactile_studio.live_meters import PaintPacer
 from tactile_studio.ui.device_panel import DevicePanel
 from tactile_studio.ui.heatmap import COLOR_SCHEMES, HeatmapView, strip_colors
 from tactile_studio.ui.settings import app_settings, get_json, set_json, style_sheet
@@ -33,6 +37,7 @@ from tactile_studio.ui.stripchart import StripChart
 DEFAULT_STRIP_TAXELS = [(2, 2), (3, 3)]
 MAX_STRIP_TAXELS = 10
 STRIP_INTERVAL_S = 0.04  # the strip chart redraws at most 25 times a second
+POLL_MS = 4  # how often the display looks for a new frame (a look costs microseconds)
 
 
 class MainWindow(QMainWindow):
@@ -95,11 +100,16 @@ class MainWindow(QMainWindow):
             self.panel.set_device(name, {**saved, **(settings or {})})
         self._mark_strip_taxels()
 
-        self.paint_timer = QTimer(self)
+        self.pacer = PaintPacer(display_hz)
+        self.paint_timer = QTimer(self)  # polls for new frames
         self.paint_timer.setTimerType(Qt.TimerType.PreciseTimer)
-        self.paint_timer.setInterval(max(1, round(1000.0 / display_hz)))
+        self.paint_timer.setInterval(POLL_MS)
         self.paint_timer.timeout.connect(self.tick)
         self.paint_timer.start()
+        self._paced = QTimer(self)  # a frame that came too soon after the last paint
+        self._paced.setTimerType(Qt.TimerType.PreciseTimer)
+        self._paced.setSingleShot(True)
+        self._paced.timeout.connect(self.tick)
         self.status_timer = QTimer(self)
         self.status_timer.setInterval(250)
         self.status_timer.timeout.connect(self.refresh_status)
@@ -168,11 +178,17 @@ class MainWindow(QMainWindow):
                 self._shown = None
                 self.heatmap.clear()
             return
-        if frame is not self._shown:
-            self._shown = frame
-            self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
-            self._update_readout()
         now = time.monotonic()
+        if frame is not self._shown:
+            wait = self.pacer.delay(now)
+            if wait <= 0:
+                self.pacer.painted(now)
+                self._shown = frame
+                self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y,
+                                       frame.units)
+                self._update_readout()
+            elif not self._paced.isActive():
+                self._paced.start(max(1, math.ceil(wait * 1000)))
         if now - self._strip_drawn >= STRIP_INTERVAL_S and self.strip_dock.isVisible():
             self._strip_drawn = now
             self.strip.set_history(self.live.history(self.strip_taxels,
@@ -331,6 +347,7 @@ class MainWindow(QMainWindow):
     def shutdown(self) -> None:
         """Save preferences, finish any recording and stop the device (idempotent)."""
         self.paint_timer.stop()
+        self._paced.stop()
         self.status_timer.stop()
         if self.persist:
             self.save_settings()
