@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pyqtgraph as pg
 from pyqtgraph.Qt.internals import PrimitiveArray
-from PySide6.QtCore import QLineF, QPointF, QRectF, Qt
+from PySide6.QtCore import QLineF, QRectF, Qt
 from PySide6.QtGui import QBrush, QColor, QPainter, QPainterPath, QPen
 
 HALO = QColor("#101010")
@@ -56,7 +56,8 @@ class ArrowField(pg.GraphicsObject):
     def __init__(self) -> None:
         super().__init__()
         self._lines = PrimitiveArray(QLineF, 4)
-        self._dots = PrimitiveArray(QPointF, 2)
+        # dots are very short lines with round caps (drawPoints has no array overload)
+        self._dots = PrimitiveArray(QLineF, 4)
         self._heads = QPainterPath()
         self._n = 0
         self._rect = QRectF()
@@ -93,7 +94,10 @@ class ArrowField(pg.GraphicsObject):
         self._lines.resize(n)
         self._lines.ndarray()[:] = g["shaft"]
         self._dots.resize(n)
-        self._dots.ndarray()[:] = g["dots"]
+        dots = self._dots.ndarray()
+        dots[:, :2] = g["dots"]
+        dots[:, 2:] = g["dots"]
+        dots[:, 2] += 1e-3  # a zero-length line draws nothing; a tiny one draws its caps
         heads = g["heads"]
         if len(heads):
             pts = np.concatenate([heads, heads[:, :1]], axis=1).reshape(-1, 2)
@@ -137,14 +141,14 @@ class ArrowField(pg.GraphicsObject):
         p.setPen(self._halo_line)
         p.drawLines(*lines)
         p.setPen(self._halo_dot)
-        p.drawPoints(*dots)
+        p.drawLines(*dots)
         p.setPen(self._ink_line)
         p.drawLines(*lines)
         p.setPen(self._head_pen)
         p.setBrush(self._head_brush)
         p.drawPath(self._heads)
         p.setPen(self._ink_dot)
-        p.drawPoints(*dots)
+        p.drawLines(*dots)
 
 
 __all__ = ["ArrowField", "arrow_geometry"]

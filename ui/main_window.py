@@ -61,6 +61,11 @@ class MainWindow(QMainWindow):
         self.live = LiveView()
         self.fps = RateMeter(1.0)
         self.latency = LatencyMeter(keep=600)
+        self.pacer = PaintPacer(display_hz)
+        self._paced = QTimer(self)  # a frame that came too soon after the last paint
+        self._paced.setTimerType(Qt.TimerType.PreciseTimer)
+        self._paced.setSingleShot(True)
+        self._paced.timeout.connect(self.tick)
         self._shown: LiveFrame | None = None
         self._painted_index = -1
         self._hover = (-1, -1)
@@ -100,16 +105,11 @@ class MainWindow(QMainWindow):
             self.panel.set_device(name, {**saved, **(settings or {})})
         self._mark_strip_taxels()
 
-        self.pacer = PaintPacer(display_hz)
         self.paint_timer = QTimer(self)  # polls for new frames
         self.paint_timer.setTimerType(Qt.TimerType.PreciseTimer)
         self.paint_timer.setInterval(POLL_MS)
         self.paint_timer.timeout.connect(self.tick)
         self.paint_timer.start()
-        self._paced = QTimer(self)  # a frame that came too soon after the last paint
-        self._paced.setTimerType(Qt.TimerType.PreciseTimer)
-        self._paced.setSingleShot(True)
-        self._paced.timeout.connect(self.tick)
         self.status_timer = QTimer(self)
         self.status_timer.setInterval(250)
         self.status_timer.timeout.connect(self.refresh_status)
@@ -170,25 +170,26 @@ class MainWindow(QMainWindow):
 
     # ---- display loop --------------------------------------------------------------
     def tick(self) -> None:
-        """Draw the newest frame if there is one we have not drawn (display timer)."""
+        """Draw the newest frame if there is one we have not drawn (poll timer)."""
         self._tick_count += 1
-        frame = self.live.latest()
-        if frame is None:
-            if self._shown is not None:
-                self._shown = None
-                self.heatmap.clear()
-            return
         now = time.monotonic()
-        if frame is not self._shown:
-            wait = self.pacer.delay(now)
-            if wait <= 0:
+        wait = self.pacer.delay(now)
+        if wait > 0:  # too soon after the last paint: look again then, decode nothing now
+            if not self._paced.isActive():
+                self._paced.start(max(1, math.ceil(wait * 1000)))
+        else:
+            frame = self.live.latest()
+            if frame is None:
+                if self._shown is not None:
+                    self._shown = None
+                    self.heatmap.clear()
+                return
+            if frame is not self._shown:
                 self.pacer.painted(now)
                 self._shown = frame
                 self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y,
                                        frame.units)
                 self._update_readout()
-            elif not self._paced.isActive():
-                self._paced.start(max(1, math.ceil(wait * 1000)))
         if now - self._strip_drawn >= STRIP_INTERVAL_S and self.strip_dock.isVisible():
             self._strip_drawn = now
             self.strip.set_history(self.live.history(self.strip_taxels,
