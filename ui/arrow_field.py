@@ -115,14 +115,16 @@ class ArrowField(pg.GraphicsObject):
             self.set_arrows(*(np.empty(0),) * 4)
 
     def _grow_rect(self, g: dict[str, np.ndarray]) -> None:
-        """Bounds in whole cells, changed only when the arrows leave them (so the scene
-        does not re-index the item every frame)."""
+        """Bounds that only grow, in half cells (so the scene does not re-index the item
+        every frame)."""
         if not self._n:
             return
         xs = np.concatenate([g["shaft"][:, 0], g["shaft"][:, 2], g["heads"][:, :, 0].ravel()])
         ys = np.concatenate([g["shaft"][:, 1], g["shaft"][:, 3], g["heads"][:, :, 1].ravel()])
-        x0, x1 = math.floor(xs.min()) - 1, math.ceil(xs.max()) + 1
-        y0, y1 = math.floor(ys.min()) - 1, math.ceil(ys.max()) + 1
+        # half-cell steps with a quarter-cell margin for the pens: arrows inside the grid
+        # stay inside the image, so the row and column labels are not repainted
+        x0, x1 = math.floor(2 * xs.min() - 0.5) / 2, math.ceil(2 * xs.max() + 0.5) / 2
+        y0, y1 = math.floor(2 * ys.min() - 0.5) / 2, math.ceil(2 * ys.max() + 0.5) / 2
         r = self._rect
         if r.isNull() or x0 < r.left() or y0 < r.top() or x1 > r.right() or y1 > r.bottom():
             self.prepareGeometryChange()

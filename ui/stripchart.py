@@ -103,7 +103,7 @@ class StripChart(QWidget):
             ax.enableAutoSIPrefix(False)
         self.plot.setLabel("bottom", "time (s)", color=FOREGROUND)
         self.legend = self.plot.addLegend(offset=(8, 8), labelTextColor=FOREGROUND,
-                                          brush=pg.mkBrush(255, 255, 255, 200))
+                                          brush=pg.mkBrush(255, 255, 255))  # opaque: cheaper to repaint
         self.traces = _Traces()
         self.traces.set_bounds(QRectF(-seconds, -1.2, seconds, 2.4))
         self.plot.addItem(self.traces)
