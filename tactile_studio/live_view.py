@@ -178,6 +178,7 @@ class LiveView:
         self._decoder: FrameDecoder | None = None  # set-up for single frames, per baseline
         self._trail: _Trail | None = None
         self._trail_cursor = 0
+        self._trail_window = 0  # frames in one history window (set when the trail starts)
         self._trail_baseline: np.ndarray | None = None
         self._provisional: np.ndarray | None = None
 
@@ -279,14 +280,16 @@ class LiveView:
         if base is None:
             return None
         lay = eng.layout
+        # more than a window behind (e.g. no taxel was charted for a while): start over
         rebuild = (self._trail is None or self._trail_baseline is not base
-                   or eng.frames - self._trail_cursor > eng.ring.capacity)
+                   or eng.frames - self._trail_cursor > self._trail_window)
         if rebuild:
             if self._trail is None:
                 self._trail = _Trail((3, lay.rows, lay.cols), self.history_s, self.max_points)
             self._trail.clear()
             rate = eng.device_rate_hz() or float(eng.device.nominal_rate_hz)
-            n = min(eng.ring.capacity, int(rate * self.history_s * 1.2) + 64)
+            n = min(eng.ring.capacity, int(rate * self.history_s * 1.2) + 64)  # one window
+            self._trail_window = n
             self._trail_cursor = max(0, eng.frames - n)
             self._trail_baseline = base
         chunk = eng.read_since(self._trail_cursor)
@@ -304,8 +307,8 @@ class LiveView:
         lay = self.layout
         names = [lay.taxel_name(r, c) for r, c in taxels] if lay else []
         units = lay.units if lay else ""
-        trail = self._refresh_trail()
-        if trail is None or not taxels:
+        trail = self._refresh_trail() if taxels else None  # no taxels: decode nothing
+        if trail is None:
             return History(np.empty(0), np.empty((0, len(taxels)), np.float32), names,
                            quantity, units)
         t, v, t_end = trail.window(seconds or self.history_s)

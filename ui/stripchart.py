@@ -29,10 +29,13 @@ class _Traces(pg.GraphicsObject):
 
     def set_lines(self, t: np.ndarray, values: np.ndarray, pens: list[QPen]) -> None:
         """``values[:, k]`` at times ``t`` in ``pens[k]``; arrays are reused, not remade."""
+        drawn_before = any(len(segments) for _, segments in self._lines)
         while len(self._lines) < len(pens):
             self._lines.append((pens[len(self._lines)], PrimitiveArray(QLineF, 4)))
         del self._lines[len(pens):]
         n = max(len(t) - 1, 0) if values.size else 0
+        if n == 0 and not drawn_before:
+            return  # nothing drawn before or now: no repaint
         for k, pen in enumerate(pens):
             segments = self._lines[k][1]
             self._lines[k] = (pen, segments)
@@ -90,7 +93,9 @@ class StripChart(QWidget):
         self.plot.hideButtons()
         # No grid and a y range that only moves in steps: a grid or a range that
         # changes every frame makes pyqtgraph repaint the axes at display rate.
-        self.plot.setXRange(-seconds, 0, padding=0)
+        # a little padding: the lines' bounds then stay clear of the axes, which are not
+        # repainted when only the lines change
+        self.plot.setXRange(-seconds, 0, padding=0.01)
         self.plot.disableAutoRange()
         self._y_range = (-1.0, 1.0)
         self.plot.setYRange(*self._y_range, padding=0)
@@ -105,7 +110,7 @@ class StripChart(QWidget):
         self.legend = self.plot.addLegend(offset=(8, 8), labelTextColor=FOREGROUND,
                                           brush=pg.mkBrush(255, 255, 255))  # opaque: cheaper to repaint
         self.traces = _Traces()
-        self.traces.set_bounds(QRectF(-seconds, -1.2, seconds, 2.4))
+        self.traces.set_bounds(QRectF(-seconds, -1.0, seconds, 2.0))
         self.plot.addItem(self.traces)
         self._legend_items: dict[str, pg.PlotDataItem] = {}  # legend entries only
         self._pens: list[QPen] = []
@@ -179,8 +184,7 @@ class StripChart(QWidget):
             self._y_range = (float(want[0]), float(want[1]))
             self.plot.setYRange(*self._y_range, padding=0.05)
             lo, hi = self._y_range
-            pad = 0.1 * (hi - lo)
-            self.traces.set_bounds(QRectF(-self.seconds, lo - pad, self.seconds, hi - lo + 2 * pad))
+            self.traces.set_bounds(QRectF(-self.seconds, lo, self.seconds, hi - lo))
 
 
 def _nice_step(x: float) -> float:
