@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QRectF
-from PySide6.QtGui import QImage, QPainter
+from PySide6.QtCore import QRectF, Qt
+from PySide6.QtGui import QColor, QImage, QPainter, QPen
 
 
 def rgb32_table(cmap: pg.ColorMap, n: int = 256) -> np.ndarray:
@@ -100,4 +100,45 @@ class GridImage(pg.GraphicsObject):
         p.drawImage(self._rect, self._qimage)
 
 
-__all__ = ["GridImage", "rgb32_table"]
+
+
+class CellMarks(pg.GraphicsObject):
+    """Coloured square outlines around cells (the strip chart's taxels), one cheap item.
+
+    Drawn on every repaint of the map, so it is a handful of ``drawRect`` calls rather
+    than a scatter plot item; it changes only when the marked cells do.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._marks: list[tuple[QPen, QRectF]] = []
+        self._rect = QRectF()
+
+    def set_marks(self, rects: list[QRectF], colors: list[str], width: float = 3.0) -> None:
+        self.prepareGeometryChange()
+        self._marks = []
+        for rect, color in zip(rects, colors):
+            pen = QPen(QColor(color))
+            pen.setWidthF(width)
+            pen.setCosmetic(True)
+            self._marks.append((pen, QRectF(rect)))
+        bounds = QRectF()
+        for _, rect in self._marks:
+            bounds = bounds.united(rect)
+        self._rect = bounds.adjusted(-0.1, -0.1, 0.1, 0.1) if self._marks else QRectF()
+        self.update()
+
+    def count(self) -> int:
+        return len(self._marks)
+
+    def boundingRect(self) -> QRectF:  # noqa: N802 - Qt name
+        return self._rect
+
+    def paint(self, p: QPainter, *args: object) -> None:
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        for pen, rect in self._marks:
+            p.setPen(pen)
+            p.drawRect(rect)
+
+
+__all__ = ["CellMarks", "GridImage", "rgb32_table"]

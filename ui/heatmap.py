@@ -29,7 +29,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.ui.arrow_field import ArrowField
-from tactile_studio.ui.grid_image import GridImage
+from tactile_studio.ui.grid_image import CellMarks, GridImage
 
 BACKGROUND = "#ffffff"
 FOREGROUND = "#303030"
@@ -142,7 +142,7 @@ class HeatmapView(QWidget):
         self.arrows = ArrowField()  # every shear arrow in one item
         self.arrows.setZValue(10)
         self.plot.addItem(self.arrows)
-        self.marks = pg.ScatterPlotItem(symbol="s", brush=None, pxMode=False)
+        self.marks = CellMarks()
         self.marks.setZValue(8)
         self.plot.addItem(self.marks)
         self.hover_box = pg.PlotDataItem(
@@ -329,12 +329,8 @@ class HeatmapView(QWidget):
 
     def set_marked_cells(self, cells: list[tuple[int, int]], colors: list[str]) -> None:
         """Outline physical taxels (row, col) in colours, e.g. the strip chart's taxels."""
-        if not cells:
-            self.marks.setData([])
-            return
-        self.marks.setData(
-            [{"pos": (c, r), "size": 0.86, "pen": pg.mkPen(col, width=3), "brush": None}
-             for (r, c), col in zip(cells, colors)])
+        self.marks.set_marks([QRectF(c - 0.43, r - 0.43, 0.86, 0.86) for r, c in cells],
+                             colors)
 
     def clear(self) -> None:
         """Blank the map (no device)."""

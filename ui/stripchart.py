@@ -95,10 +95,10 @@ class StripChart(QWidget):
         # changes every frame makes pyqtgraph repaint the axes at display rate.
         # a little padding: the lines' bounds then stay clear of the axes, which are not
         # repainted when only the lines change
-        self.plot.setXRange(-seconds, 0, padding=0.01)
+        self.plot.setXRange(-seconds, 0, padding=0.02)
         self.plot.disableAutoRange()
         self._y_range = (-1.0, 1.0)
-        self.plot.setYRange(*self._y_range, padding=0)
+        self.plot.setYRange(*self._y_range, padding=0.08)
         zero = pg.InfiniteLine(pos=0, angle=0, pen=pg.mkPen("#b0b0b0", width=1))
         self.plot.addItem(zero)
         for name in ("left", "bottom"):
@@ -182,7 +182,7 @@ class StripChart(QWidget):
         shrink = (want[1] - want[0]) < (cur_hi - cur_lo) / 3
         if grow or shrink:
             self._y_range = (float(want[0]), float(want[1]))
-            self.plot.setYRange(*self._y_range, padding=0.05)
+            self.plot.setYRange(*self._y_range, padding=0.08)
             lo, hi = self._y_range
             self.traces.set_bounds(QRectF(-self.seconds, lo, self.seconds, hi - lo))
 
