@@ -148,6 +148,11 @@ class HeatmapView(QWidget):
         self.hover_box = pg.PlotDataItem(
             pen=pg.mkPen("#ffffff", width=2, style=Qt.PenStyle.DashLine))
         self.hover_box.setZValue(12)
+        # a dark line under the white dashes: the box shows on white (0 in the diverging
+        # map) as well as on dark cells
+        self.hover_halo = pg.PlotDataItem(pen=pg.mkPen("#202020", width=2))
+        self.hover_halo.setZValue(11.5)
+        self.plot.addItem(self.hover_halo)
         self.plot.addItem(self.hover_box)
         self.view.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.view.scene().sigMouseClicked.connect(self._on_mouse_clicked)
@@ -463,10 +468,13 @@ class HeatmapView(QWidget):
         r, c = self._hover
         if r < 0 or self._shape is None:
             self.hover_box.setData([], [])
+            self.hover_halo.setData([], [])
             return
         s = self._cell_step(self._shape)
         x0, y0 = c * s - s / 2, r * s - s / 2
-        self.hover_box.setData([x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0])
+        xs, ys = [x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0]
+        self.hover_halo.setData(xs, ys)
+        self.hover_box.setData(xs, ys)
 
     def leaveEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
         super().leaveEvent(ev)

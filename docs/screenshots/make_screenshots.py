@@ -63,11 +63,11 @@ def below_baseline(w, gesture: str, at_s: float) -> None:  # noqa: ANN001 - Main
     while not any(e["kind"] == "tare" for e in engine.events_since(taring)):
         wait_for(0.05)
     wait_for(3.0)  # the palm lifts: where it rested now reads below baseline
-    low = w.heatmap.image_data()
-    r, c = divmod(int(low.argmin()), low.shape[1])
-    w.heatmap.hover_cell(r, c)
     engine.device.perform(gesture, duration_s=2.0)
     wait_for(at_s)
+    low = w.heatmap.image_data()  # the readout shows the lowest taxel
+    w.heatmap.hover_cell(*divmod(int(low.argmin()), low.shape[1]))
+    wait_for(0.05)
     w.refresh_status()
     out = HERE / "main-window-below-baseline.png"
     w.grab().save(str(out))
