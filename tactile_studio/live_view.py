@@ -15,7 +15,7 @@ import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.sensor.decode import FrameDecoder, compute_baseline, decode
+from tactile_studio.sensor.decode import FrameDecoder, compute_baseline
 from tactile_studio.sensor.layout import Layout
 
 QUANTITIES = ("normal", "shear_x", "shear_y", "shear")
@@ -176,6 +176,7 @@ class LiveView:
         self._cache_key, self._cache = None, None
         self._cache_base: np.ndarray | None = None
         self._decoder: FrameDecoder | None = None  # set-up for single frames, per baseline
+        self._trail_decoder: FrameDecoder | None = None  # physical grid, for the strip chart
         self._trail: _Trail | None = None
         self._trail_cursor = 0
         self._trail_window = 0  # frames in one history window (set when the trail starts)
@@ -294,7 +295,10 @@ class LiveView:
             self._trail_baseline = base
         chunk = eng.read_since(self._trail_cursor)
         if len(chunk):
-            st = decode(lay, chunk.raw, base)
+            dec = self._trail_decoder
+            if dec is None or dec.baseline is not base or dec.layout is not lay:
+                dec = self._trail_decoder = FrameDecoder(lay, base)
+            st = dec.decode(chunk.raw)  # a few frames per display update
             self._trail.append(chunk.device_time, st.stack().transpose(1, 0, 2, 3))
             self._trail_cursor = chunk.stop
         return self._trail

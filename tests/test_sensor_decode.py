@@ -143,6 +143,10 @@ def test_single_frame_decoder_matches_decode_exactly(virtual):
                      (want.shear_y, got.shear_y)):
             assert a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b)
         assert np.array_equal(contact_map(LAY, raw[None], BASE)[0], fd.contact(raw))
+    want, got = decode(LAY, frames, BASE, virtual=virtual), fd.decode(frames)  # a batch
+    for a, b in ((want.normal, got.normal), (want.shear_x, got.shear_x),
+                 (want.shear_y, got.shear_y)):
+        assert a.shape == b.shape == (20, *want.normal.shape[1:]) and np.array_equal(a, b)
     grid = get_layout("cost-8x8")
     base = np.full(64, 100.0)
     raw = base + rng.uniform(0, 4000, 64)

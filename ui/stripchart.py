@@ -7,7 +7,15 @@ import pyqtgraph as pg
 from pyqtgraph.Qt.internals import PrimitiveArray
 from PySide6.QtCore import QLineF, QRectF, Signal
 from PySide6.QtGui import QPainter, QPen
-from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtWidgets import (
+    QComboBox,
+    QGraphicsItem,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from tactile_studio.live import QUANTITIES, QUANTITY_LABELS, History
 from tactile_studio.ui.heatmap import BACKGROUND, FOREGROUND, strip_colors
@@ -155,6 +163,10 @@ class StripChart(QWidget):
         for name, pen in zip(names, self._pens):
             self._legend_items[name] = item = pg.PlotDataItem(pen=pen, name=name)
             self.legend.addItem(item, name)
+        # the legend sits over the lines, so it is repainted with them: from a cached
+        # pixmap, not by laying out its text again
+        for legend_item in (self.legend, *self.legend.childItems()):
+            legend_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._names = names
 
     def curve_names(self) -> list[str]:

@@ -214,13 +214,15 @@ class FrameDecoder:
         return (b - raw_grid) / b if self.layout.falls_under_load else raw_grid - b
 
     def decode(self, raw: np.ndarray) -> StressFrames:
-        """One frame (n_channels,) or (1, n_channels) to (1, R, C) stresses."""
+        """One frame (n_channels,) to (1, R, C) stresses, or a few (N, n_channels) to N."""
         lay = self.layout
-        raw = np.asarray(raw, dtype=np.float64).reshape(-1)
-        if raw.shape[0] != lay.n_channels:
+        raw = np.asarray(raw, dtype=np.float64)
+        if raw.ndim == 1:
+            raw = raw[None]
+        if raw.shape[-1] != lay.n_channels:
             raise UserError(
-                f"layout {lay.name} has {lay.n_channels} channels, data has {raw.shape[0]}")
-        g = {role: raw[idx][None] for role, idx in self._idx.items()}
+                f"layout {lay.name} has {lay.n_channels} channels, data has {raw.shape[-1]}")
+        g = {role: raw[:, idx] for role, idx in self._idx.items()}
         if not lay.has_shear:
             normal = self._rel(CENTRE, g[CENTRE])
             if self.virtual:
@@ -237,8 +239,8 @@ class FrameDecoder:
         sx, sy = shear
         if self.virtual:
             normal_rel = _virtual_from_roles({role: self._rel(role, g[role]) for role in g})
-            sx, sy = _midpoints(np.concatenate((sx, sy)))  # both in one pass
-            sx, sy = sx[None], sy[None]
+            both = _midpoints(np.concatenate((sx, sy)))  # both in one pass
+            sx, sy = both[:len(raw)], both[len(raw):]
         else:
             normal_rel = self._rel(CENTRE, g[CENTRE])
         normal = _normal_units(lay, normal_rel)
