@@ -15,7 +15,7 @@ import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.sensor.decode import compute_baseline, contact_map, decode
+from tactile_studio.sensor.decode import FrameDecoder, compute_baseline
 from tactile_studio.sensor.layout import Layout
 
 QUANTITIES = ("normal", "shear_x", "shear_y", "shear")
@@ -175,8 +175,11 @@ class LiveView:
         self.engine = engine
         self._cache_key, self._cache = None, None
         self._cache_base: np.ndarray | None = None
+        self._decoder: FrameDecoder | None = None  # set-up for single frames, per baseline
+        self._trail_decoder: FrameDecoder | None = None  # physical grid, for the strip chart
         self._trail: _Trail | None = None
         self._trail_cursor = 0
+        self._trail_window = 0  # frames in one history window (set when the trail starts)
         self._trail_baseline: np.ndarray | None = None
         self._provisional: np.ndarray | None = None
 
@@ -212,14 +215,17 @@ class LiveView:
         chunk = eng.latest()
         if chunk is None or base is None:
             return None
-        lay = eng.layout
-        st = decode(lay, chunk.raw, base, virtual=self.virtual)
+        dec = self._decoder
+        if (dec is None or dec.baseline is not base or dec.virtual != self.virtual
+                or dec.layout is not eng.layout):
+            dec = self._decoder = FrameDecoder(eng.layout, base, virtual=self.virtual)
+        raw = chunk.raw[-1]
+        st = dec.decode(raw)
         frame = LiveFrame(
             index=chunk.start, host_time=float(chunk.host_time[-1]), normal=st.normal[0],
             shear_x=None if st.shear_x is None else st.shear_x[0],
             shear_y=None if st.shear_y is None else st.shear_y[0],
-            units=st.units, virtual=self.virtual,
-            contact=contact_map(lay, chunk.raw, base)[0],
+            units=st.units, virtual=self.virtual, contact=dec.contact(raw),
             provisional_baseline=eng.baseline is None)
         self._cache_key, self._cache, self._cache_base = (chunk.start, self.virtual), frame, base
         return frame
@@ -275,19 +281,24 @@ class LiveView:
         if base is None:
             return None
         lay = eng.layout
+        # more than a window behind (e.g. no taxel was charted for a while): start over
         rebuild = (self._trail is None or self._trail_baseline is not base
-                   or eng.frames - self._trail_cursor > eng.ring.capacity)
+                   or eng.frames - self._trail_cursor > self._trail_window)
         if rebuild:
             if self._trail is None:
                 self._trail = _Trail((3, lay.rows, lay.cols), self.history_s, self.max_points)
             self._trail.clear()
             rate = eng.device_rate_hz() or float(eng.device.nominal_rate_hz)
-            n = min(eng.ring.capacity, int(rate * self.history_s * 1.2) + 64)
+            n = min(eng.ring.capacity, int(rate * self.history_s * 1.2) + 64)  # one window
+            self._trail_window = n
             self._trail_cursor = max(0, eng.frames - n)
             self._trail_baseline = base
         chunk = eng.read_since(self._trail_cursor)
         if len(chunk):
-            st = decode(lay, chunk.raw, base)
+            dec = self._trail_decoder
+            if dec is None or dec.baseline is not base or dec.layout is not lay:
+                dec = self._trail_decoder = FrameDecoder(lay, base)
+            st = dec.decode(chunk.raw)  # a few frames per display update
             self._trail.append(chunk.device_time, st.stack().transpose(1, 0, 2, 3))
             self._trail_cursor = chunk.stop
         return self._trail
@@ -300,8 +311,8 @@ class LiveView:
         lay = self.layout
         names = [lay.taxel_name(r, c) for r, c in taxels] if lay else []
         units = lay.units if lay else ""
-        trail = self._refresh_trail()
-        if trail is None or not taxels:
+        trail = self._refresh_trail() if taxels else None  # no taxels: decode nothing
+        if trail is None:
             return History(np.empty(0), np.empty((0, len(taxels)), np.float32), names,
                            quantity, units)
         t, v, t_end = trail.window(seconds or self.history_s)

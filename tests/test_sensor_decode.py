@@ -7,7 +7,7 @@ import pytest
 
 from tactile_studio.errors import UserError
 from tactile_studio.sensor import SHEARSENSE_6X6, Calibration, decode, get_layout, grid_layout
-from tactile_studio.sensor.decode import compute_baseline, contact_map, touched
+from tactile_studio.sensor.decode import FrameDecoder, compute_baseline, contact_map, touched
 from tactile_studio.sensor.layout import CENTRE, X_NEG, X_POS, Y_NEG, Y_POS
 
 LAY = SHEARSENSE_6X6
@@ -127,3 +127,32 @@ def test_pressure_grid_rises_under_load():
     assert s.shear_x is None and s.normal[0, 1, 2] == 300
     assert decode(lay, raw, base, virtual=True).normal.shape == (1, 15, 15)
     assert contact_map(lay, raw, base)[0, 1, 2]
+
+
+@pytest.mark.parametrize("virtual", [False, True])
+def test_single_frame_decoder_matches_decode_exactly(virtual):
+    rng = np.random.default_rng(3)
+    frames = BASE * (1.0 - rng.uniform(-0.05, 0.08, size=(20, LAY.n_channels)))
+    frames[3] = BASE  # idle
+    frames[5, LAY.channel(7, CENTRE)] = 0.0  # a dead channel (guarded division)
+    fd = FrameDecoder(LAY, BASE, virtual=virtual)
+    for raw in frames:
+        want = decode(LAY, raw[None], BASE, virtual=virtual)
+        got = fd.decode(raw)
+        for a, b in ((want.normal, got.normal), (want.shear_x, got.shear_x),
+                     (want.shear_y, got.shear_y)):
+            assert a.shape == b.shape and a.dtype == b.dtype and np.array_equal(a, b)
+        assert np.array_equal(contact_map(LAY, raw[None], BASE)[0], fd.contact(raw))
+    want, got = decode(LAY, frames, BASE, virtual=virtual), fd.decode(frames)  # a batch
+    for a, b in ((want.normal, got.normal), (want.shear_x, got.shear_x),
+                 (want.shear_y, got.shear_y)):
+        assert a.shape == b.shape == (20, *want.normal.shape[1:]) and np.array_equal(a, b)
+    grid = get_layout("cost-8x8")
+    base = np.full(64, 100.0)
+    raw = base + rng.uniform(0, 4000, 64)
+    gd = FrameDecoder(grid, base, virtual=virtual)
+    assert np.array_equal(gd.decode(raw).normal, decode(grid, raw[None], base, virtual).normal)
+    assert gd.decode(raw).shear_x is None
+    assert np.array_equal(gd.contact(raw), contact_map(grid, raw[None], base)[0])
+    with pytest.raises(UserError, match="180 channels"):
+        fd.decode(np.zeros(64))

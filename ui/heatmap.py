@@ -12,11 +12,12 @@ import math
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, Qt, Signal
+from PySide6.QtCore import QPointF, QRectF, Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QButtonGroup,
     QCheckBox,
+    QComboBox,
     QDoubleSpinBox,
     QHBoxLayout,
     QLabel,
@@ -27,6 +28,8 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.ui.arrow_field import ArrowField
+from tactile_studio.ui.grid_image import CellMarks, GridImage
 
 BACKGROUND = "#ffffff"
 FOREGROUND = "#303030"
@@ -34,6 +37,35 @@ DEFAULT_MAX_KPA = 10.0
 # Arrow length in taxel pitches per kPa (2 kPa of shear is one pitch long). The same in
 # both grids, so toggling physical/virtual does not change what an arrow means.
 DEFAULT_ARROW_SCALE = 0.5
+# Colour schemes: "sequential" maps 0..max (stress below baseline shows as 0);
+# "diverging" puts white at 0, load in reds and stress below baseline (counts above the
+# baseline, e.g. a neighbouring taxel lifted) in blues, down to -NEGATIVE_SHARE x max.
+COLOR_SCHEMES = {"sequential": "viridis 0…max", "diverging": "diverging ±"}
+NEGATIVE_SHARE = 0.25
+_NEG_STOPS = ["#053061", "#2166ac", "#4393c3", "#92c5de", "#d1e5f0"]
+_POS_STOPS = ["#fddbc7", "#f4a582", "#d6604d", "#b2182b", "#67001f"]
+_ZERO = "#f7f7f7"
+
+
+def diverging_colormap(lo: float, hi: float) -> pg.ColorMap:
+    """Blues below 0, white at 0, reds above, for levels ``lo < 0 < hi`` (zero stays white
+    however asymmetric the range)."""
+    z = min(max(-lo / (hi - lo), 0.05), 0.95) if hi > lo else 0.5
+    neg = np.linspace(0.0, z, len(_NEG_STOPS) + 1)[:-1]
+    pos = np.linspace(z, 1.0, len(_POS_STOPS) + 1)[1:]
+    stops = np.concatenate([neg, [z], pos])
+    return pg.ColorMap(stops, [*_NEG_STOPS, _ZERO, *_POS_STOPS])
+
+
+def nice_ceil(x: float) -> float:
+    """The 1-2-5 value at or above ``x`` (auto ranges move in steps, not every frame)."""
+    if x <= 0:
+        return 0.0
+    mag = 10.0 ** math.floor(math.log10(x))
+    for m in (1.0, 2.0, 5.0, 10.0):
+        if m * mag >= x * (1 - 1e-9):
+            return m * mag
+    return 10.0 * mag
 
 
 class _PaintNotifyingView(pg.GraphicsLayoutWidget):
@@ -44,36 +76,6 @@ class _PaintNotifyingView(pg.GraphicsLayoutWidget):
     def paintEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
         super().paintEvent(ev)
         self.painted.emit()
-
-
-def arrow_segments(cx: np.ndarray, cy: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                   head: float = 0.3, min_head: float = 0.1, max_head: float = 0.3,
-                   angle_deg: float = 28.0) -> tuple[np.ndarray, np.ndarray]:
-    """Endpoints (x, y) for one ``connect="pairs"`` line: shaft plus two head strokes.
-
-    All arrays are flat; returns 6 points per arrow. Heads scale with the arrow within
-    ``min_head..max_head`` cells, so short arrows still read as arrows and long ones do
-    not grow huge heads.
-    """
-    n = cx.size
-    length = np.hypot(dx, dy)
-    safe = np.where(length > 0, length, 1.0)
-    ux, uy = dx / safe, dy / safe
-    h = np.clip(head * length, min_head, max_head)
-    tx, ty = cx + dx, cy + dy
-    a = math.radians(angle_deg)
-    cos_a, sin_a = math.cos(a), math.sin(a)
-    # rotate the reversed direction by +-a for the two head strokes
-    lx = tx - h * (ux * cos_a - uy * sin_a)
-    ly = ty - h * (uy * cos_a + ux * sin_a)
-    rx = tx - h * (ux * cos_a + uy * sin_a)
-    ry = ty - h * (uy * cos_a - ux * sin_a)
-    x = np.empty(6 * n)
-    y = np.empty(6 * n)
-    x[0::6], y[0::6], x[1::6], y[1::6] = cx, cy, tx, ty
-    x[2::6], y[2::6], x[3::6], y[3::6] = tx, ty, lx, ly
-    x[4::6], y[4::6], x[5::6], y[5::6] = tx, ty, rx, ry
-    return x, y
 
 
 class HeatmapView(QWidget):
@@ -96,6 +98,9 @@ class HeatmapView(QWidget):
         self._virtual = False
         self._fixed_max: float | None = DEFAULT_MAX_KPA
         self._auto_hi = 1.0
+        self._auto_lo = 0.0
+        self._scheme = "sequential"
+        self._levels = (0.0, DEFAULT_MAX_KPA)
         self._arrow_scale = DEFAULT_ARROW_SCALE
         self._arrows_on = True
         self.arrow_min_kpa = 0.3  # the paper's smallest detectable shear: hide noise
@@ -119,29 +124,35 @@ class HeatmapView(QWidget):
         self._label_font = QFont()
         self._label_font.setPointSizeF(10.5)
         self._label_font.setBold(True)
-        self.image = pg.ImageItem(axisOrder="row-major")
-        self.plot.addItem(self.image)
         self.cmap = pg.colormap.get(colormap)
+        self.image = GridImage(self.cmap)
+        self.image.set_levels(0.0, DEFAULT_MAX_KPA)
+        self.plot.addItem(self.image)
+        # the bar only shows the map and levels; the image is coloured by GridImage
         self.colorbar = pg.ColorBarItem(values=(0.0, DEFAULT_MAX_KPA), colorMap=self.cmap,
                                         interactive=False,
                                         width=18, colorMapMenu=False)
-        self.colorbar.setImageItem(self.image, insert_in=self.plot)
+        self.plot.layout.addItem(self.colorbar, 2, 5)  # right of the map
+        self.plot.layout.setColumnFixedWidth(4, 5)
         bar_axis = self.colorbar.axis
         bar_axis.setPen(FOREGROUND)
         bar_axis.setTextPen(FOREGROUND)
         bar_axis.enableAutoSIPrefix(False)
         bar_axis.setLabel(self._bar_label(), color=FOREGROUND)
-        self.arrow_under = pg.PlotDataItem(connect="pairs", pen=pg.mkPen("#000000", width=4))
-        self.arrow_line = pg.PlotDataItem(connect="pairs", pen=pg.mkPen("#ffffff", width=2))
-        for item in (self.arrow_under, self.arrow_line):
-            item.setZValue(10)
-            self.plot.addItem(item)
-        self.marks = pg.ScatterPlotItem(symbol="s", brush=None, pxMode=False)
+        self.arrows = ArrowField()  # every shear arrow in one item
+        self.arrows.setZValue(10)
+        self.plot.addItem(self.arrows)
+        self.marks = CellMarks()
         self.marks.setZValue(8)
         self.plot.addItem(self.marks)
         self.hover_box = pg.PlotDataItem(
             pen=pg.mkPen("#ffffff", width=2, style=Qt.PenStyle.DashLine))
         self.hover_box.setZValue(12)
+        # a dark line under the white dashes: the box shows on white (0 in the diverging
+        # map) as well as on dark cells
+        self.hover_halo = pg.PlotDataItem(pen=pg.mkPen("#202020", width=2))
+        self.hover_halo.setZValue(11.5)
+        self.plot.addItem(self.hover_halo)
         self.plot.addItem(self.hover_box)
         self.view.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.view.scene().sigMouseClicked.connect(self._on_mouse_clicked)
@@ -158,7 +169,21 @@ class HeatmapView(QWidget):
         box.addWidget(self.controls)
         self.controls.setVisible(controls)
         box.addWidget(self.view, 1)
-        box.addWidget(self.readout)
+        bottom = QHBoxLayout()
+        bottom.setContentsMargins(0, 0, 4, 0)
+        bottom.addWidget(self.readout, 1)
+        # under the colour bar: the colour map is chosen where it is read
+        self.scheme_box = QComboBox()
+        for key, label in COLOR_SCHEMES.items():
+            self.scheme_box.addItem(label, key)
+        self.scheme_box.setToolTip(
+            "Colour map. viridis: 0 to max; stress below baseline shows as 0.\n"
+            "diverging: white at 0, load in reds, stress below baseline (counts above "
+            "the baseline, e.g. a neighbouring taxel lifted) in blues.")
+        self.scheme_box.currentIndexChanged.connect(
+            lambda _: self.set_color_scheme(str(self.scheme_box.currentData())))
+        bottom.addWidget(self.scheme_box)
+        box.addLayout(bottom)
 
     # ---- controls ------------------------------------------------------------------
     def _build_controls(self) -> QWidget:
@@ -239,12 +264,51 @@ class HeatmapView(QWidget):
             self.max_spin.blockSignals(True)
             self.max_spin.setValue(fixed_max)
             self.max_spin.blockSignals(False)
-            self.colorbar.setLevels((0.0, fixed_max))
+            self._apply_levels(self._lo_for(fixed_max), fixed_max)
         self.max_spin.setEnabled(fixed_max is not None)
 
     def levels(self) -> tuple[float, float]:
+        """The colour range (low, high) in the display's units."""
         lo, hi = self.colorbar.levels()
         return float(lo), float(hi)
+
+    @property
+    def color_scheme(self) -> str:
+        """"sequential" (0..max) or "diverging" (stress below baseline in blues)."""
+        return self._scheme
+
+    def set_color_scheme(self, scheme: str) -> None:
+        if scheme not in COLOR_SCHEMES:
+            raise ValueError(f"colour scheme must be one of {list(COLOR_SCHEMES)}")
+        self._scheme = scheme
+        i = self.scheme_box.findData(scheme)
+        if i != self.scheme_box.currentIndex():
+            self.scheme_box.blockSignals(True)
+            self.scheme_box.setCurrentIndex(i)
+            self.scheme_box.blockSignals(False)
+        hi = self._fixed_max if self._fixed_max is not None else self._levels[1]
+        lo = self._lo_for(hi) if self._fixed_max is not None else self._auto_low(hi)
+        self._levels = (math.nan, math.nan)  # force: the map itself changes
+        self._apply_levels(lo, hi)
+
+    def _lo_for(self, hi: float) -> float:
+        return -NEGATIVE_SHARE * hi if self._scheme == "diverging" else 0.0
+
+    def _auto_low(self, hi: float) -> float:
+        if self._scheme != "diverging":
+            return 0.0
+        return -max(NEGATIVE_SHARE * hi, nice_ceil(-self._auto_lo))
+
+    def _apply_levels(self, lo: float, hi: float) -> None:
+        """Set colour levels (and the diverging map's zero) only when they change."""
+        if (lo, hi) == self._levels:
+            return
+        self._levels = (lo, hi)
+        cmap = diverging_colormap(lo, hi) if self._scheme == "diverging" else self.cmap
+        self.colorbar.setColorMap(cmap)
+        self.colorbar.setLevels((lo, hi))
+        self.image.set_colormap(cmap)
+        self.image.set_levels(lo, hi)
 
     @property
     def arrow_scale(self) -> float:
@@ -259,8 +323,7 @@ class HeatmapView(QWidget):
         self._arrows_on = bool(on)
         self.arrows_check.setChecked(on)
         if not on:
-            self.arrow_line.setData([], [])
-            self.arrow_under.setData([], [])
+            self.arrows.clear()
 
     def set_readout_text(self, text: str) -> None:
         self.readout.setText(text or " ")
@@ -271,19 +334,14 @@ class HeatmapView(QWidget):
 
     def set_marked_cells(self, cells: list[tuple[int, int]], colors: list[str]) -> None:
         """Outline physical taxels (row, col) in colours, e.g. the strip chart's taxels."""
-        if not cells:
-            self.marks.setData([])
-            return
-        self.marks.setData(
-            [{"pos": (c, r), "size": 0.86, "pen": pg.mkPen(col, width=3), "brush": None}
-             for (r, c), col in zip(cells, colors)])
+        self.marks.set_marks([QRectF(c - 0.43, r - 0.43, 0.86, 0.86) for r, c in cells],
+                             colors)
 
     def clear(self) -> None:
         """Blank the map (no device)."""
         self._data = None
         self.image.clear()
-        self.arrow_line.setData([], [])
-        self.arrow_under.setData([], [])
+        self.arrows.clear()
 
     def set_frame(self, normal: np.ndarray, shear_x: np.ndarray | None = None,
                   shear_y: np.ndarray | None = None, units: str = "kPa") -> None:
@@ -299,16 +357,17 @@ class HeatmapView(QWidget):
             self._units = units
             self.colorbar.axis.setLabel(self._bar_label(), color=FOREGROUND)
         self._data = normal
-        if self._fixed_max is None:
-            peak = float(np.nanmax(normal)) if normal.size else 1.0
-            # rise at once, fall slowly: the scale does not flicker with noise
-            self._auto_hi = max(1.0, peak, self._auto_hi * 0.97)
-            lo = min(0.0, float(np.nanmin(normal)))
-            self.colorbar.setLevels((lo, self._auto_hi))
-        self.image.setImage(normal, autoLevels=False)
+        if self._fixed_max is None and normal.size:
+            # rise at once, fall slowly, in 1-2-5 steps: the scale does not flicker
+            self._auto_hi = max(1.0, float(np.nanmax(normal)), self._auto_hi * 0.97)
+            self._auto_lo = min(0.0, float(np.nanmin(normal)), self._auto_lo * 0.97)
+            hi = nice_ceil(self._auto_hi)
+            self._apply_levels(self._auto_low(hi), hi)
+        self.image.set_data(normal)
         if new_shape:  # after setImage: the rect maps the image's pixels to taxel units
             self._shape = shape
-            self.image.setRect(-step / 2, -step / 2, shape[1] * step, shape[0] * step)
+            self.image.set_rect(QRectF(-step / 2, -step / 2, shape[1] * step,
+                                       shape[0] * step))
             self._update_ticks()
             self._set_view_range()
             r, c = self._hover
@@ -364,21 +423,12 @@ class HeatmapView(QWidget):
 
     def _draw_arrows(self, sx: np.ndarray | None, sy: np.ndarray | None, step: float) -> None:
         if not self._arrows_on or sx is None or sy is None:
-            self.arrow_line.setData([], [])
-            self.arrow_under.setData([], [])
+            self.arrows.clear()
             return
-        mag = np.hypot(sx, sy)
-        rr, cc = np.nonzero(mag >= self.arrow_min_kpa)
-        if rr.size == 0:
-            self.arrow_line.setData([], [])
-            self.arrow_under.setData([], [])
-            return
+        rr, cc = np.nonzero(np.hypot(sx, sy) >= self.arrow_min_kpa)
         k = self._arrow_scale
-        dx, dy = sx[rr, cc] * k, sy[rr, cc] * k
-        x, y = arrow_segments(cc * step, rr * step, dx, dy, min_head=0.06 + 0.04 * step,
-                              max_head=0.3 * step)
-        self.arrow_under.setData(x, y)
-        self.arrow_line.setData(x, y)
+        self.arrows.set_arrows(cc * step, rr * step, sx[rr, cc] * k, sy[rr, cc] * k,
+                               head=0.35, min_head=0.08 * step, max_head=0.28 * step)
 
     # ---- mouse ---------------------------------------------------------------------
     def _cell_at(self, scene_pos: QPointF) -> tuple[int, int]:
@@ -418,10 +468,13 @@ class HeatmapView(QWidget):
         r, c = self._hover
         if r < 0 or self._shape is None:
             self.hover_box.setData([], [])
+            self.hover_halo.setData([], [])
             return
         s = self._cell_step(self._shape)
         x0, y0 = c * s - s / 2, r * s - s / 2
-        self.hover_box.setData([x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0])
+        xs, ys = [x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0]
+        self.hover_halo.setData(xs, ys)
+        self.hover_box.setData(xs, ys)
 
     def leaveEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
         super().leaveEvent(ev)
@@ -436,4 +489,4 @@ def strip_colors(n: int) -> list[str]:
     return [palette[i % len(palette)] for i in range(n)]
 
 
-__all__ = ["HeatmapView", "arrow_segments", "strip_colors"]
+__all__ = ["COLOR_SCHEMES", "HeatmapView", "diverging_colormap", "nice_ceil", "strip_colors"]

@@ -1,12 +1,15 @@
 """The live main window: heatmap in the middle, device panel and strip chart in docks.
 
-A QTimer at display rate pulls the newest decoded frame from a :class:`LiveView` and
-draws it — never one repaint per sample, so a 1 kHz device costs the GUI no more than a
-43 Hz one. Device-to-paint latency is measured when the heatmap has actually painted.
+A fast poll timer looks for a new frame every few milliseconds and a
+:class:`PaintPacer` draws it at once, or when a display period (1/display_hz) has passed
+since the last paint — never one repaint per sample, so a 1 kHz device costs the GUI no
+more than a 60 Hz one, and a 43 Hz frame waits milliseconds, not a display period.
+Device-to-paint latency is measured when the heatmap has actually painted.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
@@ -24,8 +27,9 @@ from tactile_studio.live import (
     RateMeter,
     parse_taxel_name,
 )
+from tactile_studio.live_meters import PaintPacer
 from tactile_studio.ui.device_panel import DevicePanel
-from tactile_studio.ui.heatmap import HeatmapView, strip_colors
+from tactile_studio.ui.heatmap import COLOR_SCHEMES, HeatmapView, strip_colors
 from tactile_studio.ui.settings import app_settings, get_json, set_json, style_sheet
 from tactile_studio.ui.status import LiveStatusBar
 from tactile_studio.ui.stripchart import StripChart
@@ -33,6 +37,7 @@ from tactile_studio.ui.stripchart import StripChart
 DEFAULT_STRIP_TAXELS = [(2, 2), (3, 3)]
 MAX_STRIP_TAXELS = 10
 STRIP_INTERVAL_S = 0.04  # the strip chart redraws at most 25 times a second
+POLL_MS = 4  # how often the display looks for a new frame (a look costs microseconds)
 
 
 class MainWindow(QMainWindow):
@@ -56,6 +61,11 @@ class MainWindow(QMainWindow):
         self.live = LiveView()
         self.fps = RateMeter(1.0)
         self.latency = LatencyMeter(keep=600)
+        self.pacer = PaintPacer(display_hz)
+        self._paced = QTimer(self)  # a frame that came too soon after the last paint
+        self._paced.setTimerType(Qt.TimerType.PreciseTimer)
+        self._paced.setSingleShot(True)
+        self._paced.timeout.connect(self.tick)
         self._shown: LiveFrame | None = None
         self._painted_index = -1
         self._hover = (-1, -1)
@@ -95,9 +105,9 @@ class MainWindow(QMainWindow):
             self.panel.set_device(name, {**saved, **(settings or {})})
         self._mark_strip_taxels()
 
-        self.paint_timer = QTimer(self)
+        self.paint_timer = QTimer(self)  # polls for new frames
         self.paint_timer.setTimerType(Qt.TimerType.PreciseTimer)
-        self.paint_timer.setInterval(max(1, round(1000.0 / display_hz)))
+        self.paint_timer.setInterval(POLL_MS)
         self.paint_timer.timeout.connect(self.tick)
         self.paint_timer.start()
         self.status_timer = QTimer(self)
@@ -160,19 +170,26 @@ class MainWindow(QMainWindow):
 
     # ---- display loop --------------------------------------------------------------
     def tick(self) -> None:
-        """Draw the newest frame if there is one we have not drawn (display timer)."""
+        """Draw the newest frame if there is one we have not drawn (poll timer)."""
         self._tick_count += 1
-        frame = self.live.latest()
-        if frame is None:
-            if self._shown is not None:
-                self._shown = None
-                self.heatmap.clear()
-            return
-        if frame is not self._shown:
-            self._shown = frame
-            self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
-            self._update_readout()
         now = time.monotonic()
+        wait = self.pacer.delay(now)
+        if wait > 0:  # too soon after the last paint: look again then, decode nothing now
+            if not self._paced.isActive():
+                self._paced.start(max(1, math.ceil(wait * 1000)))
+        else:
+            frame = self.live.latest()
+            if frame is None:
+                if self._shown is not None:
+                    self._shown = None
+                    self.heatmap.clear()
+                return
+            if frame is not self._shown:
+                self.pacer.painted(now)
+                self._shown = frame
+                self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y,
+                                       frame.units)
+                self._update_readout()
         if now - self._strip_drawn >= STRIP_INTERVAL_S and self.strip_dock.isVisible():
             self._strip_drawn = now
             self.strip.set_history(self.live.history(self.strip_taxels,
@@ -293,6 +310,7 @@ class MainWindow(QMainWindow):
         set_json(s, "view/virtual", self.heatmap.virtual)
         set_json(s, "view/fixed_max", self.heatmap.fixed_max)
         set_json(s, "view/arrow_scale", self.heatmap.arrow_scale)
+        set_json(s, "view/colors", self.heatmap.color_scheme)
         set_json(s, "strip/taxels", self.strip_taxels)
         set_json(s, "strip/quantity", self.strip.quantity())
         self.save_device_settings()
@@ -311,6 +329,9 @@ class MainWindow(QMainWindow):
         self.heatmap.set_range(float(fixed) if fixed is not None else None)
         self.heatmap.set_arrow_scale(float(get_json(s, "view/arrow_scale",
                                                     self.heatmap.arrow_scale)))
+        scheme = get_json(s, "view/colors", self.heatmap.color_scheme)
+        if scheme in COLOR_SCHEMES:
+            self.heatmap.set_color_scheme(scheme)
         taxels = get_json(s, "strip/taxels", None)
         if isinstance(taxels, list):
             self.strip_taxels = [(int(r), int(c)) for r, c in taxels][:MAX_STRIP_TAXELS]
@@ -327,6 +348,7 @@ class MainWindow(QMainWindow):
     def shutdown(self) -> None:
         """Save preferences, finish any recording and stop the device (idempotent)."""
         self.paint_timer.stop()
+        self._paced.stop()
         self.status_timer.stop()
         if self.persist:
             self.save_settings()

@@ -4,11 +4,69 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QComboBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout, QWidget
+from pyqtgraph.Qt.internals import PrimitiveArray
+from PySide6.QtCore import QLineF, QRectF, Signal
+from PySide6.QtGui import QPainter, QPen
+from PySide6.QtWidgets import (
+    QComboBox,
+    QGraphicsItem,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from tactile_studio.live import QUANTITIES, QUANTITY_LABELS, History
 from tactile_studio.ui.heatmap import BACKGROUND, FOREGROUND, strip_colors
+
+
+class _Traces(pg.GraphicsObject):
+    """Every line of the chart in one item: polylines from preallocated point arrays.
+
+    A plain curve item per line recomputes its data bounds and a QPainterPath on every
+    update; here a frame copies the samples into each line's segment array (x0 y0 x1 y1)
+    and paints ``drawLines`` with a 1-px pen (Qt's fast path). The bounds are the plot's fixed
+    x window and the y range the chart sets, so nothing is measured per frame.
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._lines: list[tuple[QPen, PrimitiveArray]] = []
+        self._rect = QRectF()
+
+    def set_lines(self, t: np.ndarray, values: np.ndarray, pens: list[QPen]) -> None:
+        """``values[:, k]`` at times ``t`` in ``pens[k]``; arrays are reused, not remade."""
+        drawn_before = any(len(segments) for _, segments in self._lines)
+        while len(self._lines) < len(pens):
+            self._lines.append((pens[len(self._lines)], PrimitiveArray(QLineF, 4)))
+        del self._lines[len(pens):]
+        n = max(len(t) - 1, 0) if values.size else 0
+        if n == 0 and not drawn_before:
+            return  # nothing drawn before or now: no repaint
+        for k, pen in enumerate(pens):
+            segments = self._lines[k][1]
+            self._lines[k] = (pen, segments)
+            segments.resize(n)
+            if n:
+                xy = segments.ndarray()
+                xy[:, 0], xy[:, 2] = t[:-1], t[1:]
+                xy[:, 1], xy[:, 3] = values[:-1, k], values[1:, k]
+        self.update()
+
+    def set_bounds(self, rect: QRectF) -> None:
+        if rect != self._rect:
+            self.prepareGeometryChange()
+            self._rect = QRectF(rect)
+
+    def boundingRect(self) -> QRectF:  # noqa: N802 - Qt name
+        return self._rect
+
+    def paint(self, p: QPainter, *args: object) -> None:
+        for pen, segments in self._lines:
+            if len(segments):
+                p.setPen(pen)
+                p.drawLines(*segments.drawargs())
 
 
 class StripChart(QWidget):
@@ -43,10 +101,12 @@ class StripChart(QWidget):
         self.plot.hideButtons()
         # No grid and a y range that only moves in steps: a grid or a range that
         # changes every frame makes pyqtgraph repaint the axes at display rate.
-        self.plot.setXRange(-seconds, 0, padding=0)
+        # a little padding: the lines' bounds then stay clear of the axes, which are not
+        # repainted when only the lines change
+        self.plot.setXRange(-seconds, 0, padding=0.02)
         self.plot.disableAutoRange()
         self._y_range = (-1.0, 1.0)
-        self.plot.setYRange(*self._y_range, padding=0)
+        self.plot.setYRange(*self._y_range, padding=0.08)
         zero = pg.InfiniteLine(pos=0, angle=0, pen=pg.mkPen("#b0b0b0", width=1))
         self.plot.addItem(zero)
         for name in ("left", "bottom"):
@@ -56,8 +116,13 @@ class StripChart(QWidget):
             ax.enableAutoSIPrefix(False)
         self.plot.setLabel("bottom", "time (s)", color=FOREGROUND)
         self.legend = self.plot.addLegend(offset=(8, 8), labelTextColor=FOREGROUND,
-                                          brush=pg.mkBrush(255, 255, 255, 200))
-        self._curves: dict[str, pg.PlotDataItem] = {}
+                                          brush=pg.mkBrush(255, 255, 255))  # opaque: cheaper to repaint
+        self.traces = _Traces()
+        self.traces.set_bounds(QRectF(-seconds, -1.0, seconds, 2.0))
+        self.plot.addItem(self.traces)
+        self._legend_items: dict[str, pg.PlotDataItem] = {}  # legend entries only
+        self._pens: list[QPen] = []
+        self._names: list[str] = []
         box = QVBoxLayout(self)
         box.setContentsMargins(0, 0, 0, 0)
         box.addLayout(top)
@@ -73,28 +138,46 @@ class StripChart(QWidget):
             self.quantity_box.setCurrentIndex(i)
 
     def set_history(self, history: History) -> None:
-        """Redraw the lines; taxels that are no longer selected disappear."""
-        colors = strip_colors(len(history.names))
-        for name in list(self._curves):
-            if name not in history.names:
-                self.legend.removeItem(self._curves[name])
-                self.plot.removeItem(self._curves.pop(name))
-        for k, name in enumerate(history.names):
-            curve = self._curves.get(name)
-            if curve is None:
-                curve = self.plot.plot(name=name)
-                self._curves[name] = curve
-            curve.setPen(pg.mkPen(colors[k], width=2))
-            curve.setData(history.t, history.values[:, k] if history.values.size else
-                          np.empty(0))
+        """Redraw the lines; taxels that are no longer selected disappear.
+
+        Pens and legend entries change only when the set of taxels does: at display rate
+        only the samples are copied. Lines are one pixel wide — Qt draws those on a fast
+        path; wider lines cost 4-7x more to paint.
+        """
+        if history.names != self._names:
+            self._set_names(list(history.names))
+        self.traces.set_lines(history.t, history.values, self._pens)
         self._update_y_range(history.values)
         label = f"{QUANTITY_LABELS[history.quantity]} ({history.units})"
         if label != self._units:
             self._units = label
             self.plot.setLabel("left", label, color=FOREGROUND)
 
+    def _set_names(self, names: list[str]) -> None:
+        """New set of lines: pens and legend entries change only here."""
+        colors = strip_colors(len(names))
+        self._pens = [pg.mkPen(c, width=1) for c in colors]
+        for item in self._legend_items.values():
+            self.legend.removeItem(item)
+        self._legend_items = {}
+        for name, pen in zip(names, self._pens):
+            self._legend_items[name] = item = pg.PlotDataItem(pen=pen, name=name)
+            self.legend.addItem(item, name)
+        # the legend sits over the lines, so it is repainted with them: from a cached
+        # pixmap, not by laying out its text again
+        for legend_item in (self.legend, *self.legend.childItems()):
+            legend_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
+        self._names = names
+
     def curve_names(self) -> list[str]:
-        return list(self._curves)
+        return list(self._names)
+
+    def line_data(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(t, values) of one charted line as drawn."""
+        xy = self.traces._lines[self._names.index(name)][1].ndarray()
+        if not len(xy):
+            return np.empty(0), np.empty(0)
+        return np.append(xy[:, 0], xy[-1, 2]), np.append(xy[:, 1], xy[-1, 3])
 
     def _update_y_range(self, values: np.ndarray) -> None:
         """Grow at once to a rounded range; shrink only when the data use under a third."""
@@ -111,7 +194,9 @@ class StripChart(QWidget):
         shrink = (want[1] - want[0]) < (cur_hi - cur_lo) / 3
         if grow or shrink:
             self._y_range = (float(want[0]), float(want[1]))
-            self.plot.setYRange(*self._y_range, padding=0.05)
+            self.plot.setYRange(*self._y_range, padding=0.08)
+            lo, hi = self._y_range
+            self.traces.set_bounds(QRectF(-self.seconds, lo, self.seconds, hi - lo))
 
 
 def _nice_step(x: float) -> float:

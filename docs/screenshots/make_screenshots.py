@@ -1,7 +1,9 @@
 """Regenerate the README screenshots of the live main window (offscreen, no hardware).
 
 A simulated participant performs a gesture and the window is grabbed mid-gesture, so the
-pictures show pressure and shear arrows at a reproducible moment.
+pictures show pressure and shear arrows at a reproducible moment. The third picture shows
+stress below baseline with the diverging colour map: the sensor was tared while a palm
+rested on it, so where the palm was, counts now read above the baseline.
 
     QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_screenshots.py
 """
@@ -41,9 +43,36 @@ def main(gesture: str = "Twist", at_s: float = 0.9) -> int:
             w.grab().save(str(out))
             print(out)
             wait_for(2.0)  # let the gesture finish before the next one
+        below_baseline(w, gesture, at_s)
     finally:
         w.shutdown()
     return 0
+
+
+def below_baseline(w, gesture: str, at_s: float) -> None:  # noqa: ANN001 - MainWindow
+    """Tare under a resting palm, lift it, and grab mid-gesture with the diverging map."""
+    from tactile_studio.ui.main_window import wait_for
+
+    engine = w.controller.engine
+    w.set_virtual(False)
+    w.heatmap.set_color_scheme("diverging")
+    engine.device.perform("Constant Touch", duration_s=4.0)
+    wait_for(1.5)
+    taring = len(engine.events_since(0))
+    engine.tare(20)
+    while not any(e["kind"] == "tare" for e in engine.events_since(taring)):
+        wait_for(0.05)
+    wait_for(3.0)  # the palm lifts: where it rested now reads below baseline
+    engine.device.perform(gesture, duration_s=2.0)
+    wait_for(at_s)
+    low = w.heatmap.image_data()  # the readout shows the lowest taxel
+    w.heatmap.hover_cell(*divmod(int(low.argmin()), low.shape[1]))
+    wait_for(0.05)
+    w.refresh_status()
+    out = HERE / "main-window-below-baseline.png"
+    w.grab().save(str(out))
+    print(out)
+    w.heatmap.set_color_scheme("sequential")
 
 
 if __name__ == "__main__":
