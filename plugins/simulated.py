@@ -107,6 +107,10 @@ class SimulatedSensor(DevicePlugin):
                 time.sleep(min(max(next_at - now, 0.0005), deadline - now))
         return self._batch(n)
 
+    def sensor_id(self) -> str:
+        """The simulated sensor's identity comes from its seed (baselines, gains, faults)."""
+        return f"sim-{self.settings['seed']}"
+
     def info(self) -> dict[str, Any]:
         out = super().info()
         out["simulated"] = True
