@@ -5,8 +5,17 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from pathlib import Path
 from typing import Any
 
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.errors import UserError
+from tactile_studio.health.bench import Placer, SimulatedPlacer
+from tactile_studio.health.report import write_report
+from tactile_studio.health.wellness import WellnessSpec, run_wellness
+from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
 
@@ -19,6 +28,81 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("id", help="sensor ID (see `sensors`)")
     p.add_argument("--json", action="store_true", help="print as JSON")
     p.set_defaults(func=cmd_sensor)
+
+    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots")
+    _device_args(p)
+    p.add_argument("--weight-g", type=float, required=True, help="the known weight, grams")
+    p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
+                   help=f"taxels to load (default {','.join(DEFAULT_SPOTS)})")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--report", metavar="FILE.html", help="write an HTML report with figures")
+    p.set_defaults(func=cmd_wellness)
+
+
+def _device_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
+    p.add_argument("--sensor", required=True, help="sensor ID (see `sensors`)")
+    p.add_argument("--auto", action="store_true",
+                   help="the (simulated) device places the weights itself")
+
+
+def _split(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def _start(args: argparse.Namespace) -> tuple[AcquisitionEngine, Placer]:
+    device = create_device(args.device, parse_set_options(args.set))
+    placer = SimulatedPlacer(device) if args.auto else Placer()
+    engine = AcquisitionEngine(device)
+    engine.start()
+    if not engine.wait_frames(1, timeout=10.0):
+        engine.stop()
+        raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
+    return engine, placer
+
+
+def _prompter(quiet: bool):
+    def on_event(kind: str, info: dict[str, Any]) -> None:
+        if not quiet and kind in ("phase", "misplaced", "warning"):
+            text = info.get("prompt") or info.get("message", "")
+            print(f"\n{text}", file=sys.stderr)
+    return on_event
+
+
+def _check_report_path(path: str | None) -> None:
+    if path and not Path(path).resolve().parent.is_dir():
+        raise UserError(f"{path}: the report's folder does not exist")
+
+
+def cmd_wellness(args: argparse.Namespace) -> int:
+    _check_report_path(args.report)
+    spec = WellnessSpec(args.sensor, args.weight_g, tuple(_split(args.spots)))
+    engine, placer = _start(args)
+    token = CancelToken()
+    try:
+        with ctrl_c_cancels(token):
+            result = run_wellness(engine, spec, placer, progress=TerminalProgress("wellness"),
+                                  cancel=token, on_event=_prompter(args.auto))
+    except BaseException:
+        print(file=sys.stderr)  # end the progress line before the error
+        raise
+    finally:
+        engine.stop()
+    if args.report:
+        write_report(args.report, f"Wellness check #{result['check_id']} of {result['sensor']}",
+                     result)
+    if args.json:
+        _dump({k: v for k, v in result.items() if k not in ("baseline", "noise")})
+        return 0
+    print(f"sensor {result['sensor']}: {result['verdict'].upper()} (check #{result['check_id']})")
+    for s in result["spots"]:
+        ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
+        print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} kPa"
+              f"  {ratio:>5} of reference  {s['verdict']}")
+    for reason in result["reasons"]:
+        print(f"  - {reason}")
+    return 0
 
 
 def _dump(obj: Any) -> None:
