@@ -12,6 +12,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Placer, SimulatedPlacer
+from tactile_studio.health.calibration import CalibrationSpec, run_calibration
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
@@ -37,6 +38,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", metavar="FILE.html", help="write an HTML report with figures")
     p.set_defaults(func=cmd_wellness)
+
+    p = sub.add_parser("calibrate", help="equilibrate and calibrate a sensor with known loads")
+    _device_args(p)
+    p.add_argument("--loads-g", required=True, help="loads in grams, increasing: 20,50,100,200,500")
+    p.add_argument("--taxels", default="all", help="all, or taxels to calibrate: B2,B5,...")
+    p.add_argument("--plate", action="store_true",
+                   help="a uniform plate over the whole array instead of a weight per taxel")
+    p.add_argument("--json", action="store_true", help="print the calibration summary as JSON")
+    p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
+    p.set_defaults(func=cmd_calibrate)
 
 
 def _device_args(p: argparse.ArgumentParser) -> None:
@@ -102,6 +113,53 @@ def cmd_wellness(args: argparse.Namespace) -> int:
               f"  {ratio:>5} of reference  {s['verdict']}")
     for reason in result["reasons"]:
         print(f"  - {reason}")
+    return 0
+
+
+def _loads(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in _split(text))
+    except ValueError:
+        raise UserError(f"--loads-g {text!r}: expected grams separated by commas") from None
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    taxels = None if args.taxels.strip().lower() == "all" else tuple(_split(args.taxels))
+    spec = CalibrationSpec(args.sensor, _loads(args.loads_g), taxels, args.plate)
+    from tactile_studio.sensor.calibration import check_loads
+    check_loads(list(spec.loads_g))  # before connecting: bad input fails at once
+    _check_report_path(args.out)
+    engine, placer = _start(args)
+    token = CancelToken()
+    try:
+        with ctrl_c_cancels(token):
+            cal = run_calibration(engine, spec, args.out, placer, cancel=token,
+                                  progress=TerminalProgress("calibrate"),
+                                  on_event=_prompter(args.auto))
+    except BaseException:
+        print(file=sys.stderr)
+        raise
+    finally:
+        engine.stop()
+    report = Path(args.out).with_suffix(".html")  # residual plots beside the file
+    write_report(report, f"Calibration #{cal['calibration_id']} of {cal['sensor']}", cal,
+                 kind="calibration")
+    summary = {"sensor": cal["sensor"], "calibration_id": cal["calibration_id"],
+               "report": str(report),
+               "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,
+               "rms_pct_median": round(cal["rms_pct_median"], 4),
+               "rms_pct_max": round(cal["rms_pct_max"], 4), "gains": cal["gains"],
+               "taxels": [{k: f[k] for k in ("taxel", "model", "rms_pct", "sensitivity")}
+                          for f in cal["fits"]]}
+    if args.json:
+        _dump(summary)
+        return 0
+    print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
+    print(f"  rms error: median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
+          "of range")
+    for f in summary["taxels"]:
+        print(f"  {f['taxel']:<4} {f['model']:<10} sensitivity {f['sensitivity']:.3f}  "
+              f"rms {f['rms_pct']:.2f}%")
     return 0
 
 

@@ -125,12 +125,17 @@ class Bench:
         self._confirm.set()
 
     # ---- reading ---------------------------------------------------------------------
-    def read(self) -> tuple[np.ndarray, np.ndarray]:
-        """The next frames (raw, seq); raises DeviceStopped, Cancelled."""
+    def read(self, max_frames: int = 16) -> tuple[np.ndarray, np.ndarray]:
+        """The next frames (raw, seq); raises DeviceStopped, Cancelled. Small chunks by
+        default, so phase changes are seen within a fraction of a second of device time."""
         waited = time.monotonic()
         while True:
             self.cancel.check()
-            chunk = self.engine.read_since(self._cursor, 2048)
+            chunk = self.engine.read_since(self._cursor, max_frames)
+            if chunk.lost:
+                raise DeviceStopped(f"the check fell {chunk.lost} frames behind device "
+                                    f"{self.engine.device.name} and lost them (use a finite "
+                                    "speed); nothing was stored")
             if len(chunk):
                 self._cursor = chunk.stop
                 keep = chunk.seq >= self._skip_before
@@ -152,8 +157,8 @@ class Bench:
     def take(self, n: int) -> np.ndarray:
         parts, got = [], 0
         while got < n:
-            raw, _ = self.read()
-            parts.append(raw[: n - got])
+            raw, _ = self.read(n - got)
+            parts.append(raw)
             got += len(parts[-1])
         return np.concatenate(parts).astype(np.float64)
 
@@ -197,6 +202,10 @@ class Bench:
         self.emit("phase", phase="record", taxel=where, prompt="Recording")
         recorded = self.take(self.frames(t.record_s))
         held = float(np.mean(self._level(recorded, taxel)))
+        settled = float(np.mean(series[-self.frames(0.5):]))
+        if settled > 0.3 and held < 0.7 * settled:
+            raise WeightNotDetected(f"the weight moved or was lifted off {where} while "
+                                    "recording; nothing was stored")
         self._lift(taxel, held, where, recover)
         return recorded
 
@@ -214,6 +223,8 @@ class Bench:
         lay, limit = self.layout, self.frames(self.timing.place_timeout_s)
         threshold = max(0.3 * expected_kpa, 0.2)
         seen, run, told, last = 0, 0, None, np.zeros((0, lay.rows, lay.cols))
+        quiet = np.zeros((0, lay.n_channels))  # unloaded frames just before the placement
+        keep_quiet = self.frames(1.0)
         while True:
             raw, seq = self.read()
             if seq0 is not None:
@@ -229,8 +240,11 @@ class Bench:
             else:
                 at = contact_taxel(lay, smooth, threshold)
                 on = at == taxel
+            before = seq < seq0 if seq0 is not None else np.full(len(raw), at is None and not on)
+            quiet = np.concatenate([quiet, raw[before]])[-keep_quiet:]
             run = run + len(raw) if on else 0
             if run >= 3:
+                self._rebaseline(quiet, manual=seq0 is None)
                 return list(self._level(raw, taxel)[-3:])
             if at is not None and at != taxel and at != told:
                 told = at
@@ -251,20 +265,44 @@ class Bench:
                 raise WeightNotDetected(f"no weight detected on {where} within "
                                         f"{self.timing.place_timeout_s:g} s; nothing was stored")
 
+    def _recovered(self, recent: np.ndarray, held: float, recover: float) -> bool:
+        """Off, and (for ``recover`` < 0.1) the viscoelastic residue has stopped moving:
+        it then changes by less than ``recover`` of the held load per second. (Measured
+        by slope, not level: slow baseline drift must not keep a check waiting.)"""
+        if float(recent.mean()) >= 0.3 * held:
+            return False
+        if recover >= 0.1:
+            return True
+        t = np.arange(len(recent)) / self.rate
+        slope, icpt = np.polyfit(t, recent, 1)
+        # a slope is only measurable down to a few standard errors of the noise
+        se = float(np.std(recent - (slope * t + icpt)) / np.sqrt(((t - t.mean()) ** 2).sum()))
+        return abs(float(slope)) < max(recover * held, 4.0 * se)
+
+    def _rebaseline(self, quiet: np.ndarray, manual: bool) -> None:
+        """Re-zero on the unloaded frames right before this placement, so slow baseline
+        drift over a long session does not bias small loads (a person's hand may already
+        be near: drop the last 0.3 s then)."""
+        if manual:
+            quiet = quiet[: max(0, len(quiet) - self.frames(0.3))]
+        if len(quiet) >= self.frames(0.3):
+            self.baseline = quiet[-self.frames(0.5):].astype(np.float64).mean(axis=0)
+
     def _lift(self, taxel: int | None, held: float, where: str, recover: float) -> None:
         """Wait until the load is off and the response has recovered to ``recover`` x."""
         seq0 = self.placer.lift()
         self.emit("phase", phase="lift", taxel=where, prompt=f"Lift the weight off {where}")
         limit, seen = self.frames(self.timing.lift_timeout_s), 0
-        quiet = self.frames(0.5)
+        window = self.frames(1.0 if recover >= 0.1 else 3.0)
+        recent = np.zeros(0)
         while True:
             raw, seq = self.read()
             level = self._level(raw, taxel)
             if seq0 is not None:
-                keep = seq >= seq0
-                level = level[keep]
+                level = level[seq >= seq0]
             seen += len(level)
-            if len(level) and (held <= 0.3 or float(level[-1]) < recover * held) and seen >= quiet:
+            recent = np.concatenate([recent, level])[-window:]
+            if seen >= window and (held <= 0.3 or self._recovered(recent, held, recover)):
                 return
             if seen >= limit:
                 raise WeightNotDetected(f"the weight was not lifted off {where} within "
