@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import pytest
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QWizard
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
@@ -70,3 +71,69 @@ def test_wellness_wizard_reports_an_error_and_stores_nothing(qtbot):
     assert finish.retry_button.isVisibleTo(w) and not finish.isComplete()
     with Logbook() as book:
         assert book.checks("sim-3") == []
+
+
+@pytest.mark.parametrize("fault, plate", [("none", False), ("none", True),
+                                          ("worn", False), ("dead_taxel", True)])
+def test_calibration_wizard_to_the_end(qtbot, tmp_path, fault, plate):
+    from tactile_studio.ui.calibration_wizard import CalibrationWizard
+    settings = {"speed": 0, "seed": 31, "sensitivity_spread": 0.1, "fault": fault,
+                "fault_taxel": parse_taxel(LAY, "B2")}
+    w = CalibrationWizard("simulated", settings)
+    qtbot.addWidget(w)
+    w.show()
+    w.setup.taxels.setText("B2,E5")
+    w.setup.plate.setChecked(plate)
+    w.setup.out.setText(str(tmp_path / "cal.json"))
+    w.next()
+    page = w.run_page
+    qtbot.waitUntil(lambda: page.run is not None and not page.run.running, timeout=60000)
+    page.poll()
+    if fault == "dead_taxel":  # B2 never responds: a clear stop, nothing stored
+        assert "B2: the response does not grow" in page.status.text()
+        assert not page.isComplete() and not (tmp_path / "cal.json").exists()
+        with Logbook() as book:
+            assert book.calibrations("sim-31") == []
+        return
+    assert page.phase.text() == "Done"
+    w.next()
+    res = w.result_page
+    assert res.table.rowCount() == (36 if plate else 2)
+    assert res.result["rms_pct_max"] <= 1.0 and (tmp_path / "cal.json").exists()
+    if fault == "worn":  # the worn taxel is calibrated too, with its low sensitivity
+        sens = {f["taxel"]: f["sensitivity"] for f in res.result["fits"]}
+        assert sens["B2"] < 0.6 * sens["E5"]
+    w.button(QWizard.WizardButton.FinishButton).click()
+    with Logbook() as book:
+        assert book.active_calibration("sim-31") == res.result["calibration_id"]
+
+
+def test_sensors_window_shows_the_trend(qtbot):
+    from tactile_studio.ui.sensors_window import SensorsWindow
+    with Logbook() as book:
+        book.ensure_sensor("S7")
+        for i, ratio in enumerate((1.0, 0.9, 0.7, 0.45)):
+            book.add_usage("S7", 3600.0 * 6)
+            verdict = "pass" if ratio > 0.8 else ("warn" if ratio > 0.5 else "fail")
+            book.add_check("S7", {"verdict": verdict, "weight_g": 200, "reasons": [],
+                                  "spots": [{"taxel": "E5", "normal_kpa": 10 * ratio,
+                                             "shear_kpa": 0.0, "ratio": ratio,
+                                             "verdict": verdict}]})
+        book.add_calibration("S7", "plate", 0.3, {"fits": []})
+    w = SensorsWindow()
+    qtbot.addWidget(w)
+    w.show()
+    assert w.sensors.currentItem().text() == "S7"
+    curves = [c for c in w.trend.getPlotItem().listDataItems() if c.name() == "E5"]
+    assert len(curves) == 1
+    x, y = curves[0].getData()
+    assert list(x) == [6.0, 12.0, 18.0, 24.0] and list(y) == [1.0, 0.9, 0.7, 0.45]
+    assert len(w.timeline.getPlotItem().listDataItems()) == 4
+    assert "24.00 h of use" in w.facts.text() and "FAIL" in w.facts.text()
+    assert w.calibrations.item(0, 0).text() == "1 (active)"
+    w.note_kind.setCurrentText("re-covered")
+    qtbot.keyClicks(w.note_text, "new skin")
+    qtbot.mouseClick(w.add_note_button, Qt.MouseButton.LeftButton)
+    assert w.notes.item(0).text().endswith("[re-covered] new skin")
+    with Logbook() as book:
+        assert book.notes("S7")[0]["text"] == "new skin"

@@ -10,6 +10,9 @@ from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 
 VERDICT_COLOURS = {"pass": "#2e8b57", "warn": "#d89a00", "fail": "#c0392b",
                    "measured": "#7a8699"}
+# readable on white, distinct for up to 10 series (spots, taxels)
+SERIES_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
+                  "#e377c2", "#17becf", "#7f7f7f", "#bcbd22")
 TARGET, DETECTED, IDLE_CELL = "#2f6fdb", "#f08c00", "#d9dde3"
 
 

@@ -131,7 +131,8 @@ class WellnessResultPage(QWizardPage):
                 self.table.setItem(i, j, QTableWidgetItem(text))
         ch = res["channels"]
         lines = [f"• {r}" for r in res["reasons"]] or ["• every spot and channel is healthy"]
-        lines.append("channels: " + ", ".join(f"{k} {v or 'none'}" for k, v in ch.items()))
+        lines.append("channels: " + "; ".join(f"{k}: {', '.join(map(str, v)) or 'none'}"
+                                             for k, v in ch.items()))
         self.reasons.setText("\n".join(lines))
 
     def save_report(self, path: str | None = None) -> str | None:
