@@ -137,3 +137,33 @@ def test_sensors_window_shows_the_trend(qtbot):
     assert w.notes.item(0).text().endswith("[re-covered] new skin")
     with Logbook() as book:
         assert book.notes("S7")[0]["text"] == "new skin"
+
+
+def test_main_window_sensor_id_goes_into_recordings_and_menus_open(qtbot, tmp_path,
+                                                                   monkeypatch):
+    from tactile_studio.storage.session import Session
+    from tactile_studio.ui.main_window import MainWindow
+    from tactile_studio.ui.settings import SETTINGS_ENV
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    w = MainWindow(device="simulated", settings={"rate": "200", "gesture": "idle"},
+                   persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    assert w.panel.connect_device()
+    qtbot.waitUntil(lambda: w.controller.engine.state == "running", timeout=10000)
+    w.panel.sensor_box.setCurrentText("array-007")
+    assert w.panel.start_recording(str(tmp_path / "s.h5"))
+    qtbot.waitUntil(lambda: w.controller.recorder.writer.n_frames > 50, timeout=10000)
+    w.panel.stop_recording()
+    with Session(tmp_path / "s.h5") as s:
+        assert s.metadata["sensor_id"] == "array-007"
+    with Logbook() as book:
+        assert book.hours("array-007") > 0
+    wizard = w.open_health("wellness")
+    assert not w.controller.engine.running  # the wizard gets the device to itself
+    assert wizard.setup.device == "simulated" and wizard.setup.settings["rate"] == "200"
+    wizard.done(0)
+    sensors = w.open_sensors()
+    assert "array-007" in [sensors.sensors.item(i).text() for i in range(sensors.sensors.count())]
+    sensors.close()
+    w.shutdown()
