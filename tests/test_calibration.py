@@ -146,3 +146,37 @@ def test_cli_calibrate_json_file_and_bad_input(tmp_path, capsys):
     assert not (tmp_path / "bad.json").exists()
     with Logbook() as book:
         assert len(book.calibrations("sim-4")) == 1
+
+
+def test_wellness_uses_the_active_calibration_as_reference():
+    """A sensor with a wide sensitivity spread fails a first check against the nominal
+    stress, and passes once its calibration says what each spot should read."""
+    from tactile_studio.health.wellness import WellnessSpec, run_wellness
+    spots = ("B2", "B5", "E2", "E5", "C3")
+    settings = {"speed": 0, "gesture": "idle", "seed": 8, "sensitivity_spread": 0.3}
+
+    def check():
+        dev = SimulatedSensor(**settings)
+        engine = AcquisitionEngine(dev)
+        engine.start()
+        try:
+            return run_wellness(engine, WellnessSpec("sim-8", 200.0, spots),
+                                SimulatedPlacer(dev), store=False), dev
+        finally:
+            engine.stop()
+    before, dev = check()
+    truth = dev.true_sensitivity()
+    off = [s for s in spots if abs(truth[parse_taxel(LAY, s)] - 1) > 0.3]
+    assert off and before["verdict"] != "pass"
+    dev2 = SimulatedSensor(**settings)
+    engine = AcquisitionEngine(dev2)
+    engine.start()
+    try:
+        run_calibration(engine, CalibrationSpec("sim-8", (20, 50, 100, 200, 500), spots),
+                        placer=SimulatedPlacer(dev2))
+    finally:
+        engine.stop()
+    after, _ = check()
+    assert after["reference_calibration"] is not None and after["reference_check"] is None
+    assert after["verdict"] == "pass", after["reasons"]
+    assert all(abs(s["ratio"] - 1) < 0.05 for s in after["spots"])

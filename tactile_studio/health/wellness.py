@@ -17,6 +17,8 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.sensor.calibration import expected_nominal_kpa
+from tactile_studio.sensor.layout import Layout
 from tactile_studio.sensor.wellness import (
     DEFAULT_SPOTS,
     PASS,
@@ -55,16 +57,29 @@ def resolve_sensor(book: Logbook, device: Any, sensor: str, layout_name: str) ->
     return book.require(sensor)
 
 
-def reference_for(book: Logbook, sensor: str, spec: WellnessSpec) -> dict[str, Any]:
-    """The sensor's reference: its first passing check with the same weight and contact
-    (per-spot kPa and rest baseline), else nothing (the weight's nominal stress)."""
+def reference_for(book: Logbook, sensor: str, spec: WellnessSpec,
+                  layout: Layout) -> dict[str, Any]:
+    """The sensor's reference per spot: its first passing check with the same weight and
+    contact (and that check's rest baseline); for spots it did not load, what the active
+    calibration predicts; else nothing (the weight's nominal stress is used)."""
+    out: dict[str, Any] = {"check_id": None, "baseline": None, "spots": {},
+                           "calibration_id": None}
     for check in book.checks(sensor):
         res = check["result"]
         if (check["verdict"] == PASS and res.get("weight_g") == spec.weight_g
                 and res.get("contact_mm") == spec.contact_mm):
-            return {"check_id": check["id"], "baseline": res.get("baseline"),
-                    "spots": {s["taxel"]: s["normal_kpa"] for s in res.get("spots", [])}}
-    return {"check_id": None, "baseline": None, "spots": {}}
+            out.update(check_id=check["id"], baseline=res.get("baseline"),
+                       spots={s["taxel"]: s["normal_kpa"] for s in res.get("spots", [])})
+            break
+    cal_id = book.active_calibration(sensor)
+    if cal_id is not None and layout.calibration is not None:
+        expected = stress_kpa(spec.weight_g, spec.contact_mm)
+        fits = {f["taxel"]: f for f in book.calibration(cal_id).get("fits", [])}
+        for taxel in spec.spots:
+            if taxel not in out["spots"] and taxel in fits:
+                out["spots"][taxel] = expected_nominal_kpa(layout, fits[taxel], expected)
+                out["calibration_id"] = cal_id
+    return out
 
 
 def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer | None = None,
@@ -82,7 +97,7 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
     expected = stress_kpa(spec.weight_g, spec.contact_mm)
     with Logbook() as book:
         sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
-        ref = reference_for(book, sensor, spec)
+        ref = reference_for(book, sensor, spec, lay)
     bench = bench or Bench(engine, placer, timing, cancel, on_event)
     steps = 1 + len(spots)
     progress(0.0, "rest")
@@ -114,6 +129,7 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
                  else round(float(np.abs(rest.shift).max()) * 100, 3),
                  "frames": len(rest_raw)},
         "reasons": reasons, "reference_check": ref["check_id"],
+        "reference_calibration": ref["calibration_id"],
         "baseline": [round(float(v), 2) for v in rest.baseline],
         "noise": [round(float(v), 3) for v in rest.noise],
         "device": engine.device.info(), "check_id": None,

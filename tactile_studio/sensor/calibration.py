@@ -196,3 +196,18 @@ def decode_calibrated(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
     f32 = np.float32
     return StressFrames(normal.astype(f32), None if sx is None else sx.astype(f32),
                         None if sy is None else sy.astype(f32), out.units)
+
+
+def expected_nominal_kpa(layout: Layout, fit: dict[str, Any], kpa: float) -> float:
+    """What the nominal decode of a taxel reads under ``kpa`` according to its
+    calibration: the wellness check's reference when the sensor has an active one."""
+    model, params = fit["model"], tuple(fit["params"])
+    lo, hi = 0.0, 1.0
+    for _ in range(60):  # every model is increasing in r: bisection finds r for kpa
+        mid = 0.5 * (lo + hi)
+        if float(_predict(model, params, np.array([mid]))[0]) < kpa:
+            lo = mid
+        else:
+            hi = mid
+    r = 0.5 * (lo + hi)
+    return float(layout.calibration.normal_kpa(np.array([r]))[0]) if layout.calibration else r
