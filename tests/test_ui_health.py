@@ -73,8 +73,9 @@ def test_wellness_wizard_reports_an_error_and_stores_nothing(qtbot):
         assert book.checks("sim-3") == []
 
 
-@pytest.mark.parametrize("fault, plate", [("none", False), ("none", True),
-                                          ("worn", False), ("dead_taxel", True)])
+@pytest.mark.parametrize("fault, plate", [
+    ("none", False), ("none", True), ("worn", False), ("dead_taxel", True),
+    ("stuck_channel", False), ("delaminated", False)])
 def test_calibration_wizard_to_the_end(qtbot, tmp_path, fault, plate):
     from tactile_studio.ui.calibration_wizard import CalibrationWizard
     settings = {"speed": 0, "seed": 31, "sensitivity_spread": 0.1, "fault": fault,
@@ -88,24 +89,44 @@ def test_calibration_wizard_to_the_end(qtbot, tmp_path, fault, plate):
     w.next()
     page = w.run_page
     qtbot.waitUntil(lambda: page.run is not None and not page.run.running, timeout=60000)
-    page.poll()
-    if fault == "dead_taxel":  # B2 never responds: a clear stop, nothing stored
-        assert "B2: the response does not grow" in page.status.text()
-        assert not page.isComplete() and not (tmp_path / "cal.json").exists()
-        with Logbook() as book:
-            assert book.calibrations("sim-31") == []
-        return
-    assert page.phase.text() == "Done"
+    qtbot.waitUntil(lambda: page.phase.text() == "Done", timeout=5000)
     w.next()
     res = w.result_page
-    assert res.table.rowCount() == (36 if plate else 2)
-    assert res.result["rms_pct_max"] <= 1.0 and (tmp_path / "cal.json").exists()
+    cal = res.result
+    n = 36 if plate else 2
+    assert res.table.rowCount() == n and (tmp_path / "cal.json").exists()
+    rows = {res.table.item(i, 0).text(): res.table.item(i, 1).text() for i in range(n)}
+    if fault in ("dead_taxel", "stuck_channel"):  # B2 cannot be calibrated: said, not hidden
+        assert rows["B2"] == "not calibrated" and cal["skipped"][0]["taxel"] == "B2"
+        assert "B2: the response does not grow" in res.summary.text()
+        assert len(cal["fits"]) == n - 1
+    else:
+        assert cal["skipped"] == [] and set(rows.values()) == {"two-range"}
+    assert cal["rms_pct_max"] <= 1.0
     if fault == "worn":  # the worn taxel is calibrated too, with its low sensitivity
-        sens = {f["taxel"]: f["sensitivity"] for f in res.result["fits"]}
+        sens = {f["taxel"]: f["sensitivity"] for f in cal["fits"]}
         assert sens["B2"] < 0.6 * sens["E5"]
     w.button(QWizard.WizardButton.FinishButton).click()
     with Logbook() as book:
-        assert book.active_calibration("sim-31") == res.result["calibration_id"]
+        assert book.active_calibration("sim-31") == cal["calibration_id"]
+
+
+def test_calibration_with_no_responding_taxel_stores_nothing(qtbot, tmp_path):
+    from tactile_studio.ui.calibration_wizard import CalibrationWizard
+    w = CalibrationWizard("simulated", {"speed": 0, "seed": 32, "fault": "dead_taxel",
+                                        "fault_taxel": parse_taxel(LAY, "C3")})
+    qtbot.addWidget(w)
+    w.show()
+    w.setup.taxels.setText("C3")
+    w.setup.out.setText(str(tmp_path / "cal.json"))
+    w.next()
+    page = w.run_page
+    qtbot.waitUntil(lambda: page.run is not None and not page.run.running, timeout=60000)
+    page.poll()
+    assert "no taxel could be calibrated (C3: the response" in page.status.text()
+    assert not page.isComplete() and not (tmp_path / "cal.json").exists()
+    with Logbook() as book:
+        assert book.calibrations("sim-32") == []
 
 
 def test_sensors_window_shows_the_trend(qtbot):

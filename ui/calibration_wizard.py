@@ -101,11 +101,16 @@ class CalibrationResultPage(QWizardPage):
             f"Calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}): "
             f"rms error median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
             "of range. It is now the sensor's active calibration.")
-        fits = cal["fits"]
-        self.table.setRowCount(len(fits))
-        for i, f in enumerate(fits):
-            for j, text in enumerate((f["taxel"], f["model"], f"{f['sensitivity']:.3f}",
-                                      f"{cal['gains'][f['taxel']]:.3f}", f"{f['rms_pct']:.2f}")):
+        fits, skipped = cal["fits"], cal.get("skipped", [])
+        if skipped:
+            self.summary.setText(self.summary.text() + "\nNot calibrated: " + "; ".join(
+                s["reason"] for s in skipped))
+        self.table.setRowCount(len(fits) + len(skipped))
+        rows = [(f["taxel"], f["model"], f"{f['sensitivity']:.3f}",
+                 f"{cal['gains'][f['taxel']]:.3f}", f"{f['rms_pct']:.2f}") for f in fits]
+        rows += [(s["taxel"], "not calibrated", "-", "-", "-") for s in skipped]
+        for i, row in enumerate(rows):
+            for j, text in enumerate(row):
                 self.table.setItem(i, j, QTableWidgetItem(text))
         self.plot.clear()
         self.plot.addLine(y=0, pen=pg.mkPen("#999"))

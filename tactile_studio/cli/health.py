@@ -149,6 +149,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,
                "rms_pct_median": round(cal["rms_pct_median"], 4),
                "rms_pct_max": round(cal["rms_pct_max"], 4), "gains": cal["gains"],
+               "skipped": cal["skipped"],
                "taxels": [{k: f[k] for k in ("taxel", "model", "rms_pct", "sensitivity")}
                           for f in cal["fits"]]}
     if args.json:
@@ -160,6 +161,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     for f in summary["taxels"]:
         print(f"  {f['taxel']:<4} {f['model']:<10} sensitivity {f['sensitivity']:.3f}  "
               f"rms {f['rms_pct']:.2f}%")
+    for skip in cal["skipped"]:
+        print(f"  not calibrated: {skip['reason']}")
     return 0
 
 

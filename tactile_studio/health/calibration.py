@@ -22,6 +22,7 @@ from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.calibration import (
+    CalibrationError,
     calibration_data,
     check_loads,
     decode_calibrated,
@@ -81,9 +82,18 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
                 progress((i * len(loads) + j) / steps, f"{taxel_label(lay, t)} {mass:g} g")
                 raw = bench.load(mass, t, float(kpa[j]), spec.contact_mm, recover=0.005)
                 samples[i].append(relative_change(lay, raw, bench.baseline)[:, centre[i]])
-    fits = [fit_taxel(lay, t, kpa, samples[i]) for i, t in enumerate(taxels)]
+    fits, skipped = [], []
+    for i, t in enumerate(taxels):
+        try:
+            fits.append(fit_taxel(lay, t, kpa, samples[i]))
+        except CalibrationError as exc:  # a dead taxel must not sink the other 35
+            skipped.append({"taxel": taxel_label(lay, t), "reason": str(exc)})
+            bench.emit("warning", message=f"not calibrated: {exc}")
+    if not fits:
+        raise CalibrationError(f"no taxel could be calibrated ({skipped[0]['reason']}); "
+                               "nothing was stored")
     kind = "plate" if spec.plate else "per-taxel"
-    data = calibration_data(lay, kind, loads, fits, {
+    data = calibration_data(lay, kind, loads, fits, {"skipped": skipped,
         "sensor": sensor, "contact_mm": spec.contact_mm, "plate_mm": side if spec.plate else None,
         "device": engine.device.info()})
     with Logbook() as book:
