@@ -74,6 +74,27 @@ def main() -> int:
     w.grab().save(str(HERE / "wellness-result.png"))
     w.done(0)
 
+    # the weight put on the wrong taxel: the page says where it is
+    from tactile_studio.health.bench import SimulatedPlacer
+
+    class WrongPlacer(SimulatedPlacer):
+        def place(self, mass_g, taxel, contact_mm):
+            return super().place(mass_g, "C4" if taxel == "B2" else taxel, contact_mm)
+
+    m = WellnessWizard("simulated", {"speed": 2, "seed": 21})
+    make = m._make_run
+
+    def misplacing():
+        run = make()
+        run.placer = WrongPlacer(run.device)
+        return run
+    m.run_page.make_run = misplacing
+    m.show()
+    m.next()
+    _wait(app, lambda: m.run_page.picture.detected == "C4")
+    m.grab().save(str(HERE / "wellness-run-misplaced.png"))
+    m.done(0)
+
     c = CalibrationWizard("simulated", {"speed": 8, "seed": 21, "sensitivity_spread": 0.1})
     c.show()
     c.setup.taxels.setText("B2,B5,E2,E5")

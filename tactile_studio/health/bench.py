@@ -168,7 +168,8 @@ class Bench:
         start = self.placer.prepare()
         if start is not None:
             self._skip_before = start
-        self.emit("phase", phase="rest", prompt="Leave the sensor unloaded")
+        self.emit("phase", phase="rest", prompt=f"Hands off: reading noise and baseline for "
+                                                f"{self.timing.rest_s:g} s")
         raw = self.take(self.frames(self.timing.rest_s))
         self.baseline = raw.mean(axis=0)
         return raw
