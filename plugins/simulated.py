@@ -18,7 +18,7 @@ import numpy as np
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
 from tactile_studio.errors import SettingsError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
-from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig
+from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig, weights
 from tactile_studio.simulate.gestures import canonical_gesture
 from tactile_studio.simulate.schedule import AUTO, Trial
 
@@ -50,6 +50,8 @@ class SimulatedSensor(DevicePlugin):
         Setting("fault", "choice", "none", "simulated defect", choices=FAULTS),
         Setting("fault_taxel", "int", 14, "taxel the fault affects (0..35)",
                 minimum=0, maximum=35),
+        Setting("sensitivity_spread", "float", 0.0, "per-taxel sensitivity spread "
+                "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5),
     )
 
     def __init__(self, **settings: Any) -> None:
@@ -64,7 +66,7 @@ class SimulatedSensor(DevicePlugin):
             rate=s["rate"], seed=s["seed"], gesture=mode, intensity=s["intensity"],
             speed=s["gesture_speed"], style_seed=s["style_seed"], noise=s["noise"],
             drift=s["drift"], crosstalk=s["crosstalk"], fault=s["fault"],
-            fault_taxel=s["fault_taxel"]))
+            fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"]))
         self._lock = threading.RLock()
         self._open = False
         self._t0 = 0.0        # wall clock at open
@@ -106,6 +108,10 @@ class SimulatedSensor(DevicePlugin):
                 next_at = self._t0 + (self._sim.frame - self._f0) / (self.nominal_rate_hz * speed)
                 time.sleep(min(max(next_at - now, 0.0005), deadline - now))
         return self._batch(n)
+
+    def sensor_id(self) -> str:
+        """The simulated sensor's identity comes from its seed (baselines, gains, faults)."""
+        return f"sim-{self.settings['seed']}"
 
     def info(self) -> dict[str, Any]:
         out = super().info()
@@ -154,6 +160,30 @@ class SimulatedSensor(DevicePlugin):
         """Ground truth at frame (= seq) ``frame``."""
         with self._lock:
             return self._sim.gesture_at(frame)
+
+    def place_weight(self, mass_g: float, taxel: str, contact_mm: float = 14.0,
+                     duration_s: float = 60.0) -> Trial:
+        """Put a known weight on ``taxel`` from the next frame (headless wellness checks)."""
+        with self._lock:
+            return weights.place_weight(self._sim, mass_g, taxel, contact_mm, duration_s)
+
+    def place_plate(self, mass_g: float, plate_mm: float | None = None,
+                    duration_s: float = 60.0) -> Trial:
+        """Put a uniform plate of ``mass_g`` over the whole array from the next frame."""
+        with self._lock:
+            return weights.place_plate(self._sim, mass_g, plate_mm, duration_s)
+
+    def lift(self, trial: Trial) -> int:
+        """Take the weight of ``trial`` off from the next frame; returns that frame."""
+        with self._lock:
+            frame = self._sim.frame
+            weights.lift(self._sim, trial)
+            return frame
+
+    def true_sensitivity(self) -> np.ndarray:
+        """Ground truth per taxel (1 = nominal), for tests of the calibration."""
+        with self._lock:
+            return weights.true_sensitivity(self._sim)
 
     @property
     def next_frame(self) -> int:

@@ -41,6 +41,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
+from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import LiveView
 from tactile_studio.protocol.collect import open_session, resume_session
 from tactile_studio.ui.collect_beep import QtBeeper
@@ -79,6 +80,7 @@ class CollectConsole(QMainWindow):
         self._ticks = 0
         self._closed_session_path: str | None = None
         self._dialog: TextDialog | None = None
+        self.wellness_text = ""  # the sensor's last check, shown beside the file name
         self._shown: Any = None  # the LiveFrame last drawn (LiveView caches per frame)
 
         self.setup = CollectSetup(settings if settings is not None else app_settings(),
@@ -194,13 +196,41 @@ class CollectConsole(QMainWindow):
         self._own_engine = True
         return engine
 
-    def start_session(self, choice: SetupChoice) -> bool:
-        """Open a new session from the setup choices; False (message shown) on a user error."""
+    def start_session(self, choice: SetupChoice, override_note: str | None = None) -> bool:
+        """Open a new session from the setup choices; False (message shown) on a user error.
+
+        A protocol requiring a wellness check asks for an override note first when the
+        sensor's last check failed, is stale or missing (``self.dialog``)."""
+        try:
+            status = wellness_status(self._sensor_id(choice), choice.protocol.wellness_required,
+                                     choice.protocol.wellness_max_age_h)
+        except UserError as exc:
+            self.setup.error.setText(str(exc))
+            return False
+        self.wellness_text = status.text()
+        if not status.ok and not (override_note or "").strip():
+            self.setup.error.setText(f"{status.text()}. {status.problem}.")
+            dlg = TextDialog("Wellness check needed",
+                             f"{status.problem}.\nStart anyway? Override note:", (), self)
+            dlg.accepted.connect(lambda: dlg.text().strip()
+                                 and self.start_session(choice, dlg.text()))
+            self._open_dialog(dlg)
+            return False
+        health = admit(status, override_note)
         return self._open(lambda eng: open_session(
             choice.protocol, participant=choice.participant, engine=eng,
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
-            auto_continue=choice.auto_continue), choice.device, choice.device_settings)
+            auto_continue=choice.auto_continue, wellness=health),
+            choice.device, choice.device_settings)
+
+    def _sensor_id(self, choice: SetupChoice) -> str | None:
+        """The sensor of the chosen device (the shared live one when none is chosen)."""
+        if choice.device is None:
+            dev = self.shared_engine.device if self.shared_engine is not None else None
+        else:
+            dev = create_device(choice.device, choice.device_settings)
+        return dev.sensor_id() if dev is not None else None
 
     def resume_from(self, path: str | Path) -> bool:
         """Continue a killed or closed session file at its next trial."""
@@ -229,7 +259,8 @@ class CollectConsole(QMainWindow):
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
-        self.file_label.setText(f"File: {self.session.path}")
+        self.file_label.setText(f"File: {self.session.path}"
+                                + (f"   ·   {self.wellness_text}" if self.wellness_text else ""))
         self._closed_session_path = None
         self.stack.setCurrentIndex(1)
         self.timer.start()

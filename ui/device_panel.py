@@ -32,6 +32,7 @@ from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.live import LiveController, LiveStatus
+from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.settings import app_settings
 from tactile_studio.ui.settings_form import SettingField, SettingsForm, one_line
@@ -73,6 +74,8 @@ class DevicePanel(QWidget):
         self.form_box = SettingsForm("Settings")
         self.form_box.changed.connect(self._validate)
 
+        self.sensor_box = sensor_id_box()
+
         self.error_label = ElidedLabel()
         self.error_label.setObjectName("error")
         self.error_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
@@ -110,6 +113,7 @@ class DevicePanel(QWidget):
         box.addWidget(self.device_box)
         box.addWidget(self.description)
         box.addWidget(self.form_box)
+        box.addWidget(self.sensor_box)
         box.addWidget(self.error_label)
         box.addLayout(buttons)
         box.addLayout(buttons2)
@@ -238,7 +242,8 @@ class DevicePanel(QWidget):
 
     def start_recording(self, path: str) -> bool:
         try:
-            self.controller.start_recording(path)
+            sensor = self.sensor_box.currentText().strip()
+            self.controller.start_recording(path, {"sensor_id": sensor} if sensor else None)
         except UserError as exc:
             self.show_error(one_line(exc))
             self.record_button.setChecked(False)
@@ -334,3 +339,18 @@ class DevicePanel(QWidget):
         self.disconnect_button.setEnabled(st.device is not None and st.state != "stopped")
         self.tare_button.setEnabled(live)
         self.record_button.setEnabled(live or st.recording is not None)
+
+
+def sensor_id_box() -> QComboBox:
+    """Pick or type the sensor's ID for recordings (empty: the device's own, if any)."""
+    box = QComboBox()
+    box.setEditable(True)
+    box.setToolTip("The sensor's ID goes into every recording and the sensor logbook")
+    try:
+        with Logbook() as book:
+            box.addItems(book.sensor_ids())
+    except UserError:
+        pass  # no logbook yet: typing an ID still works
+    box.setCurrentText("")
+    box.lineEdit().setPlaceholderText("sensor ID (empty: the device's own)")
+    return box

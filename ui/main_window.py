@@ -157,6 +157,7 @@ class MainWindow(QMainWindow):
         quit_action.setShortcut(QKeySequence.StandardKey.Quit)
         quit_action.triggered.connect(self.close)
         file_menu.addAction(quit_action)
+        self._build_sensor_menu()
         view_menu = self.menuBar().addMenu("&View")
         virtual = QAction("&Virtual 11×11 grid", self, checkable=True)
         virtual.setShortcut(QKeySequence("Ctrl+G"))
@@ -167,6 +168,34 @@ class MainWindow(QMainWindow):
         view_menu.addSeparator()
         view_menu.addAction(self.device_dock.toggleViewAction())
         view_menu.addAction(self.strip_dock.toggleViewAction())
+
+    def _build_sensor_menu(self) -> None:
+        menu = self.menuBar().addMenu("&Sensors")
+        for text, slot in (("Sensors and history…", self.open_sensors),
+                           ("Wellness check…", lambda: self.open_health("wellness")),
+                           ("Calibrate…", lambda: self.open_health("calibration"))):
+            action = QAction(text, self)
+            action.triggered.connect(slot)
+            menu.addAction(action)
+
+    def open_sensors(self) -> QWidget:
+        from tactile_studio.ui.sensors_window import SensorsWindow
+        self._sensors = SensorsWindow()
+        self._sensors.show()
+        return self._sensors
+
+    def open_health(self, kind: str) -> QWidget:
+        """A wizard on its own connection to the panel's device (the live one is
+        disconnected first: a serial port has one owner)."""
+        from tactile_studio.ui.calibration_wizard import CalibrationWizard
+        from tactile_studio.ui.wellness_wizard import WellnessWizard
+        if self.controller.engine is not None and self.controller.engine.running:
+            self.panel.disconnect_device()
+        cls = WellnessWizard if kind == "wellness" else CalibrationWizard
+        self._wizard = cls(self.panel.device_name() or DEFAULT_DEVICE, self.panel.values(),
+                           parent=self)
+        self._wizard.show()
+        return self._wizard
 
     # ---- display loop --------------------------------------------------------------
     def tick(self) -> None:

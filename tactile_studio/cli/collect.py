@@ -19,6 +19,7 @@ from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
 from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.protocol.collect import (
     CollectionSession,
@@ -58,6 +59,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=".", help="output folder (default: current folder)")
     p.add_argument("--resume", metavar="FILE", help="continue a killed or closed session")
     add_lsl_option(p)
+    p.add_argument("--wellness-override", metavar="NOTE",
+                   help="start although the protocol's required wellness check failed, is "
+                        "stale or missing (the note is stored in the session)")
     p.set_defaults(func=run)
 
 
@@ -183,8 +187,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
+        status = wellness_status(device.sensor_id(), protocol.wellness_required,
+                                 protocol.wellness_max_age_h)
+        print(status.text(), file=sys.stderr)
         session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
-                               condition=args.condition)
+                               condition=args.condition,
+                               wellness=admit(status, args.wellness_override))
         print(f"writing {session.path}", file=sys.stderr)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()

@@ -203,6 +203,11 @@ class DevicePlugin(abc.ABC):
         """True when a finite source (a replayed file) has delivered everything."""
         return False
 
+    def sensor_id(self) -> str | None:
+        """Optional hook: the attached sensor's identity (serial number, seed), if the
+        device knows it; None lets the user pick or type one. Goes in the logbook."""
+        return None
+
     def info(self) -> dict[str, Any]:
         """What goes into a session's metadata about the device."""
         return {"plugin": self.name, "settings": dict(self.settings),

@@ -113,8 +113,8 @@ def session_metadata(protocol: Protocol, participant: str, seed: int, orders: li
 def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine,
                  out_dir: str | os.PathLike, *, seed: int = 0, condition: str = "",
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                 hold_flagged: bool = False, path: str | os.PathLike | None = None
-                 ) -> CollectionSession:
+                 hold_flagged: bool = False, path: str | os.PathLike | None = None,
+                 wellness: dict[str, Any] | None = None) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
     Create it before ``engine.start()`` to have file rows equal engine frames.
@@ -127,6 +127,9 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     orders = block_orders(protocol, participant, seed)
     practice = practice_order(protocol, participant, seed)
     meta = session_metadata(protocol, participant, seed, orders, practice, condition)
+    if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
+        meta["wellness"] = wellness
+        meta["sensor_id"] = wellness.get("sensor_id") or None
     recorder = Recorder(engine, target, meta).start()
     runner = CollectionRunner(protocol, engine, recorder, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,

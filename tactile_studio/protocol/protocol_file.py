@@ -58,6 +58,8 @@ class Protocol:
     beep_s: float = 0.2
     min_contact_fraction: float = 0.03  # a light poke touches ~5-15% of a 2 s trial
     centre_fraction: float = 0.7
+    wellness_required: bool = False   # [wellness] required: a check before each participant
+    wellness_max_age_h: float = 24.0  # [wellness] max_age_h: older checks are stale
     source: str = ""
 
     @property
@@ -126,11 +128,13 @@ def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protoco
     v = _Validator(label)
     v.known(raw, "", {"name", "title", "description", "trial_s", "blocks", "free_play_s",
                       "practice_trials", "order", "randomisation", "breaks", "beep",
-                      "quality", "gestures"})
+                      "quality", "wellness", "gestures"})
     rnd = v.table(raw, "randomisation")
     brk = v.table(raw, "breaks")
     beep = v.table(raw, "beep")
     qual = v.table(raw, "quality")
+    well = v.table(raw, "wellness")
+    v.known(well, "wellness.", {"required", "max_age_h"})
     v.known(rnd, "randomisation.", {"mode", "seed"})
     v.known(brk, "breaks.", {"every_blocks", "min_s"})
     v.known(beep, "beep.", {"frequency_hz", "length_s"})
@@ -142,8 +146,11 @@ def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protoco
               ("breaks", "every_blocks"): "break_every", ("breaks", "min_s"): "break_min_s",
               ("beep", "frequency_hz"): "beep_hz", ("beep", "length_s"): "beep_s",
               ("quality", "min_contact_fraction"): "min_contact_fraction",
-              ("quality", "centre_fraction"): "centre_fraction"}
-    tables = {"randomisation": rnd, "breaks": brk, "beep": beep, "quality": qual}
+              ("quality", "centre_fraction"): "centre_fraction",
+              ("wellness", "required"): "wellness_required",
+              ("wellness", "max_age_h"): "wellness_max_age_h"}
+    tables = {"randomisation": rnd, "breaks": brk, "beep": beep, "quality": qual,
+              "wellness": well}
     fields = {}
     for (table, key), target in rename.items():
         if key in tables[table]:
@@ -187,8 +194,18 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
         min_contact_fraction=v.number(data, "min_contact_fraction", low=0.0, high=1.0,
                                       default=0.03),
         centre_fraction=v.number(data, "centre_fraction", low=0.05, high=1.0, default=0.7),
+        wellness_required=_flag(v, data, "wellness_required"),
+        wellness_max_age_h=v.number(data, "wellness_max_age_h", low=0.01, high=100_000.0,
+                                    default=24.0),
         source=label,
     )
+
+
+def _flag(v: _Validator, data: dict[str, Any], key: str) -> bool:
+    value = data.get(key, False)
+    if not isinstance(value, bool):
+        v.fail(key, f"must be true or false, not {value!r}")
+    return bool(value)
 
 
 def _gestures(v: _Validator, items: Any, folder: Path | None,

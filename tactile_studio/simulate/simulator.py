@@ -33,10 +33,11 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.layout import CENTRE, SHEARSENSE_6X6, X_NEG, X_POS, Y_NEG, Y_POS, Layout
 from tactile_studio.simulate.contact import Contacts, channel_points, stress_fields
+from tactile_studio.simulate.faults import add_delamination
 from tactile_studio.simulate.gestures import IDLE, Style, TrialParams, envelope, gesture_model
 from tactile_studio.simulate.schedule import PRESS, Schedule, Trial
 
-FAULTS = ("none", "dead_taxel", "stuck_channel", "worn")
+FAULTS = ("none", "dead_taxel", "stuck_channel", "worn", "delaminated")
 _NOISE_BLOCK = 512
 _MAX_KPA = 60.0  # the dielectric bottoms out: beyond this the reading saturates
 
@@ -57,8 +58,9 @@ class SimConfig:
     relaxation_s: float = 3.0     # viscoelastic time constant
     creep: float = 0.2            # fraction of the response that lags the load
     gain_spread: float = 0.02     # per-channel sensitivity spread (relative std)
-    fault: str = "none"           # none | dead_taxel | stuck_channel | worn
+    fault: str = "none"           # none | dead_taxel | stuck_channel | worn | delaminated
     fault_taxel: int = 14         # the taxel the fault hits (worn: plus three others)
+    sensitivity_spread: float = 0.0  # per-taxel sensitivity spread (relative std)
     layout: Layout = SHEARSENSE_6X6
 
 
@@ -107,6 +109,10 @@ class SensorSimulator:
         elif cfg.fault == "stuck_channel":
             self.stuck_channel = cfg.fault_taxel * k + CENTRE
             self.stuck_value = int(round(0.95 * self.baseline[self.stuck_channel]))
+        if cfg.sensitivity_spread:  # own stream: seeds without a spread are unchanged
+            spread = np.random.default_rng([self.seed, 0x5E45, 1]).normal(
+                0, cfg.sensitivity_spread, nt)
+            self.taxel_gain *= np.clip(1 + spread, 0.2, None)
         b = self.baseline
         # Shear scale so decode() (which divides by C3*C3' and multiplies by C_a*C_b) is
         # exactly inverted: see _shear in tactile_studio/sensor/decode.py.
@@ -206,6 +212,8 @@ class SensorSimulator:
             normal, sx, sy = stress_fields(contacts, self._points, self._centre)
             c = self.config.crosstalk
             load[lo - f0:hi - f0] = np.concatenate([normal, sx + c * sy, sy + c * sx], axis=1)
+        if self.config.fault == "delaminated":
+            add_delamination(load, self.config.fault_taxel, self._centre, nc, nt)
         eff = self._viscoelastic(load)
         rel = self._relative_change(eff)
         t = np.arange(f0, f0 + n) / self.rate

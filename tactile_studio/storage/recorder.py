@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import threading
 from collections import Counter
@@ -10,6 +11,8 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.errors import UserError
+from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.session_writer import SessionWriter
 
 # Events that state something in force until the next one (the host->LSL clock offset of a
@@ -29,6 +32,9 @@ class Recorder:
                  metadata: dict[str, Any] | None = None, poll_s: float = 0.05,
                  flush_interval: float = 0.5) -> None:
         self.engine = engine
+        metadata = sensor_metadata(engine, metadata)
+        self.sensor_id: str | None = metadata.get("sensor_id")
+        self.recorded = 0  # frames this recorder took from the engine (for hours of use)
         self.writer = SessionWriter(path, engine.layout, engine.device.info(), metadata,
                                     flush_interval=flush_interval)
         self.poll_s = poll_s
@@ -61,6 +67,18 @@ class Recorder:
         self._thread.join()
         self._drain()
         self.writer.close()
+        self._log_usage()
+
+    def _log_usage(self) -> None:
+        """Add this recording's duration to the sensor's hours of use in the logbook."""
+        rate = float(self.engine.device.nominal_rate_hz or 0.0)
+        if not self.sensor_id or rate <= 0 or self.recorded == 0:
+            return
+        try:
+            with Logbook() as book:
+                book.add_usage(self.sensor_id, self.recorded / rate, str(self.path))
+        except UserError as exc:  # the recording itself is safe on disk; say so and go on
+            logging.getLogger(__name__).warning("hours of use not logged: %s", exc)
 
     def _run(self) -> None:
         while not self._stop.wait(self.poll_s):
@@ -88,6 +106,7 @@ class Recorder:
             self.writer.append_frames(chunk.raw, chunk.device_time, chunk.host_time,
                                       chunk.seq, index=np.arange(chunk.start, chunk.stop))
             self._cursor = chunk.stop
+            self.recorded += len(chunk)
         for event in self.engine.events_since(self._event_cursor):
             self._event_cursor += 1
             event = dict(event)
@@ -112,3 +131,20 @@ class Recorder:
             "reconnects": now["reconnects"] - start["reconnects"],
             "dropped": self.dropped,
         }
+
+
+def sensor_metadata(engine: AcquisitionEngine,
+                    metadata: dict[str, Any] | None) -> dict[str, Any]:
+    """Session metadata with the sensor ID (given, else the device's own) and the ID of
+    the sensor's active calibration in the logbook (so any later decode knows it)."""
+    meta = dict(metadata or {})
+    sensor = meta.get("sensor_id") or getattr(engine.device, "sensor_id", lambda: None)()
+    meta["sensor_id"] = sensor
+    if sensor and "calibration_id" not in meta:
+        try:
+            with Logbook() as book:
+                book.ensure_sensor(sensor, engine.layout.name)
+                meta["calibration_id"] = book.active_calibration(sensor)
+        except UserError as exc:
+            logging.getLogger(__name__).warning("sensor logbook unavailable: %s", exc)
+    return meta

@@ -1,0 +1,214 @@
+"""``sensors``, ``sensor``, ``wellness`` and ``calibrate``: the sensor engineer's commands."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.errors import UserError
+from tactile_studio.health.bench import Placer, SimulatedPlacer
+from tactile_studio.health.calibration import CalibrationSpec, run_calibration
+from tactile_studio.health.report import write_report
+from tactile_studio.health.wellness import WellnessSpec, run_wellness
+from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.sensor.wellness import DEFAULT_SPOTS
+from tactile_studio.storage.logbook import Logbook, age_text
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("sensors", help="list sensors in the logbook (hours, last check)")
+    p.add_argument("--json", action="store_true", help="print as JSON")
+    p.set_defaults(func=cmd_sensors)
+
+    p = sub.add_parser("sensor", help="one sensor's history: checks, calibrations, notes")
+    p.add_argument("id", help="sensor ID (see `sensors`)")
+    p.add_argument("--json", action="store_true", help="print as JSON")
+    p.set_defaults(func=cmd_sensor)
+
+    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots")
+    _device_args(p)
+    p.add_argument("--weight-g", type=float, required=True, help="the known weight, grams")
+    p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
+                   help=f"taxels to load (default {','.join(DEFAULT_SPOTS)})")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--report", metavar="FILE.html", help="write an HTML report with figures")
+    p.set_defaults(func=cmd_wellness)
+
+    p = sub.add_parser("calibrate", help="equilibrate and calibrate a sensor with known loads")
+    _device_args(p)
+    p.add_argument("--loads-g", required=True, help="loads in grams, increasing: 20,50,100,200,500")
+    p.add_argument("--taxels", default="all", help="all, or taxels to calibrate: B2,B5,...")
+    p.add_argument("--plate", action="store_true",
+                   help="a uniform plate over the whole array instead of a weight per taxel")
+    p.add_argument("--json", action="store_true", help="print the calibration summary as JSON")
+    p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
+    p.set_defaults(func=cmd_calibrate)
+
+
+def _device_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
+    p.add_argument("--sensor", required=True, help="sensor ID (see `sensors`)")
+    p.add_argument("--auto", action="store_true",
+                   help="the (simulated) device places the weights itself")
+
+
+def _split(text: str) -> list[str]:
+    return [t.strip() for t in text.split(",") if t.strip()]
+
+
+def _start(args: argparse.Namespace) -> tuple[AcquisitionEngine, Placer]:
+    device = create_device(args.device, parse_set_options(args.set))
+    placer = SimulatedPlacer(device) if args.auto else Placer()
+    engine = AcquisitionEngine(device)
+    engine.start()
+    if not engine.wait_frames(1, timeout=10.0):
+        engine.stop()
+        raise UserError(engine.error or f"device {args.device}: no frames within 10 s")
+    return engine, placer
+
+
+def _prompter(quiet: bool):
+    def on_event(kind: str, info: dict[str, Any]) -> None:
+        if not quiet and kind in ("phase", "misplaced", "warning"):
+            text = info.get("prompt") or info.get("message", "")
+            print(f"\n{text}", file=sys.stderr)
+    return on_event
+
+
+def _check_report_path(path: str | None) -> None:
+    if path and not Path(path).resolve().parent.is_dir():
+        raise UserError(f"{path}: the report's folder does not exist")
+
+
+def cmd_wellness(args: argparse.Namespace) -> int:
+    _check_report_path(args.report)
+    spec = WellnessSpec(args.sensor, args.weight_g, tuple(_split(args.spots)))
+    engine, placer = _start(args)
+    token = CancelToken()
+    try:
+        with ctrl_c_cancels(token):
+            result = run_wellness(engine, spec, placer, progress=TerminalProgress("wellness"),
+                                  cancel=token, on_event=_prompter(args.auto))
+    except BaseException:
+        print(file=sys.stderr)  # end the progress line before the error
+        raise
+    finally:
+        engine.stop()
+    if args.report:
+        write_report(args.report, f"Wellness check #{result['check_id']} of {result['sensor']}",
+                     result)
+    if args.json:
+        _dump({k: v for k, v in result.items() if k not in ("baseline", "noise")})
+        return 0
+    print(f"sensor {result['sensor']}: {result['verdict'].upper()} (check #{result['check_id']})")
+    for s in result["spots"]:
+        ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
+        print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} kPa"
+              f"  {ratio:>5} of reference  {s['verdict']}")
+    for reason in result["reasons"]:
+        print(f"  - {reason}")
+    return 0
+
+
+def _loads(text: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in _split(text))
+    except ValueError:
+        raise UserError(f"--loads-g {text!r}: expected grams separated by commas") from None
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    taxels = None if args.taxels.strip().lower() == "all" else tuple(_split(args.taxels))
+    spec = CalibrationSpec(args.sensor, _loads(args.loads_g), taxels, args.plate)
+    from tactile_studio.sensor.calibration import check_loads
+    check_loads(list(spec.loads_g))  # before connecting: bad input fails at once
+    _check_report_path(args.out)
+    engine, placer = _start(args)
+    token = CancelToken()
+    try:
+        with ctrl_c_cancels(token):
+            cal = run_calibration(engine, spec, args.out, placer, cancel=token,
+                                  progress=TerminalProgress("calibrate"),
+                                  on_event=_prompter(args.auto))
+    except BaseException:
+        print(file=sys.stderr)
+        raise
+    finally:
+        engine.stop()
+    report = Path(args.out).with_suffix(".html")  # residual plots beside the file
+    write_report(report, f"Calibration #{cal['calibration_id']} of {cal['sensor']}", cal,
+                 kind="calibration")
+    summary = {"sensor": cal["sensor"], "calibration_id": cal["calibration_id"],
+               "report": str(report),
+               "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,
+               "rms_pct_median": round(cal["rms_pct_median"], 4),
+               "rms_pct_max": round(cal["rms_pct_max"], 4), "gains": cal["gains"],
+               "skipped": cal["skipped"],
+               "taxels": [{k: f[k] for k in ("taxel", "model", "rms_pct", "sensitivity")}
+                          for f in cal["fits"]]}
+    if args.json:
+        _dump(summary)
+        return 0
+    print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
+    print(f"  rms error: median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
+          "of range")
+    for f in summary["taxels"]:
+        print(f"  {f['taxel']:<4} {f['model']:<10} sensitivity {f['sensitivity']:.3f}  "
+              f"rms {f['rms_pct']:.2f}%")
+    for skip in cal["skipped"]:
+        print(f"  not calibrated: {skip['reason']}")
+    return 0
+
+
+def _dump(obj: Any) -> None:
+    json.dump(obj, sys.stdout, indent=2, default=str)
+    print()
+
+
+def cmd_sensors(args: argparse.Namespace) -> int:
+    with Logbook() as book:
+        rows = [book.summary(s).to_dict() for s in book.sensor_ids()]
+    if args.json:
+        _dump(rows)
+        return 0
+    if not rows:
+        print("no sensors in the logbook yet (a recording or a wellness check adds one)")
+        return 0
+    print(f"{'sensor':<20} {'hours':>8}  {'last check':<22} {'calibration':>11}")
+    for r in rows:
+        check = (f"{r['last_verdict']} {age_text(r['last_check_at'])}"
+                 if r["last_verdict"] else "never")
+        cal = str(r["active_calibration"]) if r["active_calibration"] else "-"
+        print(f"{r['id']:<20} {r['hours']:>8.3f}  {check:<22} {cal:>11}")
+    return 0
+
+
+def cmd_sensor(args: argparse.Namespace) -> int:
+    with Logbook() as book:
+        hist = book.history(args.id)
+    if args.json:
+        _dump(hist)
+        return 0
+    lines = [f"sensor:      {hist['id']}  ({hist['layout'] or 'layout unknown'})",
+             f"registered:  {hist['created']}",
+             f"hours used:  {hist['hours']:.3f}",
+             f"calibration: {hist['active_calibration'] or 'none active'}",
+             f"checks:      {len(hist['checks'])}"]
+    for c in hist["checks"]:
+        lines.append(f"  #{c['id']} {c['at']} at {c['hours']:.2f} h  {c['verdict'].upper()}"
+                     f"  {c['weight_g']:g} g")
+        lines.extend(f"      {reason}" for reason in c["reasons"])
+    lines.append(f"calibrations: {len(hist['calibrations'])}")
+    for c in hist["calibrations"]:
+        lines.append(f"  #{c['id']} {c['at']} {c['kind']} rms {c['rms_pct']:.2f}% of range"
+                     + ("  (active)" if c["active"] else ""))
+    lines.append(f"notes:       {len(hist['notes'])}")
+    lines.extend(f"  {n['at']} [{n['kind']}] {n['text']}" for n in hist["notes"])
+    print("\n".join(lines))
+    return 0

@@ -1,0 +1,109 @@
+"""A wellness check or calibration running in a background thread, for a GUI to poll.
+
+The wizard stays responsive: it starts a :class:`HealthRun`, polls :meth:`events` from a
+timer, forwards Cancel and "the weight is on" to it, and reads ``result`` or ``error``
+at the end. Qt-free, so the same object is tested without a display.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from dataclasses import dataclass
+from typing import Any
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.registry import create_device
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.health.bench import Bench, Placer, SimulatedPlacer, Timing
+from tactile_studio.health.calibration import CalibrationSpec, run_calibration
+from tactile_studio.health.wellness import WellnessSpec, run_wellness
+from tactile_studio.jobs import CancelToken
+
+
+@dataclass
+class Event:
+    kind: str      # phase | misplaced | warning | spot | progress | done | error
+    info: dict[str, Any]
+
+
+class HealthRun:
+    """One procedure on its own device connection, in a thread."""
+
+    def __init__(self, device: str, settings: dict[str, Any], spec: WellnessSpec | CalibrationSpec,
+                 auto: bool = False, out: str | None = None, timing: Timing = Timing()) -> None:
+        self.device = create_device(device, settings)  # bad settings raise here, at once
+        self.placer: Placer = SimulatedPlacer(self.device) if auto else Placer()
+        self.spec, self.out, self.timing = spec, out, timing
+        self.cancel_token = CancelToken()
+        self.result: dict[str, Any] | None = None
+        self.error: str | None = None
+        self.fraction = 0.0
+        self.engine: AcquisitionEngine | None = None
+        self._bench: Bench | None = None
+        self._events: queue.Queue[Event] = queue.Queue()
+        self._thread = threading.Thread(target=self._run, name="health-run", daemon=True)
+
+    def start(self) -> HealthRun:
+        self._thread.start()
+        return self
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def join(self, timeout: float | None = None) -> bool:
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
+
+    def cancel(self) -> None:
+        self.cancel_token.cancel()
+
+    def confirm_placed(self) -> None:
+        if self._bench is not None:
+            self._bench.confirm_placed()
+
+    def events(self) -> list[Event]:
+        """Everything that happened since the last call (never blocks)."""
+        out = []
+        while True:
+            try:
+                out.append(self._events.get_nowait())
+            except queue.Empty:
+                return out
+
+    # ---- the thread ------------------------------------------------------------------
+    def _emit(self, kind: str, info: dict[str, Any]) -> None:
+        self._events.put(Event(kind, dict(info)))
+
+    def _progress(self, fraction: float, message: str) -> None:
+        self.fraction = fraction
+        self._emit("progress", {"fraction": fraction, "message": message})
+
+    def _run(self) -> None:
+        engine = self.engine = AcquisitionEngine(self.device)
+        try:
+            engine.start()
+            if not engine.wait_frames(1, timeout=10.0):
+                raise UserError(engine.error or f"device {self.device.name}: no frames in 10 s")
+            self._bench = Bench(engine, self.placer, self.timing, self.cancel_token,
+                                self._emit)
+            if isinstance(self.spec, WellnessSpec):
+                self.result = run_wellness(engine, self.spec, progress=self._progress,
+                                           bench=self._bench)
+            else:
+                self.result = run_calibration(engine, self.spec, self.out,
+                                              progress=self._progress, bench=self._bench)
+        except Cancelled:
+            self.error = "cancelled: nothing was stored"
+            self._emit("error", {"message": self.error})
+        except UserError as exc:
+            self.error = str(exc)
+            self._emit("error", {"message": self.error})
+        except Exception as exc:  # a bug: keep the traceback in the log, tell the user
+            logging.getLogger(__name__).exception("health procedure failed")
+            self.error = f"internal error: {type(exc).__name__}: {exc}"
+            self._emit("error", {"message": self.error})
+        finally:
+            engine.stop()

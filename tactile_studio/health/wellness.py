@@ -1,0 +1,142 @@
+"""The wellness check procedure: rest, then a known weight on each spot, then verdicts.
+
+Used by ``tactile-studio wellness`` and the wellness wizard. The maths is in
+:mod:`tactile_studio.sensor.wellness`; this module drives the bench, picks the sensor's
+reference from the logbook and stores the result there (only a complete check is
+stored: a cancelled or failed run leaves the logbook untouched).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.errors import UserError
+from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.sensor.calibration import expected_nominal_kpa
+from tactile_studio.sensor.layout import Layout
+from tactile_studio.sensor.wellness import (
+    DEFAULT_SPOTS,
+    PASS,
+    Thresholds,
+    analyse_rest,
+    judge_spots,
+    measure_spot,
+    parse_taxel,
+    stress_kpa,
+    taxel_label,
+    worst,
+)
+from tactile_studio.storage.logbook import Logbook, check_sensor_id
+
+
+@dataclass(frozen=True)
+class WellnessSpec:
+    """What to check: which sensor, which weight, where."""
+
+    sensor: str
+    weight_g: float
+    spots: tuple[str, ...] = DEFAULT_SPOTS
+    contact_mm: float = 14.0
+
+
+def resolve_sensor(book: Logbook, device: Any, sensor: str, layout_name: str) -> str:
+    """The sensor to check: the device's own ID must agree; an ID neither the device nor
+    the logbook knows is refused (a typo would otherwise start a new history)."""
+    sensor = check_sensor_id(sensor)
+    own = device.sensor_id() if hasattr(device, "sensor_id") else None
+    if own and own != sensor:
+        raise UserError(f"device {device.name} reports sensor {own}, not {sensor}")
+    if own:
+        book.ensure_sensor(own, layout_name)
+        return own
+    return book.require(sensor)
+
+
+def reference_for(book: Logbook, sensor: str, spec: WellnessSpec,
+                  layout: Layout) -> dict[str, Any]:
+    """The sensor's reference per spot: its first passing check with the same weight and
+    contact (and that check's rest baseline); for spots it did not load, what the active
+    calibration predicts; else nothing (the weight's nominal stress is used)."""
+    out: dict[str, Any] = {"check_id": None, "baseline": None, "spots": {},
+                           "calibration_id": None}
+    for check in book.checks(sensor):
+        res = check["result"]
+        if (check["verdict"] == PASS and res.get("weight_g") == spec.weight_g
+                and res.get("contact_mm") == spec.contact_mm):
+            out.update(check_id=check["id"], baseline=res.get("baseline"),
+                       spots={s["taxel"]: s["normal_kpa"] for s in res.get("spots", [])})
+            break
+    cal_id = book.active_calibration(sensor)
+    if cal_id is not None and layout.calibration is not None:
+        expected = stress_kpa(spec.weight_g, spec.contact_mm)
+        fits = {f["taxel"]: f for f in book.calibration(cal_id).get("fits", [])}
+        for taxel in spec.spots:
+            if taxel not in out["spots"] and taxel in fits:
+                out["spots"][taxel] = expected_nominal_kpa(layout, fits[taxel], expected)
+                out["calibration_id"] = cal_id
+    return out
+
+
+def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer | None = None,
+                 timing: Timing = Timing(), thresholds: Thresholds = Thresholds(),
+                 progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
+                 on_event: EventFn | None = None, store: bool = True,
+                 bench: Bench | None = None) -> dict[str, Any]:
+    """Run a whole check on a started engine; returns the result (with ``check_id``)."""
+    lay = engine.layout
+    if not lay.has_shear or lay.calibration is None:
+        raise UserError(f"wellness checks need a calibrated shear+normal sensor, not {lay.name}")
+    spots = [parse_taxel(lay, s) for s in spec.spots]
+    if len(set(spots)) != len(spots):
+        raise UserError(f"spots repeat a taxel: {', '.join(spec.spots)}")
+    expected = stress_kpa(spec.weight_g, spec.contact_mm)
+    with Logbook() as book:
+        sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
+        ref = reference_for(book, sensor, spec, lay)
+    bench = bench or Bench(engine, placer, timing, cancel, on_event)
+    steps = 1 + len(spots)
+    progress(0.0, "rest")
+    rest_raw = bench.rest()
+    ref_base = np.asarray(ref["baseline"]) if ref["baseline"] is not None else None
+    rest = analyse_rest(lay, rest_raw, bench.rate, ref_base, thresholds)
+    results = []
+    for i, taxel in enumerate(spots):
+        progress((1 + i) / steps, f"spot {taxel_label(lay, taxel)}")
+        raw = bench.load(spec.weight_g, taxel, expected, spec.contact_mm)
+        spot = measure_spot(lay, raw, bench.baseline, taxel, expected)
+        spot.reference_kpa = ref["spots"].get(spot.taxel)
+        results.append(spot)
+        bench.emit("spot", taxel=spot.taxel, normal_kpa=spot.normal_kpa)
+    judge_spots(lay, results, thresholds)
+    dead = sorted(set(rest.dead) | {c for s in results for c in s.dead_channels})
+    reasons = [words for _, words in rest.reasons] + [r for s in results for r in s.reasons]
+    verdict = worst([rest.verdict] + [s.verdict for s in results])
+    result = {
+        "sensor": sensor, "verdict": verdict, "weight_g": spec.weight_g,
+        "contact_mm": spec.contact_mm, "expected_kpa": round(expected, 4),
+        "spots": [s.to_dict() for s in results],
+        "channels": {"dead": dead, "stuck": rest.stuck, "noisy": rest.noisy,
+                     "saturated": rest.saturated},
+        "rest": {"noise_counts_median": round(float(np.median(rest.noise)), 3),
+                 "noise_counts_max": round(float(rest.noise.max()), 3),
+                 "drift_pct_per_min_max": round(float(np.abs(rest.drift_per_min).max()) * 100, 4),
+                 "baseline_shift_pct_max": None if rest.shift is None
+                 else round(float(np.abs(rest.shift).max()) * 100, 3),
+                 "frames": len(rest_raw)},
+        "reasons": reasons, "reference_check": ref["check_id"],
+        "reference_calibration": ref["calibration_id"],
+        "baseline": [round(float(v), 2) for v in rest.baseline],
+        "noise": [round(float(v), 3) for v in rest.noise],
+        "device": engine.device.info(), "check_id": None,
+    }
+    if store:
+        with Logbook() as book:
+            result["check_id"] = book.add_check(sensor, result)
+    progress(1.0, f"verdict {verdict}")
+    bench.emit("done", verdict=verdict, check_id=result["check_id"])
+    return result

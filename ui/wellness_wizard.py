@@ -1,0 +1,170 @@
+"""The wellness-check wizard: set up, run (rest, then the weight on each spot), verdict."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QDoubleSpinBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+    QWizard,
+    QWizardPage,
+)
+
+from tactile_studio.health.report import write_report
+from tactile_studio.health.runner import HealthRun
+from tactile_studio.health.wellness import WellnessSpec
+from tactile_studio.sensor.wellness import DEFAULT_SPOTS
+from tactile_studio.storage.logbook import Logbook
+from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
+from tactile_studio.ui.health_run_page import HealthRunPage
+
+
+def sensor_combo(current: str | None = None) -> QComboBox:
+    """An editable list of the logbook's sensors (type a new ID to add one)."""
+    box = QComboBox()
+    box.setEditable(True)
+    with Logbook() as book:
+        box.addItems(book.sensor_ids())
+    if current:
+        box.setCurrentText(current)
+    return box
+
+
+class DeviceSetupPage(QWizardPage):
+    """Device, sensor and the 'simulated device places the weights' switch."""
+
+    def __init__(self, title: str, device: str, settings: dict[str, Any]) -> None:
+        super().__init__()
+        self.setTitle(title)
+        self.device, self.settings = device, dict(settings)
+        self.form = QFormLayout(self)
+        self.device_label = QLabel(f"{device} "
+                                   + " ".join(f"{k}={v}" for k, v in self.settings.items()))
+        self.device_label.setWordWrap(True)
+        self.form.addRow("Device", self.device_label)
+        own = f"sim-{self.settings.get('seed', 0)}" if device == "simulated" else None
+        self.sensor = sensor_combo(own)
+        self.form.addRow("Sensor ID", self.sensor)
+        self.auto = QCheckBox("The simulated device places the weights itself")
+        self.auto.setChecked(device == "simulated")
+        self.auto.setEnabled(device == "simulated")
+        self.form.addRow("", self.auto)
+
+
+class WellnessSetupPage(DeviceSetupPage):
+    def __init__(self, device: str, settings: dict[str, Any]) -> None:
+        super().__init__("Wellness check: set up", device, settings)
+        self.weight = QDoubleSpinBox()
+        self.weight.setRange(1, 20000)
+        self.weight.setValue(200)
+        self.weight.setSuffix(" g")
+        self.form.addRow("Known weight", self.weight)
+        self.spots = QLineEdit(",".join(DEFAULT_SPOTS))
+        self.form.addRow("Spots", self.spots)
+        hint = QLabel("A 14 x 14 mm weight centred on each spot in turn. The check first "
+                      "reads the unloaded sensor for 3 s, then asks for the weight on each "
+                      "spot, waits for it to settle, records and asks you to lift it.")
+        hint.setWordWrap(True)
+        self.form.addRow(hint)
+
+    def spec(self) -> WellnessSpec:
+        spots = tuple(s.strip() for s in self.spots.text().split(",") if s.strip())
+        return WellnessSpec(self.sensor.currentText().strip(), self.weight.value(), spots)
+
+
+class WellnessResultPage(QWizardPage):
+    """The verdict, per-spot table and reasons; can save the HTML report."""
+
+    def __init__(self, run_page: HealthRunPage) -> None:
+        super().__init__()
+        self.setTitle("Wellness check: result")
+        self.run_page = run_page
+        self.verdict = QLabel("")
+        self.picture = ArrayPicture()
+        self.table = QTableWidget(0, 5)
+        self.table.setHorizontalHeaderLabels(["spot", "normal kPa", "shear kPa",
+                                              "ratio", "verdict"])
+        self.table.horizontalHeader().setSectionResizeMode(QHeaderView.ResizeMode.Stretch)
+        self.table.verticalHeader().setVisible(False)
+        self.reasons = QLabel("")
+        self.reasons.setWordWrap(True)
+        self.save = QPushButton("Save report…")
+        self.save.clicked.connect(self.save_report)
+        top = QHBoxLayout()
+        top.addWidget(self.picture, 1)
+        top.addWidget(self.table, 2)
+        box = QVBoxLayout(self)
+        box.addWidget(self.verdict)
+        box.addLayout(top, 1)
+        box.addWidget(self.reasons)
+        box.addWidget(self.save)
+
+    @property
+    def result(self) -> dict[str, Any]:
+        return self.run_page.run.result  # type: ignore[union-attr]
+
+    def initializePage(self) -> None:  # noqa: N802 - Qt name
+        res = self.result
+        v = res["verdict"]
+        self.verdict.setText(f"{res['sensor']}: {v.upper()}   (check #{res['check_id']})")
+        self.verdict.setStyleSheet(f"font-size: 18pt; font-weight: bold; "
+                                   f"color: {VERDICT_COLOURS[v]}")
+        self.picture.mark(verdicts={s["taxel"]: s["verdict"] for s in res["spots"]})
+        self.table.setRowCount(len(res["spots"]))
+        for i, s in enumerate(res["spots"]):
+            ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
+            for j, text in enumerate((s["taxel"], f"{s['normal_kpa']:.2f}",
+                                      f"{s['shear_kpa']:.2f}", ratio, s["verdict"])):
+                self.table.setItem(i, j, QTableWidgetItem(text))
+        ch = res["channels"]
+        lines = [f"• {r}" for r in res["reasons"]] or ["• every spot and channel is healthy"]
+        lines.append("channels: " + "; ".join(f"{k}: {', '.join(map(str, v)) or 'none'}"
+                                             for k, v in ch.items()))
+        self.reasons.setText("\n".join(lines))
+
+    def save_report(self, path: str | None = None) -> str | None:
+        if path is None:
+            path, _ = QFileDialog.getSaveFileName(self, "Save report", "wellness.html",
+                                                  "HTML (*.html)")
+        if not path:
+            return None
+        write_report(path, f"Wellness check #{self.result['check_id']} of "
+                           f"{self.result['sensor']}", self.result)
+        return path
+
+
+class WellnessWizard(QWizard):
+    """Set up → run → result, on its own connection to ``device``."""
+
+    def __init__(self, device: str = "simulated", settings: dict[str, Any] | None = None,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Wellness check")
+        self.setWizardStyle(QWizard.WizardStyle.ClassicStyle)
+        self.setup = WellnessSetupPage(device, settings or {})
+        self.run_page = HealthRunPage("Wellness check: running", self._make_run)
+        self.result_page = WellnessResultPage(self.run_page)
+        for page in (self.setup, self.run_page, self.result_page):
+            self.addPage(page)
+        self.resize(720, 620)
+
+    def _make_run(self) -> HealthRun:
+        s = self.setup
+        return HealthRun(s.device, s.settings, s.spec(), auto=s.auto.isChecked())
+
+    def done(self, code: int) -> None:
+        self.run_page.cancel()
+        super().done(code)
