@@ -63,8 +63,10 @@ def test_analysis_recovers_the_simulators_true_parameters_within_10_percent(tmp_
     calib = json.loads((tmp_path / "calibration.json").read_text())
     assert calib["format"] == "tactile-studio-calibration"
     assert set(calib["taxels"]) == {"B2", "A1"}
-    for png in ("maps.png", "B2_fits.png", "B2_timeline.png", "B2_neighbours.png"):
+    for png in ("maps.png", "B2.png", "A1.png"):
         assert (tmp_path / "figures" / png).stat().st_size > 10_000
+    raw = json.loads((tmp_path / "raw" / "B2.json").read_text())
+    assert len(raw["normal"]["points"]) == 2 * 16 + 1 + 2  # load, unload, lifted, relaxed
     assert "B2" in (tmp_path / "report.html").read_text()
     # one session: sensor frames, stage positions, load-cell samples, measured points
     with Session(tmp_path / "session.h5") as s:

@@ -80,8 +80,12 @@ def analyse_shear(data: dict[str, Any], tau: float | None) -> dict[str, Any]:
                  if peak else None}
         t, ry = np.asarray(d["return_t"]), np.asarray(d["return_y"])
         if len(t) > 5 and peak:
+            # both ends settle with the relaxation time; their asymptotes a few seconds
+            # apart give the offset free of the baseline drift over the whole drag
             _, asym, _ = exp_settle_fit(t, ry, tau)
-            entry["offset"] = (asym - pts[0][along]) / peak
+            lt, ly = np.asarray(d.get("lifted_t", [])), np.asarray(d.get("lifted_y", []))
+            zero = exp_settle_fit(lt, ly, tau)[1] if len(lt) > 5 else pts[0][along]
+            entry["offset"] = (asym - zero) / peak
             offsets.append(entry["offset"])
         by_dir[name] = entry
         top = pts[-1]

@@ -25,7 +25,10 @@ MAPS = (("normal_sensitivity_low", "normal sensitivity, low range (/kPa)"),
         ("crosstalk_max", "normal crosstalk, worst neighbour"))
 
 
-def _figure(w: float, h: float):  # noqa: ANN202
+def _figure(w: float, h: float, fig=None):  # noqa: ANN001, ANN202
+    """A new figure, or ``fig`` (a subfigure of a taxel's page) when given."""
+    if fig is not None:
+        return fig
     from matplotlib.figure import Figure
 
     return Figure(figsize=(w, h), dpi=100, layout="constrained")
@@ -36,35 +39,40 @@ def _legend(ax) -> None:  # noqa: ANN001
         ax.legend(fontsize=7)
 
 
-def timeline_figure(name: str, raw: dict[str, Any]):  # noqa: ANN201
-    """Sensor (left axis) and load cell (right axis) at every stage step, in time."""
-    fig = _figure(8, 3.2)
-    ax = fig.add_subplot()
-    pts = raw.get("normal", {}).get("points", [])
+def timeline_figure(name: str, raw: dict[str, Any], fig=None):  # noqa: ANN001, ANN201
+    """Sensor (left axes) and load cell (right axes) at every stage step, in time:
+    normal on top, shear below (each stage step is one stair)."""
+    fig = _figure(9, 5.0, fig)
+    top, bottom = fig.subplots(2, 1, sharex=True)
+    pts = list(raw.get("normal", {}).get("points", []))
     for d in raw.get("shear", {}).get("directions", {}).values():
-        pts = pts + d["points"]
+        pts += d["points"]
     pts = sorted(pts, key=lambda p: p["t"])
     t = np.array([p["t"] for p in pts])
-    ax.step(t, [p["normal"] for p in pts], where="post", color="tab:blue", label="sensor normal")
-    ax.step(t, [p["shear_x"] for p in pts], where="post", color="tab:green", label="sensor shear x")
-    ax.step(t, [p["shear_y"] for p in pts], where="post", color="tab:olive", label="sensor shear y")
-    ax.set_xlabel("time (s, lab clock)")
-    ax.set_ylabel("sensor, relative change")
-    ax2 = ax.twinx()
-    ax2.plot(t, [p["pz"] for p in pts], "k.", ms=3, label="load cell normal")
-    ax2.plot(t, [p["px"] for p in pts], "r.", ms=3, label="load cell shear x")
-    ax2.plot(t, [p["py"] for p in pts], "m.", ms=3, label="load cell shear y")
-    ax2.set_ylabel("load cell stress (kPa)")
-    ax.set_title(f"{name}: sensor and load cell at every stage step")
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=7, ncols=2, loc="upper right")
+    rows = ((top, (("normal", "tab:blue", "pz", "k", "normal"),), "normal"),
+            (bottom, (("shear_x", "tab:green", "px", "r", "shear x"),
+                      ("shear_y", "tab:olive", "py", "m", "shear y")), "shear"))
+    for ax, series, label in rows:
+        ax2 = ax.twinx()
+        for key, colour, force_key, force_colour, what in series:
+            ax.step(t, [p[key] for p in pts], where="post", color=colour,
+                    label=f"sensor {what}")
+            ax2.plot(t, [p[force_key] for p in pts], ".", color=force_colour, ms=3,
+                     label=f"load cell {what}")
+        ax.set_ylabel(f"sensor {label}\n(relative change)")
+        ax2.set_ylabel("load cell (kPa)")
+        h1, l1 = ax.get_legend_handles_labels()
+        h2, l2 = ax2.get_legend_handles_labels()
+        ax.legend(h1 + h2, l1 + l2, fontsize=7, ncols=2, loc="upper right")
+    top.set_title(f"{name}: sensor and load cell at every stage step")
+    bottom.set_xlabel("time (s, lab clock)")
     return fig
 
 
-def fits_figure(name: str, raw: dict[str, Any], metrics: dict[str, Any]):  # noqa: ANN201
+def fits_figure(name: str, raw: dict[str, Any], metrics: dict[str, Any],
+                fig=None):  # noqa: ANN001, ANN201
     """Two-range normal fit, shear fits per direction, relaxation fit."""
-    fig = _figure(11, 3.4)
+    fig = _figure(11, 3.4, fig)
     a1, a2, a3 = fig.subplots(1, 3)
     if "normal" in raw:
         pts = raw["normal"]["points"]
@@ -102,9 +110,10 @@ def fits_figure(name: str, raw: dict[str, Any], metrics: dict[str, Any]):  # noq
     return fig
 
 
-def neighbours_figure(layout: Layout, name: str, metrics: dict[str, Any]):  # noqa: ANN201
+def neighbours_figure(layout: Layout, name: str, metrics: dict[str, Any],
+                      fig=None):  # noqa: ANN001, ANN201
     """Normal and shear crosstalk to the 8 neighbours as 3x3 grids around the taxel."""
-    fig = _figure(6.4, 3.0)
+    fig = _figure(6.4, 3.0, fig)
     row = ord(name[0]) - ord("A")
     col = int(name[1:]) - 1
     for ax, key, title in zip(fig.subplots(1, 2), ("crosstalk_normal", "crosstalk_shear"),
@@ -147,6 +156,19 @@ def maps_figure(layout: Layout, taxels: dict[str, dict[str, Any]]):  # noqa: ANN
     return fig
 
 
+def taxel_figure(layout: Layout, name: str, raw: dict[str, Any], metrics: dict[str, Any]):  # noqa: ANN201
+    """One page per taxel: timeline, fits, neighbour responses (one render: fast)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(11, 12), dpi=80, layout="constrained")
+    top, mid, bottom = fig.subfigures(3, 1, height_ratios=(5, 3.6, 3))
+    timeline_figure(name, raw, top)
+    fits_figure(name, raw, metrics, mid)
+    if "crosstalk_normal" in metrics or "crosstalk_shear" in metrics:
+        neighbours_figure(layout, name, metrics, bottom)
+    return fig
+
+
 def _fmt(v: Any) -> str:
     if v is None:
         return "–"
@@ -155,8 +177,10 @@ def _fmt(v: Any) -> str:
     return html.escape(str(v))
 
 
-def write_report(out_dir: Path, result: dict[str, Any], layout: Layout) -> list[Path]:
-    """Every figure as PNG under ``out_dir/figures`` plus ``out_dir/report.html``."""
+def write_report(out_dir: Path, result: dict[str, Any], layout: Layout,
+                 raw: dict[str, Any]) -> list[Path]:
+    """A page of figures per taxel and the array maps as PNGs under ``out_dir/figures``,
+    plus ``out_dir/report.html``. ``raw``: the measured points per taxel."""
     out_dir = Path(out_dir)
     figdir = out_dir / "figures"
     figdir.mkdir(exist_ok=True)
@@ -172,12 +196,8 @@ def write_report(out_dir: Path, result: dict[str, Any], layout: Layout) -> list[
     maps = save(maps_figure(layout, taxels), "maps.png") if taxels else None
     sections = []
     for name, m in taxels.items():
-        raw = result.get("raw", {}).get(name, {})
-        imgs = [save(timeline_figure(name, raw), f"{name}_timeline.png")]
-        imgs.append(save(fits_figure(name, raw, m), f"{name}_fits.png"))
-        if "crosstalk_normal" in m:
-            imgs.append(save(neighbours_figure(layout, name, m), f"{name}_neighbours.png"))
-        sections.append(f"<h2>{name}</h2>" + "".join(f'<img src="{i}" alt="{i}">' for i in imgs))
+        img = save(taxel_figure(layout, name, raw.get(name, {}), m), f"{name}.png")
+        sections.append(f'<h2>{name}</h2><img src="{img}" alt="{name}">')
     head = "".join(f"<th>{k}</th>" for k in TABLE_KEYS)
     rows = "".join(f"<tr><td>{n}</td>" + "".join(f"<td>{_fmt(m.get(k))}</td>" for k in TABLE_KEYS)
                    + "</tr>" for n, m in taxels.items())

@@ -100,7 +100,7 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     result: dict[str, Any] = {
         "format": RESULT_FORMAT, "version": 1, "sensor": sensor_id, "layout": layout.name,
         "device": device.info(), "stage": stage.info(), "force": force.info(),
-        "plan": plan.to_dict(), "taxels_requested": names, "taxels": {}, "raw": {},
+        "plan": plan.to_dict(), "taxels_requested": names, "taxels": {},
         "session": "session.h5", "complete": False, "aborted": None,
         "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "units": {"normal_sensitivity": "relative change per kPa", "breakpoint": "kPa",
@@ -108,6 +108,8 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                   "relaxation": "s", "hysteresis": "fraction of loading area",
                   "shear_offset": "fraction of peak", "crosstalk": "fraction of target"}}
     json_path = out_dir / "characterisation.json"
+    (out_dir / "raw").mkdir(exist_ok=True)
+    raw_by_taxel: dict[str, Any] = {}  # measured points and traces, also in raw/<taxel>.json
     stage.open()
     force.open()
     lab: Lab | None = None
@@ -147,8 +149,9 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                     data["repeat"] = repeat_sequence(
                         lab, plan, taxel, x0, y0,
                         lambda f, m, k=k: sub((k + f) / len(seqs), m))
-            result["raw"][name] = data
             result["taxels"][name] = analyse_taxel(data)
+            raw_by_taxel[name] = data
+            _write_json(out_dir / "raw" / f"{name}.json", data)
             if on_point is not None:
                 on_point(name, result["taxels"][name])
             _write_json(json_path, result)
@@ -169,7 +172,7 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
         if report and result["taxels"]:
             from tactile_studio.characterise.report import write_report
 
-            write_report(out_dir, result, layout)
+            write_report(out_dir, result, layout, raw_by_taxel)
     return result
 
 

@@ -107,8 +107,13 @@ def shear_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> di
         t, _, sx, sy = lab.signals(t_start, lab.clock.now())
         trace = (sx if axis == 0 else sy)[:, taxel]
         lab.move(z=plan.approach_mm, speed=plan.speed_mm_s)
+        t_lift = lab.clock.now()  # lifted: the local zero the offset is measured from
+        lab.clock.sleep(plan.settle_s, lab.cancel)
+        lt, _, lsx, lsy = lab.signals(t_lift, lab.clock.now())
         out["directions"][name] = {"points": points, "return_t": (t - t_start).tolist(),
-                                   "return_y": trace.tolist()}
+                                   "return_y": trace.tolist(),
+                                   "lifted_t": (lt - t_lift).tolist(),
+                                   "lifted_y": (lsx if axis == 0 else lsy)[:, taxel].tolist()}
     out["z_preload"] = z_pre
     return out
 
