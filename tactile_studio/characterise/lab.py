@@ -136,6 +136,13 @@ class Lab:
         _, normal, sx, sy = self.signals(t0, t1)
         self._pull_forces()
         sel = (self._ft >= t0 - 1e-9) & (self._ft < t1 + 1e-9)
+        if not np.any(sel):  # a slow load cell: its newest samples up to 0.5 s before
+            sel = (self._ft >= t0 - 0.5) & (self._ft < t1 + 1e-9)
+        deadline = time.monotonic() + 2.0
+        while not np.any(sel) and time.monotonic() < deadline:
+            time.sleep(0.05)  # give the plugin the chance to say why (unplugged, garbage)
+            self._pull_forces()
+            sel = (self._ft >= t0 - 0.5) & (self._ft < t1 + 1e-9)
         if not np.any(sel):
             raise InstrumentError(f"force {self.force.name}: no load-cell samples between "
                                   f"{t0:.2f} and {t1:.2f} s (is it connected and streaming?)")

@@ -160,12 +160,15 @@ def taxel_figure(layout: Layout, name: str, raw: dict[str, Any], metrics: dict[s
     """One page per taxel: timeline, fits, neighbour responses (one render: fast)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(11, 12), dpi=80, layout="constrained")
+    fig = Figure(figsize=(11, 12), dpi=80)  # fixed margins: constrained layout doubles the cost
     top, mid, bottom = fig.subfigures(3, 1, height_ratios=(5, 3.6, 3))
     timeline_figure(name, raw, top)
+    top.subplots_adjust(left=0.09, right=0.91, top=0.93, bottom=0.1, hspace=0.08)
     fits_figure(name, raw, metrics, mid)
+    mid.subplots_adjust(left=0.07, right=0.98, top=0.9, bottom=0.15, wspace=0.3)
     if "crosstalk_normal" in metrics or "crosstalk_shear" in metrics:
         neighbours_figure(layout, name, metrics, bottom)
+        bottom.subplots_adjust(left=0.15, right=0.85, top=0.9, bottom=0.04, wspace=0.2)
     return fig
 
 
