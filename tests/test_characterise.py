@@ -173,3 +173,20 @@ def test_plan_and_instrument_settings_are_validated():
     assert len(parse_taxels(sim_device().layout, "all")) == 36
     assert np.isfinite(true_parameters(sim_device().simulator, SimulatedStage().skin, 0)
                        ["breakpoint_kpa"])
+
+
+def test_all_taxels_are_mapped(tmp_path):
+    from tactile_studio.characterise.report import MAPS, maps_figure
+
+    dev = sim_device()
+    plan = Plan(sequences=("normal",), dwell_s=0.3, normal_steps=4, relax_hold_s=0.5,
+                settle_s=0.3, window_s=0.1)
+    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), plan,
+                                  parse_taxels(dev.layout, "all"), tmp_path, report=False)
+    assert len(result["taxels"]) == 36
+    fig = maps_figure(dev.layout, result["taxels"])
+    maps = dict(zip((k for k, _ in MAPS), (ax.images[0].get_array() for ax in fig.axes[:len(MAPS)])))
+    for key in ("normal_sensitivity_low", "crosstalk_max"):
+        assert maps[key].shape == (6, 6) and not np.ma.getmaskarray(maps[key]).any(), key
+    # shear was not run: its maps are all grey (masked), not zeros
+    assert np.ma.getmaskarray(maps["shear_sensitivity_x"]).all()
