@@ -58,6 +58,7 @@ class Lab:
         self._ft = np.empty(0)
         self._ff = np.empty((0, 3))
         self.baseline: np.ndarray | None = None
+        self.on_point: Any = None  # callable(taxel name, point dict) for a live plot
 
     # ---- journal ---------------------------------------------------------------------
     def event(self, kind: str, **detail: Any) -> None:

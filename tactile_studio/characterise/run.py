@@ -81,12 +81,15 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                          plan: Plan, taxels: list[int], out_dir: Path, *,
                          sensor_id: str | None = None, progress: ProgressFn = no_progress,
                          control: RunControl | None = None,
-                         on_point: Any = None, report: bool = True) -> dict[str, Any]:
+                         on_point: Any = None, on_taxel: Any = None,
+                         report: bool = True) -> dict[str, Any]:
     """Characterise ``taxels`` and return the result dict (also in characterisation.json).
 
     Raises Cancelled (after retracting and saving) when ``control`` is cancelled, and
     UserError subclasses for instrument problems, also after saving what was measured.
-    ``on_point(taxel_name, metrics)`` (optional) sees each taxel's metrics as it ends.
+    ``on_point(taxel_name, point)`` sees every measured point (a live plot) and
+    ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends (both optional,
+    called from the calling thread).
     ``report``: also write figures/ and report.html (for what was measured).
     """
     control = control or RunControl()
@@ -122,6 +125,7 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                                         "stage": stage.info(), "force": force.info(),
                                         "indenter_area_mm2": area}})
         result["clock"] = lab.clock.name
+        lab.on_point = on_point
         lab.clock.sleep(0.5, control)
         stage.home()
         lab.event("char_homed")
@@ -152,8 +156,8 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
             result["taxels"][name] = analyse_taxel(data)
             raw_by_taxel[name] = data
             _write_json(out_dir / "raw" / f"{name}.json", data)
-            if on_point is not None:
-                on_point(name, result["taxels"][name])
+            if on_taxel is not None:
+                on_taxel(name, result["taxels"][name])
             _write_json(json_path, result)
             progress((i + 1) / len(taxels), f"{name} done")
         result["complete"] = True

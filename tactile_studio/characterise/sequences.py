@@ -28,8 +28,10 @@ def _point(lab: Lab, taxel: int, r: Reading, **extra: Any) -> dict[str, Any]:
          "nb_shear_x": {n: float(r.shear_x[t]) for n, t in nb.items()},
          "nb_shear_y": {n: float(r.shear_y[t]) for n, t in nb.items()}}
     p = {k: (float(v) if isinstance(v, np.floating) else v) for k, v in p.items()}
-    lab.event("char_point", taxel=lab.layout.taxel_name(*lab.layout.taxel_rc(taxel)),
-              **{k: v for k, v in p.items() if not k.startswith("nb_")})
+    name = lab.layout.taxel_name(*lab.layout.taxel_rc(taxel))
+    lab.event("char_point", taxel=name, **{k: v for k, v in p.items() if not k.startswith("nb_")})
+    if lab.on_point is not None:
+        lab.on_point(name, p)
     return p
 
 
