@@ -19,10 +19,10 @@ from tactile_studio.sensor.layout import Layout
 TABLE_KEYS = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
               "shear_sensitivity_x", "shear_sensitivity_y", "r2_shear", "crosstalk_max",
               "relaxation_s", "hysteresis", "shear_offset", "repeat_drift")
-MAPS = (("normal_sensitivity_low", "normal sensitivity, low range (/kPa)"),
-        ("shear_sensitivity_x", "shear sensitivity x (/kPa)"),
-        ("r2_shear", "shear R² (worst direction)"),
-        ("crosstalk_max", "normal crosstalk, worst neighbour"))
+MAPS = (("normal_sensitivity_low", "normal, low range (/kPa)"),
+        ("shear_sensitivity_x", "shear x (/kPa)"),
+        ("r2_shear", "shear R² (worst dir.)"),
+        ("crosstalk_max", "normal crosstalk (max)"))
 
 
 def _figure(w: float, h: float, fig=None):  # noqa: ANN001, ANN202
