@@ -40,11 +40,31 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="repeatability cycles (default: the paper's 22000)")
     p.add_argument("--sensor", default=None, help="sensor id for the report and calibration")
     p.add_argument("--json", action="store_true", help="print the per-taxel results as JSON")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--out", default=None, help="output folder (required without --wizard)")
+    p.add_argument("--wizard", action="store_true",
+                   help="open the characterisation wizard instead (--out pre-fills its folder)")
     p.set_defaults(func=run)
 
 
+def run_wizard(out: str) -> int:
+    from tactile_studio.cli.gui import require_display
+
+    require_display("run `tactile-studio characterise ... --out DIR` on a headless machine")
+    from tactile_studio.ui.app import ensure_app
+    from tactile_studio.ui.characterise_wizard import CharacteriseWizard
+
+    app = ensure_app()
+    wizard = CharacteriseWizard(out)
+    wizard.resize(1000, 760)
+    wizard.show()
+    return 0 if app.exec() == 0 else 1
+
+
 def run(args: argparse.Namespace) -> int:
+    if args.wizard:
+        return run_wizard(args.out or "characterisation")
+    if not args.out:
+        raise UserError("characterise: --out DIR is required (or use --wizard)")
     params = parse_set_options(args.param)
     if args.cycles is not None:
         params["cycles"] = str(args.cycles)
