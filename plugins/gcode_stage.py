@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 from tactile_studio.devices.contract import Setting
 from tactile_studio.instruments.contract import InstrumentError, StagePlugin
-from tactile_studio.plugins.sim_stage import LIMIT_SETTINGS, check_limits
+from tactile_studio.instruments.limits import LIMIT_SETTINGS, check_limits
 
 _POS = re.compile(r"X:\s*(-?[\d.]+)\s+Y:\s*(-?[\d.]+)\s+Z:\s*(-?[\d.]+)")
 
@@ -146,7 +146,6 @@ class GcodeStage(StagePlugin):
     def retract(self) -> None:
         """Quick-stop whatever move is under way (M410), then lift straight up."""
         self.command("M410")
-        x, y, _ = self.position()
-        self._target = (x, y, self.position()[2])
+        self._target = x, y, _ = self.position()  # where the quick stop left the head
         self.move_to(x, y, self.settings["safe_z"], speed=self.settings["travel_speed"])
         self.wait_until_still()

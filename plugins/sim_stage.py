@@ -12,34 +12,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tactile_studio.devices.contract import Setting
-from tactile_studio.instruments.contract import (
-    InstrumentError,
-    LabClock,
-    SoftLimitError,
-    StagePlugin,
-)
+from tactile_studio.instruments.contract import InstrumentError, LabClock, StagePlugin
+from tactile_studio.instruments.limits import LIMIT_SETTINGS, check_limits
 from tactile_studio.simulate.indenter import Bench, SkinModel, bench_for
-
-LIMIT_SETTINGS: tuple[Setting, ...] = (
-    Setting("safe_z", "float", 5.0, "retract height above the skin, mm", minimum=0.5),
-    Setting("floor_z", "float", -1.5, "soft limit: the indenter never goes below this z, mm"),
-    Setting("x_min", "float", -20.0, "soft limit, mm"),
-    Setting("x_max", "float", 100.0, "soft limit, mm"),
-    Setting("y_min", "float", -20.0, "soft limit, mm"),
-    Setting("y_max", "float", 100.0, "soft limit, mm"),
-)
-
-
-def check_limits(name: str, settings: dict[str, Any], x: float, y: float, z: float) -> None:
-    """SoftLimitError (one line) if (x, y, z) is outside the stage's soft limits."""
-    s = settings
-    if z < s["floor_z"]:
-        raise SoftLimitError(f"stage {name}: z={z:.3f} mm is below the floor "
-                             f"floor_z={s['floor_z']} mm (refused, nothing moved)")
-    for axis, v in (("x", x), ("y", y)):
-        if not s[f"{axis}_min"] <= v <= s[f"{axis}_max"]:
-            raise SoftLimitError(f"stage {name}: {axis}={v:.3f} mm is outside "
-                                 f"{s[f'{axis}_min']}..{s[f'{axis}_max']} mm (refused)")
 
 
 class SimClock(LabClock):
