@@ -96,7 +96,10 @@ class SimulatedSensor(DevicePlugin):
         max_frames = max(1, int(max_frames))
         speed = float(self.settings["speed"])
         n = max_frames
-        if speed > 0:
+        external = self._sim.external  # a lockstep bench (simulate/indenter.py) paces speed 0
+        if speed <= 0 and external is not None:
+            n = external.allowed(self._sim.frame, max_frames, _WAIT_S)
+        elif speed > 0:
             deadline = time.monotonic() + _WAIT_S
             while True:
                 n = min(max_frames, self._due() - self._sim.frame)

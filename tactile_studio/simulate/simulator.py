@@ -123,6 +123,9 @@ class SensorSimulator:
         self._alpha = float(np.exp(-1.0 / (self.rate * max(cfg.relaxation_s, 1e-6))))
         self._noise_cache: dict[int, np.ndarray] = {}
         self._params_cache: dict[tuple, TrialParams] = {}
+        # An external load consulted for every frame (the characterisation bench, see
+        # simulate/indenter.py): an object with ``contacts(frames) -> Contacts | None``.
+        self.external = None
         self._mode, self._style = cfg.gesture, int(cfg.style_seed)
         self._intensity, self._speed = float(cfg.intensity), float(cfg.speed)
         self.schedule = Schedule(self.rate, self.seed)
@@ -212,6 +215,12 @@ class SensorSimulator:
             normal, sx, sy = stress_fields(contacts, self._points, self._centre)
             c = self.config.crosstalk
             load[lo - f0:hi - f0] = np.concatenate([normal, sx + c * sy, sy + c * sx], axis=1)
+        if self.external is not None:
+            extra = self.external.contacts(np.arange(f0, f0 + n))
+            if extra is not None:
+                normal, sx, sy = stress_fields(extra, self._points, self._centre)
+                c = self.config.crosstalk
+                load += np.concatenate([normal, sx + c * sy, sy + c * sx], axis=1)
         if self.config.fault == "delaminated":
             add_delamination(load, self.config.fault_taxel, self._centre, nc, nt)
         eff = self._viscoelastic(load)

@@ -1,0 +1,191 @@
+"""Running a characterisation: taxel after taxel, cancellable, pausable, crash-safe.
+
+``run_characterisation`` drives a sensor device, a stage and a force reference through
+the plan's sequences on each taxel, records everything into ``DIR/session.h5`` and
+rewrites ``DIR/characterisation.json`` after every taxel, so whatever happens (abort,
+a stage error, a silent load cell) the data so far stays on disk. On abort or error the
+stage retracts first, then the files are closed and the report is written for what was
+measured.
+"""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.characterise.analyse import analyse_taxel
+from tactile_studio.characterise.lab import Lab
+from tactile_studio.characterise.plan import Plan
+from tactile_studio.characterise.sequences import (
+    normal_sequence,
+    repeat_sequence,
+    shear_sequence,
+)
+from tactile_studio.devices.contract import DevicePlugin
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+
+RESULT_FORMAT = "tactile-studio-characterisation"
+CALIBRATION_FORMAT = "tactile-studio-calibration"
+
+
+class RunControl(CancelToken):
+    """Cancel (abort) plus pause/resume: a pause takes effect between taxels (the
+    stage retracts and waits); resuming continues with the next taxel."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._running = threading.Event()
+        self._running.set()
+
+    def pause(self) -> None:
+        self._running.clear()
+
+    def resume(self) -> None:
+        self._running.set()
+
+    @property
+    def paused(self) -> bool:
+        return not self._running.is_set()
+
+    def wait_while_paused(self) -> None:
+        while not self._running.wait(0.05):
+            self.check()
+        self.check()
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=float))
+    tmp.replace(path)
+
+
+def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
+    """The derived calibration (per taxel slopes) in the logbook hand-off format."""
+    taxels = {}
+    for name, m in result["taxels"].items():
+        keys = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
+                "shear_sensitivity_x", "shear_sensitivity_y")
+        if all(m.get(k) is not None for k in keys):
+            taxels[name] = {k: m[k] for k in keys}
+    return {"format": CALIBRATION_FORMAT, "version": 1, "sensor": result.get("sensor"),
+            "created": result.get("finished") or result.get("started"),
+            "source": "characterisation.json", "units": result["units"], "taxels": taxels}
+
+
+def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
+                         plan: Plan, taxels: list[int], out_dir: Path, *,
+                         sensor_id: str | None = None, progress: ProgressFn = no_progress,
+                         control: RunControl | None = None,
+                         on_point: Any = None, on_taxel: Any = None,
+                         report: bool = True) -> dict[str, Any]:
+    """Characterise ``taxels`` and return the result dict (also in characterisation.json).
+
+    Raises Cancelled (after retracting and saving) when ``control`` is cancelled, and
+    UserError subclasses for instrument problems, also after saving what was measured.
+    ``on_point(taxel_name, point)`` sees every measured point (a live plot) and
+    ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends (both optional,
+    called from the calling thread).
+    ``report``: also write figures/ and report.html (for what was measured).
+    """
+    control = control or RunControl()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    layout = device.layout
+    if not layout.has_shear:
+        raise UserError(f"device {device.name}: characterisation needs a shear sensor layout, "
+                        f"not {layout.name}")
+    names = [layout.taxel_name(*layout.taxel_rc(t)) for t in taxels]
+    result: dict[str, Any] = {
+        "format": RESULT_FORMAT, "version": 1, "sensor": sensor_id, "layout": layout.name,
+        "device": device.info(), "stage": stage.info(), "force": force.info(),
+        "plan": plan.to_dict(), "taxels_requested": names, "taxels": {},
+        "session": "session.h5", "complete": False, "aborted": None,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "units": {"normal_sensitivity": "relative change per kPa", "breakpoint": "kPa",
+                  "shear_sensitivity": "differential relative change per kPa",
+                  "relaxation": "s", "hysteresis": "fraction of loading area",
+                  "shear_offset": "fraction of peak", "crosstalk": "fraction of target"}}
+    json_path = out_dir / "characterisation.json"
+    (out_dir / "raw").mkdir(exist_ok=True)
+    raw_by_taxel: dict[str, Any] = {}  # measured points and traces, also in raw/<taxel>.json
+    stage.open()
+    force.open()
+    lab: Lab | None = None
+    try:
+        stage.couple(device)
+        force.couple(device, stage)
+        area = float(stage.settings.get("indenter_mm", 14.0)) ** 2
+        lab = Lab(device, stage, force, out_dir / "session.h5", area, control,
+                  {"characterisation": {"plan": plan.to_dict(), "taxels": names,
+                                        "stage": stage.info(), "force": force.info(),
+                                        "indenter_area_mm2": area}})
+        result["clock"] = lab.clock.name
+        lab.on_point = on_point
+        lab.clock.sleep(0.5, control)
+        stage.home()
+        lab.event("char_homed")
+        for i, (taxel, name) in enumerate(zip(taxels, names)):
+            if control.paused:
+                lab.retract()
+                lab.event("char_paused", before=name)
+                progress(i / len(taxels), f"paused before {name}")
+                control.wait_while_paused()
+                lab.event("char_resumed", at=name)
+            x0, y0 = layout.taxel_centre_mm(*layout.taxel_rc(taxel))
+            lab.event("char_taxel", taxel=name, x=x0, y=y0)
+            data: dict[str, Any] = {}
+            seqs = plan.sequences
+
+            def sub(done: float, msg: str, i: int = i, name: str = name) -> None:
+                progress((i + min(done, 1.0)) / len(taxels), f"{name}: {msg}")
+            for k, seq in enumerate(seqs):
+                sub(k / len(seqs), seq)
+                if seq == "normal":
+                    data["normal"] = normal_sequence(lab, plan, taxel, x0, y0)
+                elif seq == "shear":
+                    data["shear"] = shear_sequence(lab, plan, taxel, x0, y0)
+                else:
+                    data["repeat"] = repeat_sequence(
+                        lab, plan, taxel, x0, y0,
+                        lambda f, m, k=k: sub((k + f) / len(seqs), m))
+            result["taxels"][name] = analyse_taxel(data)
+            raw_by_taxel[name] = data
+            _write_json(out_dir / "raw" / f"{name}.json", data)
+            if on_taxel is not None:
+                on_taxel(name, result["taxels"][name])
+            _write_json(json_path, result)
+            progress((i + 1) / len(taxels), f"{name} done")
+        result["complete"] = True
+    except (Cancelled, UserError) as exc:
+        result["aborted"] = str(exc) or type(exc).__name__
+        _retract(stage, lab, exc)
+        raise
+    finally:
+        result["finished"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        if lab is not None:
+            lab.close()
+        stage.close()
+        force.close()
+        _write_json(json_path, result)
+        _write_json(out_dir / "calibration.json", calibration_from(result))
+        if report and result["taxels"]:
+            from tactile_studio.characterise.report import write_report
+
+            write_report(out_dir, result, layout, raw_by_taxel)
+    return result
+
+
+def _retract(stage: StagePlugin, lab: Lab | None, exc: BaseException) -> None:
+    """Abort path: lift the indenter first; record why; never mask the original error."""
+    try:
+        lab.retract() if lab is not None else stage.retract()
+    except Exception as err:  # the stage may be what failed
+        if lab is not None:
+            lab.event("char_retract_failed", error=str(err))
+    if lab is not None:
+        lab.event("char_aborted", reason=str(exc) or type(exc).__name__)

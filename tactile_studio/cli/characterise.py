@@ -1,0 +1,98 @@
+"""``tactile-studio characterise``: the shear paper's characterisation with a stage and a
+load cell, headless. Writes DIR/characterisation.json, calibration.json, session.h5,
+figures/ and report.html; on an error or Ctrl-C the stage retracts first and everything
+measured so far stays on disk."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise.plan import SEQUENCES
+from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.errors import UserError
+from tactile_studio.instruments import create_force, create_stage
+from tactile_studio.jobs import TerminalProgress, ctrl_c_cancels
+from tactile_studio.sensor.characterise import parse_taxels
+
+PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("characterise", help="characterise taxels with a stage and a load cell",
+                       description=__doc__)
+    p.add_argument("--device", default="simulated", help="sensor device plugin (default simulated)")
+    p.add_argument("--stage", default="simulated", help="stage plugin (simulated, gcode, ...)")
+    p.add_argument("--force", default="simulated", help="force-reference plugin (simulated, serial, ...)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
+    p.add_argument("--stage-set", action="append", metavar="KEY=VALUE", help="stage setting")
+    p.add_argument("--force-set", action="append", metavar="KEY=VALUE", help="force setting")
+    p.add_argument("--param", action="append", metavar="KEY=VALUE",
+                   help="characterisation parameter, e.g. dwell_s=1 (see docs/characterisation.md)")
+    p.add_argument("--taxels", default=PAPER_TAXELS,
+                   help=f"comma-separated taxel names or 'all' (default: the paper's {PAPER_TAXELS})")
+    p.add_argument("--sequence", default="all", choices=[*SEQUENCES, "all"],
+                   help="which sequence(s) to run (default all)")
+    p.add_argument("--cycles", type=int, default=None,
+                   help="repeatability cycles (default: the paper's 22000)")
+    p.add_argument("--sensor", default=None, help="sensor id for the report and calibration")
+    p.add_argument("--json", action="store_true", help="print the per-taxel results as JSON")
+    p.add_argument("--out", default=None, help="output folder (required without --wizard)")
+    p.add_argument("--wizard", action="store_true",
+                   help="open the characterisation wizard instead (--out pre-fills its folder)")
+    p.set_defaults(func=run)
+
+
+def run_wizard(out: str) -> int:
+    from tactile_studio.cli.gui import require_display
+
+    require_display("run `tactile-studio characterise ... --out DIR` on a headless machine")
+    from tactile_studio.ui.app import ensure_app
+    from tactile_studio.ui.characterise_wizard import CharacteriseWizard
+
+    app = ensure_app()
+    wizard = CharacteriseWizard(out)
+    wizard.resize(1000, 760)
+    wizard.show()
+    return 0 if app.exec() == 0 else 1
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.wizard:
+        return run_wizard(args.out or "characterisation")
+    if not args.out:
+        raise UserError("characterise: --out DIR is required (or use --wizard)")
+    params = parse_set_options(args.param)
+    if args.cycles is not None:
+        params["cycles"] = str(args.cycles)
+    if args.sequence != "all":
+        params["sequences"] = args.sequence
+    plan = Plan.with_overrides(params)
+    device = create_device(args.device, parse_set_options(args.set))
+    try:
+        taxels = parse_taxels(device.layout, args.taxels)
+    except ValueError as exc:
+        raise UserError(f"--taxels: {exc}") from None
+    stage = create_stage(args.stage, parse_set_options(args.stage_set))
+    force = create_force(args.force, parse_set_options(args.force_set))
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise UserError(f"--out {out}: exists and is not a folder")
+    control = RunControl()
+    progress = TerminalProgress("characterise")
+    try:
+        with ctrl_c_cancels(control):
+            result = run_characterisation(device, stage, force, plan, taxels, out,
+                                          sensor_id=args.sensor, progress=progress,
+                                          control=control)
+    except UserError as exc:
+        raise UserError(f"{exc} (data so far kept in {out})") from None
+    if args.json:
+        print(json.dumps(result["taxels"], indent=1))
+    else:
+        print(f"characterised {len(result['taxels'])} taxel(s); report: {out / 'report.html'}",
+              file=sys.stderr)
+    return 0

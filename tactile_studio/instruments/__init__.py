@@ -1,0 +1,23 @@
+"""Instrument plugins beside devices: positioning stages and force references.
+
+Contracts in :mod:`.contract`, discovery through the ``tactile_studio.stages`` and
+``tactile_studio.forces`` entry-point groups in :mod:`.registry`, conformance checks
+for plugin authors in :mod:`.conformance`. See docs/characterisation.md.
+"""
+
+from tactile_studio.instruments.conformance import InstrumentCheckError, check_force, check_stage
+from tactile_studio.instruments.contract import (
+    ForcePlugin,
+    ForceSamples,
+    InstrumentError,
+    LabClock,
+    SoftLimitError,
+    StagePlugin,
+)
+from tactile_studio.instruments.registry import available, create_force, create_stage
+
+__all__ = [
+    "ForcePlugin", "ForceSamples", "InstrumentCheckError", "InstrumentError", "LabClock",
+    "SoftLimitError", "StagePlugin", "available", "check_force", "check_stage", "create_force",
+    "create_stage",
+]

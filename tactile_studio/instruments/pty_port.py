@@ -1,0 +1,91 @@
+"""A pseudo-terminal the instrument emulators speak through (the plugins open its slave
+side with pyserial like any port). ``unplug`` closes it as pulling a USB cable does;
+``link`` is a stable symlink re-pointed at each new pty."""
+
+from __future__ import annotations
+
+import os
+import select
+import threading
+import tty
+from pathlib import Path
+
+
+class PtyPort:
+    def __init__(self, link: str | os.PathLike | None = None) -> None:
+        self.link = Path(link) if link is not None else None
+        self.path: str | None = None
+        self._master: int | None = None
+        self._buf = b""
+        self._lock = threading.Lock()
+
+    def open(self) -> str:
+        """Plug in a new pty (raw mode); returns the slave path."""
+        self.close()
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        self.path = os.ttyname(slave)
+        os.close(slave)
+        os.set_blocking(master, False)
+        self._master = master
+        if self.link is not None:
+            tmp = self.link.with_name(f".{self.link.name}.{os.getpid()}.tmp")
+            tmp.unlink(missing_ok=True)
+            os.symlink(self.path, tmp)
+            os.replace(tmp, self.link)
+        return self.path
+
+    @property
+    def port(self) -> str:
+        if self.link is not None:
+            return str(self.link)
+        if self.path is None:
+            raise RuntimeError("pty not open")
+        return self.path
+
+    @property
+    def is_open(self) -> bool:
+        return self._master is not None
+
+    def close(self) -> None:
+        with self._lock:
+            if self._master is not None:
+                os.close(self._master)
+                self._master = None
+                self._buf = b""
+
+    def write(self, data: bytes) -> bool:
+        """Write all of ``data`` (False when unplugged or nobody reads and it is full)."""
+        with self._lock:
+            fd = self._master
+            if fd is None:
+                return False
+            view = memoryview(data)
+            while view:
+                try:
+                    n = os.write(fd, view)
+                except BlockingIOError:
+                    if not select.select([], [fd], [], 0.05)[1]:
+                        return False
+                    continue
+                except OSError:
+                    return False
+                view = view[n:]
+            return True
+
+    def read_lines(self, timeout_s: float) -> list[str]:
+        """Complete lines received within ``timeout_s`` (may be empty)."""
+        fd = self._master
+        if fd is None:
+            return []
+        try:
+            ready = select.select([fd], [], [], timeout_s)[0]
+        except (OSError, ValueError):
+            return []
+        if ready:
+            try:
+                self._buf += os.read(fd, 4096)
+            except (BlockingIOError, OSError):
+                pass
+        *lines, self._buf = self._buf.replace(b"\r", b"").split(b"\n")
+        return [ln.decode("ascii", "replace").strip() for ln in lines]

@@ -1,0 +1,81 @@
+"""The characterisation wizard driven by pytest-qt on the simulated instruments to a report."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QWizard
+
+from tactile_studio.storage.session import Session
+from tactile_studio.ui.characterise_wizard import CharacteriseWizard
+
+QUICK = {"sequences": "normal,shear", "dwell_s": "0.5", "normal_steps": "4",
+         "relax_hold_s": "2", "settle_s": "0.5", "window_s": "0.2", "directions": "+x,+y"}
+
+
+@pytest.fixture
+def wizard(qtbot, tmp_path):
+    w = CharacteriseWizard(str(tmp_path / "run"))
+    qtbot.addWidget(w)
+    w.resize(900, 700)
+    w.show()
+    yield w
+    if w.running:
+        w.control.cancel()
+        qtbot.waitUntil(lambda: not w.running, timeout=30000)
+
+
+def fill_plan(w, taxels: str) -> None:
+    w.plan_page.taxels.setText(taxels)
+    for k, v in QUICK.items():
+        w.plan_page.set_param(k, v)
+
+
+def test_wizard_runs_to_a_report(qtbot, wizard, tmp_path):
+    w = wizard
+    w.setup.sensor.setText("S-42")
+    w.next()
+    fill_plan(w, "B2,C3")
+    w.next()
+    assert w.currentPage() is w.run_page
+    qtbot.waitUntil(lambda: w.run_page.finished_run, timeout=90000)
+    assert w.run_page.normal.getData()[0] is not None and len(w.run_page.normal.getData()[0]) > 10
+    assert w.error == ""
+    w.next()
+    assert w.currentPage() is w.report
+    assert w.report.table.rowCount() == 2
+    assert w.report.table.item(0, 0).text() == "B2"
+    assert "Run complete" in w.report.summary.text()
+    saved = json.loads((tmp_path / "run" / "characterisation.json").read_text())
+    assert saved["sensor"] == "S-42" and set(saved["taxels"]) == {"B2", "C3"}
+    assert not w.report.maps.pixmap().isNull()
+    w.report.grab().save(str(tmp_path / "report.png"))
+
+
+def test_bad_taxel_stays_on_the_plan_page(qtbot, wizard):
+    w = wizard
+    w.next()
+    w.plan_page.taxels.setText("B2,H9")
+    w.next()
+    assert w.currentPage() is w.plan_page
+    assert "taxel 'H9' is not on the 6x6 array" in w.plan_page.error.text()
+
+
+def test_abort_lifts_and_reports_what_was_done(qtbot, wizard):
+    w = wizard
+    w.next()
+    fill_plan(w, "B2,B3,B4")
+    w.next()
+    qtbot.waitUntil(lambda: w.run_page.status.text().startswith("B3"), timeout=60000)
+    qtbot.mouseClick(w.run_page.abort, Qt.LeftButton)
+    qtbot.waitUntil(lambda: w.run_page.finished_run, timeout=30000)
+    assert "Stopped" in w.run_page.status.text()
+    w.next()
+    assert w.report.table.rowCount() == 1  # B2 finished before the abort
+    assert "stopped" in w.report.summary.text()
+    assert w.button(QWizard.FinishButton).isVisible()
+    with Session(w.out_dir / "session.h5") as session:
+        stage = [e for e in session.events if e["kind"] == "stage"]
+    assert stage[-1]["retract"] is True and stage[-1]["z"] == pytest.approx(5.0)

@@ -1,0 +1,302 @@
+"""The characterisation wizard: instruments → plan → run (live plot, pause, abort) → report.
+
+It only presents tactile_studio.characterise: the run happens in a worker thread through
+``run_characterisation``; points, progress and the result come back as Qt signals.
+"""
+
+from __future__ import annotations
+
+import threading
+from pathlib import Path
+from typing import Any
+
+import pyqtgraph as pg
+from PySide6.QtCore import QObject, Qt, Signal
+from PySide6.QtGui import QPixmap
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QHBoxLayout,
+    QHeaderView,
+    QLabel,
+    QLineEdit,
+    QProgressBar,
+    QPushButton,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWizard,
+    QWizardPage,
+)
+
+from tactile_studio.characterise import RunControl, run_characterisation
+from tactile_studio.characterise.prepare import plan_fields, plugin_names, prepare
+from tactile_studio.characterise.report import TABLE_KEYS
+from tactile_studio.errors import Cancelled, UserError
+
+PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
+
+
+class _Bridge(QObject):
+    """Worker thread → GUI thread (queued signals)."""
+
+    point = Signal(str, object)
+    progress = Signal(float, str)
+    done = Signal(object, str)  # result dict or None, error text ("" when fine)
+
+
+class SetupPage(QWizardPage):
+    def __init__(self, out_dir: str) -> None:
+        super().__init__()
+        self.setTitle("Instruments")
+        self.setSubTitle("The sensor, the stage carrying the indenter, and the load cell.")
+        names = plugin_names()
+        form = QFormLayout(self)
+        self.combos: dict[str, QComboBox] = {}
+        self.sets: dict[str, QLineEdit] = {}
+        defaults = {"device": "speed=0 gesture=idle"}
+        for kind in ("device", "stage", "force"):
+            combo = QComboBox()
+            combo.addItems(names[kind])
+            combo.setCurrentText("simulated")
+            edit = QLineEdit(defaults.get(kind, ""))
+            edit.setPlaceholderText("key=value key=value")
+            self.combos[kind], self.sets[kind] = combo, edit
+            form.addRow(f"{kind.capitalize()}:", combo)
+            form.addRow(f"{kind.capitalize()} settings:", edit)
+        self.sensor = QLineEdit()
+        self.sensor.setPlaceholderText("sensor id for the report (optional)")
+        self.out = QLineEdit(out_dir)
+        form.addRow("Sensor id:", self.sensor)
+        form.addRow("Output folder:", self.out)
+
+
+class PlanPage(QWizardPage):
+    def __init__(self) -> None:
+        super().__init__()
+        self.setTitle("Plan")
+        self.setSubTitle("The paper's sequences and defaults; edit any value.")
+        lay = QVBoxLayout(self)
+        form = QFormLayout()
+        self.taxels = QLineEdit(PAPER_TAXELS)
+        form.addRow("Taxels (names or 'all'):", self.taxels)
+        lay.addLayout(form)
+        rows = plan_fields()
+        self.table = QTableWidget(len(rows), 2)
+        self.table.setHorizontalHeaderLabels(["parameter", "value"])
+        self.table.verticalHeader().hide()
+        self.table.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeToContents)
+        self.table.horizontalHeader().setStretchLastSection(True)
+        for i, (name, value) in enumerate(rows):
+            item = QTableWidgetItem(name)
+            item.setFlags(item.flags() & ~Qt.ItemIsEditable)
+            self.table.setItem(i, 0, item)
+            self.table.setItem(i, 1, QTableWidgetItem(value))
+        lay.addWidget(self.table)
+        self.error = QLabel()
+        self.error.setStyleSheet("color: #b00020")
+        self.error.setWordWrap(True)
+        lay.addWidget(self.error)
+
+    def set_param(self, name: str, value: str) -> None:
+        for i in range(self.table.rowCount()):
+            if self.table.item(i, 0).text() == name:
+                self.table.item(i, 1).setText(value)
+                return
+        raise KeyError(name)
+
+    def params(self) -> dict[str, str]:
+        defaults = dict(plan_fields())
+        out = {}
+        for i in range(self.table.rowCount()):
+            name, value = self.table.item(i, 0).text(), self.table.item(i, 1).text().strip()
+            if value != defaults[name]:
+                out[name] = value
+        return out
+
+    def validatePage(self) -> bool:
+        wiz: CharacteriseWizard = self.wizard()
+        try:
+            wiz.prepared = wiz.prepare_run()
+        except UserError as exc:
+            self.error.setText(str(exc))
+            return False
+        self.error.clear()
+        return True
+
+
+class RunPage(QWizardPage):
+    def __init__(self) -> None:
+        super().__init__()
+        self.setTitle("Run")
+        self.setSubTitle("Sensor against load cell at every step. Pause waits for the end of "
+                         "the taxel; abort lifts the indenter first.")
+        lay = QVBoxLayout(self)
+        self.plot = pg.PlotWidget(background="w")
+        self.plot.setLabel("bottom", "load cell stress (kPa)")
+        self.plot.setLabel("left", "sensor (relative change)")
+        self.plot.addLegend(offset=(10, 10))
+        self.normal = self.plot.plot([], [], pen=None, symbol="o", symbolSize=6,
+                                     symbolBrush="#1f77b4", name="normal")
+        self.shear = self.plot.plot([], [], pen=None, symbol="t", symbolSize=6,
+                                    symbolBrush="#2ca02c", name="shear (along the drag)")
+        lay.addWidget(self.plot, 1)
+        self.status = QLabel("Ready")
+        self.bar = QProgressBar()
+        self.bar.setRange(0, 1000)
+        lay.addWidget(self.status)
+        lay.addWidget(self.bar)
+        row = QHBoxLayout()
+        self.pause = QPushButton("Pause")
+        self.resume = QPushButton("Resume")
+        self.abort = QPushButton("Abort")
+        self.resume.setEnabled(False)
+        for b in (self.pause, self.resume, self.abort):
+            row.addWidget(b)
+        row.addStretch(1)
+        lay.addLayout(row)
+        self.finished_run = False
+        self._xy: dict[str, tuple[list[float], list[float]]] = {"n": ([], []), "s": ([], [])}
+
+    def add_point(self, taxel: str, p: dict[str, Any]) -> None:
+        if p.get("sequence") == "normal":
+            key, x, y = "n", p["pz"], p["normal"]
+        else:
+            axis = "x" if "x" in p.get("direction", "x") else "y"
+            key, x, y = "s", p["p" + axis], p["shear_" + axis]
+        xs, ys = self._xy[key]
+        xs.append(x)
+        ys.append(y)
+        (self.normal if key == "n" else self.shear).setData(xs, ys)
+
+    def isComplete(self) -> bool:
+        return self.finished_run
+
+
+class ReportPage(QWizardPage):
+    def __init__(self) -> None:
+        super().__init__()
+        self.setTitle("Report")
+        lay = QVBoxLayout(self)
+        self.summary = QLabel()
+        self.summary.setWordWrap(True)
+        self.summary.setTextInteractionFlags(Qt.TextSelectableByMouse)
+        lay.addWidget(self.summary)
+        self.table = QTableWidget(0, len(TABLE_KEYS) + 1)
+        self.table.setHorizontalHeaderLabels(["taxel", *[k.replace("_", " ") for k in TABLE_KEYS]])
+        self.table.verticalHeader().hide()
+        lay.addWidget(self.table, 1)
+        self.maps = QLabel()
+        self.maps.setAlignment(Qt.AlignCenter)
+        lay.addWidget(self.maps, 2)
+
+    def show_result(self, result: dict[str, Any] | None, error: str, out: Path) -> None:
+        taxels = (result or {}).get("taxels", {})
+        state = "complete" if result and result.get("complete") else f"stopped: {error}"
+        self.summary.setText(f"Run {state}. {len(taxels)} taxel(s) characterised. Files in "
+                             f"{out}: characterisation.json, calibration.json, session.h5, "
+                             "report.html, figures/.")
+        self.table.setRowCount(len(taxels))
+        for r, (name, m) in enumerate(taxels.items()):
+            self.table.setItem(r, 0, QTableWidgetItem(name))
+            for c, key in enumerate(TABLE_KEYS, start=1):
+                v = m.get(key)
+                self.table.setItem(r, c, QTableWidgetItem("–" if v is None else f"{v:.4g}"))
+        self.table.resizeColumnsToContents()
+        maps = out / "figures" / "maps.png"
+        if maps.exists():
+            self.maps.setPixmap(QPixmap(str(maps)).scaledToWidth(900, Qt.SmoothTransformation))
+
+
+class CharacteriseWizard(QWizard):
+    """Instruments → plan → run → report, on the core's characterisation API."""
+
+    def __init__(self, out_dir: str = "characterisation", parent=None) -> None:  # noqa: ANN001
+        super().__init__(parent)
+        self.setWindowTitle("Characterise taxels")
+        self.setOption(QWizard.NoBackButtonOnLastPage, True)
+        self.setup, self.plan_page = SetupPage(out_dir), PlanPage()
+        self.run_page, self.report = RunPage(), ReportPage()
+        for page in (self.setup, self.plan_page, self.run_page, self.report):
+            self.addPage(page)
+        self.prepared = None
+        self.control = RunControl()
+        self.result: dict[str, Any] | None = None
+        self.error = ""
+        self._bridge = _Bridge()
+        self._bridge.point.connect(self.run_page.add_point)
+        self._bridge.progress.connect(self._on_progress)
+        self._bridge.done.connect(self._on_done)
+        self.run_page.pause.clicked.connect(self._pause)
+        self.run_page.resume.clicked.connect(self._resume)
+        self.run_page.abort.clicked.connect(self.control.cancel)
+        self.currentIdChanged.connect(self._page_changed)
+        self._thread: threading.Thread | None = None
+
+    @property
+    def out_dir(self) -> Path:
+        return Path(self.setup.out.text().strip() or "characterisation")
+
+    def prepare_run(self):  # noqa: ANN201
+        s = self.setup
+        return prepare(s.combos["device"].currentText(), s.sets["device"].text(),
+                       s.combos["stage"].currentText(), s.sets["stage"].text(),
+                       s.combos["force"].currentText(), s.sets["force"].text(),
+                       self.plan_page.taxels.text(), self.plan_page.params())
+
+    def _page_changed(self, page_id: int) -> None:
+        if self.page(page_id) is self.run_page and self._thread is None:
+            self._start()
+        if self.page(page_id) is self.report:
+            self.report.show_result(self.result, self.error, self.out_dir)
+
+    def _start(self) -> None:
+        p, bridge, out = self.prepared, self._bridge, self.out_dir
+        sensor = self.setup.sensor.text().strip() or None
+
+        def work() -> None:
+            result, error = None, ""
+            try:
+                result = run_characterisation(
+                    p.device, p.stage, p.force, p.plan, p.taxels, out, sensor_id=sensor,
+                    progress=lambda f, m: bridge.progress.emit(f, m), control=self.control,
+                    on_point=lambda name, pt: bridge.point.emit(name, pt))
+            except (UserError, Cancelled) as exc:
+                error = str(exc) or "aborted"
+            bridge.done.emit(result, error)
+        self.button(QWizard.BackButton).setEnabled(False)
+        self._thread = threading.Thread(target=work, name="characterise", daemon=True)
+        self._thread.start()
+
+    def _on_progress(self, fraction: float, message: str) -> None:
+        self.run_page.bar.setValue(int(fraction * 1000))
+        self.run_page.status.setText(message)
+
+    def _on_done(self, result: dict[str, Any] | None, error: str) -> None:
+        import json
+
+        if result is None:
+            path = self.out_dir / "characterisation.json"
+            result = json.loads(path.read_text()) if path.exists() else None
+        self.result, self.error = result, error
+        page = self.run_page
+        page.finished_run = True
+        page.status.setText("Finished" if not error else f"Stopped: {error}")
+        for b in (page.pause, page.resume, page.abort):
+            b.setEnabled(False)
+        page.completeChanged.emit()
+
+    def _pause(self) -> None:
+        self.control.pause()
+        self.run_page.pause.setEnabled(False)
+        self.run_page.resume.setEnabled(True)
+        self.run_page.status.setText("Pausing after this taxel…")
+
+    def _resume(self) -> None:
+        self.control.resume()
+        self.run_page.pause.setEnabled(True)
+        self.run_page.resume.setEnabled(False)
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
