@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -68,6 +69,7 @@ class SimulatedSensor(DevicePlugin):
             drift=s["drift"], crosstalk=s["crosstalk"], fault=s["fault"],
             fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"]))
         self._lock = threading.RLock()
+        self._pacer: Callable[[int, float], int] | None = None
         self._open = False
         self._t0 = 0.0        # wall clock at open
         self._f0 = 0          # frame index at open
@@ -99,6 +101,8 @@ class SimulatedSensor(DevicePlugin):
         external = self._sim.external  # a lockstep bench (simulate/indenter.py) paces speed 0
         if speed <= 0 and external is not None:
             n = external.allowed(self._sim.frame, max_frames, _WAIT_S)
+        elif speed <= 0 and self._pacer is not None:
+            n = self._pacer(max_frames, _WAIT_S)
         elif speed > 0:
             deadline = time.monotonic() + _WAIT_S
             while True:
@@ -111,6 +115,12 @@ class SimulatedSensor(DevicePlugin):
                 next_at = self._t0 + (self._sim.frame - self._f0) / (self.nominal_rate_hz * speed)
                 time.sleep(min(max(next_at - now, 0.0005), deadline - now))
         return self._batch(n)
+
+    def pace_with(self, pacer: Callable[[int, float], int] | None) -> None:
+        """At speed 0, let ``pacer(max_frames, wait_s)`` say how many frames to make now
+        (0: none yet). Faster than real time must not mean faster than a consumer that
+        may not lose frames (a wellness check on a loaded machine lapped the ring)."""
+        self._pacer = pacer
 
     def sensor_id(self) -> str:
         """The simulated sensor's identity comes from its seed (baselines, gains, faults)."""

@@ -64,6 +64,9 @@ class Placer:
         return None
 
 
+LEAD_FRAMES = 4096  # how far a speed-0 simulator may run ahead of the check (ring: 65,536)
+
+
 class SimulatedPlacer(Placer):
     """The simulated device places the weight itself (``--auto``)."""
 
@@ -96,6 +99,24 @@ class SimulatedPlacer(Placer):
         trial, self._trial = self._trial, None
         return int(self.device.lift(trial))
 
+    def attach(self, bench: Bench) -> None:
+        """At speed 0 the simulator runs at most ``LEAD_FRAMES`` ahead of the check, so a
+        loaded machine slows the check down instead of making it lose frames."""
+        engine = bench.engine
+
+        def allowed(max_frames: int, wait_s: float) -> int:
+            if engine.state in (STOPPED, ERROR, FINISHED):  # this check is over
+                return max_frames
+            deadline = time.monotonic() + wait_s
+            while True:
+                room = bench.cursor + LEAD_FRAMES - engine.frames
+                if room > 0 or time.monotonic() >= deadline:
+                    return max(0, min(max_frames, room))
+                time.sleep(0.002)
+
+        if hasattr(self.device, "pace_with"):
+            self.device.pace_with(allowed)
+
 
 class Bench:
     """Frames from an engine, read in order, and the load steps over them."""
@@ -113,6 +134,14 @@ class Bench:
         self._cursor = engine.frames
         self._skip_before = -1
         self._confirm = threading.Event()
+        attach = getattr(self.placer, "attach", None)
+        if attach is not None:
+            attach(self)
+
+    @property
+    def cursor(self) -> int:
+        """The next engine frame the check will read."""
+        return self._cursor
 
     def frames(self, seconds: float) -> int:
         return max(1, int(round(seconds * self.rate)))
