@@ -11,9 +11,9 @@ from pathlib import Path
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.collect import open_session
-from tactile_studio.protocol.protocol_file import load_protocol
 from tactile_studio.protocol.runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
 

@@ -11,8 +11,8 @@ from typing import Any
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.collect import CollectionSession, open_session, resume_session
-from tactile_studio.protocol.protocol_file import Protocol, load_protocol
 from tactile_studio.protocol.runner import StreamClock
+from tactile_studio.storage.protocol_file import Protocol, load_protocol
 
 TIMEOUT_S = 15.0  # a safety net for a hung loop, never a timing assertion
 

@@ -14,8 +14,8 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.errors import SessionFileError
-from tactile_studio.protocol.protocol_file import load_protocol
 from tactile_studio.protocol.randomise import block_orders
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")

@@ -16,12 +16,12 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.errors import Cancelled
 from tactile_studio.jobs import CancelToken
-from tactile_studio.protocol.protocol_file import load_protocol
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Session, SessionWriter
 from tactile_studio.storage.exporters import export_npz, export_session
 from tactile_studio.storage.importers import _common, import_shearsense
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.shearsense import read_shearsense_csv, write_shearsense_csv
 
 COST_NAMES = ["grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",

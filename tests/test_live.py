@@ -15,9 +15,9 @@ from tactile_studio.live import (
     LiveController,
     LiveView,
     RateMeter,
-    _Trail,
     parse_taxel_name,
 )
+from tactile_studio.live.view import _Trail
 from tactile_studio.sensor import SHEARSENSE_6X6, decode
 from tactile_studio.storage import Session
 

@@ -8,13 +8,13 @@ from pathlib import Path
 import pytest
 
 from tactile_studio.errors import UserError
-from tactile_studio.protocol.protocol_file import (
+from tactile_studio.protocol.randomise import block_orders, practice_order
+from tactile_studio.storage.protocol_file import (
     ProtocolError,
     list_protocols,
     load_protocol,
     protocol_from_dict,
 )
-from tactile_studio.protocol.randomise import block_orders, practice_order
 
 SHEAR9 = ["Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
           "Circular Stroke", "Constant Touch", "Tickle"]

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from collect_fixtures import do_trial, drive, make_rig, mini_protocol, perform_soon, start
 
-from tactile_studio.protocol.protocol_file import load_protocol
 from tactile_studio.protocol.virtual import VirtualParticipant
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
 

@@ -17,10 +17,11 @@ from serial_helpers import wait_until
 
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.devices.line_decoder import KINDS, LineDecoder
-from tactile_studio.devices.serial_emulator import SerialEmulator, array_source, load_source
+from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Recorder, Session, SessionWriter
+from tactile_studio.storage.frame_sources import load_source
 
 
 def ramp_source():

@@ -12,7 +12,7 @@ import pytest
 from PySide6.QtCore import QPointF
 
 from tactile_studio.live import History
-from tactile_studio.live_meters import PaintPacer
+from tactile_studio.live.meters import PaintPacer
 from tactile_studio.sensor import SHEARSENSE_6X6
 from tactile_studio.sensor.decode import FrameDecoder
 from tactile_studio.sensor.layout import CENTRE, X_NEG, X_POS, Y_NEG, Y_POS

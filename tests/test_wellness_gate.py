@@ -9,8 +9,8 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.health.gate import WellnessRequired, admit, wellness_status
-from tactile_studio.protocol.protocol_file import ProtocolError, load_protocol
 from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.protocol_file import ProtocolError, load_protocol
 from tactile_studio.storage.session import Session
 
 PROTO = """

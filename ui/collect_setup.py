@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.protocol.protocol_file import Protocol, list_protocols, load_protocol
+from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
 

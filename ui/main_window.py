@@ -27,7 +27,7 @@ from tactile_studio.live import (
     RateMeter,
     parse_taxel_name,
 )
-from tactile_studio.live_meters import PaintPacer
+from tactile_studio.live.meters import PaintPacer
 from tactile_studio.ui.device_panel import DevicePanel
 from tactile_studio.ui.heatmap import COLOR_SCHEMES, HeatmapView, strip_colors
 from tactile_studio.ui.settings import app_settings, get_json, set_json, style_sheet

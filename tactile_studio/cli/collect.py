@@ -28,9 +28,9 @@ from tactile_studio.protocol.collect import (
     read_resume_info,
     resume_session,
 )
-from tactile_studio.protocol.protocol_file import Protocol, load_protocol
 from tactile_studio.protocol.runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
+from tactile_studio.storage.protocol_file import Protocol, load_protocol
 
 DEFAULT_SPEED = 20.0
 TICK_S = 0.002

@@ -21,9 +21,9 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.contract import Setting
 from tactile_studio.errors import UserError
 from tactile_studio.instruments.contract import ForcePlugin, ForceSamples, StagePlugin
+from tactile_studio.plugin_settings import Setting
 
 NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
 

@@ -26,8 +26,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from tactile_studio.devices.contract import Setting
 from tactile_studio.errors import Cancelled, SettingsError, UserError
+from tactile_studio.plugin_settings import Setting
 
 
 class InstrumentError(UserError):

@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from tactile_studio.devices.contract import Setting
 from tactile_studio.instruments.contract import SoftLimitError
+from tactile_studio.plugin_settings import Setting
 
 LIMIT_SETTINGS: tuple[Setting, ...] = (
     Setting("safe_z", "float", 5.0, "retract height above the skin, mm", minimum=0.5),

@@ -16,7 +16,6 @@ trial of the stored block order.
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import time
 from dataclasses import dataclass
@@ -25,13 +24,13 @@ from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import SessionFileError, UserError
-from tactile_studio.protocol.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
+from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
+from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
 
-PARTICIPANT_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]{0,63}$")
 COPY_CHUNK = 8192
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
 
@@ -80,14 +79,6 @@ class CollectionSession:
         if self.runner.state not in State.DONE:
             self.runner.abort()
         self.recorder.stop()
-
-
-def check_participant(participant: str) -> str:
-    p = participant.strip()
-    if not PARTICIPANT_RE.match(p):
-        raise UserError(f"bad participant id {participant!r}: use letters, digits, '_', '-' or "
-                        "'.', e.g. P01")
-    return p
 
 
 def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:

@@ -10,7 +10,7 @@ import hashlib
 
 import numpy as np
 
-from tactile_studio.protocol.protocol_file import Protocol
+from tactile_studio.storage.protocol_file import Protocol
 
 
 def order_seed(protocol: Protocol, participant: str, seed: int = 0) -> int:

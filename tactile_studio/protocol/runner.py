@@ -22,11 +22,11 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
-from tactile_studio.protocol.protocol_file import Protocol
 from tactile_studio.protocol.quality import QualitySettings, describe
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
 from tactile_studio.protocol.trial_record import measure_trial
+from tactile_studio.storage.protocol_file import Protocol
 
 WRITE_TIMEOUT_S = 5.0  # if the recorder stalls this long, write the trial anyway (flagged)
 

@@ -20,6 +20,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
+from tactile_studio.sensor.gesture_metrics import gesture_metrics
 from tactile_studio.storage.importers._common import check_outputs, frame_interval
 from tactile_studio.storage.importers.maps import normalise_participant
 from tactile_studio.storage.session import Session, user_block
@@ -172,8 +173,6 @@ def _savez(tmp: Path, fields: dict[str, Any]) -> None:
 # ---- tidy per-trial CSV --------------------------------------------------------------
 def trial_row(s: Session, t: dict[str, Any], labels: list[str], rate: float) -> dict[str, Any]:
     """One trial's metadata and summary features (physical grid, layout units)."""
-    from tactile_studio.learn.features import gesture_metrics
-
     frames = s.raw(t["start_sample"], t["end_sample"])
     dec = decode(s.layout, frames, s.baseline(t["start_sample"]), virtual=False)
     if dec.shear_x is not None:

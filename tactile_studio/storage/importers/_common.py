@@ -15,6 +15,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session_writer import SessionWriter
 
 WRITE_CHUNK = 8192
@@ -67,9 +68,8 @@ def norm_name(text: str) -> str:
 def load_protocol_or_none(name: str) -> Any:
     """The shipped protocol ``name`` or None when it is missing or broken."""
     try:
-        from tactile_studio.protocol.protocol_file import load_protocol
         return load_protocol(name)
-    except (ImportError, UserError):
+    except UserError:
         return None
 
 

@@ -14,6 +14,7 @@ import tomllib
 from pathlib import Path
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.participant_id import check_participant
 
 
 class MapError(UserError):
@@ -82,8 +83,6 @@ def gesture_key_map(value: str) -> dict[str, str]:
 
 def participant_map(value: str) -> dict[str, str]:
     """``--participant-map``: file-name participant (normalised) -> participant id."""
-    from tactile_studio.protocol.collect import check_participant
-
     out = {}
     for old, new in read_map(value, "--participant-map").items():
         try:

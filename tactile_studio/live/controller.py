@@ -9,7 +9,7 @@ from typing import Any
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
-from tactile_studio.live_status import LiveStatus
+from tactile_studio.live.status import LiveStatus
 from tactile_studio.storage.recorder import Recorder
 
 

@@ -1,0 +1,43 @@
+"""The live screen's logic, Qt-free: one import path for the widgets, CLI and tests.
+
+The code lives in focused modules of this package; their public names are exported here
+(``from tactile_studio.live import LiveView, LiveController, ...``):
+
+- :mod:`tactile_studio.live.view`: :class:`LiveView` (newest decoded frame, cell
+  readout, strip-chart history) and its data (:class:`LiveFrame`, :class:`CellReadout`,
+  :class:`History`, :func:`parse_taxel_name`);
+- :mod:`tactile_studio.live.controller`: :class:`LiveController` owns the device, the
+  engine and the recorder for one live screen;
+- :mod:`tactile_studio.live.status`: :class:`LiveStatus` and :func:`format_malformed`;
+- :mod:`tactile_studio.live.meters`: :class:`RateMeter` (display fps) and
+  :class:`LatencyMeter` (device-to-paint latency);
+- :mod:`tactile_studio.live.discovery`: :func:`run_discovery`, the device panel's "Scan".
+"""
+
+from __future__ import annotations
+
+from tactile_studio.live.controller import LiveController
+from tactile_studio.live.discovery import (
+    discover_is_instant,
+    discover_setting,
+    discover_settings,
+    run_discovery,
+)
+from tactile_studio.live.meters import LatencyMeter, RateMeter
+from tactile_studio.live.status import LiveStatus, format_malformed
+from tactile_studio.live.view import (
+    QUANTITIES,
+    QUANTITY_LABELS,
+    CellReadout,
+    History,
+    LiveFrame,
+    LiveView,
+    parse_taxel_name,
+)
+
+__all__ = [
+    "QUANTITIES", "QUANTITY_LABELS", "CellReadout", "History", "LatencyMeter",
+    "LiveController", "LiveFrame", "LiveStatus", "LiveView", "RateMeter",
+    "discover_is_instant", "discover_setting", "discover_settings", "format_malformed",
+    "parse_taxel_name", "run_discovery",
+]

@@ -1,0 +1,61 @@
+"""One entry of a plugin's settings schema: devices, stages and force references share it.
+
+A schema is data (name, kind, default, help, choices, range), so the CLI's ``--set`` and
+the GUI's forms are built from it and every value is checked the same way.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from tactile_studio.errors import SettingsError
+
+_TYPES = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One entry of a plugin's settings schema."""
+
+    name: str
+    kind: str  # int | float | str | bool | choice | path
+    default: Any
+    help: str = ""
+    choices: tuple[str, ...] = ()
+    minimum: float | None = None
+    maximum: float | None = None
+
+    def parse(self, value: Any, device: str) -> Any:
+        """Convert a value (possibly the text of ``--set key=value``) and check it."""
+        where = f"device {device}: setting {self.name}"
+        if value is None:
+            return None
+        try:
+            if self.kind == "bool":
+                if isinstance(value, str):
+                    low = value.strip().lower()
+                    if low not in {"1", "0", "true", "false", "yes", "no", "on", "off"}:
+                        raise ValueError(value)
+                    value = low in {"1", "true", "yes", "on"}
+                else:
+                    value = bool(value)
+            else:
+                value = _TYPES[self.kind](value)
+        except (TypeError, ValueError):
+            raise SettingsError(f"{where}: {value!r} is not a valid {self.kind}") from None
+        if self.kind == "choice" and value not in self.choices:
+            raise SettingsError(f"{where}: {value!r} is not one of {', '.join(self.choices)}")
+        if self.minimum is not None and value < self.minimum:
+            raise SettingsError(f"{where}: {value} is below the minimum {self.minimum}")
+        if self.maximum is not None and value > self.maximum:
+            raise SettingsError(f"{where}: {value} is above the maximum {self.maximum}")
+        return value
+
+    def describe(self) -> str:
+        extra = f" [{'|'.join(self.choices)}]" if self.choices else ""
+        rng = ""
+        if self.minimum is not None or self.maximum is not None:
+            rng = f" (range {self.minimum if self.minimum is not None else ''}.."
+            rng += f"{self.maximum if self.maximum is not None else ''})"
+        return f"{self.name}={self.default!r} ({self.kind}{extra}){rng}  {self.help}"
