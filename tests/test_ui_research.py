@@ -119,7 +119,32 @@ def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path)
         rect = conf.table.visualItemRect(item)
         qtbot.mouseClick(conf.table.viewport(), Qt.MouseButton.LeftButton, pos=rect.center())
         qtbot.mouseDClick(conf.table.viewport(), Qt.MouseButton.LeftButton, pos=rect.center())
-    assert sig.args[0] is conf.cell_rows[0]
+    trial = sig.args[0]
+    assert trial is conf.cell_rows[0]
+    # the trial opens in the player at its start, with the run's prediction over time
+    player = window.player
+    assert window.tabs.currentWidget() is player
+    span = player.pb.trial(trial.trial)
+    assert player.current_frame() == span.start == trial.start_sample
+    assert player.pb.path.name == trial.session and player.pred_probs is not None
+    assert player.prediction.text().startswith("prediction:")
+    assert f"trial {trial.trial}" in player.position.text()
+    player.loop.setChecked(True)
+    player.speed.setCurrentIndex(player.speed.count() - 1)  # 8x
+    qtbot.mouseClick(player.play_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: player.current_frame() > span.start + 5, timeout=5000)
+    frames = set()
+    for _ in range(40):  # looping: never leaves the trial
+        qtbot.wait(20)
+        frames.add(player.current_frame())
+    assert all(span.start <= f < span.end for f in frames)
+    qtbot.mouseClick(player.play_button, Qt.MouseButton.LeftButton)  # pause
+    player.step(1)
+    here = player.current_frame()
+    player.step(-1)
+    assert player.current_frame() == here - 1
+    shot(window, "player")
+    window.tabs.setCurrentWidget(conf)
     conf.participant.setCurrentText("P03")
     assert conf.model.matrix("counts").sum() == 18 and "over 18 trials" in conf.matrix.title
     for suffix in ("png", "svg", "csv"):

@@ -158,7 +158,7 @@ class MainWindow(QMainWindow):
         view_menu.addAction(self.device_dock.toggleViewAction())
         view_menu.addAction(self.strip_dock.toggleViewAction())
         from tactile_studio.ui.research.menu import add_research_menu  # ui/research/
-        add_research_menu(self, view_menu)
+        add_research_menu(self, view_menu, file_menu)
 
     # ---- display loop --------------------------------------------------------------
     def tick(self) -> None:

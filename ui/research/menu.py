@@ -7,19 +7,36 @@ from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QMenu
 
 
-def add_research_menu(window: QMainWindow, menu: QMenu) -> QAction:
-    """Adds "Research workspace…" (Ctrl+Shift+W); the window is kept on ``window``."""
+def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None = None
+                      ) -> QAction:
+    """Adds "Research workspace…" (Ctrl+Shift+W) to ``menu`` and "Open session…" (plays a
+    recorded session in the workspace's player) to ``file_menu``; the workspace window
+    is kept on ``window.research_window``."""
     action = QAction("Research &workspace…", window)
     action.setShortcut(QKeySequence("Ctrl+Shift+W"))
 
-    def open_workspace() -> None:
+    def workspace():
         from tactile_studio.ui.research.window import ResearchWindow
 
         if getattr(window, "research_window", None) is None:
             window.research_window = ResearchWindow()
         window.research_window.show()
         window.research_window.raise_()
+        return window.research_window
 
-    action.triggered.connect(open_workspace)
+    action.triggered.connect(workspace)
     menu.addAction(action)
+    if file_menu is not None:
+        play = QAction("&Open session…", window)
+        play.setShortcut(QKeySequence.StandardKey.Open)
+
+        def open_session() -> None:
+            from PySide6.QtWidgets import QFileDialog
+
+            path, _ = QFileDialog.getOpenFileName(window, "Open session", "", "Sessions (*.h5)")
+            if path:
+                workspace().open_session(path)
+
+        play.triggered.connect(open_session)
+        file_menu.insertAction(file_menu.actions()[0] if file_menu.actions() else None, play)
     return action

@@ -14,6 +14,7 @@ from tactile_studio.learn.compare import compare_predictions
 from tactile_studio.learn.trialpreds import load_predictions
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
+from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
 
@@ -29,8 +30,10 @@ class ResearchWindow(QMainWindow):
         self.runs = RunsView()
         self.confusion = ConfusionView()
         self.compare = CompareView()
+        self.player = SessionPlayer()
         for w, name in ((self.sessions, "Sessions"), (self.runs, "Runs"),
-                        (self.confusion, "Confusion matrix"), (self.compare, "Compare")):
+                        (self.confusion, "Confusion matrix"), (self.compare, "Compare"),
+                        (self.player, "Session player")):
             self.tabs.addTab(w, name)
         self.setCentralWidget(self.tabs)
         self.message = QLabel("")
@@ -42,7 +45,10 @@ class ResearchWindow(QMainWindow):
         self.confusion.export_png.clicked.connect(lambda: self._export("PNG image (*.png)"))
         self.confusion.export_svg.clicked.connect(lambda: self._export("SVG drawing (*.svg)"))
         self.confusion.export_csv.clicked.connect(lambda: self._export("CSV table (*.csv)"))
-        self.confusion.trialActivated.connect(self.trialOpened.emit)
+        self.confusion.trialActivated.connect(self.play_trial)
+        self.player.error.connect(self.show_error)
+        open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
+        open_session.triggered.connect(self._browse_session)
         self.resize(1200, 760)
 
     def show_error(self, text: str) -> None:
@@ -73,6 +79,32 @@ class ResearchWindow(QMainWindow):
         self.compare.set_result(result)
         self.tabs.setCurrentWidget(self.compare)
         self.show_info(result["sentence"])
+        return True
+
+    def _browse_session(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open session", "", "Sessions (*.h5)")
+        if path:
+            self.open_session(path)
+
+    def open_session(self, path: str) -> bool:
+        ok = self.player.open_session(path)
+        if ok:
+            self.tabs.setCurrentWidget(self.player)
+            self.show_info(f"playing {path}")
+        return ok
+
+    def play_trial(self, trial) -> bool:
+        """Open a confusion-cell trial in the player at its start, with the run's
+        prediction over time."""
+        if not trial.path or not self.open_session(trial.path):
+            if not trial.path:
+                self.show_error(f"{trial.uid}: the run does not say where its session is")
+            return False
+        run = self.confusion.run
+        if run is not None:
+            self.player.load_run_predictions(str(run.path))
+        self.player.jump_to_trial(trial.trial)
+        self.trialOpened.emit(trial)
         return True
 
     def _export(self, kind: str) -> None:
