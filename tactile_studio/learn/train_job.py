@@ -76,7 +76,7 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
 
     def progress(fraction: float, message: str = "") -> None:
         now = time.monotonic()
-        if now - last[0] > 0.2 or fraction >= 1.0:
+        if now - last[0] > 0.1 or fraction >= 1.0 or message.endswith(("done", "training")):
             last[0] = now
             events.put({"type": "progress", "fraction": float(fraction), "message": message})
 

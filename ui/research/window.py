@@ -6,6 +6,8 @@ window stays usable.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QFileDialog, QLabel, QMainWindow, QTabWidget, QWidget
 
@@ -17,6 +19,7 @@ from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
+from tactile_studio.ui.research.train_panel import TrainPanel
 
 
 class ResearchWindow(QMainWindow):
@@ -31,7 +34,8 @@ class ResearchWindow(QMainWindow):
         self.confusion = ConfusionView()
         self.compare = CompareView()
         self.player = SessionPlayer()
-        for w, name in ((self.sessions, "Sessions"), (self.runs, "Runs"),
+        self.train = TrainPanel(self.sessions.selected_paths)
+        for w, name in ((self.sessions, "Sessions"), (self.train, "Train"), (self.runs, "Runs"),
                         (self.confusion, "Confusion matrix"), (self.compare, "Compare"),
                         (self.player, "Session player")):
             self.tabs.addTab(w, name)
@@ -47,6 +51,10 @@ class ResearchWindow(QMainWindow):
         self.confusion.export_csv.clicked.connect(lambda: self._export("CSV table (*.csv)"))
         self.confusion.trialActivated.connect(self.play_trial)
         self.player.error.connect(self.show_error)
+        self.train.error.connect(self.show_error)
+        self.train.runFinished.connect(self._run_finished)
+        self.train.ablationFinished.connect(
+            lambda runs: self.compare_runs(runs[0], runs[-1]))
         open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
         open_session.triggered.connect(self._browse_session)
         self.resize(1200, 760)
@@ -80,6 +88,19 @@ class ResearchWindow(QMainWindow):
         self.tabs.setCurrentWidget(self.compare)
         self.show_info(result["sentence"])
         return True
+
+    def closeEvent(self, event) -> None:  # noqa: ANN001, N802 - Qt name and signature
+        if self.train.job is not None and self.train.job.running:
+            self.train.cancel()  # the worker stops after its epoch; folds are kept
+        super().closeEvent(event)
+
+    def _run_finished(self, out: str) -> None:
+        root = str(Path(out).parent)
+        if not self.runs.root.text():
+            self.runs.set_root(root)
+        else:
+            self.runs.set_root(self.runs.root.text())
+        self.show_info(f"run finished: {out}")
 
     def _browse_session(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open session", "", "Sessions (*.h5)")
