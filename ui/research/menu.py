@@ -26,6 +26,9 @@ def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None 
 
     action.triggered.connect(workspace)
     menu.addAction(action)
+    live = QAction("&Live inference…", window)
+    live.triggered.connect(lambda: live_inference_dock(window).show())
+    menu.addAction(live)
     if file_menu is not None:
         play = QAction("&Open session…", window)
         play.setShortcut(QKeySequence.StandardKey.Open)
@@ -40,3 +43,22 @@ def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None 
         play.triggered.connect(open_session)
         file_menu.insertAction(file_menu.actions()[0] if file_menu.actions() else None, play)
     return action
+
+
+def live_inference_dock(window: QMainWindow):
+    """The main window's live-inference dock (made once, kept on ``window.live_dock``)."""
+    from PySide6.QtCore import Qt
+    from PySide6.QtWidgets import QDockWidget
+
+    from tactile_studio.ui.research.live_panel import LiveInferencePanel
+
+    if getattr(window, "live_dock", None) is None:
+        c = window.controller
+        panel = LiveInferencePanel(lambda: c.engine, lambda: c.recorder is not None)
+        dock = QDockWidget("Live inference", window)
+        dock.setObjectName("live_inference")
+        dock.setWidget(panel)
+        window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
+        window.live_dock = dock
+        window.destroyed.connect(panel.stop)
+    return window.live_dock
