@@ -179,3 +179,49 @@ def test_main_window_menu_opens_workspace(qtbot, tmp_path, monkeypatch):
         w.research_window.close()
     finally:
         w.shutdown()
+
+
+def test_fourteen_long_gesture_names_stay_readable(window, workspace):
+    """A 14-class matrix with long names: every label fits (no clipping) at the window's
+    size, and the screenshot is kept for review."""
+    import numpy as np
+
+    from tactile_studio.learn.trialpreds import RunPredictions, TrialPrediction
+
+    names = [f"{g} ({k})" for k, g in enumerate(
+        ["Back & Forth Rub", "Circular Stroke", "Constant Touch", "Heavy Pat", "Isometric Rub",
+         "Poke", "Tickle", "Twist", "Wide Pinch", "Light Stroke", "Squeeze", "Scratch",
+         "Tap", "Slap"])]
+    rng = np.random.default_rng(1)
+    trials = []
+    for k in range(14 * 12):
+        true = k % 14
+        pred = true if rng.random() < 0.7 else int(rng.integers(14))
+        trials.append(TrialPrediction(0, "all", f"s#{k}", f"P{k % 5}", "s.h5", k, "", true,
+                                      pred, 0.6, (pred + 1) % 14, np.zeros(14)))
+    window.confusion.set_run(RunPredictions(workspace / "fake", {"model": "demo"}, {}, names,
+                                            trials))
+    window.tabs.setCurrentWidget(window.confusion)
+    m = window.confusion.matrix
+    left, top, cell, mw = m._layout(m.width(), m.height())
+    assert m.minimumSizeHint().width() <= m.width() + 1
+    assert left + 14 * cell + 3 * mw <= m.width()
+    assert top + 14 * cell + m.fontMetrics().height() <= m.height()  # "predicted" shows
+    window.confusion.mode.setCurrentIndex(1)  # the widest cell text, "100%", still fits
+    assert cell >= m.fontMetrics().horizontalAdvance("100%")
+    shot(window, "confusion_14")
+
+
+def test_run_without_weights_and_bad_session_give_messages(window, workspace, tmp_path):
+    bare = tmp_path / "bare"
+    shutil.copytree(workspace / "runs" / "normal", bare,
+                    ignore=shutil.ignore_patterns("model.safetensors"))
+    assert not window.open_run(str(bare))
+    assert "no finished folds" in window.message.text()
+    bad = tmp_path / "bad.h5"
+    bad.write_bytes(b"not a session")
+    assert not window.open_session(str(bad))
+    assert "bad.h5" in window.message.text()
+    window.sessions.set_folders([str(tmp_path)])
+    assert window.sessions.rows[0].error and window.sessions.selected_paths() == []
+    assert window.isVisible()

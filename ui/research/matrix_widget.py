@@ -81,7 +81,7 @@ class MatrixWidget(QWidget):
         n = max(len(self.labels), 1)
         avail_w = width - left - PAD - margin_w * len(self.margins)
         avail_h = height - top - PAD - fm.height()
-        min_cell = QFontMetrics(cell_font).horizontalAdvance("100%") + 8
+        min_cell = QFontMetrics(cell_font).horizontalAdvance("100%") + 3
         cell = max(min(avail_w // n, avail_h // n, 70), min_cell)
         return left, top, cell, margin_w
 
