@@ -3,6 +3,9 @@ thread, with smoothing, top-3, measured latency, and prediction events while rec
 
 Every ``hop_s`` the worker takes the newest window (the run's typical trial length) from
 the engine's ring, decodes it with the engine's baseline and predicts (window_model.py).
+Torch models fed sliding windows instead get every new frame pushed through
+learn/streaming.py's StreamingPredictor (the CNN-Transformer's per-frame embeddings are
+computed once and cached) and predict on its newest window.
 The smoothed probabilities are the mean of the last ``smoothing`` predictions. Latency is
 measured per prediction: from the newest frame's arrival on the host to the probabilities
 being ready. When ``recording()`` is true, a change of the smoothed top gesture is added
@@ -45,6 +48,8 @@ class LiveInference:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="live-inference", daemon=True)
+        self.streamer = model.streaming_predictor() if model.streams else None
+        self._cursor: int | None = None
 
     def set_smoothing(self, n: int) -> None:
         with self._lock:
@@ -62,20 +67,45 @@ class LiveInference:
     def running(self) -> bool:
         return self._thread.is_alive()
 
+    def _stream(self, base: np.ndarray):
+        """Push the frames that arrived since the last step; (chunk, probs) or None."""
+        eng, sp = self.engine, self.streamer
+        if self._cursor is None:
+            self._cursor = max(0, eng.frames - sp.window)
+        chunk = eng.read_since(self._cursor)
+        if len(chunk) == 0:
+            return None
+        if chunk.start != self._cursor:  # frames were overwritten or lost: start afresh
+            sp.reset()
+        self._cursor = chunk.stop
+        frames = self.model.channels_of(self.model.decode(eng.layout, chunk.raw, base),
+                                        eng.layout)
+        for frame in frames:
+            sp.push(frame)
+        return (chunk, sp.predict()) if sp.ready else None
+
     def step(self) -> LivePrediction | None:
         """One prediction on the newest window (None until the engine has one)."""
         eng, w = self.engine, self.model.window
         base = eng.baseline
-        if base is None or eng.frames < w:
-            return None
-        chunk = eng.read_since(eng.frames - w, w)
-        if len(chunk) < w:
+        if base is None:
             return None
         t0 = time.perf_counter()
-        frames = self.model.decode(eng.layout, chunk.raw, base)
-        span = float(chunk.device_time[-1] - chunk.device_time[0])
-        rate = (w - 1) / span if span > 0 else 43.0
-        probs = self.model.predict_windows(eng.layout, [frames], rate)[0]
+        if self.streamer is not None:
+            got = self._stream(base)
+            if got is None:
+                return None
+            chunk, probs = got
+        else:
+            if eng.frames < w:
+                return None
+            chunk = eng.read_since(eng.frames - w, w)
+            if len(chunk) < w:
+                return None
+            frames = self.model.decode(eng.layout, chunk.raw, base)
+            span = float(chunk.device_time[-1] - chunk.device_time[0])
+            rate = (w - 1) / span if span > 0 else 43.0
+            probs = self.model.predict_windows(eng.layout, [frames], rate)[0]
         compute = (time.perf_counter() - t0) * 1e3
         latency = (time.time() - float(chunk.host_time[-1])) * 1e3
         with self._lock:

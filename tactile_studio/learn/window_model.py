@@ -50,6 +50,26 @@ class WindowModel:
     def name(self) -> str:
         return self.run.name
 
+    @property
+    def streams(self) -> bool:
+        """True for torch models fed sliding windows: live inference then pushes frames
+        through learn/streaming.py (cached per-frame embeddings where the model has them)."""
+        return getattr(self.learner, "windowed", False) and hasattr(self.fitted, "model")
+
+    def streaming_predictor(self):
+        from tactile_studio.learn.streaming import StreamingPredictor
+
+        norm = self.record["norm"]
+        # hop far beyond any stream: frames are only pushed, predict() is called per step
+        return StreamingPredictor(self.fitted.model, self.learner.view, mean=norm["mean"],
+                                  std=norm["std"], hop=1 << 30)
+
+    def channels_of(self, frames: np.ndarray, layout: Layout) -> np.ndarray:
+        """Decoded (C, N, R, X) with every channel -> the run's channel set, (N, C', R, X)."""
+        if layout.has_shear and self.config.channels in ("normal", "shear"):
+            frames = frames[slice(0, 1) if self.config.channels == "normal" else slice(1, 3)]
+        return np.ascontiguousarray(frames.transpose(1, 0, 2, 3))
+
     def decode(self, layout: Layout, raw: np.ndarray, baseline: np.ndarray) -> np.ndarray:
         """Raw counts (N, channels) -> (C, N, R, X) with every decoded channel."""
         frames = decode(layout, raw, baseline, self.config.grid == "virtual")
