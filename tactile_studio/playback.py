@@ -112,6 +112,34 @@ class SessionPlayback:
         return frames.normal[0], sx, sy, frames.units
 
 
+def session_history(pb: SessionPlayback, frame: int, taxels: list[tuple[int, int]],
+                    quantity: str = "normal", seconds: float = 10.0, max_points: int = 600):
+    """The strip chart's data for the ``seconds`` before ``frame`` (physical taxels),
+    as the live view's :class:`~tactile_studio.live_view.History` (t <= 0)."""
+    from tactile_studio.live_view import QUANTITIES, History
+
+    if quantity not in QUANTITIES:
+        raise ValueError(f"quantity {quantity!r} not in {QUANTITIES}")
+    end = int(np.clip(frame, 0, pb.n_frames - 1)) + 1
+    start = pb.frame_at(pb.time_of(end - 1) - seconds)
+    step = max(1, (end - start) // max_points)
+    rows = np.arange(start, end, step)
+    fr = decode(pb.layout, pb.raw[rows], pb.session.baseline(start), False)
+    if quantity == "normal" or fr.shear_x is None:
+        q = fr.normal
+    elif quantity == "shear_x":
+        q = fr.shear_x
+    elif quantity == "shear_y":
+        q = fr.shear_y
+    else:
+        q = np.hypot(fr.shear_x, fr.shear_y)
+    values = np.stack([q[:, r, c] for r, c in taxels], axis=1) if taxels else \
+        np.zeros((len(rows), 0), np.float32)
+    return History(t=pb.times[rows] - pb.times[end - 1], values=values.astype(np.float32),
+                   names=[pb.layout.taxel_name(r, c) for r, c in taxels], quantity=quantity,
+                   units=fr.units)
+
+
 class PlayClock:
     """Where playback is: advanced by wall-clock seconds × speed, optionally looping a span."""
 

@@ -10,7 +10,7 @@ from learn_fixtures import make_dataset_folder, trial_record, write_participant
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.timeline import predictions_over_time
-from tactile_studio.playback import PlayClock, SessionPlayback
+from tactile_studio.playback import PlayClock, SessionPlayback, session_history
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
 
@@ -42,6 +42,11 @@ def test_time_frames_trials_and_clock(tmp_path):
         normal, sx, sy, units = pb.frame(mid)
         assert normal.shape == (6, 6) and sx.shape == (6, 6) and units
         assert normal.max() > pb.frame(0)[0].max()  # pressed mid-trial, idle at the start
+        h = session_history(pb, mid, [(2, 3), (0, 0)], "normal", seconds=2.0)
+        assert h.names == [pb.layout.taxel_name(2, 3), pb.layout.taxel_name(0, 0)]
+        assert h.t[-1] == 0 and h.t[0] >= -2.0 - 1 / 43 and h.values.shape == (len(h.t), 2)
+        assert h.values[-1, 0] == pytest.approx(normal[2, 3], rel=1e-4, abs=1e-4)
+        assert session_history(pb, mid, [(2, 3)], "shear").values.min() >= 0
         with pytest.raises(UserError, match="no trial 12345"):
             pb.trial(12345)
         clock = PlayClock(pb)

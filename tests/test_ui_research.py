@@ -129,6 +129,12 @@ def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path)
     assert player.pb.path.name == trial.session and player.pred_probs is not None
     assert player.prediction.text().startswith("prediction:")
     assert f"trial {trial.trial}" in player.position.text()
+    assert player.strip.curve_names() == [player.pb.layout.taxel_name(r, c)
+                                          for r, c in player.taxels] and player.taxels
+    had = (5, 5) in player.taxels
+    player.toggle_taxel(5, 5)  # a click on the map adds (or removes) a charted taxel
+    assert ((5, 5) in player.taxels) != had
+    assert (player.pb.layout.taxel_name(5, 5) in player.strip.curve_names()) != had
     player.loop.setChecked(True)
     player.speed.setCurrentIndex(player.speed.count() - 1)  # 8x
     qtbot.mouseClick(player.play_button, Qt.MouseButton.LeftButton)

@@ -6,7 +6,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import pyqtgraph as pg
 from PySide6.QtCore import QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -19,9 +18,10 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.playback import PlayClock, SessionPlayback
-from tactile_studio.ui.heatmap import HeatmapView
+from tactile_studio.playback import PlayClock, SessionPlayback, session_history
+from tactile_studio.ui.heatmap import HeatmapView, strip_colors
 from tactile_studio.ui.research.timeline import Timeline
+from tactile_studio.ui.stripchart import StripChart
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
 
@@ -35,13 +35,11 @@ class SessionPlayer(QWidget):
         self.clock: PlayClock | None = None
         self.run_path: str | None = None
         self.heatmap = HeatmapView()
-        self.curve_plot = pg.PlotWidget(background="w")
-        self.curve_plot.setLabel("left", "mean normal")
-        self.curve_plot.setLabel("bottom", "time", units="s")
-        self.curve_plot.setMaximumHeight(170)
-        self.curve = self.curve_plot.plot(pen=pg.mkPen("#1f77b4", width=1))
-        self.cursor_line = pg.InfiniteLine(angle=90, pen=pg.mkPen("k"))
-        self.curve_plot.addItem(self.cursor_line)
+        self.strip = StripChart()
+        self.strip.setMinimumHeight(170)
+        self.strip.setMaximumHeight(220)
+        self.heatmap.setMinimumHeight(320)
+        self.taxels: list[tuple[int, int]] = []
         self.timeline = Timeline()
         self.play_button = QPushButton("Play")
         self.back_button, self.next_button = QPushButton("◀ frame"), QPushButton("frame ▶")
@@ -61,7 +59,7 @@ class SessionPlayer(QWidget):
         bar.addWidget(self.position)
         lay = QVBoxLayout(self)
         lay.addWidget(self.heatmap, 1)
-        lay.addWidget(self.curve_plot)
+        lay.addWidget(self.strip)
         lay.addLayout(bar)
         lay.addWidget(self.timeline)
         lay.addWidget(self.prediction)
@@ -77,6 +75,9 @@ class SessionPlayer(QWidget):
         self.loop.toggled.connect(self._loop_changed)
         self.timeline.seekRequested.connect(self.seek)
         self.heatmap.virtualChanged.connect(lambda _on: self.show_frame())
+        self.heatmap.cellClicked.connect(self.toggle_taxel)
+        self.strip.quantityChanged.connect(lambda _q: self.show_frame())
+        self.strip.clearRequested.connect(lambda: self.set_taxels([]))
         self.pred_frames: np.ndarray | None = None
         self.pred_probs: np.ndarray | None = None
         self.pred_labels: list[str] = []
@@ -96,10 +97,10 @@ class SessionPlayer(QWidget):
         self.trial_box.clear()
         for t in pb.trials:
             self.trial_box.addItem(f"{t.index}: {t.gesture} ({t.status})", t.index)
-        normal = np.array([pb.frame(i)[0].mean() for i in range(0, pb.n_frames,
-                                                                max(1, pb.n_frames // 2000))])
-        xs = pb.times[::max(1, pb.n_frames // 2000)][:len(normal)]
-        self.curve.setData(xs, normal)
+        # chart the two most-loaded taxels of the session to start with
+        peak = np.abs(pb.frame(int(np.argmax(np.abs(pb.raw - pb.raw[0]).sum(axis=1))))[0])
+        order = np.argsort(-peak.ravel())[:2]
+        self.taxels = [(int(i // peak.shape[1]), int(i % peak.shape[1])) for i in order]
         self.pred_frames = self.pred_probs = None
         self.prediction.setText("")
         self.seek(0)
@@ -124,6 +125,18 @@ class SessionPlayer(QWidget):
         self.run_path = run
         self.set_predictions(frames, probs, labels)
         return True
+
+    def toggle_taxel(self, row: int, col: int) -> None:
+        """A click on the map adds or removes a taxel from the strip chart (physical grid)."""
+        if self.heatmap.virtual:
+            row, col = row // 2, col // 2
+        cell = (row, col)
+        self.set_taxels([t for t in self.taxels if t != cell] if cell in self.taxels
+                        else [*self.taxels, cell])
+
+    def set_taxels(self, taxels: list[tuple[int, int]]) -> None:
+        self.taxels = list(taxels)
+        self.show_frame()
 
     # --- playing -----------------------------------------------------------------------
     def seek(self, frame: int) -> None:
@@ -191,7 +204,8 @@ class SessionPlayer(QWidget):
         normal, sx, sy, units = self.pb.frame(f, self.heatmap.virtual)
         self.heatmap.set_frame(normal, sx, sy, units)
         self.timeline.set_cursor(f)
-        self.cursor_line.setValue(self.pb.time_of(f))
+        self.strip.set_history(session_history(self.pb, f, self.taxels, self.strip.quantity()))
+        self.heatmap.set_marked_cells(self.taxels, strip_colors(len(self.taxels)))
         t = self.pb.trial_at(f)
         where = f"trial {t.index} {t.gesture}" if t else "between trials"
         self.position.setText(f"{self.pb.time_of(f):7.2f} s · frame {f}/{self.pb.n_frames - 1}"
