@@ -4,6 +4,8 @@ simulated gesture, show top-3 and latency, and are recorded as events while reco
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -16,7 +18,8 @@ from tactile_studio.ui.research.menu import live_inference_dock
 from tactile_studio.ui.settings import SETTINGS_ENV
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
-SHOTS = Path(__file__).resolve().parents[1] / "docs" / "screenshots"
+# screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
 
 @pytest.fixture(scope="module")

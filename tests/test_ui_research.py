@@ -5,7 +5,9 @@ run folders. Screenshots go to docs/screenshots/research_*.png."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -17,7 +19,8 @@ from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
 from tactile_studio.simulate import GESTURE_NAMES
 from tactile_studio.ui.research.window import ResearchWindow
 
-SHOTS = Path(__file__).resolve().parents[1] / "docs" / "screenshots"
+# screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,8 @@ the comparison; bad input gets a message and the window lives."""
 
 from __future__ import annotations
 
+import os
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -14,7 +16,8 @@ from PySide6.QtCore import Qt
 from tactile_studio.ui.research.window import ResearchWindow
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
-SHOTS = Path(__file__).resolve().parents[1] / "docs" / "screenshots"
+# screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
 
 @pytest.fixture(scope="module")
