@@ -94,3 +94,25 @@ def test_bad_session_files(tmp_path):
     bad.write_bytes(b"not hdf5")
     with pytest.raises(UserError, match="bad.h5"):
         SessionPlayback(bad)
+
+
+def test_events_are_placed_on_their_frames(tmp_path):
+    from tactile_studio.simulate import SensorSimulator, SimConfig
+    from tactile_studio.storage.session_writer import SessionWriter
+
+    sim = SensorSimulator(SimConfig(rate=43.0, seed=1, gesture="idle"))
+    raw = sim.step(200)
+    t = np.arange(200) / 43.0
+    path = tmp_path / "ev.h5"
+    with SessionWriter(path, sim.layout, {"name": "simulated"}, {"participant": "P1"}) as w:
+        w.append_frames(raw, t, 1.7e9 + t)
+        w.add_baseline(raw[:40].mean(axis=0), frame=0)
+        w.add_event("gap", frame=120, missing=3)
+        w.add_event("note", frame=150, text="participant sneezed")
+    pb = SessionPlayback(path)
+    try:
+        marks = {(e.frame, e.kind) for e in pb.events}
+        assert {(120, "gap"), (150, "note")} <= marks
+        assert next(e for e in pb.events if e.kind == "note").text == "participant sneezed"
+    finally:
+        pb.close()
