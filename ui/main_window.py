@@ -168,6 +168,8 @@ class MainWindow(QMainWindow):
         view_menu.addSeparator()
         view_menu.addAction(self.device_dock.toggleViewAction())
         view_menu.addAction(self.strip_dock.toggleViewAction())
+        from tactile_studio.ui.research.menu import add_research_menu  # ui/research/
+        add_research_menu(self, view_menu, file_menu)
 
     def _build_sensor_menu(self) -> None:
         menu = self.menuBar().addMenu("&Sensors")

@@ -294,6 +294,9 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     folder = RunFolder(out) if out is not None else None
     if folder is not None:
         folder.start(config.to_dict(), resolved, RESULT_KEYS)
+        from tactile_studio.learn.trialinfo import write_trial_table
+
+        write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
     progress(0.05, "making model inputs")
     x, owner = learner.samples(ds)
     total_units = config.rounds * len(first_folds)

@@ -1,0 +1,35 @@
+"""``tactile-studio compare RUN_A RUN_B [--json]``: two runs on their shared test trials."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.compare import compare_runs
+    from tactile_studio.learn.runfolder import clean_json
+
+    r = compare_runs(args.run_a, args.run_b)
+    if args.json:
+        print(json.dumps(clean_json(r), indent=1))
+        return 0
+    print(f"A  {r['name_a']:<12} {100 * r['accuracy_a']:5.1f}%  ({r['run_a']})")
+    print(f"B  {r['name_b']:<12} {100 * r['accuracy_b']:5.1f}%  ({r['run_b']})")
+    if r["config_difference"]:
+        print("differ in: " + "; ".join(r["config_difference"]))
+    print(f"{'participant':<14}{'A':>8}{'B':>8}{'B-A':>8}  trials")
+    for p, v in r["per_participant"].items():
+        print(f"{p:<14}{100 * v['accuracy_a']:8.1f}{100 * v['accuracy_b']:8.1f}"
+              f"{100 * (v['accuracy_b'] - v['accuracy_a']):+8.1f}  {v['trials']}")
+    print(r["sentence"])
+    return 0
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("compare", help="compare two runs on their shared test trials "
+                                              "(accuracies, Wilcoxon, McNemar)")
+    p.add_argument("run_a", metavar="RUN_A")
+    p.add_argument("run_b", metavar="RUN_B")
+    p.add_argument("--json", action="store_true", help="print every number as JSON")
+    p.set_defaults(func=cmd_compare)

@@ -1,0 +1,132 @@
+"""Live inference: a finished run's model on the live engine's newest frames, in a worker
+thread, with smoothing, top-3, measured latency, and prediction events while recording.
+
+Every ``hop_s`` the worker takes the newest window (the run's typical trial length) from
+the engine's ring, decodes it with the engine's baseline and predicts (window_model.py).
+Torch models fed sliding windows instead get every new frame pushed through
+learn/streaming.py's StreamingPredictor (the CNN-Transformer's per-frame embeddings are
+computed once and cached) and predict on its newest window.
+The smoothed probabilities are the mean of the last ``smoothing`` predictions. Latency is
+measured per prediction: from the newest frame's arrival on the host to the probabilities
+being ready. When ``recording()`` is true, a change of the smoothed top gesture is added
+to the engine's events (kind ``prediction``), which the recorder writes to the session.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from tactile_studio.learn.window_model import WindowModel
+
+
+@dataclass
+class LivePrediction:
+    frame: int
+    probs: np.ndarray
+    smoothed: np.ndarray
+    top3: list[tuple[str, float]]
+    latency_ms: float
+    compute_ms: float
+
+
+class LiveInference:
+    def __init__(self, engine, model: WindowModel, hop_s: float = 0.25, smoothing: int = 4,
+                 recording: Callable[[], bool] = lambda: False) -> None:
+        self.engine, self.model = engine, model
+        self.hop_s, self.recording = hop_s, recording
+        self.history: collections.deque[np.ndarray] = collections.deque(maxlen=max(1, smoothing))
+        self.latest: LivePrediction | None = None
+        self.error: str | None = None
+        self.count = 0
+        self._last_top: str | None = None
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="live-inference", daemon=True)
+        self.streamer = model.streaming_predictor() if model.streams else None
+        self._cursor: int | None = None
+
+    def set_smoothing(self, n: int) -> None:
+        with self._lock:
+            self.history = collections.deque(self.history, maxlen=max(1, int(n)))
+
+    def start(self) -> LiveInference:
+        self._thread.start()
+        return self
+
+    def stop(self, timeout: float = 5.0) -> None:
+        self._stop.set()
+        self._thread.join(timeout)
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def _stream(self, base: np.ndarray):
+        """Push the frames that arrived since the last step; (chunk, probs) or None."""
+        eng, sp = self.engine, self.streamer
+        if self._cursor is None:
+            self._cursor = max(0, eng.frames - sp.window)
+        chunk = eng.read_since(self._cursor)
+        if len(chunk) == 0:
+            return None
+        if chunk.start != self._cursor:  # frames were overwritten or lost: start afresh
+            sp.reset()
+        self._cursor = chunk.stop
+        frames = self.model.channels_of(self.model.decode(eng.layout, chunk.raw, base),
+                                        eng.layout)
+        for frame in frames:
+            sp.push(frame)
+        return (chunk, sp.predict()) if sp.ready else None
+
+    def step(self) -> LivePrediction | None:
+        """One prediction on the newest window (None until the engine has one)."""
+        eng, w = self.engine, self.model.window
+        base = eng.baseline
+        if base is None:
+            return None
+        t0 = time.perf_counter()
+        if self.streamer is not None:
+            got = self._stream(base)
+            if got is None:
+                return None
+            chunk, probs = got
+        else:
+            if eng.frames < w:
+                return None
+            chunk = eng.read_since(eng.frames - w, w)
+            if len(chunk) < w:
+                return None
+            frames = self.model.decode(eng.layout, chunk.raw, base)
+            span = float(chunk.device_time[-1] - chunk.device_time[0])
+            rate = (w - 1) / span if span > 0 else 43.0
+            probs = self.model.predict_windows(eng.layout, [frames], rate)[0]
+        compute = (time.perf_counter() - t0) * 1e3
+        latency = (time.time() - float(chunk.host_time[-1])) * 1e3
+        with self._lock:
+            self.history.append(probs)
+            smoothed = np.mean(self.history, axis=0)
+        order = np.argsort(-smoothed)[:3]
+        top3 = [(self.model.labels[i], float(smoothed[i])) for i in order]
+        pred = LivePrediction(chunk.stop - 1, probs, smoothed, top3, latency, compute)
+        self.latest = pred
+        self.count += 1
+        if self.recording() and top3[0][0] != self._last_top:
+            eng.add_event("prediction", gesture=top3[0][0], probability=round(top3[0][1], 4),
+                          run=self.model.name)
+        self._last_top = top3[0][0]
+        return pred
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                self.step()
+            except Exception as exc:  # noqa: BLE001 - shown in the overlay; the thread ends
+                self.error = f"{type(exc).__name__}: {exc}"
+                return
+            self._stop.wait(self.hop_s)

@@ -1,0 +1,169 @@
+"""Training in a separate process, for the GUI: the window never freezes, a crash in the
+worker never takes it down, and events arrive as plain dicts.
+
+``TrainJob(config, out).start()`` spawns a fresh interpreter (multiprocessing "spawn",
+so no Qt or torch state is inherited) that runs :func:`run_experiment` into ``out``.
+:meth:`TrainJob.poll` returns the events that arrived since the last call:
+
+* ``{"type": "progress", "fraction", "message"}``
+* ``{"type": "epoch", "round", "fold", "n_folds", "fold_name", "epoch", "train_loss",
+  "train_acc", "val_loss", "val_acc"}``
+* ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy", "resumed"}``
+* ``{"type": "done", "accuracy", "out"}`` / ``{"type": "cancelled"}`` /
+  ``{"type": "error", "message"}`` — the last event of a job; a worker that dies without
+  one (killed, segfault) is reported as an ``error`` too.
+
+Cancelling keeps the finished folds (the run folder is resumable: starting the same
+config into the same folder trains only what is missing).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import queue
+import threading
+import time
+from typing import Any
+
+from tactile_studio.learn.experiment import ExperimentConfig
+
+_TRAIN_HELP = {
+    "optimizer": "optimiser (adam, adamw, sgd)", "lr": "learning rate",
+    "batch_size": "samples per training batch", "max_epochs": "upper limit of epochs",
+    "patience": "epochs without validation gain before stopping",
+    "weight_decay": "L2 penalty", "momentum": "SGD momentum",
+    "n_estimators": "trees in the forest", "max_depth": "tree depth limit (0 = none)",
+    "min_samples_leaf": "fewest samples in a leaf", "max_features": "features tried per split",
+    "n_neighbors": "neighbours that vote", "weights": "uniform or distance-weighted votes",
+    "p": "Minkowski distance power (2 = Euclidean)",
+}
+
+
+def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
+    """(option, default, one line of help) for a model's architecture and training
+    options at ``preset`` — the form of the train panel."""
+    from tactile_studio.learn.learners import make_learner
+    from tactile_studio.learn.models import MODELS, model_options
+
+    described = make_learner(name, preset).describe()
+    options = dict(model_options(name, preset)) if name in MODELS else {}
+    options.update(described.get("model_options") or {})
+    options.update(described.get("train") or {})
+    return [(k, v, _TRAIN_HELP.get(k, "model option")) for k, v in options.items()]
+
+
+def eta_seconds(fraction: float, elapsed: float) -> float | None:
+    """Remaining seconds if progress stays at its average pace (None before any)."""
+    if fraction <= 0.01 or elapsed <= 0:
+        return None
+    return max(0.0, elapsed * (1 - fraction) / fraction)
+
+
+def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
+    from tactile_studio.errors import Cancelled, UserError
+    from tactile_studio.jobs import CancelToken
+    from tactile_studio.learn.experiment import EpochEvent, FoldEvent, run_experiment
+
+    token = CancelToken()
+
+    def watch() -> None:
+        stop.wait()
+        token.cancel()
+
+    threading.Thread(target=watch, daemon=True).start()
+    last = [0.0]
+
+    def progress(fraction: float, message: str = "") -> None:
+        now = time.monotonic()
+        if now - last[0] > 0.1 or fraction >= 1.0 or message.endswith(("done", "training")):
+            last[0] = now
+            events.put({"type": "progress", "fraction": float(fraction), "message": message})
+
+    def listener(event: Any) -> None:
+        if isinstance(event, EpochEvent):
+            e = event.record
+            events.put({"type": "epoch", "round": event.round, "fold": event.fold,
+                        "n_folds": event.n_folds, "fold_name": event.fold_name,
+                        **{k: (float(v) if isinstance(v, (int, float)) else v)
+                           for k, v in e.items()}})
+        elif isinstance(event, FoldEvent):
+            events.put({"type": "fold", "round": event.round, "fold": event.fold,
+                        "n_folds": event.n_folds, "fold_name": event.fold_name,
+                        "accuracy": float(event.metrics["accuracy"]),
+                        "resumed": bool(event.resumed)})
+
+    try:
+        result = run_experiment(ExperimentConfig.from_dict(config), out, progress, token,
+                                listener)
+        events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]), "out": out})
+    except Cancelled:
+        events.put({"type": "cancelled"})
+    except UserError as exc:
+        events.put({"type": "error", "message": str(exc)})
+    except Exception as exc:  # noqa: BLE001 - the window shows it; the traceback goes to stderr
+        import traceback
+
+        traceback.print_exc()
+        events.put({"type": "error", "message": f"the training process failed: "
+                                                f"{type(exc).__name__}: {exc}"})
+
+
+class TrainJob:
+    def __init__(self, config: ExperimentConfig, out: str | os.PathLike) -> None:
+        self.config, self.out = config, str(out)
+        ctx = mp.get_context("spawn")
+        self._events = ctx.Queue()
+        self._stop = ctx.Event()
+        self._process = ctx.Process(target=_worker, daemon=True,
+                                    args=(config.to_dict(), self.out, self._events, self._stop))
+        self.started = 0.0
+        self.fraction = 0.0
+        self.finished: dict[str, Any] | None = None
+
+    def start(self) -> TrainJob:
+        self.started = time.monotonic()
+        self._process.start()
+        return self
+
+    @property
+    def pid(self) -> int | None:
+        return self._process.pid
+
+    @property
+    def running(self) -> bool:
+        return self.finished is None
+
+    def cancel(self) -> None:
+        """Ask the worker to stop after the current epoch (finished folds are kept)."""
+        self._stop.set()
+
+    def eta(self) -> float | None:
+        return eta_seconds(self.fraction, time.monotonic() - self.started)
+
+    def _take(self, event: dict[str, Any], out: list[dict[str, Any]]) -> None:
+        out.append(event)
+        if event["type"] == "progress":
+            self.fraction = event["fraction"]
+        if event["type"] in ("done", "cancelled", "error"):
+            self.finished = event
+
+    def poll(self) -> list[dict[str, Any]]:
+        out: list[dict[str, Any]] = []
+        if self.finished is not None:
+            return out
+        dead = self.started and not self._process.is_alive()
+        while self.finished is None:
+            try:  # a dead worker's last events may still be in the pipe
+                event = self._events.get(timeout=0.5) if dead else self._events.get_nowait()
+            except queue.Empty:
+                break
+            self._take(event, out)
+        if self.finished is None and dead:
+            code = self._process.exitcode
+            self._take({"type": "error", "message":
+                        f"the training process ended unexpectedly (exit code {code}); "
+                        f"finished folds are kept in {self.out}"}, out)
+        if self.finished is not None:
+            self._process.join(timeout=5)
+        return out

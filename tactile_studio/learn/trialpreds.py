@@ -1,0 +1,111 @@
+"""A run's test predictions as one row per (round, trial), with the trial's identity.
+
+Window-based models predict many windows per trial; a trial's prediction is their
+majority vote (as the run's ``trial_accuracy``), its probabilities the windows' mean.
+Confidence is the mean probability of the predicted gesture; the runner-up is the
+gesture with the next-highest mean probability.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn import metrics as M
+from tactile_studio.learn.runfolder import read_run
+from tactile_studio.learn.trialinfo import load_trial_table
+
+
+@dataclass
+class TrialPrediction:
+    round: int
+    fold: str
+    uid: str
+    participant: str
+    session: str
+    trial: int
+    condition: str
+    true: int
+    pred: int
+    confidence: float
+    runner_up: int
+    probs: np.ndarray
+    path: str = ""
+    start_sample: int = 0
+
+    @property
+    def correct(self) -> bool:
+        return self.true == self.pred
+
+
+@dataclass
+class RunPredictions:
+    """Everything a viewer needs from a run folder: config, labels and trial rows."""
+
+    path: Path
+    config: dict[str, Any]
+    resolved: dict[str, Any]
+    labels: list[str]
+    trials: list[TrialPrediction]
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    def accuracy(self) -> float:
+        return float(np.mean([t.correct for t in self.trials])) if self.trials else 0.0
+
+
+def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]]
+                ) -> list[TrialPrediction]:
+    p = rec["predictions"]
+    owner = np.asarray(p["owner"], dtype=np.int64)
+    if not len(owner):
+        return []
+    probs = np.asarray(p["probs"], dtype=np.float64).reshape(len(owner), len(labels))
+    y = np.asarray(p["y_true"], dtype=np.int64)
+    trials, vote = M.vote(owner, probs)
+    _, inverse = np.unique(owner, return_inverse=True)
+    mean = np.zeros((len(trials), len(labels)))
+    np.add.at(mean, inverse, probs)
+    mean /= np.bincount(inverse, minlength=len(trials))[:, None]
+    _, first = np.unique(owner, return_index=True)
+    rows = []
+    for k, t in enumerate(trials):
+        if t >= len(table):
+            raise UserError(f"{rec.get('_dir', 'run')}: predictions name trial {t} but the "
+                            f"run's trial table has {len(table)} (incompatible layout)")
+        ident = table[t]
+        order = np.argsort(-mean[k])
+        pred = int(vote[k])
+        runner = int(order[1] if order[0] == pred else order[0]) if len(labels) > 1 else pred
+        rows.append(TrialPrediction(
+            round=int(rec["round"]), fold=str(rec["name"]), uid=str(ident.get("uid", t)),
+            participant=str(ident.get("participant", "")), session=str(ident.get("session", "")),
+            trial=int(ident.get("trial", -1)), condition=str(ident.get("condition", "")),
+            true=int(y[first[k]]), pred=pred, confidence=float(mean[k, pred]),
+            runner_up=runner, probs=mean[k], path=str(ident.get("path", "")),
+            start_sample=int(ident.get("start_sample", 0))))
+    return rows
+
+
+def load_predictions(run: str | os.PathLike, data: list[str] | None = None) -> RunPredictions:
+    """Per-trial test predictions of every finished fold of a run folder."""
+    cfg, records = read_run(run)
+    try:
+        labels = list(cfg["resolved"]["dataset"]["labels"])
+        for rec in records:
+            rec["predictions"]["owner"]  # noqa: B018 - layout check
+    except (KeyError, TypeError):
+        raise UserError(f"{run}: not a run folder of this version (config.json or fold.json "
+                        "lacks labels/predictions)") from None
+    table = load_trial_table(run, data)
+    rows: list[TrialPrediction] = []
+    for rec in records:
+        rows.extend(_trial_rows(rec, labels, table))
+    return RunPredictions(Path(run), cfg.get("config", {}), cfg.get("resolved", {}), labels, rows)

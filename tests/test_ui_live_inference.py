@@ -1,0 +1,77 @@
+"""Live inference in the main window on the simulated sensor: a knn run trained on
+virtual participants is loaded into the Live inference dock; predictions follow the
+simulated gesture, show top-3 and latency, and are recorded as events while recording."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.storage import Session
+from tactile_studio.ui.main_window import MainWindow
+from tactile_studio.ui.research.menu import live_inference_dock
+from tactile_studio.ui.settings import SETTINGS_ENV
+
+GESTURES = ("Poke", "Heavy Pat", "Twist")
+# screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("live")
+    make_dataset_folder(root / "data", participants=3, blocks=4, gestures=GESTURES)
+    cfg = ExperimentConfig(data=[str(root / "data")], model="knn", protocol="lopo",
+                           preset="tiny", cache_dir=str(root / "cache"))
+    run_experiment(cfg, root / "run")
+    return root / "run"
+
+
+def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monkeypatch):
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    w = MainWindow(device="simulated", settings={"rate": "43", "gesture": "Heavy Pat"},
+                   connect=True, persist=False)
+    qtbot.addWidget(w)
+    w.resize(1300, 760)
+    w.show()
+    try:
+        action = next(a for m in w.menuBar().actions() for a in m.menu().actions()
+                      if "Live inference" in a.text())
+        action.trigger()
+        panel = w.live_dock.widget()
+        assert live_inference_dock(w) is w.live_dock
+        assert not panel.load_run(str(tmp_path / "nope"))
+        assert "no such run folder" in panel.message.text()
+        assert panel.load_run(str(run))
+        # a full window of the gesture (86 frames at 43 Hz) after the baseline
+        qtbot.waitUntil(lambda: panel.inference is not None and panel.inference.count >= 14,
+                        timeout=40_000)
+        qtbot.wait(300)
+        first = panel.top()
+        assert first == "Heavy Pat", panel.inference.latest.top3
+        assert "latency" in panel.latency.text() and "ms" in panel.latency.text()
+        assert sum(bar.value() for _, bar in panel.rows) <= 101
+        SHOTS.mkdir(parents=True, exist_ok=True)
+        w.grab().save(str(SHOTS / "research_live_inference.png"))
+        # record while the gesture changes: the prediction changes and is recorded
+        path = tmp_path / "rec.h5"
+        w.controller.connect("simulated", {"rate": "43", "gesture": "Poke"})
+        w.controller.start_recording(path)
+        qtbot.waitUntil(lambda: panel.inference is not None
+                        and panel.inference.engine is w.controller.engine
+                        and panel.inference.count >= 14, timeout=40_000)
+        assert panel.top() == "Poke", panel.inference.latest.top3
+        w.controller.stop_recording()
+        with Session(path) as s:
+            preds = [e for e in s.events if e.get("kind") == "prediction"]
+        assert preds and preds[-1]["gesture"] == "Poke"
+        assert all(e["gesture"] in GESTURES and e["run"] == "run" for e in preds)
+    finally:
+        if getattr(w, "live_dock", None) is not None:
+            w.live_dock.widget().stop()
+        w.shutdown()

@@ -1,0 +1,115 @@
+"""The workspace's train panel driven like a user on virtual participants: pick sessions →
+train a tiny cnn1d in a worker process → curves and fold table → cancel → resume → open
+the matrix → click a cell → the trial plays; the one-click channel ablation (knn) ends in
+the comparison; bad input gets a message and the window lives."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import pytest
+from learn_fixtures import make_dataset_folder, trial_record, write_participant
+from PySide6.QtCore import Qt
+
+from tactile_studio.ui.research.window import ResearchWindow
+
+GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
+# screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("wstrain")
+    make_dataset_folder(root / "data", participants=3, blocks=3, gestures=GESTURES)
+    return root
+
+
+@pytest.fixture
+def window(qtbot, monkeypatch, tmp_path):
+    monkeypatch.setenv("TACTILE_STUDIO_CACHE_DIR", str(tmp_path / "cache"))
+    w = ResearchWindow()
+    qtbot.addWidget(w)
+    w.resize(1400, 820)
+    w.show()
+    yield w
+    if w.train.job is not None and w.train.job.running:
+        w.train.cancel()
+        qtbot.waitUntil(lambda: not w.train.job.running, timeout=60_000)
+
+
+def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
+    window.sessions.set_folders([str(data / "data")])
+    window.tabs.setCurrentWidget(window.train)
+    panel = window.train
+    panel.model.setCurrentText("cnn1d")
+    panel.protocol.setCurrentText("lopo")
+    panel.epochs.setValue(30)
+    assert panel.options.rowCount() > 3  # the registry's options with help
+    row = next(r for r in range(panel.options.rowCount())
+               if panel.options.item(r, 0).text() == "patience")
+    panel.options.item(row, 1).setText("100")  # no early stop: every fold trains 30 epochs
+    assert panel.overrides() == {"patience": 100}
+    out = tmp_path / "runs" / "cnn"
+    panel.out.setText(str(out))
+    qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
+    assert panel.job is not None and panel.cancel_button.isEnabled()
+    # curves fill in; cancel once a fold is finished
+    qtbot.waitUntil(lambda: any(panel.folds.item(r, 5) and panel.folds.item(r, 5).text() == "done"
+                                for r in range(panel.folds.rowCount())), timeout=240_000)
+    assert panel.curves and all(len(xs) >= 1 for xs, _ in panel.history.values())
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    window.grab().save(str(SHOTS / "research_train.png"))
+    qtbot.mouseClick(panel.cancel_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
+    assert panel.job.finished["type"] == "cancelled"
+    assert "Resume continues" in panel.status.text() and panel.resume_button.isEnabled()
+    qtbot.mouseClick(panel.resume_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: not panel.job.running, timeout=240_000)
+    assert panel.job.finished["type"] == "done", panel.job.finished
+    statuses = [panel.folds.item(r, 5).text() for r in range(panel.folds.rowCount())]
+    assert "resumed" in statuses and statuses.count("done") >= 1
+    # the run is listed; open its matrix; click a cell; the trial plays
+    assert any(r.path == str(out) for r in window.runs.rows)
+    assert window.open_run(str(out))
+    conf = window.confusion
+    counts = conf.model.matrix("counts")
+    i = int(counts.sum(axis=1).argmax())
+    j = int(counts[i].argmax())
+    qtbot.mouseClick(conf.matrix, Qt.MouseButton.LeftButton, pos=conf.matrix.cell_center(i, j))
+    assert conf.table.rowCount() == int(counts[i, j]) > 0
+    assert window.play_trial(conf.cell_rows[0])
+    assert window.player.current_frame() == conf.cell_rows[0].start_sample
+    assert window.player.pred_probs is not None
+
+
+def test_one_click_ablation_and_bad_input(window, data, qtbot, tmp_path):
+    window.sessions.set_folders([str(data / "data")])
+    panel = window.train
+    panel.model.setCurrentText("knn")
+    panel.out.setText(str(tmp_path / "abl"))
+    qtbot.mouseClick(panel.ablate_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: window.compare.result is not None, timeout=240_000)
+    r = window.compare.result
+    assert {r["name_a"], r["name_b"]} == {"normal", "both"}
+    assert "matched test trials" in window.compare.sentence.text()
+    assert all((tmp_path / "abl" / c / "metrics.json").is_file()
+               for c in ("normal", "shear", "both"))
+    # sessions with no ok trials: a clear message, the window lives
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    write_participant(bad / "P01.h5", "P01", 3, gestures=("Poke",), blocks=0,
+                      extra_trials=[trial_record(0, "Poke", 5, 40, status="discarded")])
+    window.sessions.set_folders([str(bad)])
+    assert "no ok trials" in window.sessions.summary.text()
+    panel.out.setText(str(tmp_path / "r-bad"))
+    qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
+    assert "no trials with status ok" in window.message.text()
+    # no sessions at all
+    window.sessions.set_folders([])
+    qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
+    assert "no sessions selected" in window.message.text()
+    assert window.isVisible()

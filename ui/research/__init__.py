@@ -1,0 +1,1 @@
+"""The research workspace window: sessions, runs, the linked confusion matrix, comparison."""

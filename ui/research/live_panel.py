@@ -1,0 +1,132 @@
+"""Live inference overlay for the main window: load a finished run; the top-3 gestures
+with probabilities, the smoothing window and the measured latency update as the live
+engine streams (the model runs in learn/live_inference.py's worker thread)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import (
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.live_inference import LiveInference
+from tactile_studio.learn.window_model import WindowModel
+
+
+class LiveInferencePanel(QWidget):
+    def __init__(self, engine: Callable[[], Any], recording: Callable[[], bool],
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.engine_fn, self.recording_fn = engine, recording
+        self.model: WindowModel | None = None
+        self.inference: LiveInference | None = None
+        self.load_button = QPushButton("Load run…")
+        self.run_label = QLabel("no run loaded")
+        self.run_label.setWordWrap(True)
+        self.smoothing = QSpinBox()
+        self.smoothing.setRange(1, 50)
+        self.smoothing.setValue(4)
+        self.smoothing.setSuffix(" predictions")
+        self.rows: list[tuple[QLabel, QProgressBar]] = []
+        grid = QGridLayout()
+        for i in range(3):
+            name, bar = QLabel("—"), QProgressBar()
+            bar.setRange(0, 100)
+            bar.setFormat("%p%")
+            f = name.font()
+            f.setPointSize(f.pointSize() + (3 if i == 0 else 0))
+            f.setBold(i == 0)
+            name.setFont(f)
+            name.setMinimumWidth(150)
+            grid.addWidget(name, i, 0)
+            grid.addWidget(bar, i, 1)
+            self.rows.append((name, bar))
+        self.latency = QLabel("latency —")
+        self.message = QLabel("")
+        self.message.setWordWrap(True)
+        top = QHBoxLayout()
+        top.addWidget(self.load_button)
+        top.addWidget(QLabel("Smoothing"))
+        top.addWidget(self.smoothing)
+        top.addStretch(1)
+        lay = QVBoxLayout(self)
+        lay.addLayout(top)
+        lay.addWidget(self.run_label)
+        lay.addLayout(grid)
+        lay.addWidget(self.latency)
+        lay.addWidget(self.message)
+        lay.addStretch(1)
+        self.timer = QTimer(self)
+        self.timer.setInterval(100)
+        self.timer.timeout.connect(self.refresh)
+        self.load_button.clicked.connect(self._browse)
+        self.smoothing.valueChanged.connect(
+            lambda n: self.inference.set_smoothing(n) if self.inference else None)
+
+    def _browse(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Run folder")
+        if folder:
+            self.load_run(folder)
+
+    def load_run(self, path: str) -> bool:
+        try:
+            model = WindowModel(path)
+        except UserError as exc:
+            self.message.setText(str(exc))
+            return False
+        self.stop()
+        self.model = model
+        d = model.describe()
+        self.run_label.setText(f"{model.name}: {d['model']} ({d['channels'] or 'all'}), fold "
+                               f"{d['fold']}, window {d['window']} frames, "
+                               f"{len(d['labels'])} gestures")
+        self.message.setText("")
+        self.timer.start()
+        return True
+
+    def stop(self) -> None:
+        if self.inference is not None:
+            self.inference.stop()
+            self.inference = None
+
+    def refresh(self) -> None:
+        engine = self.engine_fn()
+        if self.model is None:
+            return
+        if engine is None:
+            self.message.setText("no device: connect one to predict")
+            self.stop()
+            return
+        if self.inference is None or self.inference.engine is not engine:
+            self.stop()
+            self.inference = LiveInference(engine, self.model, smoothing=self.smoothing.value(),
+                                           recording=self.recording_fn).start()
+        inf = self.inference
+        if inf.error:
+            self.message.setText(f"prediction stopped: {inf.error}")
+            return
+        p = inf.latest
+        if p is None:
+            self.message.setText(f"waiting for {self.model.window} frames and a baseline…")
+            return
+        self.message.setText("")
+        for (name, bar), (label, prob) in zip(self.rows, p.top3):
+            name.setText(label)
+            bar.setValue(round(100 * prob))
+        self.latency.setText(f"latency {p.latency_ms:.0f} ms (model {p.compute_ms:.0f} ms) · "
+                             f"{inf.count} predictions")
+
+    def top(self) -> str:
+        return self.rows[0][0].text()

@@ -1,0 +1,104 @@
+"""Session browser: pick folders, filter, select; the selection is a run's dataset."""
+
+from __future__ import annotations
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QFileDialog,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.learn.workspace_index import SessionRow, scan_sessions
+from tactile_studio.ui.research.tables import fill_row, make_table
+
+COLUMNS = ["session", "participant", "condition", "protocol", "sensor", "date", "ok trials",
+           "flagged", "discarded", "per gesture", "problem"]
+
+
+def per_gesture_text(per: dict[str, int]) -> str:
+    """"9 gestures × 2" when balanced, else each gesture's count (full list in the tooltip)."""
+    counts = set(per.values())
+    if len(counts) == 1:
+        return f"{len(per)} gestures × {counts.pop()}"
+    return ", ".join(f"{g} {n}" for g, n in sorted(per.items()))
+
+
+class SessionsView(QWidget):
+    selectionChanged = Signal()
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.folders: list[str] = []
+        self.rows: list[SessionRow] = []
+        add, clear = QPushButton("Add folder…"), QPushButton("Clear")
+        self.filter = QLineEdit()
+        self.filter.setPlaceholderText("filter: participant, condition, protocol, sensor…")
+        self.table = make_table(COLUMNS)
+        self.table.setSortingEnabled(True)
+        self.summary = QLabel("Add a folder of session files.")
+        top = QHBoxLayout()
+        top.addWidget(add)
+        top.addWidget(clear)
+        top.addWidget(QLabel("Filter"))
+        top.addWidget(self.filter, 1)
+        lay = QVBoxLayout(self)
+        lay.addLayout(top)
+        lay.addWidget(self.table, 1)
+        lay.addWidget(self.summary)
+        add.clicked.connect(self._browse)
+        clear.clicked.connect(lambda: self.set_folders([]))
+        self.filter.textChanged.connect(self._apply_filter)
+        self.table.itemSelectionChanged.connect(self._selection_changed)
+
+    def _browse(self) -> None:
+        folder = QFileDialog.getExistingDirectory(self, "Folder of session files")
+        if folder:
+            self.set_folders([*self.folders, folder])
+
+    def set_folders(self, folders: list[str]) -> None:
+        self.folders = [str(f) for f in folders]
+        self.rows = scan_sessions(self.folders)
+        self.table.setSortingEnabled(False)
+        self.table.setRowCount(len(self.rows))
+        for r, row in enumerate(self.rows):
+            values = [row.path.rsplit("/", 1)[-1], row.participant, row.condition, row.protocol,
+                      row.sensor, row.date, row.ok, row.flagged, row.discarded,
+                      per_gesture_text(row.per_gesture), row.error]
+            fill_row(self.table, r, values, [None] * len(values), row.error)
+            self.table.item(r, 0).setToolTip(row.path)
+            self.table.item(r, 9).setToolTip("\n".join(
+                f"{g}: {n}" for g, n in sorted(row.per_gesture.items())))
+        self.table.setSortingEnabled(True)
+        self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
+        self._apply_filter()
+        self.table.selectAll()
+        self._selection_changed()
+
+    def _apply_filter(self) -> None:
+        text = self.filter.text()
+        for r in range(self.table.rowCount()):
+            row = self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)]
+            self.table.setRowHidden(r, not row.matches(text))
+
+    def selected(self) -> list[SessionRow]:
+        rows = sorted({i.row() for i in self.table.selectedIndexes()
+                       if not self.table.isRowHidden(i.row())})
+        return [self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)] for r in rows]
+
+    def selected_paths(self) -> list[str]:
+        """The dataset of a run: the selected sessions that can be read."""
+        return [r.path for r in self.selected() if not r.error]
+
+    def _selection_changed(self) -> None:
+        sel = self.selected()
+        ok = sum(r.ok for r in sel)
+        people = len({r.participant for r in sel})
+        self.summary.setText(f"{len(sel)} of {len(self.rows)} sessions selected: {people} "
+                             f"participants, {ok} ok trials" +
+                             (" — no ok trials to train on" if sel and not ok else ""))
+        self.selectionChanged.emit()

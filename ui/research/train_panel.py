@@ -1,0 +1,299 @@
+"""Train / evaluate panel: an experiment from the model registry, run in a worker
+process (learn/train_job.py) with live per-fold curves, a fold table, ETA, cancel and
+resume; the channel ablation (normal / shear / both) is one click."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pyqtgraph as pg
+from PySide6.QtCore import QTimer, Signal
+from PySide6.QtWidgets import (
+    QComboBox,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QProgressBar,
+    QPushButton,
+    QSpinBox,
+    QSplitter,
+    QTableWidget,
+    QTableWidgetItem,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.learners import available_models
+from tactile_studio.learn.train_job import TrainJob, model_settings
+from tactile_studio.ui.research.tables import make_table
+from tactile_studio.ui.research.timeline import PALETTE
+
+FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy", "status"]
+
+
+def _typed(text: str, default: Any) -> Any:
+    if isinstance(default, bool):
+        return text.strip().lower() in ("1", "true", "yes", "on")
+    for kind in (int, float):
+        if isinstance(default, kind):
+            return kind(text)
+    return text
+
+
+class TrainPanel(QWidget):
+    runFinished = Signal(str)
+    ablationFinished = Signal(list)
+    error = Signal(str)
+
+    def __init__(self, data_paths: Callable[[], list[str]], parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.data_paths = data_paths
+        self.job: TrainJob | None = None
+        self.queue: list[tuple[ExperimentConfig, str]] = []
+        self.ablation: list[str] = []
+        self.curves: dict[tuple[str, int, int], Any] = {}
+        self.history: dict[tuple[str, int, int], tuple[list[float], list[float]]] = {}
+        self.fold_rows: dict[tuple[str, int, int], int] = {}
+        self.model = QComboBox()
+        for name, text in available_models().items():
+            self.model.addItem(name)
+            self.model.setItemData(self.model.count() - 1, text, 3)  # tooltip role
+        self.model.setCurrentText("cnn1d")
+        self.preset = QComboBox()
+        self.preset.addItems(["tiny", "full"])
+        self.channels = QComboBox()
+        self.channels.addItems(["both", "normal", "shear"])
+        self.grid = QComboBox()
+        self.grid.addItems(["physical", "virtual"])
+        self.protocol = QComboBox()
+        self.protocol.addItems(["lopo", "group-kfold", "all-inclusive"])
+        self.rounds = QSpinBox()
+        self.rounds.setRange(1, 20)
+        self.epochs = QSpinBox()
+        self.epochs.setRange(0, 1000)
+        self.epochs.setSpecialValueText("model default")
+        self.out = QLineEdit()
+        self.out.setPlaceholderText("run folder (re-use it to resume)")
+        self.options = QTableWidget(0, 3)
+        self.options.setHorizontalHeaderLabels(["option", "value", "help"])
+        self.options.verticalHeader().hide()
+        self.options.horizontalHeader().setStretchLastSection(True)
+        form = QFormLayout()
+        for label, w in (("Model", self.model), ("Preset", self.preset),
+                         ("Channels", self.channels), ("Grid", self.grid),
+                         ("Evaluation", self.protocol), ("Rounds", self.rounds),
+                         ("Epochs", self.epochs), ("Run folder", self.out)):
+            form.addRow(label, w)
+        self.start_button = QPushButton("Train")
+        self.cancel_button = QPushButton("Cancel")
+        self.resume_button = QPushButton("Resume")
+        self.ablate_button = QPushButton("Channel ablation: normal / shear / both")
+        buttons = QHBoxLayout()
+        for b in (self.start_button, self.cancel_button, self.resume_button):
+            buttons.addWidget(b)
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addLayout(form)
+        ll.addWidget(QLabel("Model and training options (edit a value to override it)"))
+        ll.addWidget(self.options, 1)
+        ll.addLayout(buttons)
+        ll.addWidget(self.ablate_button)
+        self.progress = QProgressBar()
+        self.status = QLabel("Pick sessions in the Sessions tab, then Train.")
+        self.status.setWordWrap(True)
+        self.plot = pg.PlotWidget(background="w")
+        self.plot.setLabel("left", "validation accuracy")
+        self.plot.setLabel("bottom", "epoch")
+        self.plot.setYRange(0, 1)
+        self.plot.addLegend(offset=(-10, 10))
+        self.folds = make_table(FOLD_COLUMNS)
+        right = QWidget()
+        rl = QVBoxLayout(right)
+        rl.addWidget(self.progress)
+        rl.addWidget(self.status)
+        rl.addWidget(self.plot, 3)
+        rl.addWidget(self.folds, 2)
+        split = QSplitter()
+        split.addWidget(left)
+        split.addWidget(right)
+        split.setSizes([430, 800])
+        QVBoxLayout(self).addWidget(split)
+        self.timer = QTimer(self)
+        self.timer.setInterval(100)
+        self.timer.timeout.connect(self.poll)
+        self.model.currentIndexChanged.connect(self.fill_options)
+        self.preset.currentIndexChanged.connect(self.fill_options)
+        self.start_button.clicked.connect(self.start)
+        self.resume_button.clicked.connect(self.start)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.ablate_button.clicked.connect(self.start_ablation)
+        self.fill_options()
+        self._set_running(False)
+
+    # --- setup -------------------------------------------------------------------------
+    def fill_options(self) -> None:
+        try:
+            rows = model_settings(self.model.currentText(), self.preset.currentText())
+        except UserError as exc:
+            self.error.emit(str(exc))
+            rows = []
+        self.defaults = {k: v for k, v, _ in rows}
+        self.options.setRowCount(len(rows))
+        for r, (k, v, h) in enumerate(rows):
+            for c, text in enumerate((k, str(v), h)):
+                item = QTableWidgetItem(text)
+                if c != 1:
+                    item.setFlags(item.flags() & ~item.flags().ItemIsEditable)
+                self.options.setItem(r, c, item)
+        self.options.resizeColumnsToContents()
+
+    def overrides(self) -> dict[str, Any]:
+        out = {}
+        for r in range(self.options.rowCount()):
+            key, text = self.options.item(r, 0).text(), self.options.item(r, 1).text()
+            default = self.defaults.get(key)
+            if text != str(default):
+                try:
+                    out[key] = _typed(text, default)
+                except ValueError:
+                    raise UserError(f"option {key}: {text!r} is not a {type(default).__name__}") \
+                        from None
+        return out
+
+    def config(self, channels: str | None = None) -> ExperimentConfig:
+        data = self.data_paths()
+        if not data:
+            raise UserError("no sessions selected: pick sessions with ok trials in the "
+                            "Sessions tab")
+        return ExperimentConfig(
+            data=data, model=self.model.currentText(), preset=self.preset.currentText(),
+            channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
+            protocol=self.protocol.currentText(), rounds=self.rounds.value(),
+            epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
+            device="cpu")
+
+    def _out(self) -> str:
+        if not self.out.text().strip():
+            raise UserError("choose a run folder first")
+        return str(Path(self.out.text().strip()).expanduser())
+
+    # --- running -----------------------------------------------------------------------
+    def start(self) -> bool:
+        try:
+            self.queue = [(self.config(), self._out())]
+        except UserError as exc:
+            self.error.emit(str(exc))
+            return False
+        self.ablation = []
+        return self._next()
+
+    def start_ablation(self) -> bool:
+        try:
+            root = self._out()
+            self.queue = [(self.config(c), str(Path(root) / c)) for c in ("normal", "shear",
+                                                                          "both")]
+        except UserError as exc:
+            self.error.emit(str(exc))
+            return False
+        self.ablation = [out for _, out in self.queue]
+        return self._next()
+
+    def _next(self) -> bool:
+        if not self.queue:
+            return False
+        config, out = self.queue.pop(0)
+        self.job = TrainJob(config, out).start()
+        self.status.setText(f"training {config.model} ({config.channels}) into {out}…")
+        self._set_running(True)
+        self.timer.start()
+        return True
+
+    def cancel(self) -> None:
+        if self.job is not None and self.job.running:
+            self.queue = []
+            self.ablation = []
+            self.job.cancel()
+            self.status.setText("cancelling after the current epoch (finished folds are kept)…")
+
+    def _set_running(self, on: bool) -> None:
+        self.start_button.setEnabled(not on)
+        self.ablate_button.setEnabled(not on)
+        self.cancel_button.setEnabled(on)
+        self.resume_button.setEnabled(not on and bool(self.out.text().strip()) and
+                                      (Path(self.out.text().strip()) / "config.json").is_file())
+
+    def poll(self) -> None:
+        job = self.job
+        if job is None:
+            return
+        run = Path(job.out).name
+        for e in job.poll():
+            if e["type"] == "progress":
+                self.progress.setValue(int(1000 * e["fraction"]) // 10)
+                eta = job.eta()
+                self.status.setText(e["message"] + (f" · about {eta:.0f} s left" if eta else ""))
+            elif e["type"] == "epoch":
+                self._epoch(run, e)
+            elif e["type"] == "fold":
+                self._fold(run, e)
+        if job.finished is not None:
+            self.timer.stop()
+            self._finished(job)
+
+    def _epoch(self, run: str, e: dict[str, Any]) -> None:
+        key = (run, int(e["round"]), int(e["fold"]))
+        if int(e["epoch"]) == 1:  # a fold (re)starts: e.g. the one cancelled, on resume
+            self.history[key] = ([], [])
+        xs, ys = self.history.setdefault(key, ([], []))
+        acc = e.get("val_acc")
+        acc = e.get("train_acc") if acc is None or acc != acc else acc
+        xs.append(float(e["epoch"]))
+        ys.append(float(acc or 0.0))
+        if key not in self.curves:
+            colour = PALETTE[len(self.curves) % len(PALETTE)]
+            self.curves[key] = self.plot.plot(pen=pg.mkPen(colour, width=2),
+                                              name=f"{run} {e['fold_name']}")
+        self.curves[key].setData(xs, ys)
+        self._row(key, e["fold_name"], len(xs), max(ys), None, "training")
+
+    def _fold(self, run: str, e: dict[str, Any]) -> None:
+        key = (run, int(e["round"]), int(e["fold"]))
+        xs, ys = self.history.get(key, ([], []))
+        self._row(key, e["fold_name"], len(xs) or None, max(ys) if ys else None, e["accuracy"],
+                  "resumed" if e["resumed"] else "done")
+
+    def _row(self, key, name: str, epochs, best, acc, status: str) -> None:
+        if key not in self.fold_rows:
+            self.fold_rows[key] = self.folds.rowCount()
+            self.folds.insertRow(self.folds.rowCount())
+        r = self.fold_rows[key]
+        values = [key[0], name, "" if epochs is None else str(epochs),
+                  "" if best is None else f"{100 * best:.1f}%",
+                  "" if acc is None else f"{100 * acc:.1f}%", status]
+        for c, v in enumerate(values):
+            self.folds.setItem(r, c, QTableWidgetItem(v))
+
+    def _finished(self, job: TrainJob) -> None:
+        f = job.finished or {}
+        self._set_running(False)
+        if f.get("type") == "done":
+            self.progress.setValue(100)
+            self.status.setText(f"finished: accuracy {100 * f['accuracy']:.1f}% ({job.out})")
+            self.runFinished.emit(job.out)
+            if self.queue:
+                self._next()
+            elif self.ablation:
+                runs, self.ablation = self.ablation, []
+                self.ablationFinished.emit(runs)
+        elif f.get("type") == "cancelled":
+            self.status.setText(f"cancelled; finished folds are kept in {job.out} — Resume "
+                                "continues")
+        else:
+            self.status.setText("stopped: " + str(f.get("message")))
+            self.error.emit(str(f.get("message")))
+        self._set_running(False)

@@ -1,0 +1,135 @@
+"""The research workspace window: Sessions, Runs, Confusion matrix and Compare tabs.
+
+Every failure to read a run or a session is shown in the window's message line; the
+window stays usable.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QFileDialog, QLabel, QMainWindow, QTabWidget, QWidget
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.compare import compare_predictions
+from tactile_studio.learn.trialpreds import load_predictions
+from tactile_studio.ui.research.compare_view import CompareView
+from tactile_studio.ui.research.confusion_view import ConfusionView
+from tactile_studio.ui.research.player import SessionPlayer
+from tactile_studio.ui.research.runs_view import RunsView
+from tactile_studio.ui.research.sessions_view import SessionsView
+from tactile_studio.ui.research.train_panel import TrainPanel
+
+
+class ResearchWindow(QMainWindow):
+    trialOpened = Signal(object)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle("Tactile Studio — research workspace")
+        self.tabs = QTabWidget()
+        self.sessions = SessionsView()
+        self.runs = RunsView()
+        self.confusion = ConfusionView()
+        self.compare = CompareView()
+        self.player = SessionPlayer()
+        self.train = TrainPanel(self.sessions.selected_paths)
+        for w, name in ((self.sessions, "Sessions"), (self.train, "Train"), (self.runs, "Runs"),
+                        (self.confusion, "Confusion matrix"), (self.compare, "Compare"),
+                        (self.player, "Session player")):
+            self.tabs.addTab(w, name)
+        self.setCentralWidget(self.tabs)
+        self.message = QLabel("")
+        self.message.setWordWrap(True)
+        self.statusBar().addWidget(self.message, 1)
+        self.runs.openRequested.connect(self.open_run)
+        self.runs.compareRequested.connect(self.compare_runs)
+        self.runs.error.connect(self.show_error)
+        self.confusion.export_png.clicked.connect(lambda: self._export("PNG image (*.png)"))
+        self.confusion.export_svg.clicked.connect(lambda: self._export("SVG drawing (*.svg)"))
+        self.confusion.export_csv.clicked.connect(lambda: self._export("CSV table (*.csv)"))
+        self.confusion.trialActivated.connect(self.play_trial)
+        self.player.error.connect(self.show_error)
+        self.train.error.connect(self.show_error)
+        self.train.runFinished.connect(self._run_finished)
+        self.train.ablationFinished.connect(
+            lambda runs: self.compare_runs(runs[0], runs[-1]))
+        open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
+        open_session.triggered.connect(self._browse_session)
+        self.resize(1200, 760)
+
+    def show_error(self, text: str) -> None:
+        self.message.setStyleSheet("color: #a00000")
+        self.message.setText(text)
+
+    def show_info(self, text: str) -> None:
+        self.message.setStyleSheet("")
+        self.message.setText(text)
+
+    def open_run(self, path: str) -> bool:
+        try:
+            run = load_predictions(path)
+        except UserError as exc:
+            self.show_error(str(exc))
+            return False
+        self.confusion.set_run(run)
+        self.tabs.setCurrentWidget(self.confusion)
+        self.show_info(f"opened {path}: {len(run.trials)} test trials")
+        return True
+
+    def compare_runs(self, a: str, b: str) -> bool:
+        try:
+            result = compare_predictions(load_predictions(a), load_predictions(b))
+        except UserError as exc:
+            self.show_error(str(exc))
+            return False
+        self.compare.set_result(result)
+        self.tabs.setCurrentWidget(self.compare)
+        self.show_info(result["sentence"])
+        return True
+
+    def closeEvent(self, event) -> None:  # noqa: ANN001, N802 - Qt name and signature
+        if self.train.job is not None and self.train.job.running:
+            self.train.cancel()  # the worker stops after its epoch; folds are kept
+        super().closeEvent(event)
+
+    def _run_finished(self, out: str) -> None:
+        root = str(Path(out).parent)
+        if not self.runs.root.text():
+            self.runs.set_root(root)
+        else:
+            self.runs.set_root(self.runs.root.text())
+        self.show_info(f"run finished: {out}")
+
+    def _browse_session(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open session", "", "Sessions (*.h5)")
+        if path:
+            self.open_session(path)
+
+    def open_session(self, path: str) -> bool:
+        ok = self.player.open_session(path)
+        if ok:
+            self.tabs.setCurrentWidget(self.player)
+            self.show_info(f"playing {path}")
+        return ok
+
+    def play_trial(self, trial) -> bool:
+        """Open a confusion-cell trial in the player at its start, with the run's
+        prediction over time."""
+        if not trial.path or not self.open_session(trial.path):
+            if not trial.path:
+                self.show_error(f"{trial.uid}: the run does not say where its session is")
+            return False
+        run = self.confusion.run
+        if run is not None:
+            self.player.load_run_predictions(str(run.path))
+        self.player.jump_to_trial(trial.trial)
+        self.trialOpened.emit(trial)
+        return True
+
+    def _export(self, kind: str) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Export confusion matrix", "", kind)
+        if path:
+            self.confusion.export(path)
+            self.show_info(f"exported {path}")
