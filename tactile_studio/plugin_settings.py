@@ -11,7 +11,7 @@ from typing import Any
 
 from tactile_studio.errors import SettingsError
 
-_TYPES = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
+SETTING_KINDS = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
 
 
 @dataclass(frozen=True)
@@ -41,7 +41,7 @@ class Setting:
                 else:
                     value = bool(value)
             else:
-                value = _TYPES[self.kind](value)
+                value = SETTING_KINDS[self.kind](value)
         except (TypeError, ValueError):
             raise SettingsError(f"{where}: {value!r} is not a valid {self.kind}") from None
         if self.kind == "choice" and value not in self.choices:

@@ -9,8 +9,8 @@ from learn_fixtures import make_dataset_folder, trial_record, write_participant
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.timeline import predictions_over_time
 from tactile_studio.playback import PlayClock, SessionPlayback, session_history
+from tactile_studio.playback.predictions import predictions_over_time
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
 

@@ -224,7 +224,7 @@ def test_fourteen_long_gesture_names_stay_readable(window, workspace):
 def test_run_without_weights_and_bad_session_give_messages(window, workspace, tmp_path):
     bare = tmp_path / "bare"
     shutil.copytree(workspace / "runs" / "normal", bare,
-                    ignore=shutil.ignore_patterns("model.safetensors"))
+                    ignore=shutil.ignore_patterns("model.safetensors", "model.onnx"))
     assert not window.open_run(str(bare))
     assert "no finished folds" in window.message.text()
     bad = tmp_path / "bad.h5"

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.contract import (
-    _TYPES,
     OPTIONAL_HOOKS,
     DevicePlugin,
     FrameBatch,
@@ -35,6 +34,7 @@ from tactile_studio.devices.contract import (
     Setting,
 )
 from tactile_studio.errors import UserError
+from tactile_studio.plugin_settings import SETTING_KINDS
 from tactile_studio.sensor.layout import Layout
 
 NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
@@ -100,8 +100,8 @@ def _check_schema(cls: type[DevicePlugin], problems: list[str]) -> None:
         if s.name in seen:
             problems.append(f"{where}: declared twice")
         seen.add(s.name)
-        if s.kind not in _TYPES:
-            problems.append(f"{where}: kind {s.kind!r} is not one of {', '.join(_TYPES)}")
+        if s.kind not in SETTING_KINDS:
+            problems.append(f"{where}: kind {s.kind!r} is not one of {', '.join(SETTING_KINDS)}")
             continue
         if s.kind == "choice" and not s.choices:
             problems.append(f"{where}: a choice needs choices")

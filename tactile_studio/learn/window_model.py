@@ -18,7 +18,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.dataset import TrialDataset
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.learners import DataInfo, make_learner
-from tactile_studio.learn.runfolder import WEIGHTS, read_run
+from tactile_studio.learn.runfolder import model_file, read_run
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
@@ -42,7 +42,7 @@ class WindowModel:
                            records[0])
         self.learner = make_learner(self.config.model, self.config.preset,
                                     self.config.overrides, self.config.epochs, "cpu")
-        self.fitted = self.learner.load(Path(self.record["_dir"]) / WEIGHTS, self.info)
+        self.fitted = self.learner.load(model_file(self.record["_dir"]), self.info)
         lo, hi = int(summary.get("frames_min", 64)), int(summary.get("frames_max", 64))
         self.window = max(2, (lo + hi) // 2)  # a typical trial's length in frames
 

@@ -113,7 +113,7 @@ class SessionPlayer(QWidget):
 
     def load_run_predictions(self, run: str) -> bool:
         """The run's prediction over this session's time (see learn/timeline.py)."""
-        from tactile_studio.learn.timeline import predictions_over_time
+        from tactile_studio.playback.predictions import predictions_over_time
 
         if self.pb is None:
             return False

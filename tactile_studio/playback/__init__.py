@@ -115,8 +115,8 @@ class SessionPlayback:
 def session_history(pb: SessionPlayback, frame: int, taxels: list[tuple[int, int]],
                     quantity: str = "normal", seconds: float = 10.0, max_points: int = 600):
     """The strip chart's data for the ``seconds`` before ``frame`` (physical taxels),
-    as the live view's :class:`~tactile_studio.live_view.History` (t <= 0)."""
-    from tactile_studio.live_view import QUANTITIES, History
+    as the live view's :class:`~tactile_studio.live.view.History` (t <= 0)."""
+    from tactile_studio.live.view import QUANTITIES, History
 
     if quantity not in QUANTITIES:
         raise ValueError(f"quantity {quantity!r} not in {QUANTITIES}")
