@@ -58,6 +58,13 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None,
                    help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
+    p.add_argument("--window", dest="window_s", type=float, default=None, metavar="SECONDS",
+                   help="trials longer than 1.5 windows are cut into windows this long "
+                        "(default: the protocol's trial length, else 2 s)")
+    p.add_argument("--overlap", dest="window_overlap", type=float, default=0.5,
+                   help="share of a window overlapping the next (default 0.5)")
+    p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
+                   help="trial prediction from its windows: mean probability or majority vote")
 
 
 def _config(args: argparse.Namespace, channels: str | None):
@@ -67,7 +74,9 @@ def _config(args: argparse.Namespace, channels: str | None):
         data=list(args.data), model=args.model, channels=channels, grid=args.grid,
         protocol=args.protocol, rounds=args.rounds, preset=args.preset, epochs=args.epochs,
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
-        device=args.device, threads=args.threads, cache_dir=args.cache_dir, use_cache=not args.no_cache)
+        device=args.device, threads=args.threads, cache_dir=args.cache_dir,
+        use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
+        aggregate=args.aggregate)
 
 
 def _fmt(v: Any) -> str:
@@ -81,6 +90,10 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
                 "balanced_accuracy", "kappa"):
         if key in m:
             print(f"  {key:18s} {_fmt(m[key])}")
+    if m.get("windows") is not None:
+        print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
+              f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "
+              "of its windows)")
     if m.get("heldout"):
         print(f"  {'heldout_accuracy':18s} {_fmt(m['heldout']['accuracy'])}")
     if len(m.get("rounds", [])) > 1:
@@ -88,7 +101,8 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     for f in m["per_fold"]:
         who = ",".join(f["test_participants"])
         who = f" (test: {who})" if who and who != f["name"] else ""
-        print(f"    round {f['round']} fold {f['name']}{who}: accuracy {_fmt(f['accuracy'])}")
+        print(f"    round {f['round']} fold {f['name']}{who}: accuracy {_fmt(f['accuracy'])}"
+              f" trial {_fmt(f.get('trial_accuracy'))}")
     if out is not None:
         print(f"run folder: {out}")
 

@@ -26,6 +26,7 @@ from tactile_studio.learn.dataset import build_dataset
 from tactile_studio.learn.experiment import ExperimentConfig, _predictions, summarise
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import WEIGHTS, read_run, write_json
+from tactile_studio.learn.windowing import learner_samples, window_spec
 
 
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
@@ -61,7 +62,8 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     ``RUN/rescore.json``."""
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
-    x, owner = learner.samples(ds)
+    x, owner, _ = learner_samples(learner, ds, window_spec(config.window_s,
+                                                           config.window_overlap, ds.trial_s))
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)
@@ -82,6 +84,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
     header = {"model": config.model, "protocol": config.protocol, "channels": ds.channels,
               "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
+              "aggregate": config.aggregate,
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
     write_json(Path(run) / "rescore.json", metrics)

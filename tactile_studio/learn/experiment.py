@@ -33,10 +33,13 @@ from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
 from tactile_studio.learn.splits import PROTOCOLS, make_folds
+from tactile_studio.learn.windowing import AGGREGATES, learner_samples, window_spec
+from tactile_studio.learn.windowing import aggregate as aggregate_trials
 
 # Config fields that change results (a resumed run must match on these).
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
-               "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split")
+               "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
+               "window_s", "window_overlap", "aggregate")
 
 
 @dataclass
@@ -55,6 +58,9 @@ class ExperimentConfig:
     heldout_fraction: float = 0.1        # group-kfold held-out participants
     val_fraction: float = 0.15           # validation share of training participants' trials
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)  # all-inclusive train/val/test
+    window_s: float | None = None        # long trials -> windows this long (None: protocol's)
+    window_overlap: float = 0.5          # share of a window overlapping the next
+    aggregate: str = "mean"              # trial prediction from windows: mean | vote
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -87,6 +93,13 @@ class ExperimentConfig:
             raise UserError(f"--epochs must be at least 1, got {self.epochs}")
         if not 0 < self.val_fraction < 1 or not 0 < self.heldout_fraction < 1:
             raise UserError("validation and held-out fractions must be between 0 and 1")
+        if self.aggregate not in AGGREGATES:
+            raise UserError(f"unknown aggregate {self.aggregate!r} "
+                            f"(available: {', '.join(AGGREGATES)})")
+        if self.window_s is not None and self.window_s <= 0:
+            raise UserError(f"--window must be positive, got {self.window_s}")
+        if not 0 <= self.window_overlap < 1:
+            raise UserError(f"window overlap must be in [0, 1), got {self.window_overlap}")
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
 
@@ -131,15 +144,23 @@ def _versions() -> dict[str, str]:
             "numpy": np.__version__, "torch": torch.__version__, "sklearn": sklearn.__version__}
 
 
+TRIAL_KEYS = ("accuracy", "balanced_accuracy", "f1_macro", "kappa", "confusion_matrix",
+              "confusion_counts", "per_class_accuracy")
+
+
 def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels: list[str],
-                    windowed: bool) -> dict[str, Any]:
+                    windowed: bool = False, aggregate: str = "mean") -> dict[str, Any]:
+    """Per-sample (window) metrics, plus ``trial_*`` metrics of the trials' aggregated
+    predictions (identical when every trial is one sample)."""
     out = M.classification_metrics(y, probs.argmax(axis=1), labels)
-    if windowed:
-        trials, pred = M.vote(owner, probs)
-        _, first = np.unique(owner, return_index=True)  # same sorted order as ``trials``
-        truth = y[first]
-        out["trial_accuracy"] = float((pred == truth).mean()) if len(trials) else 0.0
-        out["n_trials"] = int(len(trials))
+    trials, pred = aggregate_trials(owner, probs, aggregate)
+    _, first = np.unique(owner, return_index=True)  # same sorted order as ``trials``
+    trial = M.classification_metrics(y[first], pred, labels) if len(trials) else \
+        M.classification_metrics(np.zeros(0, np.int64), np.zeros(0, np.int64), labels)
+    for key in TRIAL_KEYS:
+        out[f"trial_{key}"] = trial[key]
+    out["n_trials"] = int(len(trials))
+    out["aggregate"] = aggregate
     return out
 
 
@@ -178,15 +199,15 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
 
 
 def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
-                 key: str = "predictions") -> dict[str, Any]:
+                 key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
     p = rec[key]
     return _sample_metrics(np.asarray(p["y_true"], dtype=np.int64),
                            np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1),
-                           np.asarray(p["owner"]), labels, windowed)
+                           np.asarray(p["owner"]), labels, windowed, aggregate)
 
 
 def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
-            key: str = "predictions") -> dict[str, Any]:
+            key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
     """Metrics over the test predictions of several folds together (trial ids made unique
     per fold so votes never mix folds)."""
     ys, ps, os_ = [], [], []
@@ -196,40 +217,46 @@ def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
         ps.append(np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), len(labels)))
         os_.append(np.asarray(p["owner"], dtype=np.int64) + i * 10_000_000)
     return _sample_metrics(np.concatenate(ys), np.concatenate(ps), np.concatenate(os_),
-                           labels, windowed)
+                           labels, windowed, aggregate)
 
 
 def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
               header: dict[str, Any], complete: bool) -> dict[str, Any]:
-    """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics."""
+    """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics.
+
+    ``accuracy`` and ``confusion_*`` are per sample (window); ``trial_accuracy`` and
+    ``trial_confusion_*`` per trial, aggregated as ``header["aggregate"]`` (mean
+    probability by default)."""
+    agg = header.get("aggregate", "mean")
     per_fold, rounds = [], []
     for rec in records:
-        m = fold_metrics(rec, labels, windowed)
+        m = fold_metrics(rec, labels, windowed, aggregate=agg)
         m.update({"round": rec["round"], "fold": rec["fold"], "name": rec["name"],
                   "test_participants": rec["test_participants"],
                   "best_epoch": rec.get("best_epoch"), "n_test_trials": len(rec["test"])})
         if rec.get("heldout_predictions"):
-            m["heldout_accuracy"] = fold_metrics(rec, labels, windowed,
-                                                 "heldout_predictions")["accuracy"]
+            held = fold_metrics(rec, labels, windowed, "heldout_predictions", agg)
+            m["heldout_accuracy"] = held["accuracy"]
+            m["heldout_trial_accuracy"] = held["trial_accuracy"]
         per_fold.append(m)
     round_ids = sorted({r["round"] for r in records})
     for r in round_ids:
         recs = [x for x in records if x["round"] == r]
-        m = _pooled(recs, labels, windowed)
+        m = _pooled(recs, labels, windowed, aggregate=agg)
         m.update({"round": r, "seed": recs[0]["seed"], "folds": len(recs)})
         if any(x.get("heldout_predictions") for x in recs):
-            m["heldout"] = _pooled(recs, labels, windowed, "heldout_predictions")
+            m["heldout"] = _pooled(recs, labels, windowed, "heldout_predictions", agg)
         rounds.append(m)
-    overall = _pooled(records, labels, windowed)
+    overall = _pooled(records, labels, windowed, aggregate=agg)
     medians = M.median_of(rounds)
     overall.update(medians)  # with one round the median is that round's value
     out = {**header, **overall, "complete": complete, "medians": medians,
-           "rounds": [{k: v for k, v in m.items() if k not in ("confusion_matrix",
-                                                              "confusion_counts")}
+           "rounds": [{k: v for k, v in m.items() if not k.endswith(("confusion_matrix",
+                                                                      "confusion_counts"))}
                       for m in rounds],
            "per_fold": per_fold}
     if any(r.get("heldout_predictions") for r in records):
-        out["heldout"] = _pooled(records, labels, windowed, "heldout_predictions")
+        out["heldout"] = _pooled(records, labels, windowed, "heldout_predictions", agg)
     return out
 
 
@@ -286,7 +313,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                              config.folds, config.heldout_fraction, config.val_fraction,
                              config.split)  # fails early on too few participants
     header = {"model": learner.name, "protocol": config.protocol, "channels": ds.channels,
-              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed}
+              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
+              "aggregate": config.aggregate}
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -294,7 +322,10 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     if folder is not None:
         folder.start(config.to_dict(), resolved, RESULT_KEYS)
     progress(0.05, "making model inputs")
-    x, owner = learner.samples(ds)
+    spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
+    x, owner, n_pieces = learner_samples(learner, ds, spec)
+    header["window_s"] = spec.seconds
+    header["windows"] = n_pieces
     total_units = config.rounds * len(first_folds)
     records: list[dict[str, Any]] = []
     done = 0
@@ -331,7 +362,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                 done += 1
                 progress(0.05 + 0.92 * done / total_units, f"{where} done")
                 listener(FoldEvent(r, k, len(folds), fold.name,
-                                   fold_metrics(rec, ds.label_names, learner.windowed), resumed))
+                                   fold_metrics(rec, ds.label_names, learner.windowed,
+                                                aggregate=config.aggregate), resumed))
     except Cancelled:
         if records and folder is not None:
             metrics = summarise(records, ds.label_names, learner.windowed, header, False)
