@@ -65,6 +65,25 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                    help="share of a window overlapping the next (default 0.5)")
     p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
                    help="trial prediction from its windows: mean probability or majority vote")
+    add_generalisation_options(p)
+
+
+def add_generalisation_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--augment", default="", metavar="KINDS",
+                   help="augment training windows: flip,rotate,shift,warp,scale or all")
+    p.add_argument("--augment-copies", type=int, default=1, metavar="N",
+                   help="augmented copies of every training window (default 1)")
+    p.add_argument("--participant-norm", action="store_true",
+                   help="scale each participant's normal and shear to a typical person")
+    p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
+    p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
+                   help="early stopping on training trials or on whole training participants")
+
+
+def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {"augment": args.augment, "augment_copies": args.augment_copies,
+            "participant_norm": args.participant_norm, "balance": args.balance,
+            "val_by": args.val_by}
 
 
 def _config(args: argparse.Namespace, channels: str | None):
@@ -76,7 +95,7 @@ def _config(args: argparse.Namespace, channels: str | None):
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
         device=args.device, threads=args.threads, cache_dir=args.cache_dir,
         use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
-        aggregate=args.aggregate)
+        aggregate=args.aggregate, **generalisation_kwargs(args))
 
 
 def _fmt(v: Any) -> str:

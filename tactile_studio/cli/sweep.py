@@ -6,7 +6,13 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from tactile_studio.cli.learn import PROTOCOL_CHOICES, _add_data_options, _Bar
+from tactile_studio.cli.learn import (
+    PROTOCOL_CHOICES,
+    _add_data_options,
+    _Bar,
+    add_generalisation_options,
+    generalisation_kwargs,
+)
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 
@@ -21,7 +27,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         rounds=args.rounds, preset=args.preset, epochs=args.epochs,
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
         device=args.device, cache_dir=args.cache_dir, use_cache=not args.no_cache,
-        window_s=args.window_s, aggregate=args.aggregate)
+        window_s=args.window_s, aggregate=args.aggregate, **generalisation_kwargs(args))
     channels = [None if c == "all" else c for c in args.channels]
     token = CancelToken()
     bar = _Bar(f"sweep ({args.executor})")
@@ -61,6 +67,7 @@ def register(subparsers) -> None:
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda tasks ask Ray for a GPU)")
     p.add_argument("--window", dest="window_s", type=float, default=None, metavar="SECONDS")
     p.add_argument("--aggregate", choices=("mean", "vote"), default="mean")
+    add_generalisation_options(p)
     p.add_argument("--out", default=None, metavar="DIR", help="results and finished tasks")
     p.add_argument("--executor", choices=("local", "ray"), default="local")
     p.add_argument("--jobs", type=int, default=None,

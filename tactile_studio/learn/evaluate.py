@@ -23,10 +23,14 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.experiment import ExperimentConfig, _predictions, summarise
+from tactile_studio.learn.experiment import (
+    ExperimentConfig,
+    _predictions,
+    prepare_inputs,
+    summarise,
+)
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import WEIGHTS, read_run, write_json
-from tactile_studio.learn.windowing import learner_samples, window_spec
 
 
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
@@ -62,8 +66,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     ``RUN/rescore.json``."""
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
-    x, owner, _ = learner_samples(learner, ds, window_spec(config.window_s,
-                                                           config.window_overlap, ds.trial_s))
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)

@@ -29,17 +29,26 @@ from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn import metrics as M
+from tactile_studio.learn.augment import parse_kinds
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
+from tactile_studio.learn.generalise import (
+    VAL_BY,
+    augmenter,
+    balanced_index,
+    participant_normalised,
+    participant_val,
+)
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
 from tactile_studio.learn.splits import PROTOCOLS, make_folds
-from tactile_studio.learn.windowing import AGGREGATES, learner_samples, window_spec
+from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 from tactile_studio.learn.windowing import aggregate as aggregate_trials
 
 # Config fields that change results (a resumed run must match on these).
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
-               "window_s", "window_overlap", "aggregate")
+               "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
+               "participant_norm", "balance", "val_by")
 
 
 @dataclass
@@ -61,6 +70,11 @@ class ExperimentConfig:
     window_s: float | None = None        # long trials -> windows this long (None: protocol's)
     window_overlap: float = 0.5          # share of a window overlapping the next
     aggregate: str = "mean"              # trial prediction from windows: mean | vote
+    augment: str = ""                    # flip,rotate,shift,warp,scale | all ("" none)
+    augment_copies: int = 1              # augmented copies of every training window
+    participant_norm: bool = False       # scale each participant to a typical person
+    balance: bool = False                # repeat rarer classes' training samples
+    val_by: str = "trial"                # validation: trials | whole training participants
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -100,6 +114,12 @@ class ExperimentConfig:
             raise UserError(f"--window must be positive, got {self.window_s}")
         if not 0 <= self.window_overlap < 1:
             raise UserError(f"window overlap must be in [0, 1), got {self.window_overlap}")
+        parse_kinds(self.augment)
+        if self.augment_copies < 0:
+            raise UserError(f"augment_copies must be 0 or more, got {self.augment_copies}")
+        if self.val_by not in VAL_BY:
+            raise UserError(f"unknown validation split {self.val_by!r} "
+                            f"(available: {', '.join(VAL_BY)})")
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
 
@@ -174,13 +194,21 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
 
 def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
                 fold, round_: int, k: int, seed: int, cancel: CancelToken,
-                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[dict[str, Any], Any]:
+                on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
+                balance: bool = False) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
-    stats = learner.norm_stats(x[tr])  # training part of this split only
     y = ds.labels
+    x_tr, y_tr = x[tr], y[owner[tr]]
+    if extra is not None:  # augmented copies of the training windows
+        x_aug, o_aug = extra(fold.train, seed)
+        x_tr, y_tr = np.concatenate([x_tr, x_aug]), np.concatenate([y_tr, y[o_aug]])
+    if balance:
+        keep = balanced_index(y_tr, np.random.default_rng([seed, 0xBA1]))
+        x_tr, y_tr = x_tr[keep], y_tr[keep]
+    stats = learner.norm_stats(x_tr)  # training part of this split only
     fitted, history, best = learner.fit(
-        info, (learner.apply_norm(x[tr], stats), y[owner[tr]]),
+        info, (learner.apply_norm(x_tr, stats), y_tr),
         (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch)
     cancel.check()
     uid = np.array(ds.uids)
@@ -260,6 +288,29 @@ def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
     return out
 
 
+def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
+    """(dataset as trained on, samples X, owner trial per sample, number of windows,
+    window spec, augmenter or None): the model inputs ``config`` asks for."""
+    if config.participant_norm:
+        ds = participant_normalised(ds)
+    spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
+    pieces, piece_owner = cut(ds, spec)
+    x, sample_piece = learner.samples(pieces)
+    extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
+    return ds, x, piece_owner[sample_piece], len(pieces), spec, extra
+
+
+def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
+    """Round ``round_``'s folds (seed ``config.seed + round_``), validation by
+    participant when ``config.val_by`` asks for it."""
+    seed = config.seed + round_
+    folds = make_folds(config.protocol, ds.labels, ds.participants, seed, config.folds,
+                       config.heldout_fraction, config.val_fraction, config.split)
+    if config.val_by == "participant":
+        folds = [participant_val(f, ds.participants, config.val_fraction, seed) for f in folds]
+    return folds
+
+
 def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = None,
                    progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
                    listener: Listener | None = None, model_spec: Any = None,
@@ -309,9 +360,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         "classification needs at least 2")
     info = DataInfo.of(ds)
     learner.check(info)
-    first_folds = make_folds(config.protocol, ds.labels, ds.participants, config.seed,
-                             config.folds, config.heldout_fraction, config.val_fraction,
-                             config.split)  # fails early on too few participants
+    first_folds = folds_for(config, ds, 0)  # fails early on too few participants
     header = {"model": learner.name, "protocol": config.protocol, "channels": ds.channels,
               "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
               "aggregate": config.aggregate}
@@ -322,8 +371,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     if folder is not None:
         folder.start(config.to_dict(), resolved, RESULT_KEYS)
     progress(0.05, "making model inputs")
-    spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
-    x, owner, n_pieces = learner_samples(learner, ds, spec)
+    ds, x, owner, n_pieces, spec, extra = prepare_inputs(learner, ds, config)
     header["window_s"] = spec.seconds
     header["windows"] = n_pieces
     total_units = config.rounds * len(first_folds)
@@ -333,9 +381,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     try:
         for r in range(config.rounds):
             seed = config.seed + r
-            folds = first_folds if r == 0 else make_folds(
-                config.protocol, ds.labels, ds.participants, seed, config.folds,
-                config.heldout_fraction, config.val_fraction, config.split)
+            folds = first_folds if r == 0 else folds_for(config, ds, r)
             for k, fold in enumerate(folds):
                 cancel.check()
                 where = f"round {r + 1}/{config.rounds} fold {k + 1}/{len(folds)} ({fold.name})"
@@ -355,7 +401,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
 
                     progress(0.05 + 0.92 * done / total_units, f"{where} training")
                     rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
-                                              cancel, on_epoch)
+                                              cancel, on_epoch, extra, config.balance)
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)

@@ -26,11 +26,16 @@ from typing import Any
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.experiment import ExperimentConfig, _torch_threads, _train_fold, summarise
+from tactile_studio.learn.experiment import (
+    ExperimentConfig,
+    _torch_threads,
+    _train_fold,
+    folds_for,
+    prepare_inputs,
+    summarise,
+)
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import read_json, write_json
-from tactile_studio.learn.splits import make_folds
-from tactile_studio.learn.windowing import learner_samples, window_spec
 
 TABLE_KEYS = ("accuracy", "trial_accuracy", "f1_macro", "balanced_accuracy", "kappa")
 
@@ -67,13 +72,10 @@ def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, A
         learner = make_learner(cfg.model, cfg.preset, cfg.overrides, cfg.epochs, cfg.device)
         ds = build_dataset(cfg.data, cfg.grid, cfg.channels, cfg.cache_dir, cfg.use_cache)
         info = DataInfo.of(ds)
-        seed = cfg.seed + round_
-        folds = make_folds(cfg.protocol, ds.labels, ds.participants, seed, cfg.folds,
-                           cfg.heldout_fraction, cfg.val_fraction, cfg.split)
-        x, owner, _ = learner_samples(learner, ds, window_spec(cfg.window_s, cfg.window_overlap,
-                                                              ds.trial_s))
-        rec, _ = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold, seed,
-                             CancelToken(), lambda e: None)
+        folds = folds_for(cfg, ds, round_)
+        ds, x, owner, _, _, extra = prepare_inputs(learner, ds, cfg)
+        rec, _ = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold,
+                             cfg.seed + round_, CancelToken(), lambda e: None, extra, cfg.balance)
     return rec
 
 
@@ -103,8 +105,7 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
             key = f"{model}/{cfg.channels}"
             groups[key] = {"config": cfg, "windowed": learner.windowed, "ids": []}
             for r in range(cfg.rounds):
-                folds = make_folds(cfg.protocol, full.labels, full.participants, cfg.seed + r,
-                                   cfg.folds, cfg.heldout_fraction, cfg.val_fraction, cfg.split)
+                folds = folds_for(cfg, full, r)
                 for k, fold in enumerate(folds):
                     tid = f"{model}-{cfg.channels}-r{r}-{_safe(fold.name)}"
                     groups[key]["ids"].append(tid)
