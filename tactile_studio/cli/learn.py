@@ -238,3 +238,4 @@ def register(subparsers) -> None:
     p.add_argument("--threads", type=int, default=None,
                    help="torch and onnxruntime CPU threads (1 is fastest on a busy machine)")
     p.set_defaults(func=cmd_export)
+
