@@ -83,3 +83,46 @@ def test_vote_aggregate_and_bad_settings(data, tmp_path):
         run_experiment(_config(data, "rf", aggregate="median"))
     with pytest.raises(UserError, match="window"):
         run_experiment(_config(data, "rf", window_s=-1.0))
+
+
+def _old_csv(path, style: int, gestures: dict[str, str], perf_s: float = 10.0) -> None:
+    """An old-software CSV: one labelled ~10 s performance per key (the pressed key's
+    ASCII code on every row of it), made by repeating the gesture."""
+    from tactile_studio.simulate import SensorSimulator
+    from tactile_studio.storage.shearsense import write_shearsense_csv
+
+    rate = 44.0
+    sim = SensorSimulator(rate=rate, seed=7, gesture="idle", style_seed=style, difficulty="easy")
+    frame, runs = int(rate), []
+    for key, g in gestures.items():
+        start = frame
+        for _ in range(int(perf_s / 2)):
+            sim.perform(g, 2.0, at_frame=frame)
+            frame += int(2 * rate)
+        runs.append((start, frame, ord(key)))
+        frame += int(rate)
+    raw = sim.step(frame)
+    labels = np.zeros(frame, dtype=np.int64)
+    for a, b, code in runs:
+        labels[a:b] = code
+    times = 1.69e9 + np.arange(frame) / rate
+    write_shearsense_csv(path, raw, times, labels, raw[: int(rate)].mean(axis=0))
+
+
+def test_imported_long_performances_train_on_windows(tmp_path):
+    from tactile_studio.storage.importers import import_shearsense
+
+    keys = {"1": "Poke", "3": "Heavy Pat", "7": "Circular Stroke"}
+    csvs = []
+    for p in range(3):
+        csvs.append(tmp_path / f"P0{p + 1}_demo_FLAT.csv")
+        _old_csv(csvs[-1], 300 + p, keys)
+    (tmp_path / "sessions").mkdir()
+    import_shearsense(csvs, tmp_path / "sessions")
+    ds = build_dataset([tmp_path / "sessions"], use_cache=False)
+    assert len(ds) == 9 and ds.lengths().min() >= 10 * 44 - 2  # one trial per performance
+    m = run_experiment(ExperimentConfig(data=[str(tmp_path / "sessions")], model="rf",
+                                        protocol="lopo", preset="tiny", use_cache=False)).metrics
+    assert m["windows"] == 9 * 9  # 10 s at 2 s windows, 50% overlap: 9 windows each
+    assert m["n"] == 81 and m["n_trials"] == 9
+    assert m["trial_accuracy"] > 0.5
