@@ -42,6 +42,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--only", default="", help="run configurations whose name has this")
+    ap.add_argument("--models", nargs="+", default=None, help="torch models (default: 3)")
     args = ap.parse_args(argv if argv is not None else [])
     preset, epochs = ("tiny", 15) if args.quick else ("full", None)
     with tempfile.TemporaryDirectory() as tmp:
@@ -53,6 +54,8 @@ def main(argv: list[str] | None = None) -> None:
         for name, models, options in CONFIGS:
             if args.only and args.only not in name:
                 continue
+            if args.models and models != ["rf"]:
+                models = args.models
             base = ExperimentConfig(data=[str(data)], model=models[0], protocol="lopo",
                                     preset=preset, epochs=None if models == ["rf"] else epochs,
                                     cache_dir=str(Path(tmp) / "cache"),
