@@ -21,6 +21,7 @@ from tactile_studio.errors import SettingsError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig, weights
 from tactile_studio.simulate.gestures import canonical_gesture
+from tactile_studio.simulate.population import DEFAULT_DIFFICULTY, DIFFICULTIES, SURFACES
 from tactile_studio.simulate.schedule import AUTO, Trial
 
 _WAIT_S = 0.1  # longest read() blocks without a frame due
@@ -48,6 +49,10 @@ class SimulatedSensor(DevicePlugin):
                 minimum=0.0, maximum=0.1),
         Setting("crosstalk", "float", 0.07, "shear x<->y crosstalk fraction",
                 minimum=0.0, maximum=0.2),
+        Setting("difficulty", "choice", DEFAULT_DIFFICULTY, "how varied virtual people are: "
+                "easy (original), real (calibrated to recordings), hard", choices=DIFFICULTIES),
+        Setting("surface", "choice", "flat", "flat, or a soft pillow under the sensor",
+                choices=SURFACES),
         Setting("fault", "choice", "none", "simulated defect", choices=FAULTS),
         Setting("fault_taxel", "int", 14, "taxel the fault affects (0..35)",
                 minimum=0, maximum=35),
@@ -67,7 +72,8 @@ class SimulatedSensor(DevicePlugin):
             rate=s["rate"], seed=s["seed"], gesture=mode, intensity=s["intensity"],
             speed=s["gesture_speed"], style_seed=s["style_seed"], noise=s["noise"],
             drift=s["drift"], crosstalk=s["crosstalk"], fault=s["fault"],
-            fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"]))
+            fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"],
+            difficulty=s["difficulty"], surface=s["surface"]))
         self._lock = threading.RLock()
         self._pacer: Callable[[int, float], int] | None = None
         self._open = False

@@ -27,10 +27,13 @@ def trial_record(i: int, gesture: str, start: int, stop: int, rate: float = 43.0
 def write_participant(path: Path, participant: str, style_seed: int, gestures=GESTURE_NAMES,
                       blocks: int = 3, trial_s: float = 2.0, gap_s: float = 0.4,
                       rate: float = 43.0, sensor_seed: int = 7,
-                      extra_trials: list[dict] | None = None, **sim: object) -> Path:
-    """One session of ``blocks`` x ``gestures`` trials by one virtual participant."""
+                      extra_trials: list[dict] | None = None, difficulty: str = "easy",
+                      condition: str = "FLAT", **sim: object) -> Path:
+    """One session of ``blocks`` x ``gestures`` trials by one virtual participant
+    (``difficulty`` easy by default: tests that need clearly separable data rely on it)."""
     simulator = SensorSimulator(SimConfig(rate=rate, seed=sensor_seed, gesture="idle",
-                                          style_seed=style_seed, **sim))
+                                          style_seed=style_seed, difficulty=difficulty,
+                                          surface=condition.lower(), **sim))
     rng = np.random.default_rng([style_seed, 11])
     lead, trial_n, gap_n = int(rate), round(trial_s * rate), round(gap_s * rate)
     plan, frame = [], lead
@@ -41,7 +44,7 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
             frame += trial_n + gap_n
     raw = simulator.step(frame)
     t = np.arange(frame) / rate
-    meta = {"participant": participant, "protocol": "test-protocol", "condition": "FLAT",
+    meta = {"participant": participant, "protocol": "test-protocol", "condition": condition,
             "gestures": list(gestures), "source": "test:simulator"}
     with SessionWriter(path, simulator.layout, {"name": "simulated"}, meta) as w:
         w.append_frames(raw, t, 1.7e9 + t)

@@ -14,7 +14,7 @@ N = 86
 
 
 def _trial(gesture: str | None = "Twist", press: tuple | None = None, **cfg) -> tuple:
-    sim = SensorSimulator(gesture="idle", seed=3, **cfg)
+    sim = SensorSimulator(gesture="idle", seed=3, **{"difficulty": "easy", **cfg})
     base = compute_baseline(sim.step(100))
     if gesture:
         sim.perform(gesture, 2.0, at_frame=110)

@@ -25,7 +25,7 @@ TX, TY = 32.0, 32.0  # its centre in mm
 
 def _tared(**kw) -> tuple[SensorSimulator, np.ndarray]:
     """An idle simulator and the baseline of its first 100 frames (the engine's tare)."""
-    sim = SensorSimulator(gesture="idle", **kw)
+    sim = SensorSimulator(gesture="idle", **{"difficulty": "easy", **kw})  # the original sensor
     return sim, compute_baseline(sim.step(100), 100)
 
 

@@ -65,6 +65,32 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None,
                    help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
+    p.add_argument("--window", dest="window_s", type=float, default=None, metavar="SECONDS",
+                   help="trials longer than 1.5 windows are cut into windows this long "
+                        "(default: the protocol's trial length, else 2 s)")
+    p.add_argument("--overlap", dest="window_overlap", type=float, default=0.5,
+                   help="share of a window overlapping the next (default 0.5)")
+    p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
+                   help="trial prediction from its windows: mean probability or majority vote")
+    add_generalisation_options(p)
+
+
+def add_generalisation_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--augment", default="", metavar="KINDS",
+                   help="augment training windows: flip,rotate,shift,warp,scale or all")
+    p.add_argument("--augment-copies", type=int, default=1, metavar="N",
+                   help="augmented copies of every training window (default 1)")
+    p.add_argument("--participant-norm", action="store_true",
+                   help="scale each participant's normal and shear to a typical person")
+    p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
+    p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
+                   help="early stopping on training trials or on whole training participants")
+
+
+def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    return {"augment": args.augment, "augment_copies": args.augment_copies,
+            "participant_norm": args.participant_norm, "balance": args.balance,
+            "val_by": args.val_by}
 
 
 def _config(args: argparse.Namespace, channels: str | None):
@@ -74,7 +100,9 @@ def _config(args: argparse.Namespace, channels: str | None):
         data=list(args.data), model=args.model, channels=channels, grid=args.grid,
         protocol=args.protocol, rounds=args.rounds, preset=args.preset, epochs=args.epochs,
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
-        device=args.device, threads=args.threads, cache_dir=args.cache_dir, use_cache=not args.no_cache)
+        device=args.device, threads=args.threads, cache_dir=args.cache_dir,
+        use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
+        aggregate=args.aggregate, **generalisation_kwargs(args))
 
 
 def _fmt(v: Any) -> str:
@@ -95,6 +123,10 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     tables.table(("round", "fold", "test participants", "accuracy"),
                  [(f["round"], f["name"], ",".join(f["test_participants"]), _fmt(f["accuracy"]))
                   for f in m["per_fold"]], right=("round", "accuracy"))
+    if m.get("windows") is not None:
+        print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
+              f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "
+              "of its windows)")
     if out is not None:
         print(f"run folder: {out}")
 
@@ -224,3 +256,4 @@ def register(subparsers) -> None:
     p.add_argument("--threads", type=int, default=None,
                    help="torch and onnxruntime CPU threads (1 is fastest on a busy machine)")
     p.set_defaults(func=cmd_export)
+

@@ -58,7 +58,8 @@ def save(ds, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     lengths = ds.lengths()
     meta = {"label_names": ds.label_names, "layout": ds.layout, "grid": ds.grid,
-            "has_shear": ds.has_shear, "sources": ds.sources, "format": CACHE_FORMAT}
+            "has_shear": ds.has_shear, "sources": ds.sources, "format": CACHE_FORMAT,
+            "trial_s": ds.trial_s}
     tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
     np.savez(tmp, frames=np.concatenate(ds.trials, axis=1),
              offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
@@ -87,6 +88,6 @@ def load(key: str, cache_dir: str | os.PathLike | None = None):
                 participants=z["participants"].astype(str), uids=z["uids"].astype(str).tolist(),
                 rates=z["rates"].astype(np.float64), label_names=list(meta["label_names"]),
                 layout=meta["layout"], grid=meta["grid"], has_shear=bool(meta["has_shear"]),
-                sources=list(meta["sources"]))
+                sources=list(meta["sources"]), trial_s=float(meta.get("trial_s", 0.0)))
     except (OSError, ValueError, KeyError):
         return None

@@ -56,6 +56,7 @@ class TrialDataset:
     sources: list[str] = field(default_factory=list)
     fingerprint: str = ""
     skipped: list[dict] = field(default_factory=list)  # resume backups, duplicate sessions
+    trial_s: float = 0.0  # the protocol's trial length (s) when the sessions agree, else 0
 
     def __len__(self) -> int:
         return len(self.trials)
@@ -208,12 +209,14 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
         where = ", ".join(str(p) for p in paths)
         raise UserError(f"{where}: no trials with status ok in {len(files)} session file(s)")
     label_names = _label_order(metas, gestures)
+    lengths = {float((m.get("protocol_spec") or {}).get("trial_s") or 0) for m in metas}
     index = {g: i for i, g in enumerate(label_names)}
     return TrialDataset(
         trials=trials, labels=np.array([index[g] for g in gestures], dtype=np.int64),
         participants=np.array(participants), uids=uids, rates=np.array(rates, dtype=np.float64),
         label_names=label_names, layout=str(layout_name), grid=grid, has_shear=has_shear,
-        sources=[str(f) for f in files], skipped=list(chosen.skipped))
+        sources=[str(f) for f in files], skipped=list(chosen.skipped),
+        trial_s=lengths.pop() if len(lengths) == 1 else 0.0)
 
 
 def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",

@@ -24,7 +24,12 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.experiment import ExperimentConfig, _predictions, summarise
+from tactile_studio.learn.experiment import (
+    ExperimentConfig,
+    _predictions,
+    prepare_inputs,
+    summarise,
+)
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import model_file, read_run, write_json
 
@@ -62,7 +67,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     ``RUN/rescore.json``."""
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
-    x, owner = learner.samples(ds)
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)
@@ -83,6 +88,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
     header = {"model": config.model, "protocol": config.protocol, "channels": ds.channels,
               "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
+              "aggregate": config.aggregate,
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
     metrics["dataset_skipped"] = list(ds.skipped)  # resume backups, duplicate sessions

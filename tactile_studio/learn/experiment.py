@@ -28,15 +28,26 @@ import numpy as np
 from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.learn import metrics as M
+from tactile_studio.learn.augment import parse_kinds
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
+from tactile_studio.learn.generalise import (
+    VAL_BY,
+    augmenter,
+    balanced_index,
+    participant_normalised,
+    participant_val,
+)
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
 from tactile_studio.learn.splits import PROTOCOLS, make_folds
+from tactile_studio.learn.summary import fold_metrics, summarise
+from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 
 # Config fields that change results (a resumed run must match on these).
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
-               "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split")
+               "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
+               "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
+               "participant_norm", "balance", "val_by")
 
 
 @dataclass
@@ -55,6 +66,14 @@ class ExperimentConfig:
     heldout_fraction: float = 0.1        # group-kfold held-out participants
     val_fraction: float = 0.15           # validation share of training participants' trials
     split: tuple[float, float, float] = (0.7, 0.2, 0.1)  # all-inclusive train/val/test
+    window_s: float | None = None        # long trials -> windows this long (None: protocol's)
+    window_overlap: float = 0.5          # share of a window overlapping the next
+    aggregate: str = "mean"              # trial prediction from windows: mean | vote
+    augment: str = ""                    # flip,rotate,shift,warp,scale | all ("" none)
+    augment_copies: int = 1              # augmented copies of every training window
+    participant_norm: bool = False       # scale each participant to a typical person
+    balance: bool = False                # repeat rarer classes' training samples
+    val_by: str = "trial"                # validation: trials | whole training participants
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -87,6 +106,19 @@ class ExperimentConfig:
             raise UserError(f"--epochs must be at least 1, got {self.epochs}")
         if not 0 < self.val_fraction < 1 or not 0 < self.heldout_fraction < 1:
             raise UserError("validation and held-out fractions must be between 0 and 1")
+        if self.aggregate not in AGGREGATES:
+            raise UserError(f"unknown aggregate {self.aggregate!r} "
+                            f"(available: {', '.join(AGGREGATES)})")
+        if self.window_s is not None and self.window_s <= 0:
+            raise UserError(f"--window must be positive, got {self.window_s}")
+        if not 0 <= self.window_overlap < 1:
+            raise UserError(f"window overlap must be in [0, 1), got {self.window_overlap}")
+        parse_kinds(self.augment)
+        if self.augment_copies < 0:
+            raise UserError(f"augment_copies must be 0 or more, got {self.augment_copies}")
+        if self.val_by not in VAL_BY:
+            raise UserError(f"unknown validation split {self.val_by!r} "
+                            f"(available: {', '.join(VAL_BY)})")
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
 
@@ -132,18 +164,6 @@ def _versions() -> dict[str, str]:
             "numpy": np.__version__, "torch": torch.__version__, "sklearn": sklearn.__version__}
 
 
-def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels: list[str],
-                    windowed: bool) -> dict[str, Any]:
-    out = M.classification_metrics(y, probs.argmax(axis=1), labels)
-    if windowed:
-        trials, pred = M.vote(owner, probs)
-        _, first = np.unique(owner, return_index=True)  # same sorted order as ``trials``
-        truth = y[first]
-        out["trial_accuracy"] = float((pred == truth).mean()) if len(trials) else 0.0
-        out["n_trials"] = int(len(trials))
-    return out
-
-
 def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndarray,
                  labels: np.ndarray, stats) -> dict[str, Any]:
     mask = np.isin(owner, idx)
@@ -154,13 +174,21 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
 
 def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
                 fold, round_: int, k: int, seed: int, cancel: CancelToken,
-                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[dict[str, Any], Any]:
+                on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
+                balance: bool = False) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
-    stats = learner.norm_stats(x[tr])  # training part of this split only
     y = ds.labels
+    x_tr, y_tr = x[tr], y[owner[tr]]
+    if extra is not None:  # augmented copies of the training windows
+        x_aug, o_aug = extra(fold.train, seed)
+        x_tr, y_tr = np.concatenate([x_tr, x_aug]), np.concatenate([y_tr, y[o_aug]])
+    if balance:
+        keep = balanced_index(y_tr, np.random.default_rng([seed, 0xBA1]))
+        x_tr, y_tr = x_tr[keep], y_tr[keep]
+    stats = learner.norm_stats(x_tr)  # training part of this split only
     fitted, history, best = learner.fit(
-        info, (learner.apply_norm(x[tr], stats), y[owner[tr]]),
+        info, (learner.apply_norm(x_tr, stats), y_tr),
         (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch)
     cancel.check()
     uid = np.array(ds.uids)
@@ -178,60 +206,27 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
     return rec, fitted
 
 
-def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
-                 key: str = "predictions") -> dict[str, Any]:
-    p = rec[key]
-    return _sample_metrics(np.asarray(p["y_true"], dtype=np.int64),
-                           np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1),
-                           np.asarray(p["owner"]), labels, windowed)
+def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
+    """(dataset as trained on, samples X, owner trial per sample, number of windows,
+    window spec, augmenter or None): the model inputs ``config`` asks for."""
+    if config.participant_norm:
+        ds = participant_normalised(ds)
+    spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
+    pieces, piece_owner = cut(ds, spec)
+    x, sample_piece = learner.samples(pieces)
+    extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
+    return ds, x, piece_owner[sample_piece], len(pieces), spec, extra
 
 
-def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
-            key: str = "predictions") -> dict[str, Any]:
-    """Metrics over the test predictions of several folds together (trial ids made unique
-    per fold so votes never mix folds)."""
-    ys, ps, os_ = [], [], []
-    for i, rec in enumerate(records):
-        p = rec[key]
-        ys.append(np.asarray(p["y_true"], dtype=np.int64))
-        ps.append(np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), len(labels)))
-        os_.append(np.asarray(p["owner"], dtype=np.int64) + i * 10_000_000)
-    return _sample_metrics(np.concatenate(ys), np.concatenate(ps), np.concatenate(os_),
-                           labels, windowed)
-
-
-def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
-              header: dict[str, Any], complete: bool) -> dict[str, Any]:
-    """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics."""
-    per_fold, rounds = [], []
-    for rec in records:
-        m = fold_metrics(rec, labels, windowed)
-        m.update({"round": rec["round"], "fold": rec["fold"], "name": rec["name"],
-                  "test_participants": rec["test_participants"],
-                  "best_epoch": rec.get("best_epoch"), "n_test_trials": len(rec["test"])})
-        if rec.get("heldout_predictions"):
-            m["heldout_accuracy"] = fold_metrics(rec, labels, windowed,
-                                                 "heldout_predictions")["accuracy"]
-        per_fold.append(m)
-    round_ids = sorted({r["round"] for r in records})
-    for r in round_ids:
-        recs = [x for x in records if x["round"] == r]
-        m = _pooled(recs, labels, windowed)
-        m.update({"round": r, "seed": recs[0]["seed"], "folds": len(recs)})
-        if any(x.get("heldout_predictions") for x in recs):
-            m["heldout"] = _pooled(recs, labels, windowed, "heldout_predictions")
-        rounds.append(m)
-    overall = _pooled(records, labels, windowed)
-    medians = M.median_of(rounds)
-    overall.update(medians)  # with one round the median is that round's value
-    out = {**header, **overall, "complete": complete, "medians": medians,
-           "rounds": [{k: v for k, v in m.items() if k not in ("confusion_matrix",
-                                                              "confusion_counts")}
-                      for m in rounds],
-           "per_fold": per_fold}
-    if any(r.get("heldout_predictions") for r in records):
-        out["heldout"] = _pooled(records, labels, windowed, "heldout_predictions")
-    return out
+def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
+    """Round ``round_``'s folds (seed ``config.seed + round_``), validation by
+    participant when ``config.val_by`` asks for it."""
+    seed = config.seed + round_
+    folds = make_folds(config.protocol, ds.labels, ds.participants, seed, config.folds,
+                       config.heldout_fraction, config.val_fraction, config.split)
+    if config.val_by == "participant":
+        folds = [participant_val(f, ds.participants, config.val_fraction, seed) for f in folds]
+    return folds
 
 
 def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = None,
@@ -283,11 +278,10 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         "classification needs at least 2")
     info = DataInfo.of(ds)
     learner.check(info)
-    first_folds = make_folds(config.protocol, ds.labels, ds.participants, config.seed,
-                             config.folds, config.heldout_fraction, config.val_fraction,
-                             config.split)  # fails early on too few participants
+    first_folds = folds_for(config, ds, 0)  # fails early on too few participants
     header = {"model": learner.name, "protocol": config.protocol, "channels": ds.channels,
-              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed}
+              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
+              "aggregate": config.aggregate}
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -298,7 +292,9 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
 
         write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
     progress(0.05, "making model inputs")
-    x, owner = learner.samples(ds)
+    ds, x, owner, n_pieces, spec, extra = prepare_inputs(learner, ds, config)
+    header["window_s"] = spec.seconds
+    header["windows"] = n_pieces
     total_units = config.rounds * len(first_folds)
     records: list[dict[str, Any]] = []
     done = 0
@@ -306,9 +302,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     try:
         for r in range(config.rounds):
             seed = config.seed + r
-            folds = first_folds if r == 0 else make_folds(
-                config.protocol, ds.labels, ds.participants, seed, config.folds,
-                config.heldout_fraction, config.val_fraction, config.split)
+            folds = first_folds if r == 0 else folds_for(config, ds, r)
             for k, fold in enumerate(folds):
                 cancel.check()
                 where = f"round {r + 1}/{config.rounds} fold {k + 1}/{len(folds)} ({fold.name})"
@@ -328,14 +322,15 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
 
                     progress(0.05 + 0.92 * done / total_units, f"{where} training")
                     rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
-                                              cancel, on_epoch)
+                                              cancel, on_epoch, extra, config.balance)
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)
                 done += 1
                 progress(0.05 + 0.92 * done / total_units, f"{where} done")
                 listener(FoldEvent(r, k, len(folds), fold.name,
-                                   fold_metrics(rec, ds.label_names, learner.windowed), resumed))
+                                   fold_metrics(rec, ds.label_names, learner.windowed,
+                                                aggregate=config.aggregate), resumed))
     except Cancelled:
         if records and folder is not None:
             metrics = summarise(records, ds.label_names, learner.windowed, header, False)

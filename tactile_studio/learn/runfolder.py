@@ -6,6 +6,7 @@ Layout::
     RUN/metrics.json             overall, per-round and per-fold metrics
     RUN/confusion_matrix.csv     row-normalised, labelled
     RUN/confusion_matrix.png
+    RUN/trial_confusion_matrix.csv / .png   the same per trial (windows aggregated)
     RUN/training_curves.png      torch models: loss and accuracy per epoch, every fold
     RUN/folds/r0-<fold>/fold.json          split (trial uids), history, predictions, metrics
     RUN/folds/r0-<fold>/model.safetensors  torch models: best-epoch weights
@@ -130,9 +131,16 @@ class RunFolder:
         write_json(self.path / METRICS, metrics)
         write_confusion_csv(self.path / "confusion_matrix.csv", metrics["labels"],
                             metrics["confusion_matrix"])
-        unit = "windows" if "n_trials" in metrics else "trials"  # windowed models vote later
+        windows, trials = metrics.get("windows"), metrics.get("n_trials")
+        unit = "windows" if windows is not None and windows != trials else "trials"
         plots.confusion_png(self.path / "confusion_matrix.png", metrics["labels"],
                             metrics["confusion_counts"], title, unit)
+        if "trial_confusion_matrix" in metrics:
+            write_confusion_csv(self.path / "trial_confusion_matrix.csv", metrics["labels"],
+                                metrics["trial_confusion_matrix"])
+            plots.confusion_png(self.path / "trial_confusion_matrix.png", metrics["labels"],
+                                metrics["trial_confusion_counts"], title + " · per trial",
+                                "trials")
         if any(r.get("history") for r in records):
             plots.curves_png(self.path / "training_curves.png", records, title)
 

@@ -32,9 +32,11 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.layout import CENTRE, SHEARSENSE_6X6, X_NEG, X_POS, Y_NEG, Y_POS, Layout
+from tactile_studio.simulate import population
 from tactile_studio.simulate.contact import Contacts, channel_points, stress_fields
 from tactile_studio.simulate.faults import add_delamination
-from tactile_studio.simulate.gestures import IDLE, Style, TrialParams, envelope, gesture_model
+from tactile_studio.simulate.gestures import IDLE, TrialParams, envelope
+from tactile_studio.simulate.population import DEFAULT_DIFFICULTY, DIFFICULTIES, SURFACES
 from tactile_studio.simulate.schedule import PRESS, Schedule, Trial
 
 FAULTS = ("none", "dead_taxel", "stuck_channel", "worn", "delaminated")
@@ -61,6 +63,8 @@ class SimConfig:
     fault: str = "none"           # none | dead_taxel | stuck_channel | worn | delaminated
     fault_taxel: int = 14         # the taxel the fault hits (worn: plus three others)
     sensitivity_spread: float = 0.0  # per-taxel sensitivity spread (relative std)
+    difficulty: str = DEFAULT_DIFFICULTY  # easy | real | hard: how varied people are
+    surface: str = "flat"         # flat | pillow (spreads and damps the load)
     layout: Layout = SHEARSENSE_6X6
 
 
@@ -78,6 +82,10 @@ class SensorSimulator:
             raise UserError(f"unknown fault {cfg.fault!r} (known: {', '.join(FAULTS)})")
         if not 0 <= cfg.fault_taxel < cfg.layout.n_taxels:
             raise UserError(f"fault_taxel {cfg.fault_taxel} is not a taxel (0..{cfg.layout.n_taxels - 1})")
+        if cfg.difficulty not in DIFFICULTIES:
+            raise UserError(f"unknown difficulty {cfg.difficulty!r} (known: {', '.join(DIFFICULTIES)})")
+        if cfg.surface not in SURFACES:
+            raise UserError(f"unknown surface {cfg.surface!r} (known: {', '.join(SURFACES)})")
         self.config = cfg
         self.layout = lay = cfg.layout
         self.rate = float(cfg.rate)
@@ -94,6 +102,7 @@ class SensorSimulator:
         taxel_base = rng.uniform(22000, 36000, nt)
         self.baseline = np.repeat(taxel_base, k) * (1 + rng.normal(0, 0.03, nt * k))
         self.gain = 1 + rng.normal(0, cfg.gain_spread, nt * k)
+        self.gain *= population.sensor_gains(self.seed, nt * k, cfg.difficulty)
         self._drift_period = rng.uniform(120, 400, nt * k)
         self._drift_phase = rng.uniform(0, 2 * np.pi, nt * k)
         self._drift_common = rng.uniform(0, 2 * np.pi)
@@ -171,7 +180,8 @@ class SensorSimulator:
             x, y, radius, load, sx, sy, ramp = trial.press
             env = envelope(t, 0.0, dur, ramp) if ramp > 0 else ((t >= 0) & (t < dur)) * 1.0
             return Contacts.make(len(t), x, y, radius, load * env, sx * env, sy * env)
-        return gesture_model(trial.gesture).render(t, dur, self._params(trial))
+        return population.render(trial.gesture, t, dur, self._params(trial),
+                                 trial.style_seed, self.config.difficulty, self.config.surface)
 
     def set_gesture(self, mode: str, at_frame: int | None = None,
                     intensity: float | None = None, speed: float | None = None) -> None:
@@ -235,8 +245,9 @@ class SensorSimulator:
         params = self._params_cache.get(key)
         if params is None:
             rng = np.random.default_rng([self.seed, trial.style_seed & 0xFFFFFFFF, *trial.key])
-            params = TrialParams.draw(rng, Style.from_seed(trial.style_seed),
-                                      trial.intensity, trial.speed)
+            params = population.trial_params(rng, trial.gesture, trial.style_seed,
+                                             trial.intensity, trial.speed,
+                                             self.config.difficulty)
             if len(self._params_cache) > 64:
                 self._params_cache.clear()
             self._params_cache[key] = params

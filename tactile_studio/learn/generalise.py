@@ -1,0 +1,94 @@
+"""Options that help a model hold on people it has never seen (all off by default).
+
+* ``augment`` — geometry-aware augmented copies of the *training* windows (see
+  :mod:`tactile_studio.learn.augment`), ``augment_copies`` per window, made per fold
+  with the fold's seed; every model gets them (rf and knn through their features).
+* ``participant_norm`` — each participant's normal and shear channels divided by that
+  participant's own typical peak (median over their trials of the 90th-percentile
+  peak), then put back on the scale of the real recordings' typical person (6.65 kPa
+  normal, 0.72 kPa shear). Uses no labels, only the person's own recordings, so it is
+  allowed for a held-out person (in use it needs a few of their touches first).
+* ``balance`` — training samples of rarer classes repeated until every class counts as
+  many as the most common one.
+* ``val_by="participant"`` — model selection (early stopping) on whole training
+  participants held out from training, never on the test participant and never on
+  trials of people the model also trains on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from tactile_studio.learn.augment import augment_trials, parse_kinds
+from tactile_studio.learn.splits import Fold
+from tactile_studio.learn.touch_stats import REAL, trial_stats
+
+VAL_BY = ("trial", "participant")
+
+
+def participant_normalised(ds):
+    """``ds`` with every participant's channels scaled to a typical person (see doc)."""
+    names = list(ds.channel_names)
+    stats = [trial_stats(t, names) for t in ds.trials]
+    trials = list(ds.trials)
+    shear = [i for i, n in enumerate(names) if n.startswith("shear")]
+    normal = [i for i, n in enumerate(names) if not n.startswith("shear")]
+    for p in np.unique(ds.participants):
+        idx = np.flatnonzero(ds.participants == p)
+        scale = np.ones(len(names), dtype=np.float32)
+        peak = float(np.median([stats[i]["peak_normal_p90"] for i in idx]))
+        scale[normal] = REAL["peak_normal_p90"][0] / max(peak, 1e-3)
+        if shear:
+            s = float(np.median([stats[i]["peak_shear_p90"] for i in idx]))
+            scale[shear] = REAL["peak_shear_p90"][0] / max(s, 1e-3)
+        for i in idx:
+            trials[i] = trials[i] * scale[:, None, None, None]
+    return replace(ds, trials=trials)
+
+
+def balanced_index(y: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Indices of ``y`` with rarer classes repeated (random picks) up to the largest."""
+    counts = np.bincount(y)
+    top = counts.max()
+    out = [np.arange(len(y))]
+    for c, n in enumerate(counts):
+        if 0 < n < top:
+            out.append(rng.choice(np.flatnonzero(y == c), top - n, replace=True))
+    return np.concatenate(out)
+
+
+def participant_val(fold: Fold, participants: np.ndarray, val_fraction: float,
+                    seed: int) -> Fold:
+    """The fold with its validation set made of whole training participants."""
+    pool = np.concatenate([fold.train, fold.val])
+    people = np.unique(participants[pool])
+    if len(people) < 2:
+        return fold
+    rng = np.random.default_rng([seed, 0x7A1])
+    n_val = min(len(people) - 1, max(1, int(round(val_fraction * len(people)))))
+    chosen = set(rng.choice(people, n_val, replace=False).tolist())
+    is_val = np.array([participants[i] in chosen for i in pool])
+    return replace(fold, train=np.sort(pool[~is_val]), val=np.sort(pool[is_val]))
+
+
+def augmenter(learner, pieces, piece_owner: np.ndarray, spec: str, copies: int):
+    """A function (training trial indices, seed) -> (extra samples, their trial index),
+    or None when ``spec`` asks for no augmentation."""
+    kinds = parse_kinds(spec)
+    if not kinds or copies < 1:
+        return None
+
+    def extra(train_trials: np.ndarray, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        sel = np.flatnonzero(np.isin(piece_owner, train_trials))
+        rng = np.random.default_rng([seed, 0xA06])
+        new, src = augment_trials([pieces.trials[i] for i in sel], list(pieces.channel_names),
+                                  kinds, copies, rng)
+        aug = replace(pieces, trials=new, labels=pieces.labels[sel][src],
+                      participants=pieces.participants[sel][src],
+                      uids=[pieces.uids[i] for i in sel[src]], rates=pieces.rates[sel][src])
+        x, sample_piece = learner.samples(aug)
+        return x, piece_owner[sel][src][sample_piece]
+
+    return extra

@@ -1,0 +1,94 @@
+"""metrics.json from fold records: per-sample (window) and per-trial metrics, per fold,
+per round (pooled over its folds) and overall (medians over rounds)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.learn import metrics as M
+from tactile_studio.learn.windowing import aggregate as aggregate_trials
+
+TRIAL_KEYS = ("accuracy", "balanced_accuracy", "f1_macro", "kappa", "confusion_matrix",
+              "confusion_counts", "per_class_accuracy")
+
+
+def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels: list[str],
+                    windowed: bool = False, aggregate: str = "mean") -> dict[str, Any]:
+    """Per-sample (window) metrics, plus ``trial_*`` metrics of the trials' aggregated
+    predictions (identical when every trial is one sample)."""
+    out = M.classification_metrics(y, probs.argmax(axis=1), labels)
+    trials, pred = aggregate_trials(owner, probs, aggregate)
+    _, first = np.unique(owner, return_index=True)  # same sorted order as ``trials``
+    trial = M.classification_metrics(y[first], pred, labels) if len(trials) else \
+        M.classification_metrics(np.zeros(0, np.int64), np.zeros(0, np.int64), labels)
+    for key in TRIAL_KEYS:
+        out[f"trial_{key}"] = trial[key]
+    out["n_trials"] = int(len(trials))
+    out["aggregate"] = aggregate
+    return out
+
+
+def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
+                 key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
+    p = rec[key]
+    return _sample_metrics(np.asarray(p["y_true"], dtype=np.int64),
+                           np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1),
+                           np.asarray(p["owner"]), labels, windowed, aggregate)
+
+
+def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+            key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
+    """Metrics over the test predictions of several folds together (trial ids made unique
+    per fold so votes never mix folds)."""
+    ys, ps, os_ = [], [], []
+    for i, rec in enumerate(records):
+        p = rec[key]
+        ys.append(np.asarray(p["y_true"], dtype=np.int64))
+        ps.append(np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), len(labels)))
+        os_.append(np.asarray(p["owner"], dtype=np.int64) + i * 10_000_000)
+    return _sample_metrics(np.concatenate(ys), np.concatenate(ps), np.concatenate(os_),
+                           labels, windowed, aggregate)
+
+
+def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+              header: dict[str, Any], complete: bool) -> dict[str, Any]:
+    """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics.
+
+    ``accuracy`` and ``confusion_*`` are per sample (window); ``trial_accuracy`` and
+    ``trial_confusion_*`` per trial, aggregated as ``header["aggregate"]`` (mean
+    probability by default)."""
+    agg = header.get("aggregate", "mean")
+    per_fold, rounds = [], []
+    for rec in records:
+        m = fold_metrics(rec, labels, windowed, aggregate=agg)
+        m.update({"round": rec["round"], "fold": rec["fold"], "name": rec["name"],
+                  "test_participants": rec["test_participants"],
+                  "best_epoch": rec.get("best_epoch"), "n_test_trials": len(rec["test"])})
+        if rec.get("heldout_predictions"):
+            held = fold_metrics(rec, labels, windowed, "heldout_predictions", agg)
+            m["heldout_accuracy"] = held["accuracy"]
+            m["heldout_trial_accuracy"] = held["trial_accuracy"]
+        per_fold.append(m)
+    round_ids = sorted({r["round"] for r in records})
+    for r in round_ids:
+        recs = [x for x in records if x["round"] == r]
+        m = _pooled(recs, labels, windowed, aggregate=agg)
+        m.update({"round": r, "seed": recs[0]["seed"], "folds": len(recs)})
+        if any(x.get("heldout_predictions") for x in recs):
+            m["heldout"] = _pooled(recs, labels, windowed, "heldout_predictions", agg)
+        rounds.append(m)
+    overall = _pooled(records, labels, windowed, aggregate=agg)
+    medians = M.median_of(rounds)
+    overall.update(medians)  # with one round the median is that round's value
+    out = {**header, **overall, "complete": complete, "medians": medians,
+           "rounds": [{k: v for k, v in m.items() if not k.endswith(("confusion_matrix",
+                                                                      "confusion_counts"))}
+                      for m in rounds],
+           "per_fold": per_fold}
+    if any(r.get("heldout_predictions") for r in records):
+        out["heldout"] = _pooled(records, labels, windowed, "heldout_predictions", agg)
+    return out
+
+

@@ -1,0 +1,207 @@
+"""Sweeps: models x channel sets x rounds x folds as independent tasks on an executor.
+
+Every task trains and tests one fold of one (model, channel set) in a round, in a fresh
+process with one torch thread and its own seed (round ``r``: ``seed + r``, the same
+splits and initialisation ``run_experiment`` uses), so the metrics are the same whatever
+executor runs it and in whatever order. Finished tasks are saved to
+``OUT/tasks/*.json`` as they arrive: a cancelled sweep keeps them (and writes the table
+of what finished), and running the same sweep again with the same ``OUT`` only runs the
+rest.
+
+``OUT/results.csv`` / ``results.json``: one row per (model, channel set) with the pooled
+metrics of its finished folds (medians over rounds), per-window ``accuracy`` and
+per-trial ``trial_accuracy``, the folds done and the training time summed over folds.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.dataset import build_dataset
+from tactile_studio.learn.experiment import (
+    ExperimentConfig,
+    _torch_threads,
+    _train_fold,
+    folds_for,
+    prepare_inputs,
+    summarise,
+)
+from tactile_studio.learn.learners import DataInfo, make_learner
+from tactile_studio.learn.runfolder import read_json, write_json
+
+TABLE_KEYS = ("accuracy", "trial_accuracy", "f1_macro", "balanced_accuracy", "kappa")
+
+
+@dataclass
+class SweepResult:
+    rows: list[dict[str, Any]]
+    metrics: dict[str, dict[str, Any]] = field(default_factory=dict)  # "model/channels" ->
+    complete: bool = True
+    out: Path | None = None
+
+
+def task_gpus(model: str, device: str = "auto") -> float:
+    """GPUs a task asks the scheduler for: a torch model on ``--device cuda`` (or a model
+    spec declaring ``gpus``) asks for one; the baselines and CPU runs for none."""
+    from tactile_studio.learn.baselines import BASELINES
+
+    if model in BASELINES:
+        return 0.0
+    try:
+        from tactile_studio.learn.models import MODELS
+
+        declared = float(getattr(MODELS.get(model), "gpus", 0.0) or 0.0)
+    except ImportError:
+        declared = 0.0
+    return max(declared, 1.0 if device.startswith("cuda") else 0.0)
+
+
+def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, Any]:
+    """One fold of one round of ``config`` (an ExperimentConfig dict): its fold record
+    (split, history, test predictions), without the fitted model. Runs in a worker."""
+    cfg = ExperimentConfig.from_dict(config)
+    with _torch_threads(1):
+        learner = make_learner(cfg.model, cfg.preset, cfg.overrides, cfg.epochs, cfg.device)
+        ds = build_dataset(cfg.data, cfg.grid, cfg.channels, cfg.cache_dir, cfg.use_cache)
+        info = DataInfo.of(ds)
+        folds = folds_for(cfg, ds, round_)
+        ds, x, owner, _, _, extra = prepare_inputs(learner, ds, cfg)
+        rec, _ = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold,
+                             cfg.seed + round_, CancelToken(), lambda e: None, extra, cfg.balance)
+    return rec
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name)
+
+
+def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str | None],
+              executor, out: str | os.PathLike | None = None, progress: ProgressFn = no_progress,
+              cancel: CancelToken | None = None) -> SweepResult:
+    """Run ``models`` x ``channel_sets`` x ``base.rounds`` x folds on ``executor`` (an
+    entered :mod:`~tactile_studio.learn.executors` executor); see the module doc."""
+    cancel = cancel or CancelToken()
+    if not models or not channel_sets:
+        raise UserError("a sweep needs at least one model and one channel set")
+    base.validate()
+    progress(0.0, "reading data")
+    full = build_dataset(base.data, base.grid, None, base.cache_dir, base.use_cache)
+    base = replace(base, data=[str(Path(p).resolve()) for p in base.data])
+    groups: dict[str, dict[str, Any]] = {}
+    tasks: dict[str, tuple[dict[str, Any], float]] = {}
+    for model in models:
+        for channels in channel_sets:
+            cfg = replace(base, model=model, channels=full.resolve_channels(channels))
+            learner = make_learner(model, cfg.preset, cfg.overrides, cfg.epochs, cfg.device)
+            learner.check(DataInfo.of(full.select(cfg.channels)))
+            key = f"{model}/{cfg.channels}"
+            groups[key] = {"config": cfg, "windowed": learner.windowed, "ids": []}
+            for r in range(cfg.rounds):
+                folds = folds_for(cfg, full, r)
+                for k, fold in enumerate(folds):
+                    tid = f"{model}-{cfg.channels}-r{r}-{_safe(fold.name)}"
+                    groups[key]["ids"].append(tid)
+                    tasks[tid] = ({"config": cfg.to_dict(), "round_": r, "fold": k},
+                                  task_gpus(model, cfg.device))
+    folder = Path(out) if out is not None else None
+    records: dict[str, dict[str, Any]] = {}
+    if folder is not None:
+        _start_folder(folder, base)
+        for tid in list(tasks):
+            path = folder / "tasks" / f"{tid}.json"
+            if path.is_file():
+                records[tid] = read_json(path)
+                del tasks[tid]
+    total = len(tasks) + len(records)
+    progress(len(records) / total, f"{len(tasks)} tasks to run ({len(records)} done before)")
+    t0 = time.perf_counter()
+    complete = True
+    try:
+        for tid, rec in executor.run(run_fold_task, tasks, cancel):
+            records[tid] = rec
+            if folder is not None:
+                write_json(folder / "tasks" / f"{tid}.json", rec)
+            progress(len(records) / total, f"{tid} done ({time.perf_counter() - t0:.0f} s)")
+    except Cancelled:
+        complete = False
+    result = _table(groups, records, full.label_names, complete, folder)
+    if not complete:
+        raise Cancelled(f"sweep cancelled: {len(records)} of {total} tasks finished"
+                        + (f", kept in {folder}" if folder else ""))
+    return result
+
+
+def _start_folder(folder: Path, base: ExperimentConfig) -> None:
+    """Create OUT, or check that the sweep already in it used the same settings."""
+    from tactile_studio.learn.experiment import RESULT_KEYS
+
+    settings = {k: v for k, v in base.to_dict().items()
+                if k in RESULT_KEYS and k not in ("model", "channels")}
+    path = folder / "sweep.json"
+    if path.is_file():
+        old = read_json(path)
+        diff = [k for k in settings if old.get(k) != read_json_roundtrip(settings[k])]
+        if diff:
+            raise UserError(f"{folder} holds a sweep with other settings (differs in: "
+                            f"{', '.join(diff)}); choose another --out")
+    elif folder.is_dir() and any(folder.iterdir()):
+        raise UserError(f"{folder}: folder is not empty and holds no sweep; choose another --out")
+    (folder / "tasks").mkdir(parents=True, exist_ok=True)
+    write_json(path, settings)
+
+
+def read_json_roundtrip(value: Any) -> Any:
+    import json
+
+    from tactile_studio.learn.runfolder import clean_json
+
+    return json.loads(json.dumps(clean_json(value)))
+
+
+def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]],
+           labels: list[str], complete: bool, folder: Path | None) -> SweepResult:
+    rows, metrics = [], {}
+    for key, g in groups.items():
+        cfg: ExperimentConfig = g["config"]
+        recs = sorted((records[t] for t in g["ids"] if t in records),
+                      key=lambda r: (r["round"], r["fold"]))
+        row: dict[str, Any] = {"model": cfg.model, "channels": cfg.channels,
+                               "folds_done": len(recs), "folds": len(g["ids"])}
+        if recs:
+            header = {"model": cfg.model, "protocol": cfg.protocol, "channels": cfg.channels,
+                      "preset": cfg.preset, "aggregate": cfg.aggregate}
+            m = summarise(recs, labels, g["windowed"], header, len(recs) == len(g["ids"]))
+            metrics[key] = m
+            row.update({k: m.get(k) for k in TABLE_KEYS})
+            row["train_seconds"] = round(sum(r["seconds"] for r in recs), 2)
+        rows.append(row)
+    result = SweepResult(rows, metrics, complete, folder)
+    if folder is not None:
+        write_json(folder / "results.json", {"complete": complete, "rows": rows,
+                                             "metrics": metrics})
+        cols = ["model", "channels", "folds_done", "folds", *TABLE_KEYS, "train_seconds"]
+        with open(folder / "results.csv", "w", newline="") as fh:
+            w = csv.DictWriter(fh, cols, extrasaction="ignore")
+            w.writeheader()
+            w.writerows(rows)
+    return result
+
+
+def format_rows(rows: list[dict[str, Any]]) -> str:
+    """The results table as aligned text."""
+    cols = ["model", "channels", "folds", *TABLE_KEYS, "train_s"]
+    lines = ["".join(f"{c:>19s}" for c in cols)]
+    for r in rows:
+        vals = [r["model"], r["channels"], f"{r['folds_done']}/{r['folds']}"]
+        vals += ["-" if r.get(k) is None else f"{r[k]:.3f}" for k in TABLE_KEYS]
+        vals.append("-" if r.get("train_seconds") is None else f"{r['train_seconds']:.1f}")
+        lines.append("".join(f"{v:>19s}" for v in vals))
+    return "\n".join(lines)

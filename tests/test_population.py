@@ -1,0 +1,89 @@
+"""The simulator's difficulty: ``easy`` is the original sensor, ``real`` (the default) is
+calibrated to the real recordings' population statistics and makes leave-one-participant-
+out as hard as real people make it; pillows spread and damp the load."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.dataset import read_sessions
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.touch_stats import REAL, population_stats, trial_stats
+from tactile_studio.sensor.decode import compute_baseline, decode
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.simulate import SensorSimulator, SimConfig, Style, TrialParams
+from tactile_studio.simulate.population import DIFFICULTIES, person, population, trial_params
+
+
+def test_default_is_real_and_bad_settings_are_refused():
+    assert SimConfig().difficulty == "real" and set(DIFFICULTIES) == {"easy", "real", "hard"}
+    with pytest.raises(UserError, match="difficulty"):
+        SensorSimulator(difficulty="impossible")
+    with pytest.raises(UserError, match="surface"):
+        SensorSimulator(surface="carpet")
+
+
+def test_easy_draws_exactly_the_original_parameters():
+    a = trial_params(np.random.default_rng(5), "Poke", 42, 1.0, 1.0, "easy")
+    b = TrialParams.draw(np.random.default_rng(5), Style.from_seed(42), 1.0, 1.0)
+    assert a == b
+    c = trial_params(np.random.default_rng(5), "Poke", 42, 1.0, 1.0, "real")
+    assert c != b
+
+
+def test_people_differ_more_at_higher_difficulty():
+    def spread(level: str) -> float:
+        forces = [person(s, population(level)).style.force for s in range(200)]
+        return float(np.std(np.log(forces)))
+    assert spread("easy") < spread("real") < spread("hard")
+    who = person(7, population("real"))
+    assert who == person(7, population("real"))  # fixed by the style seed
+    assert 1 <= who.fingers <= 3 and 0.3 <= who.shear_gain <= 0.6
+
+
+def _poke(**cfg) -> np.ndarray:
+    sim = SensorSimulator(gesture="idle", seed=3, noise=0.0, style_seed=9, **cfg)
+    base = compute_baseline(sim.step(100))
+    sim.perform("Constant Touch", 2.0, at_frame=100)
+    return decode(SHEARSENSE_6X6, sim.step(86), base).normal
+
+
+def test_pillow_spreads_and_damps_the_load():
+    flat, pillow = _poke(surface="flat"), _poke(surface="pillow")
+    assert pillow.max() < 0.8 * flat.max()
+    assert (pillow > 0.5).sum() > (flat > 0.5).sum()
+
+
+@pytest.fixture(scope="module")
+def cohorts(tmp_path_factory):
+    root = tmp_path_factory.mktemp("population")
+    out = {}
+    for level in ("easy", "real"):
+        make_dataset_folder(root / level, participants=10, blocks=3, difficulty=level)
+        out[level] = read_sessions([root / level]).select(None)
+    return out
+
+
+def test_real_population_statistics_match_the_recordings(cohorts):
+    easy, real = (population_stats(ds.trials, ds.participants, ds.channel_names)
+                  for ds in (cohorts["easy"], cohorts["real"]))
+    for name in ("taxels_above", "shear_normal"):  # easy is far off on these two ...
+        target = REAL[name][0]
+        assert abs(real[name]["median"] - target) < 0.5 * abs(easy[name]["median"] - target)
+    for name in ("peak_normal_p90", "taxels_above", "peak_shear_p90", "shear_normal"):
+        lo, hi = REAL[name][1], REAL[name][2]  # ... real's median sits in the real IQR
+        assert lo <= real[name]["median"] <= hi, (name, real[name])
+    assert set(trial_stats(cohorts["real"].trials[0],
+                           cohorts["real"].channel_names)) == set(REAL)
+
+
+def test_random_forest_lopo_drops_from_near_perfect_to_the_papers_range(cohorts):
+    acc = {}
+    for level, ds in cohorts.items():
+        cfg = ExperimentConfig(data=["unused"], model="rf", protocol="lopo", preset="tiny")
+        acc[level] = run_experiment(cfg, dataset=ds).metrics["trial_accuracy"]
+    assert acc["easy"] > 0.9
+    assert 0.5 <= acc["real"] <= 0.8, acc

@@ -1,0 +1,117 @@
+"""Sweeps: models x channel sets x folds as tasks on local worker processes and on a real
+local Ray instance (2 CPUs, no dashboard) give identical metrics, equal to
+``run_experiment``'s; finished tasks are kept on cancel and a re-run resumes."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.cli import main as cli_main
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.jobs import CancelToken
+from tactile_studio.learn.executors import LocalExecutor, RayExecutor, make_executor
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.sweep import run_sweep, task_gpus
+
+GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
+MODELS = ["rf", "cnn1d"]
+CHANNELS = ["normal", "shear"]
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("sweep")
+    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
+    return root
+
+
+def _base(data, **kw) -> ExperimentConfig:
+    cfg = dict(data=[str(data / "data")], model="rf", protocol="lopo", preset="tiny", epochs=3,
+               cache_dir=str(data / "cache"), overrides={})
+    cfg.update(kw)
+    return ExperimentConfig(**cfg)
+
+
+@pytest.fixture(scope="module")
+def local_run(data):
+    with LocalExecutor(2) as ex:
+        return run_sweep(_base(data), MODELS, CHANNELS, ex, data / "local")
+
+
+def _scores(result) -> dict:
+    return {key: {k: m[k] for k in ("accuracy", "trial_accuracy", "f1_macro", "kappa",
+                                   "confusion_counts", "trial_confusion_counts")}
+            for key, m in result.metrics.items()}
+
+
+def test_local_sweep_writes_a_table_equal_to_single_runs(data, local_run):
+    rows = {(r["model"], r["channels"]): r for r in local_run.rows}
+    assert set(rows) == {(m, c) for m in MODELS for c in CHANNELS}
+    assert all(r["folds_done"] == r["folds"] == 3 for r in rows.values())
+    csv_lines = (data / "local" / "results.csv").read_text().splitlines()
+    assert csv_lines[0].startswith("model,channels,folds_done") and len(csv_lines) == 5
+    assert len(list((data / "local" / "tasks").glob("*.json"))) == 12
+    for model in MODELS:  # a task in a worker = the same fold in one process
+        single = run_experiment(_base(data, model=model, channels="shear")).metrics
+        swept = local_run.metrics[f"{model}/shear"]
+        assert swept["accuracy"] == single["accuracy"]
+        assert swept["confusion_counts"] == single["confusion_counts"]
+
+
+def test_ray_sweep_gives_identical_metrics(data, local_run):
+    with RayExecutor(jobs=2) as ex:  # a real local Ray instance: ray.init(num_cpus=2)
+        import ray
+
+        assert ray.cluster_resources().get("CPU") == 2
+        result = run_sweep(_base(data), MODELS, CHANNELS, ex, data / "ray")
+    assert not ray.is_initialized()
+    assert _scores(result) == _scores(local_run)
+    saved = json.loads((data / "ray" / "results.json").read_text())
+    assert saved["complete"] and len(saved["rows"]) == 4
+
+
+def test_cancel_keeps_finished_tasks_and_a_rerun_resumes(data, local_run):
+    token = CancelToken()
+    seen = []
+
+    def progress(fraction: float, message: str) -> None:
+        if "done" in message and "before" not in message:
+            seen.append(message)
+            token.cancel()
+
+    out = data / "cancelled"
+    with LocalExecutor(1) as ex, pytest.raises(Cancelled, match="finished"):
+        run_sweep(_base(data), MODELS, CHANNELS, ex, out, progress, token)
+    kept = list((out / "tasks").glob("*.json"))
+    assert 1 <= len(kept) < 12 and len(seen) == len(kept)
+    assert json.loads((out / "results.json").read_text())["complete"] is False
+    messages = []
+    with LocalExecutor(2) as ex:
+        again = run_sweep(_base(data), MODELS, CHANNELS, ex, out, lambda f, m: messages.append(m))
+    assert f"{12 - len(kept)} tasks to run ({len(kept)} done before)" in messages
+    assert _scores(again) == _scores(local_run)
+    with LocalExecutor(1) as ex, pytest.raises(UserError, match="other settings"):
+        run_sweep(_base(data, seed=5), MODELS, CHANNELS, ex, out)
+
+
+def test_gpu_requests_and_bad_settings():
+    assert task_gpus("rf", "cuda") == 0 and task_gpus("cnn3d", "cpu") == 0
+    assert task_gpus("cnn3d", "cuda") == 1
+    with pytest.raises(UserError, match="executor"):
+        make_executor("slurm")
+    with pytest.raises(UserError, match="--address"):
+        make_executor("local", address="10.0.0.1:6379")
+
+
+def test_cli_sweep_prints_the_table(data, capsys):
+    code = cli_main(["sweep", "--data", str(data / "data"), "--models", "rf", "knn",
+                     "--channels", "both", "--preset", "tiny", "--jobs", "2",
+                     "--cache-dir", str(data / "cache"), "--out", str(data / "cli")])
+    out = capsys.readouterr().out
+    assert code == 0 and "trial_accuracy" in out and "3/3" in out
+    assert cli_main(["sweep", "--data", str(data / "data"), "--models", "nope",
+                     "--cache-dir", str(data / "cache")]) == 1
+    assert "unknown model 'nope'" in capsys.readouterr().err
