@@ -31,7 +31,16 @@ test: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q
 
 lint: $(STAMP)
-	$(BIN)/ruff check tactile_studio ui plugins tests benchmarks
+	$(BIN)/ruff check tactile_studio ui plugins tests benchmarks tools
+	$(BIN)/lint-imports
+
+# Regenerates every picture in docs/screenshots (and the protocol pictograms) offscreen.
+screenshots: $(STAMP)
+	QT_QPA_PLATFORM=offscreen $(BIN)/python tools/make_protocol_images.py
+	for f in tools/screenshots/make_*.py; do \
+	  echo "$$f"; QT_QPA_PLATFORM=offscreen $(BIN)/python "$$f" || exit 1; done
+	TACTILE_STUDIO_SCREENSHOTS=docs/screenshots QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q \
+	  tests/test_ui_research.py tests/test_ui_research_train.py tests/test_ui_live_inference.py
 
 bench: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m benchmarks

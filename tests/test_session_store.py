@@ -65,7 +65,9 @@ def test_recorder_writes_every_engine_frame_and_event(tmp_path):
     eng = AcquisitionEngine(CountingDevice(frames=3000, skip_every=1000, malformed_every=500))
     rec = Recorder(eng, tmp_path / "r.h5").start()  # before start: nothing can be missed
     eng.start()
+    deadline = time.monotonic() + 60
     while eng.state != FINISHED:
+        assert time.monotonic() < deadline, f"the engine never finished ({eng.state})"
         time.sleep(0.01)
     eng.stop()
     rec.stop()

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 GESTURES = ["grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",
             "slap", "stroke", "squeeze", "tap", "tickle"]
 

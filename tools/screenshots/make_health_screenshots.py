@@ -14,7 +14,7 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 
 
 def _wait(app, cond, timeout: float = 120.0) -> None:

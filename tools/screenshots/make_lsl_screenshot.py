@@ -13,7 +13,7 @@ import os
 import tempfile
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 
 
 def main() -> int:

@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 
 
 def _bad_csv(folder: Path) -> Path:

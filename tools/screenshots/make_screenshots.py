@@ -14,7 +14,7 @@ import os
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 
 
 def main(gesture: str = "Twist", at_s: float = 0.9) -> int:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-HERE = Path(__file__).resolve().parent
+HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 
 
 def main(out: str = str(HERE / "main-window-serial.png")) -> int:
