@@ -27,6 +27,10 @@ def data_dir(tmp_path, monkeypatch):
 
 def check(spots=DEFAULT_SPOTS, placer_cls=SimulatedPlacer, cancel=None, on_event=None,
           **settings):
+    # a sensor without the sensor-to-sensor variation of the default difficulty, so each
+    # fault is the only thing that differs from the nominal response (see the calibrated
+    # test below for a sensor that varies like real ones)
+    settings.setdefault("difficulty", "easy")
     dev = SimulatedSensor(speed=0, **settings)
     engine = AcquisitionEngine(dev)
     engine.start()
@@ -154,7 +158,8 @@ def test_device_that_stops_mid_check_is_a_clear_error(tmp_path):
 
 def test_cli_auto_json_and_report(tmp_path, capsys):
     report = tmp_path / "check.html"
-    assert main(["wellness", "--set", "speed=0", "--set", "seed=4", "--set", "fault=worn",
+    assert main(["wellness", "--set", "speed=0", "--set", "difficulty=easy", "--set", "seed=4",
+                 "--set", "fault=worn",
                  "--set", "fault_taxel=28", "--sensor", "sim-4", "--weight-g", "200",
                  "--auto", "--json", "--report", str(report)]) == 0
     out = json.loads(capsys.readouterr().out)
@@ -191,3 +196,16 @@ def test_cli_unknown_sensor_on_a_device_without_identity(tmp_path, capsys):
                  "ghost", "--weight-g", "200"]) == 1
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert "unknown sensor 'ghost'" in err and "known: sim-0" in err
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_a_sensor_varying_like_real_ones_passes_once_calibrated(seed, tmp_path):
+    """The default simulator's sensors differ by ~10% in sensitivity (as real ones do): a
+    plate calibration becomes the reference and the first check then passes."""
+    assert main(["calibrate", "--set", "speed=0", "--set", f"seed={seed}", "--sensor",
+                 f"sim-{seed}", "--loads-g", "1000,2000,5000,10000,20000", "--plate", "--auto",
+                 "--out", str(tmp_path / "cal.json")]) == 0
+    result, _ = check(seed=seed, difficulty="real")
+    assert result["verdict"] == "pass", result["reasons"]
+    assert result["reference_calibration"] is not None
+    assert all(0.9 < s["ratio"] < 1.1 for s in result["spots"])

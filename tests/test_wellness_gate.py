@@ -99,7 +99,8 @@ def test_cli_collect_requires_a_check_or_an_override(capsys, proto, tmp_path):
         w = s.metadata["wellness"]
         assert w["override"] == "no weight" and w["check_id"] is None
         assert s.metadata["sensor_id"] == "sim-5"
-    assert main(["wellness", "--set", "speed=0", "--set", "seed=5", "--sensor", "sim-5",
+    assert main(["wellness", "--set", "speed=0", "--set", "difficulty=easy", "--set", "seed=5",
+                 "--sensor", "sim-5",
                  "--weight-g", "200", "--auto", "--json"]) == 0
     capsys.readouterr()
     code, out, err = _collect(capsys, proto, tmp_path / "c")

@@ -29,7 +29,7 @@ def effects_png(path: Path, effects: list[dict[str, Any]]) -> str:
                         color="white" if m[i, j] < 0.6 else "black")
     fig.colorbar(im, ax=ax, label="partial η²")
     ax.set_title("How much each factor explains (GLM)")
-    fig.tight_layout()
+    # the figure lays itself out (constrained layout, see plots.figure)
     fig.savefig(path, dpi=110)
     return path.name
 
@@ -46,7 +46,7 @@ def balance_png(path: Path, balance: list[dict[str, Any]]) -> str:
     ax.set_xticks(x, [b["participant"] for b in balance], rotation=45, ha="right")
     ax.set_ylabel("mean |shear| / mean normal")
     ax.set_title("Shear / normal balance per participant (median, IQR)")
-    fig.tight_layout()
+    # the figure lays itself out (constrained layout, see plots.figure)
     fig.savefig(path, dpi=110)
     return path.name
 
@@ -64,6 +64,6 @@ def metrics_png(path: Path, rows: list[dict[str, Any]]) -> str:
         ax.set_xticks(range(1, len(gestures) + 1), gestures, rotation=30, ha="right",
                       fontsize=8)
         ax.set_title(metric)
-    fig.tight_layout()
+    # the figure lays itself out (constrained layout, see plots.figure)
     fig.savefig(path, dpi=100)
     return path.name
