@@ -79,3 +79,23 @@ def test_abort_lifts_and_reports_what_was_done(qtbot, wizard):
     with Session(w.out_dir / "session.h5") as session:
         stage = [e for e in session.events if e["kind"] == "stage"]
     assert stage[-1]["retract"] is True and stage[-1]["z"] == pytest.approx(5.0)
+
+
+def test_the_main_window_opens_it_from_the_sensors_menu(qtbot, tmp_path, monkeypatch):
+    from tactile_studio.ui.main_window import MainWindow
+    from tactile_studio.ui.settings import SETTINGS_ENV
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    w = MainWindow(device="simulated", settings={"rate": "200", "gesture": "idle"},
+                   persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    assert w.panel.connect_device()
+    qtbot.waitUntil(lambda: w.controller.engine.state == "running", timeout=10000)
+    menu = next(a.menu() for a in w.menuBar().actions() if a.text() == "&Sensors")
+    action = next(a for a in menu.actions() if a.text().startswith("Characterise taxels"))
+    action.trigger()
+    wizard = w._wizard  # noqa: SLF001 - the window keeps the wizard it opened
+    assert isinstance(wizard, CharacteriseWizard) and wizard.isVisible()
+    assert not w.controller.engine.running  # the wizard gets the sensor to itself
+    wizard.close()
+    w.shutdown()

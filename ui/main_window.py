@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QByteArray, QEventLoop, Qt, QTimer
@@ -175,7 +176,9 @@ class MainWindow(QMainWindow):
         menu = self.menuBar().addMenu("&Sensors")
         for text, slot in (("Sensors and history…", self.open_sensors),
                            ("Wellness check…", lambda: self.open_health("wellness")),
-                           ("Calibrate…", lambda: self.open_health("calibration"))):
+                           ("Calibrate…", lambda: self.open_health("calibration")),
+                           ("Characterise taxels (stage + load cell)…",
+                            self.open_characterisation)):
             action = QAction(text, self)
             action.triggered.connect(slot)
             menu.addAction(action)
@@ -196,6 +199,17 @@ class MainWindow(QMainWindow):
         cls = WellnessWizard if kind == "wellness" else CalibrationWizard
         self._wizard = cls(self.panel.device_name() or DEFAULT_DEVICE, self.panel.values(),
                            parent=self)
+        self._wizard.show()
+        return self._wizard
+
+    def open_characterisation(self) -> QWidget:
+        """The characterisation wizard; it opens its own device, stage and load cell (the
+        live device is disconnected first, as for the health wizards)."""
+        from tactile_studio.ui.characterise_wizard import CharacteriseWizard
+        if self.controller.engine is not None and self.controller.engine.running:
+            self.panel.disconnect_device()
+        self._wizard = CharacteriseWizard(str(Path.home() / "characterisation"))
+        self._wizard.resize(1000, 760)
         self._wizard.show()
         return self._wizard
 
