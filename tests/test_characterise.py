@@ -192,3 +192,36 @@ def test_all_taxels_are_mapped(tmp_path):
         assert maps[key].shape == (6, 6) and not np.ma.getmaskarray(maps[key]).any(), key
     # shear was not run: its maps are all grey (masked), not zeros
     assert np.ma.getmaskarray(maps["shear_sensitivity_x"]).all()
+
+
+def test_derived_calibration_goes_to_the_logbook_and_maps_readings_to_kpa(tmp_path, capsys,
+                                                                          monkeypatch):
+    from tactile_studio.storage.logbook import Logbook
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "data"))
+    out = tmp_path / "run"
+    assert main(["characterise", "--set", "speed=0", "--set", "gesture=idle", "--taxels", "B2",
+                 "--sequence", "normal", "--sensor", "S-9", "--save-calibration",
+                 "--out", str(out)]) == 0
+    assert "saved to the logbook (active)" in capsys.readouterr().err
+    with Logbook() as book:
+        cal_id = book.active_calibration("S-9")
+        assert cal_id is not None and book.calibrations("S-9")[0]["kind"] == "characterisation"
+    cal = json.loads((out / "calibration.json").read_text())
+    (fit,) = cal["fits"]
+    assert fit["taxel"] == "B2" and fit["model"] == "two-range"
+    # the stored curve, applied as documented, turns the sensor's readings back into the
+    # load cell's stress
+    a, b, rb = fit["params"]
+    pts = json.loads((out / "raw" / "B2.json").read_text())["normal"]["points"]
+    pts = [p for p in pts if p["phase"] in ("load", "unload")]
+    r = np.array([p["normal"] for p in pts])
+    kpa = np.array([p["pz"] for p in pts])
+    back = a * np.minimum(r, rb) + b * np.maximum(r - rb, 0.0)
+    rms_pct = np.sqrt(np.mean((back - kpa) ** 2)) / (kpa.max() - kpa.min()) * 100
+    assert rms_pct < 5 and rms_pct == pytest.approx(fit["rms_pct"], abs=0.01)
+
+
+def test_save_calibration_needs_a_sensor(tmp_path, capsys):
+    assert main(["characterise", "--set", "speed=0", "--taxels", "B2", "--sequence", "normal",
+                 "--save-calibration", "--out", str(tmp_path / "run")]) == 1
+    assert "--save-calibration needs --sensor" in capsys.readouterr().err

@@ -46,9 +46,18 @@ def analyse_normal(data: dict[str, Any]) -> dict[str, Any]:
     gain = top["normal"] - zero["normal"]
     ratios = {n: (v - zero["nb_normal"][n]) / gain for n, v in top["nb_normal"].items()} \
         if gain else {}
+    # the calibration this fit gives (stress from the reading, through the origin) and
+    # its rms error over every point, as % of the stress range
+    p_all = np.array([p["pz"] for p in both])
+    y_all = np.array([p["normal"] for p in both])
+    y_break = fit.low * fit.breakpoint
+    back = np.where(y_all <= y_break, y_all / fit.low,
+                    fit.breakpoint + (y_all - y_break) / fit.high)
+    span = float(p_all.max() - p_all.min()) or 1.0
     out: dict[str, Any] = {
         "normal_sensitivity_low": fit.low, "normal_sensitivity_high": fit.high,
         "breakpoint_kpa": fit.breakpoint, "r2_normal": fit.r2,
+        "calibration_rms_pct": float(np.sqrt(np.mean((back - p_all) ** 2)) / span * 100),
         "max_normal_kpa": float(p_l.max()),
         "hysteresis": hysteresis(p_l, y_l, np.array([p["pz"] for p in unload]),
                                  np.array([p["normal"] for p in unload])),

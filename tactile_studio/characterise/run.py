@@ -16,6 +16,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tactile_studio.characterise.analyse import analyse_taxel
 from tactile_studio.characterise.lab import Lab
 from tactile_studio.characterise.plan import Plan
@@ -28,6 +30,9 @@ from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.sensor.layout import get_layout
+from tactile_studio.sensor.wellness import parse_taxel
+from tactile_studio.storage.logbook import Logbook
 
 RESULT_FORMAT = "tactile-studio-characterisation"
 CALIBRATION_FORMAT = "tactile-studio-calibration"
@@ -65,16 +70,48 @@ def _write_json(path: Path, data: dict[str, Any]) -> None:
 
 
 def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
-    """The derived calibration (per taxel slopes) in the logbook hand-off format."""
-    taxels = {}
+    """The derived calibration in the sensor logbook's format (``sensor/calibration.py``):
+    per taxel a two-range curve from the centre channel's relative change to kPa (the
+    inverse of the fitted normal response), its sensitivity against the layout's nominal
+    one, and equilibration gains; the measured slopes are kept under ``taxels``."""
+    layout = get_layout(result["layout"])
+    nominal = layout.calibration.normal_slope_low if layout.calibration else 1.0
+    taxels, fits = {}, []
     for name, m in result["taxels"].items():
-        keys = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
-                "shear_sensitivity_x", "shear_sensitivity_y")
-        if all(m.get(k) is not None for k in keys):
-            taxels[name] = {k: m[k] for k in keys}
-    return {"format": CALIBRATION_FORMAT, "version": 1, "sensor": result.get("sensor"),
+        keys = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa")
+        if not all(m.get(k) is not None for k in keys) or m["normal_sensitivity_low"] <= 0 \
+                or m["normal_sensitivity_high"] <= 0:
+            continue
+        taxels[name] = {k: m.get(k) for k in (*keys, "shear_sensitivity_x",
+                                               "shear_sensitivity_y")}
+        low, high, bp = (m["normal_sensitivity_low"], m["normal_sensitivity_high"],
+                         m["breakpoint_kpa"])
+        fits.append({"taxel": name, "index": parse_taxel(layout, name), "model": "two-range",
+                     "params": [1.0 / low, 1.0 / high, low * bp],
+                     "sensitivity": round(low / nominal, 5),
+                     "rms_pct": round(float(m.get("calibration_rms_pct") or 0.0), 4)})
+    sens = {f["taxel"]: f["sensitivity"] for f in fits}
+    median = float(np.median(list(sens.values()))) if sens else 1.0
+    rms = [f["rms_pct"] for f in fits] or [0.0]
+    return {"format": CALIBRATION_FORMAT, "version": 1, "layout": layout.name,
+            "kind": "characterisation", "sensor": result.get("sensor"),
             "created": result.get("finished") or result.get("started"),
-            "source": "characterisation.json", "units": result["units"], "taxels": taxels}
+            "source": "characterisation.json", "units": result["units"], "fits": fits,
+            "gains": {t: round(median / v, 5) for t, v in sens.items()},
+            "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms)),
+            "taxels": taxels}
+
+
+def save_calibration(sensor_id: str, calibration: dict[str, Any]) -> int:
+    """Store a characterisation-derived calibration in the sensor logbook as the active
+    one; returns its id."""
+    if not calibration["fits"]:
+        raise UserError("the characterisation gave no normal fit to calibrate with "
+                        "(run the normal sequence)")
+    with Logbook() as book:
+        book.ensure_sensor(sensor_id, calibration["layout"])
+        return book.add_calibration(sensor_id, "characterisation",
+                                    calibration["rms_pct_median"], calibration)
 
 
 def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,

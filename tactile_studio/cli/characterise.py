@@ -12,6 +12,7 @@ from pathlib import Path
 
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
 from tactile_studio.characterise.plan import SEQUENCES
+from tactile_studio.characterise.run import save_calibration
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.instruments import create_force, create_stage
@@ -39,6 +40,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cycles", type=int, default=None,
                    help="repeatability cycles (default: the paper's 22000)")
     p.add_argument("--sensor", default=None, help="sensor id for the report and calibration")
+    p.add_argument("--save-calibration", action="store_true",
+                   help="store the derived calibration in the sensor logbook as the sensor's "
+                        "active one (needs --sensor)")
     p.add_argument("--json", action="store_true", help="print the per-taxel results as JSON")
     p.add_argument("--out", default=None, help="output folder (required without --wizard)")
     p.add_argument("--wizard", action="store_true",
@@ -81,6 +85,8 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UserError(f"--out {out}: exists and is not a folder")
+    if args.save_calibration and not args.sensor:
+        raise UserError("--save-calibration needs --sensor ID (the logbook files it there)")
     control = RunControl()
     progress = TerminalProgress("characterise")
     try:
@@ -90,6 +96,11 @@ def run(args: argparse.Namespace) -> int:
                                           control=control)
     except UserError as exc:
         raise UserError(f"{exc} (data so far kept in {out})") from None
+    if args.save_calibration:
+        cal = json.loads((out / "calibration.json").read_text())
+        cal_id = save_calibration(args.sensor, cal)
+        print(f"calibration #{cal_id} of {args.sensor} saved to the logbook (active)",
+              file=sys.stderr)
     if args.json:
         print(json.dumps(result["taxels"], indent=1))
     else:
