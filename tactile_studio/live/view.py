@@ -108,19 +108,28 @@ class _Trail:
     def clear(self) -> None:
         self.n = 0
 
-    def append(self, t: np.ndarray, v: np.ndarray) -> None:
+    def keep_mask(self, t: np.ndarray) -> np.ndarray:
+        """Which of the frames at times ``t`` the trail keeps: the first of every time bin
+        of width ``min_dt`` (so callers decode only those; at 1 kHz one frame in ten)."""
         if len(t) == 0:
-            return
+            return np.zeros(0, dtype=bool)
         last = self.t[self.n - 1] if self.n else -math.inf
         if t[0] < last - 1e-9:          # the device clock went back (restart): start over
             self.n, last = 0, -math.inf
-        # keep the first frame of every time bin of width min_dt
         bins = np.floor(t / self.min_dt)
         prev = np.empty_like(bins)
         prev[0] = math.floor(last / self.min_dt) if self.n else -math.inf
         prev[1:] = bins[:-1]
-        keep = bins != prev
-        t, v = t[keep], v[keep]
+        return bins != prev
+
+    def append(self, t: np.ndarray, v: np.ndarray) -> None:
+        keep = self.keep_mask(t)
+        self.append_kept(t[keep], v[keep])
+
+    def append_kept(self, t: np.ndarray, v: np.ndarray) -> None:
+        """Frames already chosen by :meth:`keep_mask`."""
+        if len(t) == 0:
+            return
         if self.n + len(t) > self.cap:
             self._compact(float(t[-1]) if len(t) else float(self.t[self.n - 1]))
         overflow = self.n + len(t) - self.cap
@@ -161,7 +170,7 @@ class LiveView:
     """
 
     def __init__(self, engine: AcquisitionEngine | None = None, virtual: bool = False,
-                 history_s: float = 10.0, max_points: int = 2000) -> None:
+                 history_s: float = 10.0, max_points: int = 1000) -> None:
         self.virtual = virtual
         self.history_s = history_s
         self.max_points = max_points
@@ -298,8 +307,11 @@ class LiveView:
             dec = self._trail_decoder
             if dec is None or dec.baseline is not base or dec.layout is not lay:
                 dec = self._trail_decoder = FrameDecoder(lay, base)
-            st = dec.decode(chunk.raw)  # a few frames per display update
-            self._trail.append(chunk.device_time, st.stack().transpose(1, 0, 2, 3))
+            keep = self._trail.keep_mask(chunk.device_time)  # decode only what is kept
+            if keep.any():
+                st = dec.decode(chunk.raw[keep])
+                self._trail.append_kept(chunk.device_time[keep],
+                                        st.stack().transpose(1, 0, 2, 3))
             self._trail_cursor = chunk.stop
         return self._trail
 
