@@ -196,6 +196,7 @@ def test_resume_refuses_a_mismatch_or_a_complete_session(tmp_path: Path, capsys)
     assert code == 1 and "complete" in err
 
 
+@pytest.mark.slow
 def test_kill_minus_9_then_resume_loses_nothing_and_keeps_the_order(tmp_path: Path) -> None:
     proc, path = _start(tmp_path, "--blocks", "3", "--seed", "5", "--speed", "15")
     _wait_trials(proc, path, 11)  # into block 2

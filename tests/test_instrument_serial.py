@@ -182,6 +182,7 @@ def test_emulator_commands_serve_a_real_port(tmp_path):
         proc.wait(10)
 
 
+@pytest.mark.slow
 def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp_path, printer):
     """End to end on the host clock: a load cell pressed by the printer's indenter (a
     spring under the skin surface at machine z 20); unplugging it mid-run is one line,

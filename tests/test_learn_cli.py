@@ -176,6 +176,7 @@ def test_bad_inputs_give_one_line_errors(data, capsys, tmp_path):
     assert not (tmp_path / "a").exists()  # nothing written for a run that never started
 
 
+@pytest.mark.slow
 def test_ctrl_c_stops_cleanly_and_keeps_finished_folds(data, tmp_path):
     out = tmp_path / "run"
     proc = subprocess.Popen(

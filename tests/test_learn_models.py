@@ -75,6 +75,7 @@ def test_registry_and_baselines_are_all_there():
 
 @pytest.mark.parametrize("protocol", ["lopo", "all-inclusive"])
 @pytest.mark.parametrize("model", FAMILIES)
+@pytest.mark.slow
 def test_family_beats_chance_and_writes_run_folder(data, model, protocol):
     result, out = trained(data, model, protocol)
     m = result.metrics

@@ -80,6 +80,7 @@ def test_real_population_statistics_match_the_recordings(cohorts):
                            cohorts["real"].channel_names)) == set(REAL)
 
 
+@pytest.mark.slow
 def test_random_forest_lopo_drops_from_near_perfect_to_the_papers_range(cohorts):
     acc = {}
     for level, ds in cohorts.items():

@@ -16,6 +16,9 @@ from tactile_studio.learn.executors import LocalExecutor, RayExecutor, make_exec
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.sweep import run_sweep, task_gpus
 
+pytestmark = pytest.mark.slow  # real worker processes and a Ray instance
+
+
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 MODELS = ["rf", "cnn1d"]
 CHANNELS = ["normal", "shear"]

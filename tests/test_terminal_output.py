@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 from learn_fixtures import make_dataset_folder
 from plugin_fixtures import LAYOUT
 
@@ -87,6 +88,7 @@ def _session(path) -> None:
     w.close()
 
 
+@pytest.mark.slow
 def test_piped_commands_print_no_control_characters(tmp_path):
     _session(tmp_path / "s.h5")
     make_dataset_folder(tmp_path / "data", participants=2, blocks=1)

@@ -42,6 +42,7 @@ def cnn_config(data) -> ExperimentConfig:
                             device="cpu")
 
 
+@pytest.mark.slow
 def test_worker_events_cancel_and_resume(data, tmp_path):
     out = tmp_path / "run"
     job = TrainJob(cnn_config(data), out).start()

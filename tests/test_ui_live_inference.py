@@ -32,6 +32,7 @@ def run(tmp_path_factory):
     return root / "run"
 
 
+@pytest.mark.slow
 def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monkeypatch):
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
     w = MainWindow(device="simulated", settings={"rate": "43", "gesture": "Heavy Pat"},

@@ -40,6 +40,7 @@ def window(qtbot, monkeypatch, tmp_path):
         qtbot.waitUntil(lambda: not w.train.job.running, timeout=60_000)
 
 
+@pytest.mark.slow
 def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     window.sessions.set_folders([str(data / "data")])
     window.tabs.setCurrentWidget(window.train)
@@ -85,6 +86,7 @@ def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     assert window.player.pred_probs is not None
 
 
+@pytest.mark.slow
 def test_one_click_ablation_and_bad_input(window, data, qtbot, tmp_path):
     window.sessions.set_folders([str(data / "data")])
     panel = window.train

@@ -46,6 +46,7 @@ def flagged(result):
     return {s["taxel"] for s in result["spots"] if s["verdict"] != "pass"}
 
 
+@pytest.mark.slow
 def test_healthy_sensor_passes_on_20_seeds():
     for seed in range(20):
         result, _ = check(seed=seed)

@@ -12,6 +12,7 @@ import logging
 import threading
 import time
 from collections import Counter
+from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -21,8 +22,32 @@ from tactile_studio.devices.ring import FrameChunk, RingBuffer
 from tactile_studio.errors import DeviceError, DeviceLost
 from tactile_studio.sensor.decode import compute_baseline
 
+
+class EngineState(StrEnum):
+    """Where the engine is (strings, so they print and compare as their values)."""
+
+    IDLE = "idle"
+    CONNECTING = "connecting"
+    RUNNING = "running"
+    RECONNECTING = "reconnecting"
+    FINISHED = "finished"
+    STOPPED = "stopped"
+    ERROR = "error"
+
+    @property
+    def is_live(self) -> bool:
+        """Streaming or trying to (frames may still arrive)."""
+        return self in (EngineState.CONNECTING, EngineState.RUNNING, EngineState.RECONNECTING)
+
+    @property
+    def is_over(self) -> bool:
+        """Ended for good: finished, stopped or failed."""
+        return self in (EngineState.FINISHED, EngineState.STOPPED, EngineState.ERROR)
+
+
 IDLE, CONNECTING, RUNNING, RECONNECTING, FINISHED, STOPPED, ERROR = (
-    "idle", "connecting", "running", "reconnecting", "finished", "stopped", "error")
+    EngineState.IDLE, EngineState.CONNECTING, EngineState.RUNNING, EngineState.RECONNECTING,
+    EngineState.FINISHED, EngineState.STOPPED, EngineState.ERROR)
 RECONNECT_BACKOFF_S = (0.1, 0.2, 0.5, 1.0, 2.0)
 
 
@@ -71,7 +96,7 @@ class AcquisitionEngine:
 
     @property
     def running(self) -> bool:
-        return self.state in (CONNECTING, RUNNING, RECONNECTING)
+        return EngineState(self.state).is_live
 
     def wait_frames(self, n: int, timeout: float = 10.0) -> bool:
         """Block until ``n`` frames have arrived (or the engine ended); True if they did."""

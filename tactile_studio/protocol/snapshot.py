@@ -7,11 +7,12 @@ runner's internals. See docs/runner-api.md.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from enum import StrEnum
 from typing import Any
 
 
-class State:
-    """The runner's states (plain strings, so screens can compare and print them)."""
+class State(StrEnum):
+    """The runner's states (strings, so screens can compare and print them)."""
 
     SETUP = "setup"
     FREE_PLAY = "free_play"
@@ -25,10 +26,11 @@ class State:
     FINISHED = "finished"
     ABORTED = "aborted"
 
-    ALL = (SETUP, FREE_PLAY, BLOCK_START, WAITING, RECORDING, TRIAL_END, REVIEW, BREAK,
-           PAUSED, FINISHED, ABORTED)
-    KEY_STATES = (BLOCK_START, WAITING, REVIEW)
-    DONE = (FINISHED, ABORTED)
+
+# groups of states (set after the class: inside an Enum they would become members)
+State.ALL = tuple(State)
+State.KEY_STATES = (State.BLOCK_START, State.WAITING, State.REVIEW)  # a key may start a trial
+State.DONE = (State.FINISHED, State.ABORTED)
 
 
 @dataclass(frozen=True)
