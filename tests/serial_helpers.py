@@ -1,19 +1,8 @@
-"""Shared by the serial tests: waiting for conditions (never for fixed times)."""
+"""Shared by the serial tests (waiting itself is ``waiting.wait_until``)."""
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
-
-
-def wait_until(cond: Callable[[], bool], timeout: float = 15.0, step: float = 0.01) -> bool:
-    """Poll ``cond`` until true or ``timeout`` (generous: a slow CI is not a failure)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if cond():
-            return True
-        time.sleep(step)
-    return bool(cond())
 
 
 def received_all(engine, emulator) -> Callable[[], bool]:

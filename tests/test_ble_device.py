@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from ble_fakes import BACKENDS, RADIO, FakeClient, FakePeripheral, NoAdapterClient, NoAdapterScanner
-from serial_helpers import wait_until
+from waiting import wait_until
 
 from tactile_studio.cli import main
 from tactile_studio.devices import AcquisitionEngine

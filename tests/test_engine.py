@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from plugin_fixtures import CountingDevice
+from waiting import wait_until
 
 from tactile_studio.devices.engine import ERROR, FINISHED, RUNNING, AcquisitionEngine
 from tactile_studio.devices.registry import parse_set_options
@@ -13,12 +14,7 @@ from tactile_studio.errors import SettingsError
 
 
 def wait(cond, timeout=10.0):
-    import time
-    end = time.monotonic() + timeout
-    while not cond():
-        if time.monotonic() > end:
-            raise AssertionError("condition not met in time")
-        time.sleep(0.005)
+    wait_until(cond, timeout, step=0.005)
 
 
 def test_ring_buffer_cursor_reads_and_overrun():

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import json
-import time
 
 import numpy as np
 import pytest
+from waiting import wait_until
 
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
@@ -22,10 +22,7 @@ def record_simulated(path, seconds="1", *extra):
 
 
 def wait_finished(engine, timeout=30.0):
-    end = time.monotonic() + timeout
-    while engine.state != FINISHED:
-        assert time.monotonic() < end, f"engine still {engine.state}"
-        time.sleep(0.01)
+    wait_until(lambda: engine.state == FINISHED, timeout, what="the replay to finish")
 
 
 def test_record_command_writes_a_session_that_info_describes(tmp_path, capsys):

@@ -6,7 +6,8 @@ import os
 
 import numpy as np
 import pytest
-from serial_helpers import received_all, wait_until
+from serial_helpers import received_all
+from waiting import wait_until
 
 from tactile_studio.cli import main
 from tactile_studio.devices import AcquisitionEngine, create_device

@@ -13,7 +13,7 @@ from collections import Counter
 import numpy as np
 import pytest
 import serial
-from serial_helpers import wait_until
+from waiting import wait_until
 
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.devices.line_decoder import KINDS, LineDecoder
