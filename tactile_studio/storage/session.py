@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import uuid
 from collections import Counter
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +16,7 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.session_compress import read_rows
-from tactile_studio.storage.session_writer import FORMAT
+from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
 SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
@@ -60,54 +58,6 @@ def measured_rate_hz(times: np.ndarray) -> float:
 def derived_session_id(text: str) -> str:
     """A stable session id (uuid5) for ``text``: the same input gives the same id."""
     return str(uuid.uuid5(SESSION_ID_NAMESPACE, text))
-
-
-@dataclass
-class Journal:
-    """The journal folded into its current state."""
-
-    metadata: dict[str, Any] = field(default_factory=dict)
-    events: list[dict[str, Any]] = field(default_factory=list)
-    baselines: list[dict[str, Any]] = field(default_factory=list)
-    trials: list[dict[str, Any]] = field(default_factory=list)
-    counters: dict[str, Any] = field(default_factory=dict)
-    closed: bool = False
-
-
-def read_journal(f: h5py.File) -> Journal:
-    """Fold ``/journal`` (JSON lines) into metadata, events, trials and counters.
-
-    A line cut short by a crash is ignored; everything before it counts.
-    """
-    j = Journal()
-    trials: dict[int, dict[str, Any]] = {}
-    data = bytes(f["journal"][:]) if "journal" in f else b""
-    for line in data.split(b"\n"):
-        if not line.strip():
-            continue
-        try:
-            rec = json.loads(line)
-        except ValueError:
-            continue
-        kind = rec.pop("type", None)
-        if kind == "metadata":
-            j.metadata.update(rec.get("update", {}))
-        elif kind == "event":
-            j.events.append(rec)
-        elif kind == "baseline":
-            j.baselines.append(rec)
-        elif kind == "trial":
-            trials[int(rec["index"])] = rec
-        elif kind == "trial_update":
-            idx = int(rec.pop("index"))
-            if idx in trials:
-                trials[idx].update(rec)
-        elif kind == "counters":
-            j.counters = rec
-        elif kind == "closed":
-            j.closed = True
-    j.trials = [trials[k] for k in sorted(trials)]
-    return j
 
 
 _SIGNATURE = b"\x89HDF\r\n\x1a\n"

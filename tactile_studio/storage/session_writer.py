@@ -33,9 +33,7 @@ from tactile_studio.storage.session_compress import (
     chunk_rows,
     compress_session_file,
 )
-
-FORMAT = "tactile-studio-session"
-SCHEMA_VERSION = 1
+from tactile_studio.storage.session_format import FORMAT, SCHEMA_VERSION, read_journal
 
 
 def _jsonable(value: Any) -> Any:
@@ -178,8 +176,6 @@ class SessionWriter:
             self._f.flush()
             self._f.close()
             self._closed = True
-        from tactile_studio.storage.session import read_journal  # avoid an import cycle
-
         with h5py.File(self.path, "r+", locking=False) as f:
             j = read_journal(f)
             f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
