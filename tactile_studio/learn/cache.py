@@ -14,7 +14,9 @@ import hashlib
 import importlib
 import json
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -69,10 +71,12 @@ def save(ds, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
     return path
 
 
-def load(key: str, cache_dir: str | os.PathLike | None = None):
-    """The cached TrialDataset for ``key``, or None (missing or unreadable entry)."""
-    from tactile_studio.learn.dataset import TrialDataset
-
+def load(key: str, cache_dir: str | os.PathLike | None = None,
+         factory: Callable[..., Any] | None = None) -> Any:
+    """The cached dataset for ``key`` built by ``factory`` (the TrialDataset class, passed
+    in so this module does not import the dataset module), or None (missing/unreadable)."""
+    if factory is None:
+        raise TypeError("load() needs the dataset factory (learn.dataset.TrialDataset)")
     path = _path(key, cache_dir)
     if not path.is_file():
         return None
@@ -83,7 +87,7 @@ def load(key: str, cache_dir: str | os.PathLike | None = None):
                 return None
             frames, offsets = z["frames"], z["offsets"]
             trials = [np.ascontiguousarray(frames[:, a:b]) for a, b in zip(offsets[:-1], offsets[1:])]
-            return TrialDataset(
+            return factory(
                 trials=trials, labels=z["labels"].astype(np.int64),
                 participants=z["participants"].astype(str), uids=z["uids"].astype(str).tolist(),
                 rates=z["rates"].astype(np.float64), label_names=list(meta["label_names"]),

@@ -20,6 +20,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn import cache
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import SessionSet, describe_skipped, select_sessions
@@ -227,11 +228,9 @@ def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
 
     The cache holds every decoded channel, so switching ``channels`` reuses it.
     """
-    from tactile_studio.learn import cache
-
     chosen = select_sessions(paths)
     key = cache.dataset_key(chosen.files, grid)
-    ds = cache.load(key, cache_dir) if use_cache else None
+    ds = cache.load(key, cache_dir, TrialDataset) if use_cache else None
     if ds is None:
         ds = read_sessions(paths, grid, progress, cancel, chosen)
         if use_cache:
