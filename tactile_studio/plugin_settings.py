@@ -26,9 +26,9 @@ class Setting:
     minimum: float | None = None
     maximum: float | None = None
 
-    def parse(self, value: Any, device: str) -> Any:
+    def parse(self, value: Any, device: str, kind: str = "device") -> Any:
         """Convert a value (possibly the text of ``--set key=value``) and check it."""
-        where = f"device {device}: setting {self.name}"
+        where = f"{kind} {device}: setting {self.name}"
         if value is None:
             return None
         try:
@@ -59,3 +59,15 @@ class Setting:
             rng = f" (range {self.minimum if self.minimum is not None else ''}.."
             rng += f"{self.maximum if self.maximum is not None else ''})"
         return f"{self.name}={self.default!r} ({self.kind}{extra}){rng}  {self.help}"
+
+
+def validate_settings(schema: tuple[Setting, ...], settings: dict[str, Any], name: str,
+                      kind: str = "device") -> dict[str, Any]:
+    """Defaults filled in, every value parsed and range-checked, unknown keys refused; errors
+    name the plugin as ``"<kind> <name>: ..."`` (a device, a stage, a force reference)."""
+    by_name = {s.name: s for s in schema}
+    unknown = sorted(set(settings) - set(by_name))
+    if unknown:
+        raise SettingsError(f"{kind} {name}: unknown setting {unknown[0]!r} "
+                            f"(known: {', '.join(by_name) or 'none'})")
+    return {n: s.parse(settings.get(n, s.default), name, kind) for n, s in by_name.items()}

@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tactile_studio.errors import SettingsError, UserError
-from tactile_studio.plugin_settings import Setting  # noqa: F401 - part of the contract
+from tactile_studio.plugin_settings import Setting, validate_settings  # noqa: F401
 from tactile_studio.sensor.layout import Layout, get_layout
 
 
@@ -116,12 +116,7 @@ class DevicePlugin(abc.ABC):
     @classmethod
     def validate_settings(cls, settings: dict[str, Any]) -> dict[str, Any]:
         """Defaults filled in, every value parsed and range-checked, unknown keys refused."""
-        schema = {s.name: s for s in cls.settings_schema}
-        unknown = sorted(set(settings) - set(schema))
-        if unknown:
-            known = ", ".join(schema) or "none"
-            raise SettingsError(f"device {cls.name}: unknown setting {unknown[0]!r} (known: {known})")
-        return {n: s.parse(settings.get(n, s.default), cls.name) for n, s in schema.items()}
+        return validate_settings(cls.settings_schema, settings, cls.name, "device")
 
     @property
     @abc.abstractmethod

@@ -26,8 +26,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from tactile_studio.errors import Cancelled, SettingsError, UserError
-from tactile_studio.plugin_settings import Setting
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.plugin_settings import Setting, validate_settings
 
 
 class InstrumentError(UserError):
@@ -83,18 +83,7 @@ class _Instrument(abc.ABC):
     @classmethod
     def validate_settings(cls, settings: dict[str, Any]) -> dict[str, Any]:
         """Defaults filled in, every value parsed and range-checked, unknown keys refused."""
-        schema = {s.name: s for s in cls.settings_schema}
-        unknown = sorted(set(settings) - set(schema))
-        if unknown:
-            raise SettingsError(f"{cls.kind} {cls.name}: unknown setting {unknown[0]!r} "
-                                f"(known: {', '.join(schema) or 'none'})")
-        out = {}
-        for n, s in schema.items():
-            try:
-                out[n] = s.parse(settings.get(n, s.default), cls.name)
-            except SettingsError as exc:
-                raise SettingsError(str(exc).replace("device ", f"{cls.kind} ", 1)) from None
-        return out
+        return validate_settings(cls.settings_schema, settings, cls.name, cls.kind)
 
     @abc.abstractmethod
     def open(self) -> None:
