@@ -96,3 +96,11 @@ def test_model_settings_and_eta():
     assert cnn["lr"] == (0.01, "learning rate") and "filters" in cnn
     assert eta_seconds(0.25, 10.0) == pytest.approx(30.0)
     assert eta_seconds(0.0, 10.0) is None
+
+
+@pytest.mark.parametrize("name", ["cnn3d", "cnn1d", "cnn_transformer", "mts3d", "sefusion",
+                                  "rf", "knn"])
+def test_every_option_of_every_model_has_its_own_line_of_help(name):
+    rows = model_settings(name, "tiny")
+    assert rows and all(help_ and help_ != "model option" for _, _, help_ in rows), \
+        [k for k, _, h in rows if h == "model option"]

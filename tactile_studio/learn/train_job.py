@@ -44,13 +44,14 @@ def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
     """(option, default, one line of help) for a model's architecture and training
     options at ``preset`` — the form of the train panel."""
     from tactile_studio.learn.learners import make_learner
-    from tactile_studio.learn.models import MODELS, model_options
+    from tactile_studio.learn.models import MODELS, model_options, option_help
 
     described = make_learner(name, preset).describe()
+    helps = {**_TRAIN_HELP, **(option_help(name) if name in MODELS else {})}
     options = dict(model_options(name, preset)) if name in MODELS else {}
     options.update(described.get("model_options") or {})
     options.update(described.get("train") or {})
-    return [(k, v, _TRAIN_HELP.get(k, "model option")) for k, v in options.items()]
+    return [(k, v, helps.get(k, "model option")) for k, v in options.items()]
 
 
 def eta_seconds(fraction: float, elapsed: float) -> float | None:

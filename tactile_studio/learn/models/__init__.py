@@ -142,6 +142,11 @@ def get_model_spec(name: str) -> ModelSpec:
         raise UserError(f"unknown model '{name}' (available: {', '.join(MODELS)})") from None
 
 
+def option_help(name: str) -> dict[str, str]:
+    """One line of help per architecture option of model ``name`` (its ``OPTION_HELP``)."""
+    return dict(_module(name).OPTION_HELP)
+
+
 def model_options(name: str, preset: str = "full") -> dict[str, object]:
     """The architecture options ``build`` accepts as overrides, with their preset values
     (for run configs and ``--set`` help). Training options are in ``TrainDefaults``."""

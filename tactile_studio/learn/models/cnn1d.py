@@ -22,6 +22,14 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP = {
+    "filters": "filters per 1-D conv layer (paper: 8)",
+    "kernel": "kernel length in time slices (paper: 10)",
+    "layers": "conv layers, each followed by max-pool halving (paper: 3)",
+    "dropout": "dropout before the convolutional head",
+}
+
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"filters": 8, "kernel": 10, "layers": 3, "dropout": 0.0},
     "tiny": {"filters": 8, "kernel": 5, "layers": 3, "dropout": 0.0},

@@ -16,6 +16,15 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP = {
+    "filters": "filters of the three Conv3D stages (paper: 128, 256, 512)",
+    "temporal_kernel": "frames the first Conv3D spans (paper: 43 = 1 s)",
+    "temporal_stride": "stride in time of the first Conv3D (paper: 4)",
+    "dense": "units of the dense layer before the classes (paper: 512)",
+    "dropout": "dropout before the class layer",
+}
+
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {
         "filters": (128, 256, 512),

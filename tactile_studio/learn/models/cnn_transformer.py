@@ -29,6 +29,17 @@ from tactile_studio.learn.models._common import (
     transformer_encoder,
 )
 
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP = {
+    "filters": "channels of the four per-frame Conv2D layers",
+    "dense": "units of the per-frame dense layer (paper: 256)",
+    "d_model": "Transformer width (paper: 32)",
+    "heads": "attention heads (paper: 4)",
+    "layers": "Transformer encoder layers (paper: 2)",
+    "ff": "feed-forward width inside the encoder (paper: 128)",
+    "dropout": "dropout in the encoder and head (paper: 0.5)",
+}
+
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {
         "filters": (64, 128, 256, 512),

@@ -19,6 +19,14 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP = {
+    "widths": "channels of the ResNet3D-18-style stages",
+    "blocks": "residual blocks per stage",
+    "scales": "temporal scales fused by summation (paper: 3)",
+    "dropout": "dropout after the 2nd stage (paper: 0.3)",
+}
+
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
              "dropout": 0.3},

@@ -25,6 +25,21 @@ from tactile_studio.learn.models._common import (
     transformer_encoder,
 )
 
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP = {
+    "fusion": "mid (SE + Transformer over branches), early or late fusion",
+    "filters": "channels of each depthwise-separable 1-D branch",
+    "kernel": "kernel length of the branch convolutions",
+    "blocks": "separable conv blocks per branch",
+    "se_reduction": "Squeeze-and-Excitation reduction ratio",
+    "d_model": "Transformer width",
+    "heads": "attention heads",
+    "layers": "Transformer encoder layers",
+    "ff": "feed-forward width inside the encoder",
+    "hidden": "units of the MLP head",
+    "dropout": "dropout in the encoder and head",
+}
+
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"fusion": "mid", "filters": 64, "kernel": 7, "blocks": 2, "se_reduction": 4,
              "d_model": 64, "heads": 4, "layers": 2, "ff": 256, "hidden": 64, "dropout": 0.1},
