@@ -16,14 +16,13 @@ from PySide6.QtWidgets import (
     QTableWidgetItem,
     QVBoxLayout,
     QWidget,
-    QWizard,
     QWizardPage,
 )
 
 from tactile_studio.health.calibration import CalibrationSpec
 from tactile_studio.health.runner import HealthRun
 from tactile_studio.ui.array_picture import SERIES_COLOURS
-from tactile_studio.ui.health_run_page import HealthRunPage
+from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
 from tactile_studio.ui.wellness_wizard import DeviceSetupPage
 
 
@@ -121,26 +120,15 @@ class CalibrationResultPage(QWizardPage):
                            symbolBrush=colour)
 
 
-class CalibrationWizard(QWizard):
+class CalibrationWizard(HealthWizard):
     """Set up → run → result, on its own connection to ``device``."""
 
     def __init__(self, device: str = "simulated", settings: dict[str, Any] | None = None,
                  parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.setWindowTitle("Calibration")
-        self.setWizardStyle(QWizard.WizardStyle.ClassicStyle)
-        self.setup = CalibrationSetupPage(device, settings or {})
-        self.run_page = HealthRunPage("Calibration: running", self._make_run)
-        self.result_page = CalibrationResultPage(self.run_page)
-        for page in (self.setup, self.run_page, self.result_page):
-            self.addPage(page)
-        self.resize(820, 640)
+        super().__init__("Calibration", CalibrationSetupPage(device, settings or {}),
+                         CalibrationResultPage, (820, 640), parent)
 
     def _make_run(self) -> HealthRun:
         s = self.setup
         return HealthRun(s.device, s.settings, s.spec(), auto=s.auto.isChecked(),
                          out=s.out.text().strip() or None)
-
-    def done(self, code: int) -> None:
-        self.run_page.cancel()
-        super().done(code)

@@ -11,6 +11,8 @@ from PySide6.QtWidgets import (
     QProgressBar,
     QPushButton,
     QVBoxLayout,
+    QWidget,
+    QWizard,
     QWizardPage,
 )
 
@@ -149,3 +151,28 @@ class HealthRunPage(QWizardPage):
 
     def isComplete(self) -> bool:  # noqa: N802 - Qt name
         return self.run is not None and not self.run.running and self.run.result is not None
+
+
+class HealthWizard(QWizard):
+    """Set up → run → result on the wizard's own connection to a device; the wellness
+    and calibration wizards differ only in their pages and the run they start."""
+
+    def __init__(self, title: str, setup: QWizardPage,
+                 result_page: Callable[[HealthRunPage], QWizardPage], size: tuple[int, int],
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.setWindowTitle(title)
+        self.setWizardStyle(QWizard.WizardStyle.ClassicStyle)
+        self.setup = setup
+        self.run_page = HealthRunPage(f"{title}: running", self._make_run)
+        self.result_page = result_page(self.run_page)
+        for page in (self.setup, self.run_page, self.result_page):
+            self.addPage(page)
+        self.resize(*size)
+
+    def _make_run(self) -> HealthRun:
+        raise NotImplementedError
+
+    def done(self, code: int) -> None:
+        self.run_page.cancel()
+        super().done(code)

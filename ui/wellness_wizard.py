@@ -19,7 +19,6 @@ from PySide6.QtWidgets import (
     QTableWidgetItem,
     QVBoxLayout,
     QWidget,
-    QWizard,
     QWizardPage,
 )
 
@@ -29,7 +28,7 @@ from tactile_studio.health.wellness import WellnessSpec
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
-from tactile_studio.ui.health_run_page import HealthRunPage
+from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
 
 
 def sensor_combo(current: str | None = None) -> QComboBox:
@@ -146,25 +145,14 @@ class WellnessResultPage(QWizardPage):
         return path
 
 
-class WellnessWizard(QWizard):
+class WellnessWizard(HealthWizard):
     """Set up → run → result, on its own connection to ``device``."""
 
     def __init__(self, device: str = "simulated", settings: dict[str, Any] | None = None,
                  parent: QWidget | None = None) -> None:
-        super().__init__(parent)
-        self.setWindowTitle("Wellness check")
-        self.setWizardStyle(QWizard.WizardStyle.ClassicStyle)
-        self.setup = WellnessSetupPage(device, settings or {})
-        self.run_page = HealthRunPage("Wellness check: running", self._make_run)
-        self.result_page = WellnessResultPage(self.run_page)
-        for page in (self.setup, self.run_page, self.result_page):
-            self.addPage(page)
-        self.resize(720, 620)
+        super().__init__("Wellness check", WellnessSetupPage(device, settings or {}),
+                         WellnessResultPage, (720, 620), parent)
 
     def _make_run(self) -> HealthRun:
         s = self.setup
         return HealthRun(s.device, s.settings, s.spec(), auto=s.auto.isChecked())
-
-    def done(self, code: int) -> None:
-        self.run_page.cancel()
-        super().done(code)
