@@ -8,18 +8,19 @@ numbers) or "silent" (nothing); :meth:`unplug` is a pulled cable.
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 
 import numpy as np
 
-from tactile_studio.instruments.pty_port import PtyPort
+from tactile_studio.instruments.pty_port import PtyEmulator, PtyPort
 
 MODES = ("ok", "garbage", "silent")
 
 
-class LoadCellEmulator:
+class LoadCellEmulator(PtyEmulator):
+    thread_name = "loadcell-emulator"
+
     def __init__(self, source: Callable[[float], tuple[float, float, float]] | None = None,
                  rate_hz: float = 100.0, axes: str = "xyz", link: str | None = None,
                  offset: tuple[float, float, float] = (0.0, 0.0, 0.0), noise: float = 0.0,
@@ -31,34 +32,12 @@ class LoadCellEmulator:
         self.mode = "ok"
         self.sent = 0
         self._rng = np.random.default_rng(seed)
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def open(self) -> str:
-        path = self.pty.open()
-        if self._thread is None or not self._thread.is_alive():
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._run, name="loadcell-emulator", daemon=True)
-            self._thread.start()
-        return path
-
-    @property
-    def port(self) -> str:
-        return self.pty.port
+        self._init_thread()
 
     def set_mode(self, mode: str) -> None:
         if mode not in MODES:
             raise ValueError(f"unknown mode {mode!r} (known: {', '.join(MODES)})")
         self.mode = mode
-
-    def unplug(self) -> None:
-        self.pty.close()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-        self.pty.close()
 
     def line(self, t: float) -> bytes:
         f = np.asarray(self.source(t), float) + self.offset

@@ -18,12 +18,14 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tactile_studio.instruments.pty_port import PtyPort
+from tactile_studio.instruments.pty_port import PtyEmulator, PtyPort
 
 _WORD = re.compile(r"([A-Z])\s*(-?\d+(?:\.\d*)?)")
 
 
-class PrinterEmulator:
+class PrinterEmulator(PtyEmulator):
+    thread_name = "printer-emulator"
+
     def __init__(self, link: str | None = None, bed: tuple[float, ...] = (0, 220, 0, 220, 0, 200),
                  fail_home: bool = False, home_s: float = 0.2, busy_s: float = 1.0,
                  home: tuple[float, float, float] | None = None,
@@ -41,31 +43,9 @@ class PrinterEmulator:
         self._pos = self.home.copy()
         self._error: str | None = None
         self._lock = threading.RLock()
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._init_thread()
 
     # ---- lifecycle -------------------------------------------------------------------
-    def open(self) -> str:
-        path = self.pty.open()
-        if self._thread is None or not self._thread.is_alive():
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._run, name="printer-emulator", daemon=True)
-            self._thread.start()
-        return path
-
-    @property
-    def port(self) -> str:
-        return self.pty.port
-
-    def unplug(self) -> None:
-        self.pty.close()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-        self.pty.close()
-
     def inject_error(self, message: str = "Printer halted. kill() called!") -> None:
         """The next command gets ``Error:<message>`` before its ok."""
         self._error = message
