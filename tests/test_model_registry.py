@@ -7,6 +7,8 @@ Budget: ~5 s without the slow check_model sweep over every built-in (~40 s on 2 
 from __future__ import annotations
 
 import dataclasses
+import subprocess
+import sys
 from importlib.metadata import entry_points
 
 import pytest
@@ -58,6 +60,21 @@ def test_built_in_models_register_through_the_entry_point_group():
         assert declared[name] == f"tactile_studio.learn.models.{name}:MODEL"
         assert get_model_spec(name).name == name
     assert set(BUILT_INS) <= set(model_names())
+
+
+def test_listing_models_imports_no_model_module_and_learn_imports_no_torch():
+    code = ("import sys\n"
+            "import tactile_studio.learn.splits\n"
+            "assert 'torch' not in sys.modules, 'learn/__init__ pulled in torch'\n"
+            "from tactile_studio.learn.models import model_names\n"
+            "names = model_names()\n"
+            "assert 'cnn3d' in names, names\n"
+            "loaded = [m for m in sys.modules if m.startswith('tactile_studio.learn.models.')\n"
+            "          and m.rsplit('.', 1)[1] in names]\n"
+            "assert not loaded, loaded\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
 
 
 def test_register_model_adds_a_name_everywhere_and_rejects_clashes(registered):

@@ -3,7 +3,7 @@ is registered with register_model as the doc's script does and trains from the C
 package's entry point (installed as a dist-info on the path) makes `tactile-studio train
 --model frame_mlp` work in a fresh process, and the package's own test (check_model) passes.
 
-Budget: ~25 s in-process (training 3 tiny folds), ~40 s for the two subprocess routes (slow).
+Budget: ~30 s in-process (training 3 tiny folds, int8 export), ~40 s for the two subprocess routes (slow).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import pytest
 import torch
 from learn_fixtures import make_dataset_folder
 
+from tactile_studio.cli import main
 from tactile_studio.learn.models import MODELS, unregister_model
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "models.md"
@@ -85,6 +86,7 @@ def test_the_doc_holds_a_whole_package():
                                 "tests/test_frame_mlp.py"}
 
 
+@pytest.mark.slow
 def test_a_model_added_from_the_doc_trains_from_the_cli(data, tmp_path, monkeypatch, capsys):
     torch.set_num_threads(1)
     write_package(tmp_path)
@@ -101,6 +103,11 @@ def test_a_model_added_from_the_doc_trains_from_the_cli(data, tmp_path, monkeypa
         assert f"{metrics['accuracy']:.3f}" in capsys.readouterr().out
         config = json.loads((out / "config.json").read_text())
         assert config["config"]["model"] == "frame_mlp"
+        # the declared int8 export works, as the doc's last command says
+        assert main(["export-model", str(out), "--format", "int8", "--threads", "1"]) == 0
+        assert "qoperator quantisation" in capsys.readouterr().out
+        report = json.loads((out / "export" / "int8.json").read_text())
+        assert len(report["folds"]) == 3
     finally:
         unregister_model("frame_mlp")
     assert "frame_mlp" not in MODELS

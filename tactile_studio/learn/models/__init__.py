@@ -19,7 +19,6 @@ from tactile_studio.learn.models.registry import (
     model_options,
     option_help,
     register_model,
-    spec_of,
     unregister_model,
 )
 from tactile_studio.learn.models.spec import (
@@ -29,6 +28,7 @@ from tactile_studio.learn.models.spec import (
     TrainDefaults,
     ViewSpec,
     check_preset,
+    spec_of,
 )
 
 __all__ = [

@@ -11,11 +11,8 @@ a broken third-party model cannot break the others.
 from __future__ import annotations
 
 import re
-import weakref
 from collections.abc import Iterator, Mapping
 from importlib.metadata import EntryPoint, entry_points
-
-import torch
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.models.spec import ModelSpec, check_preset
@@ -27,7 +24,6 @@ NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
 _registered: dict[str, ModelSpec] = {}
 _loaded: dict[str, ModelSpec | Exception] = {}
 _entry_points: dict[str, EntryPoint] | None = None
-_built: weakref.WeakKeyDictionary[torch.nn.Module, ModelSpec] = weakref.WeakKeyDictionary()
 
 
 def _discovered() -> dict[str, EntryPoint]:
@@ -122,17 +118,6 @@ class _Models(Mapping[str, ModelSpec]):
 
 
 MODELS: Mapping[str, ModelSpec] = _Models()
-
-
-def remember_built(model: torch.nn.Module, spec: ModelSpec) -> torch.nn.Module:
-    """Note which declaration built ``model`` (for :func:`spec_of`)."""
-    _built[model] = spec
-    return model
-
-
-def spec_of(model: torch.nn.Module) -> ModelSpec | None:
-    """The declaration that built ``model`` (None for a module built by other means)."""
-    return _built.get(model)
 
 
 def option_help(name: str) -> dict[str, str]:

@@ -11,6 +11,7 @@ GPUs a training task wants. See docs/models.md.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -116,14 +117,13 @@ class ModelSpec:
               preset: str = "full", **overrides: object) -> torch.nn.Module:
         """The model for this data. Overrides are ``options`` keys, plus ``view_frames`` /
         ``view_stride`` when the pipeline overrides the view (sized for that length)."""
-        from tactile_studio.learn.models.registry import remember_built
-
         check_preset(preset)
         frames = _view_frames(self.name, overrides.pop("view_frames", None))
         overrides.pop("view_stride", None)  # the pipeline's business; no effect on the model
         model = self.builder(n_classes, in_channels, tuple(grid), preset, frames=frames,
                              **overrides)
-        return remember_built(model, self)
+        _built[model] = self
+        return model
 
     def view(self, preset: str = "full") -> ViewSpec:
         return self.views[check_preset(preset)]
@@ -135,3 +135,12 @@ class ModelSpec:
     def windowed(self) -> bool:
         """Fed sliding windows of a trial (each window is a sample; trials aggregate)."""
         return self.views["full"].kind == "windows"
+
+
+# which declaration built which live module (the streaming predictor reads its facts)
+_built: weakref.WeakKeyDictionary[torch.nn.Module, ModelSpec] = weakref.WeakKeyDictionary()
+
+
+def spec_of(model: torch.nn.Module) -> ModelSpec | None:
+    """The declaration whose ``build`` made ``model`` (None for a module built otherwise)."""
+    return _built.get(model)
