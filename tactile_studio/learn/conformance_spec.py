@@ -14,6 +14,7 @@ from tactile_studio.learn.models.spec import (
     EXPORT_FORMATS,
     INT8_FORMATS,
     PRESETS,
+    VIEW_KINDS,
     ModelSpec,
     TrainDefaults,
     ViewSpec,
@@ -48,7 +49,7 @@ def check_declaration(spec: ModelSpec, problems: list[str]) -> None:
     kinds = {spec.views[p].kind for p in PRESETS}
     for preset in PRESETS:
         view = spec.views[preset]
-        if view.kind not in ("resample", "windows", "slices", "gradient"):
+        if view.kind not in VIEW_KINDS:
             problems.append(f"views[{preset!r}].kind {view.kind!r} is not a view of learn/views.py")
         if view.frames < 1 or (view.kind == "windows" and view.stride < 1):
             problems.append(f"views[{preset!r}]: frames (and a windows view's stride) must be >= 1")
