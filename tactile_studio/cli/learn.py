@@ -51,7 +51,8 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
 def _add_train_options(p: argparse.ArgumentParser) -> None:
     _add_data_options(p)
     p.add_argument("--model", required=True, metavar="NAME",
-                   help="cnn3d, cnn_transformer, cnn1d, mts3d, sefusion, rf or knn")
+                   help="cnn3d, cnn_transformer, cnn1d, mts3d, sefusion, rf, knn or a model "
+                        "a package registers (docs/models.md)")
     p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo",
                    help="evaluation protocol (default lopo)")
     p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")

@@ -1,1 +1,33 @@
-"""Learning core: datasets, models, training, evaluation, streaming inference."""
+"""Learning core: datasets, models, training, evaluation, streaming inference.
+
+The model extension seam (docs/models.md) is importable from here; it loads on first use,
+so importing a submodule of this package does not pull in torch.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+_SEAM = {
+    "check_model": "tactile_studio.learn.conformance",
+    "ModelCheckError": "tactile_studio.learn.conformance",
+    "Learner": "tactile_studio.learn.contract",
+    "Fitted": "tactile_studio.learn.contract",
+    "ModelFacts": "tactile_studio.learn.contract",
+    "DataInfo": "tactile_studio.learn.contract",
+    "ModelSpec": "tactile_studio.learn.models",
+    "Streaming": "tactile_studio.learn.models",
+    "TrainDefaults": "tactile_studio.learn.models",
+    "ViewSpec": "tactile_studio.learn.models",
+    "register_model": "tactile_studio.learn.models",
+}
+
+__all__ = sorted(_SEAM)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _SEAM:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(_SEAM[name]), name)

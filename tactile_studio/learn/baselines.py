@@ -31,6 +31,14 @@ _OPTIONS: dict[str, dict[str, dict[str, Any]]] = {
             "tiny": {"n_neighbors": 5, "weights": "distance", "p": 2}},
 }
 _CHOICES = {"weights": ("uniform", "distance"), "max_features": ("sqrt", "log2", "all")}
+# one line of help per option (the research workspace shows it beside the value)
+OPTION_HELP: dict[str, dict[str, str]] = {
+    "rf": {"n_estimators": "trees in the forest", "max_depth": "tree depth limit (0 = none)",
+           "min_samples_leaf": "fewest samples in a leaf",
+           "max_features": "features tried per split"},
+    "knn": {"n_neighbors": "neighbours that vote", "weights": "uniform or distance-weighted votes",
+            "p": "Minkowski distance power (2 = Euclidean)"},
+}
 
 
 def baseline_options(name: str, preset: str, overrides: dict[str, Any]) -> dict[str, Any]:

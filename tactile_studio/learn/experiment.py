@@ -310,7 +310,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                 resumed = rec is not None
                 if rec is None:
                     history: list[dict[str, Any]] = []
-                    max_ep = getattr(getattr(learner, "settings", None), "max_epochs", 1)
+                    max_ep = learner.max_epochs
 
                     def on_epoch(e: dict[str, Any], r=r, k=k, fold=fold, where=where,
                                  history=history, max_ep=max_ep) -> None:

@@ -142,14 +142,15 @@ def load_onnx_predictor(path: str | os.PathLike, threads: int = 0) -> Callable[[
 # its extra nodes outweigh the int8 weights of a ~2 k parameter model (cnn1d: 10 KiB
 # QOperator, 15 KiB QDQ, 17 KiB float). mts3d's 36 chained QLinearConv/QLinearAdd layers
 # drift in QOperator form (tiny lopo run: accuracy 0.611 -> 0.315; QDQ: 0.602).
-INT8_FORMATS = {"mts3d": "qdq"}
-DEFAULT_INT8_FORMAT = "qoperator"
 CALIBRATION_SAMPLES = 256
 
 
 def int8_format(model_name: str) -> str:
-    """The onnxruntime quantisation format used for ``model_name``'s int8 export."""
-    return INT8_FORMATS.get(model_name, DEFAULT_INT8_FORMAT)
+    """The onnxruntime quantisation format used for ``model_name``'s int8 export (declared
+    by the model: ``ModelSpec.int8_format``)."""
+    from tactile_studio.learn.models import get_model_spec
+
+    return get_model_spec(model_name).int8_format
 
 
 @contextmanager
@@ -175,7 +176,7 @@ def quantize_onnx_int8(
     path: str | os.PathLike,
     calibration: np.ndarray,
     *,
-    quant_format: str = DEFAULT_INT8_FORMAT,
+    quant_format: str = "qoperator",
     batch: int = 32,
 ) -> Path:
     """Write an int8 copy of the ONNX model ``float_model`` to ``path`` (static

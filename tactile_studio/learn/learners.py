@@ -3,85 +3,70 @@
 A learner turns a dataset into samples (a torch model's view of every trial, or one
 feature vector per trial for the baselines), computes normalisation statistics from the
 training samples it is given, fits, predicts class probabilities, and saves / loads its
-fitted model (torch weights as safetensors, rf / knn as ONNX). The experiment code only
-talks to this interface.
+fitted model (torch weights as safetensors, rf / knn as ONNX). Both satisfy the
+``Learner`` protocol of learn/contract.py, and the experiment code only talks to it.
 """
 
 from __future__ import annotations
 
 import json
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
-from typing import Any
+from dataclasses import asdict, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn import baselines, views
+from tactile_studio.learn.contract import DataInfo, Fitted, Learner, ModelFacts
 from tactile_studio.learn.train import TRAIN_KEYS, TrainSettings, train_settings
 
+if TYPE_CHECKING:
+    from tactile_studio.learn.models import ModelSpec
 
-@dataclass(frozen=True)
-class DataInfo:
-    """What a model needs to know about its input (saved in the run config)."""
-
-    n_classes: int
-    in_channels: int
-    grid: tuple[int, int]
-    channel_names: tuple[str, ...]
-    cell_pitch: float  # physical taxel pitches per grid cell (0.5 on the virtual grid)
-
-    @classmethod
-    def of(cls, ds) -> DataInfo:
-        return cls(ds.n_classes, ds.n_channels, ds.grid_shape, tuple(ds.channel_names),
-                   0.5 if ds.grid == "virtual" else 1.0)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"n_classes": self.n_classes, "in_channels": self.in_channels,
-                "grid": list(self.grid), "channel_names": list(self.channel_names),
-                "cell_pitch": self.cell_pitch}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> DataInfo:
-        return cls(int(d["n_classes"]), int(d["in_channels"]), tuple(d["grid"]),
-                   tuple(d["channel_names"]), float(d["cell_pitch"]))
+__all__ = ["BaselineLearner", "DataInfo", "Fitted", "Learner", "ModelFacts", "TorchFitted",
+           "TorchLearner", "available_models", "make_learner"]
 
 
 def available_models() -> dict[str, str]:
-    """Every model name the pipeline accepts, with a one-line description."""
+    """Every model name the pipeline accepts, with a one-line description (a registered
+    model whose module fails to load says so instead)."""
+    from tactile_studio.learn.models import get_model_spec, model_names
+
     out: dict[str, str] = {}
-    try:
-        from tactile_studio.learn.models import MODELS
-    except ImportError:
-        MODELS = {}
-    out.update({name: spec.description for name, spec in MODELS.items()})
+    for name in model_names():
+        try:
+            out[name] = get_model_spec(name).description
+        except UserError as exc:
+            out[name] = str(exc)
     out.update(baselines.DESCRIPTIONS)
     return out
 
 
 def make_learner(name: str, preset: str = "full", overrides: dict[str, Any] | None = None,
-                 epochs: int | None = None, device: str = "auto", spec: Any = None):
+                 epochs: int | None = None, device: str = "auto",
+                 spec: ModelSpec | None = None) -> Learner:
     """The learner for model ``name`` (``spec`` bypasses the registry, e.g. for tests)."""
+    from tactile_studio.learn.models import get_model_spec, model_names
+
     overrides = dict(overrides or {})
     if spec is None and name in baselines.BASELINES:
         return BaselineLearner(name, preset, overrides)
     if spec is None:
-        try:
-            from tactile_studio.learn.models import MODELS
-        except ImportError:
-            MODELS = {}
-        if name not in MODELS:
+        if name not in model_names():
             raise UserError(f"unknown model '{name}' (available: "
                             f"{', '.join(available_models())})")
-        spec = MODELS[name]
+        spec = get_model_spec(name)
     return TorchLearner(spec, preset, overrides, epochs, device)
 
 
 class TorchLearner:
+    """A registered torch model (learn/models): trained by epochs, saved as safetensors."""
+
     kind = "torch"
 
-    def __init__(self, spec: Any, preset: str, overrides: dict[str, Any],
+    def __init__(self, spec: ModelSpec, preset: str, overrides: dict[str, Any],
                  epochs: int | None, device: str) -> None:
         from tactile_studio.learn.train import pick_device
 
@@ -92,10 +77,17 @@ class TorchLearner:
                                                       epochs)
         self.view = _override_view(spec.view(preset), overrides)
         self.device = pick_device(device)
+        self.max_epochs = self.settings.max_epochs
+        sliding = spec.streaming.sliding
+        self.facts = ModelFacts(
+            view=self.view.kind, export=tuple(spec.export), quantizable=spec.quantizable,
+            sliding=sliding, cached=spec.streaming.cached,
+            window=self.view.frames if sliding else None, gpus=spec.gpus,
+            option_help=dict(spec.option_help))
 
     @property
     def windowed(self) -> bool:
-        return self.view.kind == "windows"
+        return self.facts.windowed
 
     def describe(self) -> dict[str, Any]:
         return {"kind": "torch", "description": self.spec.description,
@@ -168,6 +160,8 @@ def _override_view(view: Any, overrides: dict[str, Any]) -> Any:
 
 
 class TorchFitted:
+    file_name = "model.safetensors"  # runfolder.WEIGHTS
+
     def __init__(self, model, device) -> None:
         self.model, self.device = model, device
 
@@ -183,8 +177,10 @@ class TorchFitted:
 
 
 class BaselineLearner:
+    """rf / knn on handcrafted trial features (learn/baselines.py), saved as ONNX."""
+
     kind = "baseline"
-    windowed = False
+    max_epochs = 1  # not trained by epochs
 
     def __init__(self, name: str, preset: str, overrides: dict[str, Any]) -> None:
         unused = [k for k in overrides if k in TRAIN_KEYS]
@@ -193,6 +189,12 @@ class BaselineLearner:
                             f"'{unused[0]}' does not apply")
         self.name, self.preset = name, preset
         self.options = baselines.baseline_options(name, preset, overrides)
+        self.facts = ModelFacts(view="features", export=("onnx",),
+                                option_help=dict(baselines.OPTION_HELP[name]))
+
+    @property
+    def windowed(self) -> bool:
+        return self.facts.windowed
 
     def describe(self) -> dict[str, Any]:
         return {"kind": "baseline", "description": baselines.DESCRIPTIONS[self.name],

@@ -121,7 +121,7 @@ class RunFolder:
     def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
         d = self.fold_dir(record["round"], record["name"])
         d.mkdir(parents=True, exist_ok=True)
-        fitted.save(d / getattr(fitted, "file_name", WEIGHTS))
+        fitted.save(d / fitted.file_name)
         write_json(d / FOLD, record)
 
     def write_results(self, metrics: dict[str, Any], records: list[dict[str, Any]],

@@ -1,7 +1,8 @@
 """Streaming inference: class probabilities for the newest window as frames arrive.
 
-Models exposing ``frame_features`` (per-frame embedding) and ``classify_embeddings``
-(window of embeddings -> logits), i.e. the CNN-Transformer, get the cached path: each
+Models declaring ``Streaming(cached=True)`` on their ModelSpec (they have ``frame_features``,
+a per-frame embedding, and ``classify_embeddings``, window of embeddings -> logits), i.e.
+the CNN-Transformer, get the cached path: each
 new frame goes through the per-frame CNN exactly once, its embedding is kept in a ring
 of the window's length, and a prediction runs only the Transformer over the ring. Any
 other model gets the generic path: the last ``window`` frames are kept, turned into the
@@ -19,7 +20,8 @@ from torch import nn
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn import views
-from tactile_studio.learn.models import ViewSpec
+from tactile_studio.learn.baselines import BaselineModel
+from tactile_studio.learn.models import Streaming, ViewSpec, spec_of
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
@@ -73,6 +75,8 @@ class StreamingPredictor:
     ``threads`` sets its intra-op threads: 1 by default, because one sample's small ops
     gain little from more and, on a busy 2-core machine, two threads stall each other
     (measured: p95 latency 5-100x worse); 0 = onnxruntime's default.
+    ``streaming`` is the model's declared streaming facts (default: those of the ModelSpec
+    that built ``model``; none for a module built otherwise, which gets the generic path).
     For an rf / k-NN ``model`` (loaded from a run folder's ``model.onnx``), ``view`` may be
     None, ``window`` (the trial length in frames) is required, frames are decoded but not
     z-scored, ``rate`` (Hz) feeds the spectral features, and prediction is onnxruntime.
@@ -90,10 +94,17 @@ class StreamingPredictor:
         backend: str = "torch",
         threads: int = 1,
         rate: float = 43.0,
+        streaming: Streaming | None = None,
     ) -> None:
         if backend not in ("torch", "onnx"):
             raise UserError(f"unknown streaming backend {backend!r} (available: torch, onnx)")
-        self.features = getattr(model, "kind", None) == "features"
+        self.features = isinstance(model, BaselineModel)
+        spec = None if self.features else spec_of(model)
+        if streaming is None:
+            streaming = spec.streaming if spec is not None else Streaming()
+        if backend == "onnx" and spec is not None and "onnx" not in spec.export:
+            raise UserError(f"model '{spec.name}' does not export to ONNX "
+                            f"(it declares {', '.join(spec.export)}): use backend torch")
         self.model = model if self.features else model.eval()
         self.view, self.rate = view, float(rate)
         if self.features:
@@ -108,12 +119,7 @@ class StreamingPredictor:
         self.hop, self.backend, self.threads = hop, backend, threads
         self.mean = None if mean is None else np.asarray(mean, np.float32).reshape(-1, 1, 1)
         self.std = None if std is None else np.asarray(std, np.float32).reshape(-1, 1, 1)
-        self.cached = (
-            not self.features
-            and view.kind == "windows"
-            and callable(getattr(model, "frame_features", None))
-            and callable(getattr(model, "classify_embeddings", None))
-        )
+        self.cached = not self.features and view.kind == "windows" and streaming.cached
         self._sessions: tuple | None = None
         self._ring: np.ndarray | None = None
         self.frames_seen = 0

@@ -49,19 +49,15 @@ class SweepResult:
 
 
 def task_gpus(model: str, device: str = "auto") -> float:
-    """GPUs a task asks the scheduler for: a torch model on ``--device cuda`` (or a model
-    spec declaring ``gpus``) asks for one; the baselines and CPU runs for none."""
+    """GPUs a task asks the scheduler for: a torch model on ``--device cuda`` asks for one,
+    a model declaring ``gpus`` (ModelSpec.gpus) for that many; the baselines and CPU runs
+    for none."""
     from tactile_studio.learn.baselines import BASELINES
+    from tactile_studio.learn.models import get_model_spec
 
     if model in BASELINES:
         return 0.0
-    try:
-        from tactile_studio.learn.models import MODELS
-
-        declared = float(getattr(MODELS.get(model), "gpus", 0.0) or 0.0)
-    except ImportError:
-        declared = 0.0
-    return max(declared, 1.0 if device.startswith("cuda") else 0.0)
+    return max(float(get_model_spec(model).gpus), 1.0 if device.startswith("cuda") else 0.0)
 
 
 def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, Any]:

@@ -33,10 +33,6 @@ _TRAIN_HELP = {
     "batch_size": "samples per training batch", "max_epochs": "upper limit of epochs",
     "patience": "epochs without validation gain before stopping",
     "weight_decay": "L2 penalty", "momentum": "SGD momentum",
-    "n_estimators": "trees in the forest", "max_depth": "tree depth limit (0 = none)",
-    "min_samples_leaf": "fewest samples in a leaf", "max_features": "features tried per split",
-    "n_neighbors": "neighbours that vote", "weights": "uniform or distance-weighted votes",
-    "p": "Minkowski distance power (2 = Euclidean)",
 }
 
 
@@ -44,11 +40,12 @@ def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
     """(option, default, one line of help) for a model's architecture and training
     options at ``preset`` — the form of the train panel."""
     from tactile_studio.learn.learners import make_learner
-    from tactile_studio.learn.models import MODELS, model_options, option_help
+    from tactile_studio.learn.models import model_names, model_options
 
-    described = make_learner(name, preset).describe()
-    helps = {**_TRAIN_HELP, **(option_help(name) if name in MODELS else {})}
-    options = dict(model_options(name, preset)) if name in MODELS else {}
+    learner = make_learner(name, preset)
+    described = learner.describe()
+    helps = {**_TRAIN_HELP, **learner.facts.option_help}
+    options = dict(model_options(name, preset)) if name in model_names() else {}
     options.update(described.get("model_options") or {})
     options.update(described.get("train") or {})
     return [(k, v, helps.get(k, "model option")) for k, v in options.items()]

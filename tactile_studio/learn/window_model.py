@@ -52,17 +52,19 @@ class WindowModel:
 
     @property
     def streams(self) -> bool:
-        """True for torch models fed sliding windows: live inference then pushes frames
-        through learn/streaming.py (cached per-frame embeddings where the model has them)."""
-        return getattr(self.learner, "windowed", False) and hasattr(self.fitted, "model")
+        """True for models declaring sliding-window streaming: live inference then pushes
+        frames through learn/streaming.py (cached per-frame embeddings where declared)."""
+        return self.learner.facts.sliding
 
     def streaming_predictor(self):
+        from tactile_studio.learn.models import Streaming
         from tactile_studio.learn.streaming import StreamingPredictor
 
-        norm = self.record["norm"]
+        facts, norm = self.learner.facts, self.record["norm"]
         # hop far beyond any stream: frames are only pushed, predict() is called per step
         return StreamingPredictor(self.fitted.model, self.learner.view, mean=norm["mean"],
-                                  std=norm["std"], hop=1 << 30)
+                                  std=norm["std"], hop=1 << 30,
+                                  streaming=Streaming(facts.sliding, facts.cached))
 
     def channels_of(self, frames: np.ndarray, layout: Layout) -> np.ndarray:
         """Decoded (C, N, R, X) with every channel -> the run's channel set, (N, C', R, X)."""

@@ -19,7 +19,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
 # one line of help per option (the research workspace shows it beside the value)
@@ -78,3 +78,17 @@ def build(
     model = CNN1D(n_classes, features, frames, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
     return model
+
+
+# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+MODEL = ModelSpec(
+    name="cnn1d",
+    description="tiny 1-D CNN over moving-average slices, taxels as channels",
+    builder=build,
+    views=VIEWS,
+    train=TRAIN,
+    options=OPTIONS,
+    option_help=OPTION_HELP,
+    export=("onnx",),
+    quantizable=True,
+)

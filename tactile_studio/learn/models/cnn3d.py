@@ -13,7 +13,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
 # one line of help per option (the research workspace shows it beside the value)
@@ -100,3 +100,17 @@ def build(
     model = CNN3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
     return model
+
+
+# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+MODEL = ModelSpec(
+    name="cnn3d",
+    description="3D CNN over (time, rows, cols) from the shear+normal paper",
+    builder=build,
+    views=VIEWS,
+    train=TRAIN,
+    options=OPTIONS,
+    option_help=OPTION_HELP,
+    export=("onnx",),
+    quantizable=True,
+)

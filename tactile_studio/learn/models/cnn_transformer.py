@@ -21,7 +21,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models import ModelSpec, Streaming, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     PositionalEncoding,
     check_io,
@@ -147,3 +147,19 @@ def build(
     model = CNNTransformer(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
     return model
+
+
+# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+MODEL = ModelSpec(
+    name="cnn_transformer",
+    description="per-frame 2D CNN + Transformer encoder over sliding windows (HAART/CoST paper)",
+    builder=build,
+    views=VIEWS,
+    train=TRAIN,
+    options=OPTIONS,
+    option_help=OPTION_HELP,
+    export=("onnx",),
+    quantizable=True,
+    # per-frame embeddings (frame_features) are cached between windows when streaming live
+    streaming=Streaming(sliding=True, cached=True),
+)

@@ -16,7 +16,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import check_io, resolve_options
 
 # one line of help per option (the research workspace shows it beside the value)
@@ -117,3 +117,19 @@ def build(
     model = MTS3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
     return model
+
+
+# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+MODEL = ModelSpec(
+    name="mts3d",
+    description="gradient-adaptive sampling + multi-temporal-scale ResNet3D-18-style CNN",
+    builder=build,
+    views=VIEWS,
+    train=TRAIN,
+    options=OPTIONS,
+    option_help=OPTION_HELP,
+    export=("onnx",),
+    quantizable=True,
+    # QOperator has no fused int8 kernel for its 3-D convolutions with residual adds
+    int8_format="qdq",
+)

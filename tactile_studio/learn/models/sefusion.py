@@ -17,7 +17,7 @@ from __future__ import annotations
 import torch
 from torch import nn
 
-from tactile_studio.learn.models import TrainDefaults, ViewSpec
+from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     PositionalEncoding,
     check_io,
@@ -153,3 +153,18 @@ def build(
     model = SEFusion(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
     model.input_shape = (in_channels, frames, *grid)
     return model
+
+
+# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+MODEL = ModelSpec(
+    name="sefusion",
+    description="depthwise-separable 1-D branches per modality + SE + Transformer "
+                "(fusion=mid|early|late)",
+    builder=build,
+    views=VIEWS,
+    train=TRAIN,
+    options=OPTIONS,
+    option_help=OPTION_HELP,
+    export=("onnx",),
+    quantizable=True,
+)

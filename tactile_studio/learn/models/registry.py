@@ -1,0 +1,131 @@
+"""Finding models: the ``tactile_studio.models`` entry-point group plus ``register_model``.
+
+Every model, built-in or third-party, is a :class:`ModelSpec` found through the entry-point
+group (``name = "package.module:MODEL"`` in a package's pyproject.toml; the built-ins are
+declared in this project's) or registered in-process with :func:`register_model` (for a
+notebook, a script, a test). Entry points are listed without importing anything; a model's
+module is imported the first time the model is asked for, so listing names stays cheap and
+a broken third-party model cannot break the others.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator, Mapping
+from importlib.metadata import EntryPoint, entry_points
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.models.spec import ModelSpec, check_preset
+
+GROUP = "tactile_studio.models"
+RESERVED = ("rf", "knn")  # the scikit-learn baselines (learn/baselines.py)
+NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
+
+_registered: dict[str, ModelSpec] = {}
+_loaded: dict[str, ModelSpec | Exception] = {}
+_entry_points: dict[str, EntryPoint] | None = None
+
+
+def _discovered() -> dict[str, EntryPoint]:
+    """The group's entry points by name, in declaration order (read once per process)."""
+    global _entry_points
+    if _entry_points is None:
+        _entry_points = {}
+        for ep in entry_points(group=GROUP):
+            _entry_points.setdefault(ep.name, ep)
+    return _entry_points
+
+
+def register_model(spec: ModelSpec, *, replace: bool = False) -> ModelSpec:
+    """Make ``spec`` available under ``spec.name`` in this process (``--model NAME``,
+    the research workspace, sweeps). Returns ``spec``, so a module can write
+    ``MODEL = register_model(ModelSpec(...))``. A name already taken is an error unless
+    ``replace`` (re-running a notebook cell)."""
+    if not isinstance(spec, ModelSpec):
+        raise TypeError(f"register_model takes a ModelSpec, not {type(spec).__name__}")
+    if not NAME_RE.match(spec.name) or spec.name in RESERVED:
+        raise ValueError(f"model name {spec.name!r}: use lowercase letters, digits, - or _, "
+                         f"and not {', '.join(RESERVED)}")
+    if not replace and spec.name in model_names() and _registered.get(spec.name) is not spec:
+        raise ValueError(f"a model named {spec.name!r} is already registered")
+    _registered[spec.name] = spec
+    return spec
+
+
+def unregister_model(name: str) -> None:
+    """Forget a model registered with :func:`register_model` (tests clean up with it)."""
+    _registered.pop(name, None)
+
+
+def model_names() -> list[str]:
+    """Every model name: entry points first, in declaration order, then registered ones."""
+    return [*_discovered(), *(n for n in _registered if n not in _discovered())]
+
+
+def _load(name: str) -> ModelSpec | Exception:
+    if name in _registered:
+        return _registered[name]
+    if name not in _loaded:
+        ep = _discovered()[name]
+        try:
+            spec = ep.load()
+        except Exception as exc:  # a broken third-party model must not break the others
+            _loaded[name] = exc
+        else:
+            if not isinstance(spec, ModelSpec):
+                _loaded[name] = TypeError(f"{ep.value} is a {type(spec).__name__}, "
+                                          "not a ModelSpec")
+            elif spec.name != name:
+                _loaded[name] = ValueError(f"{ep.value} declares the model {spec.name!r}, "
+                                           f"registered as {name!r}")
+            else:
+                _loaded[name] = spec
+    return _loaded[name]
+
+
+def get_model_spec(name: str) -> ModelSpec:
+    """The registered model called ``name``; a one-line UserError if there is none."""
+    names = model_names()
+    if name not in names:
+        hint = (", ".join(names) if names else
+                "none: reinstall the package (pip install -e .) to register the built-ins")
+        raise UserError(f"unknown model '{name}' (available: {hint})")
+    spec = _load(name)
+    if isinstance(spec, Exception):
+        raise UserError(f"model '{name}' failed to load: {type(spec).__name__}: {spec}")
+    return spec
+
+
+class _Models(Mapping[str, ModelSpec]):
+    """Read-only view of the registry by name (loads a model's module on first access)."""
+
+    def __getitem__(self, name: str) -> ModelSpec:
+        if name not in model_names():
+            raise KeyError(name)
+        return get_model_spec(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(model_names())
+
+    def __len__(self) -> int:
+        return len(model_names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in model_names()
+
+    def __repr__(self) -> str:
+        return f"MODELS({', '.join(model_names())})"
+
+
+MODELS: Mapping[str, ModelSpec] = _Models()
+
+
+def option_help(name: str) -> dict[str, str]:
+    """One line of help per architecture option of model ``name``."""
+    return dict(get_model_spec(name).option_help)
+
+
+def model_options(name: str, preset: str = "full") -> dict[str, object]:
+    """The architecture options ``build`` accepts as overrides, with their preset values
+    (for run configs and ``--set`` help). Training options are in ``TrainDefaults``."""
+    return dict(get_model_spec(name).options[check_preset(preset)])
