@@ -128,4 +128,4 @@ class LiveController:
             dropped=c["missing_frames"] + (rec.dropped if rec else 0), gaps=c["gaps"],
             reconnects=c["reconnects"], reconnect_attempts=eng.reconnect_attempts,
             recording=str(rec.path) if rec else None,
-            recorded_frames=rec.writer.n_frames if rec else 0)
+            recorded_frames=rec.rows_written if rec else 0)

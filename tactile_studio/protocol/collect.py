@@ -35,30 +35,6 @@ COPY_CHUNK = 8192
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
 
 
-class _OffsetRecorder(Recorder):
-    """A recorder whose file already holds ``row_offset`` rows from an earlier run, so
-    engine frames map to rows after them, and whose counters add the earlier ones."""
-
-    def __init__(self, engine: AcquisitionEngine, path: Path, metadata: dict[str, Any],
-                 row_offset: int = 0, base_counters: dict[str, Any] | None = None) -> None:
-        self.row_offset = int(row_offset)
-        self.base_counters = dict(base_counters or {})
-        super().__init__(engine, path, metadata)
-
-    @property
-    def start_frame(self) -> int:
-        return super().start_frame - self.row_offset
-
-    def _counters_since_start(self) -> dict[str, Any]:
-        now = super()._counters_since_start()
-        base = self.base_counters
-        by_kind = dict(base.get("malformed_by_kind", {}))
-        for k, v in now["malformed_by_kind"].items():
-            by_kind[k] = by_kind.get(k, 0) + v
-        out = {k: v + int(base.get(k, 0)) for k, v in now.items() if k != "malformed_by_kind"}
-        return {"malformed_by_kind": by_kind, **out}
-
-
 @dataclass
 class CollectionSession:
     """A running collection: the runner plus what it writes to. ``close()`` when done."""
@@ -183,32 +159,16 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
         n = old.n_frames
         if tmp.exists():
             tmp.unlink()
-        rec = _OffsetRecorder(engine, tmp, meta, row_offset=n,
-                              base_counters=old.journal.counters)
-        w = rec.writer
-        for a in range(0, n, COPY_CHUNK):
-            b = min(n, a + COPY_CHUNK)
-            w.append_frames(old.raw(a, b), old.column("device_time", a, b),
-                            old.column("host_time", a, b), old.column("seq", a, b),
-                            old.column("index", a, b))
-        for base in old.journal.baselines:
-            w.add_baseline(base["values"], base["frame"])
-        for event in old.events:
-            e = dict(event)
-            kind, frame, t = e.pop("kind"), e.pop("frame", None), e.pop("time", None)
-            w.add_event(kind, frame=frame, time_s=t, **e)
-        trials = [dict(t) for t in old.trials]
-        for t in trials:
-            w.add_trial(t)
-        if old.journal.counters:
-            w.set_counters(old.journal.counters)
+        rec = Recorder(engine, tmp, meta, row_offset=n, base_counters=old.journal.counters)
+        trials = rec.copy_earlier(old, COPY_CHUNK)
     if engine.baseline is not None:
-        w.add_baseline(engine.baseline, n)
-    w.add_event("resume", frame=n, from_file=path.name, backup=backup.name, trials=len(trials))
-    w.flush()
+        rec.add_baseline(engine.baseline, n)
+    rec.add_event("resume", frame=n, from_file=path.name, backup=backup.name,
+                  trials=len(trials))
+    rec.flush()
     _keep_backup(path, backup)
     os.replace(tmp, path)  # atomic: there is a complete session at ``path`` at every instant
-    w.path = path  # the open writer follows the rename; close() reopens it by name
+    rec.follow_rename(path)  # the open file moved with it; close() reopens it by name
     rec.start()
     protocol = info["protocol"]
     runner = CollectionRunner(protocol, engine, rec, info["participant"],

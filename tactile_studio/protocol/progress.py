@@ -34,8 +34,6 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
         left = max(0, cur["end"] - r.engine.frames)
         trial_left = left / r.rate
         trial_fraction = 1.0 - left / r.trial_frames
-    elif r.pending_trial is not None:
-        current = r.pending_trial["gesture"]
     elif state in (State.TRIAL_END, State.REVIEW) and r.trials:
         current = r.trials[-1]["gesture"]
     phase_left = max(0.0, r.phase_until - (r.paused_at if state == State.PAUSED else now))

@@ -93,8 +93,6 @@ class RunnerInputs:
         """Mark the last trial redone and put its gesture back into its block."""
         if self.state in (State.SETUP, State.FREE_PLAY, State.RECORDING, State.ABORTED):
             return self._refuse("no finished trial to redo now")
-        if self._pending is not None:
-            return self._refuse("wait until the trial is saved")
         if not self.trials:
             return self._refuse("no trial to redo yet")
         last = self.trials[-1]
@@ -165,9 +163,7 @@ class RunnerInputs:
             return self._refuse("empty note")
         self.notes.append(text)
         last = self.trials[-1]["index"] if self.trials else None
-        self._log("note", text=text, after_trial=last)
-        self.writer.update_metadata(notes="\n".join(self.notes))
-        self.writer.flush()
+        self.recorder.add_note(text, after_trial=last)
         self._emit("note", text=text)
         return True
 
@@ -175,13 +171,11 @@ class RunnerInputs:
         """Stop the session; a running trial is dropped, finished ones stay in the file."""
         if self.state in State.DONE:
             return self._refuse(f"the session is already {self.state}")
-        if self._pending is not None:
-            self._write_pending(force=True)
         if self._current is not None:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
             self._current = None
         self._log("abort", trials=len(self.trials))
-        self.writer.flush()
+        self.recorder.flush()
         self._set_state(State.ABORTED)
         return True
 
