@@ -2,18 +2,59 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from statistics import median
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
+from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
+from tactile_studio.storage.protocol_file import Protocol as CollectionProtocol
 
-if TYPE_CHECKING:
-    from tactile_studio.protocol.runner import CollectionRunner
+
+class RunnerView(Protocol):
+    """What a snapshot is built from: the runner's read-only side (the runner satisfies
+    it; this module never imports the runner, so they do not depend on each other)."""
+
+    protocol: CollectionProtocol
+    engine: FrameStream
+    clock: Callable[[], float]
+    state: str
+    participant: str
+    orders: list[list[str]]
+    trials: list[dict[str, Any]]
+    notes: list[str]
+    hint: str
+    redo_prompt: str
+    beeps: int
+    rate: float
+    trial_frames: int
+
+    @property
+    def block(self) -> int: ...
+    @property
+    def practice(self) -> bool: ...
+    @property
+    def current_trial(self) -> dict[str, Any] | None: ...
+    @property
+    def paused_state(self) -> str | None: ...
+    @property
+    def paused_at(self) -> float: ...
+    @property
+    def held(self) -> bool: ...
+    @property
+    def phase_until(self) -> float: ...
+    @property
+    def trial_starts(self) -> list[float]: ...
+    @property
+    def round_gestures(self) -> list[str]: ...
+    def round_done(self) -> set[str]: ...
+    def round_remaining(self) -> list[str]: ...
+    def break_after(self, block: int) -> bool: ...
 
 DEFAULT_OVERHEAD_S = 2.5  # key, beep and reading the next gesture, before any is measured
 
 
-def seconds_per_trial(runner: CollectionRunner) -> float:
+def seconds_per_trial(runner: RunnerView) -> float:
     """Median time between recent trial starts (the participant's pace), else a guess."""
     starts = runner.trial_starts[-21:]
     steps = [b - a for a, b in zip(starts, starts[1:]) if b > a]
@@ -21,7 +62,7 @@ def seconds_per_trial(runner: CollectionRunner) -> float:
     return median(steps) if steps else runner.protocol.trial_s + DEFAULT_OVERHEAD_S
 
 
-def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
+def build_snapshot(r: RunnerView) -> RunnerSnapshot:
     p = r.protocol
     now = r.clock()
     state = r.state

@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
@@ -33,7 +33,7 @@ from tactile_studio.storage.recorder import Recorder
 class CollectionRunner(RunnerInputs):
     """Runs one participant through a protocol's blocks (see the module docstring)."""
 
-    def __init__(self, protocol: Protocol, engine: AcquisitionEngine, recorder: Recorder,
+    def __init__(self, protocol: Protocol, engine: FrameStream, recorder: Recorder,
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None
@@ -44,7 +44,7 @@ class CollectionRunner(RunnerInputs):
         self.clock: Clock = clock or time.monotonic
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
-        self.rate = float(engine.device.nominal_rate_hz)
+        self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
         self.quality = QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
                                        centre_fraction=protocol.centre_fraction)
@@ -173,7 +173,7 @@ class CollectionRunner(RunnerInputs):
         self._current = {
             "gesture": gesture, "key": key, "block": self.block, "start": start,
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
-            "event_cursor": self.engine.event_count, "row0": self.recorder.row_of(start),
+            "event_cursor": self.engine.event_count,
         }
         self._trial_starts.append(self.clock())
         self._set_state(State.RECORDING)
@@ -200,9 +200,10 @@ class CollectionRunner(RunnerInputs):
         m = measure_trial(self.engine, cur["start"], n, self.rate, self.quality,
                           cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
         practice = cur["block"] < 0
+        row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
         record = {
             "index": self._next_index(), "block": cur["block"], "gesture": cur["gesture"],
-            "key": cur["key"], "start_sample": cur["row0"], "end_sample": cur["row0"] + n,
+            "key": cur["key"], "start_sample": row0, "end_sample": row0 + n,
             "start_time": m.start_time, "end_time": m.end_time,
             "status": "discarded" if practice else "ok",
             "reason": "practice" if practice else None, "flags": m.flags,

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import RecordableStream
 from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.session import Session
@@ -36,7 +36,7 @@ class Recorder:
     :meth:`catch_up` pulls synchronously (tests, headless tools).
     """
 
-    def __init__(self, engine: AcquisitionEngine, path: str | os.PathLike,
+    def __init__(self, engine: RecordableStream, path: str | os.PathLike,
                  metadata: dict[str, Any] | None = None, poll_s: float = 0.05,
                  flush_interval: float = 0.5, *, row_offset: int = 0,
                  base_counters: dict[str, Any] | None = None) -> None:
@@ -47,10 +47,12 @@ class Recorder:
         metadata = sensor_metadata(engine, metadata)
         self.sensor_id: str | None = metadata.get("sensor_id")
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
-        self.writer = SessionWriter(path, engine.layout, engine.device.info(), metadata,
+        self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
                                     flush_interval=flush_interval)
         self.poll_s = poll_s
         self.dropped = 0
+        # (first lost engine frame, first kept one after it, frames dropped before it)
+        self._losses: list[tuple[int, int, int]] = []
         self._cursor = engine.frames
         self._event_cursor = engine.event_count
         self.start_counters = engine.counters()
@@ -74,7 +76,15 @@ class Recorder:
     # ---- file rows ---------------------------------------------------------------------
     def row_of(self, engine_frame: int) -> int:
         """The file row engine frame ``engine_frame`` is (or will be) written to."""
-        return max(0, int(engine_frame) - self.start_frame + self.row_offset - self.dropped)
+        frame, before = int(engine_frame), self.dropped
+        for first_lost, first_kept, dropped_before in reversed(self._losses):
+            if frame >= first_kept:
+                break
+            before = dropped_before
+            if frame >= first_lost:  # lost itself: the row of the next frame kept
+                frame = first_lost
+                break
+        return max(0, frame - self.start_frame + self.row_offset - before)
 
     @property
     def rows_written(self) -> int:
@@ -168,14 +178,15 @@ class Recorder:
     def stop(self) -> None:
         """Write what is left, then close the file cleanly."""
         self._stop.set()
-        self._thread.join()
+        if self._thread.ident is not None:  # never started: catch_up() did the pulling
+            self._thread.join()
         self._drain()
         self.writer.close()
         self._log_usage()
 
     def _log_usage(self) -> None:
         """Add this recording's duration to the sensor's hours of use in the logbook."""
-        rate = float(self.engine.device.nominal_rate_hz or 0.0)
+        rate = float(self.engine.nominal_rate_hz or 0.0)
         if not self.sensor_id or rate <= 0 or self.recorded == 0:
             return
         try:
@@ -205,6 +216,7 @@ class Recorder:
     def _drain_locked(self) -> None:
         chunk = self.engine.read_since(self._cursor)
         if chunk.lost:
+            self._losses.append((chunk.start - chunk.lost, chunk.start, self.dropped))
             self.dropped += chunk.lost
             self.writer.add_event("overrun", lost=chunk.lost)
         if len(chunk):
@@ -244,12 +256,12 @@ class Recorder:
                 **{k: v + int(base.get(k, 0)) for k, v in run.items()}}
 
 
-def sensor_metadata(engine: AcquisitionEngine,
+def sensor_metadata(engine: RecordableStream,
                     metadata: dict[str, Any] | None) -> dict[str, Any]:
     """Session metadata with the sensor ID (given, else the device's own) and the ID of
     the sensor's active calibration in the logbook (so any later decode knows it)."""
     meta = dict(metadata or {})
-    sensor = meta.get("sensor_id") or getattr(engine.device, "sensor_id", lambda: None)()
+    sensor = meta.get("sensor_id") or engine.sensor_id()
     meta["sensor_id"] = sensor
     if sensor and "calibration_id" not in meta:
         try:
