@@ -30,6 +30,7 @@ from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_particip
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import trials_done
 
 COPY_CHUNK = 8192
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
@@ -112,12 +113,10 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
             raise SessionFileError(f"{path}: not a collection session (nothing to resume)")
         protocol = protocol_from_dict(meta["protocol_spec"], f"{Path(path).name}: protocol_spec",
                                       check_images=False)
-        ok = {(t["block"], t["gesture"]) for t in old.trials
-              if t["block"] >= 0 and t["status"] != "redone"}
         total = sum(len(o) for o in meta["block_order"])
         return {"protocol": protocol, "participant": meta["participant"],
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
-                "layout": old.layout.name, "trials_done": len(ok), "trials_total": total,
+                "layout": old.layout.name, "trials_done": trials_done(old.trials), "trials_total": total,
                 "frames": old.n_frames}
 
 

@@ -28,6 +28,7 @@ from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State,
 from tactile_studio.protocol.trial_record import measure_trial
 from tactile_studio.storage.protocol_file import Protocol
 from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
 
 
 class CollectionRunner(RunnerInputs):
@@ -50,7 +51,7 @@ class CollectionRunner(RunnerInputs):
                                        centre_fraction=protocol.centre_fraction)
         self._plan = BlockPlan(self.orders, list(practice or []), len(protocol.gestures),
                                protocol.break_every)
-        self.trials: list[dict[str, Any]] = []
+        self.records: list[TrialRecord] = []
         self.notes: list[str] = []
         self.state = State.SETUP
         self.hint = ""
@@ -72,9 +73,14 @@ class CollectionRunner(RunnerInputs):
     def _restore(self, trials: list[dict[str, Any]]) -> None:
         if not trials:
             return
-        self.trials = [dict(t) for t in trials]
+        self.records = records(trials)
         self.free_play_s = 0.0  # the participant already had it
-        self._plan.restore(self.trials)
+        self._plan.restore(self.records)
+
+    @property
+    def trials(self) -> list[dict[str, Any]]:
+        """The trials so far in the file's form (copies: changing them changes nothing)."""
+        return [t.to_dict() for t in self.records]
 
     # ---- listeners ---------------------------------------------------------------------
     def add_listener(self, fn: Callable[[dict[str, Any]], None]) -> None:
@@ -144,8 +150,7 @@ class CollectionRunner(RunnerInputs):
                 self._end_break()
 
     def _held(self) -> bool:
-        return bool(self.hold_flagged and self.trials and self.trials[-1]["flags"]
-                    and self.trials[-1]["status"] == "ok")
+        return bool(self.hold_flagged and self.records and self.records[-1].flagged)
 
     # ---- transitions ---------------------------------------------------------------------
     def _start_session(self) -> None:
@@ -201,13 +206,12 @@ class CollectionRunner(RunnerInputs):
                           cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
-        record = {
-            "index": self._next_index(), "block": cur["block"], "gesture": cur["gesture"],
-            "key": cur["key"], "start_sample": row0, "end_sample": row0 + n,
-            "start_time": m.start_time, "end_time": m.end_time,
-            "status": "discarded" if practice else "ok",
-            "reason": "practice" if practice else None, "flags": m.flags,
-        }
+        record = TrialRecord(
+            index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
+            key=cur["key"], start_sample=row0, end_sample=row0 + n,
+            start_time=m.start_time, end_time=m.end_time,
+            status=TrialStatus.DISCARDED if practice else TrialStatus.OK,
+            reason="practice" if practice else None, flags=tuple(m.flags))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
         self._phase_until = self.clock() + self.protocol.beep_s
@@ -215,16 +219,16 @@ class CollectionRunner(RunnerInputs):
         self._write_trial(record)
 
     def _next_index(self) -> int:
-        return max((int(t["index"]) for t in self.trials), default=-1) + 1
+        return max((t.index for t in self.records), default=-1) + 1
 
-    def _write_trial(self, record: dict[str, Any]) -> None:
+    def _write_trial(self, record: TrialRecord) -> None:
         """Into the file (flushed) before anything else happens: a crash keeps it."""
         rec = self.recorder.add_trial(record)
-        self.trials.append(dict(rec))
-        if rec["flags"] and rec["status"] == "ok":
-            self.redo_prompt = (f"Trial {rec['index']} ({rec['gesture']}): "
-                                f"{describe(rec['flags'])} - redo?")
-        self._emit("trial_ended", trial=dict(rec))
+        self.records.append(rec)
+        if rec.flagged:
+            self.redo_prompt = (f"Trial {rec.index} ({rec.gesture}): "
+                                f"{describe(list(rec.flags))} - redo?")
+        self._emit("trial_ended", trial=rec.to_dict())
 
     def _after_trial(self) -> None:
         if self._plan.remaining():
@@ -276,7 +280,7 @@ class CollectionRunner(RunnerInputs):
         self._set_state(State.PAUSED)
 
     def _finish(self) -> None:
-        self._log("session_end", trials=len(self.trials))
+        self._log("session_end", trials=len(self.records))
         self.recorder.flush()
         self._set_state(State.FINISHED)
 
@@ -288,10 +292,12 @@ class CollectionRunner(RunnerInputs):
             play(hz, length)
         self._emit("beep", frequency_hz=hz, length_s=length)
 
-    def _update_trial(self, trial: dict[str, Any], **changes: Any) -> None:
-        trial.update(changes)
-        self.recorder.update_trial(trial["index"], **changes)
-        self._emit("trial_updated", trial=dict(trial))
+    def _update_trial(self, trial: TrialRecord, **changes: Any) -> TrialRecord:
+        new = trial.with_changes(**changes)
+        self.records[self.records.index(trial)] = new
+        self.recorder.update_trial(trial.index, **changes)
+        self._emit("trial_updated", trial=new.to_dict())
+        return new
 
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:

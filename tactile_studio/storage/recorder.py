@@ -15,6 +15,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.trials import TrialRecord
 
 # Events that state something in force until the next one (the host->LSL clock offset of a
 # running LSL outlet): a recording started later begins with the latest one, at row 0.
@@ -138,21 +139,19 @@ class Recorder:
         next row)."""
         self.writer.add_baseline(values, row)
 
-    def add_trial(self, trial: dict[str, Any]) -> dict[str, Any]:
+    def add_trial(self, trial: TrialRecord) -> TrialRecord:
         """Write a finished trial (rows ``start_sample..end_sample``) and flush.
 
         Catches up first, so the trial's rows are in the file before its record; rows
         that are not there (the ring overran the recorder) flag it ``dropped_frames``.
         Returns the record as written.
         """
-        record = dict(trial)
         self.catch_up()
-        flags = list(record.get("flags") or [])
-        if self.rows_written < int(record["end_sample"]) and "dropped_frames" not in flags:
-            record["flags"] = [*flags, "dropped_frames"]
-        self.writer.add_trial(record)
+        if self.rows_written < trial.end_sample and "dropped_frames" not in trial.flags:
+            trial = trial.with_changes(flags=(*trial.flags, "dropped_frames"))
+        self.writer.add_trial(trial.to_dict())
         self.writer.flush()
-        return record
+        return trial
 
     def update_trial(self, index: int, **changes: Any) -> None:
         """Change a written trial (its status, reason...) and flush."""
