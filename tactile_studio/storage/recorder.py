@@ -175,13 +175,19 @@ class Recorder:
         return self
 
     def stop(self) -> None:
-        """Write what is left, then close the file cleanly."""
+        """Write what is left, then close the file cleanly (once; later calls do nothing)."""
+        if self.stopped:
+            return
         self._stop.set()
         if self._thread.ident is not None:  # never started: catch_up() did the pulling
             self._thread.join()
         self._drain()
         self.writer.close()
         self._log_usage()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
 
     def _log_usage(self) -> None:
         """Add this recording's duration to the sensor's hours of use in the logbook."""
