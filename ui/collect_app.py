@@ -20,6 +20,7 @@ from PySide6.QtWidgets import QMenu, QWidget
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
+from tactile_studio.live import AcquisitionSession
 from tactile_studio.ui.collect_console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
@@ -32,7 +33,7 @@ def open_console(live: LiveSource | None = None, resume: bool = False,
     engine, name = live() if live is not None else (None, None)
     if engine is not None and not engine.running:
         engine, name = None, None
-    console = CollectConsole(engine=engine, live_device=name)
+    console = CollectConsole(engine=engine, live_device=name, acquisition=AcquisitionSession())
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
     if keep is not None:  # the caller holds a reference while the window is open
         keep.append(console)
@@ -73,7 +74,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
-    console = CollectConsole()
+    console = CollectConsole(acquisition=AcquisitionSession())
     s = console.setup
     if device and s.device.findData(device) < 0:
         usable = [s.device.itemData(i) for i in range(s.device.count())]

@@ -6,7 +6,9 @@ session progress and ETA, the trial log with quality flags, and the experimenter
 buttons. One QTimer drives ``runner.tick()`` and every repaint (never one repaint per
 sample). Widgets only present ``runner.snapshot()`` and forward intent to the runner;
 opening, resuming and closing the session file is the core's ``open_session`` /
-``resume_session`` / ``close``.
+``resume_session`` / ``close``, and the device, engine, recorder and LSL outlet belong
+to the :class:`~tactile_studio.live.session.AcquisitionSession` the console is handed
+(it never builds an engine or a recorder itself).
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
-from tactile_studio.live import LiveView
+from tactile_studio.live import AcquisitionSession, LiveView
 from tactile_studio.protocol.collect import open_session, resume_session
 from tactile_studio.ui.collect_beep import QtBeeper
 from tactile_studio.ui.collect_log import TextDialog, TrialLog
@@ -61,16 +63,18 @@ _TEXT_INPUTS = (QLineEdit, QTextEdit, QAbstractSpinBox, QComboBox)
 
 
 class CollectConsole(QMainWindow):
-    """Runs one collection session; ``engine`` shares a live engine (else one is made)."""
+    """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
+    given); ``engine`` is a live engine it may share (the setup's "live device")."""
 
     def __init__(self, engine: AcquisitionEngine | None = None, live_device: str | None = None,
                  settings: QSettings | None = None, beeper: QtBeeper | None = None,
-                 clock: Any = None, parent: QWidget | None = None) -> None:
+                 clock: Any = None, parent: QWidget | None = None,
+                 acquisition: AcquisitionSession | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("Tactile Studio \u2014 collection session")
         self.shared_engine = engine
-        self.engine: AcquisitionEngine | None = None
-        self._own_engine = False
+        self.live_device = live_device
+        self.acquisition = acquisition if acquisition is not None else AcquisitionSession()
         self.session: Any = None          # the core's collect session (cs)
         self.runner: Any = None
         self.protocol: Any = None
@@ -186,15 +190,18 @@ class CollectConsole(QMainWindow):
         return outer
 
     # ---- opening and closing sessions ---------------------------------------------------
+    @property
+    def engine(self) -> AcquisitionEngine | None:
+        """The engine of the open (or last) session."""
+        return self.acquisition.engine
+
     def _engine_for(self, device: str | None, dev_settings: dict[str, Any]) -> AcquisitionEngine:
+        """Step 1 of the session's start order: the device, opened but not started."""
         if device is None:
             if self.shared_engine is None:
                 raise UserError("no live device: choose a device")
-            return self.shared_engine
-        engine = AcquisitionEngine(create_device(device, dev_settings))
-        engine.start()
-        self._own_engine = True
-        return engine
+            return self.acquisition.share(self.shared_engine, self.live_device)
+        return self.acquisition.open(device, dev_settings)
 
     def start_session(self, choice: SetupChoice, override_note: str | None = None) -> bool:
         """Open a new session from the setup choices; False (message shown) on a user error.
@@ -221,16 +228,15 @@ class CollectConsole(QMainWindow):
             choice.protocol, participant=choice.participant, engine=eng,
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
-            auto_continue=choice.auto_continue, wellness=health),
+            auto_continue=choice.auto_continue, wellness=health,
+            recorder=self.acquisition.start_recording),
             choice.device, choice.device_settings)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
         """The sensor of the chosen device (the shared live one when none is chosen)."""
         if choice.device is None:
-            dev = self.shared_engine.device if self.shared_engine is not None else None
-        else:
-            dev = create_device(choice.device, choice.device_settings)
-        return dev.sensor_id() if dev is not None else None
+            return self.shared_engine.sensor_id() if self.shared_engine is not None else None
+        return create_device(choice.device, choice.device_settings).sensor_id()
 
     def resume_from(self, path: str | Path) -> bool:
         """Continue a killed or closed session file at its next trial."""
@@ -242,20 +248,22 @@ class CollectConsole(QMainWindow):
         return self._open(lambda eng: resume_session(
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
             hold_flagged=self.setup.hold_flagged.isChecked(),
-            auto_continue=self.setup.auto_continue.isChecked()), device, dev_settings)
+            auto_continue=self.setup.auto_continue.isChecked(),
+            recorder=self.acquisition.start_recording), device, dev_settings)
 
     def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
         self.close_session()
-        try:
-            self.engine = self._engine_for(device, dev_settings)
-            self.session = make(self.engine)
+        try:  # the session's start order: device, recorder (the file), LSL, then start
+            engine = self._engine_for(device, dev_settings)
+            self.session = make(engine)
         except UserError as exc:
             self.setup.error.setText(str(exc))
-            self._stop_own_engine()
+            self.acquisition.disconnect()
             return False
         self.runner = self.session.runner
         self.protocol = self.runner.protocol
         self._sync_lsl()
+        self.acquisition.start()
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
@@ -276,13 +284,8 @@ class CollectConsole(QMainWindow):
             path = str(self.session.path)
             self.session.close()
             self.session = None
-        self._stop_own_engine()
+        self.acquisition.disconnect()  # stops the engine only if it is the session's own
         return path
-
-    def _stop_own_engine(self) -> None:
-        if self._own_engine and self.engine is not None:
-            self.engine.stop()
-        self._own_engine = False
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt)
         """Closing mid-session is safe: the file is consistent and can be resumed."""
@@ -293,7 +296,6 @@ class CollectConsole(QMainWindow):
 
     # ---- Lab Streaming Layer (the core streams; this only forwards the toggle) -----------
     def _build_lsl_toggle(self) -> QWidget:
-        self._lsl: Any = None
         self._lsl_detach: Any = None
         self.lsl_toggle = QCheckBox("Stream to LSL")
         self.lsl_toggle.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # keys are the runner's
@@ -308,30 +310,32 @@ class CollectConsole(QMainWindow):
         self._sync_lsl()
         return self.lsl_toggle.isChecked() == on
 
+    @property
+    def _lsl(self) -> Any:
+        """The session's LSL streamer while this console streams (None otherwise)."""
+        return self.acquisition.lsl if self._lsl_detach is not None else None
+
     def _sync_lsl(self, *_: object) -> None:
         want = self.lsl_toggle.isChecked() and self.runner is not None
-        if not want or (self._lsl is not None and self._lsl.engine is not self.engine):
+        acq = self.acquisition
+        if not want or (acq.lsl is not None and acq.lsl.engine is not self.engine):
             self._stop_lsl()
-        if want and self._lsl is None:
-            from tactile_studio.streams.lsl_outlet import acquire_streamer
-
+        if want and self._lsl_detach is None:
             try:
-                self._lsl = acquire_streamer(self.engine)
+                acq.set_lsl(True)
             except UserError as exc:
                 self.statusBar().showMessage(str(exc))
                 self.lsl_toggle.blockSignals(True)
                 self.lsl_toggle.setChecked(False)
                 self.lsl_toggle.blockSignals(False)
                 return
-            self._lsl_detach = self._lsl.attach_runner(self.runner)
+            self._lsl_detach = acq.lsl.attach_runner(self.runner)
 
     def _stop_lsl(self) -> None:
-        lsl, self._lsl = self._lsl, None
-        if lsl is not None:
-            from tactile_studio.streams.lsl_outlet import release_streamer
-
-            self._lsl_detach()
-            release_streamer(lsl)
+        detach, self._lsl_detach = self._lsl_detach, None
+        if detach is not None:
+            detach()
+        self.acquisition.set_lsl(False)
 
     # ---- the timer ----------------------------------------------------------------------
     def tick(self) -> None:

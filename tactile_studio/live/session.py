@@ -220,6 +220,11 @@ class AcquisitionSession:
         self._outlets.append(outlet)
         return outlet
 
+    def close_outlets(self) -> None:
+        """Stop the outlets added with :meth:`add_outlet` now (before closing a
+        collection session's file, so their end is recorded in it)."""
+        self._close_outlets()
+
     def _close_outlets(self) -> None:
         outlets, self._outlets = self._outlets, []
         for outlet in outlets:

@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,12 +34,16 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trials_done
 
 COPY_CHUNK = 8192
+# How a collection makes its recorder: ``(path, metadata, *, row_offset, base_counters,
+# start) -> Recorder``; an AcquisitionSession's ``start_recording`` is one.
+RecorderFactory = Callable[..., Recorder]
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
 
 
 @dataclass
 class CollectionSession:
     """A running collection: the runner plus what it writes to. ``close()`` when done."""
+
 
     runner: CollectionRunner
     recorder: Recorder
@@ -82,10 +87,14 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  out_dir: str | os.PathLike, *, seed: int = 0, condition: str = "",
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
-                 wellness: dict[str, Any] | None = None) -> CollectionSession:
+                 wellness: dict[str, Any] | None = None,
+                 recorder: RecorderFactory | None = None) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
-    Create it before ``engine.start()`` to have file rows equal engine frames.
+    ``engine`` may be started or not: opened before ``engine.start()`` (the start order
+    of an AcquisitionSession) file rows equal engine frames; on a running stream the
+    file begins now. ``recorder`` makes the recorder (an AcquisitionSession's
+    ``start_recording``, so the session knows about the recording); default: a plain one.
     """
     participant = check_participant(participant)
     out = Path(out_dir)
@@ -98,11 +107,24 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
-    recorder = Recorder(engine, target, meta).start()
-    runner = CollectionRunner(protocol, engine, recorder, participant, orders, practice=practice,
+    rec = _factory(engine, recorder)(target, meta)
+    runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
-    return CollectionSession(runner, recorder, engine, target, protocol, participant, seed)
+    return CollectionSession(runner, rec, engine, target, protocol, participant, seed)
+
+
+def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
+    if make is not None:
+        return make
+
+    def plain(path: Path, metadata: dict[str, Any], *, row_offset: int = 0,
+              base_counters: dict[str, Any] | None = None, start: bool = True) -> Recorder:
+        rec = Recorder(engine, path, metadata, row_offset=row_offset,
+                       base_counters=base_counters)
+        return rec.start() if start else rec
+
+    return plain
 
 
 def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
@@ -139,7 +161,8 @@ def _keep_backup(path: Path, backup: Path) -> None:
 
 def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
                    clock: Clock | None = None, auto_continue: bool = True,
-                   hold_flagged: bool = False) -> CollectionSession:
+                   hold_flagged: bool = False,
+                   recorder: RecorderFactory | None = None) -> CollectionSession:
     """Continue a killed or closed session at the next trial of its stored order."""
     path = Path(path)
     info = read_resume_info(path)
@@ -158,7 +181,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
         n = old.n_frames
         if tmp.exists():
             tmp.unlink()
-        rec = Recorder(engine, tmp, meta, row_offset=n, base_counters=old.journal.counters)
+        rec = _factory(engine, recorder)(tmp, meta, row_offset=n,
+                                         base_counters=old.journal.counters, start=False)
         trials = rec.copy_earlier(old, COPY_CHUNK)
     if engine.baseline is not None:
         rec.add_baseline(engine.baseline, n)
