@@ -212,11 +212,11 @@ class CollectConsole(QMainWindow):
             status = wellness_status(self._sensor_id(choice), choice.protocol.wellness_required,
                                      choice.protocol.wellness_max_age_h)
         except UserError as exc:
-            self.setup.error.setText(str(exc))
+            self.setup.show_error(str(exc))
             return False
         self.wellness_text = status.text()
         if not status.ok and not (override_note or "").strip():
-            self.setup.error.setText(f"{status.text()}. {status.problem}.")
+            self.setup.show_error(f"{status.text()}. {status.problem}.")
             dlg = TextDialog("Wellness check needed",
                              f"{status.problem}.\nStart anyway? Override note:", (), self)
             dlg.accepted.connect(lambda: dlg.text().strip()
@@ -240,15 +240,15 @@ class CollectConsole(QMainWindow):
 
     def resume_from(self, path: str | Path) -> bool:
         """Continue a killed or closed session file at its next trial."""
+        hold, auto = self.setup.run_options()
         try:
             device, dev_settings = self.setup.device_choice()
         except UserError as exc:
-            self.setup.error.setText(str(exc))
+            self.setup.show_error(str(exc))
             return False
         return self._open(lambda eng: resume_session(
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
-            hold_flagged=self.setup.hold_flagged.isChecked(),
-            auto_continue=self.setup.auto_continue.isChecked(),
+            hold_flagged=hold, auto_continue=auto,
             recorder=self.acquisition.start_recording), device, dev_settings)
 
     def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
@@ -257,7 +257,7 @@ class CollectConsole(QMainWindow):
             engine = self._engine_for(device, dev_settings)
             self.session = make(engine)
         except UserError as exc:
-            self.setup.error.setText(str(exc))
+            self.setup.show_error(str(exc))
             self.acquisition.disconnect()
             return False
         self.runner = self.session.runner

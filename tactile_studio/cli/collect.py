@@ -229,8 +229,7 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
                 raise Cancelled("collection stopped")
             if engine.state == ERROR or not engine.running and runner.state != State.SETUP:
                 runner.abort()
-                raise UserError(f"device {engine.device_info().get('plugin', '?')}: "
-                                f"{engine.error or 'stopped'}; "
+                raise UserError(f"device {engine.device_name}: {engine.error or 'stopped'}; "
                                 f"completed trials are kept in {session.path}")
             before = (runner.state, len(runner.trials))
             runner.tick()

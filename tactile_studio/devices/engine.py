@@ -104,6 +104,11 @@ class AcquisitionEngine:
         """The device's nominal frame rate (0.0 if it has none)."""
         return float(self.device.nominal_rate_hz or 0.0)
 
+    @property
+    def device_name(self) -> str:
+        """The device plugin's name (for messages)."""
+        return str(self.device.name)
+
     def device_info(self) -> dict[str, Any]:
         """The device's description (plugin, settings, port...) for files and reports."""
         return self.device.info()
