@@ -149,8 +149,8 @@ class MainWindow(QMainWindow):
         tare.setShortcut(QKeySequence("Ctrl+T"))
         tare.triggered.connect(self.panel.tare)
         file_menu.addAction(tare)
-        # collection sessions (ui/collect_app.py): the console shares the live engine
-        from tactile_studio.ui.collect_app import add_collection_menu
+        # collection sessions (ui/collect/app.py): the console shares the live engine
+        from tactile_studio.ui.collect.app import add_collection_menu
         add_collection_menu(self, file_menu,
                             lambda: (self.controller.engine, self.controller.device_name))
         file_menu.addSeparator()

@@ -156,7 +156,7 @@ def run_console_command(args: argparse.Namespace) -> int:
     """Open the experimenter console pre-filled (a real participant presses the keys)."""
     require_display("add --virtual-participant for a headless session")
     options = console_options(args)
-    from tactile_studio.ui.collect_app import run_console
+    from tactile_studio.ui.collect.app import run_console
 
     return run_console(**options)
 

@@ -12,7 +12,7 @@ from typing import Any
 
 from tactile_studio.protocol.quality import FLAG_TEXT
 from tactile_studio.storage.trials import TrialRecord
-from tactile_studio.ui.collect_participant import Card, ParticipantView
+from tactile_studio.ui.collect.participant import Card, ParticipantView
 
 _WAIT_TITLE = "Press the key of the gesture you will do next"
 _WAIT_SUB = "Then start it at once and keep going until the beep."

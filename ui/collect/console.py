@@ -14,28 +14,23 @@ to the :class:`~tactile_studio.live.session.AcquisitionSession` the console is h
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QEvent, QObject, QSettings, Qt, QTimer
-from PySide6.QtGui import QCloseEvent, QGuiApplication, QKeyEvent, QKeySequence
+from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtGui import QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
-    QAbstractSpinBox,
     QApplication,
     QCheckBox,
-    QComboBox,
     QGridLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
-    QLineEdit,
-    QMainWindow,
-    QMessageBox,
     QProgressBar,
     QPushButton,
     QSplitter,
     QStackedWidget,
-    QTextEdit,
     QVBoxLayout,
     QWidget,
 )
@@ -45,24 +40,24 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import AcquisitionSession, LiveView
+from tactile_studio.live.meters import PaintPacer
 from tactile_studio.protocol.collect import open_session, resume_session
-from tactile_studio.ui.collect_beep import QtBeeper
-from tactile_studio.ui.collect_log import TextDialog, TrialLog
-from tactile_studio.ui.collect_participant import ParticipantScreen
-from tactile_studio.ui.collect_setup import CollectSetup, SetupChoice
-from tactile_studio.ui.collect_view import participant_view, progress_text, state_label
+from tactile_studio.ui.collect.beep import QtBeeper
+from tactile_studio.ui.collect.console_actions import ConsoleActions
+from tactile_studio.ui.collect.log import TextDialog, TrialLog
+from tactile_studio.ui.collect.participant import ParticipantScreen
+from tactile_studio.ui.collect.setup import CollectSetup, SetupChoice
+from tactile_studio.ui.collect.view import participant_view, progress_text, state_label
 from tactile_studio.ui.heatmap import HeatmapView
 from tactile_studio.ui.settings import app_settings
 
 log = logging.getLogger(__name__)
 TICK_MS = 15
-HEATMAP_EVERY = 2          # heatmap at ~33 Hz: every other tick
-DISCARD_REASONS = ("wrong gesture", "started late", "interrupted", "sensor problem")
+DISPLAY_HZ = 1000.0 / (2 * TICK_MS)  # heatmap paints at most ~33 Hz (the main window: 60)
 ELLIPSIS = "\u2026"
-_TEXT_INPUTS = (QLineEdit, QTextEdit, QAbstractSpinBox, QComboBox)
 
 
-class CollectConsole(QMainWindow):
+class CollectConsole(ConsoleActions):
     """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
     given); ``engine`` is a live engine it may share (the setup's "live device")."""
 
@@ -82,6 +77,7 @@ class CollectConsole(QMainWindow):
         self.beeper = beeper or QtBeeper(self)
         self.live = LiveView()
         self._ticks = 0
+        self.pacer = PaintPacer(DISPLAY_HZ)  # the main window's pacing, at the console's rate
         self._closed_session_path: str | None = None
         self._dialog: TextDialog | None = None
         self.wellness_text = ""  # the sensor's last check, shown beside the file name
@@ -349,9 +345,11 @@ class CollectConsole(QMainWindow):
         self.participant.show_view(view)
         self.mirror.show_view(view)
         self._present(snap)
-        if self._ticks % HEATMAP_EVERY == 0:
+        now = time.monotonic()
+        if self.pacer.delay(now) <= 0:  # else too soon: the next tick looks again
             frame = self.live.latest()
             if frame is not None and frame is not self._shown:
+                self.pacer.painted(now)
                 self._shown = frame
                 self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
         if snap.state in ("finished", "aborted") and self.session is not None:
@@ -381,137 +379,3 @@ class CollectConsole(QMainWindow):
         b["pause"].setEnabled(live and snap.state != "setup")
         b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
         b["end"].setEnabled(live)
-
-    # ---- experimenter actions (forwarded to the runner) ---------------------------------
-    def primary_action(self) -> None:
-        if self.runner is None:
-            return
-        if self.runner.snapshot().state == "setup":
-            self.runner.start()
-        else:
-            self.runner.proceed()
-        self.tick()
-
-    def redo_last(self) -> None:
-        if self.runner is not None:
-            self.runner.redo_last()
-            self.tick()
-
-    def toggle_pause(self) -> None:
-        if self.runner is None:
-            return
-        if self.runner.snapshot().state == "paused":
-            self.runner.resume()
-        else:
-            self.runner.pause()
-        self.tick()
-
-    def skip_to_break(self) -> None:
-        if self.runner is not None:
-            self.runner.skip_to_break()
-            self.tick()
-
-    def ask_discard(self) -> TextDialog | None:
-        """Ask a reason to discard the selected trial (or the last one)."""
-        if self.runner is None:
-            return None
-        snap = self.runner.snapshot()
-        index = self.log.selected_index()
-        if index is None and snap.last_trial is not None:
-            index = int(snap.last_trial["index"])
-        if index is None:
-            return None
-        gesture = next((t["gesture"] for t in snap.trials if t["index"] == index), "?")
-        dlg = TextDialog("Discard trial", f"Discard trial {index} ({gesture}). Reason:",
-                         DISCARD_REASONS, self)
-        dlg.accepted.connect(lambda: self._discard(index, dlg.text()))
-        return self._open_dialog(dlg)
-
-    def _discard(self, index: int, reason: str) -> None:
-        if self.runner is not None:
-            self.runner.discard(index, reason)
-            self.tick()
-
-    def ask_note(self) -> TextDialog | None:
-        if self.runner is None:
-            return None
-        dlg = TextDialog("Session note", "Note (saved in the session file):", (), self)
-        dlg.accepted.connect(lambda: self.runner is not None and self.runner.add_note(dlg.text()))
-        return self._open_dialog(dlg)
-
-    def _open_dialog(self, dlg: TextDialog) -> TextDialog:
-        self._dialog = dlg
-        dlg.finished.connect(dlg.deleteLater)
-        dlg.open()
-        dlg.edit.setFocus()
-        return dlg
-
-    @property
-    def dialog(self) -> TextDialog | None:
-        """The open discard/note dialog, if any (tests type into it)."""
-        try:
-            return self._dialog if self._dialog is not None and self._dialog.isVisible() else None
-        except RuntimeError:  # already deleted
-            return None
-
-    def end_session(self) -> None:
-        if self.runner is None:
-            return
-        answer = QMessageBox.question(
-            self, "End session", "End the session now? Finished trials stay in the file.")
-        if answer == QMessageBox.StandardButton.Yes:
-            self.runner.abort()
-            self.tick()
-
-    # ---- keys ---------------------------------------------------------------------------
-    def forward_key(self, text: str) -> bool:
-        """A participant key from either window goes to the runner."""
-        if self.runner is None or not text.strip():
-            return False
-        accepted = self.runner.key(text)
-        self.tick()
-        return bool(accepted)
-
-    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt)
-        """Plain printable keys typed anywhere in the console go to the runner, unless
-        the experimenter is typing into a text field or a dialog."""
-        if event.type() != QEvent.Type.KeyPress or self.runner is None:
-            return False
-        if not isinstance(obj, QWidget) or obj.window() is not self:
-            return False
-        if self.stack.currentIndex() != 1 or isinstance(obj, _TEXT_INPUTS):
-            return False
-        assert isinstance(event, QKeyEvent)
-        mods = event.modifiers() & ~Qt.KeyboardModifier.ShiftModifier \
-            & ~Qt.KeyboardModifier.KeypadModifier
-        text = event.text()
-        if mods or len(text) != 1 or not text.isprintable() or text.isspace():
-            return False
-        if not event.isAutoRepeat():
-            self.forward_key(text)
-        return True
-
-    # ---- participant window and beep flash ----------------------------------------------
-    def show_participant_screen(self) -> None:
-        """Show the participant screen, full screen on a second monitor if there is one."""
-        screens = QGuiApplication.screens()
-        if len(screens) > 1:
-            other = next((s for s in screens if s is not self.screen()), screens[-1])
-            self.participant.setScreen(other)
-            self.participant.move(other.geometry().topLeft())
-            self.participant.showFullScreen()
-            size = other.geometry().size()
-        else:
-            self.participant.resize(1280, 720)
-            self.participant.show()
-            size = self.participant.size()
-        self.mirror.aspect = size.width() / max(1, size.height())
-        self.mirror.update()
-        self.participant.raise_()
-
-    def _flash(self) -> None:
-        self.participant.flash()
-        self.mirror.flash()
-
-    def _on_virtual(self, on: bool) -> None:
-        self.live.virtual = on

@@ -20,7 +20,7 @@ from PySide6.QtWidgets import QMenu, QWidget
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.live import AcquisitionSession
-from tactile_studio.ui.collect_console import CollectConsole
+from tactile_studio.ui.collect.console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
 _RUNNING: list[CollectConsole] = []  # consoles opened by run_console
