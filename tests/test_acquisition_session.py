@@ -46,8 +46,9 @@ def test_the_recording_stops_itself_when_the_stream_ends(tmp_path: Path) -> None
     src.close()
     s = AcquisitionSession()
     seen = _events(s)
-    s.connect("replay", {"path": str(tmp_path / "src.h5"), "speed": "0"})
-    s.start_recording(tmp_path / "copy.h5")
+    s.open("replay", {"path": str(tmp_path / "src.h5"), "speed": "0"})
+    s.start_recording(tmp_path / "copy.h5")  # before start: a fast replay may end at once
+    s.start()
     try:
         wait_until(lambda: (s.poll(), not s.recording)[1], what="the replay to end")
     finally:
