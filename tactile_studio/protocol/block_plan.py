@@ -13,7 +13,7 @@ last one done, so it is normally first anyway; a resumed older file may have gap
 
 from __future__ import annotations
 
-from tactile_studio.storage.trials import TrialRecord
+from tactile_studio.storage.trials import TrialRecord, records
 
 
 class BlockPlan:
@@ -32,14 +32,14 @@ class BlockPlan:
         self.breaks_taken: set[int] = set()
         self.redo_first: dict[int, str] = {}  # round index -> its reopened gesture
 
-    def restore(self, trials: list[TrialRecord]) -> None:
+    def restore(self, trials: list[TrialRecord] | list[dict[str, Any]]) -> None:
         """Mark the gestures of a resumed session's trials done (redone ones excepted),
         skip practice, and move to the first round with gestures left."""
         round_of = {b: i for i, (b, _) in enumerate(self.rounds) if b >= 0}
         for i, (b, gestures) in enumerate(self.rounds):
             if b < 0:
                 self.done[i] = set(gestures)  # practice is not repeated on resume
-        for t in trials:
+        for t in records(trials):
             if t.counts and t.block in round_of:
                 self.done[round_of[t.block]].add(t.gesture)
         self.index = next((i for i in range(len(self.rounds)) if self.remaining(i)),
