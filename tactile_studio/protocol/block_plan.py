@@ -13,6 +13,8 @@ last one done, so it is normally first anyway; a resumed older file may have gap
 
 from __future__ import annotations
 
+from typing import Any
+
 from tactile_studio.storage.trials import TrialRecord, records
 
 
