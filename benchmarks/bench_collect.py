@@ -1,6 +1,8 @@
 """A full shear9 session (52 blocks, 468 trials) headless with a virtual participant,
 as fast as the simulator goes: wall time, trials per second, file size, and how far the
-key presses lag the stream (what the runner's at_frame handling absorbs)."""
+key presses lag the stream (what the runner's at_frame handling absorbs), and how long
+the tick that ends a trial takes (the recorder catches up with the trial's frames and
+writes and flushes the trial on the runner's thread)."""
 
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ def run(speed: float, blocks: int | None = None) -> None:
         vp = VirtualParticipant(session.runner, device, "P01")
         vp.prepare()
         lags: list[int] = []
+        saves: list[float] = []
         session.runner.add_listener(
             lambda e: lags.append(engine.frames - e["start_frame"])
             if e["kind"] == "trial_started" else None)
@@ -35,8 +38,15 @@ def run(speed: float, blocks: int | None = None) -> None:
         engine.start()
         while session.runner.state not in State.DONE:
             before = (session.runner.state, len(session.runner.trials))
+            t = time.perf_counter()
             session.runner.tick()
-            if not vp.step() and (session.runner.state, len(session.runner.trials)) == before:
+            if len(session.runner.records) > before[1]:
+                saves.append(time.perf_counter() - t)
+            n, t = len(session.runner.records), time.perf_counter()
+            acted = vp.step()  # a late key press can end its trial at once
+            if len(session.runner.records) > n:
+                saves.append(time.perf_counter() - t)
+            if not acted and (session.runner.state, len(session.runner.trials)) == before:
                 time.sleep(0.002)
         wall = time.perf_counter() - t0
         session.close()
@@ -49,7 +59,9 @@ def run(speed: float, blocks: int | None = None) -> None:
         print(f"speed {speed:g}: {n} trials ({ok} ok, {flagged} flagged) in {wall:.1f} s wall, "
               f"{frames} frames ({frames / 43.0 / 60:.1f} min of sensor time), {size:.1f} MB; "
               f"key-press lag behind the stream: median {sorted(lags)[len(lags) // 2]} "
-              f"frames, max {max(lags)}; replanned {vp.replanned}")
+              f"frames, max {max(lags)}; replanned {vp.replanned}; trial-ending call "
+              f"median {1e3 * sorted(saves)[len(saves) // 2]:.1f} ms, max "
+              f"{1e3 * max(saves):.1f} ms over {len(saves)}")
 
 
 def main() -> None:

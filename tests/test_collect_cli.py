@@ -109,7 +109,7 @@ def _run_console_cli(capsys, *args: str):
     from PySide6.QtCore import QTimer
     from PySide6.QtWidgets import QApplication
 
-    from tactile_studio.ui.collect_console import CollectConsole
+    from tactile_studio.ui.collect.console import CollectConsole
 
     app = QApplication.instance()
     # Hold the widgets themselves, not their id()s: a wrapper freed meanwhile could hand

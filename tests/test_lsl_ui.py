@@ -12,8 +12,8 @@ import pytest
 from collect_fixtures import mini_protocol
 from lsl_fixtures import Collector
 
-from tactile_studio.ui.collect_console import CollectConsole
-from tactile_studio.ui.collect_setup import SetupChoice
+from tactile_studio.ui.collect.console import CollectConsole
+from tactile_studio.ui.collect.setup import SetupChoice
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
 
@@ -106,7 +106,7 @@ def test_console_toggle_streams_the_session_markers(qtbot, tmp_path) -> None:
 def test_collect_lsl_option_pre_checks_the_console_toggle(qtbot, tmp_path) -> None:
     from tactile_studio.cli import build_parser
     from tactile_studio.cli.collect import console_options
-    from tactile_studio.ui.collect_app import build_console
+    from tactile_studio.ui.collect.app import build_console
 
     args = build_parser().parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
                                       "--out", str(tmp_path), "--lsl"])

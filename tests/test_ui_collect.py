@@ -17,10 +17,10 @@ from PySide6.QtWidgets import QFileDialog
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.protocol.tone import tone_pcm, tone_samples
 from tactile_studio.storage.session import Session
-from tactile_studio.ui.collect_beep import QtBeeper
-from tactile_studio.ui.collect_console import CollectConsole
-from tactile_studio.ui.collect_log import FLAGGED_BG
-from tactile_studio.ui.collect_participant import Card, ParticipantScreen, ParticipantView
+from tactile_studio.ui.collect.beep import QtBeeper
+from tactile_studio.ui.collect.console import CollectConsole
+from tactile_studio.ui.collect.log import FLAGGED_BG
+from tactile_studio.ui.collect.participant import Card, ParticipantScreen, ParticipantView
 
 MINI = """
 name = "mini3"

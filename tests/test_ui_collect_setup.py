@@ -12,7 +12,7 @@ from PySide6.QtWidgets import QCheckBox, QComboBox, QLineEdit, QToolButton
 
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import UserError
-from tactile_studio.ui.collect_setup import KEY_DEVICE, CollectSetup
+from tactile_studio.ui.collect.setup import KEY_DEVICE, CollectSetup
 from tactile_studio.ui.settings_form import SettingsForm
 
 
@@ -121,7 +121,7 @@ def test_the_shared_form_builds_every_kind(qtbot):
 
 
 def test_the_collect_command_prefills_the_form_with_a_spaced_name(qtbot, tmp_path, monkeypatch):
-    from tactile_studio.ui.collect_app import build_console
+    from tactile_studio.ui.collect.app import build_console
 
     monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
     console = build_console("shear9", "P01", device="ble",

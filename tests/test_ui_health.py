@@ -174,7 +174,7 @@ def test_main_window_sensor_id_goes_into_recordings_and_menus_open(qtbot, tmp_pa
     qtbot.waitUntil(lambda: w.controller.engine.state == "running", timeout=10000)
     w.panel.sensor_box.setCurrentText("array-007")
     assert w.panel.start_recording(str(tmp_path / "s.h5"))
-    qtbot.waitUntil(lambda: w.controller.recorder.writer.n_frames > 50, timeout=10000)
+    qtbot.waitUntil(lambda: w.controller.recorder.rows_written > 50, timeout=10000)
     w.panel.stop_recording()
     with Session(tmp_path / "s.h5") as s:
         assert s.metadata["sensor_id"] == "array-007"

@@ -114,7 +114,7 @@ def test_cli_collect_requires_a_check_or_an_override(capsys, proto, tmp_path):
 def test_console_asks_for_an_override_note(qtbot, proto, tmp_path, monkeypatch):
     from PySide6.QtCore import Qt
 
-    from tactile_studio.ui.collect_console import CollectConsole
+    from tactile_studio.ui.collect.console import CollectConsole
     monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
     _check("sim-9", "fail")
     console = CollectConsole()

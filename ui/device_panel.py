@@ -43,17 +43,21 @@ LAST_DIR_KEY = "record/last_dir"
 class DevicePanel(QWidget):
     """Device chooser + generated settings form + connect/tare/record + live state.
 
-    Talks to a :class:`LiveController`; emits ``engineChanged`` after connect or
-    disconnect so the owner can point its live view at the new engine, and
-    ``recordingChanged(path)`` ("" when a recording stops).
+    Handed the main window's session (:class:`LiveController`): it forwards the verbs
+    and shows what the session reports; the session decides when a recording stops (its
+    events drive the Record button). Emits ``engineChanged`` after connect or disconnect
+    so the owner can point its live view at the new engine, ``recordingChanged(path)``
+    ("" when a recording stops) and ``deviceChosen(name)`` when another plugin is picked.
     """
 
     engineChanged = Signal()
     recordingChanged = Signal(str)
+    deviceChosen = Signal(str)
 
     def __init__(self, controller: LiveController, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.controller = controller
+        controller.add_listener(self._on_session_event)
         self.plugins = available_plugins()
         self._form_error: str | None = None
 
@@ -67,6 +71,8 @@ class DevicePanel(QWidget):
             else:
                 self.device_box.addItem(name, name)
         self.device_box.currentIndexChanged.connect(self._rebuild_form)
+        self.device_box.currentIndexChanged.connect(
+            lambda *_: self.deviceChosen.emit(self.device_name() or ""))
         self.description = QLabel()
         self.description.setWordWrap(True)
         self.description.setObjectName("hint")
@@ -91,7 +97,7 @@ class DevicePanel(QWidget):
         self.tare_button.clicked.connect(self.tare)
         self.record_button = QPushButton("Record…")
         self.record_button.setCheckable(True)
-        self.record_button.clicked.connect(self._on_record_clicked)
+        self.record_button.clicked.connect(self.toggle_recording)
         buttons = QHBoxLayout()
         for b in (self.connect_button, self.disconnect_button):
             buttons.addWidget(b)
@@ -205,10 +211,7 @@ class DevicePanel(QWidget):
         return True
 
     def disconnect_device(self) -> None:
-        was_recording = self.controller.recorder is not None
-        self.controller.disconnect()
-        if was_recording:
-            self._recording_stopped()
+        self.controller.disconnect("disconnect")  # a recording stops with it (an event)
         self.engineChanged.emit()
         self.refresh(self.controller.status())
 
@@ -231,7 +234,8 @@ class DevicePanel(QWidget):
         settings.setValue(LAST_DIR_KEY, os.path.dirname(os.path.abspath(path)))
         return path
 
-    def _on_record_clicked(self) -> None:
+    def toggle_recording(self) -> None:
+        """The Record button (and File > Record): stop, or ask where and start."""
         if self.controller.recorder is not None:
             self.stop_recording()
             return
@@ -249,24 +253,27 @@ class DevicePanel(QWidget):
             self.record_button.setChecked(False)
             return False
         self.show_error(None)
-        self.record_button.setChecked(True)
-        self.record_button.setText("Stop recording")
-        self.recordingChanged.emit(path)
         self.refresh(self.controller.status())
         return True
 
     def stop_recording(self) -> str | None:
-        path = self.controller.stop_recording()
-        self._recording_stopped()
-        if path:
-            self.record_label.setText(f"Saved {path}")
-            self.record_label.show()
-        return path
+        return self.controller.stop_recording()
 
-    def _recording_stopped(self) -> None:
-        self.record_button.setChecked(False)
-        self.record_button.setText("Record…")
-        self.recordingChanged.emit("")
+    def _on_session_event(self, event: dict[str, Any]) -> None:
+        """The session started or stopped a recording (asked here, or on its own: the
+        stream ended, a limit was reached)."""
+        kind = event["kind"]
+        if kind == "recording_started":
+            self.record_button.setChecked(True)
+            self.record_button.setText("Stop recording")
+            self.recordingChanged.emit(event["path"])
+        elif kind == "recording_stopped":
+            self.record_button.setChecked(False)
+            self.record_button.setText("Record…")
+            self.recordingChanged.emit("")
+            if event["reason"] != "disconnect":
+                self.record_label.setText(f"Saved {event['path']}")
+                self.record_label.show()
 
     # ---- Lab Streaming Layer ------------------------------------------------------------
     def _build_lsl_row(self) -> QWidget:
@@ -320,14 +327,10 @@ class DevicePanel(QWidget):
         elif self._form_error is None and st.state != "disconnected" and self.error_text() \
                 and self.error_text().startswith(f"{st.device}:"):
             self.show_error(None)
-        if st.recording and st.state in ("error", "finished", "stopped"):
-            self.stop_recording()  # the stream ended: close the file safely now
-        elif st.recording:
+        if st.recording:
             self.record_label.setText(
                 f"Recording {os.path.basename(st.recording)} · {st.recorded_frames} frames")
             self.record_label.show()
-        elif self.controller.recorder is None and self.record_button.isChecked():
-            self._recording_stopped()
         self._show_lsl()
         self._update_buttons(st)
 

@@ -95,7 +95,7 @@ class MainWindow(QMainWindow):
         self.heatmap.cellClicked.connect(self._on_click)
         self.heatmap.painted.connect(self._on_painted)
         self.panel.engineChanged.connect(self._on_engine_changed)
-        self.panel.device_box.currentIndexChanged.connect(self._on_device_chosen)
+        self.panel.deviceChosen.connect(self._on_device_chosen)
         self.strip.clearRequested.connect(lambda: self.set_strip_taxels([]))
 
         if persist:
@@ -143,14 +143,14 @@ class MainWindow(QMainWindow):
         file_menu = self.menuBar().addMenu("&File")
         record = QAction("&Record…", self)
         record.setShortcut(QKeySequence("Ctrl+R"))
-        record.triggered.connect(self.panel.record_button.click)
+        record.triggered.connect(self.panel.toggle_recording)
         file_menu.addAction(record)
         tare = QAction("&Tare", self)
         tare.setShortcut(QKeySequence("Ctrl+T"))
         tare.triggered.connect(self.panel.tare)
         file_menu.addAction(tare)
-        # collection sessions (ui/collect_app.py): the console shares the live engine
-        from tactile_studio.ui.collect_app import add_collection_menu
+        # collection sessions (ui/collect/app.py): the console shares the live engine
+        from tactile_studio.ui.collect.app import add_collection_menu
         add_collection_menu(self, file_menu,
                             lambda: (self.controller.engine, self.controller.device_name))
         file_menu.addSeparator()
@@ -251,6 +251,7 @@ class MainWindow(QMainWindow):
         return self.fps.rate()
 
     def refresh_status(self) -> None:
+        self.controller.poll()  # the session stops a recording whose stream ended
         st = self.controller.status()
         self.panel.refresh(st)
         med = self.latency.percentile(50, last=60)
@@ -311,7 +312,7 @@ class MainWindow(QMainWindow):
     def _mark_strip_taxels(self) -> None:
         self.heatmap.set_marked_cells(self.strip_taxels, strip_colors(len(self.strip_taxels)))
 
-    def _on_device_chosen(self) -> None:
+    def _on_device_chosen(self, *_: object) -> None:
         """Fill the form with what was last used for the newly chosen device."""
         name = self.panel.device_name()
         if self.persist and name:
@@ -397,9 +398,7 @@ class MainWindow(QMainWindow):
         self.status_timer.stop()
         if self.persist:
             self.save_settings()
-        if self.controller.recorder is not None:
-            self.panel.stop_recording()
-        self.controller.disconnect()
+        self.controller.disconnect()  # finishes a recording first (the stop order)
 
 
 def wait_for(seconds: float) -> None:

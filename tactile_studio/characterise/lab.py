@@ -63,7 +63,7 @@ class Lab:
     # ---- journal ---------------------------------------------------------------------
     def event(self, kind: str, **detail: Any) -> None:
         """A journal event stamped with lab time (``lab_t``) and host time."""
-        self.recorder.writer.add_event(kind, lab_t=round(self.clock.now(), 6), **detail)
+        self.recorder.add_event(kind, lab_t=round(self.clock.now(), 6), **detail)
 
     def close(self) -> None:
         self.recorder.stop()
@@ -115,7 +115,7 @@ class Lab:
         if not len(raw):
             raise InstrumentError(f"sensor {self.device.name}: no frames to tare on")
         self.baseline = raw.astype(np.float64).mean(axis=0)
-        self.recorder.writer.add_baseline(self.baseline)
+        self.recorder.add_baseline(self.baseline)
         self._pull_forces()
         self.force.tare()
         self._ft, self._ff = np.empty(0), np.empty((0, 3))

@@ -21,6 +21,7 @@ from tactile_studio.devices.registry import create_device, parse_set_options, pl
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.protocol.collect import (
     CollectionSession,
     check_participant,
@@ -155,7 +156,7 @@ def run_console_command(args: argparse.Namespace) -> int:
     """Open the experimenter console pre-filled (a real participant presses the keys)."""
     require_display("add --virtual-participant for a headless session")
     options = console_options(args)
-    from tactile_studio.ui.collect_app import run_console
+    from tactile_studio.ui.collect.app import run_console
 
     return run_console(**options)
 
@@ -178,10 +179,12 @@ def run(args: argparse.Namespace) -> int:
     # at speed 0 the simulator can run far ahead of the participant: a deeper ring keeps
     # every trial's frames available for its quality check
     fast = name == "simulated" and float(device.settings.get("speed", 1.0)) == 0.0
-    engine = AcquisitionEngine(device, capacity=1 << 18 if fast else 1 << 16)
+    acq = AcquisitionSession(capacity=1 << 18 if fast else 1 << 16)
+    engine = acq.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:
-        session = resume_session(args.resume, engine, clock=clock)
+        session = resume_session(args.resume, engine, clock=clock,
+                                 recorder=acq.start_recording)
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
@@ -192,22 +195,20 @@ def run(args: argparse.Namespace) -> int:
         print(status.text(), file=sys.stderr)
         session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
                                condition=args.condition,
-                               wellness=admit(status, args.wellness_override))
+                               wellness=admit(status, args.wellness_override),
+                               recorder=acq.start_recording)
         print(f"writing {session.path}", file=sys.stderr)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()
-    lsl = None
     try:
-        if args.lsl:
-            lsl = start_lsl(engine, wait_s=args.lsl_wait)
-            lsl.attach_runner(session.runner)
-        engine.start()
+        if args.lsl:  # stopped before the file closes: the end of streaming is recorded
+            acq.add_outlet(start_lsl(engine, wait_s=args.lsl_wait)).attach_runner(session.runner)
+        acq.start()
         _drive(session, vp, engine)
     finally:
-        if lsl is not None:
-            lsl.stop()  # before the file closes: the end of streaming is recorded in it
+        acq.close_outlets()
         session.close()
-        engine.stop()
+        acq.close()
     print(session.path)
     return 0
 
@@ -228,7 +229,7 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
                 raise Cancelled("collection stopped")
             if engine.state == ERROR or not engine.running and runner.state != State.SETUP:
                 runner.abort()
-                raise UserError(f"device {engine.device.name}: {engine.error or 'stopped'}; "
+                raise UserError(f"device {engine.device_name}: {engine.error or 'stopped'}; "
                                 f"completed trials are kept in {session.path}")
             before = (runner.state, len(runner.trials))
             runner.tick()

@@ -11,11 +11,11 @@ from typing import Any
 
 from tactile_studio.cli import tables
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
-from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
+from tactile_studio.devices.engine import ERROR
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.storage.recorder import Recorder
+from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.storage.session import Session
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
@@ -60,21 +60,20 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
-    engine = AcquisitionEngine(device)
+    session = AcquisitionSession()
+    engine = session.use_device(device, args.device)
     # The recorder exists before the engine starts so the connect and tare events are kept.
-    recorder = Recorder(engine, out, metadata={"notes": args.notes, "source": "record"}).start()
+    session.start_recording(out, metadata={"notes": args.notes, "source": "record"})
     try:
-        lsl = start_lsl(engine, wait_s=args.lsl_wait) if args.lsl else None
+        if args.lsl:
+            session.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
     except UserError:
-        recorder.stop()
+        session.close()
         out.unlink(missing_ok=True)
         raise
-    engine.start()
+    session.start()
     if not engine.wait_frames(1, timeout=FIRST_FRAME_TIMEOUT_S):
-        engine.stop()
-        if lsl is not None:
-            lsl.stop()
-        recorder.stop()
+        session.close()
         out.unlink(missing_ok=True)
         raise UserError(engine.error or f"{device_label(device)}: no frames within "
                         f"{FIRST_FRAME_TIMEOUT_S:g} s "
@@ -82,18 +81,17 @@ def cmd_record(args: argparse.Namespace) -> int:
     progress = TerminalProgress(f"recording {out.name}", total=args.seconds, unit="s")
     token = CancelToken()
     start = time.monotonic()
+    session.stop_recording_after(seconds=args.seconds, disconnect=True)
     with ctrl_c_cancels(token):
         while not token.wait(0.1):
+            session.poll()  # stops the recording at --seconds, or when the device ends
             elapsed = time.monotonic() - start
             progress(min(1.0, elapsed / args.seconds),
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
-            if elapsed >= args.seconds or engine.state in (ERROR, FINISHED):
+            if not session.recording:
                 break
     progress.close()
-    engine.stop()
-    if lsl is not None:
-        lsl.stop()  # its last markers and the end of streaming go into the file too
-    recorder.stop()
+    session.close()  # engine, then the LSL outlet (its end goes into the file), then the file
     with Session(out) as s:
         summary = s.summary()
     print(f"\nwrote {out}: {summary['frames']} frames, {summary['duration_s']:.2f} s, "

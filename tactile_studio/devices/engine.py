@@ -98,6 +98,30 @@ class AcquisitionEngine:
     def running(self) -> bool:
         return EngineState(self.state).is_live
 
+    # ---- the device, by public methods (consumers never reach into .device) ----------
+    @property
+    def nominal_rate_hz(self) -> float:
+        """The device's nominal frame rate (0.0 if it has none)."""
+        return float(self.device.nominal_rate_hz or 0.0)
+
+    @property
+    def device_name(self) -> str:
+        """The device plugin's name (for messages)."""
+        return str(self.device.name)
+
+    def device_info(self) -> dict[str, Any]:
+        """The device's description (plugin, settings, port...) for files and reports."""
+        return self.device.info()
+
+    def sensor_id(self) -> str | None:
+        """The connected sensor's own ID (None if the device has no identity hook)."""
+        return getattr(self.device, "sensor_id", lambda: None)()
+
+    @property
+    def capacity(self) -> int:
+        """Frames the ring holds: how far back :meth:`read_since` can reach."""
+        return self.ring.capacity
+
     def wait_frames(self, n: int, timeout: float = 10.0) -> bool:
         """Block until ``n`` frames have arrived (or the engine ended); True if they did."""
         deadline = time.monotonic() + timeout

@@ -129,7 +129,7 @@ class Bench:
         self.timing = timing
         self.cancel = cancel or CancelToken()
         self.on_event = on_event or (lambda kind, info: None)
-        self.rate = float(engine.device.nominal_rate_hz)
+        self.rate = engine.nominal_rate_hz
         self.baseline: np.ndarray | None = None
         self._cursor = engine.frames
         self._skip_before = -1
@@ -163,7 +163,7 @@ class Bench:
             chunk = self.engine.read_since(self._cursor, max_frames)
             if chunk.lost:
                 raise DeviceStopped(f"the check fell {chunk.lost} frames behind device "
-                                    f"{self.engine.device.name} and lost them (use a finite "
+                                    f"{self.engine.device_name} and lost them (use a finite "
                                     "speed); nothing was stored")
             if len(chunk):
                 self._cursor = chunk.stop
@@ -175,10 +175,10 @@ class Bench:
             state = self.engine.state
             if state in (ERROR, FINISHED, STOPPED):
                 why = self.engine.error or state
-                raise DeviceStopped(f"device {self.engine.device.name} stopped during the "
+                raise DeviceStopped(f"device {self.engine.device_name} stopped during the "
                                     f"check ({why}); nothing was stored")
             if time.monotonic() - waited > self.timing.stall_s:
-                raise DeviceStopped(f"device {self.engine.device.name} sent no frames for "
+                raise DeviceStopped(f"device {self.engine.device_name} sent no frames for "
                                     f"{self.timing.stall_s:g} s; nothing was stored")
             if self.cancel.wait(0.01):
                 raise Cancelled("cancelled")

@@ -95,7 +95,7 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
     kind = "plate" if spec.plate else "per-taxel"
     data = calibration_data(lay, kind, loads, fits, {"skipped": skipped,
         "sensor": sensor, "contact_mm": spec.contact_mm, "plate_mm": side if spec.plate else None,
-        "device": engine.device.info()})
+        "device": engine.device_info()})
     with Logbook() as book:
         data["calibration_id"] = book.add_calibration(sensor, kind, data["rms_pct_max"], data)
     if out is not None:

@@ -132,7 +132,7 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
         "reference_calibration": ref["calibration_id"],
         "baseline": [round(float(v), 2) for v in rest.baseline],
         "noise": [round(float(v), 3) for v in rest.noise],
-        "device": engine.device.info(), "check_id": None,
+        "device": engine.device_info(), "check_id": None,
     }
     if store:
         with Logbook() as book:

@@ -6,8 +6,10 @@ The code lives in focused modules of this package; their public names are export
 - :mod:`tactile_studio.live.view`: :class:`LiveView` (newest decoded frame, cell
   readout, strip-chart history) and its data (:class:`LiveFrame`, :class:`CellReadout`,
   :class:`History`, :func:`parse_taxel_name`);
-- :mod:`tactile_studio.live.controller`: :class:`LiveController` owns the device, the
-  engine and the recorder for one live screen;
+- :mod:`tactile_studio.live.session`: :class:`AcquisitionSession`, device + engine +
+  optional recorder + optional LSL outlets with one start order, auto-stop and events
+  (every place that acquires uses it); :mod:`tactile_studio.live.controller`:
+  :class:`LiveController`, the main window's session;
 - :mod:`tactile_studio.live.status`: :class:`LiveStatus` and :func:`format_malformed`;
 - :mod:`tactile_studio.live.meters`: :class:`RateMeter` (display fps) and
   :class:`LatencyMeter` (device-to-paint latency);
@@ -24,6 +26,7 @@ from tactile_studio.live.discovery import (
     run_discovery,
 )
 from tactile_studio.live.meters import LatencyMeter, RateMeter
+from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.live.status import LiveStatus, format_malformed
 from tactile_studio.live.view import (
     QUANTITIES,
@@ -36,7 +39,7 @@ from tactile_studio.live.view import (
 )
 
 __all__ = [
-    "QUANTITIES", "QUANTITY_LABELS", "CellReadout", "History", "LatencyMeter",
+    "QUANTITIES", "QUANTITY_LABELS", "AcquisitionSession", "CellReadout", "History", "LatencyMeter",
     "LiveController", "LiveFrame", "LiveStatus", "LiveView", "RateMeter",
     "discover_is_instant", "discover_setting", "discover_settings", "format_malformed",
     "parse_taxel_name", "run_discovery",

@@ -297,8 +297,8 @@ class LiveView:
             if self._trail is None:
                 self._trail = _Trail((3, lay.rows, lay.cols), self.history_s, self.max_points)
             self._trail.clear()
-            rate = eng.device_rate_hz() or float(eng.device.nominal_rate_hz)
-            n = min(eng.ring.capacity, int(rate * self.history_s * 1.2) + 64)  # one window
+            rate = eng.device_rate_hz() or eng.nominal_rate_hz
+            n = min(eng.capacity, int(rate * self.history_s * 1.2) + 64)  # one window
             self._trail_window = n
             self._trail_cursor = max(0, eng.frames - n)
             self._trail_baseline = base

@@ -14,6 +14,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import TrialStatus
 
 
 @dataclass
@@ -52,7 +53,7 @@ class SessionPlayback:
         self.raw = s.raw()
         self.trials = sorted(
             (TrialSpan(int(tr.get("index", k)), str(tr.get("gesture") or ""),
-                       str(tr.get("status", "ok")), max(0, int(tr["start_sample"])),
+                       str(tr.get("status", TrialStatus.OK.value)), max(0, int(tr["start_sample"])),
                        min(self.n_frames, int(tr["end_sample"])), list(tr.get("flags") or []))
              for k, tr in enumerate(s.trials) if "start_sample" in tr),
             key=lambda sp: sp.start)

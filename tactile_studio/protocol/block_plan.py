@@ -15,6 +15,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from tactile_studio.storage.trials import TrialRecord, records
+
 
 class BlockPlan:
     """Practice rounds then blocks; ``index`` is the round being collected."""
@@ -32,16 +34,16 @@ class BlockPlan:
         self.breaks_taken: set[int] = set()
         self.redo_first: dict[int, str] = {}  # round index -> its reopened gesture
 
-    def restore(self, trials: list[dict[str, Any]]) -> None:
+    def restore(self, trials: list[TrialRecord] | list[dict[str, Any]]) -> None:
         """Mark the gestures of a resumed session's trials done (redone ones excepted),
         skip practice, and move to the first round with gestures left."""
         round_of = {b: i for i, (b, _) in enumerate(self.rounds) if b >= 0}
         for i, (b, gestures) in enumerate(self.rounds):
             if b < 0:
                 self.done[i] = set(gestures)  # practice is not repeated on resume
-        for t in trials:
-            if t.get("status") != "redone" and int(t["block"]) in round_of:
-                self.done[round_of[int(t["block"])]].add(t["gesture"])
+        for t in records(trials):
+            if t.counts and t.block in round_of:
+                self.done[round_of[t.block]].add(t.gesture)
         self.index = next((i for i in range(len(self.rounds)) if self.remaining(i)),
                           len(self.rounds) - 1)
         self.breaks_taken = {b for b, _ in self.rounds if 0 <= b < self.rounds[self.index][0]}

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import FrameStream
 
 Clock = Callable[[], float]
 
@@ -15,7 +15,7 @@ class StreamClock:
     stream's speed (a simulator ten times faster than real time makes them ten times
     shorter in wall time)."""
 
-    def __init__(self, engine: AcquisitionEngine) -> None:
+    def __init__(self, engine: FrameStream) -> None:
         self.engine = engine
         self._last = 0.0
 

@@ -18,6 +18,7 @@ from __future__ import annotations
 import os
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -30,38 +31,19 @@ from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_particip
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import trials_done
 
 COPY_CHUNK = 8192
+# How a collection makes its recorder: ``(path, metadata, *, row_offset, base_counters,
+# start) -> Recorder``; an AcquisitionSession's ``start_recording`` is one.
+RecorderFactory = Callable[..., Recorder]
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
-
-
-class _OffsetRecorder(Recorder):
-    """A recorder whose file already holds ``row_offset`` rows from an earlier run, so
-    engine frames map to rows after them, and whose counters add the earlier ones."""
-
-    def __init__(self, engine: AcquisitionEngine, path: Path, metadata: dict[str, Any],
-                 row_offset: int = 0, base_counters: dict[str, Any] | None = None) -> None:
-        self.row_offset = int(row_offset)
-        self.base_counters = dict(base_counters or {})
-        super().__init__(engine, path, metadata)
-
-    @property
-    def start_frame(self) -> int:
-        return super().start_frame - self.row_offset
-
-    def _counters_since_start(self) -> dict[str, Any]:
-        now = super()._counters_since_start()
-        base = self.base_counters
-        by_kind = dict(base.get("malformed_by_kind", {}))
-        for k, v in now["malformed_by_kind"].items():
-            by_kind[k] = by_kind.get(k, 0) + v
-        out = {k: v + int(base.get(k, 0)) for k, v in now.items() if k != "malformed_by_kind"}
-        return {"malformed_by_kind": by_kind, **out}
 
 
 @dataclass
 class CollectionSession:
     """A running collection: the runner plus what it writes to. ``close()`` when done."""
+
 
     runner: CollectionRunner
     recorder: Recorder
@@ -105,10 +87,14 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  out_dir: str | os.PathLike, *, seed: int = 0, condition: str = "",
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
-                 wellness: dict[str, Any] | None = None) -> CollectionSession:
+                 wellness: dict[str, Any] | None = None,
+                 recorder: RecorderFactory | None = None) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
-    Create it before ``engine.start()`` to have file rows equal engine frames.
+    ``engine`` may be started or not: opened before ``engine.start()`` (the start order
+    of an AcquisitionSession) file rows equal engine frames; on a running stream the
+    file begins now. ``recorder`` makes the recorder (an AcquisitionSession's
+    ``start_recording``, so the session knows about the recording); default: a plain one.
     """
     participant = check_participant(participant)
     out = Path(out_dir)
@@ -121,11 +107,24 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
-    recorder = Recorder(engine, target, meta).start()
-    runner = CollectionRunner(protocol, engine, recorder, participant, orders, practice=practice,
+    rec = _factory(engine, recorder)(target, meta)
+    runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
-    return CollectionSession(runner, recorder, engine, target, protocol, participant, seed)
+    return CollectionSession(runner, rec, engine, target, protocol, participant, seed)
+
+
+def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
+    if make is not None:
+        return make
+
+    def plain(path: Path, metadata: dict[str, Any], *, row_offset: int = 0,
+              base_counters: dict[str, Any] | None = None, start: bool = True) -> Recorder:
+        rec = Recorder(engine, path, metadata, row_offset=row_offset,
+                       base_counters=base_counters)
+        return rec.start() if start else rec
+
+    return plain
 
 
 def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
@@ -136,12 +135,10 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
             raise SessionFileError(f"{path}: not a collection session (nothing to resume)")
         protocol = protocol_from_dict(meta["protocol_spec"], f"{Path(path).name}: protocol_spec",
                                       check_images=False)
-        ok = {(t["block"], t["gesture"]) for t in old.trials
-              if t["block"] >= 0 and t["status"] != "redone"}
         total = sum(len(o) for o in meta["block_order"])
         return {"protocol": protocol, "participant": meta["participant"],
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
-                "layout": old.layout.name, "trials_done": len(ok), "trials_total": total,
+                "layout": old.layout.name, "trials_done": trials_done(old.trials), "trials_total": total,
                 "frames": old.n_frames}
 
 
@@ -164,7 +161,8 @@ def _keep_backup(path: Path, backup: Path) -> None:
 
 def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
                    clock: Clock | None = None, auto_continue: bool = True,
-                   hold_flagged: bool = False) -> CollectionSession:
+                   hold_flagged: bool = False,
+                   recorder: RecorderFactory | None = None) -> CollectionSession:
     """Continue a killed or closed session at the next trial of its stored order."""
     path = Path(path)
     info = read_resume_info(path)
@@ -183,32 +181,17 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
         n = old.n_frames
         if tmp.exists():
             tmp.unlink()
-        rec = _OffsetRecorder(engine, tmp, meta, row_offset=n,
-                              base_counters=old.journal.counters)
-        w = rec.writer
-        for a in range(0, n, COPY_CHUNK):
-            b = min(n, a + COPY_CHUNK)
-            w.append_frames(old.raw(a, b), old.column("device_time", a, b),
-                            old.column("host_time", a, b), old.column("seq", a, b),
-                            old.column("index", a, b))
-        for base in old.journal.baselines:
-            w.add_baseline(base["values"], base["frame"])
-        for event in old.events:
-            e = dict(event)
-            kind, frame, t = e.pop("kind"), e.pop("frame", None), e.pop("time", None)
-            w.add_event(kind, frame=frame, time_s=t, **e)
-        trials = [dict(t) for t in old.trials]
-        for t in trials:
-            w.add_trial(t)
-        if old.journal.counters:
-            w.set_counters(old.journal.counters)
+        rec = _factory(engine, recorder)(tmp, meta, row_offset=n,
+                                         base_counters=old.journal.counters, start=False)
+        trials = rec.copy_earlier(old, COPY_CHUNK)
     if engine.baseline is not None:
-        w.add_baseline(engine.baseline, n)
-    w.add_event("resume", frame=n, from_file=path.name, backup=backup.name, trials=len(trials))
-    w.flush()
+        rec.add_baseline(engine.baseline, n)
+    rec.add_event("resume", frame=n, from_file=path.name, backup=backup.name,
+                  trials=len(trials))
+    rec.flush()
     _keep_backup(path, backup)
     os.replace(tmp, path)  # atomic: there is a complete session at ``path`` at every instant
-    w.path = path  # the open writer follows the rename; close() reopens it by name
+    rec.follow_rename(path)  # the open file moved with it; close() reopens it by name
     rec.start()
     protocol = info["protocol"]
     runner = CollectionRunner(protocol, engine, rec, info["participant"],

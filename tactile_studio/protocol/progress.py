@@ -2,18 +2,60 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from statistics import median
-from typing import TYPE_CHECKING
+from typing import Any, Protocol
 
+from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
+from tactile_studio.storage.protocol_file import Protocol as CollectionProtocol
+from tactile_studio.storage.trials import TrialRecord, trials_done
 
-if TYPE_CHECKING:
-    from tactile_studio.protocol.runner import CollectionRunner
+
+class RunnerView(Protocol):
+    """What a snapshot is built from: the runner's read-only side (the runner satisfies
+    it; this module never imports the runner, so they do not depend on each other)."""
+
+    protocol: CollectionProtocol
+    engine: FrameStream
+    clock: Callable[[], float]
+    state: str
+    participant: str
+    orders: list[list[str]]
+    records: list[TrialRecord]
+    notes: list[str]
+    hint: str
+    redo_prompt: str
+    beeps: int
+    rate: float
+    trial_frames: int
+
+    @property
+    def block(self) -> int: ...
+    @property
+    def practice(self) -> bool: ...
+    @property
+    def current_trial(self) -> dict[str, Any] | None: ...
+    @property
+    def paused_state(self) -> str | None: ...
+    @property
+    def paused_at(self) -> float: ...
+    @property
+    def held(self) -> bool: ...
+    @property
+    def phase_until(self) -> float: ...
+    @property
+    def trial_starts(self) -> list[float]: ...
+    @property
+    def round_gestures(self) -> list[str]: ...
+    def round_done(self) -> set[str]: ...
+    def round_remaining(self) -> list[str]: ...
+    def break_after(self, block: int) -> bool: ...
 
 DEFAULT_OVERHEAD_S = 2.5  # key, beep and reading the next gesture, before any is measured
 
 
-def seconds_per_trial(runner: CollectionRunner) -> float:
+def seconds_per_trial(runner: RunnerView) -> float:
     """Median time between recent trial starts (the participant's pace), else a guess."""
     starts = runner.trial_starts[-21:]
     steps = [b - a for a, b in zip(starts, starts[1:]) if b > a]
@@ -21,7 +63,7 @@ def seconds_per_trial(runner: CollectionRunner) -> float:
     return median(steps) if steps else runner.protocol.trial_s + DEFAULT_OVERHEAD_S
 
 
-def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
+def build_snapshot(r: RunnerView) -> RunnerSnapshot:
     p = r.protocol
     now = r.clock()
     state = r.state
@@ -34,10 +76,8 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
         left = max(0, cur["end"] - r.engine.frames)
         trial_left = left / r.rate
         trial_fraction = 1.0 - left / r.trial_frames
-    elif r.pending_trial is not None:
-        current = r.pending_trial["gesture"]
-    elif state in (State.TRIAL_END, State.REVIEW) and r.trials:
-        current = r.trials[-1]["gesture"]
+    elif state in (State.TRIAL_END, State.REVIEW) and r.records:
+        current = r.records[-1].gesture
     phase_left = max(0.0, r.phase_until - (r.paused_at if state == State.PAUSED else now))
     free_left = phase_left if shown_state == State.FREE_PLAY else None
     break_left = phase_left if shown_state == State.BREAK else None
@@ -55,11 +95,9 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
                     g.name == prompted)
         for g in (p.gesture_by_name(n) for n in r.round_gestures))
     total = sum(len(o) for o in r.orders)
-    blocks_done = {(t["block"], t["gesture"]) for t in r.trials
-                   if t["block"] >= 0 and t["status"] != "redone"}
-    trials_done = len(blocks_done)
+    done_n = trials_done(r.records)
     breaks_left = sum(1 for b in range(max(r.block, 0), len(r.orders)) if r.break_after(b))
-    eta = (total - trials_done) * seconds_per_trial(r) + breaks_left * p.break_min_s
+    eta = (total - done_n) * seconds_per_trial(r) + breaks_left * p.break_min_s
     if shown_state in (State.FREE_PLAY, State.BREAK):
         eta += phase_left
     if state in State.DONE:
@@ -68,7 +106,7 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
     fields = {"practice": r.practice, "block_number": r.block + 1,
               "blocks_total": len(r.orders), "current_gesture": current,
               "prompted": prompted, "prompted_key": prompted_key}
-    trials = tuple(dict(t) for t in r.trials)
+    trials = tuple(t.to_dict() for t in r.records)
     return RunnerSnapshot(
         state=state, paused_state=r.paused_state, participant=r.participant,
         protocol=p.name, protocol_title=p.title, block=r.block,
@@ -79,7 +117,7 @@ def build_snapshot(r: CollectionRunner) -> RunnerSnapshot:
         can_continue=can_continue, hint=r.hint,
         message=participant_message(state, fields), redo_prompt=r.redo_prompt,
         trials=trials, last_trial=trials[-1] if trials else None,
-        trials_done=trials_done, trials_total=total,
-        progress=trials_done / total if total else 1.0, eta_s=round(eta, 1),
+        trials_done=done_n, trials_total=total,
+        progress=done_n / total if total else 1.0, eta_s=round(eta, 1),
         notes=tuple(r.notes), beeps=r.beeps, order=p.order, prompted=prompted,
         prompted_key=prompted_key)

@@ -6,8 +6,9 @@ from collections import Counter
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAGS
+from tactile_studio.storage.trials import TrialStatus, records
 
-STATUSES = ("ok", "redone", "discarded")
+STATUSES = tuple(s.value for s in TrialStatus)  # ok, redone, discarded
 
 
 def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None) -> str:
@@ -18,18 +19,18 @@ def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None)
     """
     if not trials:
         return "no trials"
-    real = [t for t in trials if int(t.get("block", 0)) >= 0]
+    real = [t for t in records(trials) if not t.practice]
     practice = len(trials) - len(real)
     order = list(gestures or [])
-    order += sorted({str(t["gesture"]) for t in real} - set(order))
+    order += sorted({t.gesture for t in real} - set(order))
     counts = {g: Counter() for g in order}
     flags: Counter[str] = Counter()
     for t in real:
-        c = counts[str(t["gesture"])]
-        c[t.get("status", "ok")] += 1
-        if t.get("flags"):
+        c = counts[t.gesture]
+        c[t.status.value] += 1
+        if t.flags:
             c["flagged"] += 1
-            flags.update(t["flags"])
+            flags.update(t.flags)
     cols = (*STATUSES, "flagged")
     width = max([len("gesture"), len("total")] + [len(g) for g in order])
     lines = [f"{'gesture':<{width}}  " + "  ".join(f"{c:>9}" for c in cols)]
@@ -41,7 +42,7 @@ def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None)
     if flags:
         known = [f for f in FLAGS if f in flags] + sorted(set(flags) - set(FLAGS))
         lines.append("flags: " + ", ".join(f"{f} {flags[f]}" for f in known))
-    blocks = sorted({int(t["block"]) for t in real})
+    blocks = sorted({t.block for t in real})
     if blocks:
         lines.append(f"blocks: {len(blocks)} ({blocks[0] + 1}..{blocks[-1] + 1})")
     if practice:

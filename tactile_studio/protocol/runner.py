@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
@@ -27,32 +27,31 @@ from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
 from tactile_studio.protocol.trial_record import measure_trial
 from tactile_studio.storage.protocol_file import Protocol
-
-WRITE_TIMEOUT_S = 5.0  # if the recorder stalls this long, write the trial anyway (flagged)
+from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
 
 
 class CollectionRunner(RunnerInputs):
     """Runs one participant through a protocol's blocks (see the module docstring)."""
 
-    def __init__(self, protocol: Protocol, engine: AcquisitionEngine, recorder: Any,
+    def __init__(self, protocol: Protocol, engine: FrameStream, recorder: Recorder,
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None
                  ) -> None:
         self.protocol, self.engine, self.recorder = protocol, engine, recorder
-        self.writer = recorder.writer
         self.participant = participant
         self.orders = [list(o) for o in orders]
         self.clock: Clock = clock or time.monotonic
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
-        self.rate = float(engine.device.nominal_rate_hz)
+        self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
         self.quality = QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
                                        centre_fraction=protocol.centre_fraction)
         self._plan = BlockPlan(self.orders, list(practice or []), len(protocol.gestures),
                                protocol.break_every)
-        self.trials: list[dict[str, Any]] = []
+        self.records: list[TrialRecord] = []
         self.notes: list[str] = []
         self.state = State.SETUP
         self.hint = ""
@@ -62,8 +61,6 @@ class CollectionRunner(RunnerInputs):
         self._listeners: list[Callable[[dict[str, Any]], None]] = []
         self._start_requested = False
         self._current: dict[str, Any] | None = None
-        self._pending: dict[str, Any] | None = None
-        self._pending_since = 0.0
         self._phase_until = 0.0          # free play end / beep end / break minimum end
         self._paused_from: str | None = None
         self._paused_at = 0.0
@@ -76,9 +73,14 @@ class CollectionRunner(RunnerInputs):
     def _restore(self, trials: list[dict[str, Any]]) -> None:
         if not trials:
             return
-        self.trials = [dict(t) for t in trials]
+        self.records = records(trials)
         self.free_play_s = 0.0  # the participant already had it
-        self._plan.restore(self.trials)
+        self._plan.restore(self.records)
+
+    @property
+    def trials(self) -> list[dict[str, Any]]:
+        """The trials so far in the file's form (copies: changing them changes nothing)."""
+        return [t.to_dict() for t in self.records]
 
     # ---- listeners ---------------------------------------------------------------------
     def add_listener(self, fn: Callable[[dict[str, Any]], None]) -> None:
@@ -100,7 +102,7 @@ class CollectionRunner(RunnerInputs):
         return False
 
     def _log(self, kind: str, **detail: Any) -> None:
-        self.writer.add_event(kind, **detail)
+        self.recorder.add_event(kind, **detail)
 
     # ---- block bookkeeping ---------------------------------------------------------------
     @property
@@ -136,9 +138,7 @@ class CollectionRunner(RunnerInputs):
         elif s == State.RECORDING:
             self._check_recording()
         elif s == State.TRIAL_END:
-            if self._pending is not None:
-                self._write_pending()
-            if self._pending is None and self.clock() >= self._phase_until:
+            if self.clock() >= self._phase_until:
                 self._set_state(State.REVIEW)
                 if not self._held():
                     self._after_trial()
@@ -150,8 +150,7 @@ class CollectionRunner(RunnerInputs):
                 self._end_break()
 
     def _held(self) -> bool:
-        return bool(self.hold_flagged and self.trials and self.trials[-1]["flags"]
-                    and self.trials[-1]["status"] == "ok")
+        return bool(self.hold_flagged and self.records and self.records[-1].flagged)
 
     # ---- transitions ---------------------------------------------------------------------
     def _start_session(self) -> None:
@@ -180,7 +179,6 @@ class CollectionRunner(RunnerInputs):
             "gesture": gesture, "key": key, "block": self.block, "start": start,
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
             "event_cursor": self.engine.event_count,
-            "row0": start - self.recorder.start_frame - self.recorder.dropped,
         }
         self._trial_starts.append(self.clock())
         self._set_state(State.RECORDING)
@@ -203,43 +201,34 @@ class CollectionRunner(RunnerInputs):
         assert cur is not None
         self._beep()
         n = self.trial_frames
+        self.recorder.catch_up()  # the trial's rows into the file, and its losses counted
         m = measure_trial(self.engine, cur["start"], n, self.rate, self.quality,
                           cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
         practice = cur["block"] < 0
-        self._pending = {
-            "index": self._next_index(), "block": cur["block"], "gesture": cur["gesture"],
-            "key": cur["key"], "start_sample": cur["row0"], "end_sample": cur["row0"] + n,
-            "start_time": m.start_time, "end_time": m.end_time,
-            "status": "discarded" if practice else "ok",
-            "reason": "practice" if practice else None, "flags": m.flags,
-        }
-        self._pending_since = time.monotonic()  # wall time: the recorder runs on it
+        row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
+        record = TrialRecord(
+            index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
+            key=cur["key"], start_sample=row0, end_sample=row0 + n,
+            start_time=m.start_time, end_time=m.end_time,
+            status=TrialStatus.DISCARDED if practice else TrialStatus.OK,
+            reason="practice" if practice else None, flags=tuple(m.flags))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
-        self._write_pending()
+        self._write_trial(record)
 
     def _next_index(self) -> int:
-        return max((int(t["index"]) for t in self.trials), default=-1) + 1
+        return max((t.index for t in self.records), default=-1) + 1
 
-    def _write_pending(self, force: bool = False) -> None:
-        rec = self._pending
-        assert rec is not None
-        behind = self.writer.n_frames < rec["end_sample"]
-        if behind and not force:
-            if time.monotonic() - self._pending_since < WRITE_TIMEOUT_S:
-                return  # the recorder has not written the trial's frames yet
-        if behind and "dropped_frames" not in rec["flags"]:
-            rec["flags"] = [*rec["flags"], "dropped_frames"]
-        self.writer.add_trial(rec)
-        self.writer.flush()
-        self.trials.append(dict(rec))
-        self._pending = None
-        if rec["flags"] and rec["status"] == "ok":
-            self.redo_prompt = (f"Trial {rec['index']} ({rec['gesture']}): "
-                                f"{describe(rec['flags'])} - redo?")
-        self._emit("trial_ended", trial=dict(rec))
+    def _write_trial(self, record: TrialRecord) -> None:
+        """Into the file (flushed) before anything else happens: a crash keeps it."""
+        rec = self.recorder.add_trial(record)
+        self.records.append(rec)
+        if rec.flagged:
+            self.redo_prompt = (f"Trial {rec.index} ({rec.gesture}): "
+                                f"{describe(list(rec.flags))} - redo?")
+        self._emit("trial_ended", trial=rec.to_dict())
 
     def _after_trial(self) -> None:
         if self._plan.remaining():
@@ -271,7 +260,7 @@ class CollectionRunner(RunnerInputs):
         self._phase_until = self.clock() + self.protocol.break_min_s
         self._log("break_start", after_block=self.block, scheduled=scheduled,
                   min_s=self.protocol.break_min_s)
-        self.writer.flush()
+        self.recorder.flush()
         self._set_state(State.BREAK)
 
     def _end_break(self) -> None:
@@ -291,8 +280,8 @@ class CollectionRunner(RunnerInputs):
         self._set_state(State.PAUSED)
 
     def _finish(self) -> None:
-        self._log("session_end", trials=len(self.trials))
-        self.writer.flush()
+        self._log("session_end", trials=len(self.records))
+        self.recorder.flush()
         self._set_state(State.FINISHED)
 
     def _beep(self) -> None:
@@ -303,11 +292,12 @@ class CollectionRunner(RunnerInputs):
             play(hz, length)
         self._emit("beep", frequency_hz=hz, length_s=length)
 
-    def _update_trial(self, trial: dict[str, Any], **changes: Any) -> None:
-        trial.update(changes)
-        self.writer.update_trial(trial["index"], **changes)
-        self.writer.flush()
-        self._emit("trial_updated", trial=dict(trial))
+    def _update_trial(self, trial: TrialRecord, **changes: Any) -> TrialRecord:
+        new = trial.with_changes(**changes)
+        self.records[self.records.index(trial)] = new
+        self.recorder.update_trial(trial.index, **changes)
+        self._emit("trial_updated", trial=new.to_dict())
+        return new
 
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:
@@ -318,10 +308,6 @@ class CollectionRunner(RunnerInputs):
     @property
     def current_trial(self) -> dict[str, Any] | None:
         return self._current
-
-    @property
-    def pending_trial(self) -> dict[str, Any] | None:
-        return self._pending
 
     @property
     def paused_state(self) -> str | None:

@@ -8,6 +8,7 @@ transitions they trigger live in :mod:`tactile_studio.protocol.runner`.
 from __future__ import annotations
 
 from tactile_studio.protocol.snapshot import State
+from tactile_studio.storage.trials import TrialStatus
 
 
 class RunnerInputs:
@@ -93,17 +94,15 @@ class RunnerInputs:
         """Mark the last trial redone and put its gesture back into its block."""
         if self.state in (State.SETUP, State.FREE_PLAY, State.RECORDING, State.ABORTED):
             return self._refuse("no finished trial to redo now")
-        if self._pending is not None:
-            return self._refuse("wait until the trial is saved")
-        if not self.trials:
+        if not self.records:
             return self._refuse("no trial to redo yet")
-        last = self.trials[-1]
-        if last["status"] == "redone":
-            return self._refuse(f"trial {last['index']} is already marked redone")
-        self._update_trial(last, status="redone", reason=reason or None)
-        self._plan.reopen(last["block"], last["gesture"])
+        last = self.records[-1]
+        if last.status == TrialStatus.REDONE:
+            return self._refuse(f"trial {last.index} is already marked redone")
+        self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None)
+        self._plan.reopen(last.block, last.gesture)
         self.redo_prompt = ""
-        self.hint = f"redo: {last['gesture']} ({last['key']})"
+        self.hint = f"redo: {last.gesture} ({last.key})"
         if self.protocol.order == "prompted":  # the redone gesture is prompted next
             self.hint = f"Please redo it. {self.next_prompt()}"
         if self.state in (State.BLOCK_START, State.WAITING, State.REVIEW, State.FINISHED):
@@ -116,12 +115,12 @@ class RunnerInputs:
         """Mark trial ``index`` discarded with ``reason``; it is not collected again."""
         if not reason or not reason.strip():
             return self._refuse("give a reason to discard a trial")
-        trial = next((t for t in self.trials if t["index"] == index), None)
+        trial = next((t for t in self.records if t.index == index), None)
         if trial is None:
             return self._refuse(f"no trial {index}")
-        if trial["status"] != "ok":
-            return self._refuse(f"trial {index} is already {trial['status']}")
-        self._update_trial(trial, status="discarded", reason=reason.strip())
+        if not trial.ok:
+            return self._refuse(f"trial {index} is already {trial.status}")
+        self._update_trial(trial, status=TrialStatus.DISCARDED, reason=reason.strip())
         return True
 
     def pause(self) -> bool:
@@ -164,10 +163,8 @@ class RunnerInputs:
         if not text:
             return self._refuse("empty note")
         self.notes.append(text)
-        last = self.trials[-1]["index"] if self.trials else None
-        self._log("note", text=text, after_trial=last)
-        self.writer.update_metadata(notes="\n".join(self.notes))
-        self.writer.flush()
+        last = self.records[-1].index if self.records else None
+        self.recorder.add_note(text, after_trial=last)
         self._emit("note", text=text)
         return True
 
@@ -175,13 +172,11 @@ class RunnerInputs:
         """Stop the session; a running trial is dropped, finished ones stay in the file."""
         if self.state in State.DONE:
             return self._refuse(f"the session is already {self.state}")
-        if self._pending is not None:
-            self._write_pending(force=True)
         if self._current is not None:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
             self._current = None
-        self._log("abort", trials=len(self.trials))
-        self.writer.flush()
+        self._log("abort", trials=len(self.records))
+        self.recorder.flush()
         self._set_state(State.ABORTED)
         return True
 

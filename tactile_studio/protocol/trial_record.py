@@ -1,10 +1,10 @@
-"""A finished trial's times and quality flags, measured on the engine's ring buffer."""
+"""A finished trial's times and quality flags, measured on the stream's ring buffer."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.quality import QualitySettings, trial_flags
 
 
@@ -15,7 +15,7 @@ class TrialMeasure:
     flags: list[str]
 
 
-def measure_trial(engine: AcquisitionEngine, start: int, n: int, rate: float,
+def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
                   settings: QualitySettings, event_cursor: int = 0,
                   recorder_lost: int = 0) -> TrialMeasure:
     """Frames ``start .. start+n`` (engine indices) judged for quality.

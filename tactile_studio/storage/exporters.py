@@ -29,6 +29,7 @@ from tactile_studio.storage.shearsense import (
     parse_shearsense_name,
     write_shearsense_csv,
 )
+from tactile_studio.storage.trials import TrialStatus
 
 FORMATS = ("shearsense-csv", "npz", "csv-trials")
 GRIDS = ("auto", "virtual", "physical")
@@ -44,7 +45,7 @@ def selected_trials(session: Session, all_trials: bool = False) -> list[dict[str
     """The trials to export: ``ok`` ones, or all of them, cut to the frames on disk."""
     out = []
     for t in session.trials:
-        if not all_trials and t.get("status") != "ok":
+        if not all_trials and t.get("status") != TrialStatus.OK:
             continue
         s, e = int(t["start_sample"]), min(int(t["end_sample"]), session.n_frames)
         if e > s >= 0:

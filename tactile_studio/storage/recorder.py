@@ -10,10 +10,12 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import RecordableStream
 from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.trials import TrialRecord
 
 # Events that state something in force until the next one (the host->LSL clock offset of a
 # running LSL outlet): a recording started later begins with the latest one, at row 0.
@@ -26,19 +28,32 @@ class Recorder:
     Frames are pulled in chunks by cursor, so the recorder never slows the device
     thread; if it ever falls a whole ring behind, the lost frames are recorded as an
     ``overrun`` event and counted, never hidden.
+
+    The recorder owns the file's rows: :meth:`row_of` is the one place an engine frame
+    becomes a file row, and everything else that goes into the file (trials, notes,
+    runner events) goes through its methods. A resumed file already holds ``row_offset``
+    rows (and ``base_counters``) from an earlier run: new frames go after them and the
+    counters add up. Without :meth:`start` nothing runs in the background and
+    :meth:`catch_up` pulls synchronously (tests, headless tools).
     """
 
-    def __init__(self, engine: AcquisitionEngine, path: str | os.PathLike,
+    def __init__(self, engine: RecordableStream, path: str | os.PathLike,
                  metadata: dict[str, Any] | None = None, poll_s: float = 0.05,
-                 flush_interval: float = 0.5) -> None:
+                 flush_interval: float = 0.5, *, row_offset: int = 0,
+                 base_counters: dict[str, Any] | None = None) -> None:
         self.engine = engine
+        self.row_offset = int(row_offset)
+        self.base_counters = dict(base_counters or {})
+        self._lock = threading.RLock()
         metadata = sensor_metadata(engine, metadata)
         self.sensor_id: str | None = metadata.get("sensor_id")
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
-        self.writer = SessionWriter(path, engine.layout, engine.device.info(), metadata,
+        self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
                                     flush_interval=flush_interval)
         self.poll_s = poll_s
         self.dropped = 0
+        # (first lost engine frame, first kept one after it, frames dropped before it)
+        self._losses: list[tuple[int, int, int]] = []
         self._cursor = engine.frames
         self._event_cursor = engine.event_count
         self.start_counters = engine.counters()
@@ -47,6 +62,8 @@ class Recorder:
         if engine.baseline is not None:
             self.writer.add_baseline(engine.baseline, 0)
         self._carry_over()
+        self._notes = [line for line in str(self.writer.metadata.get("notes", "")).split("\n")
+                       if line]
 
     @property
     def path(self) -> os.PathLike:
@@ -54,24 +71,127 @@ class Recorder:
 
     @property
     def start_frame(self) -> int:
-        """Engine frame index that became file row 0 (before any overrun)."""
+        """Engine frame index that became file row ``row_offset`` (before any overrun)."""
         return int(self.start_counters["frames"])
+
+    # ---- file rows ---------------------------------------------------------------------
+    def row_of(self, engine_frame: int) -> int:
+        """The file row engine frame ``engine_frame`` is (or will be) written to."""
+        frame, before = int(engine_frame), self.dropped
+        for first_lost, first_kept, dropped_before in reversed(self._losses):
+            if frame >= first_kept:
+                break
+            before = dropped_before
+            if frame >= first_lost:  # lost itself: the row of the next frame kept
+                frame = first_lost
+                break
+        return max(0, frame - self.start_frame + self.row_offset - before)
+
+    @property
+    def rows_written(self) -> int:
+        """Rows in the file now (earlier runs' rows included)."""
+        return self.writer.n_frames
+
+    def catch_up(self) -> None:
+        """Write everything the engine holds now, at once (on the caller's thread)."""
+        self._drain()
+
+    def copy_earlier(self, old: Session, chunk: int = 8192) -> list[dict[str, Any]]:
+        """Copy everything an earlier file holds (frames, baselines, events, trials,
+        counters) into this one, before any new row: a resume. ``row_offset`` must be
+        its row count. Returns the copied trials."""
+        n = old.n_frames
+        if n != self.row_offset or self.recorded:
+            raise ValueError(f"copy_earlier: {n} rows into a recorder with row_offset "
+                             f"{self.row_offset} and {self.recorded} rows recorded")
+        w = self.writer
+        with self._lock:
+            for a in range(0, n, chunk):
+                b = min(n, a + chunk)
+                w.append_frames(old.raw(a, b), old.column("device_time", a, b),
+                                old.column("host_time", a, b), old.column("seq", a, b),
+                                old.column("index", a, b))
+            for base in old.journal.baselines:
+                w.add_baseline(base["values"], base["frame"])
+            for event in old.events:
+                e = dict(event)
+                kind, frame, t = e.pop("kind"), e.pop("frame", None), e.pop("time", None)
+                w.add_event(kind, frame=frame, time_s=t, **e)
+            trials = [dict(t) for t in old.trials]
+            for t in trials:
+                w.add_trial(t)
+            if old.journal.counters:
+                w.set_counters(old.journal.counters)
+        return trials
+
+    def follow_rename(self, path: str | os.PathLike) -> None:
+        """The open file was moved to ``path`` (resume); closing reopens it there."""
+        self.writer.follow_rename(path)
+
+    # ---- what else goes into the file ----------------------------------------------------
+    def add_event(self, kind: str, **detail: Any) -> None:
+        """An event at the next row (runner and lab events; engine events come by
+        themselves)."""
+        self.writer.add_event(kind, **detail)
+
+    def add_baseline(self, values: np.ndarray, row: int | None = None) -> None:
+        """A baseline taken outside the engine, in force from ``row`` (default: the
+        next row)."""
+        self.writer.add_baseline(values, row)
+
+    def add_trial(self, trial: TrialRecord) -> TrialRecord:
+        """Write a finished trial (rows ``start_sample..end_sample``) and flush.
+
+        Catches up first, so the trial's rows are in the file before its record; rows
+        that are not there (the ring overran the recorder) flag it ``dropped_frames``.
+        Returns the record as written.
+        """
+        self.catch_up()
+        if self.rows_written < trial.end_sample and "dropped_frames" not in trial.flags:
+            trial = trial.with_changes(flags=(*trial.flags, "dropped_frames"))
+        self.writer.add_trial(trial.to_dict())
+        self.writer.flush()
+        return trial
+
+    def update_trial(self, index: int, **changes: Any) -> None:
+        """Change a written trial (its status, reason...) and flush."""
+        self.writer.update_trial(index, **changes)
+        self.writer.flush()
+
+    def add_note(self, text: str, **detail: Any) -> list[str]:
+        """A ``note`` event plus the note appended to the metadata's ``notes`` (one per
+        line); flushed. Returns all notes."""
+        self._notes.append(text)
+        self.writer.add_event("note", text=text, **detail)
+        self.writer.update_metadata(notes="\n".join(self._notes))
+        self.writer.flush()
+        return list(self._notes)
+
+    def flush(self) -> None:
+        self.writer.flush()
 
     def start(self) -> Recorder:
         self._thread.start()
         return self
 
     def stop(self) -> None:
-        """Write what is left, then close the file cleanly."""
+        """Write what is left, then close the file cleanly (once; later calls do nothing)."""
+        if self.stopped:
+            return
         self._stop.set()
-        self._thread.join()
+        if self._thread.ident is not None:  # never started: catch_up() did the pulling
+            self._thread.join()
         self._drain()
         self.writer.close()
         self._log_usage()
 
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
     def _log_usage(self) -> None:
         """Add this recording's duration to the sensor's hours of use in the logbook."""
-        rate = float(self.engine.device.nominal_rate_hz or 0.0)
+        rate = float(self.engine.nominal_rate_hz or 0.0)
         if not self.sensor_id or rate <= 0 or self.recorded == 0:
             return
         try:
@@ -94,12 +214,14 @@ class Recorder:
                 detail = {k: v for k, v in event.items() if k not in ("kind", "frame", "time")}
                 self.writer.add_event(kind, frame=0, time_s=event["time"], carried=True, **detail)
 
-    def _engine_to_row(self, frame: int) -> int:
-        return max(0, frame - self.start_frame - self.dropped)
-
     def _drain(self) -> None:
+        with self._lock:
+            self._drain_locked()
+
+    def _drain_locked(self) -> None:
         chunk = self.engine.read_since(self._cursor)
         if chunk.lost:
+            self._losses.append((chunk.start - chunk.lost, chunk.start, self.dropped))
             self.dropped += chunk.lost
             self.writer.add_event("overrun", lost=chunk.lost)
         if len(chunk):
@@ -111,7 +233,7 @@ class Recorder:
             self._event_cursor += 1
             event = dict(event)
             kind = event.pop("kind")
-            frame = self._engine_to_row(int(event.pop("frame")))
+            frame = self.row_of(int(event.pop("frame")))
             t = event.pop("time")
             if kind == "tare" and "baseline" in event:
                 self.writer.add_baseline(event["baseline"], frame)
@@ -121,24 +243,30 @@ class Recorder:
         self.writer.flush()
 
     def _counters_since_start(self) -> dict[str, Any]:
-        now, start = self.engine.counters(), self.start_counters
+        """The file's counters: this run's engine counters plus ``base_counters``."""
+        now, start, base = self.engine.counters(), self.start_counters, self.base_counters
         by_kind = Counter(now["malformed_by_kind"])
         by_kind.subtract(start["malformed_by_kind"])
-        return {
-            "malformed_by_kind": {k: v for k, v in by_kind.items() if v > 0},
+        merged = dict(base.get("malformed_by_kind", {}))
+        for k, v in by_kind.items():
+            if v > 0:
+                merged[k] = merged.get(k, 0) + v
+        run = {
             "gaps": now["gaps"] - start["gaps"],
             "missing_frames": now["missing_frames"] - start["missing_frames"],
             "reconnects": now["reconnects"] - start["reconnects"],
             "dropped": self.dropped,
         }
+        return {"malformed_by_kind": merged,
+                **{k: v + int(base.get(k, 0)) for k, v in run.items()}}
 
 
-def sensor_metadata(engine: AcquisitionEngine,
+def sensor_metadata(engine: RecordableStream,
                     metadata: dict[str, Any] | None) -> dict[str, Any]:
     """Session metadata with the sensor ID (given, else the device's own) and the ID of
     the sensor's active calibration in the logbook (so any later decode knows it)."""
     meta = dict(metadata or {})
-    sensor = meta.get("sensor_id") or getattr(engine.device, "sensor_id", lambda: None)()
+    sensor = meta.get("sensor_id") or engine.sensor_id()
     meta["sensor_id"] = sensor
     if sensor and "calibration_id" not in meta:
         try:

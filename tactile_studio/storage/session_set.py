@@ -20,6 +20,7 @@ from typing import Any
 
 from tactile_studio.errors import UserError
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
 
@@ -82,7 +83,7 @@ def _scan(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], list[Path]]:
 
 
 def _rank(path: Path, s: Session) -> tuple:
-    ok = sum(1 for t in s.trials if t.get("status", "ok") == "ok")
+    ok = sum(1 for t in records(s.trials) if t.ok)
     return (not is_resume_backup(path), s.closed_cleanly, ok, s.n_frames,
             path.stat().st_mtime_ns)
 

@@ -95,6 +95,12 @@ class SessionWriter:
         self._record({"type": "metadata", "update": self.metadata})
         self.flush()
 
+    def follow_rename(self, path: str | os.PathLike) -> None:
+        """The open file was renamed to ``path`` (an atomic replace during resume):
+        :meth:`close` reopens it there for its final touches."""
+        with self._lock:
+            self.path = Path(path)
+
     # ---- frames ----------------------------------------------------------------------
     @property
     def n_frames(self) -> int:

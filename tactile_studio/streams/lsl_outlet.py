@@ -53,9 +53,9 @@ class LslStreamer:
         self.engine = engine
         self.content = DECODED if decoded else RAW
         self.poll_s, self.clock_check_s = poll_s, clock_check_s
-        info = engine.device.info()
+        info = engine.device_info()
         self.device_info = info
-        dev = str(info.get("plugin") or engine.device.name)
+        dev = str(info.get("plugin") or engine.device_name)
         self.name = name or f"TactileStudio-{dev}" + ("-decoded" if decoded else "")
         self.marker_name = f"{self.name}-markers"
         self.source_id = stable_source_id(dev, self.content, info.get("settings", {}),

@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     from PySide6.QtWidgets import QApplication
 
     from tactile_studio.protocol.snapshot import State
-    from tactile_studio.ui.collect_console import CollectConsole
+    from tactile_studio.ui.collect.console import CollectConsole
 
     app = QApplication.instance() or QApplication([])
     console = CollectConsole()

@@ -10,6 +10,7 @@ from PySide6.QtGui import QBrush, QColor, QFont, QFontMetrics, QMouseEvent, QPai
 from PySide6.QtWidgets import QToolTip, QWidget
 
 from tactile_studio.playback import SessionPlayback
+from tactile_studio.storage.trials import TrialStatus
 
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39"]
@@ -95,7 +96,7 @@ class Timeline(QWidget):
             x0, x1 = self._x(t.start), self._x(t.end)
             colour = gesture_colour(self.names, t.gesture)
             r = QRect(int(x0), lane[0] + 1, max(int(x1 - x0), 1), lane[1] - lane[0] - 1)
-            if t.status != "ok":
+            if t.status != TrialStatus.OK:
                 colour.setAlpha(90)
                 p.fillRect(r, QBrush(colour, Qt.BrushStyle.BDiagPattern))
             else:
@@ -103,7 +104,7 @@ class Timeline(QWidget):
             if t.flags:
                 p.fillRect(QRect(r.x(), r.y(), r.width(), 4), QColor("#e0a000"))
             label = fm.elidedText(t.gesture, Qt.TextElideMode.ElideRight, r.width() - 2)
-            p.setPen(QColor("white") if t.status == "ok" else QColor("black"))
+            p.setPen(QColor("white") if t.status == TrialStatus.OK else QColor("black"))
             p.drawText(r, Qt.AlignmentFlag.AlignCenter, label)
         p.setPen(QColor("#c00000"))
         for ev in pb.events:

@@ -45,6 +45,7 @@ from tactile_studio.storage.importers._common import (
     write_session,
 )
 from tactile_studio.storage.importers.table import Table, read_table
+from tactile_studio.storage.trials import TrialRecord
 
 COST_GESTURES = ("grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",
                  "slap", "stroke", "squeeze", "tap", "tickle")
@@ -181,13 +182,12 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
             gesture = name_of(str(table.meta["gesture"][s]))
             what = tuple(str(table.meta[r][s]) for r in extra) + (gesture,)
             flags = ["short_capture"] if spec.capture_frames and e - s < spec.capture_frames else []
-            trials.append({
-                "index": i, "block": reps[what], "gesture": gesture,
-                "key": keys.get(gesture, ""), "start_sample": row, "end_sample": row + e - s,
-                "start_time": row / spec.rate_hz, "end_time": (row + e - s) / spec.rate_hz,
-                "status": "ok", "reason": None, "flags": flags,
-                **{r: str(table.meta[r][s]) for r in extra},
-            })
+            trials.append(TrialRecord(
+                index=i, block=reps[what], gesture=gesture, key=keys.get(gesture, ""),
+                start_sample=row, end_sample=row + e - s, start_time=row / spec.rate_hz,
+                end_time=(row + e - s) / spec.rate_hz, flags=tuple(flags),
+                extra={r: str(table.meta[r][s]) for r in extra},
+            ).to_dict())
             reps[what] += 1
             row += e - s
         times = np.arange(len(rows), dtype=np.float64) / spec.rate_hz

@@ -29,6 +29,7 @@ from tactile_studio.storage.shearsense import (
     parse_shearsense_name,
     read_shearsense_csv,
 )
+from tactile_studio.storage.trials import TrialRecord
 
 PROTOCOL = "shear9"
 RATE_HZ = 43.0  # the paper's nominal rate, only used when a file has < 2 frames
@@ -88,12 +89,10 @@ def shearsense_trials(data: ShearSenseData, protocol: Any = None,
     for i, (s, e, code) in enumerate(labelled_runs(data.labels)):
         key = _key_text(code)
         name = key_names.get(key) or key_names.get(key.lower())
-        trials.append({
-            "index": i, "block": i, "gesture": name or key, "key": key,
-            "start_sample": s, "end_sample": e,
-            "start_time": float(data.times[s]), "end_time": float(data.times[e - 1]) + dt,
-            "status": "ok", "reason": None, "flags": [],
-        })
+        trials.append(TrialRecord(
+            index=i, block=i, gesture=name or key, key=key, start_sample=s, end_sample=e,
+            start_time=float(data.times[s]), end_time=float(data.times[e - 1]) + dt,
+        ).to_dict())
     return trials
 
 

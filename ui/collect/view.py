@@ -11,7 +11,8 @@ from dataclasses import replace
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAG_TEXT
-from tactile_studio.ui.collect_participant import Card, ParticipantView
+from tactile_studio.storage.trials import TrialRecord
+from tactile_studio.ui.collect.participant import Card, ParticipantView
 
 _WAIT_TITLE = "Press the key of the gesture you will do next"
 _WAIT_SUB = "Then start it at once and keep going until the beep."
@@ -149,10 +150,9 @@ def progress_text(snap: Any) -> str:
 
 def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:
     """Cells of one trial-log row: index, block, gesture, status, flags."""
-    block = trial.get("block", 0)
-    status = str(trial.get("status", ""))
-    if trial.get("reason") and status != "ok":
-        status += f" ({trial['reason']})"
-    return (str(trial.get("index", "")), "practice" if block == -1 else str(int(block) + 1),
-            str(trial.get("gesture", "")), status,
-            ", ".join(FLAG_TEXT.get(f, f) for f in trial.get("flags") or []))
+    t = TrialRecord.from_dict(trial)
+    status = t.status.value
+    if t.reason and not t.ok:
+        status += f" ({t.reason})"
+    return (str(t.index), "practice" if t.block == -1 else str(t.block + 1), t.gesture, status,
+            ", ".join(FLAG_TEXT.get(f, f) for f in t.flags))

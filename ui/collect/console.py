@@ -6,34 +6,31 @@ session progress and ETA, the trial log with quality flags, and the experimenter
 buttons. One QTimer drives ``runner.tick()`` and every repaint (never one repaint per
 sample). Widgets only present ``runner.snapshot()`` and forward intent to the runner;
 opening, resuming and closing the session file is the core's ``open_session`` /
-``resume_session`` / ``close``.
+``resume_session`` / ``close``, and the device, engine, recorder and LSL outlet belong
+to the :class:`~tactile_studio.live.session.AcquisitionSession` the console is handed
+(it never builds an engine or a recorder itself).
 """
 
 from __future__ import annotations
 
 import logging
+import time
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QEvent, QObject, QSettings, Qt, QTimer
-from PySide6.QtGui import QCloseEvent, QGuiApplication, QKeyEvent, QKeySequence
+from PySide6.QtCore import QSettings, Qt, QTimer
+from PySide6.QtGui import QCloseEvent, QKeySequence
 from PySide6.QtWidgets import (
-    QAbstractSpinBox,
     QApplication,
     QCheckBox,
-    QComboBox,
     QGridLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
-    QLineEdit,
-    QMainWindow,
-    QMessageBox,
     QProgressBar,
     QPushButton,
     QSplitter,
     QStackedWidget,
-    QTextEdit,
     QVBoxLayout,
     QWidget,
 )
@@ -42,35 +39,37 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
-from tactile_studio.live import LiveView
+from tactile_studio.live import AcquisitionSession, LiveView
+from tactile_studio.live.meters import PaintPacer
 from tactile_studio.protocol.collect import open_session, resume_session
-from tactile_studio.ui.collect_beep import QtBeeper
-from tactile_studio.ui.collect_log import TextDialog, TrialLog
-from tactile_studio.ui.collect_participant import ParticipantScreen
-from tactile_studio.ui.collect_setup import CollectSetup, SetupChoice
-from tactile_studio.ui.collect_view import participant_view, progress_text, state_label
+from tactile_studio.ui.collect.beep import QtBeeper
+from tactile_studio.ui.collect.console_actions import ConsoleActions
+from tactile_studio.ui.collect.log import TextDialog, TrialLog
+from tactile_studio.ui.collect.participant import ParticipantScreen
+from tactile_studio.ui.collect.setup import CollectSetup, SetupChoice
+from tactile_studio.ui.collect.view import participant_view, progress_text, state_label
 from tactile_studio.ui.heatmap import HeatmapView
 from tactile_studio.ui.settings import app_settings
 
 log = logging.getLogger(__name__)
 TICK_MS = 15
-HEATMAP_EVERY = 2          # heatmap at ~33 Hz: every other tick
-DISCARD_REASONS = ("wrong gesture", "started late", "interrupted", "sensor problem")
+DISPLAY_HZ = 1000.0 / (2 * TICK_MS)  # heatmap paints at most ~33 Hz (the main window: 60)
 ELLIPSIS = "\u2026"
-_TEXT_INPUTS = (QLineEdit, QTextEdit, QAbstractSpinBox, QComboBox)
 
 
-class CollectConsole(QMainWindow):
-    """Runs one collection session; ``engine`` shares a live engine (else one is made)."""
+class CollectConsole(ConsoleActions):
+    """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
+    given); ``engine`` is a live engine it may share (the setup's "live device")."""
 
     def __init__(self, engine: AcquisitionEngine | None = None, live_device: str | None = None,
                  settings: QSettings | None = None, beeper: QtBeeper | None = None,
-                 clock: Any = None, parent: QWidget | None = None) -> None:
+                 clock: Any = None, parent: QWidget | None = None,
+                 acquisition: AcquisitionSession | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("Tactile Studio \u2014 collection session")
         self.shared_engine = engine
-        self.engine: AcquisitionEngine | None = None
-        self._own_engine = False
+        self.live_device = live_device
+        self.acquisition = acquisition if acquisition is not None else AcquisitionSession()
         self.session: Any = None          # the core's collect session (cs)
         self.runner: Any = None
         self.protocol: Any = None
@@ -78,6 +77,7 @@ class CollectConsole(QMainWindow):
         self.beeper = beeper or QtBeeper(self)
         self.live = LiveView()
         self._ticks = 0
+        self.pacer = PaintPacer(DISPLAY_HZ)  # the main window's pacing, at the console's rate
         self._closed_session_path: str | None = None
         self._dialog: TextDialog | None = None
         self.wellness_text = ""  # the sensor's last check, shown beside the file name
@@ -186,15 +186,18 @@ class CollectConsole(QMainWindow):
         return outer
 
     # ---- opening and closing sessions ---------------------------------------------------
+    @property
+    def engine(self) -> AcquisitionEngine | None:
+        """The engine of the open (or last) session."""
+        return self.acquisition.engine
+
     def _engine_for(self, device: str | None, dev_settings: dict[str, Any]) -> AcquisitionEngine:
+        """Step 1 of the session's start order: the device, opened but not started."""
         if device is None:
             if self.shared_engine is None:
                 raise UserError("no live device: choose a device")
-            return self.shared_engine
-        engine = AcquisitionEngine(create_device(device, dev_settings))
-        engine.start()
-        self._own_engine = True
-        return engine
+            return self.acquisition.share(self.shared_engine, self.live_device)
+        return self.acquisition.open(device, dev_settings)
 
     def start_session(self, choice: SetupChoice, override_note: str | None = None) -> bool:
         """Open a new session from the setup choices; False (message shown) on a user error.
@@ -205,11 +208,11 @@ class CollectConsole(QMainWindow):
             status = wellness_status(self._sensor_id(choice), choice.protocol.wellness_required,
                                      choice.protocol.wellness_max_age_h)
         except UserError as exc:
-            self.setup.error.setText(str(exc))
+            self.setup.show_error(str(exc))
             return False
         self.wellness_text = status.text()
         if not status.ok and not (override_note or "").strip():
-            self.setup.error.setText(f"{status.text()}. {status.problem}.")
+            self.setup.show_error(f"{status.text()}. {status.problem}.")
             dlg = TextDialog("Wellness check needed",
                              f"{status.problem}.\nStart anyway? Override note:", (), self)
             dlg.accepted.connect(lambda: dlg.text().strip()
@@ -221,41 +224,42 @@ class CollectConsole(QMainWindow):
             choice.protocol, participant=choice.participant, engine=eng,
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
-            auto_continue=choice.auto_continue, wellness=health),
+            auto_continue=choice.auto_continue, wellness=health,
+            recorder=self.acquisition.start_recording),
             choice.device, choice.device_settings)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
         """The sensor of the chosen device (the shared live one when none is chosen)."""
         if choice.device is None:
-            dev = self.shared_engine.device if self.shared_engine is not None else None
-        else:
-            dev = create_device(choice.device, choice.device_settings)
-        return dev.sensor_id() if dev is not None else None
+            return self.shared_engine.sensor_id() if self.shared_engine is not None else None
+        return create_device(choice.device, choice.device_settings).sensor_id()
 
     def resume_from(self, path: str | Path) -> bool:
         """Continue a killed or closed session file at its next trial."""
+        hold, auto = self.setup.run_options()
         try:
             device, dev_settings = self.setup.device_choice()
         except UserError as exc:
-            self.setup.error.setText(str(exc))
+            self.setup.show_error(str(exc))
             return False
         return self._open(lambda eng: resume_session(
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
-            hold_flagged=self.setup.hold_flagged.isChecked(),
-            auto_continue=self.setup.auto_continue.isChecked()), device, dev_settings)
+            hold_flagged=hold, auto_continue=auto,
+            recorder=self.acquisition.start_recording), device, dev_settings)
 
     def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
         self.close_session()
-        try:
-            self.engine = self._engine_for(device, dev_settings)
-            self.session = make(self.engine)
+        try:  # the session's start order: device, recorder (the file), LSL, then start
+            engine = self._engine_for(device, dev_settings)
+            self.session = make(engine)
         except UserError as exc:
-            self.setup.error.setText(str(exc))
-            self._stop_own_engine()
+            self.setup.show_error(str(exc))
+            self.acquisition.disconnect()
             return False
         self.runner = self.session.runner
         self.protocol = self.runner.protocol
         self._sync_lsl()
+        self.acquisition.start()
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
@@ -276,13 +280,8 @@ class CollectConsole(QMainWindow):
             path = str(self.session.path)
             self.session.close()
             self.session = None
-        self._stop_own_engine()
+        self.acquisition.disconnect()  # stops the engine only if it is the session's own
         return path
-
-    def _stop_own_engine(self) -> None:
-        if self._own_engine and self.engine is not None:
-            self.engine.stop()
-        self._own_engine = False
 
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt)
         """Closing mid-session is safe: the file is consistent and can be resumed."""
@@ -293,7 +292,6 @@ class CollectConsole(QMainWindow):
 
     # ---- Lab Streaming Layer (the core streams; this only forwards the toggle) -----------
     def _build_lsl_toggle(self) -> QWidget:
-        self._lsl: Any = None
         self._lsl_detach: Any = None
         self.lsl_toggle = QCheckBox("Stream to LSL")
         self.lsl_toggle.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # keys are the runner's
@@ -308,30 +306,32 @@ class CollectConsole(QMainWindow):
         self._sync_lsl()
         return self.lsl_toggle.isChecked() == on
 
+    @property
+    def _lsl(self) -> Any:
+        """The session's LSL streamer while this console streams (None otherwise)."""
+        return self.acquisition.lsl if self._lsl_detach is not None else None
+
     def _sync_lsl(self, *_: object) -> None:
         want = self.lsl_toggle.isChecked() and self.runner is not None
-        if not want or (self._lsl is not None and self._lsl.engine is not self.engine):
+        acq = self.acquisition
+        if not want or (acq.lsl is not None and acq.lsl.engine is not self.engine):
             self._stop_lsl()
-        if want and self._lsl is None:
-            from tactile_studio.streams.lsl_outlet import acquire_streamer
-
+        if want and self._lsl_detach is None:
             try:
-                self._lsl = acquire_streamer(self.engine)
+                acq.set_lsl(True)
             except UserError as exc:
                 self.statusBar().showMessage(str(exc))
                 self.lsl_toggle.blockSignals(True)
                 self.lsl_toggle.setChecked(False)
                 self.lsl_toggle.blockSignals(False)
                 return
-            self._lsl_detach = self._lsl.attach_runner(self.runner)
+            self._lsl_detach = acq.lsl.attach_runner(self.runner)
 
     def _stop_lsl(self) -> None:
-        lsl, self._lsl = self._lsl, None
-        if lsl is not None:
-            from tactile_studio.streams.lsl_outlet import release_streamer
-
-            self._lsl_detach()
-            release_streamer(lsl)
+        detach, self._lsl_detach = self._lsl_detach, None
+        if detach is not None:
+            detach()
+        self.acquisition.set_lsl(False)
 
     # ---- the timer ----------------------------------------------------------------------
     def tick(self) -> None:
@@ -345,9 +345,11 @@ class CollectConsole(QMainWindow):
         self.participant.show_view(view)
         self.mirror.show_view(view)
         self._present(snap)
-        if self._ticks % HEATMAP_EVERY == 0:
+        now = time.monotonic()
+        if self.pacer.delay(now) <= 0:  # else too soon: the next tick looks again
             frame = self.live.latest()
             if frame is not None and frame is not self._shown:
+                self.pacer.painted(now)
                 self._shown = frame
                 self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
         if snap.state in ("finished", "aborted") and self.session is not None:
@@ -377,137 +379,3 @@ class CollectConsole(QMainWindow):
         b["pause"].setEnabled(live and snap.state != "setup")
         b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
         b["end"].setEnabled(live)
-
-    # ---- experimenter actions (forwarded to the runner) ---------------------------------
-    def primary_action(self) -> None:
-        if self.runner is None:
-            return
-        if self.runner.snapshot().state == "setup":
-            self.runner.start()
-        else:
-            self.runner.proceed()
-        self.tick()
-
-    def redo_last(self) -> None:
-        if self.runner is not None:
-            self.runner.redo_last()
-            self.tick()
-
-    def toggle_pause(self) -> None:
-        if self.runner is None:
-            return
-        if self.runner.snapshot().state == "paused":
-            self.runner.resume()
-        else:
-            self.runner.pause()
-        self.tick()
-
-    def skip_to_break(self) -> None:
-        if self.runner is not None:
-            self.runner.skip_to_break()
-            self.tick()
-
-    def ask_discard(self) -> TextDialog | None:
-        """Ask a reason to discard the selected trial (or the last one)."""
-        if self.runner is None:
-            return None
-        snap = self.runner.snapshot()
-        index = self.log.selected_index()
-        if index is None and snap.last_trial is not None:
-            index = int(snap.last_trial["index"])
-        if index is None:
-            return None
-        gesture = next((t["gesture"] for t in snap.trials if t["index"] == index), "?")
-        dlg = TextDialog("Discard trial", f"Discard trial {index} ({gesture}). Reason:",
-                         DISCARD_REASONS, self)
-        dlg.accepted.connect(lambda: self._discard(index, dlg.text()))
-        return self._open_dialog(dlg)
-
-    def _discard(self, index: int, reason: str) -> None:
-        if self.runner is not None:
-            self.runner.discard(index, reason)
-            self.tick()
-
-    def ask_note(self) -> TextDialog | None:
-        if self.runner is None:
-            return None
-        dlg = TextDialog("Session note", "Note (saved in the session file):", (), self)
-        dlg.accepted.connect(lambda: self.runner is not None and self.runner.add_note(dlg.text()))
-        return self._open_dialog(dlg)
-
-    def _open_dialog(self, dlg: TextDialog) -> TextDialog:
-        self._dialog = dlg
-        dlg.finished.connect(dlg.deleteLater)
-        dlg.open()
-        dlg.edit.setFocus()
-        return dlg
-
-    @property
-    def dialog(self) -> TextDialog | None:
-        """The open discard/note dialog, if any (tests type into it)."""
-        try:
-            return self._dialog if self._dialog is not None and self._dialog.isVisible() else None
-        except RuntimeError:  # already deleted
-            return None
-
-    def end_session(self) -> None:
-        if self.runner is None:
-            return
-        answer = QMessageBox.question(
-            self, "End session", "End the session now? Finished trials stay in the file.")
-        if answer == QMessageBox.StandardButton.Yes:
-            self.runner.abort()
-            self.tick()
-
-    # ---- keys ---------------------------------------------------------------------------
-    def forward_key(self, text: str) -> bool:
-        """A participant key from either window goes to the runner."""
-        if self.runner is None or not text.strip():
-            return False
-        accepted = self.runner.key(text)
-        self.tick()
-        return bool(accepted)
-
-    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt)
-        """Plain printable keys typed anywhere in the console go to the runner, unless
-        the experimenter is typing into a text field or a dialog."""
-        if event.type() != QEvent.Type.KeyPress or self.runner is None:
-            return False
-        if not isinstance(obj, QWidget) or obj.window() is not self:
-            return False
-        if self.stack.currentIndex() != 1 or isinstance(obj, _TEXT_INPUTS):
-            return False
-        assert isinstance(event, QKeyEvent)
-        mods = event.modifiers() & ~Qt.KeyboardModifier.ShiftModifier \
-            & ~Qt.KeyboardModifier.KeypadModifier
-        text = event.text()
-        if mods or len(text) != 1 or not text.isprintable() or text.isspace():
-            return False
-        if not event.isAutoRepeat():
-            self.forward_key(text)
-        return True
-
-    # ---- participant window and beep flash ----------------------------------------------
-    def show_participant_screen(self) -> None:
-        """Show the participant screen, full screen on a second monitor if there is one."""
-        screens = QGuiApplication.screens()
-        if len(screens) > 1:
-            other = next((s for s in screens if s is not self.screen()), screens[-1])
-            self.participant.setScreen(other)
-            self.participant.move(other.geometry().topLeft())
-            self.participant.showFullScreen()
-            size = other.geometry().size()
-        else:
-            self.participant.resize(1280, 720)
-            self.participant.show()
-            size = self.participant.size()
-        self.mirror.aspect = size.width() / max(1, size.height())
-        self.mirror.update()
-        self.participant.raise_()
-
-    def _flash(self) -> None:
-        self.participant.flash()
-        self.mirror.flash()
-
-    def _on_virtual(self, on: bool) -> None:
-        self.live.virtual = on

@@ -24,7 +24,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.ui.collect_view import trial_row
+from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
+from tactile_studio.ui.collect.view import trial_row
 
 COLUMNS = ("#", "Block", "Gesture", "Status", "Flags")
 FLAGGED_BG = QColor("#ffe3b3")
@@ -69,20 +70,20 @@ class TrialLog(QTableWidget):
         self.setRowCount(len(trials))
         for row, trial in enumerate(trials):
             cells = trial_row(trial)
-            status = trial.get("status")
-            flagged = status == "ok" and bool(trial.get("flags"))
+            rec = TrialRecord.from_dict(trial)
+            flagged = rec.flagged
             for col, text in enumerate(cells):
                 item = self.item(row, col)
                 if item is None:
                     item = QTableWidgetItem()
                     self.setItem(row, col, item)
                 item.setText(text)
-                item.setData(Qt.ItemDataRole.UserRole, trial.get("index"))
+                item.setData(Qt.ItemDataRole.UserRole, rec.index)
                 item.setBackground(QBrush(FLAGGED_BG) if flagged else QBrush())
-                item.setForeground(QBrush(DIMMED_FG) if status != "ok" else QBrush())
+                item.setForeground(QBrush(DIMMED_FG) if not rec.ok else QBrush())
                 f = QFont()
-                f.setStrikeOut(status == "discarded")
-                f.setItalic(status == "redone")
+                f.setStrikeOut(rec.status == TrialStatus.DISCARDED)
+                f.setItalic(rec.status == TrialStatus.REDONE)
                 f.setBold(flagged and col == 4)
                 item.setFont(f)
                 item.setToolTip(f"flagged: {cells[4]} \u2014 consider a redo" if flagged else "")
@@ -109,7 +110,7 @@ class TrialLog(QTableWidget):
 
     def flagged_rows(self) -> list[int]:
         """Trial indices currently highlighted as flagged."""
-        return [int(t["index"]) for t in self.trials if t.get("status") == "ok" and t.get("flags")]
+        return [t.index for t in records(self.trials) if t.flagged]
 
 
 class TextDialog(QDialog):

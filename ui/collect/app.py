@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import Qt
@@ -20,7 +19,8 @@ from PySide6.QtWidgets import QMenu, QWidget
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.ui.collect_console import CollectConsole
+from tactile_studio.live import AcquisitionSession
+from tactile_studio.ui.collect.console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
 _RUNNING: list[CollectConsole] = []  # consoles opened by run_console
@@ -32,7 +32,7 @@ def open_console(live: LiveSource | None = None, resume: bool = False,
     engine, name = live() if live is not None else (None, None)
     if engine is not None and not engine.running:
         engine, name = None, None
-    console = CollectConsole(engine=engine, live_device=name)
+    console = CollectConsole(engine=engine, live_device=name, acquisition=AcquisitionSession())
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
     if keep is not None:  # the caller holds a reference while the window is open
         keep.append(console)
@@ -73,32 +73,16 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
-    console = CollectConsole()
-    s = console.setup
-    if device and s.device.findData(device) < 0:
-        usable = [s.device.itemData(i) for i in range(s.device.count())]
+    console = CollectConsole(acquisition=AcquisitionSession())
+    try:
+        console.setup.prefill(
+            None if protocol is None else str(protocol), participant, device,
+            {k: _text(v) for k, v in (device_settings or {}).items()},
+            None if out_dir is None else str(out_dir), blocks, seed, condition)
+    except UserError:
         console.close()
         console.deleteLater()
-        raise UserError(f"device {device!r} cannot run a collection session "
-                        f"(usable: {', '.join(str(u) for u in usable if u)})")
-    if protocol is not None:
-        text = str(protocol)
-        if s.protocol.findData(text) >= 0:
-            s.protocol.setCurrentIndex(s.protocol.findData(text))
-        else:
-            s.set_protocol_file(str(Path(text).resolve()))
-    if participant:
-        s.participant.setText(participant)
-    if condition:
-        s.condition.setText(condition)
-    if device:
-        s.set_device(device, {k: _text(v) for k, v in (device_settings or {}).items()})
-    if out_dir is not None:
-        s.out_dir.setText(str(out_dir))
-    if blocks is not None:
-        s.blocks.setValue(int(blocks))
-    if seed is not None:
-        s.seed.setValue(int(seed))
+        raise
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
     console.lsl_toggle.setChecked(lsl)  # streams once a session is open
     console.show()

@@ -291,6 +291,42 @@ class CollectSetup(QWidget):
                            self.seed.value(), device, dev_settings,
                            self.hold_flagged.isChecked(), self.auto_continue.isChecked())
 
+    def show_error(self, text: str) -> None:
+        """The one-line message under the form ("" clears it)."""
+        self.error.setText(text)
+
+    def run_options(self) -> tuple[bool, bool]:
+        """(hold flagged trials, auto-continue after breaks): a resume's options."""
+        return self.hold_flagged.isChecked(), self.auto_continue.isChecked()
+
+    def prefill(self, protocol: str | None = None, participant: str = "",
+                device: str | None = None, device_values: dict[str, str] | None = None,
+                out_dir: str | None = None, blocks: int | None = None,
+                seed: int | None = None, condition: str = "") -> None:
+        """Fill the form (the ``collect`` command's options); it stays editable. A
+        device that cannot run a session is a one-line UserError."""
+        if device and self.device.findData(device) < 0:
+            usable = [self.device.itemData(i) for i in range(self.device.count())]
+            raise UserError(f"device {device!r} cannot run a collection session "
+                            f"(usable: {', '.join(str(u) for u in usable if u)})")
+        if protocol is not None:
+            if self.protocol.findData(protocol) >= 0:
+                self.protocol.setCurrentIndex(self.protocol.findData(protocol))
+            else:
+                self.set_protocol_file(str(Path(protocol).resolve()))
+        if participant:
+            self.participant.setText(participant)
+        if condition:
+            self.condition.setText(condition)
+        if device:
+            self.set_device(device, device_values)
+        if out_dir is not None:
+            self.out_dir.setText(out_dir)
+        if blocks is not None:
+            self.blocks.setValue(int(blocks))
+        if seed is not None:
+            self.seed.setValue(int(seed))
+
     def _on_start(self) -> None:
         try:
             choice = self.choice()

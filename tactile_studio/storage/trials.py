@@ -1,0 +1,101 @@
+"""A trial as code reads and writes it: :class:`TrialRecord` and :class:`TrialStatus`.
+
+On disk (the session journal, ``trials_json``) and in the runner's snapshot a trial stays
+the flat dict of docs/file-format (index, block, gesture, key, start_sample, end_sample,
+start_time, end_time, status, reason, flags, plus any columns an importer adds); code
+converts at the edge with :meth:`TrialRecord.from_dict` / :meth:`TrialRecord.to_dict`
+instead of indexing dicts by string. :func:`trials_done` is the one definition of
+progress (the runner's snapshot, resume and the console all use it).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field, replace
+from enum import StrEnum
+from typing import Any
+
+
+class TrialStatus(StrEnum):
+    """What became of a trial (strings, as stored in the file)."""
+
+    OK = "ok"                # counts (flags may still say it is doubtful)
+    REDONE = "redone"        # replaced by a later trial of the same gesture and block
+    DISCARDED = "discarded"  # kept in the file but not used (practice, or by hand)
+
+
+_FIELDS = ("index", "block", "gesture", "key", "start_sample", "end_sample", "start_time",
+           "end_time", "status", "reason", "flags")
+
+
+@dataclass(frozen=True)
+class TrialRecord:
+    """One trial: file rows ``start_sample..end_sample`` (end exclusive) of ``gesture``."""
+
+    index: int
+    block: int                      # 0-based; -1 for practice
+    gesture: str
+    key: str | None = None
+    start_sample: int = 0
+    end_sample: int = 0
+    start_time: float = 0.0         # device time of the first frame, s
+    end_time: float = 0.0
+    status: TrialStatus = TrialStatus.OK
+    reason: str | None = None
+    flags: tuple[str, ...] = ()     # quality flags (tactile_studio.protocol.quality)
+    extra: Mapping[str, Any] = field(default_factory=dict)  # importers' extra columns
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> TrialRecord:
+        """From the file's form; missing optional fields take their defaults."""
+        known = {k: d[k] for k in _FIELDS if k in d}
+        known["index"] = int(known.get("index", 0))
+        known["block"] = int(known.get("block", 0))
+        known["gesture"] = str(known.get("gesture", ""))
+        known["status"] = TrialStatus(known.get("status") or TrialStatus.OK)
+        known["flags"] = tuple(known.get("flags") or ())
+        return cls(**known, extra={k: v for k, v in d.items() if k not in _FIELDS})
+
+    def to_dict(self) -> dict[str, Any]:
+        """The file's form (plain strings and lists; the key order of the journal)."""
+        out: dict[str, Any] = {k: getattr(self, k) for k in _FIELDS}
+        out["status"] = self.status.value
+        out["flags"] = list(self.flags)
+        out.update(self.extra)
+        return out
+
+    def with_changes(self, **changes: Any) -> TrialRecord:
+        if "status" in changes:
+            changes["status"] = TrialStatus(changes["status"])
+        if "flags" in changes:
+            changes["flags"] = tuple(changes["flags"])
+        return replace(self, **changes)
+
+    @property
+    def practice(self) -> bool:
+        return self.block < 0
+
+    @property
+    def ok(self) -> bool:
+        return self.status == TrialStatus.OK
+
+    @property
+    def flagged(self) -> bool:
+        """An ``ok`` trial with quality flags: the experimenter may want it redone."""
+        return self.ok and bool(self.flags)
+
+    @property
+    def counts(self) -> bool:
+        """Counts toward progress: a real block's trial not replaced by a redo."""
+        return not self.practice and self.status != TrialStatus.REDONE
+
+
+def records(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> list[TrialRecord]:
+    """Trials in either form as records."""
+    return [t if isinstance(t, TrialRecord) else TrialRecord.from_dict(t) for t in trials]
+
+
+def trials_done(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> int:
+    """Gestures done: distinct (block, gesture) with a counting trial. A discarded
+    trial still counts (its gesture is not collected again); a redone one does not."""
+    return len({(t.block, t.gesture) for t in records(trials) if t.counts})

@@ -1,0 +1,89 @@
+"""AcquisitionSession: the one start order, auto-stop (a frame limit, the stream ending),
+events, and a shared engine left alone; on the real simulated and replay devices."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from waiting import wait_until
+
+from tactile_studio.live import AcquisitionSession
+from tactile_studio.storage.session import Session
+
+
+def _events(session: AcquisitionSession) -> list[dict]:
+    seen: list[dict] = []
+    session.add_listener(seen.append)
+    return seen
+
+
+def test_start_order_puts_the_first_frame_and_the_connect_event_in_the_file(tmp_path) -> None:
+    s = AcquisitionSession()
+    seen = _events(s)
+    engine = s.open("simulated", {"rate": "400", "speed": "4"})
+    s.start_recording(tmp_path / "a.h5", {"source": "test"})  # before start: step 2
+    s.start()
+    try:
+        wait_until(lambda: engine.frames > 150, what="150 frames")
+        s.stop_recording_after(frames=120)
+        wait_until(lambda: (s.poll(), not s.recording)[1], what="the frame limit")
+    finally:
+        s.close()
+    assert [e["kind"] for e in seen][:3] == ["recording_started", "connected", "state"]
+    stopped = [e for e in seen if e["kind"] == "recording_stopped"]
+    assert [e["reason"] for e in stopped] == ["limit"]
+    with Session(tmp_path / "a.h5") as f:
+        assert f.n_frames >= 120
+        assert int(f.column("index", 0, 1)[0]) == 0  # row 0 is the engine's frame 0
+        assert "connect" in [e["kind"] for e in f.events]
+
+
+def test_the_recording_stops_itself_when_the_stream_ends(tmp_path: Path) -> None:
+    src = AcquisitionSession()
+    src.connect("simulated", {"rate": "400", "speed": "8"})
+    src.start_recording(tmp_path / "src.h5")
+    wait_until(lambda: src.recorder.rows_written > 200, what="a source recording")
+    src.close()
+    s = AcquisitionSession()
+    seen = _events(s)
+    s.open("replay", {"path": str(tmp_path / "src.h5"), "speed": "0"})
+    s.start_recording(tmp_path / "copy.h5")  # before start: a fast replay may end at once
+    s.start()
+    try:
+        wait_until(lambda: (s.poll(), not s.recording)[1], what="the replay to end")
+    finally:
+        s.close()
+    assert [e["reason"] for e in seen if e["kind"] == "recording_stopped"] == ["device"]
+    assert s.status().state == "finished" and s.status().recording is None
+    with Session(tmp_path / "copy.h5") as f:
+        assert f.closed_cleanly and f.n_frames > 0
+
+
+def test_a_shared_engine_is_not_stopped_by_the_session_sharing_it(tmp_path: Path) -> None:
+    owner = AcquisitionSession()
+    engine = owner.connect("simulated", {"rate": "400"})
+    try:
+        guest = AcquisitionSession()
+        guest.share(engine, "simulated")
+        guest.start()  # nothing to do: it is running already
+        rec = guest.start_recording(tmp_path / "g.h5")
+        wait_until(lambda: rec.rows_written > 20, what="the guest's rows")
+        guest.close()
+        assert engine.running and rec.stopped
+    finally:
+        owner.close()
+    assert not engine.running
+
+
+def test_a_recorder_closed_by_its_collection_is_released_on_poll(tmp_path: Path) -> None:
+    s = AcquisitionSession()
+    seen = _events(s)
+    s.connect("simulated", {"rate": "400"})
+    try:
+        rec = s.start_recording(tmp_path / "c.h5")
+        rec.stop()  # as CollectionSession.close() does
+        s.poll()
+        assert not s.recording
+        assert [e["reason"] for e in seen if e["kind"] == "recording_stopped"] == ["requested"]
+    finally:
+        s.close()
