@@ -75,7 +75,9 @@ class SweepPanel(QWidget):
             item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
             item.setCheckState(Qt.CheckState.Unchecked)
             self.models.addItem(item)
-        self.models.setMaximumHeight(170)
+        self.models.setSpacing(1)
+        rows = self.models.sizeHintForRow(0) + 2 * self.models.spacing()
+        self.models.setFixedHeight(rows * self.models.count() + 2 * self.models.frameWidth() + 4)
         self.channel_boxes = {c: QCheckBox(c) for c in CHANNEL_SETS}
         channels = QHBoxLayout()
         for box in self.channel_boxes.values():
@@ -129,6 +131,7 @@ class SweepPanel(QWidget):
                              "sets, then Start sweep.")
         self.status.setWordWrap(True)
         self.results = make_table(RESULT_COLUMNS)
+        self.results.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
         self.results.setSortingEnabled(True)
         self.results.setToolTip("double-click a row to open its run's confusion matrix")
         self.tasks = make_table(TASK_COLUMNS)
@@ -138,9 +141,9 @@ class SweepPanel(QWidget):
         rl.addWidget(self.counts)
         rl.addWidget(self.status)
         rl.addWidget(QLabel("Results (pooled over folds; trial acc. aggregates each trial's "
-                            "windows)"))
+                            "windows; rows fill in as folds finish)"))
         rl.addWidget(self.results, 3)
-        rl.addWidget(QLabel("Finished tasks"))
+        rl.addWidget(QLabel("Finished tasks (newest first)"))
         rl.addWidget(self.tasks, 2)
         split = QSplitter()
         split.addWidget(left)
@@ -278,6 +281,7 @@ class SweepPanel(QWidget):
                 self.status.setText(e["message"])
             elif e["type"] == "task":
                 self._task_row(e)
+                self._partial_row(e["row"])
         self.counts.setText(f"tasks {job.done} / {job.total or '?'} · elapsed "
                             f"{_clock(job.elapsed())} · about {_clock(job.eta())} left")
         if job.finished is not None:
@@ -285,12 +289,23 @@ class SweepPanel(QWidget):
             self._finished(job)
 
     def _task_row(self, e: dict[str, Any]) -> None:
-        r = self.tasks.rowCount()
-        self.tasks.insertRow(r)
-        fill_row(self.tasks, r, [e["id"], e["model"], e["channels"], e["accuracy"],
+        self.tasks.insertRow(0)  # newest first: the latest task is always in view
+        fill_row(self.tasks, 0, [e["id"], e["model"], e["channels"], e["accuracy"],
                                  e["seconds"]],
                  [None, None, None, _pct(e["accuracy"]), f"{e['seconds']:.1f}"])
-        self.tasks.scrollToBottom()
+
+    def _partial_row(self, row: dict[str, Any]) -> None:
+        """While running: the (model, channel set)'s row over its folds finished so far."""
+        rows = [r for r in self.rows
+                if (r["model"], r["channels"]) != (row["model"], row["channels"])]
+        self._show_rows(sorted([*rows, row], key=self._order))
+
+    def _order(self, row: dict[str, Any]) -> tuple[int, int]:
+        """The sweep's own order: models, then channel sets, as chosen."""
+        job = self.job
+        models, sets = (job.models, job.channel_sets) if job is not None else ([], [])
+        return (models.index(row["model"]) if row["model"] in models else len(models),
+                sets.index(row["channels"]) if row["channels"] in sets else len(sets))
 
     def _finished(self, job: SweepJob) -> None:
         f = job.finished or {}
@@ -316,6 +331,7 @@ class SweepPanel(QWidget):
     def _show_rows(self, rows: list[dict[str, Any]]) -> None:
         self.rows = list(rows)
         self.results.setSortingEnabled(False)
+        self.results.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
         self.results.setRowCount(len(rows))
         best = max((r.get("trial_accuracy") or -1.0 for r in rows), default=None)
         for i, row in enumerate(rows):
