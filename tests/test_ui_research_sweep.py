@@ -147,6 +147,15 @@ def test_cancel_stops_workers_and_keeps_finished_tasks(window, tmp_path, wait_un
 
 def test_bad_input_is_one_line(window, tmp_path, wait_until, qtbot):
     panel = window.sweep
+    # the Train tab hands its model and channel set over to the Sweep tab
+    _choose(panel, tmp_path / "s", ["rf"], ["normal"])
+    window.tabs.setCurrentWidget(window.train)
+    window.train.model.setCurrentText("cnn1d")
+    window.train.channels.setCurrentText("shear")
+    qtbot.mouseClick(window.train.sweep_button, Qt.MouseButton.LeftButton)
+    assert window.tabs.currentWidget() is panel
+    assert set(panel.checked_models()) == {"rf", "cnn1d"}
+    assert panel.checked_channels() == ["normal", "shear"]
     _choose(panel, tmp_path / "s", [], ["normal"])
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert window.message.text() == "tick at least one model"

@@ -62,6 +62,7 @@ class ResearchWindow(QMainWindow):
         self.sweep.error.connect(self.show_error)
         self.sweep.sweepFinished.connect(self._sweep_finished)
         self.sweep.openRequested.connect(self.open_run)
+        self.train.sweepRequested.connect(self._to_sweep)
         open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
         open_session.triggered.connect(self._browse_session)
         self.resize(1200, 760)
@@ -111,6 +112,14 @@ class ResearchWindow(QMainWindow):
         else:
             self.runs.set_root(self.runs.root.text())
         self.show_info(f"run finished: {out}")
+
+    def _to_sweep(self, model: str, channels: str) -> None:
+        """The Train tab's model and channel set join the Sweep tab's ticks."""
+        self.sweep.set_models(sorted({*self.sweep.checked_models(), model}))
+        self.sweep.set_channels([*self.sweep.checked_channels(), channels])
+        self.sweep.preset.setCurrentText(self.train.preset.currentText())
+        self.sweep.protocol.setCurrentText(self.train.protocol.currentText())
+        self.tabs.setCurrentWidget(self.sweep)
 
     def _sweep_finished(self, out: str) -> None:
         """The sweep's runs (one per model x channel set) join the Runs tab."""
