@@ -129,7 +129,9 @@ class SweepJob:
             put({"type": "error", "message": str(exc)})
         except Exception as exc:  # noqa: BLE001 - the window shows one line; stderr the rest
             traceback.print_exc(file=sys.stderr)
-            put({"type": "error", "message": f"the sweep failed: {type(exc).__name__}: {exc}"})
+            first = (str(exc).strip().splitlines() or [""])[0]
+            put({"type": "error", "message": f"the sweep failed: {type(exc).__name__}: {first} "
+                                             "(details on stderr)"})
 
     def _saved_rows(self) -> list[dict[str, Any]]:
         path = Path(self.out) / "results.json"
