@@ -12,6 +12,7 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main as cli_main
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
+from tactile_studio.learn.evaluate import rescore_run
 from tactile_studio.learn.executors import LocalExecutor, RayExecutor, make_executor
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.sweep import run_sweep, task_gpus
@@ -62,6 +63,10 @@ def test_local_sweep_writes_a_table_equal_to_single_runs(data, local_run):
         swept = local_run.metrics[f"{model}/shear"]
         assert swept["accuracy"] == single["accuracy"]
         assert swept["confusion_counts"] == single["confusion_counts"]
+        # each row is a run folder whose saved fold models reproduce its metrics
+        run = data / "local" / "runs" / f"{model}-shear"
+        assert rescore_run(run)["accuracy"] == pytest.approx(swept["accuracy"])
+        assert json.loads((run / "metrics.json").read_text())["complete"] is True
 
 
 def test_ray_sweep_gives_identical_metrics(data, local_run):

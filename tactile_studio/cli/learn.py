@@ -206,7 +206,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     try:
         with ctrl_c_cancels(token):
             report = export_run(args.run, args.format, args.data, args.cache_dir, bar, token,
-                                threads=args.threads or 0)
+                                threads=args.threads or 0, aggregate=args.aggregate)
     finally:
         bar.close()
     print(f"{args.format} export of {report['model']} ({len(report['folds'])} fold model(s))"
@@ -220,6 +220,9 @@ def cmd_export(args: argparse.Namespace) -> int:
     print(f"test accuracy {report['accuracy_torch']:.4f} -> {report['accuracy_export']:.4f} "
           f"(change {report['accuracy_change']:+.4f}, {report['changed_predictions']} of "
           f"{report['n']} predictions changed)")
+    print(f"trial accuracy ({report['aggregate']} over windows) "
+          f"{report['trial_accuracy_torch']:.4f} -> {report['trial_accuracy_export']:.4f} "
+          f"({report['n_trials']} trials)")
     return 0
 
 
@@ -256,5 +259,7 @@ def register(subparsers) -> None:
     p.add_argument("--cache-dir", default=None)
     p.add_argument("--threads", type=int, default=None,
                    help="torch and onnxruntime CPU threads (1 is fastest on a busy machine)")
+    p.add_argument("--aggregate", default=None, metavar="mean|vote",
+                   help="trial prediction from its windows (default: the run's)")
     p.set_defaults(func=cmd_export)
 

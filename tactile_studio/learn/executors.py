@@ -29,6 +29,7 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import signal
+import socket
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -106,6 +107,8 @@ class RayExecutor:
         except ImportError:
             raise UserError("the ray executor needs Ray: pip install 'ray>=2.9'") from None
         if not ray.is_initialized():
+            if self.address:
+                check_address(self.address)
             try:
                 if self.address:
                     ray.init(address=self.address, include_dashboard=False,
@@ -142,6 +145,21 @@ class RayExecutor:
                 for ref in pending:
                     ray.cancel(ref, force=True)
                 raise Cancelled("sweep cancelled")
+
+
+def check_address(address: str, timeout: float = 3.0) -> None:
+    """A clear one-line error, within ``timeout`` s, for a Ray address that is not
+    HOST:PORT or where nothing listens (Ray itself would retry for a minute)."""
+    if address == "auto":
+        return
+    host, _, port = address.split("://", 1)[-1].rpartition(":")
+    if not host or not port.isdigit():
+        raise UserError(f"ray: address {address!r} is not HOST:PORT (e.g. 10.0.0.5:6379)")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout).close()
+    except OSError as exc:
+        raise UserError(f"ray: cannot reach {address} ({exc.strerror or exc}); is "
+                        "`ray start --head` running there?") from None
 
 
 def make_executor(name: str = "local", jobs: int | None = None, address: str | None = None):

@@ -15,8 +15,15 @@ Every torch fold's best-epoch model is exported with the functions in
   metadata plus a ``quantization`` entry), loaded back and scored with onnxruntime; the
   sizes of the float and int8 ONNX files are reported.
 
-The report gives accuracy of the float torch model and of the exported file, per fold
-and pooled, and how many test predictions changed. It is also written to
+The test sets are cut into the model's windows exactly as training did
+(:func:`~tactile_studio.learn.experiment.prepare_inputs`: windows of long trials,
+per-participant normalisation when the run used it), so every fold is scored on the same
+samples its metrics came from. The report gives, per fold and pooled, the per-window
+``accuracy_*`` and the per-trial ``trial_accuracy_*`` (windows aggregated by the run's
+``aggregate``, mean probability by default, or ``vote``) of the reference (the float
+torch model; for rf / knn the probabilities recorded at training) and of the exported
+file, pooled the way metrics.json is (medians over rounds), so the reference figures equal
+the run's metrics.json; and how many window predictions changed. It is also written to
 ``RUN/export/<format>.json``.
 """
 
@@ -33,7 +40,10 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluate import load_run_data
+from tactile_studio.learn.experiment import prepare_inputs
 from tactile_studio.learn.runfolder import model_file, write_json
+from tactile_studio.learn.summary import summarise
+from tactile_studio.learn.windowing import AGGREGATES
 
 ONNX_TOLERANCE = 1e-3
 
@@ -41,46 +51,46 @@ ONNX_TOLERANCE = 1e-3
 def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
                cache_dir: str | None = None, progress: ProgressFn = no_progress,
                cancel: CancelToken | None = None,
-               tolerance: float = ONNX_TOLERANCE, threads: int = 0) -> dict[str, Any]:
+               tolerance: float = ONNX_TOLERANCE, threads: int = 0,
+               aggregate: str | None = None) -> dict[str, Any]:
     """Export every fold model of ``run`` as ``fmt`` (onnx or int8) and score the files on
-    the folds' test sets (see the module doc); ``threads`` are torch's and onnxruntime's
-    CPU threads (0 = their defaults)."""
+    the folds' test windows (see the module doc); ``threads`` are torch's and onnxruntime's
+    CPU threads (0 = their defaults); ``aggregate`` (mean | vote) overrides the run's."""
     import torch
 
     from tactile_studio.learn import export
 
     if fmt not in ("onnx", "int8"):
         raise UserError(f"unknown export format {fmt!r} (available: onnx, int8)")
+    if aggregate is not None and aggregate not in AGGREGATES:
+        raise UserError(f"unknown aggregate {aggregate!r} (available: {', '.join(AGGREGATES)})")
     if threads:
         torch.set_num_threads(threads)
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, device="cpu", progress=lambda f, m: progress(0.2 * f, m),
         cancel=cancel)
+    how = aggregate or config.aggregate
     if learner.kind != "torch":
         if fmt != "onnx":
             raise UserError(f"model '{config.model}' is a scikit-learn baseline: it exports "
                             "as onnx only (int8 is for torch models)")
         return _export_baseline(run, config, resolved, records, ds, learner, info, progress,
-                                cancel, tolerance, threads)
+                                cancel, tolerance, threads, how)
     if fmt == "int8" and not learner.spec.quantizable:
         from tactile_studio.learn.models import MODELS
 
         small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
         raise UserError(f"model '{config.model}' has no int8 export (quantizable: {small})")
     quant_format = export.int8_format(config.model)
-    x, owner = learner.samples(ds)
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)  # windows, as trained
     index = {u: i for i, u in enumerate(ds.uids)}
     out_dir = Path(run) / "export"
-    folds, truth_all, before_all, after_all = [], [], [], []
+    folds, scored = [], []
     for k, rec in enumerate(records):
         if cancel is not None:
             cancel.check()
         progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
-        missing = [u for u in rec["test"] if u not in index]
-        if missing:
-            raise UserError(f"test trial {missing[0]} of fold {rec['name']} is not in the data")
-        test = np.array([index[u] for u in rec["test"]], dtype=np.int64)
-        mask = np.isin(owner, test)
+        mask = _test_mask(rec, index, owner)
         xt = learner.apply_norm(x[mask], rec["norm"])
         yt = ds.labels[owner[mask]]
         fitted = learner.load(model_file(rec["_dir"]), info)
@@ -116,19 +126,9 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
             got = predict(xt) if len(xt) else ref
             entry.update(path=str(path), size_bytes=path.stat().st_size,
                          float_size_bytes=float_size, calibration_samples=int(len(calib)))
-        before, after = ref.argmax(axis=1), got.argmax(axis=1)
-        entry.update(accuracy_torch=float((before == yt).mean()) if len(yt) else 0.0,
-                     accuracy_export=float((after == yt).mean()) if len(yt) else 0.0,
-                     changed_predictions=int((before != after).sum()))
+        scored.append(_scored(rec, owner[mask], yt, _softmax(ref), _softmax(got)))
         folds.append(entry)
-        truth_all.append(yt)
-        before_all.append(before)
-        after_all.append(after)
-    y, b, a = (np.concatenate(v) for v in (truth_all, before_all, after_all))
-    report = {"model": config.model, "format": fmt, "folds": folds, "n": int(len(y)),
-              "accuracy_torch": float((b == y).mean()), "accuracy_export": float((a == y).mean()),
-              "changed_predictions": int((b != a).sum())}
-    report["accuracy_change"] = report["accuracy_export"] - report["accuracy_torch"]
+    report = _report(config.model, fmt, folds, scored, ds.label_names, learner.windowed, how)
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
@@ -139,7 +139,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
 
 
 def _export_baseline(run, config, resolved, records, ds, learner, info, progress,  # noqa: ANN001
-                     cancel, tolerance: float, threads: int) -> dict[str, Any]:
+                     cancel, tolerance: float, threads: int, how: str) -> dict[str, Any]:
     """rf / knn folds are ONNX files already: copy each to ``RUN/export/<fold>.onnx`` with
     the run's metadata, run it with onnxruntime on the fold's test trials and compare with
     the probabilities recorded when the fold was trained (the "torch" fields of the report
@@ -149,18 +149,15 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
     from tactile_studio.learn.baselines import BaselineModel
     from tactile_studio.learn.export import _save_onnx
 
-    x, owner = learner.samples(ds)
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)  # windows, as trained
     index = {u: i for i, u in enumerate(ds.uids)}
     out_dir = Path(run) / "export"
-    folds, truth_all, before_all, after_all = [], [], [], []
+    folds, scored = [], []
     for k, rec in enumerate(records):
         if cancel is not None:
             cancel.check()
         progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
-        missing = [u for u in rec["test"] if u not in index]
-        if missing:
-            raise UserError(f"test trial {missing[0]} of fold {rec['name']} is not in the data")
-        mask = np.isin(owner, np.array([index[u] for u in rec["test"]], dtype=np.int64))
+        mask = _test_mask(rec, index, owner)
         yt = ds.labels[owner[mask]]
         source = model_file(rec["_dir"])
         learner.load(source, info)  # a clear error for a damaged or pre-ONNX fold model
@@ -177,28 +174,72 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
         p = rec["predictions"]
         ref = np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1)
         if len(ref) != len(got):
-            raise UserError(f"fold {rec['name']}: the data gives {len(got)} test trials, "
+            raise UserError(f"fold {rec['name']}: the data gives {len(got)} test windows, "
                             f"the run recorded {len(ref)}")
         diff = float(np.abs(got - ref).max()) if len(got) else 0.0
         if diff > tolerance:
             raise UserError(f"{path}: ONNX probabilities differ from the run's by {diff:.3g} "
                             f"(tolerance {tolerance:g})")
-        before, after = ref.argmax(axis=1), got.argmax(axis=1)
-        folds.append({"name": name, "n": int(len(yt)), "path": str(path), "max_abs_diff": diff,
-                      "accuracy_torch": float((before == yt).mean()) if len(yt) else 0.0,
-                      "accuracy_export": float((after == yt).mean()) if len(yt) else 0.0,
-                      "changed_predictions": int((before != after).sum())})
-        truth_all.append(yt)
-        before_all.append(before)
-        after_all.append(after)
-    y, b, a = (np.concatenate(v) for v in (truth_all, before_all, after_all))
-    report = {"model": config.model, "format": "onnx", "folds": folds, "n": int(len(y)),
-              "accuracy_torch": float((b == y).mean()) if len(y) else 0.0,
-              "accuracy_export": float((a == y).mean()) if len(y) else 0.0,
-              "changed_predictions": int((b != a).sum())}
-    report["accuracy_change"] = report["accuracy_export"] - report["accuracy_torch"]
+        folds.append({"name": name, "n": int(len(yt)), "path": str(path), "max_abs_diff": diff})
+        scored.append(_scored(rec, owner[mask], yt, ref, got))
+    report = _report(config.model, "onnx", folds, scored, ds.label_names, learner.windowed, how)
     write_json(out_dir / "onnx.json", report)
     progress(1.0, "exported")
+    return report
+
+
+def _test_mask(rec: dict[str, Any], index: dict[str, int], owner: np.ndarray) -> np.ndarray:
+    """The samples (windows) of the fold's test trials."""
+    missing = [u for u in rec["test"] if u not in index]
+    if missing:
+        raise UserError(f"test trial {missing[0]} of fold {rec['name']} is not in the data")
+    return np.isin(owner, np.array([index[u] for u in rec["test"]], dtype=np.int64))
+
+
+def _softmax(logits: np.ndarray) -> np.ndarray:
+    z = np.asarray(logits, dtype=np.float64)
+    if not len(z):
+        return z
+    e = np.exp(z - z.max(axis=1, keepdims=True))
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarray,
+            got: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Two fold records (reference, exported) in the run's layout, for ``summarise``."""
+    def one(probs: np.ndarray) -> dict[str, Any]:
+        return {**rec, "heldout_predictions": None,
+                "predictions": {"owner": owner.tolist(), "y_true": y.tolist(),
+                                "probs": np.asarray(probs, dtype=np.float64).tolist()}}
+    return one(ref), one(got)
+
+
+def _report(model: str, fmt: str, folds: list[dict[str, Any]],
+            scored: list[tuple[dict[str, Any], dict[str, Any]]], labels: list[str],
+            windowed: bool, how: str) -> dict[str, Any]:
+    """Per-fold and pooled window / trial accuracy of the reference and the export, pooled
+    as metrics.json pools them (so the reference figures are the run's)."""
+    header = {"aggregate": how}
+    for entry, (ref, got) in zip(folds, scored):
+        r = summarise([ref], labels, windowed, header, True)
+        g = summarise([got], labels, windowed, header, True)
+        before = np.asarray(ref["predictions"]["probs"]).argmax(axis=1) if entry["n"] else []
+        after = np.asarray(got["predictions"]["probs"]).argmax(axis=1) if entry["n"] else []
+        entry.update(n_trials=r["n_trials"], accuracy_torch=r["accuracy"],
+                     accuracy_export=g["accuracy"], trial_accuracy_torch=r["trial_accuracy"],
+                     trial_accuracy_export=g["trial_accuracy"],
+                     changed_predictions=int(np.sum(np.asarray(before) != np.asarray(after))))
+    r = summarise([s[0] for s in scored], labels, windowed, header, True)
+    g = summarise([s[1] for s in scored], labels, windowed, header, True)
+    report = {"model": model, "format": fmt, "aggregate": how, "folds": folds,
+              "n": int(sum(f["n"] for f in folds)), "n_trials": r["n_trials"],
+              "accuracy_torch": r["accuracy"], "accuracy_export": g["accuracy"],
+              "trial_accuracy_torch": r["trial_accuracy"],
+              "trial_accuracy_export": g["trial_accuracy"],
+              "changed_predictions": int(sum(f["changed_predictions"] for f in folds))}
+    report["accuracy_change"] = report["accuracy_export"] - report["accuracy_torch"]
+    report["trial_accuracy_change"] = (report["trial_accuracy_export"]
+                                       - report["trial_accuracy_torch"])
     return report
 
 

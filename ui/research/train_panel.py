@@ -48,6 +48,7 @@ def _typed(text: str, default: Any) -> Any:
 class TrainPanel(QWidget):
     runFinished = Signal(str)
     ablationFinished = Signal(list)
+    sweepRequested = Signal(str, str)  # model, channel set: continue in the Sweep tab
     error = Signal(str)
 
     def __init__(self, data_paths: Callable[[], list[str]], parent: QWidget | None = None) -> None:
@@ -93,6 +94,9 @@ class TrainPanel(QWidget):
         self.cancel_button = QPushButton("Cancel")
         self.resume_button = QPushButton("Resume")
         self.ablate_button = QPushButton("Channel ablation: normal / shear / both")
+        self.sweep_button = QPushButton("Compare several models in parallel (Sweep tab)…")
+        self.sweep_button.setToolTip("models x channel sets on local worker processes or "
+                                     "a Ray cluster, with a results table")
         buttons = QHBoxLayout()
         for b in (self.start_button, self.cancel_button, self.resume_button):
             buttons.addWidget(b)
@@ -103,6 +107,7 @@ class TrainPanel(QWidget):
         ll.addWidget(self.options, 1)
         ll.addLayout(buttons)
         ll.addWidget(self.ablate_button)
+        ll.addWidget(self.sweep_button)
         self.progress = QProgressBar()
         self.status = QLabel("Pick sessions in the Sessions tab, then Train.")
         self.status.setWordWrap(True)
@@ -132,6 +137,8 @@ class TrainPanel(QWidget):
         self.resume_button.clicked.connect(self.start)
         self.cancel_button.clicked.connect(self.cancel)
         self.ablate_button.clicked.connect(self.start_ablation)
+        self.sweep_button.clicked.connect(lambda: self.sweepRequested.emit(
+            self.model.currentText(), self.channels.currentText()))
         self.fill_options()
         self._set_running(False)
 

@@ -1,4 +1,5 @@
-"""The research workspace window: Sessions, Runs, Confusion matrix and Compare tabs.
+"""The research workspace window: Sessions, Train, Sweep, Runs, Confusion matrix, Compare
+and Session player tabs.
 
 Every failure to read a run or a session is shown in the window's message line; the
 window stays usable.
@@ -19,6 +20,7 @@ from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
+from tactile_studio.ui.research.sweep_panel import SweepPanel
 from tactile_studio.ui.research.train_panel import TrainPanel
 
 
@@ -35,7 +37,9 @@ class ResearchWindow(QMainWindow):
         self.compare = CompareView()
         self.player = SessionPlayer()
         self.train = TrainPanel(self.sessions.selected_paths)
-        for w, name in ((self.sessions, "Sessions"), (self.train, "Train"), (self.runs, "Runs"),
+        self.sweep = SweepPanel(self.sessions.selected_paths)
+        for w, name in ((self.sessions, "Sessions"), (self.train, "Train"),
+                        (self.sweep, "Sweep"), (self.runs, "Runs"),
                         (self.confusion, "Confusion matrix"), (self.compare, "Compare"),
                         (self.player, "Session player")):
             self.tabs.addTab(w, name)
@@ -55,6 +59,10 @@ class ResearchWindow(QMainWindow):
         self.train.runFinished.connect(self._run_finished)
         self.train.ablationFinished.connect(
             lambda runs: self.compare_runs(runs[0], runs[-1]))
+        self.sweep.error.connect(self.show_error)
+        self.sweep.sweepFinished.connect(self._sweep_finished)
+        self.sweep.openRequested.connect(self.open_run)
+        self.train.sweepRequested.connect(self._to_sweep)
         open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
         open_session.triggered.connect(self._browse_session)
         self.resize(1200, 760)
@@ -92,6 +100,9 @@ class ResearchWindow(QMainWindow):
     def closeEvent(self, event) -> None:  # noqa: ANN001, N802 - Qt name and signature
         if self.train.job is not None and self.train.job.running:
             self.train.cancel()  # the worker stops after its epoch; folds are kept
+        if self.sweep.job is not None and self.sweep.job.running:
+            self.sweep.cancel()  # workers are ended; finished tasks are kept
+            self.sweep.job.wait(10.0)
         super().closeEvent(event)
 
     def _run_finished(self, out: str) -> None:
@@ -101,6 +112,20 @@ class ResearchWindow(QMainWindow):
         else:
             self.runs.set_root(self.runs.root.text())
         self.show_info(f"run finished: {out}")
+
+    def _to_sweep(self, model: str, channels: str) -> None:
+        """The Train tab's model and channel set join the Sweep tab's ticks."""
+        self.sweep.set_models(sorted({*self.sweep.checked_models(), model}))
+        self.sweep.set_channels([*self.sweep.checked_channels(), channels])
+        self.sweep.preset.setCurrentText(self.train.preset.currentText())
+        self.sweep.protocol.setCurrentText(self.train.protocol.currentText())
+        self.tabs.setCurrentWidget(self.sweep)
+
+    def _sweep_finished(self, out: str) -> None:
+        """The sweep's runs (one per model x channel set) join the Runs tab."""
+        self.runs.set_root(out)
+        n = len(self.runs.rows)
+        self.show_info(f"sweep saved in {out}: {n} run(s) listed in the Runs tab")
 
     def _browse_session(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open session", "", "Sessions (*.h5)")

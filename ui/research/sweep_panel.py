@@ -1,0 +1,357 @@
+"""Sweep panel: several models x channel sets under one evaluation protocol, run by the
+same executors as ``tactile-studio sweep`` (local worker processes or a Ray cluster),
+with per-task progress, cancel and the sweep's results table. The sweep itself is
+:class:`~tactile_studio.learn.sweep_job.SweepJob` (core); this widget only gathers the
+choices, shows the events and remembers the choices in QSettings."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from PySide6.QtCore import QSettings, Qt, QTimer, Signal
+from PySide6.QtGui import QFont
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QListWidget,
+    QListWidgetItem,
+    QProgressBar,
+    QPushButton,
+    QSpinBox,
+    QSplitter,
+    QVBoxLayout,
+    QWidget,
+)
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.learners import available_models
+from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
+from tactile_studio.ui.research.tables import fill_row, make_table
+from tactile_studio.ui.settings import app_settings, get_json, set_json
+
+RESULT_COLUMNS = ["model", "channels", "folds", "accuracy", "trial acc.", "macro F1",
+                  "bal. acc.", "kappa", "train s"]
+TASK_COLUMNS = ["task", "model", "channels", "fold accuracy", "train s"]
+CHANNEL_SETS = ("normal", "shear", "both")
+KEY = "research/sweep/"
+
+
+def _pct(v: Any) -> str:
+    return "" if v is None else f"{100 * v:.1f}%"
+
+
+def _clock(seconds: float | None) -> str:
+    if seconds is None:
+        return "–"
+    s = int(round(seconds))
+    return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+class SweepPanel(QWidget):
+    sweepFinished = Signal(str)   # the sweep folder (its runs/ hold one run per row)
+    openRequested = Signal(str)   # a results row's run folder
+    error = Signal(str)
+
+    def __init__(self, data_paths: Callable[[], list[str]], settings: QSettings | None = None,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.data_paths = data_paths
+        self.settings = settings or app_settings()
+        self.job: SweepJob | None = None
+        self.rows: list[dict[str, Any]] = []
+        self.models = QListWidget()
+        for name, text in available_models().items():
+            item = QListWidgetItem(name)
+            item.setToolTip(text)
+            item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+            item.setCheckState(Qt.CheckState.Unchecked)
+            self.models.addItem(item)
+        self.models.setSpacing(1)
+        rows = self.models.sizeHintForRow(0) + 2 * self.models.spacing()
+        self.models.setFixedHeight(rows * self.models.count() + 2 * self.models.frameWidth() + 4)
+        self.channel_boxes = {c: QCheckBox(c) for c in CHANNEL_SETS}
+        channels = QHBoxLayout()
+        for box in self.channel_boxes.values():
+            channels.addWidget(box)
+        channels.addStretch(1)
+        self.preset = QComboBox()
+        self.preset.addItems(["tiny", "full"])
+        self.protocol = QComboBox()
+        self.protocol.addItems(["lopo", "group-kfold", "all-inclusive"])
+        self.rounds = QSpinBox()
+        self.rounds.setRange(1, 20)
+        self.epochs = QSpinBox()
+        self.epochs.setRange(0, 1000)
+        self.epochs.setSpecialValueText("model default")
+        self.executor = QComboBox()
+        self.executor.addItem("Local worker processes", "local")
+        self.executor.addItem("Ray cluster", "ray")
+        self.jobs = QSpinBox()
+        self.jobs.setRange(1, 512)
+        self.jobs.setToolTip("worker processes (local) or CPUs of a local Ray instance")
+        self.address = QLineEdit()
+        self.address.setPlaceholderText("HOST:PORT (empty: a local Ray instance)")
+        self.out = QLineEdit()
+        self.out.setPlaceholderText("sweep folder (re-use it to continue a sweep)")
+        self.browse = QPushButton("Browse…")
+        out_row = QHBoxLayout()
+        out_row.addWidget(self.out, 1)
+        out_row.addWidget(self.browse)
+        form = QFormLayout()
+        form.addRow("Models", self.models)
+        form.addRow("Channel sets", channels)
+        for label, w in (("Preset", self.preset), ("Evaluation", self.protocol),
+                         ("Rounds", self.rounds), ("Epochs", self.epochs),
+                         ("Executor", self.executor), ("Jobs", self.jobs),
+                         ("Ray address", self.address)):
+            form.addRow(label, w)
+        form.addRow("Sweep folder", out_row)
+        self.start_button = QPushButton("Start sweep")
+        self.cancel_button = QPushButton("Cancel")
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.start_button)
+        buttons.addWidget(self.cancel_button)
+        left = QWidget()
+        ll = QVBoxLayout(left)
+        ll.addLayout(form)
+        ll.addLayout(buttons)
+        ll.addStretch(1)
+        self.progress = QProgressBar()
+        self.counts = QLabel("")
+        self.status = QLabel("Pick sessions in the Sessions tab, tick models and channel "
+                             "sets, then Start sweep.")
+        self.status.setWordWrap(True)
+        self.results = make_table(RESULT_COLUMNS)
+        self.results.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
+        self.results.setSortingEnabled(True)
+        self.results.setToolTip("double-click a row to open its run's confusion matrix")
+        self.tasks = make_table(TASK_COLUMNS)
+        right = QWidget()
+        rl = QVBoxLayout(right)
+        rl.addWidget(self.progress)
+        rl.addWidget(self.counts)
+        rl.addWidget(self.status)
+        rl.addWidget(QLabel("Results (pooled over folds; trial acc. aggregates each trial's "
+                            "windows; rows fill in as folds finish)"))
+        rl.addWidget(self.results, 3)
+        rl.addWidget(QLabel("Finished tasks (newest first)"))
+        rl.addWidget(self.tasks, 2)
+        split = QSplitter()
+        split.addWidget(left)
+        split.addWidget(right)
+        split.setSizes([380, 820])
+        QVBoxLayout(self).addWidget(split)
+        self.timer = QTimer(self)
+        self.timer.setInterval(100)
+        self.timer.timeout.connect(self.poll)
+        self.start_button.clicked.connect(self.start)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.browse.clicked.connect(self._browse)
+        self.executor.currentIndexChanged.connect(self._executor_changed)
+        self.results.cellDoubleClicked.connect(self._open_row)
+        self._load_settings()
+        self._executor_changed()
+        self._set_running(False)
+
+    # --- choices -------------------------------------------------------------------------
+    def checked_models(self) -> list[str]:
+        return [self.models.item(i).text() for i in range(self.models.count())
+                if self.models.item(i).checkState() == Qt.CheckState.Checked]
+
+    def set_models(self, names: list[str]) -> None:
+        for i in range(self.models.count()):
+            item = self.models.item(i)
+            item.setCheckState(Qt.CheckState.Checked if item.text() in names
+                               else Qt.CheckState.Unchecked)
+
+    def checked_channels(self) -> list[str]:
+        return [c for c, box in self.channel_boxes.items() if box.isChecked()]
+
+    def set_channels(self, sets: list[str]) -> None:
+        for c, box in self.channel_boxes.items():
+            box.setChecked(c in sets)
+
+    def executor_choice(self) -> ExecutorChoice:
+        name = self.executor.currentData()
+        return ExecutorChoice(name, self.jobs.value(),
+                              self.address.text().strip() or None if name == "ray" else None)
+
+    def config(self) -> ExperimentConfig:
+        data = self.data_paths()
+        if not data:
+            raise UserError("no sessions selected: pick sessions with ok trials in the "
+                            "Sessions tab")
+        if not self.checked_models():
+            raise UserError("tick at least one model")
+        if not self.checked_channels():
+            raise UserError("tick at least one channel set")
+        if not self.out.text().strip():
+            raise UserError("choose a sweep folder first")
+        return ExperimentConfig(data=data, model=self.checked_models()[0],
+                                preset=self.preset.currentText(),
+                                protocol=self.protocol.currentText(),
+                                rounds=self.rounds.value(), epochs=self.epochs.value() or None,
+                                threads=1, device="cpu")
+
+    def _executor_changed(self) -> None:
+        self.address.setEnabled(self.executor.currentData() == "ray")
+
+    def _browse(self) -> None:
+        start = self.out.text().strip() or str(self.settings.value(KEY + "last_dir", ""))
+        folder = QFileDialog.getExistingDirectory(self, "Sweep folder", start)
+        if folder:
+            self.out.setText(folder)
+            self.settings.setValue(KEY + "last_dir", str(Path(folder).parent))
+
+    def _load_settings(self) -> None:
+        s = self.settings
+        self.set_models(get_json(s, KEY + "models", ["rf", "knn"]))
+        self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
+        index = self.executor.findData(str(s.value(KEY + "executor", "local")))
+        self.executor.setCurrentIndex(max(0, index))
+        self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
+        self.address.setText(str(s.value(KEY + "address", "") or ""))
+        for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
+            saved = s.value(KEY + key)
+            if saved and combo.findText(str(saved)) >= 0:
+                combo.setCurrentText(str(saved))
+        self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
+
+    def save_settings(self) -> None:
+        s = self.settings
+        set_json(s, KEY + "models", self.checked_models())
+        set_json(s, KEY + "channels", self.checked_channels())
+        s.setValue(KEY + "executor", self.executor.currentData())
+        set_json(s, KEY + "jobs", self.jobs.value())
+        s.setValue(KEY + "address", self.address.text().strip())
+        s.setValue(KEY + "preset", self.preset.currentText())
+        s.setValue(KEY + "protocol", self.protocol.currentText())
+        set_json(s, KEY + "rounds", self.rounds.value())
+        if self.out.text().strip():
+            s.setValue(KEY + "last_dir", str(Path(self.out.text().strip()).parent))
+        s.sync()
+
+    # --- running -------------------------------------------------------------------------
+    def start(self) -> bool:
+        try:
+            base = self.config()
+        except UserError as exc:
+            self.error.emit(str(exc))
+            self.status.setText(str(exc))
+            return False
+        self.save_settings()
+        self.tasks.setRowCount(0)
+        self._show_rows([])
+        self.progress.setValue(0)
+        out = str(Path(self.out.text().strip()).expanduser())
+        self.job = SweepJob(base, self.checked_models(), self.checked_channels(),
+                            self.executor_choice(), out).start()
+        self.status.setText(f"starting: {len(self.checked_models())} model(s) x "
+                            f"{len(self.checked_channels())} channel set(s), "
+                            f"{self.protocol.currentText()}, into {out}")
+        self._set_running(True)
+        self.timer.start()
+        return True
+
+    def cancel(self) -> None:
+        if self.job is not None and self.job.running:
+            self.job.cancel()
+            self.status.setText("cancelling: stopping the workers (finished tasks are kept)…")
+
+    def _set_running(self, on: bool) -> None:
+        self.start_button.setEnabled(not on)
+        self.cancel_button.setEnabled(on)
+
+    def poll(self) -> None:
+        job = self.job
+        if job is None:
+            return
+        for e in job.poll():
+            if e["type"] == "progress":
+                self.progress.setValue(int(100 * e["fraction"]))
+                self.status.setText(e["message"])
+            elif e["type"] == "task":
+                self._task_row(e)
+                self._partial_row(e["row"])
+        self.counts.setText(f"tasks {job.done} / {job.total or '?'} · elapsed "
+                            f"{_clock(job.elapsed())} · about {_clock(job.eta())} left")
+        if job.finished is not None:
+            self.timer.stop()
+            self._finished(job)
+
+    def _task_row(self, e: dict[str, Any]) -> None:
+        self.tasks.insertRow(0)  # newest first: the latest task is always in view
+        fill_row(self.tasks, 0, [e["id"], e["model"], e["channels"], e["accuracy"],
+                                 e["seconds"]],
+                 [None, None, None, _pct(e["accuracy"]), f"{e['seconds']:.1f}"])
+
+    def _partial_row(self, row: dict[str, Any]) -> None:
+        """While running: the (model, channel set)'s row over its folds finished so far."""
+        rows = [r for r in self.rows
+                if (r["model"], r["channels"]) != (row["model"], row["channels"])]
+        self._show_rows(sorted([*rows, row], key=self._order))
+
+    def _order(self, row: dict[str, Any]) -> tuple[int, int]:
+        """The sweep's own order: models, then channel sets, as chosen."""
+        job = self.job
+        models, sets = (job.models, job.channel_sets) if job is not None else ([], [])
+        return (models.index(row["model"]) if row["model"] in models else len(models),
+                sets.index(row["channels"]) if row["channels"] in sets else len(sets))
+
+    def _finished(self, job: SweepJob) -> None:
+        f = job.finished or {}
+        self._set_running(False)
+        self.counts.setText(f"tasks {job.done} / {job.total} · took {_clock(job.elapsed())}")
+        if f.get("type") == "done":
+            self.progress.setValue(100)
+            self._show_rows(f["rows"])
+            best = max((r for r in f["rows"] if r.get("trial_accuracy") is not None),
+                       key=lambda r: r["trial_accuracy"], default=None)
+            self.status.setText(f"finished into {job.out}" + (
+                f"; best per trial: {best['model']} on {best['channels']} "
+                f"({_pct(best['trial_accuracy'])})" if best else ""))
+            self.sweepFinished.emit(job.out)
+        elif f.get("type") == "cancelled":
+            self._show_rows(f.get("rows") or [])
+            self.status.setText(f"{f['message']}; Start sweep with the same folder continues")
+            self.sweepFinished.emit(job.out)
+        else:
+            self.status.setText("stopped: " + str(f.get("message")))
+            self.error.emit(str(f.get("message")))
+
+    def _show_rows(self, rows: list[dict[str, Any]]) -> None:
+        self.rows = list(rows)
+        self.results.setSortingEnabled(False)
+        self.results.horizontalHeader().setSortIndicator(-1, Qt.SortOrder.AscendingOrder)
+        self.results.setRowCount(len(rows))
+        best = max((r.get("trial_accuracy") or -1.0 for r in rows), default=None)
+        for i, row in enumerate(rows):
+            keys = ("accuracy", "trial_accuracy", "f1_macro", "balanced_accuracy", "kappa")
+            values = [row["model"], row["channels"], f"{row['folds_done']}/{row['folds']}",
+                      *(row.get(k) for k in keys), row.get("train_seconds")]
+            texts = [None, None, None, *(_pct(row.get(k)) for k in keys[:4]),
+                     "" if row.get("kappa") is None else f"{row['kappa']:.3f}",
+                     "" if row.get("train_seconds") is None else f"{row['train_seconds']:.1f}"]
+            fill_row(self.results, i, values, texts)
+            for c in range(len(RESULT_COLUMNS)):
+                self.results.item(i, c).setData(Qt.ItemDataRole.UserRole + 1, row.get("run"))
+            if best is not None and best >= 0 and row.get("trial_accuracy") == best:
+                font = QFont(self.results.font())
+                font.setBold(True)
+                for c in range(len(RESULT_COLUMNS)):
+                    self.results.item(i, c).setFont(font)
+        self.results.setSortingEnabled(True)
+
+    def _open_row(self, r: int, _c: int) -> None:
+        run = self.results.item(r, 0).data(Qt.ItemDataRole.UserRole + 1)
+        if run:
+            self.openRequested.emit(str(run))
