@@ -76,7 +76,10 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
                             "as onnx only (int8 is for torch models)")
         return _export_baseline(run, config, resolved, records, ds, learner, info, progress,
                                 cancel, tolerance, threads, how)
-    if fmt == "int8" and not learner.spec.quantizable:
+    if "onnx" not in learner.facts.export:
+        raise UserError(f"model '{config.model}' declares no ONNX export "
+                        f"(it exports as: {', '.join(learner.facts.export) or 'nothing'})")
+    if fmt == "int8" and not learner.facts.quantizable:
         from tactile_studio.learn.models import MODELS
 
         small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
