@@ -102,3 +102,42 @@ def test_parallel_chunk_reader_equals_h5py_on_any_slice(tmp_path):
             assert np.array_equal(read_rows(f["raw"], a, b), raw[a:b])
             assert np.array_equal(read_rows(f["t"], a, b), times[a:b])
             assert np.array_equal(read_rows(f["plain"], a, b), raw[a:b])
+
+
+def test_background_compression_keeps_the_file_whole_and_guards_the_name(tmp_path):
+    """The GUI compresses a stopped recording on a worker thread: the file is complete
+    before and after, and a new writer at the same name waits so the swap cannot land on
+    the newer recording."""
+    from tactile_studio.storage.session_compress import wait_for_compression
+
+    raw = np.tile(_frames(2000), (10, 1))  # ~0.2 s to compress: the writer comes first
+    t = 1.69e9 + np.arange(20000) / 43.0
+    p = tmp_path / "s.h5"
+    w = SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P01"})
+    w.append_frames(raw, t, t, np.arange(20000))
+    w.close(background=True)
+    with Session(p) as s:  # readable at once, whichever copy is in place
+        assert s.n_frames == 20000
+    with SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P02"}) as w2:
+        w2.append_frames(raw[:10], t[:10], t[:10], np.arange(10))
+    assert wait_for_compression(timeout=30)
+    with Session(p) as s:  # the newer recording, not the older one swapped over it
+        assert s.n_frames == 10 and s.metadata["participant"] == "P02"
+    with h5py.File(p, "r") as f:
+        assert f["frames/raw"].compression == "gzip"
+    assert not list(tmp_path.glob(".*compressing"))
+
+
+def test_background_compression_ends_compressed(tmp_path):
+    from tactile_studio.storage.session_compress import wait_for_compression
+
+    raw = _frames(500)
+    t = 1.69e9 + np.arange(500) / 43.0
+    p = tmp_path / "s.h5"
+    w = SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {})
+    w.append_frames(raw, t, t, np.arange(500))
+    w.close(background=True)
+    assert wait_for_compression(p, timeout=30)
+    with h5py.File(p, "r") as f:
+        assert f["frames/raw"].compression == "gzip"
+        np.testing.assert_array_equal(f["frames/raw"][:], raw)

@@ -13,5 +13,7 @@ from tactile_studio.live.session import AcquisitionSession
 class LiveController(AcquisitionSession):
     """The main window's acquisition session (one device at a time, reconnectable)."""
 
+    compress_in_background = True  # stopping a recording must not freeze the window
+
 
 __all__ = ["LiveController"]

@@ -50,6 +50,9 @@ class AcquisitionSession:
     (path, reason: ``requested``, ``limit`` or ``device``).
     """
 
+    #: compress a stopped recording on a worker thread (the GUI's session sets it)
+    compress_in_background = False
+
     def __init__(self, *, capacity: int = 1 << 16,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.capacity = capacity
@@ -181,7 +184,8 @@ class AcquisitionSession:
         if rec is None:
             return None
         self._close_outlets()  # an outlet's last markers go into the file too
-        rec.stop()  # idempotent: a collection session may have closed it already
+        # idempotent: a collection session may have closed it already
+        rec.stop(background_compress=self.compress_in_background)
         self._emit("recording_stopped", path=str(rec.path), reason=reason)
         return str(rec.path)
 

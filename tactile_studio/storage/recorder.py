@@ -174,15 +174,17 @@ class Recorder:
         self._thread.start()
         return self
 
-    def stop(self) -> None:
-        """Write what is left, then close the file cleanly (once; later calls do nothing)."""
+    def stop(self, background_compress: bool = False) -> None:
+        """Write what is left, then close the file cleanly (once; later calls do nothing).
+        With ``background_compress`` the file is compressed on a worker thread (a GUI
+        caller does not freeze; the complete uncompressed file is there meanwhile)."""
         if self.stopped:
             return
         self._stop.set()
         if self._thread.ident is not None:  # never started: catch_up() did the pulling
             self._thread.join()
         self._drain()
-        self.writer.close()
+        self.writer.close(background=background_compress)
         self._log_usage()
 
     @property

@@ -31,7 +31,9 @@ from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.session_compress import (
     LIVE_CHUNK_BYTES,
     chunk_rows,
+    compress_in_background,
     compress_session_file,
+    wait_for_compression,
 )
 from tactile_studio.storage.session_format import FORMAT, SCHEMA_VERSION, read_journal
 
@@ -57,6 +59,7 @@ class SessionWriter:
         self._lock = threading.RLock()
         if self.path.parent and not self.path.parent.exists():
             raise SessionFileError(f"{self.path}: folder {self.path.parent} does not exist")
+        wait_for_compression(self.path)  # an earlier recording's swap must not land on us
         try:
             self._f = h5py.File(self.path, "w", libver="latest", locking=False)
         except OSError as exc:
@@ -172,9 +175,10 @@ class SessionWriter:
                 self._f.flush()
                 self._last_flush = time.monotonic()
 
-    def close(self, compress: bool = True) -> None:
+    def close(self, compress: bool = True, background: bool = False) -> None:
         """Flush, close, write human-readable copies of the journal as attributes, and
-        (unless ``compress`` is False) rewrite the file compressed."""
+        (unless ``compress`` is False) rewrite the file compressed, on a worker thread
+        with ``background`` (see :func:`compress_in_background`)."""
         with self._lock:
             if self._closed:
                 return
@@ -187,7 +191,9 @@ class SessionWriter:
             f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
             f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
             f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
-        if compress:
+        if compress and background:
+            compress_in_background(self.path)
+        elif compress:
             compress_session_file(self.path)
 
     def __enter__(self) -> SessionWriter:
