@@ -32,6 +32,7 @@ class ArrayStream:
         self.raw = (1000 + rng.integers(0, 50, (n_total, c))).astype(self.layout.raw_dtype)
         self.device_time = np.arange(n_total) / RATE
         self.baseline: np.ndarray | None = None
+        self.baseline_frames = 100
         self.capacity = capacity
         self.running = True
         self._n = 0

@@ -70,6 +70,17 @@ class SetupPage(QWizardPage):
         form.addRow("Sensor id:", self.sensor)
         form.addRow("Output folder:", self.out)
 
+    def instruments(self) -> list[str]:
+        """Plugin name and settings text of the device, stage and load cell, in order."""
+        return [t for kind in ("device", "stage", "force")
+                for t in (self.combos[kind].currentText(), self.sets[kind].text())]
+
+    def sensor_id(self) -> str | None:
+        return self.sensor.text().strip() or None
+
+    def out_dir(self) -> Path:
+        return Path(self.out.text().strip() or "characterisation")
+
 
 class PlanPage(QWizardPage):
     def __init__(self) -> None:
@@ -104,6 +115,9 @@ class PlanPage(QWizardPage):
                 self.table.item(i, 1).setText(value)
                 return
         raise KeyError(name)
+
+    def taxels_text(self) -> str:
+        return self.taxels.text()
 
     def params(self) -> dict[str, str]:
         defaults = dict(plan_fields())
@@ -235,14 +249,11 @@ class CharacteriseWizard(QWizard):
 
     @property
     def out_dir(self) -> Path:
-        return Path(self.setup.out.text().strip() or "characterisation")
+        return self.setup.out_dir()
 
     def prepare_run(self):  # noqa: ANN201
-        s = self.setup
-        return prepare(s.combos["device"].currentText(), s.sets["device"].text(),
-                       s.combos["stage"].currentText(), s.sets["stage"].text(),
-                       s.combos["force"].currentText(), s.sets["force"].text(),
-                       self.plan_page.taxels.text(), self.plan_page.params())
+        return prepare(*self.setup.instruments(), self.plan_page.taxels_text(),
+                       self.plan_page.params())
 
     def _page_changed(self, page_id: int) -> None:
         if self.page(page_id) is self.run_page and self._thread is None:
@@ -252,7 +263,7 @@ class CharacteriseWizard(QWizard):
 
     def _start(self) -> None:
         p, bridge, out = self.prepared, self._bridge, self.out_dir
-        sensor = self.setup.sensor.text().strip() or None
+        sensor = self.setup.sensor_id()
 
         def work() -> None:
             result, error = None, ""

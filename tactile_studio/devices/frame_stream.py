@@ -23,6 +23,7 @@ class FrameStream(Protocol):
 
     layout: Layout
     baseline: np.ndarray | None  # the current tare (None until the first one)
+    baseline_frames: int  # frames a tare averages (the first one starts at frame 0)
 
     @property
     def frames(self) -> int:
