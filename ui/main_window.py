@@ -97,6 +97,7 @@ class MainWindow(QMainWindow):
         self.panel.engineChanged.connect(self._on_engine_changed)
         self.panel.device_box.currentIndexChanged.connect(self._on_device_chosen)
         self.strip.clearRequested.connect(lambda: self.set_strip_taxels([]))
+        self.strip.quantityChanged.connect(lambda _q: self._draw_strip(time.monotonic()))
 
         if persist:
             self.restore_settings(device)
@@ -228,6 +229,7 @@ class MainWindow(QMainWindow):
                 if self._shown is not None:
                     self._shown = None
                     self.heatmap.clear()
+                    self._draw_strip(now)
                 return
             if frame is not self._shown:
                 self.pacer.painted(now)
@@ -235,7 +237,13 @@ class MainWindow(QMainWindow):
                 self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y,
                                        frame.units)
                 self._update_readout()
-        if now - self._strip_drawn >= STRIP_INTERVAL_S and self.strip_dock.isVisible():
+                # with a new frame only, so the chart is painted in the heatmap's repaint
+                # pass rather than in one of its own
+                if now - self._strip_drawn >= STRIP_INTERVAL_S:
+                    self._draw_strip(now)
+
+    def _draw_strip(self, now: float) -> None:
+        if self.strip_dock.isVisible():
             self._strip_drawn = now
             self.strip.set_history(self.live.history(self.strip_taxels,
                                                      self.strip.quantity()))
@@ -307,6 +315,7 @@ class MainWindow(QMainWindow):
         """Chart these physical (row, col) taxels."""
         self.strip_taxels = [(int(r), int(c)) for r, c in taxels]
         self._mark_strip_taxels()
+        self._draw_strip(time.monotonic())  # now, even if no new frame comes
 
     def _mark_strip_taxels(self) -> None:
         self.heatmap.set_marked_cells(self.strip_taxels, strip_colors(len(self.strip_taxels)))
