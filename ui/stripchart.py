@@ -18,7 +18,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.live import QUANTITIES, QUANTITY_LABELS, History
-from tactile_studio.ui.heatmap import BACKGROUND, FOREGROUND, strip_colors
+from tactile_studio.ui.heatmap_colors import BACKGROUND, FOREGROUND, strip_colors
 
 
 class _Traces(pg.GraphicsObject):
