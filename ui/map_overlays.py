@@ -11,6 +11,7 @@ from __future__ import annotations
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, QRectF, Qt
 from PySide6.QtGui import QColor, QFont, QPainter, QPen
+from PySide6.QtWidgets import QGraphicsItem
 
 _ALIGN = {  # anchor (x, y) of the text box at the label's point -> Qt alignment
     (1.0, 0.5): Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter,
@@ -33,6 +34,9 @@ class AxisLabels(pg.GraphicsObject):
         self._rect = QRectF()
         self._pen = QPen(QColor(color))
         self._font = QFont(font)
+        # arrows at the grid's edge reach into the margins, so the labels are repainted
+        # with the map: from a cached pixmap, not by laying out their text again
+        self.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
 
     def set_labels(self, labels: list[tuple[str, float, float]],
                    anchor: tuple[float, float], area: QRectF) -> None:
