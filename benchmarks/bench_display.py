@@ -119,6 +119,8 @@ def _load() -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="measuring time per rate")
+    parser.add_argument("--rates", type=float, nargs="+", default=[43.0, 1000.0],
+                        help="device rates to measure (Hz)")
     args = parser.parse_args(argv)
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -129,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"(1-minute load average {load:.1f} on {os.cpu_count()} CPUs at the start: a busy "
           "machine lowers fps and raises latency and wall times)")
     rows = []
-    for rate in (43.0, 1000.0):
+    for rate in args.rates:
         for taxels in ([], STRIP_8):
             r = bench_window(rate, args.seconds, strip_taxels=taxels)
             r.update(rate=rate, taxels=len(taxels), load=_load())
