@@ -3,7 +3,9 @@
 A fast poll timer looks for a new frame every few milliseconds and a
 :class:`PaintPacer` draws it at once, or when a display period (1/display_hz) has passed
 since the last paint — never one repaint per sample, so a 1 kHz device costs the GUI no
-more than a 60 Hz one, and a 43 Hz frame waits milliseconds, not a display period.
+more than a 60 Hz one, and a 43 Hz frame waits milliseconds, not a display period. The
+strip chart is redrawn with a new frame (at most every STRIP_INTERVAL_S), so the chart and
+the map are painted in one repaint pass.
 Device-to-paint latency is measured when the heatmap has actually painted.
 """
 
