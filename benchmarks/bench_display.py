@@ -139,11 +139,11 @@ def main(argv: list[str] | None = None) -> int:
     print("GUI ms/frame: the GUI thread's CPU time (thread_time: polls, decode, set-up and "
           "paint,\nless sensitive to other processes than wall time) between consecutive "
           "painted frames,\nmedian, p95 and mean (total over painted frames); core: share "
-          "of one core.")
-    print(f"{'input':>7} {'strip':>6} {'fps':>5} | {'GUI ms/frame med':>16} {'p95':>5} "
+          "of one core;\npolls: looks for a new frame per second.")
+    print(f"{'input':>7} {'strip':>6} {'polls':>5} {'fps':>5} | {'GUI ms/frame med':>16} {'p95':>5} "
           f"{'mean':>5} {'core':>6} | {'latency med':>11} {'p95':>5} {'p99':>5} | {'load':>4}")
     for r in rows:
-        print(f"{r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['display_fps']:5.1f} | "
+        print(f"{r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['polls_hz']:4.0f}/s {r['display_fps']:5.1f} | "
               f"{r['cpu_ms_med']:13.2f} ms {r['cpu_ms_p95']:5.2f} {r['cpu_ms_mean']:5.2f} "
               f"{r['gui_cpu_pct']:5.1f}% | {r['latency_med_ms']:8.1f} ms "
               f"{r['latency_p95_ms']:5.1f} {r['latency_p99_ms']:5.1f} | {r['load']:4.1f}")
