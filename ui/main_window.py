@@ -5,9 +5,8 @@ A fast poll timer looks for a new frame every few milliseconds and a
 since the last paint — never one repaint per sample, so a 1 kHz device costs the GUI no
 more than a 60 Hz one, and a 43 Hz frame waits milliseconds, not a display period.
 Between a paint and the next one the pacer allows, polling pauses (one timer instead of
-several wake-ups of the GUI thread). The
-strip chart is redrawn with a new frame (at most every STRIP_INTERVAL_S), so the chart and
-the map are painted in one repaint pass.
+several wake-ups of the GUI thread). The strip chart is redrawn with a new frame (at most
+every STRIP_INTERVAL_S), so the chart and the map are painted in one repaint pass.
 Device-to-paint latency is measured when the heatmap has actually painted.
 """
 
