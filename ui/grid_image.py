@@ -85,8 +85,8 @@ class GridImage(pg.GraphicsObject):
         s = self._scratch
         np.subtract(self._data, lo, out=s)
         np.multiply(s, scale, out=s)
-        np.nan_to_num(s, copy=False, nan=0.0)
-        np.clip(s, 0, n - 1, out=s)
+        np.fmax(s, 0.0, out=s)  # fmax, not clip: NaN becomes 0 too
+        np.fmin(s, n - 1, out=s)
         np.take(self._table, s.astype(np.intp), out=self._buf)
         self.update()
 

@@ -12,17 +12,13 @@ import math
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QPointF, QRectF, Qt, Signal
+from PySide6.QtCore import QRectF, Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
-    QButtonGroup,
-    QCheckBox,
     QComboBox,
-    QDoubleSpinBox,
     QHBoxLayout,
     QLabel,
     QSizePolicy,
-    QToolButton,
     QVBoxLayout,
     QWidget,
 )
@@ -30,42 +26,22 @@ from PySide6.QtWidgets import (
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.ui.arrow_field import ArrowField
 from tactile_studio.ui.grid_image import CellMarks, GridImage
-
-BACKGROUND = "#ffffff"
-FOREGROUND = "#303030"
-DEFAULT_MAX_KPA = 10.0
-# Arrow length in taxel pitches per kPa (2 kPa of shear is one pitch long). The same in
-# both grids, so toggling physical/virtual does not change what an arrow means.
-DEFAULT_ARROW_SCALE = 0.5
-# Colour schemes: "sequential" maps 0..max (stress below baseline shows as 0);
-# "diverging" puts white at 0, load in reds and stress below baseline (counts above the
-# baseline, e.g. a neighbouring taxel lifted) in blues, down to -NEGATIVE_SHARE x max.
-COLOR_SCHEMES = {"sequential": "viridis 0…max", "diverging": "diverging ±"}
-NEGATIVE_SHARE = 0.25
-_NEG_STOPS = ["#053061", "#2166ac", "#4393c3", "#92c5de", "#d1e5f0"]
-_POS_STOPS = ["#fddbc7", "#f4a582", "#d6604d", "#b2182b", "#67001f"]
-_ZERO = "#f7f7f7"
-
-
-def diverging_colormap(lo: float, hi: float) -> pg.ColorMap:
-    """Blues below 0, white at 0, reds above, for levels ``lo < 0 < hi`` (zero stays white
-    however asymmetric the range)."""
-    z = min(max(-lo / (hi - lo), 0.05), 0.95) if hi > lo else 0.5
-    neg = np.linspace(0.0, z, len(_NEG_STOPS) + 1)[:-1]
-    pos = np.linspace(z, 1.0, len(_POS_STOPS) + 1)[1:]
-    stops = np.concatenate([neg, [z], pos])
-    return pg.ColorMap(stops, [*_NEG_STOPS, _ZERO, *_POS_STOPS])
-
-
-def nice_ceil(x: float) -> float:
-    """The 1-2-5 value at or above ``x`` (auto ranges move in steps, not every frame)."""
-    if x <= 0:
-        return 0.0
-    mag = 10.0 ** math.floor(math.log10(x))
-    for m in (1.0, 2.0, 5.0, 10.0):
-        if m * mag >= x * (1 - 1e-9):
-            return m * mag
-    return 10.0 * mag
+from tactile_studio.ui.heatmap_colors import (
+    BACKGROUND,
+    COLOR_SCHEMES,
+    FOREGROUND,
+    NEGATIVE_SHARE,
+    diverging_colormap,
+    nice_ceil,
+    strip_colors,
+)
+from tactile_studio.ui.heatmap_controls import (
+    DEFAULT_ARROW_SCALE,
+    DEFAULT_MAX_KPA,
+    HeatmapControls,
+)
+from tactile_studio.ui.heatmap_pointer import CellPointer
+from tactile_studio.ui.map_overlays import AxisLabels, HoverBox
 
 
 class _PaintNotifyingView(pg.GraphicsLayoutWidget):
@@ -78,7 +54,7 @@ class _PaintNotifyingView(pg.GraphicsLayoutWidget):
         self.painted.emit()
 
 
-class HeatmapView(QWidget):
+class HeatmapView(CellPointer, QWidget):
     """Normal stress image + colour bar with units + shear arrows + hover/click cells.
 
     Signals carry cells of the displayed grid (row, col); ``cellHovered`` sends
@@ -120,10 +96,13 @@ class HeatmapView(QWidget):
         self.plot.hideButtons()
         self.plot.hideAxis("bottom")
         self.plot.hideAxis("left")
-        self._labels: list[pg.TextItem] = []
-        self._label_font = QFont()
-        self._label_font.setPointSizeF(10.5)
-        self._label_font.setBold(True)
+        label_font = QFont()
+        label_font.setPointSizeF(10.5)
+        label_font.setBold(True)
+        self.row_labels = AxisLabels(FOREGROUND, label_font)  # A, B, ... left of the map
+        self.col_labels = AxisLabels(FOREGROUND, label_font)  # 1, 2, ... above it
+        for item in (self.row_labels, self.col_labels):
+            self.plot.addItem(item)
         self.cmap = pg.colormap.get(colormap)
         self.image = GridImage(self.cmap)
         self.image.set_levels(0.0, DEFAULT_MAX_KPA)
@@ -145,14 +124,8 @@ class HeatmapView(QWidget):
         self.marks = CellMarks()
         self.marks.setZValue(8)
         self.plot.addItem(self.marks)
-        self.hover_box = pg.PlotDataItem(
-            pen=pg.mkPen("#ffffff", width=2, style=Qt.PenStyle.DashLine))
+        self.hover_box = HoverBox()
         self.hover_box.setZValue(12)
-        # a dark line under the white dashes: the box shows on white (0 in the diverging
-        # map) as well as on dark cells
-        self.hover_halo = pg.PlotDataItem(pen=pg.mkPen("#202020", width=2))
-        self.hover_halo.setZValue(11.5)
-        self.plot.addItem(self.hover_halo)
         self.plot.addItem(self.hover_box)
         self.view.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.view.scene().sigMouseClicked.connect(self._on_mouse_clicked)
@@ -187,38 +160,15 @@ class HeatmapView(QWidget):
 
     # ---- controls ------------------------------------------------------------------
     def _build_controls(self) -> QWidget:
-        w = QWidget()
-        row = QHBoxLayout(w)
-        row.setContentsMargins(4, 0, 4, 0)
-        self.physical_button = QToolButton(text="Physical 6×6", checkable=True, checked=True)
-        self.virtual_button = QToolButton(text="Virtual 11×11", checkable=True)
-        group = QButtonGroup(w)
-        group.setExclusive(True)
-        for b in (self.physical_button, self.virtual_button):
-            group.addButton(b)
-            row.addWidget(b)
+        w = HeatmapControls()
+        self.physical_button, self.virtual_button = w.physical_button, w.virtual_button
+        self.auto_range, self.max_spin = w.auto_range, w.max_spin
+        self.arrows_check, self.scale_spin = w.arrows_check, w.scale_spin
         self.virtual_button.toggled.connect(self._on_virtual_toggled)
-        row.addSpacing(16)
-        self.auto_range = QCheckBox("Auto range")
         self.auto_range.toggled.connect(self._on_range_controls)
-        row.addWidget(self.auto_range)
-        row.addWidget(QLabel("max"))
-        self.max_spin = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=500.0,
-                                       singleStep=1.0, value=DEFAULT_MAX_KPA)
-        self.max_spin.setSuffix(" kPa")
         self.max_spin.valueChanged.connect(self._on_range_controls)
-        row.addWidget(self.max_spin)
-        row.addSpacing(16)
-        self.arrows_check = QCheckBox("Shear arrows", checked=True)
         self.arrows_check.toggled.connect(self.set_arrows_visible)
-        row.addWidget(self.arrows_check)
-        self.scale_spin = QDoubleSpinBox(decimals=2, minimum=0.01, maximum=5.0,
-                                         singleStep=0.05, value=DEFAULT_ARROW_SCALE)
-        self.scale_spin.setSuffix(" pitch/kPa")
-        self.scale_spin.setToolTip("Arrow length: taxel pitches per kPa of shear")
         self.scale_spin.valueChanged.connect(self.set_arrow_scale)
-        row.addWidget(self.scale_spin)
-        row.addStretch(1)
         return w
 
     def _on_virtual_toggled(self, on: bool) -> None:
@@ -398,28 +348,23 @@ class HeatmapView(QWidget):
                            padding=0.01)
 
     def _update_ticks(self) -> None:
-        """Row letters and column numbers as text in the view, right next to the map
-        (axes would sit at the edge of the aspect-locked view, far from the cells)."""
-        for item in self._labels:
-            self.plot.removeItem(item)
-        self._labels = []
+        """Row letters and column numbers right next to the map (axes would sit at the
+        edge of the aspect-locked view, far from the cells)."""
         lay = self._layout
         if self._shape is None:
+            self.row_labels.set_labels([], (1, 0.5), QRectF())
+            self.col_labels.set_labels([], (0.5, 1), QRectF())
             return
         step = self._cell_step(self._shape)
         rows = round((self._shape[0] - 1) * step) + 1
         cols = round((self._shape[1] - 1) * step) + 1
-        for r in range(rows):
-            self._add_label(lay.taxel_name(r, 0)[:-1] if lay else str(r), -0.62, r, (1, 0.5))
-        for c in range(cols):
-            self._add_label(str(c + 1) if lay else str(c), c, -0.6, (0.5, 1))
-
-    def _add_label(self, text: str, x: float, y: float, anchor: tuple[float, float]) -> None:
-        item = pg.TextItem(text, color=FOREGROUND, anchor=anchor)
-        item.setFont(self._label_font)
-        item.setPos(x, y)
-        self.plot.addItem(item)
-        self._labels.append(item)
+        # bounds: the margin strips left of and above the map, clear of the cells
+        self.row_labels.set_labels(
+            [(lay.taxel_name(r, 0)[:-1] if lay else str(r), -0.62, r) for r in range(rows)],
+            (1, 0.5), QRectF(-1.5, -0.5, 1.0, rows))
+        self.col_labels.set_labels(
+            [(str(c + 1) if lay else str(c), c, -0.6) for c in range(cols)],
+            (0.5, 1), QRectF(-0.5, -1.5, cols, 1.0))
 
     def _draw_arrows(self, sx: np.ndarray | None, sy: np.ndarray | None, step: float) -> None:
         if not self._arrows_on or sx is None or sy is None:
@@ -429,64 +374,6 @@ class HeatmapView(QWidget):
         k = self._arrow_scale
         self.arrows.set_arrows(cc * step, rr * step, sx[rr, cc] * k, sy[rr, cc] * k,
                                head=0.35, min_head=0.08 * step, max_head=0.28 * step)
-
-    # ---- mouse ---------------------------------------------------------------------
-    def _cell_at(self, scene_pos: QPointF) -> tuple[int, int]:
-        if self._shape is None or not self.plot.sceneBoundingRect().contains(scene_pos):
-            return (-1, -1)
-        p = self.plot.vb.mapSceneToView(scene_pos)
-        step = self._cell_step(self._shape)
-        col = math.floor(p.x() / step + 0.5)
-        row = math.floor(p.y() / step + 0.5)
-        if 0 <= row < self._shape[0] and 0 <= col < self._shape[1]:
-            return (row, col)
-        return (-1, -1)
-
-    def _on_mouse_moved(self, scene_pos: QPointF) -> None:
-        cell = self._cell_at(scene_pos)
-        if cell != self._hover:
-            self._hover = cell
-            self._draw_hover_box()
-            self.cellHovered.emit(*cell)
-
-    def _on_mouse_clicked(self, ev) -> None:  # noqa: ANN001 - pyqtgraph event
-        cell = self._cell_at(ev.scenePos())
-        if cell != (-1, -1) and ev.button() == Qt.MouseButton.LeftButton:
-            self.cellClicked.emit(*cell)
-
-    def hovered_cell(self) -> tuple[int, int]:
-        return self._hover
-
-    def hover_cell(self, row: int, col: int) -> None:
-        """Act as if the pointer were over a cell (keyboard use, tests)."""
-        if (row, col) != self._hover:
-            self._hover = (row, col)
-            self._draw_hover_box()
-            self.cellHovered.emit(row, col)
-
-    def _draw_hover_box(self) -> None:
-        r, c = self._hover
-        if r < 0 or self._shape is None:
-            self.hover_box.setData([], [])
-            self.hover_halo.setData([], [])
-            return
-        s = self._cell_step(self._shape)
-        x0, y0 = c * s - s / 2, r * s - s / 2
-        xs, ys = [x0, x0 + s, x0 + s, x0, x0], [y0, y0, y0 + s, y0 + s, y0]
-        self.hover_halo.setData(xs, ys)
-        self.hover_box.setData(xs, ys)
-
-    def leaveEvent(self, ev) -> None:  # noqa: ANN001 - Qt signature
-        super().leaveEvent(ev)
-        if self._hover != (-1, -1):
-            self.hover_cell(-1, -1)
-
-
-def strip_colors(n: int) -> list[str]:
-    """Distinct line colours shared by the strip chart and the heatmap's taxel marks."""
-    palette = ["#e6194b", "#f58231", "#f032e6", "#4363d8", "#3cb44b", "#911eb4",
-               "#42d4f4", "#9a6324", "#000075", "#808000"]
-    return [palette[i % len(palette)] for i in range(n)]
 
 
 __all__ = ["COLOR_SCHEMES", "HeatmapView", "diverging_colormap", "nice_ceil", "strip_colors"]

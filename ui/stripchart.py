@@ -18,7 +18,8 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.live import QUANTITIES, QUANTITY_LABELS, History
-from tactile_studio.ui.heatmap import BACKGROUND, FOREGROUND, strip_colors
+from tactile_studio.live.view import decimate_minmax
+from tactile_studio.ui.heatmap_colors import BACKGROUND, FOREGROUND, strip_colors
 
 
 class _Traces(pg.GraphicsObject):
@@ -141,12 +142,15 @@ class StripChart(QWidget):
         """Redraw the lines; taxels that are no longer selected disappear.
 
         Pens and legend entries change only when the set of taxels does: at display rate
-        only the samples are copied. Lines are one pixel wide — Qt draws those on a fast
+        only the samples are copied, thinned to each pixel column's min and max. Lines are one pixel wide — Qt draws those on a fast
         path; wider lines cost 4-7x more to paint.
         """
         if history.names != self._names:
             self._set_names(list(history.names))
-        self.traces.set_lines(history.t, history.values, self._pens)
+        # never more than two points per pixel column (its min and max: peaks stay)
+        t, values = decimate_minmax(history.t, history.values, -self.seconds, 0.0,
+                                    self.pixel_columns())
+        self.traces.set_lines(t, values, self._pens)
         self._update_y_range(history.values)
         label = f"{QUANTITY_LABELS[history.quantity]} ({history.units})"
         if label != self._units:
@@ -168,6 +172,11 @@ class StripChart(QWidget):
         for legend_item in (self.legend, *self.legend.childItems()):
             legend_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._names = names
+
+    def pixel_columns(self) -> int:
+        """How many pixel columns the chart's time window spans on screen."""
+        (x0, x1), _ = self.plot.vb.viewRange()
+        return max(1, int(self.plot.vb.width() * self.seconds / max(x1 - x0, 1e-9)))
 
     def curve_names(self) -> list[str]:
         return list(self._names)

@@ -77,6 +77,26 @@ class History:
     t_end: float = 0.0     # device time of t == 0 (to line up with events)
 
 
+def decimate_minmax(t: np.ndarray, values: np.ndarray, t0: float, t1: float,
+                    columns: int) -> tuple[np.ndarray, np.ndarray]:
+    """Thin (t, values[:, k]) to two points per pixel column of ``t0..t1``: each column's
+    minimum then maximum (at its first and last time), so no peak vanishes however many
+    samples share a column. Unchanged when there are no more than two samples a column."""
+    n = len(t)
+    if n <= 2 * columns or columns < 1 or t1 <= t0:
+        return t, values
+    col = np.floor((t - t0) * (columns / (t1 - t0))).astype(np.int64)
+    np.clip(col, 0, columns - 1, out=col)
+    starts = np.flatnonzero(np.concatenate(([True], col[1:] != col[:-1])))
+    ends = np.append(starts[1:], n) - 1
+    out_t = np.empty(2 * len(starts))
+    out_t[0::2], out_t[1::2] = t[starts], t[ends]
+    out_v = np.empty((2 * len(starts), *values.shape[1:]), dtype=values.dtype)
+    out_v[0::2] = np.minimum.reduceat(values, starts, axis=0)
+    out_v[1::2] = np.maximum.reduceat(values, starts, axis=0)
+    return out_t, out_v
+
+
 def parse_taxel_name(layout: Layout, name: str) -> tuple[int, int]:
     """"C4" -> (row 2, column 3): the inverse of ``Layout.taxel_name`` (UserError if bad)."""
     text = name.strip().upper()
