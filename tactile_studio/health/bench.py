@@ -71,6 +71,7 @@ class SimulatedPlacer(Placer):
     """The simulated device places the weight itself (``--auto``)."""
 
     confirmed = True
+    RESIDUE_FADE_S = 5.0
 
     def __init__(self, device: Any) -> None:
         if not hasattr(device, "place_weight"):
@@ -80,11 +81,14 @@ class SimulatedPlacer(Placer):
         self._trial = None
 
     def prepare(self) -> int:
-        start = int(self.device.next_frame)
         busy = self.device.settings.get("gesture") != "idle"
         self.device.set_gesture("idle")
-        # a gesture in progress leaves a viscoelastic residue: let it fade first
-        return start + (int(5 * self.device.nominal_rate_hz) if busy else 0)
+        # idle holds from the frame the simulator was at during set_gesture, so read it
+        # after: read before, a loaded machine let a whole batch of demo-cycle frames in
+        # between (seen as a "noisy" channel on a healthy sensor)
+        start = int(self.device.next_frame)
+        # a gesture in progress leaves a viscoelastic residue (creep 0.2, relaxation 3 s)
+        return start + (int(self.RESIDUE_FADE_S * self.device.nominal_rate_hz) if busy else 0)
 
     def place(self, mass_g: float, taxel: str | None, contact_mm: float) -> int:
         if taxel is None:
