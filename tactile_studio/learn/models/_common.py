@@ -77,7 +77,7 @@ def resolve_options(
             if key == "dropout" or key.endswith("_dropout"):
                 if not 0.0 <= new < 1.0:
                     raise UserError(f"model '{model}': {key}={value!r} must be in [0, 1)")
-            elif new <= 0:
+            elif new < 0 or (new == 0 and not key.endswith("_hidden")):
                 raise UserError(f"model '{model}': {key}={value!r} must be positive")
         if isinstance(new, tuple) and any(v <= 0 for v in new):
             raise UserError(f"model '{model}': {key}={value!r} must be positive integers")
@@ -134,7 +134,7 @@ class WindowStatistics(nn.Module):
     centroid's speed; when shear channels are present (the last two), the mean and max
     shear magnitude and the mean divergence and curl of the shear field; each of
     these signals is then described over time by mean, std, min, max, the 10/25/50/75/90th
-    percentiles, skewness, kurtosis and the share of its spectral energy in ``bands``
+    percentiles, skewness, kurtosis, energy, trend (last third minus first third) and the share of its spectral energy in ``bands``
     frequency bands (a fixed DFT basis: exports to ONNX). The features are compressed
     (sign-log) and batch-normalised. Statistics of a whole window are invariant to where
     on the grid and when in the window a touch happens, which is what carries over from
@@ -160,7 +160,7 @@ class WindowStatistics(nn.Module):
         self.register_buffer("q_index", torch.tensor(
             [round(q * (frames - 1)) for q in self.QUANTILES], dtype=torch.long),
             persistent=False)
-        self.out_features = self.n_signals * (7 + len(self.QUANTILES) + bands)
+        self.out_features = self.n_signals * (8 + len(self.QUANTILES) + bands)
         self.norm = nn.BatchNorm1d(self.out_features)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, C, T, R, X)
@@ -182,12 +182,14 @@ class WindowStatistics(nn.Module):
         std = torch.sqrt((centred ** 2).mean(-1, keepdim=True) + 1e-6)
         z = centred / std
         ordered = torch.sort(s, dim=-1).values
+        third = max(1, t // 3)
+        trend = s[..., t - third:].mean(-1, keepdim=True) - s[..., :third].mean(-1, keepdim=True)
         power = (centred @ self.cos) ** 2 + (centred @ self.sin) ** 2
         share = (power @ self.band) / (power.sum(-1, keepdim=True) + 1e-6)
         feats = torch.cat([
             mean, std, ordered[..., :1], ordered[..., -1:], ordered[..., self.q_index],
             (z ** 3).mean(-1, keepdim=True), (z ** 4).mean(-1, keepdim=True) - 3,
-            (s ** 2).mean(-1, keepdim=True), share], dim=-1).reshape(b, -1)
+            (s ** 2).mean(-1, keepdim=True), trend, share], dim=-1).reshape(b, -1)
         feats = torch.sign(feats) * torch.log1p(feats.abs())
         return self.norm(feats)
 
@@ -216,12 +218,17 @@ class WindowStatistics(nn.Module):
 
 
 class StatisticsHead(nn.Module):
-    """Window statistics -> hidden layer -> class logits, added to a network's logits."""
+    """Window statistics -> hidden layer (none when ``hidden`` is 0) -> class logits,
+    added to a network's logits."""
 
     def __init__(self, in_channels: int, frames: int, n_classes: int, hidden: int,
                  dropout: float) -> None:
         super().__init__()
         self.stats = WindowStatistics(in_channels, frames)
+        if hidden == 0:  # a linear (multinomial logistic) head: the most robust on few people
+            self.mlp = nn.Sequential(nn.Dropout(dropout),
+                                     nn.Linear(self.stats.out_features, n_classes))
+            return
         self.mlp = nn.Sequential(
             nn.Dropout(dropout / 2), nn.Linear(self.stats.out_features, hidden),
             nn.ReLU(inplace=True), nn.Dropout(dropout), nn.Linear(hidden, n_classes))
@@ -276,6 +283,7 @@ RECIPE_HELP = {
     "stats": "add a late-fusion head over window statistics (what the random forest uses)",
     "stats_hidden": "units of the window-statistics head",
     "mirror": "train on random mirror images of the grid, predict as the mean over them",
+    "branch_dropout": "chance a training sample's network logits are dropped (statistics alone)",
 }
 
 
@@ -285,11 +293,13 @@ class RecipeModel(nn.Module):
     and mirrors the grid (random mirror images in training, their mean in evaluation)."""
 
     mirror: bool = False
-    stats: nn.Module | None = None
+    branch_dropout: float = 0.0
 
     def attach_recipe(self, in_channels: int, frames: int, n_classes: int, stats: bool,
-                      stats_hidden: int, mirror: bool, dropout: float) -> None:
+                      stats_hidden: int, mirror: bool, dropout: float,
+                      branch_dropout: float = 0.0) -> None:
         self.mirror = bool(mirror)
+        self.branch_dropout = float(branch_dropout) if stats else 0.0
         self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout)
                       if stats else None)
 
@@ -298,7 +308,12 @@ class RecipeModel(nn.Module):
 
     def _fused(self, x: torch.Tensor) -> torch.Tensor:
         out = self.network_logits(x)
-        return out if self.stats is None else out + self.stats(x)
+        if self.stats is None:
+            return out
+        if self.training and self.branch_dropout > 0:
+            keep = (torch.rand(out.shape[0], 1, device=out.device) >= self.branch_dropout)
+            out = out * keep.to(out.dtype) / (1.0 - self.branch_dropout)
+        return out + self.stats(x)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if self.mirror and self.training:

@@ -38,9 +38,9 @@ OPTION_HELP = {
 
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"filters": 32, "kernel": 7, "layers": 3, "dropout": 0.3, "stats": True,
-             "stats_hidden": 64, "mirror": True},
+             "stats_hidden": 0, "mirror": True, "branch_dropout": 0.5},
     "tiny": {"filters": 8, "kernel": 5, "layers": 3, "dropout": 0.0, "stats": False,
-             "stats_hidden": 16, "mirror": False},
+             "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0},
 }
 # the paper's network (2.6 k parameters), e.g. --set filters=8 kernel=10 dropout=0
 # stats=false mirror=false
@@ -58,9 +58,11 @@ RECIPE = {"full": {"label_smoothing": 0.1, "schedule": "cosine", "warmup": 2, "c
 class CNN1D(RecipeModel):
     def __init__(self, n_classes: int, in_features: int, frames: int,
                  filters: int, kernel: int, layers: int, dropout: float, stats: bool = False,
-                 stats_hidden: int = 16, mirror: bool = False, in_channels: int = 1) -> None:
+                 stats_hidden: int = 16, mirror: bool = False, branch_dropout: float = 0.0,
+                 in_channels: int = 1) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout)
+        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
+                           branch_dropout)
         body: list[nn.Module] = [nn.Conv1d(in_features, filters, 1)]
         length = frames
         for _ in range(layers):

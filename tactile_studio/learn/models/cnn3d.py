@@ -39,8 +39,9 @@ OPTIONS: dict[str, dict[str, object]] = {
         "dense": 64,
         "dropout": 0.3,
         "stats": True,
-        "stats_hidden": 64,
+        "stats_hidden": 0,
         "mirror": True,
+        "branch_dropout": 0.5,
     },
     "tiny": {
         "filters": (8, 16, 32),
@@ -51,6 +52,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats": False,
         "stats_hidden": 16,
         "mirror": False,
+        "branch_dropout": 0.0,
     },
 }
 # The paper's network (4.7 M parameters; trained with adam, lr 1e-5, batch 32, up to 200
@@ -88,10 +90,12 @@ class CNN3D(RecipeModel):
         stats: bool = False,
         stats_hidden: int = 16,
         mirror: bool = False,
+        branch_dropout: float = 0.0,
         frames: int = 86,
     ) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout)
+        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
+                           branch_dropout)
         self.temporal_kernel = temporal_kernel
         layers = [_block(in_channels, filters[0], (temporal_kernel, 1, 1), (temporal_stride, 1, 1))]
         for cin, cout in zip(filters[:-1], filters[1:]):

@@ -35,9 +35,11 @@ OPTION_HELP = {
 
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"widths": (8, 16, 24, 32), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
-             "dropout": 0.3, "stats": True, "stats_hidden": 64, "mirror": True},
+             "dropout": 0.3, "stats": True, "stats_hidden": 0, "mirror": True,
+             "branch_dropout": 0.5},
     "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
-             "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False},
+             "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False,
+             "branch_dropout": 0.0},
 }
 # the paper's ResNet3D-18 (trained with sgd, lr 1e-2, momentum 0.9, weight decay 5e-4,
 # batch 16, up to 100 epochs, patience 15)
@@ -100,9 +102,10 @@ class Backbone(nn.Module):
 class MTS3D(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
                  dropout: float, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, frames: int = 32) -> None:
+                 mirror: bool = False, branch_dropout: float = 0.0, frames: int = 32) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout)
+        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
+                           branch_dropout)
         self.scales = tuple(scales)
         self.backbone = Backbone(in_channels, widths, blocks, dropout)
         self.classifier = nn.Linear(widths[-1], n_classes)

@@ -46,10 +46,10 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"fusion": "mid", "filters": 32, "kernel": 7, "blocks": 2, "se_reduction": 4,
              "d_model": 32, "heads": 4, "layers": 1, "ff": 64, "hidden": 32, "dropout": 0.3,
-             "stats": True, "stats_hidden": 64, "mirror": True},
+             "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.5},
     "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
              "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1,
-             "stats": False, "stats_hidden": 16, "mirror": False},
+             "stats": False, "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0},
 }
 # the texture paper's size (trained with adamw, lr 1e-3, weight decay 1e-2, up to 150
 # epochs, patience 20)
@@ -130,10 +130,10 @@ class Tower(nn.Module):
 class SEFusion(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int],
                  fusion: str, frames: int = 86, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, **opts) -> None:
+                 mirror: bool = False, branch_dropout: float = 0.0, **opts) -> None:
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror,
-                           float(opts.get("dropout", 0.0)))
+                           float(opts.get("dropout", 0.0)), branch_dropout)
         taxels = grid[0] * grid[1]
         self.fusion = fusion
         # channel 0 is normal when shear channels follow it; 1 channel = normal/pressure,
