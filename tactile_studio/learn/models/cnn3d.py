@@ -61,7 +61,7 @@ PAPER = {"filters": (128, 256, 512), "temporal_kernel": 43, "temporal_stride": 4
          "dense": 512, "dropout": 0.5, "stats": False, "mirror": False}
 VIEWS = {"full": ViewSpec("resample", 86), "tiny": ViewSpec("resample", 16)}
 TRAIN = {
-    "full": TrainDefaults("adamw", 3e-3, 32, 30, 30, weight_decay=1e-2),
+    "full": TrainDefaults("adamw", 3e-3, 32, 25, 25, weight_decay=1e-2),
     "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
 }
 # training recipe of the preset (see train.fit): a fixed, cosine-decayed budget

@@ -45,9 +45,9 @@ OPTIONS: dict[str, dict[str, object]] = {
 # batch 16, up to 100 epochs, patience 15)
 PAPER = {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
          "dropout": 0.3, "stats": False, "mirror": False}
-VIEWS = {"full": ViewSpec("gradient", 32), "tiny": ViewSpec("gradient", 8)}
+VIEWS = {"full": ViewSpec("gradient", 16), "tiny": ViewSpec("gradient", 8)}
 TRAIN = {
-    "full": TrainDefaults("adamw", 3e-3, 32, 30, 30, weight_decay=1e-2),
+    "full": TrainDefaults("adamw", 3e-3, 32, 20, 20, weight_decay=1e-2),
     "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
 }
 # training recipe of the preset (see train.fit): a fixed, cosine-decayed budget

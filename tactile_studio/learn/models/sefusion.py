@@ -56,9 +56,9 @@ OPTIONS: dict[str, dict[str, object]] = {
 PAPER = {"filters": 64, "d_model": 64, "heads": 4, "layers": 2, "ff": 256, "hidden": 64,
          "dropout": 0.1, "stats": False, "mirror": False}
 CHOICES = {"fusion": ("mid", "early", "late")}
-VIEWS = {"full": ViewSpec("resample", 86), "tiny": ViewSpec("resample", 24)}
+VIEWS = {"full": ViewSpec("resample", 43), "tiny": ViewSpec("resample", 24)}
 TRAIN = {
-    "full": TrainDefaults("adamw", 3e-3, 32, 30, 30, weight_decay=1e-2),
+    "full": TrainDefaults("adamw", 3e-3, 32, 25, 25, weight_decay=1e-2),
     "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
 }
 # training recipe of the preset (see train.fit): a fixed, cosine-decayed budget
