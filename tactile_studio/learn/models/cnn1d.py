@@ -38,7 +38,7 @@ OPTION_HELP = {
 
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"filters": 32, "kernel": 7, "layers": 3, "dropout": 0.3, "stats": True,
-             "stats_hidden": 0, "mirror": True, "branch_dropout": 0.5},
+             "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75},
     "tiny": {"filters": 8, "kernel": 5, "layers": 3, "dropout": 0.0, "stats": False,
              "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0},
 }

@@ -41,7 +41,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats": True,
         "stats_hidden": 0,
         "mirror": True,
-        "branch_dropout": 0.5,
+        "branch_dropout": 0.75,
     },
     "tiny": {
         "filters": (8, 16, 32),

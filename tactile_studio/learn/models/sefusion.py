@@ -46,7 +46,7 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"fusion": "mid", "filters": 32, "kernel": 7, "blocks": 2, "se_reduction": 4,
              "d_model": 32, "heads": 4, "layers": 1, "ff": 64, "hidden": 32, "dropout": 0.3,
-             "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.5},
+             "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75},
     "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
              "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1,
              "stats": False, "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0},
