@@ -11,7 +11,8 @@ including the mirror averaging of the full recipe).
 
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
-(--options: the generalisation options of docs/learning.md on top: augment all x2,
+(--rounds R: each model's median over R rounds, every round listed;
+--options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant.)
 """
 
@@ -97,6 +98,10 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"
                       f"{row['f1_macro']:>8.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"
                       f"{params:>9}{ms:>10.2f}", flush=True)
+            if args.rounds > 1:  # the median above; every round's trial accuracy here
+                rounds = next(iter(res.metrics.values())).get("rounds", [])
+                print(f"{'':>16s}rounds: " + ", ".join(
+                    f"{r.get('trial_accuracy', float('nan')):.3f}" for r in rounds), flush=True)
 
 
 if __name__ == "__main__":
