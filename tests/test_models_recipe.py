@@ -79,3 +79,16 @@ def test_every_model_keeps_the_papers_network_as_overrides_beside_the_full_recip
     frames = spec.view("full").frames
     with torch.inference_mode():
         assert np.isfinite(full.eval()(torch.randn(1, 3, frames, 6, 6)).numpy()).all()
+
+
+def test_full_recipe_exports_to_onnx_with_its_mirror_averaging_and_statistics():
+    from tactile_studio.learn.export import cpu_session, onnx_bytes
+
+    torch.manual_seed(0)
+    spec = MODELS["cnn1d"]
+    model = spec.build(9, 3, (6, 6), "full").eval()
+    x = torch.randn(3, 3, spec.view("full").frames, 6, 6)
+    out = cpu_session(onnx_bytes(model, x[:1])).run(None, {"input": x.numpy()})[0]
+    with torch.inference_mode():
+        expected = model(x).numpy()
+    assert np.abs(out - expected).max() < 1e-4

@@ -243,21 +243,20 @@ def mirror_average(forward, x: torch.Tensor) -> torch.Tensor:
     (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal + shear x/y).
 
     Test-time augmentation for models trained with flips: a person touching the mirror
-    image of the trained touch gets the same answer. Skipped while exporting to ONNX
-    (the exported graph is the plain network).
+    image of the trained touch gets the same answer. Exports to ONNX with the model
+    (flips become reversed slices), so exported and torch predictions agree.
     """
-    if torch.onnx.is_in_onnx_export():
-        return forward(x)
-    c = x.shape[1]
+    c = int(x.shape[1])  # a Python int also while tracing for ONNX (the channels are fixed)
     sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))
     total = forward(x)
     for dims in ((4,), (3,), (3, 4)):
-        sign = torch.ones(c, dtype=x.dtype, device=x.device)
+        signs = [1.0] * c  # a Python list: a constant in an exported graph
         if sx is not None and 4 in dims:
-            sign[sx] = -1.0
+            signs[sx] = -1.0
         if sy is not None and 3 in dims:
-            sign[sy] = -1.0
-        total = total + forward(torch.flip(x, dims) * sign.view(1, c, 1, 1, 1))
+            signs[sy] = -1.0
+        sign = torch.tensor([[[[[v]]] for v in signs]], dtype=x.dtype, device=x.device)
+        total = total + forward(torch.flip(x, dims) * sign)
     return total / 4
 
 
