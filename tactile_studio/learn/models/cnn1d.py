@@ -11,6 +11,10 @@ whose kernel spans the remaining length (4), averaged over any positions left.
 Parameters, 6x6 normal (36 input channels), 9 classes:
 1x1 projection 36*8+8 = 296; 3 convs 3*(8*8*10+8) = 1944; 3 BN 3*16 = 48; head
 8*9*4+9 = 297; total 2,585 (~2.6 k).
+
+The ``full`` preset is not the paper's network but the generalisation recipe of
+docs/learning.md (small network + linear window-statistics head, mirror training and
+averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
 from __future__ import annotations

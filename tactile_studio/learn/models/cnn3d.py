@@ -3,8 +3,12 @@
 A first Conv3D with a long temporal kernel (43 frames x 1 x 1, stride 4 in time) learns
 per-taxel temporal filters; two 3x3x3 convolutions (256, 512 filters) mix space and
 time; batch norm after each; global average pooling; dense 512; dropout; dense to the
-classes. ~4.7 M parameters at full size (3 channels, 9 classes: 4,710,153).
+classes. ~4.7 M parameters at the paper's size (3 channels, 9 classes: 4,710,153).
 Input (B, C, 86, R, X): the whole 2 s trial resampled to 86 frames.
+
+The ``full`` preset is not the paper's network but the generalisation recipe of
+docs/learning.md (small network + linear window-statistics head, mirror training and
+averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
 from __future__ import annotations

@@ -7,6 +7,10 @@ through ONE shared ResNet3D-18-style backbone (3x3x3 stem, no first pooling, fou
 of two basic blocks, 64/128/256/512 channels, stride 2 from the 2nd stage on, dropout 0.3
 after the 2nd stage); the globally pooled features of the scales are summed, then a
 linear layer gives the classes.
+
+The ``full`` preset is not the paper's network but the generalisation recipe of
+docs/learning.md (small network + linear window-statistics head, mirror training and
+averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
 from __future__ import annotations

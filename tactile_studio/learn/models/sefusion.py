@@ -10,6 +10,10 @@ by a Transformer encoder, averaged over time and classified by an MLP head.
 (all signals concatenated into one branch) or ``late`` (one complete network per modality,
 logits averaged). With a single-modality channel set (1 channel = normal/pressure, 2 =
 shear) there is one branch and all three variants coincide in structure.
+
+The ``full`` preset is not the paper's network but the generalisation recipe of
+docs/learning.md (small network + linear window-statistics head, mirror training and
+averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
 from __future__ import annotations
