@@ -1,11 +1,19 @@
-"""Do the generalisation options beat the 2 s-window random forest on unseen people?
+"""Do the learned models beat the 2 s-window random forest on unseen people?
 
 Data: 10 virtual participants x 9 gestures x 4 repetitions of 2 s at the simulator's
-default difficulty (``real``, calibrated to the real recordings). Protocol: LOPO. Each
-configuration is a sweep on 2 local worker processes (``--jobs``); the table reports
-per-trial accuracy, macro F1 and the training time summed over the 10 folds (the cost on
-one core). Run: .venv/bin/python benchmarks/bench_generalise.py [--quick] [--jobs N]
-(--quick: tiny presets, 15 epochs; default: full presets with their own epochs).
+default difficulty (``real``, calibrated to the real recordings). Protocol: LOPO, every
+(model, round, fold) a task of one sweep on local worker processes (``--jobs``, one torch
+thread each). Per model: per-trial accuracy and macro F1 pooled over the folds (median
+over ``--rounds``, each round its own seed), the training time summed over folds and
+rounds (the cost on one core), the sweep's wall time, the parameters of the model (3
+channels, 6x6, 9 gestures) and its inference time per 2 s trial (batch of 64, one thread,
+including the mirror averaging of the full recipe).
+
+Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
+       [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
+(--rounds R: each model's median over R rounds, every round listed;
+--options: the generalisation options of docs/learning.md on top: augment all x2,
+participant norm, balance, validation by participant.)
 """
 
 from __future__ import annotations
@@ -25,50 +33,75 @@ from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.sweep import run_sweep  # noqa: E402
 
-GEN = {"augment": "all", "augment_copies": 2, "participant_norm": True, "balance": True,
-       "val_by": "participant"}
-CONFIGS = [
-    ("rf (baseline)", ["rf"], {}),
-    ("rf + participant norm", ["rf"], {"participant_norm": True}),
-    ("rf + augment all x2", ["rf"], {"augment": "all", "augment_copies": 2}),
-    ("rf + all options", ["rf"], GEN),
-    ("torch plain", ["cnn3d", "sefusion", "cnn1d"], {}),
-    ("torch + all options", ["cnn3d", "sefusion", "cnn1d"], GEN),
-]
+MODELS = ["rf", "cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
+OPTIONS = {"augment": "all", "augment_copies": 2, "participant_norm": True, "balance": True,
+           "val_by": "participant"}
+
+
+def model_cost(name: str, preset: str) -> tuple[int, float]:
+    """(parameters, ms per trial) of ``name`` for 3 channels on 6x6 and 9 gestures."""
+    import torch
+
+    from tactile_studio.learn.models import MODELS as REGISTRY
+    from tactile_studio.learn.models._common import count_parameters
+
+    spec = REGISTRY[name]
+    view = spec.view(preset)
+    model = spec.build(9, 3, (6, 6), preset).eval()
+    # a 2 s trial of 86 frames gives one sample, or several windows for a windowed view
+    per_trial = 1 if view.kind != "windows" else 1 + max(0, (86 - view.frames) // view.stride)
+    x = torch.randn(64 * per_trial, 3, view.frames, 6, 6)
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with torch.inference_mode():
+            model(x[:8])
+            t0 = time.perf_counter()
+            model(x)
+            ms = (time.perf_counter() - t0) * 1000 / 64
+    finally:
+        torch.set_num_threads(previous)
+    return count_parameters(model), ms
 
 
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--quick", action="store_true")
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--only", default="", help="run configurations whose name has this")
-    ap.add_argument("--models", nargs="+", default=None, help="torch models (default: 3)")
+    ap.add_argument("--rounds", type=int, default=1)
+    ap.add_argument("--models", nargs="+", default=MODELS)
+    ap.add_argument("--preset", default="full", choices=("full", "tiny"))
+    ap.add_argument("--epochs", type=int, default=None)
+    ap.add_argument("--options", action="store_true")
     args = ap.parse_args(argv if argv is not None else [])
-    preset, epochs = ("tiny", 15) if args.quick else ("full", None)
+    options = OPTIONS if args.options else {}
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data"
         make_dataset_folder(data, participants=10, blocks=4, difficulty="real")
-        print(f"LOPO, 10 participants x 9 gestures x 4 trials, difficulty real, preset {preset}")
-        print(f"{'configuration':26s}{'model':>10s}{'trial acc':>11s}{'f1':>8s}"
-              f"{'train s':>9s}{'wall s':>8s}")
-        for name, models, options in CONFIGS:
-            if args.only and args.only not in name:
-                continue
-            if args.models and models != ["rf"]:
-                models = args.models
-            base = ExperimentConfig(data=[str(data)], model=models[0], protocol="lopo",
-                                    preset=preset, epochs=None if models == ["rf"] else epochs,
-                                    cache_dir=str(Path(tmp) / "cache"),
-                                    overrides={} if models == ["rf"] else {"lr": "0.003"},
-                                    **options)
+        print(f"LOPO, 10 participants x 9 gestures x 4 trials, difficulty real, preset "
+              f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
+              + (", options: augment all x2 + participant norm + balance + val by "
+                 "participant" if options else ""))
+        print(f"{'model':>16s}{'trial acc':>11s}{'f1':>8s}{'train s':>9s}{'wall s':>8s}"
+              f"{'params':>9s}{'ms/trial':>10s}")
+        for model in args.models:
+            base = ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
+                                    preset=args.preset, rounds=args.rounds,
+                                    epochs=None if model in ("rf", "knn") else args.epochs,
+                                    cache_dir=str(Path(tmp) / "cache"), **options)
             t0 = time.perf_counter()
             with LocalExecutor(args.jobs) as ex:
-                res = run_sweep(base, models, [None], ex)
+                res = run_sweep(base, [model], [None], ex)
             wall = time.perf_counter() - t0
+            params, ms = ("-", float("nan")) if model in ("rf", "knn") else \
+                model_cost(model, args.preset)
             for row in res.rows:
-                print(f"{name:26s}{row['model']:>10s}{row['trial_accuracy']:>11.3f}"
-                      f"{row['f1_macro']:>8.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}",
-                      flush=True)
+                print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"
+                      f"{row['f1_macro']:>8.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"
+                      f"{params:>9}{ms:>10.2f}", flush=True)
+            if args.rounds > 1:  # the median above; every round's trial accuracy here
+                rounds = next(iter(res.metrics.values())).get("rounds", [])
+                print(f"{'':>16s}rounds: " + ", ".join(
+                    f"{r.get('trial_accuracy', float('nan')):.3f}" for r in rounds), flush=True)
 
 
 if __name__ == "__main__":

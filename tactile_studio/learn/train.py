@@ -6,6 +6,13 @@ Optimiser and schedule come from the model's ``TrainDefaults`` for the preset, w
 loss (the validation set comes from training participants only); the weights of the
 best epoch are kept and returned. Seeds are fixed per fold; the device is CUDA when
 available unless asked otherwise.
+
+A model may carry a ``train_recipe`` attribute (set by its module's ``build`` from the
+preset's ``RECIPE``): ``label_smoothing`` (cross-entropy target smoothing), ``schedule``
+(``"cosine"``: the learning rate decays to 0 over ``max_epochs`` after ``warmup`` linear
+warm-up epochs; otherwise constant) and ``clip`` (gradient norm limit). These make small,
+person-to-person data sets train to a fixed budget instead of chasing a noisy
+validation loss; models without it train as before.
 """
 
 from __future__ import annotations
@@ -109,6 +116,17 @@ def predict_proba(model: nn.Module, x: np.ndarray, device: torch.device | str = 
     return np.concatenate(out)
 
 
+def _lr_factor(recipe: dict[str, Any], epoch: int, total: int) -> float:
+    """Multiplier of the base learning rate in (1-based) ``epoch`` of ``total``."""
+    warmup = int(recipe.get("warmup", 0))
+    if epoch <= warmup:
+        return epoch / (warmup + 1)
+    if recipe.get("schedule") != "cosine":
+        return 1.0
+    done = (epoch - 1 - warmup) / max(1, total - warmup)
+    return 0.5 * (1.0 + float(np.cos(np.pi * done)))
+
+
 def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
         val: tuple[np.ndarray, np.ndarray], s: TrainSettings, seed: int,
         device: torch.device, cancel: CancelToken | None = None,
@@ -119,7 +137,9 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
     rng = np.random.default_rng([seed, 0x7EA])
     model.to(device)
     opt = make_optimizer(model, s)
-    loss_fn = nn.CrossEntropyLoss()
+    recipe = dict(getattr(model, "train_recipe", None) or {})
+    loss_fn = nn.CrossEntropyLoss(label_smoothing=float(recipe.get("label_smoothing", 0.0)))
+    clip = float(recipe.get("clip", 0.0))
     xt, yt = train
     xv, yv = val
     history: list[dict[str, Any]] = []
@@ -127,6 +147,8 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
     for epoch in range(1, s.max_epochs + 1):
         t0 = time.perf_counter()
         model.train()
+        for group in opt.param_groups:
+            group["lr"] = s.lr * _lr_factor(recipe, epoch, s.max_epochs)
         total, correct, count = 0.0, 0, 0
         for idx in _batches(len(yt), s.batch_size, rng):
             if cancel is not None:
@@ -137,6 +159,8 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
             logits = model(xb)
             loss = loss_fn(logits, yb)
             loss.backward()
+            if clip > 0:
+                nn.utils.clip_grad_norm_(model.parameters(), clip)
             opt.step()
             total += float(loss.detach()) * len(idx)
             correct += int((logits.argmax(1) == yb).sum())

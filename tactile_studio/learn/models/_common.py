@@ -77,7 +77,7 @@ def resolve_options(
             if key == "dropout" or key.endswith("_dropout"):
                 if not 0.0 <= new < 1.0:
                     raise UserError(f"model '{model}': {key}={value!r} must be in [0, 1)")
-            elif new <= 0:
+            elif new < 0 or (new == 0 and not key.endswith("_hidden")):
                 raise UserError(f"model '{model}': {key}={value!r} must be positive")
         if isinstance(new, tuple) and any(v <= 0 for v in new):
             raise UserError(f"model '{model}': {key}={value!r} must be positive integers")
@@ -123,3 +123,200 @@ def transformer_encoder(
 
 def count_parameters(model: nn.Module) -> int:
     return sum(p.numel() for p in model.parameters())
+
+
+class WindowStatistics(nn.Module):
+    """The random forest's kind of features, computed inside the network.
+
+    Per frame, every channel is summarised over the grid (mean, max, min, spread); the
+    first channel's load (above the frame's minimum) gives the contact's centroid (row,
+    column), radius of gyration, area (share of cells above a quarter of the peak) and the
+    centroid's speed; when shear channels are present (the last two), the mean and max
+    shear magnitude and the mean divergence and curl of the shear field; each of
+    these signals is then described over time by mean, std, min, max, the 10/25/50/75/90th
+    percentiles, skewness, kurtosis, energy, trend (last third minus first third) and the share of its spectral energy in ``bands``
+    frequency bands (a fixed DFT basis: exports to ONNX). The features are compressed
+    (sign-log) and batch-normalised. Statistics of a whole window are invariant to where
+    on the grid and when in the window a touch happens, which is what carries over from
+    one person to the next; a late-fusion head over them (:class:`StatisticsHead`) lets a
+    small data set lean on them while the convolutional part learns what they miss.
+    """
+
+    QUANTILES = (0.1, 0.25, 0.5, 0.75, 0.9)
+
+    def __init__(self, in_channels: int, frames: int, bands: int = 4) -> None:
+        super().__init__()
+        self.shear = in_channels >= 2
+        self.n_signals = 4 * in_channels + 5 + (4 if self.shear else 0)
+        freqs = torch.arange(1, frames // 2 + 1, dtype=torch.float32)
+        t = torch.arange(frames, dtype=torch.float32)
+        angle = 2 * math.pi * t[:, None] * freqs[None, :] / frames
+        self.register_buffer("cos", torch.cos(angle), persistent=False)
+        self.register_buffer("sin", torch.sin(angle), persistent=False)
+        band = torch.zeros(len(freqs), bands)
+        for i in range(len(freqs)):
+            band[i, min(bands - 1, i * bands // max(1, len(freqs)))] = 1.0
+        self.register_buffer("band", band, persistent=False)
+        self.register_buffer("q_index", torch.tensor(
+            [round(q * (frames - 1)) for q in self.QUANTILES], dtype=torch.long),
+            persistent=False)
+        self.out_features = self.n_signals * (8 + len(self.QUANTILES) + bands)
+        self.norm = nn.BatchNorm1d(self.out_features)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, C, T, R, X)
+        b, c, t = x.shape[:3]
+        flat = x.reshape(b, c, t, -1)
+        signals = [flat.mean(-1), flat.amax(-1), flat.amin(-1), flat.std(-1)]
+        signals.append(self._contact(x[:, 0]))
+        if self.shear:
+            mag = torch.sqrt(flat[:, -2] ** 2 + flat[:, -1] ** 2 + 1e-6)
+            sx, sy = x[:, -2], x[:, -1]  # (B, T, R, X): x along columns, y along rows
+            div = (sx[..., :, 1:] - sx[..., :, :-1]).mean((-2, -1)) + \
+                (sy[..., 1:, :] - sy[..., :-1, :]).mean((-2, -1))
+            curl = (sy[..., :, 1:] - sy[..., :, :-1]).mean((-2, -1)) - \
+                (sx[..., 1:, :] - sx[..., :-1, :]).mean((-2, -1))
+            signals.append(torch.stack([mag.mean(-1), mag.amax(-1), div, curl], dim=1))
+        s = torch.cat(signals, dim=1)  # (B, S, T)
+        mean = s.mean(-1, keepdim=True)
+        centred = s - mean
+        std = torch.sqrt((centred ** 2).mean(-1, keepdim=True) + 1e-6)
+        z = centred / std
+        ordered = torch.sort(s, dim=-1).values
+        third = max(1, t // 3)
+        trend = s[..., t - third:].mean(-1, keepdim=True) - s[..., :third].mean(-1, keepdim=True)
+        power = (centred @ self.cos) ** 2 + (centred @ self.sin) ** 2
+        share = (power @ self.band) / (power.sum(-1, keepdim=True) + 1e-6)
+        feats = torch.cat([
+            mean, std, ordered[..., :1], ordered[..., -1:], ordered[..., self.q_index],
+            (z ** 3).mean(-1, keepdim=True), (z ** 4).mean(-1, keepdim=True) - 3,
+            (s ** 2).mean(-1, keepdim=True), trend, share], dim=-1).reshape(b, -1)
+        feats = torch.sign(feats) * torch.log1p(feats.abs())
+        return self.norm(feats)
+
+    @staticmethod
+    def _contact(load: torch.Tensor) -> torch.Tensor:
+        """(B, T, R, X) first channel -> (B, 5, T): centroid row/col, radius, area, speed."""
+        b, t, r, c = load.shape
+        w = torch.relu(load - load.amin(dim=(-2, -1), keepdim=True))
+        total = w.sum((-2, -1)) + 1e-6
+        rows = torch.arange(r, dtype=load.dtype, device=load.device).view(1, 1, r, 1)
+        cols = torch.arange(c, dtype=load.dtype, device=load.device).view(1, 1, 1, c)
+        cr = (w * rows).sum((-2, -1)) / total
+        cc = (w * cols).sum((-2, -1)) / total
+        radius = torch.sqrt((w * ((rows - cr[..., None, None]) ** 2
+                                  + (cols - cc[..., None, None]) ** 2)).sum((-2, -1)) / total
+                            + 1e-6)
+        peak = w.amax(dim=(-2, -1), keepdim=True)
+        area = (w > 0.25 * peak).to(load.dtype).mean((-2, -1))
+        if t > 1:
+            step = torch.sqrt((cr[:, 1:] - cr[:, :-1]) ** 2 + (cc[:, 1:] - cc[:, :-1]) ** 2
+                              + 1e-6)
+            speed = torch.cat([step[:, :1], step], dim=1)
+        else:
+            speed = torch.zeros_like(cr)
+        return torch.stack([cr, cc, radius, area, speed], dim=1)
+
+
+class StatisticsHead(nn.Module):
+    """Window statistics -> hidden layer (none when ``hidden`` is 0) -> class logits,
+    added to a network's logits."""
+
+    def __init__(self, in_channels: int, frames: int, n_classes: int, hidden: int,
+                 dropout: float) -> None:
+        super().__init__()
+        self.stats = WindowStatistics(in_channels, frames)
+        if hidden == 0:  # a linear (multinomial logistic) head: the most robust on few people
+            self.mlp = nn.Sequential(nn.Dropout(dropout),
+                                     nn.Linear(self.stats.out_features, n_classes))
+            return
+        self.mlp = nn.Sequential(
+            nn.Dropout(dropout / 2), nn.Linear(self.stats.out_features, hidden),
+            nn.ReLU(inplace=True), nn.Dropout(dropout), nn.Linear(hidden, n_classes))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.mlp(self.stats(x))
+
+
+def mirror_average(forward, x: torch.Tensor) -> torch.Tensor:
+    """Mean logits of ``forward`` over ``x`` and its three mirror images (left-right,
+    top-bottom, both), shear components turned with the grid as in ``learn/augment.py``
+    (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal + shear x/y).
+
+    Test-time augmentation for models trained with flips: a person touching the mirror
+    image of the trained touch gets the same answer. Exports to ONNX with the model
+    (flips become reversed slices), so exported and torch predictions agree.
+    """
+    c = int(x.shape[1])  # a Python int also while tracing for ONNX (the channels are fixed)
+    sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))
+    total = forward(x)
+    for dims in ((4,), (3,), (3, 4)):
+        signs = [1.0] * c  # a Python list: a constant in an exported graph
+        if sx is not None and 4 in dims:
+            signs[sx] = -1.0
+        if sy is not None and 3 in dims:
+            signs[sy] = -1.0
+        sign = torch.tensor([[[[[v]]] for v in signs]], dtype=x.dtype, device=x.device)
+        total = total + forward(torch.flip(x, dims) * sign)
+    return total / 4
+
+
+def random_mirror(x: torch.Tensor) -> torch.Tensor:
+    """Each sample of a training batch mirrored left-right and/or top-bottom with
+    probability 1/2 each (shear turned with the grid, see :func:`mirror_average`):
+    geometry-respecting augmentation inside the model, free of extra copies."""
+    b, c = x.shape[:2]
+    sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))
+    for dim, shear in ((4, sx), (3, sy)):
+        pick = torch.rand(b, device=x.device) < 0.5
+        flipped = torch.flip(x, (dim,))
+        if shear is not None:
+            sign = torch.ones(c, dtype=x.dtype, device=x.device)
+            sign[shear] = -1.0
+            flipped = flipped * sign.view(1, c, 1, 1, 1)
+        x = torch.where(pick.view(b, 1, 1, 1, 1), flipped, x)
+    return x
+
+
+# options every model's full recipe adds (tiny presets keep them off)
+RECIPE_HELP = {
+    "stats": "add a late-fusion head over window statistics (what the random forest uses)",
+    "stats_hidden": "units of the window-statistics head",
+    "mirror": "train on random mirror images of the grid, predict as the mean over them",
+    "branch_dropout": "chance a training sample's network logits are dropped (statistics alone)",
+}
+
+
+class RecipeModel(nn.Module):
+    """Base of the models with the generalisation recipe: subclasses implement
+    ``network_logits``; ``forward`` adds the window-statistics head's logits (``stats``)
+    and mirrors the grid (random mirror images in training, their mean in evaluation)."""
+
+    mirror: bool = False
+    branch_dropout: float = 0.0
+
+    def attach_recipe(self, in_channels: int, frames: int, n_classes: int, stats: bool,
+                      stats_hidden: int, mirror: bool, dropout: float,
+                      branch_dropout: float = 0.0) -> None:
+        self.mirror = bool(mirror)
+        self.branch_dropout = float(branch_dropout) if stats else 0.0
+        self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout)
+                      if stats else None)
+
+    def network_logits(self, x: torch.Tensor) -> torch.Tensor:  # pragma: no cover
+        raise NotImplementedError
+
+    def _fused(self, x: torch.Tensor) -> torch.Tensor:
+        out = self.network_logits(x)
+        if self.stats is None:
+            return out
+        if self.training and self.branch_dropout > 0:
+            keep = (torch.rand(out.shape[0], 1, device=out.device) >= self.branch_dropout)
+            out = out * keep.to(out.dtype) / (1.0 - self.branch_dropout)
+        return out + self.stats(x)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if self.mirror and self.training:
+            x = random_mirror(x)
+        elif self.mirror:
+            return mirror_average(self._fused, x)
+        return self._fused(x)

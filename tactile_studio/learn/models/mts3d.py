@@ -7,6 +7,10 @@ through ONE shared ResNet3D-18-style backbone (3x3x3 stem, no first pooling, fou
 of two basic blocks, 64/128/256/512 channels, stride 2 from the 2nd stage on, dropout 0.3
 after the 2nd stage); the globally pooled features of the scales are summed, then a
 linear layer gives the classes.
+
+The ``full`` preset is not the paper's network but the generalisation recipe of
+docs/learning.md (small network + linear window-statistics head, mirror training and
+averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
 from __future__ import annotations
@@ -17,7 +21,12 @@ from torch import nn
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
-from tactile_studio.learn.models._common import check_io, resolve_options
+from tactile_studio.learn.models._common import (
+    RECIPE_HELP,
+    RecipeModel,
+    check_io,
+    resolve_options,
+)
 
 # one line of help per option (the research workspace shows it beside the value)
 OPTION_HELP = {
@@ -25,19 +34,29 @@ OPTION_HELP = {
     "blocks": "residual blocks per stage",
     "scales": "temporal scales fused by summation (paper: 3)",
     "dropout": "dropout after the 2nd stage (paper: 0.3)",
+    **RECIPE_HELP,
 }
 
 OPTIONS: dict[str, dict[str, object]] = {
-    "full": {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
-             "dropout": 0.3},
+    "full": {"widths": (8, 16, 24, 32), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
+             "dropout": 0.3, "stats": True, "stats_hidden": 0, "mirror": True,
+             "branch_dropout": 0.75},
     "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
-             "dropout": 0.1},
+             "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False,
+             "branch_dropout": 0.0},
 }
-VIEWS = {"full": ViewSpec("gradient", 32), "tiny": ViewSpec("gradient", 8)}
+# the paper's ResNet3D-18 (trained with sgd, lr 1e-2, momentum 0.9, weight decay 5e-4,
+# batch 16, up to 100 epochs, patience 15)
+PAPER = {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
+         "dropout": 0.3, "stats": False, "mirror": False}
+VIEWS = {"full": ViewSpec("gradient", 16), "tiny": ViewSpec("gradient", 8)}
 TRAIN = {
-    "full": TrainDefaults("sgd", 1e-2, 16, 100, 15, weight_decay=5e-4, momentum=0.9),
+    "full": TrainDefaults("adamw", 3e-3, 32, 20, 20, weight_decay=1e-2),
     "tiny": TrainDefaults("adam", 3e-3, 16, 40, 8),
 }
+# training recipe of the preset (see train.fit): a fixed, cosine-decayed budget
+RECIPE = {"full": {"label_smoothing": 0.1, "schedule": "cosine", "warmup": 2, "clip": 5.0},
+          "tiny": {}}
 
 
 class BasicBlock3D(nn.Module):
@@ -84,15 +103,18 @@ class Backbone(nn.Module):
         return self.stages(self.stem(x)).mean(dim=(2, 3, 4))
 
 
-class MTS3D(nn.Module):
+class MTS3D(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
-                 dropout: float) -> None:
+                 dropout: float, stats: bool = False, stats_hidden: int = 16,
+                 mirror: bool = False, branch_dropout: float = 0.0, frames: int = 32) -> None:
         super().__init__()
+        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
+                           branch_dropout)
         self.scales = tuple(scales)
         self.backbone = Backbone(in_channels, widths, blocks, dropout)
         self.classifier = nn.Linear(widths[-1], n_classes)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def network_logits(self, x: torch.Tensor) -> torch.Tensor:
         fused = None
         for s in self.scales:
             xs = x
@@ -114,7 +136,8 @@ def build(
         raise UserError("model 'mts3d': widths and blocks need the same number of stages")
     if len(opts["widths"]) < 2:  # type: ignore[arg-type]
         raise UserError("model 'mts3d': needs at least 2 stages")
-    model = MTS3D(n_classes, in_channels, **opts)  # type: ignore[arg-type]
+    model = MTS3D(n_classes, in_channels, frames=frames, **opts)  # type: ignore[arg-type]
+    model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model
 
