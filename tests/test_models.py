@@ -51,7 +51,8 @@ def test_registry_lists_the_papers_models_with_views_and_defaults():
     for name in NAMES:
         d = MODELS[name].train_defaults("full")
         assert isinstance(d, TrainDefaults)
-        assert (d.optimizer, d.max_epochs, d.patience) == ("adamw", d.patience, d.max_epochs)
+        assert d.optimizer == "adamw"
+        assert d.patience == d.max_epochs  # a fixed budget: patience never ends it early
         assert d.max_epochs <= 40 and d.weight_decay > 0
     for name in NAMES:
         tiny, full = MODELS[name].view("tiny"), MODELS[name].view("full")
