@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -23,14 +25,30 @@ import numpy as np
 STRIP_8 = [(1, 1), (1, 4), (2, 2), (2, 3), (3, 2), (3, 3), (4, 1), (4, 4)]
 
 
+def replay_file(rate_hz: float, seconds: float, folder: str) -> str:
+    """A session of simulated Twist frames at ``rate_hz`` to replay (recorded 4x faster)."""
+    path = os.path.join(folder, f"twist-{rate_hz:g}hz.h5")
+    subprocess.run([sys.executable, "-m", "tactile_studio", "record", "--device", "simulated",
+                    "--set", f"rate={rate_hz:g}", "--set", "speed=4", "--set", "gesture=Twist",
+                    "--seconds", f"{(seconds + 4) / 4:g}", "--out", path, "--force"],
+                   check=True, capture_output=True, timeout=600)
+    return path
+
+
 def bench_window(rate_hz: float, seconds: float, display_hz: float = 60.0,
-                 strip_taxels: list[tuple[int, int]] | None = None) -> dict:
-    """Open the main window on the simulated sensor and measure painting for ``seconds``."""
+                 strip_taxels: list[tuple[int, int]] | None = None,
+                 replay: str | None = None) -> dict:
+    """Open the main window on the simulated sensor (or replaying the session ``replay``)
+    and measure painting for ``seconds``."""
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.main_window import MainWindow, wait_for
 
     ensure_app()
-    w = MainWindow(device="simulated", settings={"rate": str(rate_hz), "gesture": "Twist"},
+    if replay is None:
+        device, settings = "simulated", {"rate": str(rate_hz), "gesture": "Twist"}
+    else:
+        device, settings = "replay", {"path": replay, "speed": "1", "loop": "true"}
+    w = MainWindow(device=device, settings=settings,
                    connect=True, persist=False, display_hz=display_hz)
     w.latency = type(w.latency)(keep=100_000)
     try:
@@ -121,6 +139,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=5.0, help="measuring time per rate")
     parser.add_argument("--rates", type=float, nargs="+", default=[43.0, 1000.0],
                         help="device rates to measure (Hz)")
+    parser.add_argument("--source", choices=("simulated", "replay", "both"), default="both",
+                        help="simulated: the contact-mechanics simulator in the app's process "
+                        "(~50%% of a core at 1 kHz, competing with the GUI thread); replay: "
+                        "the same frames replayed from a session file (~6%%, like a serial "
+                        "device), so the figures are the display's own cost")
     args = parser.parse_args(argv)
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -131,19 +154,23 @@ def main(argv: list[str] | None = None) -> int:
     print(f"(1-minute load average {load:.1f} on {os.cpu_count()} CPUs at the start: a busy "
           "machine lowers fps and raises latency and wall times)")
     rows = []
-    for rate in args.rates:
-        for taxels in ([], STRIP_8):
-            r = bench_window(rate, args.seconds, strip_taxels=taxels)
-            r.update(rate=rate, taxels=len(taxels), load=_load())
-            rows.append(r)
+    sources = ("simulated", "replay") if args.source == "both" else (args.source,)
+    with tempfile.TemporaryDirectory() as folder:
+        for source in sources:
+            for rate in args.rates:
+                path = replay_file(rate, args.seconds, folder) if source == "replay" else None
+                for taxels in ([], STRIP_8):
+                    r = bench_window(rate, args.seconds, strip_taxels=taxels, replay=path)
+                    r.update(rate=rate, taxels=len(taxels), load=_load(), source=source)
+                    rows.append(r)
     print("GUI ms/frame: the GUI thread's CPU time (thread_time: polls, decode, set-up and "
           "paint,\nless sensitive to other processes than wall time) between consecutive "
           "painted frames,\nmedian, p95 and mean (total over painted frames); core: share "
           "of one core;\npolls: looks for a new frame per second.")
-    print(f"{'input':>7} {'strip':>6} {'polls':>5} {'fps':>5} | {'GUI ms/frame med':>16} {'p95':>5} "
+    print(f"{'source':>9} {'input':>7} {'strip':>6} {'polls':>5} {'fps':>5} | {'GUI ms/frame med':>16} {'p95':>5} "
           f"{'mean':>5} {'core':>6} | {'latency med':>11} {'p95':>5} {'p99':>5} | {'load':>4}")
     for r in rows:
-        print(f"{r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['polls_hz']:4.0f}/s {r['display_fps']:5.1f} | "
+        print(f"{r['source']:>9} {r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['polls_hz']:4.0f}/s {r['display_fps']:5.1f} | "
               f"{r['cpu_ms_med']:13.2f} ms {r['cpu_ms_p95']:5.2f} {r['cpu_ms_mean']:5.2f} "
               f"{r['gui_cpu_pct']:5.1f}% | {r['latency_med_ms']:8.1f} ms "
               f"{r['latency_p95_ms']:5.1f} {r['latency_p99_ms']:5.1f} | {r['load']:4.1f}")
