@@ -24,3 +24,47 @@ def wait_until():
     """The shared bounded wait (tests/waiting.py), for tests that prefer a fixture."""
     from waiting import wait_until as wait
     return wait
+
+
+@pytest.fixture(autouse=True)
+def no_recorder_left_running():
+    """A test that starts a recorder stops it: one left running would write into its
+    file while the interpreter tears down (a crash after the last test)."""
+    from tactile_studio.storage.recorder import running_recorders
+    before = set(map(id, running_recorders()))
+    yield
+    left = [r for r in running_recorders() if id(r) not in before]
+    for r in left:
+        r.stop()
+    assert not left, f"recorder left running: {[str(r.path) for r in left]}"
+
+
+@pytest.fixture(autouse=True)
+def widgets_live_until_closed(monkeypatch):
+    """Close the widgets a test registered with ``qtbot.addWidget`` at its end.
+
+    pytest-qt holds them weakly: a window the test no longer references was destroyed at
+    the test's last line without a closeEvent (a collection console's recording kept
+    running). Here they are held until closed; one its parent already deleted is skipped.
+    Set up after (so torn down before) the recorder check.
+    """
+    from pytestqt.qtbot import QtBot
+    held = []
+
+    def add_widget(self, widget, *, before_close_func=None):
+        held.append((widget, before_close_func))
+
+    monkeypatch.setattr(QtBot, "addWidget", add_widget)
+    yield
+    if not held:
+        return
+    import shiboken6
+    from PySide6.QtWidgets import QApplication
+    for widget, before_close in held:
+        if shiboken6.isValid(widget):
+            if before_close is not None:
+                before_close(widget)
+            widget.close()
+            widget.deleteLater()
+    held.clear()
+    QApplication.processEvents()

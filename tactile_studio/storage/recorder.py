@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import atexit
 import logging
 import os
 import threading
+import weakref
 from collections import Counter
 from typing import Any
 
@@ -20,6 +22,10 @@ from tactile_studio.storage.trials import TrialRecord
 # Events that state something in force until the next one (the host->LSL clock offset of a
 # running LSL outlet): a recording started later begins with the latest one, at row 0.
 CARRIED_EVENTS = ("lsl_clock",)
+
+# Recorders whose file is open: closed cleanly if the interpreter exits while they run
+# (their daemon thread would otherwise die mid-write during interpreter teardown).
+_OPEN: weakref.WeakSet[Recorder] = weakref.WeakSet()
 
 
 class Recorder:
@@ -64,6 +70,7 @@ class Recorder:
         self._carry_over()
         self._notes = [line for line in str(self.writer.metadata.get("notes", "")).split("\n")
                        if line]
+        _OPEN.add(self)
 
     @property
     def path(self) -> os.PathLike:
@@ -185,11 +192,17 @@ class Recorder:
             self._thread.join()
         self._drain()
         self.writer.close(background=background_compress)
+        _OPEN.discard(self)
         self._log_usage()
 
     @property
     def stopped(self) -> bool:
         return self._stop.is_set()
+
+    @property
+    def running(self) -> bool:
+        """Its background thread is pulling frames (started, not stopped)."""
+        return self._thread.is_alive()
 
     def _log_usage(self) -> None:
         """Add this recording's duration to the sensor's hours of use in the logbook."""
@@ -261,6 +274,22 @@ class Recorder:
         }
         return {"malformed_by_kind": merged,
                 **{k: v + int(base.get(k, 0)) for k, v in run.items()}}
+
+
+def running_recorders() -> list[Recorder]:
+    """Recorders whose thread runs now (tests check none is left behind)."""
+    return [r for r in list(_OPEN) if r.running]
+
+
+@atexit.register
+def _stop_open_recorders() -> None:
+    """Exiting with a recording running: write what is left and close the file, so
+    nothing recorded is lost and no recorder thread outlives the interpreter."""
+    for recorder in list(_OPEN):
+        try:
+            recorder.stop()
+        except Exception:  # noqa: BLE001 - exiting anyway; the next file must still close
+            logging.getLogger(__name__).exception("%s: not closed at exit", recorder.path)
 
 
 def sensor_metadata(engine: RecordableStream,
