@@ -25,6 +25,7 @@ from tactile_studio.simulate.population import DEFAULT_DIFFICULTY, DIFFICULTIES,
 from tactile_studio.simulate.schedule import AUTO, Trial
 
 _WAIT_S = 0.1  # longest read() blocks without a frame due
+_MIN_PERIOD_S = 0.005  # real-time frames come in batches of at least this much time
 
 
 class SimulatedSensor(DevicePlugin):
@@ -110,15 +111,21 @@ class SimulatedSensor(DevicePlugin):
         elif speed <= 0 and self._pacer is not None:
             n = self._pacer(max_frames, _WAIT_S)
         elif speed > 0:
+            # a batch of at least _MIN_PERIOD_S of frames: the physics cost a fixed
+            # ~0.2 ms per call, half a core at 1 kHz frame by frame (as a USB device
+            # delivers a fast stream in packets, too)
+            frames_per_s = self.nominal_rate_hz * speed
+            want = max(1, min(max_frames, int(frames_per_s * _MIN_PERIOD_S)))
             deadline = time.monotonic() + _WAIT_S
             while True:
-                n = min(max_frames, self._due() - self._sim.frame)
-                if n > 0:
-                    break
+                due = self._due() - self._sim.frame
                 now = time.monotonic()
+                if due >= want or (due > 0 and now >= deadline):
+                    n = min(max_frames, due)
+                    break
                 if now >= deadline:
                     return self._batch(0)
-                next_at = self._t0 + (self._sim.frame - self._f0) / (self.nominal_rate_hz * speed)
+                next_at = self._t0 + (self._sim.frame + want - 1 - self._f0) / frames_per_s
                 time.sleep(min(max(next_at - now, 0.0005), deadline - now))
         return self._batch(n)
 

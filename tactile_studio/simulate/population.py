@@ -31,6 +31,7 @@ Everything is drawn from generators keyed by the seeds, so frames stay determini
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -114,8 +115,12 @@ def _ln(rng: np.random.Generator, sigma: float) -> float:
     return float(np.exp(rng.normal(0.0, sigma))) if sigma > 0 else 1.0
 
 
+@lru_cache(maxsize=256)
 def person(style_seed: int, pop: Population) -> Person:
-    """The participant ``style_seed`` as ``pop`` varies people (the base style included)."""
+    """The participant ``style_seed`` as ``pop`` varies people (the base style included).
+
+    Cached: a 1 kHz stream asks for the same person hundreds of times a second (the
+    result is read, never changed)."""
     base = Style.from_seed(style_seed)
     rng = np.random.default_rng([int(style_seed) & 0xFFFFFFFF, 0x9E0B, len(pop.name)])
     style = replace(
