@@ -47,7 +47,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats_hidden": 0,
         "mirror": True,
         "branch_dropout": 0.75,
-        "members": 3,
+        "members": 1,  # 3 measured: no gain for 2.4x the cost (docs/learning.md)
     },
     "tiny": {
         "filters": (8, 16, 32),

@@ -41,7 +41,7 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"widths": (8, 16, 24, 32), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.3, "stats": True, "stats_hidden": 0, "mirror": True,
-             "branch_dropout": 0.75, "members": 3},
+             "branch_dropout": 0.75, "members": 1},
     "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False,
              "branch_dropout": 0.0, "members": 1},

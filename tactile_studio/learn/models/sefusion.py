@@ -52,7 +52,7 @@ OPTIONS: dict[str, dict[str, object]] = {
     "full": {"fusion": "mid", "filters": 32, "kernel": 7, "blocks": 2, "se_reduction": 4,
              "d_model": 32, "heads": 4, "layers": 1, "ff": 64, "hidden": 32, "dropout": 0.3,
              "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75,
-             "members": 3},
+             "members": 1},  # 3 measured: no gain for 3.7x the cost (docs/learning.md)
     "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
              "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1,
              "stats": False, "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0,
