@@ -11,9 +11,12 @@ including the mirror averaging of the full recipe).
 
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
+       [--set KEY=VALUE ...]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
-participant norm, balance, validation by participant.)
+participant norm, balance, validation by participant; --set: model options for the
+learned models, e.g. --set members=1 to measure one network instead of the preset's
+ensemble.)
 """
 
 from __future__ import annotations
@@ -38,7 +41,7 @@ OPTIONS = {"augment": "all", "augment_copies": 2, "participant_norm": True, "bal
            "val_by": "participant"}
 
 
-def model_cost(name: str, preset: str) -> tuple[int, float]:
+def model_cost(name: str, preset: str, sets: dict[str, str]) -> tuple[int, float]:
     """(parameters, ms per trial) of ``name`` for 3 channels on 6x6 and 9 gestures."""
     import torch
 
@@ -47,7 +50,7 @@ def model_cost(name: str, preset: str) -> tuple[int, float]:
 
     spec = REGISTRY[name]
     view = spec.view(preset)
-    model = spec.build(9, 3, (6, 6), preset).eval()
+    model = spec.build(9, 3, (6, 6), preset, **sets).eval()
     # a 2 s trial of 86 frames gives one sample, or several windows for a windowed view
     per_trial = 1 if view.kind != "windows" else 1 + max(0, (86 - view.frames) // view.stride)
     x = torch.randn(64 * per_trial, 3, view.frames, 6, 6)
@@ -72,28 +75,32 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--preset", default="full", choices=("full", "tiny"))
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--options", action="store_true")
+    ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
     args = ap.parse_args(argv if argv is not None else [])
     options = OPTIONS if args.options else {}
+    sets = dict(item.split("=", 1) for item in args.set)
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data"
         make_dataset_folder(data, participants=10, blocks=4, difficulty="real")
         print(f"LOPO, 10 participants x 9 gestures x 4 trials, difficulty real, preset "
               f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
-                 "participant" if options else ""))
+                 "participant" if options else "")
+              + (f", --set {' '.join(args.set)}" if sets else ""))
         print(f"{'model':>16s}{'trial acc':>11s}{'f1':>8s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")
         for model in args.models:
             base = ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
                                     preset=args.preset, rounds=args.rounds,
                                     epochs=None if model in ("rf", "knn") else args.epochs,
+                                    overrides={} if model in ("rf", "knn") else sets,
                                     cache_dir=str(Path(tmp) / "cache"), **options)
             t0 = time.perf_counter()
             with LocalExecutor(args.jobs) as ex:
                 res = run_sweep(base, [model], [None], ex)
             wall = time.perf_counter() - t0
             params, ms = ("-", float("nan")) if model in ("rf", "knn") else \
-                model_cost(model, args.preset)
+                model_cost(model, args.preset, sets)
             for row in res.rows:
                 print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"
                       f"{row['f1_macro']:>8.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"

@@ -105,14 +105,19 @@ def bench_streaming(preset: str, channels: int, grid, variant: str = "torch") ->
     one = frames[0][None]
     ring = np.random.default_rng(1).normal(size=(1, view.frames, predictor._ring.shape[1]))
     ring = ring.astype(np.float32)
+    # the statistics head (full preset) also reads the window's frames
+    window = np.ascontiguousarray(frames[:view.frames].transpose(1, 0, 2, 3)[None])
+    feed = {"input": ring, **({"window": window} if predictor.keeps_frames else {})}
+    head_args = (torch.from_numpy(ring),) + \
+        ((torch.from_numpy(window),) if predictor.keeps_frames else ())
     if variant == "onnx":
         cnn_s, head_s = predictor._sessions
         cnn = timed(lambda: cnn_s.run(None, {"frame": one}))
-        transformer = timed(lambda: head_s.run(None, {"input": ring}))
+        transformer = timed(lambda: head_s.run(None, feed))
     else:
         with torch.inference_mode():
             cnn = timed(lambda: model.frame_features(torch.from_numpy(one)))
-            transformer = timed(lambda: model.classify_embeddings(torch.from_numpy(ring)))
+            transformer = timed(lambda: model.classify_embeddings(*head_args))
     print(f"cnn_transformer {preset:5s} {variant:5s} {channels}x{grid[0]}x{grid[1]:<3d} "
           f"window {view.frames:2d}: per frame {ms(per_frame)} | frame CNN {ms(cnn)} | "
           f"transformer {ms(transformer)}", flush=True)

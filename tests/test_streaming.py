@@ -116,3 +116,27 @@ def test_onnx_backend_gives_the_same_probabilities(name):
     np.testing.assert_allclose(np.array(got), np.array(reference), rtol=1e-4, atol=1e-5)
     with pytest.raises(UserError, match="backend"):
         StreamingPredictor(model, view, backend="gpu")
+
+
+@pytest.mark.parametrize("backend", ["torch", "onnx"])
+def test_full_cnn_transformer_streams_its_statistics_head_mirrors_and_members_exactly(backend):
+    torch.manual_seed(0)
+    spec = MODELS["cnn_transformer"]
+    model = spec.build(5, 3, (6, 6), "full", members=2)
+    assert model.needs_window and model.mirror and model.members == 2
+    model.train()
+    with torch.no_grad():  # non-trivial BN statistics, the window statistics' too
+        model(torch.randn(8, *model.input_shape) + 0.3)
+    model.eval()
+    view = spec.view("full")
+    stream = np.random.default_rng(4).normal(size=(view.frames + 3, 3, 6, 6)).astype(np.float32)
+    predictor = StreamingPredictor(model, view, backend=backend)
+    assert predictor.cached and predictor.keeps_frames
+    outputs = predictor.push_many(stream)
+    assert len(outputs) == 4
+    for i, probs in enumerate(outputs):
+        window = stream[i:i + view.frames].transpose(1, 0, 2, 3)[None]
+        np.testing.assert_allclose(probs, _softmax_full(model, np.ascontiguousarray(window)),
+                                   rtol=1e-3, atol=1e-5)
+    with pytest.raises(ValueError, match="window"):  # the head cannot be skipped silently
+        model.classify_embeddings(torch.zeros(1, view.frames, 4 * 2 * model.d_model))

@@ -120,7 +120,7 @@ def check_build(spec: ModelSpec, problems: list[str], observed: dict[str, Any]) 
                 continue
             observed["parameters"][(preset, channels)] = sum(p.numel()
                                                              for p in model.parameters())
-            if preset == "tiny" and channels == 3:
+            if channels == 3:  # tiny, and full (the recipe: mirrors, members, statistics)
                 _check_facts(spec, model, x, out, problems)
     _check_overrides(spec, problems)
 
@@ -158,7 +158,10 @@ def _check_facts(spec: ModelSpec, model: torch.nn.Module, x: torch.Tensor,
             b, c, t, r, s = x.shape
             with torch.inference_mode():
                 emb = model.frame_features(x.permute(0, 2, 1, 3, 4).reshape(b * t, c, r, s))
-                split = model.classify_embeddings(emb.reshape(b, t, -1))
+                emb = emb.reshape(b, t, -1)
+                split = (model.classify_embeddings(emb, x)
+                         if getattr(model, "needs_window", False)
+                         else model.classify_embeddings(emb))
             if not torch.allclose(split, out, atol=1e-4):
                 problems.append("classify_embeddings(frame_features(frames)) differs from the "
                                 "forward pass")

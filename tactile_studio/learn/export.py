@@ -33,11 +33,14 @@ OPSET = 17
 
 def onnx_bytes(
     module: nn.Module,
-    example_input: torch.Tensor,
-    input_name: str = "input",
+    example_input: torch.Tensor | tuple[torch.Tensor, ...],
+    input_name: str | tuple[str, ...] = "input",
     output_name: str = "logits",
 ) -> bytes:
-    """``module`` (in eval mode) as an ONNX model in memory, batch axis dynamic."""
+    """``module`` (in eval mode) as an ONNX model in memory, batch axis dynamic; several
+    inputs as tuples of example tensors and names."""
+    inputs = example_input if isinstance(example_input, tuple) else (example_input,)
+    names = list(input_name) if isinstance(input_name, tuple) else [input_name]
     was_training = module.training
     module.eval()
     try:
@@ -47,13 +50,14 @@ def onnx_bytes(
             buffer = io.BytesIO()
             torch.onnx.export(
                 module,
-                (example_input,),
+                inputs,
                 buffer,
                 dynamo=False,
                 opset_version=OPSET,
-                input_names=[input_name],
+                input_names=names,
                 output_names=[output_name],
-                dynamic_axes={input_name: {0: "batch"}, output_name: {0: "batch"}},
+                dynamic_axes={**{name: {0: "batch"} for name in names},
+                              output_name: {0: "batch"}},
                 do_constant_folding=True,
             )
     finally:

@@ -4,7 +4,9 @@ Models declaring ``Streaming(cached=True)`` on their ModelSpec (they have ``fram
 a per-frame embedding, and ``classify_embeddings``, window of embeddings -> logits), i.e.
 the CNN-Transformer, get the cached path: each
 new frame goes through the per-frame CNN exactly once, its embedding is kept in a ring
-of the window's length, and a prediction runs only the Transformer over the ring. Any
+of the window's length, and a prediction runs only the Transformer over the ring (and,
+for a model that ``needs_window``, its statistics head over a second ring of the window's
+frames: the same computation as the model's forward pass on the window). Any
 other model gets the generic path: the last ``window`` frames are kept, turned into the
 model's view (resample / slices / gradient sampling of that window) and fully recomputed.
 The rf / k-NN baselines (a :class:`~tactile_studio.learn.baselines.BaselineModel`, an ONNX
@@ -48,15 +50,19 @@ class _Embeddings(nn.Module):
     def __init__(self, model: nn.Module) -> None:
         super().__init__()
         self.model = model
+        self.train(model.training)  # the export restores this mode: keep the model's
 
-    def forward(self, emb: torch.Tensor) -> torch.Tensor:
-        return self.model.classify_embeddings(emb)
+    def forward(self, emb: torch.Tensor, window: torch.Tensor | None = None) -> torch.Tensor:
+        if window is None:
+            return self.model.classify_embeddings(emb)
+        return self.model.classify_embeddings(emb, window)
 
 
 class _FrameCNN(nn.Module):
     def __init__(self, model: nn.Module) -> None:
         super().__init__()
         self.model = model
+        self.train(model.training)  # the export restores this mode: keep the model's
 
     def forward(self, frames: torch.Tensor) -> torch.Tensor:
         return self.model.frame_features(frames)
@@ -120,13 +126,17 @@ class StreamingPredictor:
         self.mean = None if mean is None else np.asarray(mean, np.float32).reshape(-1, 1, 1)
         self.std = None if std is None else np.asarray(std, np.float32).reshape(-1, 1, 1)
         self.cached = not self.features and view.kind == "windows" and streaming.cached
+        # the statistics head of a cached model reads the window's frames: keep them too
+        self.keeps_frames = self.cached and bool(getattr(model, "needs_window", False))
         self._sessions: tuple | None = None
         self._ring: np.ndarray | None = None
+        self._frames: np.ndarray | None = None
         self.frames_seen = 0
 
     def reset(self) -> None:
         """Forget buffered frames (e.g. after a gap in the stream)."""
         self._ring = None
+        self._frames = None
         self.frames_seen = 0
 
     @property
@@ -153,7 +163,13 @@ class StreamingPredictor:
                 with torch.inference_mode():
                     dim = self.model.frame_features(one).shape[1]
                 cnn = onnx_bytes(_FrameCNN(self.model), one, "frame", "embedding")
-                head = onnx_bytes(_Embeddings(self.model), torch.zeros(1, self.window, dim))
+                emb = torch.zeros(1, self.window, dim)
+                if self.keeps_frames:
+                    window = torch.zeros(1, frame.shape[0], self.window, *frame.shape[1:])
+                    head = onnx_bytes(_Embeddings(self.model), (emb, window),
+                                      ("input", "window"))
+                else:
+                    head = onnx_bytes(_Embeddings(self.model), emb)
                 self._sessions = (cpu_session(cnn, self.threads),
                                   cpu_session(head, self.threads))
             else:
@@ -175,6 +191,10 @@ class StreamingPredictor:
         if self._ring is None:
             self._ring = np.zeros((self.window, *item.shape), dtype=np.float32)
         self._ring[self.frames_seen % self.window] = item
+        if self.keeps_frames:
+            if self._frames is None:
+                self._frames = np.zeros((self.window, *frame.shape), dtype=np.float32)
+            self._frames[self.frames_seen % self.window] = frame
         self.frames_seen += 1
         if not self.ready or (self.frames_seen - self.window) % self.hop:
             return None
@@ -189,12 +209,13 @@ class StreamingPredictor:
                 out.append(probs)
         return out
 
-    def _ordered(self) -> np.ndarray:
-        """The ring's contents oldest first."""
+    def _ordered(self, ring: np.ndarray | None = None) -> np.ndarray:
+        """The ring's (or ``ring``'s) contents oldest first."""
+        ring = self._ring if ring is None else ring
         start = self.frames_seen % self.window
         if start == 0:
-            return self._ring
-        return np.concatenate([self._ring[start:], self._ring[:start]])
+            return ring
+        return np.concatenate([ring[start:], ring[:start]])
 
     def current_window(self) -> np.ndarray:
         """The model input (1, C, T, R, X) the next generic prediction would use."""
@@ -213,13 +234,25 @@ class StreamingPredictor:
             trial = np.ascontiguousarray(self._ordered().transpose(1, 0, 2, 3))
             return self.model.predict_trial(trial, self.rate)
         x = self._ordered()[None] if self.cached else self.current_window()
+        window = None
+        if self.keeps_frames:  # (1, C, T, R, X), the frames the embeddings came from
+            window = np.ascontiguousarray(self._ordered(self._frames).transpose(1, 0, 2, 3)[None])
         if self.backend == "onnx":
-            first, head = self._onnx(self._ring[0])  # exported at the first frame if cached
+            # exported at the first frame if cached
+            first, head = self._onnx(self._frames[0] if self.keeps_frames else self._ring[0])
             session = head if self.cached else first
-            logits = session.run(None, {session.get_inputs()[0].name: x})[0][0]
+            feed = {session.get_inputs()[0].name: x}
+            if window is not None:
+                feed["window"] = window
+            logits = session.run(None, feed)[0][0]
             e = np.exp(logits - logits.max())
             return e / e.sum()
         with torch.inference_mode():
             t = torch.from_numpy(x)
-            logits = self.model.classify_embeddings(t) if self.cached else self.model(t)
+            if not self.cached:
+                logits = self.model(t)
+            elif window is None:
+                logits = self.model.classify_embeddings(t)
+            else:
+                logits = self.model.classify_embeddings(t, torch.from_numpy(window))
             return torch.softmax(logits[0], dim=0).numpy()

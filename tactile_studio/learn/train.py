@@ -12,7 +12,9 @@ preset's ``RECIPE``): ``label_smoothing`` (cross-entropy target smoothing), ``sc
 (``"cosine"``: the learning rate decays to 0 over ``max_epochs`` after ``warmup`` linear
 warm-up epochs; otherwise constant) and ``clip`` (gradient norm limit). These make small,
 person-to-person data sets train to a fixed budget instead of chasing a noisy
-validation loss; models without it train as before.
+validation loss; models without it train as before. A model with a ``training_step(x,
+y, loss_fn) -> (loss, logits)`` method computes its own training loss (an ensemble of
+members: the mean of each member's loss, see ``models/_common.py``).
 """
 
 from __future__ import annotations
@@ -140,6 +142,7 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
     recipe = dict(getattr(model, "train_recipe", None) or {})
     loss_fn = nn.CrossEntropyLoss(label_smoothing=float(recipe.get("label_smoothing", 0.0)))
     clip = float(recipe.get("clip", 0.0))
+    step = getattr(model, "training_step", None)  # ensembles: each member's own loss
     xt, yt = train
     xv, yv = val
     history: list[dict[str, Any]] = []
@@ -156,8 +159,11 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
             xb = torch.from_numpy(xt[idx]).to(device)
             yb = torch.from_numpy(yt[idx]).to(device)
             opt.zero_grad(set_to_none=True)
-            logits = model(xb)
-            loss = loss_fn(logits, yb)
+            if step is not None:
+                loss, logits = step(xb, yb, loss_fn)
+            else:
+                logits = model(xb)
+                loss = loss_fn(logits, yb)
             loss.backward()
             if clip > 0:
                 nn.utils.clip_grad_norm_(model.parameters(), clip)

@@ -219,44 +219,72 @@ class WindowStatistics(nn.Module):
 
 class StatisticsHead(nn.Module):
     """Window statistics -> hidden layer (none when ``hidden`` is 0) -> class logits,
-    added to a network's logits."""
+    added to a network's logits. With ensemble members (:meth:`add_members`) the
+    statistics are computed once and every member has its own layer(s) over them."""
 
     def __init__(self, in_channels: int, frames: int, n_classes: int, hidden: int,
                  dropout: float) -> None:
         super().__init__()
         self.stats = WindowStatistics(in_channels, frames)
+        self._shape = (n_classes, hidden, dropout)
+        self.mlp = self._layers()
+        self.more = nn.ModuleList()
+
+    def _layers(self) -> nn.Sequential:
+        n_classes, hidden, dropout = self._shape
         if hidden == 0:  # a linear (multinomial logistic) head: the most robust on few people
-            self.mlp = nn.Sequential(nn.Dropout(dropout),
-                                     nn.Linear(self.stats.out_features, n_classes))
-            return
-        self.mlp = nn.Sequential(
+            return nn.Sequential(nn.Dropout(dropout),
+                                 nn.Linear(self.stats.out_features, n_classes))
+        return nn.Sequential(
             nn.Dropout(dropout / 2), nn.Linear(self.stats.out_features, hidden),
             nn.ReLU(inplace=True), nn.Dropout(dropout), nn.Linear(hidden, n_classes))
+
+    def add_members(self, count: int) -> None:
+        """``count`` more independently initialised layer stacks over the same statistics."""
+        self.more.extend(self._layers() for _ in range(count))
+
+    def member_logits(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """Logits of every member's layers over the (shared) statistics of ``x``."""
+        feats = self.stats(x)
+        return [self.mlp(feats)] + [layers(feats) for layers in self.more]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.mlp(self.stats(x))
 
 
-def mirror_average(forward, x: torch.Tensor) -> torch.Tensor:
-    """Mean logits of ``forward`` over ``x`` and its three mirror images (left-right,
-    top-bottom, both), shear components turned with the grid as in ``learn/augment.py``
-    (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal + shear x/y).
-
-    Test-time augmentation for models trained with flips: a person touching the mirror
-    image of the trained touch gets the same answer. Exports to ONNX with the model
-    (flips become reversed slices), so exported and torch predictions agree.
-    """
+def mirror_images(x: torch.Tensor, rows: int = 3, cols: int = 4) -> list[torch.Tensor]:
+    """``x`` and its three mirror images (left-right, top-bottom, both), the grid's rows
+    and columns being dimensions ``rows`` and ``cols`` (3, 4 for windows (B, C, T, R, X);
+    2, 3 for frames (N, C, R, X)), shear components turned with the grid as in
+    ``learn/augment.py`` (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal +
+    shear x/y). Flips become reversed slices in an ONNX export."""
     c = int(x.shape[1])  # a Python int also while tracing for ONNX (the channels are fixed)
     sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))
-    total = forward(x)
-    for dims in ((4,), (3,), (3, 4)):
+    images = [x]
+    for dims in ((cols,), (rows,), (rows, cols)):
         signs = [1.0] * c  # a Python list: a constant in an exported graph
-        if sx is not None and 4 in dims:
+        if sx is not None and cols in dims:
             signs[sx] = -1.0
-        if sy is not None and 3 in dims:
+        if sy is not None and rows in dims:
             signs[sy] = -1.0
-        sign = torch.tensor([[[[[v]]] for v in signs]], dtype=x.dtype, device=x.device)
-        total = total + forward(torch.flip(x, dims) * sign)
+        sign = torch.tensor(signs, dtype=x.dtype, device=x.device).view(
+            1, c, *([1] * (x.dim() - 2)))
+        images.append(torch.flip(x, dims) * sign)
+    return images
+
+
+def mirror_average(forward, x: torch.Tensor) -> torch.Tensor:
+    """Mean logits of ``forward`` over the window ``x`` and its three mirror images
+    (:func:`mirror_images`).
+
+    Test-time augmentation for models trained with flips: a person touching the mirror
+    image of the trained touch gets the same answer. Exports to ONNX with the model, so
+    exported and torch predictions agree.
+    """
+    images = mirror_images(x)
+    total = forward(images[0])
+    for image in images[1:]:
+        total = total + forward(image)
     return total / 4
 
 
@@ -283,13 +311,21 @@ RECIPE_HELP = {
     "stats_hidden": "units of the window-statistics head",
     "mirror": "train on random mirror images of the grid, predict as the mean over them",
     "branch_dropout": "chance a training sample's network logits are dropped (statistics alone)",
+    "members": "independently initialised copies of the network (and head), logits averaged",
 }
 
 
 class RecipeModel(nn.Module):
     """Base of the models with the generalisation recipe: subclasses implement
     ``network_logits``; ``forward`` adds the window-statistics head's logits (``stats``)
-    and mirrors the grid (random mirror images in training, their mean in evaluation)."""
+    and mirrors the grid (random mirror images in training, their mean in evaluation).
+
+    Ensemble members (:func:`build_members`): ``others`` holds more independently
+    initialised copies of the network, each with its own statistics layer over the one
+    shared :class:`WindowStatistics`; the output is the mean of the members' logits, and
+    :meth:`training_step` trains each member on its own loss (as separately trained
+    models would be, so they stay diverse) in one pass over the batch.
+    """
 
     mirror: bool = False
     branch_dropout: float = 0.0
@@ -301,18 +337,31 @@ class RecipeModel(nn.Module):
         self.branch_dropout = float(branch_dropout) if stats else 0.0
         self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout)
                       if stats else None)
+        self.others = nn.ModuleList()
+
+    @property
+    def members(self) -> int:
+        return 1 + len(self.others)
 
     def network_logits(self, x: torch.Tensor) -> torch.Tensor:  # pragma: no cover
         raise NotImplementedError
 
+    def member_logits(self, x: torch.Tensor) -> torch.Tensor:
+        """(members, B, n_classes): each member's network logits plus its statistics layer."""
+        outs = []
+        for net in (self, *self.others):
+            out = net.network_logits(x)
+            if self.stats is not None and self.training and self.branch_dropout > 0:
+                keep = torch.rand(out.shape[0], 1, device=out.device) >= self.branch_dropout
+                out = out * keep.to(out.dtype) / (1.0 - self.branch_dropout)
+            outs.append(out)
+        if self.stats is not None:
+            outs = [out + head for out, head in zip(outs, self.stats.member_logits(x))]
+        return torch.stack(outs)
+
     def _fused(self, x: torch.Tensor) -> torch.Tensor:
-        out = self.network_logits(x)
-        if self.stats is None:
-            return out
-        if self.training and self.branch_dropout > 0:
-            keep = (torch.rand(out.shape[0], 1, device=out.device) >= self.branch_dropout)
-            out = out * keep.to(out.dtype) / (1.0 - self.branch_dropout)
-        return out + self.stats(x)
+        logits = self.member_logits(x)
+        return logits[0] if len(logits) == 1 else logits.mean(0)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         if self.mirror and self.training:
@@ -320,3 +369,25 @@ class RecipeModel(nn.Module):
         elif self.mirror:
             return mirror_average(self._fused, x)
         return self._fused(x)
+
+    def training_step(self, x: torch.Tensor, y: torch.Tensor,
+                      loss_fn) -> tuple[torch.Tensor, torch.Tensor]:
+        """(loss, mean logits) of a training batch: the mean of the members' own losses
+        (train.fit calls this when a model has it)."""
+        if self.mirror:
+            x = random_mirror(x)
+        logits = self.member_logits(x)
+        loss = sum(loss_fn(member, y) for member in logits) / len(logits)
+        return loss, logits.mean(0)
+
+
+def build_members(cls: type[RecipeModel], members: int, **kwargs: object) -> RecipeModel:
+    """``cls(**kwargs)`` with ``members - 1`` more copies of its network, built one after
+    the other (so initialised differently) without a statistics head or mirroring of
+    their own: the first model's forward fuses and mirrors them all."""
+    model = cls(**kwargs)
+    plain = {**kwargs, "stats": False, "mirror": False, "branch_dropout": 0.0}
+    model.others.extend(cls(**plain) for _ in range(members - 1))
+    if model.stats is not None:
+        model.stats.add_members(members - 1)
+    return model

@@ -12,8 +12,16 @@ pooling's kernel/stride are chosen from the grid at build time (6x6: 3x3 -> 2x2 
 kernel 2 stride 1; 11x11: 6x6 -> 2x2 with kernel 3 stride 3), which exports to ONNX
 unlike adaptive pooling with non-dividing sizes.
 
+The ``full`` preset adds the generalisation recipe of docs/learning.md like the other
+models (linear window-statistics head over the window, mirror training and averaging,
+branch dropout, cosine budget, ``members``); the paper's network is ``PAPER``.
+
 ``frame_features`` and ``classify_embeddings`` are public so the streaming predictor can
-cache per-frame embeddings and run only the transformer per prediction.
+cache per-frame embeddings and run only the transformer per prediction. They compute
+exactly the forward pass: a frame's cached embedding is the concatenation of every
+member's embedding of the frame and (with ``mirror``) of its mirror images, and
+``classify_embeddings`` also takes the window's raw frames (which the predictor keeps
+beside the embeddings, ``needs_window``) for the statistics head.
 """
 
 from __future__ import annotations
@@ -24,10 +32,12 @@ from torch import nn
 from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, Streaming, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
+    RECIPE_HELP,
     PositionalEncoding,
+    RecipeModel,
+    build_members,
     check_io,
-    mirror_average,
-    random_mirror,
+    mirror_images,
     resolve_options,
     transformer_encoder,
 )
@@ -41,7 +51,7 @@ OPTION_HELP = {
     "layers": "Transformer encoder layers (paper: 2)",
     "ff": "feed-forward width inside the encoder (paper: 128)",
     "dropout": "dropout in the encoder and head (paper: 0.5)",
-    "mirror": "train on random mirror images of the grid, predict as the mean over them",
+    **RECIPE_HELP,
 }
 
 OPTIONS: dict[str, dict[str, object]] = {
@@ -53,7 +63,11 @@ OPTIONS: dict[str, dict[str, object]] = {
         "layers": 1,
         "ff": 64,
         "dropout": 0.3,
+        "stats": True,
+        "stats_hidden": 0,
         "mirror": True,
+        "branch_dropout": 0.75,
+        "members": 1,
     },
     "tiny": {
         "filters": (8, 8, 16, 16),
@@ -63,13 +77,18 @@ OPTIONS: dict[str, dict[str, object]] = {
         "layers": 1,
         "ff": 32,
         "dropout": 0.1,
+        "stats": False,
+        "stats_hidden": 16,
         "mirror": False,
+        "branch_dropout": 0.0,
+        "members": 1,
     },
 }
 # the paper's network (trained with sgd, lr 1e-3, momentum 0.9, batch 128, up to 100
 # epochs, patience 10)
 PAPER = {"filters": (64, 128, 256, 512), "dense": 256, "d_model": 32, "heads": 4,
-         "layers": 2, "ff": 128, "dropout": 0.5, "mirror": False}
+         "layers": 2, "ff": 128, "dropout": 0.5, "stats": False, "mirror": False,
+         "members": 1}
 # full: the paper's 27-frame windows, not overlapping (4 per 2 s trial, not 8: the cost)
 VIEWS = {"full": ViewSpec("windows", 27, 27), "tiny": ViewSpec("windows", 9, 3)}
 TRAIN = {
@@ -124,41 +143,62 @@ class FrameCNN(nn.Module):
         return self.embed(self.convs(frames))
 
 
-class CNNTransformer(nn.Module):
+class CNNTransformer(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int], filters,
                  dense: int, d_model: int, heads: int, layers: int, ff: int, dropout: float,
-                 mirror: bool = False):
+                 mirror: bool = False, stats: bool = False, stats_hidden: int = 16,
+                 branch_dropout: float = 0.0, frames: int = 27):
         super().__init__()
-        self.mirror = mirror
+        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
+                           branch_dropout)
+        self.d_model = d_model
         self.frame_cnn = FrameCNN(in_channels, grid, filters, dense, d_model, dropout)
         self.positions = PositionalEncoding(d_model)
         self.encoder = transformer_encoder(d_model, heads, layers, ff, dropout)
         self.classifier = nn.Linear(d_model, n_classes)
 
-    def frame_features(self, frames: torch.Tensor) -> torch.Tensor:
-        """(N, C, R, X) -> (N, d_model): the per-frame part, cacheable between windows."""
-        return self.frame_cnn(frames)
+    @property
+    def needs_window(self) -> bool:
+        """True when ``classify_embeddings`` needs the window's frames (statistics head)."""
+        return self.stats is not None
 
-    def classify_embeddings(self, emb: torch.Tensor) -> torch.Tensor:
-        """(B, T, d_model) frame embeddings of a window -> logits (B, n_classes)."""
+    def _transform(self, emb: torch.Tensor) -> torch.Tensor:
         h = self.encoder(self.positions(emb))
         return self.classifier(h.mean(dim=1))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """Logits of windows (B, C, T, R, X); with ``mirror``, random mirror images in
-        training and the mean over the four in evaluation (the streaming predictor runs
-        the plain network on cached frame embeddings)."""
-        if self.mirror and self.training:
-            x = random_mirror(x)
-        elif self.mirror:
-            return mirror_average(self._logits, x)
-        return self._logits(x)
-
-    def _logits(self, x: torch.Tensor) -> torch.Tensor:
+    def network_logits(self, x: torch.Tensor) -> torch.Tensor:
+        """One member's plain network over windows (B, C, T, R, X)."""
         b, c, t, r, s = x.shape
         frames = x.permute(0, 2, 1, 3, 4).reshape(b * t, c, r, s)
-        emb = self.frame_features(frames).reshape(b, t, -1)
-        return self.classify_embeddings(emb)
+        return self._transform(self.frame_cnn(frames).reshape(b, t, -1))
+
+    def frame_features(self, frames: torch.Tensor) -> torch.Tensor:
+        """(N, C, R, X) -> (N, images * members * d_model): the per-frame part, cacheable
+        between windows (every member's embedding of the frame and its mirror images)."""
+        images = mirror_images(frames, 2, 3) if self.mirror else [frames]
+        return torch.cat([net.frame_cnn(image) for image in images
+                          for net in (self, *self.others)], dim=-1)
+
+    def classify_embeddings(self, emb: torch.Tensor,
+                            window: torch.Tensor | None = None) -> torch.Tensor:
+        """(B, T, features) frame embeddings of a window -> logits (B, n_classes); the
+        statistics head needs ``window`` (B, C, T, R, X), the same frames z-scored."""
+        if self.stats is not None and window is None:
+            raise ValueError("this model's statistics head needs the window's frames")
+        nets = (self, *self.others)
+        windows = (mirror_images(window) if self.mirror else [window]) \
+            if window is not None else [None] * (4 if self.mirror else 1)
+        total = None
+        for m, image in enumerate(windows):
+            outs = []
+            for k, net in enumerate(nets):
+                start = (m * len(nets) + k) * self.d_model
+                outs.append(net._transform(emb[..., start:start + self.d_model]))
+            if self.stats is not None:
+                outs = [o + h for o, h in zip(outs, self.stats.member_logits(image))]
+            fused = outs[0] if len(outs) == 1 else torch.stack(outs).mean(0)
+            total = fused if total is None else total + fused
+        return total / len(windows)
 
 
 def build(
@@ -170,7 +210,9 @@ def build(
     opts = resolve_options("cnn_transformer", preset, OPTIONS, overrides)
     if len(opts["filters"]) != 4:  # type: ignore[arg-type]
         raise UserError("model 'cnn_transformer': filters needs 4 values, e.g. filters=64,128,256,512")
-    model = CNNTransformer(n_classes, in_channels, tuple(grid), **opts)  # type: ignore[arg-type]
+    model = build_members(CNNTransformer, opts.pop("members"),  # type: ignore[arg-type]
+                          n_classes=n_classes, in_channels=in_channels, grid=tuple(grid),
+                          frames=frames, **opts)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

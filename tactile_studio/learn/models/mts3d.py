@@ -24,6 +24,7 @@ from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
     RecipeModel,
+    build_members,
     check_io,
     resolve_options,
 )
@@ -40,15 +41,15 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"widths": (8, 16, 24, 32), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.3, "stats": True, "stats_hidden": 0, "mirror": True,
-             "branch_dropout": 0.75},
+             "branch_dropout": 0.75, "members": 1},
     "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False,
-             "branch_dropout": 0.0},
+             "branch_dropout": 0.0, "members": 1},
 }
 # the paper's ResNet3D-18 (trained with sgd, lr 1e-2, momentum 0.9, weight decay 5e-4,
 # batch 16, up to 100 epochs, patience 15)
 PAPER = {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
-         "dropout": 0.3, "stats": False, "mirror": False}
+         "dropout": 0.3, "stats": False, "mirror": False, "members": 1}
 VIEWS = {"full": ViewSpec("gradient", 16), "tiny": ViewSpec("gradient", 8)}
 TRAIN = {
     "full": TrainDefaults("adamw", 3e-3, 32, 20, 20, weight_decay=1e-2),
@@ -136,7 +137,8 @@ def build(
         raise UserError("model 'mts3d': widths and blocks need the same number of stages")
     if len(opts["widths"]) < 2:  # type: ignore[arg-type]
         raise UserError("model 'mts3d': needs at least 2 stages")
-    model = MTS3D(n_classes, in_channels, frames=frames, **opts)  # type: ignore[arg-type]
+    model = build_members(MTS3D, opts.pop("members"), n_classes=n_classes,  # type: ignore[arg-type]
+                          in_channels=in_channels, frames=frames, **opts)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

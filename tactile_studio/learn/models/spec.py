@@ -59,7 +59,10 @@ class Streaming:
     "windows" view); otherwise live inference classifies the newest trial-long window.
     ``cached``: the model has ``frame_features(frames (N, C, R, X)) -> (N, d)`` and
     ``classify_embeddings(emb (B, T, d)) -> logits``, so each frame's embedding is
-    computed once and only the classifier runs per prediction (requires ``sliding``).
+    computed once and only the classifier runs per prediction (requires ``sliding``). A
+    model whose ``needs_window`` is true takes ``classify_embeddings(emb, window (B, C, T,
+    R, X))``: the predictor keeps the window's frames beside their embeddings (e.g. for a
+    window-statistics head).
     """
 
     sliding: bool = False
