@@ -18,6 +18,8 @@ from tactile_studio.learn.models.spec import (
     ModelSpec,
     TrainDefaults,
     ViewSpec,
+    classify_window,
+    needs_window,
 )
 from tactile_studio.learn.train import OPTIMIZERS
 
@@ -158,10 +160,8 @@ def _check_facts(spec: ModelSpec, model: torch.nn.Module, x: torch.Tensor,
             b, c, t, r, s = x.shape
             with torch.inference_mode():
                 emb = model.frame_features(x.permute(0, 2, 1, 3, 4).reshape(b * t, c, r, s))
-                emb = emb.reshape(b, t, -1)
-                split = (model.classify_embeddings(emb, x)
-                         if getattr(model, "needs_window", False)
-                         else model.classify_embeddings(emb))
+                split = classify_window(model, emb.reshape(b, t, -1),
+                                        x if needs_window(model) else None)
             if not torch.allclose(split, out, atol=1e-4):
                 problems.append("classify_embeddings(frame_features(frames)) differs from the "
                                 "forward pass")

@@ -24,6 +24,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn import views
 from tactile_studio.learn.baselines import BaselineModel
 from tactile_studio.learn.models import Streaming, ViewSpec, spec_of
+from tactile_studio.learn.models.spec import classify_window, needs_window
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
@@ -53,9 +54,7 @@ class _Embeddings(nn.Module):
         self.train(model.training)  # the export restores this mode: keep the model's
 
     def forward(self, emb: torch.Tensor, window: torch.Tensor | None = None) -> torch.Tensor:
-        if window is None:
-            return self.model.classify_embeddings(emb)
-        return self.model.classify_embeddings(emb, window)
+        return classify_window(self.model, emb, window)
 
 
 class _FrameCNN(nn.Module):
@@ -127,7 +126,7 @@ class StreamingPredictor:
         self.std = None if std is None else np.asarray(std, np.float32).reshape(-1, 1, 1)
         self.cached = not self.features and view.kind == "windows" and streaming.cached
         # the statistics head of a cached model reads the window's frames: keep them too
-        self.keeps_frames = self.cached and bool(getattr(model, "needs_window", False))
+        self.keeps_frames = self.cached and needs_window(model)
         self._sessions: tuple | None = None
         self._ring: np.ndarray | None = None
         self._frames: np.ndarray | None = None
@@ -238,8 +237,8 @@ class StreamingPredictor:
         if self.keeps_frames:  # (1, C, T, R, X), the frames the embeddings came from
             window = np.ascontiguousarray(self._ordered(self._frames).transpose(1, 0, 2, 3)[None])
         if self.backend == "onnx":
-            # exported at the first frame if cached
-            first, head = self._onnx(self._frames[0] if self.keeps_frames else self._ring[0])
+            # cached: exported at the first frame (by _embed); else the ring holds frames
+            first, head = self._sessions if self.cached else self._onnx(self._ring[0])
             session = head if self.cached else first
             feed = {session.get_inputs()[0].name: x}
             if window is not None:
@@ -249,10 +248,6 @@ class StreamingPredictor:
             return e / e.sum()
         with torch.inference_mode():
             t = torch.from_numpy(x)
-            if not self.cached:
-                logits = self.model(t)
-            elif window is None:
-                logits = self.model.classify_embeddings(t)
-            else:
-                logits = self.model.classify_embeddings(t, torch.from_numpy(window))
+            logits = self.model(t) if not self.cached else classify_window(
+                self.model, t, None if window is None else torch.from_numpy(window))
             return torch.softmax(logits[0], dim=0).numpy()

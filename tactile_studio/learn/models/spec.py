@@ -69,6 +69,20 @@ class Streaming:
     cached: bool = False
 
 
+def needs_window(model: torch.nn.Module) -> bool:
+    """A cached model whose ``classify_embeddings`` also takes the window's frames."""
+    return bool(getattr(model, "needs_window", False))
+
+
+def classify_window(model: torch.nn.Module, emb: torch.Tensor,
+                    window: torch.Tensor | None = None) -> torch.Tensor:
+    """A cached model's logits for a window of frame embeddings, plus the window's frames
+    for a model that :func:`needs_window` (the one place the two signatures meet)."""
+    if window is None:
+        return model.classify_embeddings(emb)
+    return model.classify_embeddings(emb, window)
+
+
 def check_preset(preset: str) -> str:
     if preset not in PRESETS:
         raise UserError(f"unknown preset '{preset}' (available: {', '.join(PRESETS)})")
