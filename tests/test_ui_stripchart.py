@@ -103,3 +103,19 @@ def test_the_running_window_creates_no_plot_items_per_frame(qtbot):
         assert len(heat_scene.items()) == heat_items
     finally:
         w.shutdown()
+
+
+def test_eight_names_fit_a_short_chart(qtbot):
+    """With 8 taxels the legend takes two columns, so every name stays inside the plot
+    of a chart docked at its usual height (one column ran off its bottom edge)."""
+    chart = StripChart()
+    qtbot.addWidget(chart)
+    chart.resize(1000, 220)
+    chart.show()
+    t, v = _spiky(2_000)
+    for names in (NAMES[:3], NAMES):
+        chart.set_history(History(t, v[:, :len(names)], list(names), "normal", "kPa"))
+        qtbot.wait(50)
+        legend = chart.legend.sceneBoundingRect()
+        plot = chart.plot.vb.sceneBoundingRect()
+        assert plot.contains(legend), (len(names), legend, plot)

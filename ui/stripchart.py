@@ -164,6 +164,8 @@ class StripChart(QWidget):
         for item in self._legend_items.values():
             self.legend.removeItem(item)
         self._legend_items = {}
+        # more than 4 lines: two columns, so 8 names fit a short chart
+        self.legend.setColumnCount(1 if len(names) <= 4 else 2)
         for name, pen in zip(names, self._pens):
             self._legend_items[name] = item = pg.PlotDataItem(pen=pen, name=name)
             self.legend.addItem(item, name)
