@@ -188,23 +188,31 @@ class SimulatedSensor(DevicePlugin):
             return self._sim.gesture_at(frame)
 
     def place_weight(self, mass_g: float, taxel: str, contact_mm: float = 14.0,
-                     duration_s: float = 60.0) -> Trial:
-        """Put a known weight on ``taxel`` from the next frame (headless wellness checks)."""
+                     duration_s: float = 60.0, at_frame: int | None = None) -> Trial:
+        """Put a known weight on ``taxel`` from ``at_frame`` (default: the next frame;
+        headless wellness checks)."""
         with self._lock:
-            return weights.place_weight(self._sim, mass_g, taxel, contact_mm, duration_s)
+            return weights.place_weight(self._sim, mass_g, taxel, contact_mm, duration_s,
+                                        at_frame=self._future(at_frame))
 
     def place_plate(self, mass_g: float, plate_mm: float | None = None,
-                    duration_s: float = 60.0) -> Trial:
-        """Put a uniform plate of ``mass_g`` over the whole array from the next frame."""
+                    duration_s: float = 60.0, at_frame: int | None = None) -> Trial:
+        """Put a uniform plate of ``mass_g`` over the whole array from ``at_frame``."""
         with self._lock:
-            return weights.place_plate(self._sim, mass_g, plate_mm, duration_s)
+            return weights.place_plate(self._sim, mass_g, plate_mm, duration_s,
+                                       at_frame=self._future(at_frame))
 
-    def lift(self, trial: Trial) -> int:
-        """Take the weight of ``trial`` off from the next frame; returns that frame."""
+    def lift(self, trial: Trial, at_frame: int | None = None) -> int:
+        """Take the weight of ``trial`` off from ``at_frame`` (default: the next frame);
+        returns that frame."""
         with self._lock:
-            frame = self._sim.frame
-            weights.lift(self._sim, trial)
+            frame = self._future(at_frame)
+            weights.lift(self._sim, trial, at_frame=frame)
             return frame
+
+    def _future(self, at_frame: int | None) -> int:
+        """``at_frame``, or the next frame if that is already made (call with the lock)."""
+        return self._sim.frame if at_frame is None else max(int(at_frame), self._sim.frame)
 
     def true_sensitivity(self) -> np.ndarray:
         """Ground truth per taxel (1 = nominal), for tests of the calibration."""

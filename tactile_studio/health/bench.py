@@ -64,13 +64,19 @@ class Placer:
         return None
 
 
-LEAD_FRAMES = 4096  # how far a speed-0 simulator may run ahead of the check (ring: 65,536)
+# How far a speed-0 simulator may run ahead of the check. Its weights go on and off this
+# far after the last frame the check read (plus the handling time), so every step happens
+# at the same device frame however the threads were scheduled: before, they went on at the
+# simulator's next frame, anywhere up to 95 s ahead, and a loaded machine shortened the
+# rest between weights until a viscoelastic residue spoiled a calibration fit.
+LEAD_FRAMES = 256
 
 
 class SimulatedPlacer(Placer):
     """The simulated device places the weight itself (``--auto``)."""
 
     confirmed = True
+    HANDLING_S = 2.0  # between lifting one weight and placing the next, as a person would
     # creep 0.2 with a 3 s relaxation: 5 s still left 4% of a gesture's load, enough to
     # lift the baseline over the lightest calibration weight's response (seen under load,
     # where the check began in the demo cycle varies); 20 s leaves 2.5e-4 of it
@@ -82,6 +88,7 @@ class SimulatedPlacer(Placer):
                             "needs the simulated device")
         self.device = device
         self._trial = None
+        self._bench: Bench | None = None
 
     def prepare(self) -> int:
         busy = self.device.settings.get("gesture") != "idle"
@@ -94,22 +101,35 @@ class SimulatedPlacer(Placer):
         return start + (int(self.RESIDUE_FADE_S * self.device.nominal_rate_hz) if busy else 0)
 
     def place(self, mass_g: float, taxel: str | None, contact_mm: float) -> int:
+        at = self._frame_after(self.HANDLING_S)
         if taxel is None:
-            self._trial = self.device.place_plate(mass_g)
+            self._trial = self.device.place_plate(mass_g, at_frame=at)
         else:
-            self._trial = self.device.place_weight(mass_g, taxel, contact_mm)
+            self._trial = self.device.place_weight(mass_g, taxel, contact_mm, at_frame=at)
         return int(self._trial.start)
 
     def lift(self) -> int | None:
         if self._trial is None:
             return None
         trial, self._trial = self._trial, None
-        return int(self.device.lift(trial))
+        return int(self.device.lift(trial, at_frame=self._frame_after(0.0)))
+
+    def _frame_after(self, seconds: float) -> int:
+        """The device frame for the next step: ``seconds`` after the lead beyond what the
+        check has read when the simulator is paced by it (speed 0), else the next frame."""
+        soonest = int(self.device.next_frame)
+        bench = self._bench
+        paced = float(self.device.settings.get("speed", 1.0)) <= 0
+        if bench is None or bench.next_seq is None or not paced:
+            return soonest
+        extra = int(round(seconds * self.device.nominal_rate_hz))
+        return max(soonest, bench.next_seq + LEAD_FRAMES + extra)
 
     def attach(self, bench: Bench) -> None:
         """At speed 0 the simulator runs at most ``LEAD_FRAMES`` ahead of the check, so a
         loaded machine slows the check down instead of making it lose frames."""
         engine = bench.engine
+        self._bench = bench
 
         def allowed(max_frames: int, wait_s: float) -> int:
             if engine.state in (STOPPED, ERROR, FINISHED):  # this check is over
@@ -139,6 +159,7 @@ class Bench:
         self.rate = engine.nominal_rate_hz
         self.baseline: np.ndarray | None = None
         self._cursor = engine.frames
+        self._next_seq: int | None = None
         self._skip_before = -1
         self._confirm = threading.Event()
         attach = getattr(self.placer, "attach", None)
@@ -149,6 +170,11 @@ class Bench:
     def cursor(self) -> int:
         """The next engine frame the check will read."""
         return self._cursor
+
+    @property
+    def next_seq(self) -> int | None:
+        """The device seq after the last frame the check read (None before any)."""
+        return self._next_seq
 
     def frames(self, seconds: float) -> int:
         return max(1, int(round(seconds * self.rate)))
@@ -174,6 +200,7 @@ class Bench:
                                     "speed); nothing was stored")
             if len(chunk):
                 self._cursor = chunk.stop
+                self._next_seq = int(chunk.seq[-1]) + 1
                 keep = chunk.seq >= self._skip_before
                 if keep.any():
                     return chunk.raw[keep], chunk.seq[keep]
