@@ -133,10 +133,11 @@ def _check_learner(name: str, spec: Any, epochs: int, seed: int, problems: list[
                             f"do not cover the {len(ds)} trials")
             return
         y = ds.labels[owner]
-        xn = learner.apply_norm(x, learner.norm_stats(x))
+        stats = learner.norm_stats(x)
+        xn = learner.apply_norm(x, stats)
         epochs_seen: list[dict[str, Any]] = []
         fitted, history, best = learner.fit(info, (xn, y), (xn, y), seed, None,
-                                            epochs_seen.append)
+                                            epochs_seen.append, norm=stats)
     except UserError as exc:
         problems.append(f"training on synthetic 6x6 trials: {exc}")
         return

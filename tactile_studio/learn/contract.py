@@ -120,8 +120,10 @@ class Learner(Protocol):
 
     def fit(self, info: DataInfo, train: tuple[np.ndarray, np.ndarray],
             val: tuple[np.ndarray, np.ndarray], seed: int, cancel: CancelToken | None,
-            on_epoch: EpochCallback | None) -> tuple[Fitted, list[dict[str, Any]], int]:
-        """(fitted model, per-epoch history, best epoch) from normalised samples."""
+            on_epoch: EpochCallback | None, norm: Mapping[str, Any] | None = None,
+            ) -> tuple[Fitted, list[dict[str, Any]], int]:
+        """(fitted model, per-epoch history, best epoch) from normalised samples; ``norm``
+        is what ``norm_stats`` gave for them (a model may need the physical units back)."""
         ...
 
     def load(self, path: str | os.PathLike, info: DataInfo) -> Fitted: ...

@@ -189,7 +189,7 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
     stats = learner.norm_stats(x_tr)  # training part of this split only
     fitted, history, best = learner.fit(
         info, (learner.apply_norm(x_tr, stats), y_tr),
-        (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch)
+        (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch, norm=stats)
     cancel.check()
     uid = np.array(ds.uids)
     rec = {

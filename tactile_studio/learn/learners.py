@@ -125,13 +125,16 @@ class TorchLearner:
 
     def fit(self, info: DataInfo, train: tuple[np.ndarray, np.ndarray],
             val: tuple[np.ndarray, np.ndarray], seed: int, cancel: CancelToken | None,
-            on_epoch: Callable[[dict[str, Any]], None] | None):
+            on_epoch: Callable[[dict[str, Any]], None] | None,
+            norm: dict[str, Any] | None = None):
         import torch
 
         from tactile_studio.learn.train import fit
 
         torch.manual_seed(seed)
         model = self.build(info)
+        if norm and hasattr(model, "set_input_norm"):  # the recipe's gesture metrics
+            model.set_input_norm(norm["mean"], norm["std"], info.cell_pitch)
         _, history, best = fit(model, train, val, self.settings, seed, self.device, cancel,
                                on_epoch)
         return TorchFitted(model, self.device), history, best
@@ -216,7 +219,7 @@ class BaselineLearner:
     def apply_norm(self, x: np.ndarray, stats: dict[str, list[float]]) -> np.ndarray:
         return x
 
-    def fit(self, info: DataInfo, train, val, seed, cancel, on_epoch):
+    def fit(self, info: DataInfo, train, val, seed, cancel, on_epoch, norm=None):
         if cancel is not None:
             cancel.check()
         model = baselines.BaselineModel(self.name, self.options, info.n_classes)

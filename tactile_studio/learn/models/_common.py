@@ -9,6 +9,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.models.gesture_features import GestureFeatures
 
 
 def _coerce(model: str, key: str, value: object, default: object) -> object:
@@ -223,9 +224,12 @@ class StatisticsHead(nn.Module):
     statistics are computed once and every member has its own layer(s) over them."""
 
     def __init__(self, in_channels: int, frames: int, n_classes: int, hidden: int,
-                 dropout: float) -> None:
+                 dropout: float, gesture: bool = False, window_s: float = 2.0) -> None:
         super().__init__()
         self.stats = WindowStatistics(in_channels, frames)
+        self.gesture = GestureFeatures(in_channels, frames, window_s) if gesture else None
+        self.in_features = self.stats.out_features + (
+            self.gesture.out_features if self.gesture is not None else 0)
         self._shape = (n_classes, hidden, dropout)
         self.mlp = self._layers()
         self.more = nn.ModuleList()
@@ -234,9 +238,9 @@ class StatisticsHead(nn.Module):
         n_classes, hidden, dropout = self._shape
         if hidden == 0:  # a linear (multinomial logistic) head: the most robust on few people
             return nn.Sequential(nn.Dropout(dropout),
-                                 nn.Linear(self.stats.out_features, n_classes))
+                                 nn.Linear(self.in_features, n_classes))
         return nn.Sequential(
-            nn.Dropout(dropout / 2), nn.Linear(self.stats.out_features, hidden),
+            nn.Dropout(dropout / 2), nn.Linear(self.in_features, hidden),
             nn.ReLU(inplace=True), nn.Dropout(dropout), nn.Linear(hidden, n_classes))
 
     def add_members(self, count: int) -> None:
@@ -245,11 +249,17 @@ class StatisticsHead(nn.Module):
 
     def member_logits(self, x: torch.Tensor) -> list[torch.Tensor]:
         """Logits of every member's layers over the (shared) statistics of ``x``."""
-        feats = self.stats(x)
+        feats = self.features(x)
         return [self.mlp(feats)] + [layers(feats) for layers in self.more]
 
+    def features(self, x: torch.Tensor) -> torch.Tensor:
+        """The window statistics of ``x``, and its gesture metrics when the head has them."""
+        if self.gesture is None:
+            return self.stats(x)
+        return torch.cat([self.stats(x), self.gesture(x)], dim=1)
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.mlp(self.stats(x))
+        return self.mlp(self.features(x))
 
 
 def mirror_images(x: torch.Tensor, rows: int = 3, cols: int = 4) -> list[torch.Tensor]:
@@ -312,6 +322,8 @@ RECIPE_HELP = {
     "mirror": "train on random mirror images of the grid, predict as the mean over them",
     "branch_dropout": "chance a training sample's network logits are dropped (statistics alone)",
     "members": "independently initialised copies of the network (and head), logits averaged",
+    "gesture": "add the gesture metrics (movement type, spread change, contact area, ...) "
+               "in physical units to the statistics head",
 }
 
 
@@ -332,12 +344,21 @@ class RecipeModel(nn.Module):
 
     def attach_recipe(self, in_channels: int, frames: int, n_classes: int, stats: bool,
                       stats_hidden: int, mirror: bool, dropout: float,
-                      branch_dropout: float = 0.0) -> None:
+                      branch_dropout: float = 0.0, gesture: bool = False,
+                      window_s: float = 2.0) -> None:
+        """``window_s``: the seconds a window spans (the gesture metrics' time unit)."""
         self.mirror = bool(mirror)
         self.branch_dropout = float(branch_dropout) if stats else 0.0
-        self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout)
-                      if stats else None)
+        self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout,
+                                     gesture, window_s) if stats else None)
         self.others = nn.ModuleList()
+
+    def set_input_norm(self, mean, std, cell_pitch: float = 1.0) -> None:
+        """How the inputs were z-scored (per channel) and the taxel pitches per grid cell:
+        the gesture metrics undo the one and count in the other. Saved with the weights;
+        the learner calls this after building, before training."""
+        if self.stats is not None and self.stats.gesture is not None:
+            self.stats.gesture.set_input_norm(mean, std, cell_pitch)
 
     @property
     def members(self) -> int:

@@ -44,14 +44,16 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     # members 3: measured +1 point of median LOPO accuracy for 1.3x the cost (learning.md)
     "full": {"filters": 32, "kernel": 7, "layers": 3, "dropout": 0.3, "stats": True,
-             "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75, "members": 3},
+             "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75, "gesture": False,
+             "members": 3},
     "tiny": {"filters": 8, "kernel": 5, "layers": 3, "dropout": 0.0, "stats": False,
-             "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0, "members": 1},
+             "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0, "gesture": False,
+             "members": 1},
 }
 # the paper's network (2.6 k parameters), e.g. --set filters=8 kernel=10 dropout=0
 # stats=false mirror=false
 PAPER = {"filters": 8, "kernel": 10, "layers": 3, "dropout": 0.0, "stats": False, "mirror": False,
-         "members": 1}
+         "gesture": False, "members": 1}
 VIEWS = {"full": ViewSpec("slices", 100), "tiny": ViewSpec("slices", 50)}
 TRAIN = {
     "full": TrainDefaults("adamw", 3e-3, 32, 40, 40, weight_decay=1e-2),
@@ -66,10 +68,11 @@ class CNN1D(RecipeModel):
     def __init__(self, n_classes: int, in_features: int, frames: int,
                  filters: int, kernel: int, layers: int, dropout: float, stats: bool = False,
                  stats_hidden: int = 16, mirror: bool = False, branch_dropout: float = 0.0,
+                 gesture: bool = False,
                  in_channels: int = 1) -> None:
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout)
+                           branch_dropout, gesture)
         body: list[nn.Module] = [nn.Conv1d(in_features, filters, 1)]
         length = frames
         for _ in range(layers):

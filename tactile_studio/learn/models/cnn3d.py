@@ -47,6 +47,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats_hidden": 0,
         "mirror": True,
         "branch_dropout": 0.75,
+        "gesture": False,
         "members": 1,  # 3 measured: no gain for 2.4x the cost (docs/learning.md)
     },
     "tiny": {
@@ -59,13 +60,15 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats_hidden": 16,
         "mirror": False,
         "branch_dropout": 0.0,
+        "gesture": False,
         "members": 1,
     },
 }
 # The paper's network (4.7 M parameters; trained with adam, lr 1e-5, batch 32, up to 200
 # epochs, patience 15): too slow for 2 CPU cores and no better on unseen people here.
 PAPER = {"filters": (128, 256, 512), "temporal_kernel": 43, "temporal_stride": 4,
-         "dense": 512, "dropout": 0.5, "stats": False, "mirror": False, "members": 1}
+         "dense": 512, "dropout": 0.5, "stats": False, "mirror": False, "gesture": False,
+         "members": 1}
 VIEWS = {"full": ViewSpec("resample", 86), "tiny": ViewSpec("resample", 16)}
 TRAIN = {
     "full": TrainDefaults("adamw", 3e-3, 32, 25, 25, weight_decay=1e-2),
@@ -97,12 +100,12 @@ class CNN3D(RecipeModel):
         stats: bool = False,
         stats_hidden: int = 16,
         mirror: bool = False,
-        branch_dropout: float = 0.0,
+        branch_dropout: float = 0.0, gesture: bool = False,
         frames: int = 86,
     ) -> None:
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout)
+                           branch_dropout, gesture)
         self.temporal_kernel = temporal_kernel
         layers = [_block(in_channels, filters[0], (temporal_kernel, 1, 1), (temporal_stride, 1, 1))]
         for cin, cout in zip(filters[:-1], filters[1:]):

@@ -67,6 +67,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats_hidden": 0,
         "mirror": True,
         "branch_dropout": 0.75,
+        "gesture": False,
         "members": 1,
     },
     "tiny": {
@@ -81,6 +82,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "stats_hidden": 16,
         "mirror": False,
         "branch_dropout": 0.0,
+        "gesture": False,
         "members": 1,
     },
 }
@@ -88,7 +90,7 @@ OPTIONS: dict[str, dict[str, object]] = {
 # epochs, patience 10)
 PAPER = {"filters": (64, 128, 256, 512), "dense": 256, "d_model": 32, "heads": 4,
          "layers": 2, "ff": 128, "dropout": 0.5, "stats": False, "mirror": False,
-         "members": 1}
+         "gesture": False, "members": 1}
 # full: the paper's 27-frame windows, not overlapping (4 per 2 s trial, not 8: the cost)
 VIEWS = {"full": ViewSpec("windows", 27, 27), "tiny": ViewSpec("windows", 9, 3)}
 TRAIN = {
@@ -147,10 +149,11 @@ class CNNTransformer(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int], filters,
                  dense: int, d_model: int, heads: int, layers: int, ff: int, dropout: float,
                  mirror: bool = False, stats: bool = False, stats_hidden: int = 16,
-                 branch_dropout: float = 0.0, frames: int = 27):
+                 branch_dropout: float = 0.0, gesture: bool = False, frames: int = 27):
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout)
+                           branch_dropout, gesture,
+                           window_s=frames / 43.0)  # windows of the sensor's ~43 Hz frames
         self.d_model = d_model
         self.frame_cnn = FrameCNN(in_channels, grid, filters, dense, d_model, dropout)
         self.positions = PositionalEncoding(d_model)

@@ -41,15 +41,15 @@ OPTION_HELP = {
 OPTIONS: dict[str, dict[str, object]] = {
     "full": {"widths": (8, 16, 24, 32), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.3, "stats": True, "stats_hidden": 0, "mirror": True,
-             "branch_dropout": 0.75, "members": 1},
+             "branch_dropout": 0.75, "gesture": False, "members": 1},
     "tiny": {"widths": (8, 12, 16, 16), "blocks": (1, 1, 1, 1), "scales": (1, 2, 4),
              "dropout": 0.1, "stats": False, "stats_hidden": 16, "mirror": False,
-             "branch_dropout": 0.0, "members": 1},
+             "branch_dropout": 0.0, "gesture": False, "members": 1},
 }
 # the paper's ResNet3D-18 (trained with sgd, lr 1e-2, momentum 0.9, weight decay 5e-4,
 # batch 16, up to 100 epochs, patience 15)
 PAPER = {"widths": (64, 128, 256, 512), "blocks": (2, 2, 2, 2), "scales": (1, 2, 4),
-         "dropout": 0.3, "stats": False, "mirror": False, "members": 1}
+         "dropout": 0.3, "stats": False, "mirror": False, "gesture": False, "members": 1}
 VIEWS = {"full": ViewSpec("gradient", 16), "tiny": ViewSpec("gradient", 8)}
 TRAIN = {
     "full": TrainDefaults("adamw", 3e-3, 32, 20, 20, weight_decay=1e-2),
@@ -107,10 +107,11 @@ class Backbone(nn.Module):
 class MTS3D(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
                  dropout: float, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, branch_dropout: float = 0.0, frames: int = 32) -> None:
+                 mirror: bool = False, branch_dropout: float = 0.0, gesture: bool = False,
+                 frames: int = 32) -> None:
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout)
+                           branch_dropout, gesture)
         self.scales = tuple(scales)
         self.backbone = Backbone(in_channels, widths, blocks, dropout)
         self.classifier = nn.Linear(widths[-1], n_classes)

@@ -52,16 +52,17 @@ OPTIONS: dict[str, dict[str, object]] = {
     "full": {"fusion": "mid", "filters": 32, "kernel": 7, "blocks": 2, "se_reduction": 4,
              "d_model": 32, "heads": 4, "layers": 1, "ff": 64, "hidden": 32, "dropout": 0.3,
              "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75,
+             "gesture": False,
              "members": 1},  # 3 measured: no gain for 3.7x the cost (docs/learning.md)
     "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
              "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1,
              "stats": False, "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0,
-             "members": 1},
+             "gesture": False, "members": 1},
 }
 # the texture paper's size (trained with adamw, lr 1e-3, weight decay 1e-2, up to 150
 # epochs, patience 20)
 PAPER = {"filters": 64, "d_model": 64, "heads": 4, "layers": 2, "ff": 256, "hidden": 64,
-         "dropout": 0.1, "stats": False, "mirror": False, "members": 1}
+         "dropout": 0.1, "stats": False, "mirror": False, "gesture": False, "members": 1}
 CHOICES = {"fusion": ("mid", "early", "late")}
 VIEWS = {"full": ViewSpec("resample", 43), "tiny": ViewSpec("resample", 24)}
 TRAIN = {
@@ -137,10 +138,11 @@ class Tower(nn.Module):
 class SEFusion(RecipeModel):
     def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int],
                  fusion: str, frames: int = 86, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, branch_dropout: float = 0.0, **opts) -> None:
+                 mirror: bool = False, branch_dropout: float = 0.0, gesture: bool = False,
+                 **opts) -> None:
         super().__init__()
         self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror,
-                           float(opts.get("dropout", 0.0)), branch_dropout)
+                           float(opts.get("dropout", 0.0)), branch_dropout, gesture)
         taxels = grid[0] * grid[1]
         self.fusion = fusion
         # channel 0 is normal when shear channels follow it; 1 channel = normal/pressure,
