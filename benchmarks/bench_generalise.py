@@ -7,16 +7,21 @@ thread each). Per model: per-trial accuracy and macro F1 pooled over the folds (
 over ``--rounds``, each round its own seed), the training time summed over folds and
 rounds (the cost on one core), the sweep's wall time, the parameters of the model (3
 channels, 6x6, 9 gestures) and its inference time per 2 s trial (batch of 64, one thread,
-including the mirror averaging of the full recipe).
+including the mirror averaging of the full recipe). With rf among the models (first),
+every learned model is also compared with it trial by trial on the same test trials of
+every round (learn/compare.py: the accuracy difference, Wilcoxon signed-rank over the
+participants, McNemar over the trials): one accuracy has a standard error of ~2.5 points,
+the paired test says whether a difference is more than that.
 
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
-       [--set KEY=VALUE ...]
+       [--set KEY=VALUE ...] [--repeats N --blocks B]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
 learned models, e.g. --set members=1 to measure one network instead of the preset's
-ensemble.)
+ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s cut into
+2 s windows whose mean probability is the trial's answer, like the real recordings.)
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
+from tactile_studio.learn.compare import compare_runs  # noqa: E402
 from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.sweep import run_sweep  # noqa: E402
@@ -76,19 +82,27 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--options", action="store_true")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="each trial N back-to-back 2 s performances, cut into 2 s windows "
+                         "(6 and --blocks 2: like the real recordings' ~12 s performances)")
+    ap.add_argument("--blocks", type=int, default=4)
     args = ap.parse_args(argv if argv is not None else [])
     options = OPTIONS if args.options else {}
     sets = dict(item.split("=", 1) for item in args.set)
     with tempfile.TemporaryDirectory() as tmp:
         data = Path(tmp) / "data"
-        make_dataset_folder(data, participants=10, blocks=4, difficulty="real")
-        print(f"LOPO, 10 participants x 9 gestures x 4 trials, difficulty real, preset "
+        make_dataset_folder(data, participants=10, blocks=args.blocks, difficulty="real",
+                            repeats=args.repeats)
+        what = f"{args.blocks} trials" if args.repeats == 1 else \
+            f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
+        print(f"LOPO, 10 participants x 9 gestures x {what}, difficulty real, preset "
               f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
                  "participant" if options else "")
               + (f", --set {' '.join(args.set)}" if sets else ""))
         print(f"{'model':>16s}{'trial acc':>11s}{'f1':>8s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")
+        runs: dict[str, str | None] = {}
         for model in args.models:
             base = ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
                                     preset=args.preset, rounds=args.rounds,
@@ -97,7 +111,7 @@ def main(argv: list[str] | None = None) -> None:
                                     cache_dir=str(Path(tmp) / "cache"), **options)
             t0 = time.perf_counter()
             with LocalExecutor(args.jobs) as ex:
-                res = run_sweep(base, [model], [None], ex)
+                res = run_sweep(base, [model], [None], ex, out=Path(tmp) / "sweeps" / model)
             wall = time.perf_counter() - t0
             params, ms = ("-", float("nan")) if model in ("rf", "knn") else \
                 model_cost(model, args.preset, sets)
@@ -109,6 +123,11 @@ def main(argv: list[str] | None = None) -> None:
                 rounds = next(iter(res.metrics.values())).get("rounds", [])
                 print(f"{'':>16s}rounds: " + ", ".join(
                     f"{r.get('trial_accuracy', float('nan')):.3f}" for r in rounds), flush=True)
+            runs[model] = res.rows[0].get("run")
+            if model != "rf" and runs.get("rf") and runs[model]:
+                # paired, on the same test trials of every round: how we know
+                print(f"{'':>16s}vs rf: {compare_runs(runs['rf'], runs[model])['sentence']}",
+                      flush=True)
 
 
 if __name__ == "__main__":

@@ -28,20 +28,24 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
                       blocks: int = 3, trial_s: float = 2.0, gap_s: float = 0.4,
                       rate: float = 43.0, sensor_seed: int = 7,
                       extra_trials: list[dict] | None = None, difficulty: str = "easy",
-                      condition: str = "FLAT", **sim: object) -> Path:
+                      condition: str = "FLAT", repeats: int = 1, **sim: object) -> Path:
     """One session of ``blocks`` x ``gestures`` trials by one virtual participant
-    (``difficulty`` easy by default: tests that need clearly separable data rely on it)."""
+    (``difficulty`` easy by default: tests that need clearly separable data rely on it).
+    ``repeats`` > 1: each trial is that many back-to-back performances of ``trial_s``, like
+    the real recordings' ~12 s performances of a gesture repeated."""
     simulator = SensorSimulator(SimConfig(rate=rate, seed=sensor_seed, gesture="idle",
                                           style_seed=style_seed, difficulty=difficulty,
                                           surface=condition.lower(), **sim))
     rng = np.random.default_rng([style_seed, 11])
     lead, trial_n, gap_n = int(rate), round(trial_s * rate), round(gap_s * rate)
+    span = trial_n * repeats
     plan, frame = [], lead
     for b in range(blocks):
         for g in rng.permutation(len(gestures)):
-            simulator.perform(gestures[g], trial_s, at_frame=frame)
+            for r in range(repeats):
+                simulator.perform(gestures[g], trial_s, at_frame=frame + r * trial_n)
             plan.append((b, gestures[g], frame))
-            frame += trial_n + gap_n
+            frame += span + gap_n
     raw = simulator.step(frame)
     t = np.arange(frame) / rate
     meta = {"participant": participant, "protocol": "test-protocol", "condition": condition,
@@ -50,7 +54,7 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
         w.append_frames(raw, t, 1.7e9 + t)
         w.add_baseline(raw[:lead].mean(axis=0), frame=0)
         for i, (b, g, start) in enumerate(plan):
-            w.add_trial(trial_record(i, g, start, start + trial_n, rate, b))
+            w.add_trial(trial_record(i, g, start, start + span, rate, b))
         for extra in extra_trials or []:
             w.add_trial(extra)
     return path
