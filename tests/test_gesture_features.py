@@ -12,10 +12,11 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.learn import views
 from tactile_studio.learn.contract import DataInfo
 from tactile_studio.learn.dataset import build_dataset
+from tactile_studio.learn.features import trial_features
 from tactile_studio.learn.learners import make_learner
 from tactile_studio.learn.models.gesture_features import GestureFeatures, metric_names
 from tactile_studio.learn.train import load_weights, save_weights
-from tactile_studio.sensor.gesture_metrics import MOVEMENT_TYPES, gesture_metrics
+from tactile_studio.sensor.gesture_metrics import MOVEMENT_TYPES
 
 FRAMES = 86  # a 2 s window at 43 Hz
 
@@ -32,11 +33,14 @@ def windows(tmp_path_factory):
 
 
 def _reference(x: np.ndarray, names: list[str], pitch: float) -> np.ndarray:
+    """The random forest's gesture columns (``trial_features``) of every window."""
     rows = []
     for trial in x:
-        m = gesture_metrics(trial, names, FRAMES / 2.0, pitch)
-        movement = m.pop("movement")
-        rows.append(list(m.values()) + [float(movement == t) for t in MOVEMENT_TYPES])
+        row, columns = trial_features(trial, names, FRAMES / 2.0, pitch)
+        keep = [i for i, c in enumerate(columns) if c.startswith(("gesture_", "movement_"))]
+        assert [columns[i].removeprefix("gesture_") for i in keep] == \
+            metric_names(len(names))
+        rows.append(row[keep])
     return np.array(rows)
 
 

@@ -114,16 +114,15 @@ class SimulatedPlacer(Placer):
         trial, self._trial = self._trial, None
         return int(self.device.lift(trial, at_frame=self._frame_after(0.0)))
 
-    def _frame_after(self, seconds: float) -> int:
+    def _frame_after(self, seconds: float) -> int | None:
         """The device frame for the next step: ``seconds`` after the lead beyond what the
-        check has read when the simulator is paced by it (speed 0), else the next frame."""
-        soonest = int(self.device.next_frame)
+        check has read when the simulator is paced by it (speed 0), else None (the next
+        frame; the device also takes the next frame if this one is already made)."""
         bench = self._bench
         paced = float(self.device.settings.get("speed", 1.0)) <= 0
         if bench is None or bench.next_seq is None or not paced:
-            return soonest
-        extra = int(round(seconds * self.device.nominal_rate_hz))
-        return max(soonest, bench.next_seq + LEAD_FRAMES + extra)
+            return None
+        return bench.next_seq + LEAD_FRAMES + int(round(seconds * self.device.nominal_rate_hz))
 
     def attach(self, bench: Bench) -> None:
         """At speed 0 the simulator runs at most ``LEAD_FRAMES`` ahead of the check, so a

@@ -9,7 +9,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.models.gesture_features import GestureFeatures
+from tactile_studio.learn.models.gesture_features import GestureFeatures, fourier_basis
 
 
 def _coerce(model: str, key: str, value: object, default: object) -> object:
@@ -149,14 +149,13 @@ class WindowStatistics(nn.Module):
         super().__init__()
         self.shear = in_channels >= 2
         self.n_signals = 4 * in_channels + 5 + (4 if self.shear else 0)
-        freqs = torch.arange(1, frames // 2 + 1, dtype=torch.float32)
-        t = torch.arange(frames, dtype=torch.float32)
-        angle = 2 * math.pi * t[:, None] * freqs[None, :] / frames
-        self.register_buffer("cos", torch.cos(angle), persistent=False)
-        self.register_buffer("sin", torch.sin(angle), persistent=False)
-        band = torch.zeros(len(freqs), bands)
-        for i in range(len(freqs)):
-            band[i, min(bands - 1, i * bands // max(1, len(freqs)))] = 1.0
+        cos, sin = fourier_basis(frames)
+        self.register_buffer("cos", cos, persistent=False)
+        self.register_buffer("sin", sin, persistent=False)
+        n_freqs = cos.shape[1]
+        band = torch.zeros(n_freqs, bands)
+        for i in range(n_freqs):
+            band[i, min(bands - 1, i * bands // max(1, n_freqs))] = 1.0
         self.register_buffer("band", band, persistent=False)
         self.register_buffer("q_index", torch.tensor(
             [round(q * (frames - 1)) for q in self.QUANTILES], dtype=torch.long),

@@ -39,6 +39,15 @@ def _gradient(f: torch.Tensor, dim: int, spacing: float) -> torch.Tensor:
     return torch.cat([first, inner, last], dim) / spacing
 
 
+def fourier_basis(frames: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """(frames, frames // 2) cosines and sines of the non-DC DFT frequencies: a fixed
+    matrix, so spectra export to ONNX as two matrix products."""
+    freqs = torch.arange(1, frames // 2 + 1, dtype=torch.float32)
+    t = torch.arange(frames, dtype=torch.float32)
+    angle = 2 * math.pi * t[:, None] * freqs[None, :] / frames
+    return torch.cos(angle), torch.sin(angle)
+
+
 def metric_names(channels: int) -> list[str]:
     """Names of :meth:`GestureFeatures.metrics`' columns for 1 (normal or pressure),
     2 (shear x/y) or 3 (normal + shear) channels: ``trial_features``' gesture names."""
@@ -64,10 +73,9 @@ class GestureFeatures(nn.Module):
         self.register_buffer("input_mean", torch.zeros(channels))
         self.register_buffer("input_std", torch.ones(channels))
         self.register_buffer("cell_pitch", torch.ones(()))
-        k = torch.arange(1, frames // 2 + 1, dtype=torch.float32)
-        angle = 2 * math.pi * torch.arange(frames, dtype=torch.float32)[:, None] * k / frames
-        self.register_buffer("cos", torch.cos(angle), persistent=False)
-        self.register_buffer("sin", torch.sin(angle), persistent=False)
+        cos, sin = fourier_basis(frames)
+        self.register_buffer("cos", cos, persistent=False)
+        self.register_buffer("sin", sin, persistent=False)
         self.norm = nn.BatchNorm1d(self.out_features)
 
     def set_input_norm(self, mean, std, cell_pitch: float = 1.0) -> None:
