@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QPointF
+from ui_helpers import point_at_cell
 
 from tactile_studio.live import History
 from tactile_studio.live.meters import PaintPacer
@@ -168,20 +168,9 @@ def test_hover_names_the_cell_under_the_pointer_with_either_map(qtbot, heat):
     heat.cellHovered.connect(lambda r, c: hovered.append((r, c)))
 
     tries = [0]
-
-    def pointer_over(cell: tuple[int, int]) -> bool:
-        # map again each time (the view settles its geometry after it is first shown),
-        # and jitter by a pixel: a repeated move to the same point may not be delivered
-        tries[0] += 1
-        scene = heat.plot.vb.mapViewToScene(QPointF(cell[1], cell[0]))
-        pos = heat.view.mapFromScene(scene)
-        pos.setX(pos.x() + tries[0] % 3 - 1)
-        qtbot.mouseMove(heat.view.viewport(), pos)
-        return heat.hovered_cell() == cell
-
     for scheme, cell in (("sequential", (2, 3)), ("diverging", (4, 1))):
         heat.set_color_scheme(scheme)
-        qtbot.waitUntil(lambda: pointer_over(cell), timeout=5000)
+        qtbot.waitUntil(lambda: point_at_cell(qtbot, heat, *cell, tries), timeout=5000)
         assert hovered[-1] == cell
 
 

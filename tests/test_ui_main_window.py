@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QPointF, Qt
+from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage
+from ui_helpers import hover_cell_with_mouse
 
 import tactile_studio.devices.registry as registry
 from tactile_studio import cli
@@ -42,15 +43,6 @@ def _tare_events(engine) -> int:
     return sum(1 for e in engine.events_since(0) if e["kind"] == "tare")
 
 
-def _hover_with_mouse(qtbot, w: MainWindow, row: int, col: int) -> None:
-    """Move the real mouse over a cell of the map (cells are centred on (col, row))."""
-    heat = w.heatmap
-    step = 0.5 if heat.virtual else 1.0
-    scene = heat.plot.vb.mapViewToScene(QPointF(col * step, row * step))
-    pos = heat.view.mapFromScene(scene)
-    qtbot.mouseMove(heat.view.viewport(), pos)
-
-
 def test_live_view_end_to_end(qtbot, window, tmp_path, monkeypatch):
     w = window
     assert w.panel.connect_device()
@@ -80,15 +72,14 @@ def test_live_view_end_to_end(qtbot, window, tmp_path, monkeypatch):
     qtbot.mouseClick(w.heatmap.virtual_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: w.heatmap.image_data().shape == (11, 11), timeout=5000)
     assert w.live.virtual and w.virtual_action.isChecked()
-    _hover_with_mouse(qtbot, w, 4, 7)
+    hover_cell_with_mouse(qtbot, w.heatmap, 4, 7)
     qtbot.waitUntil(lambda: w.heatmap.readout.text().startswith("C4-C5"), timeout=5000)
     assert "between C4, C5" in w.heatmap.readout.text()
     qtbot.mouseClick(w.heatmap.physical_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: w.heatmap.image_data().shape == (6, 6), timeout=5000)
 
     # hover readout names the taxel under the pointer
-    _hover_with_mouse(qtbot, w, 2, 3)
-    assert w.heatmap.hovered_cell() == (2, 3)
+    hover_cell_with_mouse(qtbot, w.heatmap, 2, 3)
     qtbot.waitUntil(lambda: w.heatmap.readout.text().startswith("C4 "), timeout=5000)
     assert "kPa" in w.heatmap.readout.text() and "raw" in w.heatmap.readout.text()
 
