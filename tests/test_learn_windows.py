@@ -85,6 +85,26 @@ def test_vote_aggregate_and_bad_settings(data, tmp_path):
         run_experiment(_config(data, "rf", window_s=-1.0))
 
 
+@pytest.mark.parametrize("how", ["mean", "vote"])
+def test_per_trial_predictions_aggregate_as_the_run_does(data, tmp_path, how):
+    from tactile_studio.learn import trialpreds
+
+    run = run_experiment(_config(data, "rf", aggregate=how), tmp_path / how)
+    preds = trialpreds.load_predictions(tmp_path / how)
+    assert preds.accuracy() == pytest.approx(run.metrics["trial_accuracy"])
+    for rec in run.folds:  # the same aggregation from the fold's window probabilities
+        p = rec["predictions"]
+        trials, pred = windowing.aggregate(np.asarray(p["owner"]), np.asarray(p["probs"]), how)
+        rows = [t.pred for t in preds.trials if t.fold == rec["name"]]  # in trial order
+        assert len(trials) == len(rows) and rows == pred.tolist()
+    # windows on which mean and vote disagree (above): each row follows its run's setting
+    rec = {"round": 0, "name": "f", "predictions": {
+        "owner": [0, 0, 0, 1], "y_true": [0, 0, 0, 1],
+        "probs": [[0.4, 0.6], [0.45, 0.55], [1.0, 0.0], [0.2, 0.8]]}}
+    rows = trialpreds._trial_rows(rec, ["a", "b"], [{"uid": "t0"}, {"uid": "t1"}], how)
+    assert [r.pred for r in rows] == ([0, 1] if how == "mean" else [1, 1])
+
+
 def _old_csv(path, style: int, gestures: dict[str, str], perf_s: float = 10.0) -> None:
     """An old-software CSV: one labelled ~10 s performance per key (the pressed key's
     ASCII code on every row of it), made by repeating the gesture."""

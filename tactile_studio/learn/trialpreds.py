@@ -1,7 +1,8 @@
 """A run's test predictions as one row per (round, trial), with the trial's identity.
 
-Window-based models predict many windows per trial; a trial's prediction is their
-majority vote (as the run's ``trial_accuracy``), its probabilities the windows' mean.
+Window-based models predict many windows per trial; a trial's prediction aggregates them
+as the run's ``trial_accuracy`` does (its ``aggregate``: mean probability by default, or
+majority vote), its probabilities are the windows' mean.
 Confidence is the mean probability of the predicted gesture; the runner-up is the
 gesture with the next-highest mean probability.
 """
@@ -16,9 +17,9 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import metrics as M
 from tactile_studio.learn.runfolder import read_run
 from tactile_studio.learn.trialinfo import load_trial_table
+from tactile_studio.learn.windowing import aggregate
 
 
 @dataclass
@@ -61,15 +62,15 @@ class RunPredictions:
         return float(np.mean([t.correct for t in self.trials])) if self.trials else 0.0
 
 
-def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]]
-                ) -> list[TrialPrediction]:
+def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]],
+                how: str = "mean") -> list[TrialPrediction]:
     p = rec["predictions"]
     owner = np.asarray(p["owner"], dtype=np.int64)
     if not len(owner):
         return []
     probs = np.asarray(p["probs"], dtype=np.float64).reshape(len(owner), len(labels))
     y = np.asarray(p["y_true"], dtype=np.int64)
-    trials, vote = M.vote(owner, probs)
+    trials, predicted = aggregate(owner, probs, how)
     _, inverse = np.unique(owner, return_inverse=True)
     mean = np.zeros((len(trials), len(labels)))
     np.add.at(mean, inverse, probs)
@@ -82,7 +83,7 @@ def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, An
                             f"run's trial table has {len(table)} (incompatible layout)")
         ident = table[t]
         order = np.argsort(-mean[k])
-        pred = int(vote[k])
+        pred = int(predicted[k])
         runner = int(order[1] if order[0] == pred else order[0]) if len(labels) > 1 else pred
         rows.append(TrialPrediction(
             round=int(rec["round"]), fold=str(rec["name"]), uid=str(ident.get("uid", t)),
@@ -105,7 +106,8 @@ def load_predictions(run: str | os.PathLike, data: list[str] | None = None) -> R
         raise UserError(f"{run}: not a run folder of this version (config.json or fold.json "
                         "lacks labels/predictions)") from None
     table = load_trial_table(run, data)
+    how = (cfg.get("config") or {}).get("aggregate") or "mean"  # as the run's trial_accuracy
     rows: list[TrialPrediction] = []
     for rec in records:
-        rows.extend(_trial_rows(rec, labels, table))
+        rows.extend(_trial_rows(rec, labels, table, how))
     return RunPredictions(Path(run), cfg.get("config", {}), cfg.get("resolved", {}), labels, rows)
