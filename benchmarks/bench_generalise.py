@@ -15,13 +15,16 @@ the paired test says whether a difference is more than that.
 
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
-       [--set KEY=VALUE ...] [--repeats N --blocks B]
+       [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
 learned models, e.g. --set members=1 to measure one network instead of the preset's
 ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s cut into
-2 s windows whose mean probability is the trial's answer, like the real recordings.)
+2 s windows whose mean probability is the trial's answer, like the real recordings;
+--fuse 0.3 0.5: each learned model also fused with rf at those rf weights, as
+--set rf_weight=W trains it, scored from the two runs' test predictions and paired against
+rf; --keep DIR: keep the data and run folders there.)
 """
 
 from __future__ import annotations
@@ -30,17 +33,22 @@ import argparse
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.compare import compare_runs  # noqa: E402
+from tactile_studio.learn.compare import compare_predictions, compare_runs  # noqa: E402
 from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
+from tactile_studio.learn.fused import fuse  # noqa: E402
 from tactile_studio.learn.sweep import run_sweep  # noqa: E402
+from tactile_studio.learn.trialpreds import RunPredictions, load_predictions  # noqa: E402
 
 MODELS = ["rf", "cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
 OPTIONS = {"augment": "all", "augment_copies": 2, "participant_norm": True, "balance": True,
@@ -73,6 +81,30 @@ def model_cost(name: str, preset: str, sets: dict[str, str]) -> tuple[int, float
     return count_parameters(model), ms
 
 
+def fused_trials(rf: RunPredictions, net: RunPredictions, w: float) -> RunPredictions:
+    """``net``'s test trials with learn/fused.py's probabilities, (1 - w) * net + w * rf:
+    what ``--set rf_weight=w`` predicts, since the fused model trains the same network and
+    forest with the same seeds (tests/test_fused.py). Per trial: mean window probabilities."""
+    by_trial = {(t.round, t.uid): t for t in rf.trials}
+    trials = []
+    for t in net.trials:
+        p = fuse(t.probs, by_trial[(t.round, t.uid)].probs, w)
+        trials.append(replace(t, probs=p, pred=int(p.argmax())))
+    overrides = {**(net.config.get("overrides") or {}), "rf_weight": w}
+    return replace(net, trials=trials, config={**net.config, "overrides": overrides})
+
+
+def print_fused(rf_run: str, net_run: str, w: float) -> None:
+    rf, net = load_predictions(rf_run), load_predictions(net_run)
+    fused = fused_trials(rf, net, w)
+    rounds = sorted({t.round for t in fused.trials})
+    accs = [float(np.mean([t.correct for t in fused.trials if t.round == r])) for r in rounds]
+    name = f"+ rf w={w:g}"
+    print(f"{name:>16s}{float(np.median(accs)):>11.3f}   rounds: "
+          + ", ".join(f"{a:.3f}" for a in accs), flush=True)
+    print(f"{'':>16s}vs rf: {compare_predictions(rf, fused)['sentence']}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--jobs", type=int, default=2)
@@ -86,10 +118,17 @@ def main(argv: list[str] | None = None) -> None:
                     help="each trial N back-to-back 2 s performances, cut into 2 s windows "
                          "(6 and --blocks 2: like the real recordings' ~12 s performances)")
     ap.add_argument("--blocks", type=int, default=4)
+    ap.add_argument("--fuse", nargs="*", type=float, default=[], metavar="W",
+                    help="also score each learned model fused with rf at these rf weights "
+                         "(as --set rf_weight=W trains it), paired against rf")
+    ap.add_argument("--keep", metavar="DIR", default=None,
+                    help="write the data and every run folder here (kept, for "
+                         "tactile-studio compare / trials) instead of a temporary folder")
     args = ap.parse_args(argv if argv is not None else [])
     options = OPTIONS if args.options else {}
     sets = dict(item.split("=", 1) for item in args.set)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as scratch:
+        tmp = args.keep or scratch
         data = Path(tmp) / "data"
         make_dataset_folder(data, participants=10, blocks=args.blocks, difficulty="real",
                             repeats=args.repeats)
@@ -100,7 +139,7 @@ def main(argv: list[str] | None = None) -> None:
               + (", options: augment all x2 + participant norm + balance + val by "
                  "participant" if options else "")
               + (f", --set {' '.join(args.set)}" if sets else ""))
-        print(f"{'model':>16s}{'trial acc':>11s}{'f1':>8s}{'train s':>9s}{'wall s':>8s}"
+        print(f"{'model':>16s}{'trial acc':>11s}{'trial f1':>9s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")
         runs: dict[str, str | None] = {}
         for model in args.models:
@@ -117,7 +156,7 @@ def main(argv: list[str] | None = None) -> None:
                 model_cost(model, args.preset, sets)
             for row in res.rows:
                 print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"
-                      f"{row['f1_macro']:>8.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"
+                      f"{row['trial_f1_macro']:>9.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"
                       f"{params:>9}{ms:>10.2f}", flush=True)
             if args.rounds > 1:  # the median above; every round's trial accuracy here
                 rounds = next(iter(res.metrics.values())).get("rounds", [])
@@ -128,6 +167,8 @@ def main(argv: list[str] | None = None) -> None:
                 # paired, on the same test trials of every round: how we know
                 print(f"{'':>16s}vs rf: {compare_runs(runs['rf'], runs[model])['sentence']}",
                       flush=True)
+                for w in args.fuse:
+                    print_fused(runs["rf"], runs[model], w)
 
 
 if __name__ == "__main__":

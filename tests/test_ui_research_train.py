@@ -115,3 +115,21 @@ def test_one_click_ablation_and_bad_input(window, data, qtbot, tmp_path):
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert "no sessions selected" in window.message.text()
     assert window.isVisible()
+
+
+def test_a_learned_model_can_be_fused_with_rf_from_the_options(window, data):
+    window.sessions.set_folders([str(data / "data")])
+    window.tabs.setCurrentWidget(window.train)
+    panel = window.train
+    panel.model.setCurrentText("sefusion")
+    rows = {panel.options.item(r, 0).text(): r for r in range(panel.options.rowCount())}
+    assert panel.options.item(rows["rf_weight"], 1).text() == "0.0"
+    assert "random forest" in panel.options.item(rows["rf_weight"], 2).text()
+    panel.options.item(rows["rf_weight"], 1).setText("0.5")
+    assert panel.overrides() == {"rf_weight": 0.5}
+    assert panel.config().overrides == {"rf_weight": 0.5}
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    window.grab().save(str(SHOTS / "research_train_fused.png"))
+    panel.model.setCurrentText("rf")  # a baseline has no such option
+    names = [panel.options.item(r, 0).text() for r in range(panel.options.rowCount())]
+    assert "rf_weight" not in names

@@ -46,6 +46,9 @@ def run_label(run: RunPredictions, other: RunPredictions) -> str:
     keys = [k for k in ("channels", "model", "grid", "preset", "protocol")
             if run.config.get(k) != other.config.get(k)]
     if len(keys) == 1 and run.config.get(keys[0]) is not None:
+        weight = (run.config.get("overrides") or {}).get("rf_weight")
+        if keys[0] == "model" and weight and float(weight) > 0:  # learn/fused.py
+            return f"{run.config['model']} + rf {float(weight):g}"
         return str(run.config[keys[0]])
     if run.name == other.name:
         return str(run.path)

@@ -2,7 +2,10 @@
 
 rf / knn folds are ONNX files already (skl2onnx at training time): ``onnx`` copies them to
 ``RUN/export/<fold>.onnx`` with the same metadata and checks them against the probabilities
-recorded at training; they have no int8 form.
+recorded at training; they have no int8 form. A network fused with rf (``rf_weight``,
+learn/fused.py) exports as ``onnx`` only: the network as below, its forest copied beside it
+to ``RUN/export/<fold>.rf.onnx``; both are scored with onnxruntime and fused with the run's
+weight (the network's file names its forest and the weight in its metadata).
 
 Every torch fold's best-epoch model is exported with the functions in
 :mod:`tactile_studio.learn.export` and re-scored on that fold's test set:
@@ -70,7 +73,11 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         run, data, cache_dir, device="cpu", progress=lambda f, m: progress(0.2 * f, m),
         cancel=cancel)
     how = aggregate or config.aggregate
-    if learner.kind != "torch":
+    fused_run = learner.kind == "fused"  # a network + rf (learn/fused.py)
+    if fused_run and fmt != "onnx":
+        raise UserError(f"model '{config.model}' is fused with rf: it exports as onnx only "
+                        "(the network's .onnx beside the forest's .rf.onnx)")
+    if learner.kind == "baseline":
         if fmt != "onnx":
             raise UserError(f"model '{config.model}' is a scikit-learn baseline: it exports "
                             "as onnx only (int8 is for torch models)")
@@ -95,6 +102,10 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
         mask = _test_mask(rec, index, owner)
         xt = learner.apply_norm(x[mask], rec["norm"])
+        example = learner.apply_norm(x[:1], rec["norm"])
+        if fused_run:  # the network's views; the forest's trial features
+            (xt, ft), example = learner.split(xt, info), learner.split(example, info)[0]
+        example = torch.from_numpy(example)
         yt = ds.labels[owner[mask]]
         fitted = learner.load(model_file(rec["_dir"]), info)
         model = fitted.model.eval()
@@ -105,7 +116,8 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
                 "preset": config.preset, "channels": ds.channels,
                 "view": json.dumps(resolved["model"]["view"]),
                 "norm": json.dumps(rec["norm"])}
-        example = torch.from_numpy(learner.apply_norm(x[:1], rec["norm"]))
+        if fused_run:
+            meta.update(rf_weight=str(learner.weight), rf_model=f"{entry['name']}.rf.onnx")
         if fmt == "onnx":
             path = out_dir / f"{entry['name']}.onnx"
             export.export_onnx(model, example, path, metadata=meta)
@@ -129,9 +141,15 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
             got = predict(xt) if len(xt) else ref
             entry.update(path=str(path), size_bytes=path.stat().st_size,
                          float_size_bytes=float_size, calibration_samples=int(len(calib)))
-        scored.append(_scored(rec, owner[mask], yt, _softmax(ref), _softmax(got)))
+        ref_p, got_p = _softmax(ref), _softmax(got)
+        if fused_run:
+            ref_p, got_p = _fuse_forest(fitted, rec, out_dir / f"{entry['name']}.rf.onnx",
+                                        meta, ft, ref_p, got_p, learner, info)
+            entry["rf_path"] = str(out_dir / f"{entry['name']}.rf.onnx")
+        scored.append(_scored(rec, owner[mask], yt, ref_p, got_p))
         folds.append(entry)
-    report = _report(config.model, fmt, folds, scored, ds.label_names, learner.windowed, how)
+    name = f"{config.model} + rf (rf_weight {learner.weight:g})" if fused_run else config.model
+    report = _report(name, fmt, folds, scored, ds.label_names, learner.windowed, how)
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
@@ -147,10 +165,7 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
     the run's metadata, run it with onnxruntime on the fold's test trials and compare with
     the probabilities recorded when the fold was trained (the "torch" fields of the report
     hold that reference for these models)."""
-    import onnx
-
     from tactile_studio.learn.baselines import BaselineModel
-    from tactile_studio.learn.export import _save_onnx
 
     ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)  # windows, as trained
     index = {u: i for i, u in enumerate(ds.uids)}
@@ -166,12 +181,10 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
         learner.load(source, info)  # a clear error for a damaged or pre-ONNX fold model
         name = Path(rec["_dir"]).name
         path = out_dir / f"{name}.onnx"
-        proto = onnx.load_model(str(source))
-        meta = {p.key: p.value for p in proto.metadata_props}
-        meta.update({"labels": json.dumps(ds.label_names), "model": config.model,
-                     "preset": config.preset, "channels": ds.channels,
-                     "view": json.dumps(resolved["model"]["view"]), "norm": json.dumps({})})
-        _save_onnx(proto, meta, path, "ONNX model")
+        _copy_onnx(source, path, {"labels": json.dumps(ds.label_names), "model": config.model,
+                                  "preset": config.preset, "channels": ds.channels,
+                                  "view": json.dumps(resolved["model"]["view"]),
+                                  "norm": json.dumps({})})
         exported = BaselineModel.load(path, learner.name, learner.options, info.n_classes)
         got = exported.predict_proba(x[mask])
         p = rec["predictions"]
@@ -189,6 +202,34 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
     write_json(out_dir / "onnx.json", report)
     progress(1.0, "exported")
     return report
+
+
+def _copy_onnx(source: Path, path: Path, metadata: dict[str, str]) -> None:
+    """Copy an ONNX file, its own metadata updated with ``metadata``."""
+    import onnx
+
+    from tactile_studio.learn.export import _save_onnx
+
+    proto = onnx.load_model(str(source))
+    meta = {p.key: p.value for p in proto.metadata_props}
+    meta.update(metadata)
+    _save_onnx(proto, meta, path, "ONNX model")
+
+
+def _fuse_forest(fitted, rec: dict[str, Any], path: Path, meta: dict[str, str],  # noqa: ANN001
+                 features: np.ndarray, ref: np.ndarray, got: np.ndarray, learner,  # noqa: ANN001
+                 info) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """A fused fold: copy its forest beside the network's file and fuse both probability
+    sets (reference: torch + the saved forest; export: the network's and the forest's
+    exported files, as a consumer of the export would)."""
+    from tactile_studio.learn.baselines import BaselineModel
+    from tactile_studio.learn.fused import RF_FILE, fuse
+
+    shared = {k: v for k, v in meta.items() if k in ("labels", "preset", "channels", "rf_weight")}
+    _copy_onnx(Path(rec["_dir"]) / RF_FILE, path, {**shared, "fused_with": meta["model"]})
+    exported = BaselineModel.load(path, "rf", learner.forest.options, info.n_classes)
+    return (fuse(ref, fitted.forest.predict_proba(features), learner.weight),
+            fuse(got, exported.predict_proba(features), learner.weight))
 
 
 def _test_mask(rec: dict[str, Any], index: dict[str, int], owner: np.ndarray) -> np.ndarray:

@@ -18,7 +18,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.learn import baselines, views
+from tactile_studio.learn import baselines, fused, views
 from tactile_studio.learn.contract import DataInfo, Fitted, Learner, ModelFacts
 from tactile_studio.learn.train import TRAIN_KEYS, TrainSettings, train_settings
 
@@ -52,13 +52,21 @@ def make_learner(name: str, preset: str = "full", overrides: dict[str, Any] | No
 
     overrides = dict(overrides or {})
     if spec is None and name in baselines.BASELINES:
+        if fused.OPTION in overrides:
+            raise UserError(f"option '{fused.OPTION}' fuses a learned model with rf; "
+                            f"model '{name}' is not a learned model")
         return BaselineLearner(name, preset, overrides)
     if spec is None:
         if name not in model_names():
             raise UserError(f"unknown model '{name}' (available: "
                             f"{', '.join(available_models())})")
         spec = get_model_spec(name)
-    return TorchLearner(spec, preset, overrides, epochs, device)
+    weight = fused.rf_weight(overrides)
+    overrides.pop(fused.OPTION, None)
+    network = TorchLearner(spec, preset, overrides, epochs, device)
+    if weight > 0:
+        return fused.FusedLearner(network, BaselineLearner("rf", preset, {}), weight)
+    return network
 
 
 class TorchLearner:
@@ -83,7 +91,7 @@ class TorchLearner:
             view=self.view.kind, export=tuple(spec.export), quantizable=spec.quantizable,
             sliding=sliding, cached=spec.streaming.cached,
             window=self.view.frames if sliding else None, gpus=spec.gpus,
-            option_help=dict(spec.option_help))
+            option_help={**spec.option_help, fused.OPTION: fused.OPTION_HELP})
 
     @property
     def windowed(self) -> bool:

@@ -15,7 +15,7 @@ per-trial ``trial_accuracy``, the folds done and the training time summed over f
 ``OUT/runs/<model>-<channels>/`` is an ordinary run folder per row (config.json, every
 finished fold's record and model file, metrics.json and its figures), so the research
 workspace lists, opens, compares and exports a sweep's runs like any ``train`` run. A
-task sends its fold model back as bytes (no shared file system needed on a cluster).
+task sends its fold model's files back as bytes (no shared file system needed on a cluster).
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ from tactile_studio.learn.runfolder import FOLD, WEIGHTS, RunFolder, read_json, 
 
 SweepListener = Callable[[dict[str, Any]], None]
 
-TABLE_KEYS = ("accuracy", "trial_accuracy", "f1_macro", "balanced_accuracy", "kappa")
+TABLE_KEYS = ("accuracy", "trial_accuracy", "f1_macro", "trial_f1_macro", "balanced_accuracy",
+              "kappa")
 
 
 @dataclass
@@ -84,9 +85,9 @@ def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, A
                                   cfg.seed + round_, CancelToken(), lambda e: None, extra,
                                   cfg.balance)
     name = getattr(fitted, "file_name", WEIGHTS)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp:  # every file the model saves (fused: two)
         fitted.save(Path(tmp) / name)
-        rec["_model"] = {"file": name, "bytes": (Path(tmp) / name).read_bytes()}
+        rec["_model"] = {p.name: p.read_bytes() for p in sorted(Path(tmp).iterdir())}
     return rec
 
 
@@ -218,7 +219,8 @@ def _save_fold(run: RunFolder, rec: dict[str, Any], model: dict[str, Any] | None
         return
     d = run.fold_dir(rec["round"], rec["name"])
     d.mkdir(parents=True, exist_ok=True)
-    (d / model["file"]).write_bytes(model["bytes"])
+    for name, data in model.items():
+        (d / name).write_bytes(data)
     write_json(d / FOLD, rec)
 
 

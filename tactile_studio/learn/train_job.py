@@ -39,13 +39,16 @@ _TRAIN_HELP = {
 def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
     """(option, default, one line of help) for a model's architecture and training
     options at ``preset`` — the form of the train panel."""
+    from tactile_studio.learn import fused
     from tactile_studio.learn.learners import make_learner
     from tactile_studio.learn.models import model_names, model_options
 
     learner = make_learner(name, preset)
     described = learner.describe()
     helps = {**_TRAIN_HELP, **learner.facts.option_help}
-    options = dict(model_options(name, preset)) if name in model_names() else {}
+    # a learned model is fused with rf when rf_weight > 0 (learn/fused.py): listed first
+    options = {fused.OPTION: 0.0, **model_options(name, preset)} if name in model_names() \
+        else {}
     options.update(described.get("model_options") or {})
     options.update(described.get("train") or {})
     return [(k, v, helps.get(k, "model option")) for k, v in options.items()]
