@@ -59,7 +59,9 @@ def test_a_fused_run_evaluates_and_exports_with_the_same_figures(runs, capsys):
     run = runs["root"] / "fused"
     metrics = json.loads((run / "metrics.json").read_text())
     assert main(["evaluate", str(run)]) == 0
-    assert f"{metrics['accuracy']:.3f}" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert f"{metrics['accuracy']:.3f}" in out and "cnn1d + rf 0.3 ·" in out
+    assert metrics["rf_weight"] == 0.3
     assert main(["export-model", str(run), "--format", "onnx"]) == 0
     report = json.loads((run / "export" / "onnx.json").read_text())
     assert report["accuracy_torch"] == pytest.approx(metrics["accuracy"])

@@ -111,7 +111,10 @@ def _fmt(v: Any) -> str:
 
 
 def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
-    print(f"{m['model']} · {m['protocol']} · channels {m['channels']} · "
+    from tactile_studio.learn.fused import OPTION, display_name
+
+    name = display_name(m["model"], {OPTION: m.get("rf_weight")})
+    print(f"{name} · {m['protocol']} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)")
     rows = [(key, _fmt(m[key])) for key in (
         "accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",

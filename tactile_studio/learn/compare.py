@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.trialpreds import RunPredictions, load_predictions
 
@@ -46,9 +47,8 @@ def run_label(run: RunPredictions, other: RunPredictions) -> str:
     keys = [k for k in ("channels", "model", "grid", "preset", "protocol")
             if run.config.get(k) != other.config.get(k)]
     if len(keys) == 1 and run.config.get(keys[0]) is not None:
-        weight = (run.config.get("overrides") or {}).get("rf_weight")
-        if keys[0] == "model" and weight and float(weight) > 0:  # learn/fused.py
-            return f"{run.config['model']} + rf {float(weight):g}"
+        if keys[0] == "model":  # "cnn1d + rf 0.5" when fused with rf (learn/fused.py)
+            return display_name(run.config["model"], run.config.get("overrides"))
         return str(run.config[keys[0]])
     if run.name == other.name:
         return str(run.path)

@@ -28,6 +28,7 @@ from tactile_studio.learn.experiment import (
     ExperimentConfig,
     _predictions,
     prepare_inputs,
+    run_header,
     summarise,
 )
 from tactile_studio.learn.learners import DataInfo, make_learner
@@ -86,9 +87,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                else np.arange(len(ds)))
         pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"])
         fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
-    header = {"model": config.model, "protocol": config.protocol, "channels": ds.channels,
-              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
-              "aggregate": config.aggregate,
+    header = {**run_header(config, ds.channels, learner.windowed),
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
     metrics["dataset_skipped"] = list(ds.skipped)  # resume backups, duplicate sessions

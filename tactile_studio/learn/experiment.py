@@ -30,6 +30,7 @@ from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.augment import parse_kinds
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
+from tactile_studio.learn.fused import display_name, rf_weight
 from tactile_studio.learn.generalise import (
     VAL_BY,
     augmenter,
@@ -206,6 +207,18 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
     return rec, fitted
 
 
+def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
+               ) -> dict[str, Any]:
+    """What metrics.json (train, sweep) and rescore.json (evaluate) say about the run."""
+    header = {"model": config.model, "protocol": config.protocol, "channels": channels,
+              "grid": config.grid, "preset": config.preset, "windowed": windowed,
+              "aggregate": config.aggregate}
+    weight = rf_weight(config.overrides)
+    if weight > 0:  # fused with rf (learn/fused.py)
+        header["rf_weight"] = weight
+    return header
+
+
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     """(dataset as trained on, samples X, owner trial per sample, number of windows,
     window spec, augmenter or None): the model inputs ``config`` asks for."""
@@ -279,9 +292,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     info = DataInfo.of(ds)
     learner.check(info)
     first_folds = folds_for(config, ds, 0)  # fails early on too few participants
-    header = {"model": learner.name, "protocol": config.protocol, "channels": ds.channels,
-              "grid": config.grid, "preset": config.preset, "windowed": learner.windowed,
-              "aggregate": config.aggregate}
+    header = run_header(config, ds.channels, learner.windowed)
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -298,7 +309,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     total_units = config.rounds * len(first_folds)
     records: list[dict[str, Any]] = []
     done = 0
-    title = f"{learner.name} ({config.preset}) · {config.protocol} · {ds.channels}"
+    title = (f"{display_name(learner.name, config.overrides)} ({config.preset}) · "
+             f"{config.protocol} · {ds.channels}")
     try:
         for r in range(config.rounds):
             seed = config.seed + r

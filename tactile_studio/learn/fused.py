@@ -46,6 +46,15 @@ def rf_weight(overrides: dict[str, Any]) -> float:
     return value
 
 
+def display_name(model: str, overrides: dict[str, Any] | None) -> str:
+    """``cnn1d + rf 0.5`` for a fused model, else the model's name (titles, tables)."""
+    try:
+        weight = float((overrides or {}).get(OPTION, 0) or 0)
+    except (TypeError, ValueError):
+        weight = 0.0
+    return f"{model} + rf {weight:g}" if weight > 0 else model
+
+
 class FusedLearner:
     """A torch learner and an rf baseline learner trained side by side on one fold."""
 
@@ -163,4 +172,5 @@ def fuse(network: np.ndarray, forest: np.ndarray, weight: float) -> np.ndarray:
     return (1.0 - weight) * np.asarray(network) + weight * np.asarray(forest)
 
 
-__all__ = ["OPTION", "RF_FILE", "FusedFitted", "FusedLearner", "fuse", "rf_weight"]
+__all__ = ["OPTION", "RF_FILE", "FusedFitted", "FusedLearner", "display_name", "fuse",
+           "rf_weight"]

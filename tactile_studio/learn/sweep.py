@@ -39,8 +39,10 @@ from tactile_studio.learn.experiment import (
     _train_fold,
     folds_for,
     prepare_inputs,
+    run_header,
     summarise,
 )
+from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import FOLD, WEIGHTS, RunFolder, read_json, write_json
 
@@ -252,8 +254,7 @@ def _group_row(g: dict[str, Any], records: dict[str, dict[str, Any]], labels: li
                            "folds_done": len(recs), "folds": len(g["ids"])}
     if not recs:
         return row, None, recs
-    header = {"model": cfg.model, "protocol": cfg.protocol, "channels": cfg.channels,
-              "preset": cfg.preset, "aggregate": cfg.aggregate}
+    header = run_header(cfg, cfg.channels, g["windowed"])
     m = summarise(recs, labels, g["windowed"], header, len(recs) == len(g["ids"]))
     row.update({k: m.get(k) for k in TABLE_KEYS})
     row["train_seconds"] = round(sum(r["seconds"] for r in recs), 2)
@@ -269,7 +270,8 @@ def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]]
         if m is not None:
             metrics[key] = m
             if g.get("run") is not None:
-                title = f"{cfg.model} ({cfg.preset}) · {cfg.protocol} · {cfg.channels}"
+                title = (f"{display_name(cfg.model, cfg.overrides)} ({cfg.preset}) · "
+                         f"{cfg.protocol} · {cfg.channels}")
                 g["run"].write_results(m, recs, title + ("" if m["complete"] else
                                                          " (partial)"))
                 row["run"] = str(g["run"].path)
