@@ -16,6 +16,7 @@ the paired test says whether a difference is more than that.
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
+       [--participants N]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -24,7 +25,8 @@ ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s c
 2 s windows whose mean probability is the trial's answer, like the real recordings;
 --fuse 0.3 0.5: each learned model also fused with rf at those rf weights, as
 --set rf_weight=W trains it, scored from the two runs' test predictions and paired against
-rf; --keep DIR: keep the data and run folders there.)
+rf; --keep DIR: keep the data and run folders there; --participants N: N virtual people
+instead of 10, the first 10 the same as the default's.)
 """
 
 from __future__ import annotations
@@ -118,6 +120,9 @@ def main(argv: list[str] | None = None) -> None:
                     help="each trial N back-to-back 2 s performances, cut into 2 s windows "
                          "(6 and --blocks 2: like the real recordings' ~12 s performances)")
     ap.add_argument("--blocks", type=int, default=4)
+    ap.add_argument("--participants", type=int, default=10,
+                    help="virtual participants (LOPO folds); more people: do the networks "
+                         "gain on rf?")
     ap.add_argument("--fuse", nargs="*", type=float, default=[], metavar="W",
                     help="also score each learned model fused with rf at these rf weights "
                          "(as --set rf_weight=W trains it), paired against rf")
@@ -130,11 +135,12 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
         data = Path(tmp) / "data"
-        make_dataset_folder(data, participants=10, blocks=args.blocks, difficulty="real",
+        make_dataset_folder(data, participants=args.participants, blocks=args.blocks,
+                            difficulty="real",
                             repeats=args.repeats)
         what = f"{args.blocks} trials" if args.repeats == 1 else \
             f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
-        print(f"LOPO, 10 participants x 9 gestures x {what}, difficulty real, preset "
+        print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty real, preset "
               f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
                  "participant" if options else "")
