@@ -113,7 +113,7 @@ def _fmt(v: Any) -> str:
 def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     from tactile_studio.learn.fused import OPTION, display_name
 
-    name = display_name(m["model"], {OPTION: m.get("rf_weight")})
+    name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
     print(f"{name} · {m['protocol']} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)")
     rows = [(key, _fmt(m[key])) for key in (

@@ -219,6 +219,12 @@ def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
     return header
 
 
+def run_title(config: ExperimentConfig, channels: str | None) -> str:
+    """The run's title on its figures: model (fused with rf if so), preset, protocol."""
+    return (f"{display_name(config.model, config.overrides)} ({config.preset}) · "
+            f"{config.protocol} · {channels}")
+
+
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     """(dataset as trained on, samples X, owner trial per sample, number of windows,
     window spec, augmenter or None): the model inputs ``config`` asks for."""
@@ -309,8 +315,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     total_units = config.rounds * len(first_folds)
     records: list[dict[str, Any]] = []
     done = 0
-    title = (f"{display_name(learner.name, config.overrides)} ({config.preset}) · "
-             f"{config.protocol} · {ds.channels}")
+    title = run_title(config, ds.channels)
     try:
         for r in range(config.rounds):
             seed = config.seed + r

@@ -44,6 +44,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluate import load_run_data
 from tactile_studio.learn.experiment import prepare_inputs
+from tactile_studio.learn.fused import RF_FILE, display_name, fuse
 from tactile_studio.learn.runfolder import model_file, write_json
 from tactile_studio.learn.summary import summarise
 from tactile_studio.learn.windowing import AGGREGATES
@@ -143,13 +144,13 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
                          float_size_bytes=float_size, calibration_samples=int(len(calib)))
         ref_p, got_p = _softmax(ref), _softmax(got)
         if fused_run:
-            ref_p, got_p = _fuse_forest(fitted, rec, out_dir / f"{entry['name']}.rf.onnx",
-                                        meta, ft, ref_p, got_p, learner, info)
-            entry["rf_path"] = str(out_dir / f"{entry['name']}.rf.onnx")
+            entry["rf_path"] = str(out_dir / meta["rf_model"])
+            ref_p, got_p = _fuse_forest(fitted, rec, Path(entry["rf_path"]), meta, ft, ref_p,
+                                        got_p, learner, info)
         scored.append(_scored(rec, owner[mask], yt, ref_p, got_p))
         folds.append(entry)
-    name = f"{config.model} + rf (rf_weight {learner.weight:g})" if fused_run else config.model
-    report = _report(name, fmt, folds, scored, ds.label_names, learner.windowed, how)
+    report = _report(display_name(config.model, config.overrides), fmt, folds, scored,
+                     ds.label_names, learner.windowed, how)
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
@@ -223,7 +224,6 @@ def _fuse_forest(fitted, rec: dict[str, Any], path: Path, meta: dict[str, str], 
     sets (reference: torch + the saved forest; export: the network's and the forest's
     exported files, as a consumer of the export would)."""
     from tactile_studio.learn.baselines import BaselineModel
-    from tactile_studio.learn.fused import RF_FILE, fuse
 
     shared = {k: v for k, v in meta.items() if k in ("labels", "preset", "channels", "rf_weight")}
     _copy_onnx(Path(rec["_dir"]) / RF_FILE, path, {**shared, "fused_with": meta["model"]})

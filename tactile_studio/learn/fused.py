@@ -48,10 +48,7 @@ def rf_weight(overrides: dict[str, Any]) -> float:
 
 def display_name(model: str, overrides: dict[str, Any] | None) -> str:
     """``cnn1d + rf 0.5`` for a fused model, else the model's name (titles, tables)."""
-    try:
-        weight = float((overrides or {}).get(OPTION, 0) or 0)
-    except (TypeError, ValueError):
-        weight = 0.0
+    weight = rf_weight(overrides or {})
     return f"{model} + rf {weight:g}" if weight > 0 else model
 
 
@@ -70,7 +67,7 @@ class FusedLearner:
         self.facts = ModelFacts(view=net.view, export=("onnx",) if "onnx" in net.export
                                 else (), quantizable=False, sliding=False, cached=False,
                                 window=None, gpus=net.gpus,
-                                option_help={**net.option_help, OPTION: OPTION_HELP})
+                                option_help=dict(net.option_help))  # rf_weight's included
 
     @property
     def windowed(self) -> bool:

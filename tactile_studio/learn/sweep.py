@@ -40,9 +40,9 @@ from tactile_studio.learn.experiment import (
     folds_for,
     prepare_inputs,
     run_header,
+    run_title,
     summarise,
 )
-from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import FOLD, WEIGHTS, RunFolder, read_json, write_json
 
@@ -270,8 +270,7 @@ def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]]
         if m is not None:
             metrics[key] = m
             if g.get("run") is not None:
-                title = (f"{display_name(cfg.model, cfg.overrides)} ({cfg.preset}) · "
-                         f"{cfg.protocol} · {cfg.channels}")
+                title = run_title(cfg, cfg.channels)
                 g["run"].write_results(m, recs, title + ("" if m["complete"] else
                                                          " (partial)"))
                 row["run"] = str(g["run"].path)
