@@ -91,7 +91,8 @@ def _batches(n: int, size: int, rng: np.random.Generator | None) -> list[np.ndar
     order = rng.permutation(n) if rng is not None else np.arange(n)
     out = [order[i:i + size] for i in range(0, n, size)]
     if len(out) > 1 and len(out[-1]) == 1:  # batch norm cannot train on one sample
-        out[-2] = np.concatenate([out[-2], out.pop()])
+        last = out.pop()  # (popped first: ``out[-2] = f(out.pop())`` hits the wrong batch)
+        out[-1] = np.concatenate([out[-1], last])
     return out
 
 
