@@ -16,7 +16,7 @@ the paired test says whether a difference is more than that.
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
-       [--participants N]
+       [--participants N] [--adapt]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -26,7 +26,8 @@ ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s c
 --fuse 0.3 0.5: each learned model also fused with rf at those rf weights, as
 --set rf_weight=W trains it, scored from the two runs' test predictions and paired against
 rf; --keep DIR: keep the data and run folders there; --participants N: N virtual people
-instead of 10, the first 10 the same as the default's.)
+instead of 10, the first 10 the same as the default's; --adapt: every model trained and
+tested with --adapt person, paired against rf adapted the same way.)
 """
 
 from __future__ import annotations
@@ -126,11 +127,16 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--fuse", nargs="*", type=float, default=[], metavar="W",
                     help="also score each learned model fused with rf at these rf weights "
                          "(as --set rf_weight=W trains it), paired against rf")
+    ap.add_argument("--adapt", action="store_true",
+                    help="--adapt person: each test person met with their own statistics "
+                         "(networks: batch norm; rf/knn: standardised features)")
     ap.add_argument("--keep", metavar="DIR", default=None,
                     help="write the data and every run folder here (kept, for "
                          "tactile-studio compare / trials) instead of a temporary folder")
     args = ap.parse_args(argv if argv is not None else [])
-    options = OPTIONS if args.options else {}
+    options = dict(OPTIONS) if args.options else {}
+    if args.adapt:
+        options["adapt"] = "person"
     sets = dict(item.split("=", 1) for item in args.set)
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
@@ -143,7 +149,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty real, preset "
               f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
-                 "participant" if options else "")
+                 "participant" if args.options else "")
+              + (", adapted to each test person" if args.adapt else "")
               + (f", --set {' '.join(args.set)}" if sets else ""))
         print(f"{'model':>16s}{'trial acc':>11s}{'trial f1':>9s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")

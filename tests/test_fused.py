@@ -110,7 +110,7 @@ def test_rf_weight_is_for_learned_models_only_and_listed_in_their_options(capsys
 
 def test_a_fused_sweep_task_brings_both_model_files_back(runs, tmp_path):
     from tactile_studio.learn.executors import LocalExecutor
-    from tactile_studio.learn.sweep import run_sweep
+    from tactile_studio.learn.sweep import format_rows, run_sweep
 
     base = ExperimentConfig(data=[str(runs["root"] / "data")], model="cnn1d", protocol="lopo",
                             preset="tiny", epochs=2, device="cpu", overrides={"rf_weight": 0.3},
@@ -118,6 +118,10 @@ def test_a_fused_sweep_task_brings_both_model_files_back(runs, tmp_path):
     with LocalExecutor(1) as ex:
         result = run_sweep(base, ["cnn1d"], [None], ex, tmp_path / "sweep")
     run = result.rows[0]["run"]
+    # the table names the fusion: a fused row is not mistaken for the network alone
+    assert result.rows[0]["name"] == "cnn1d + rf 0.3"
+    assert "cnn1d + rf 0.3" in format_rows(result.rows)
+    assert "cnn1d + rf 0.3" in (tmp_path / "sweep" / "results.csv").read_text()
     for fold in ("r0-P01", "r0-P02", "r0-P03"):
         names = sorted(p.name for p in (tmp_path / "sweep" / "runs").glob(f"*/folds/{fold}/*"))
         assert names == ["fold.json", "model.safetensors", "rf.onnx"]

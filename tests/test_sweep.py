@@ -56,7 +56,7 @@ def test_local_sweep_writes_a_table_equal_to_single_runs(data, local_run):
     assert set(rows) == {(m, c) for m in MODELS for c in CHANNELS}
     assert all(r["folds_done"] == r["folds"] == 3 for r in rows.values())
     csv_lines = (data / "local" / "results.csv").read_text().splitlines()
-    assert csv_lines[0].startswith("model,channels,folds_done") and len(csv_lines) == 5
+    assert csv_lines[0].startswith("model,name,channels,folds_done") and len(csv_lines) == 5
     assert len(list((data / "local" / "tasks").glob("*.json"))) == 12
     for model in MODELS:  # a task in a worker = the same fold in one process
         single = run_experiment(_base(data, model=model, channels="shear")).metrics

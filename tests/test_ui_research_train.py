@@ -5,6 +5,7 @@ the comparison; bad input gets a message and the window lives."""
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -133,3 +134,20 @@ def test_a_learned_model_can_be_fused_with_rf_from_the_options(window, data):
     panel.model.setCurrentText("rf")  # a baseline has no such option
     names = [panel.options.item(r, 0).text() for r in range(panel.options.rowCount())]
     assert "rf_weight" not in names
+
+
+def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, tmp_path):
+    window.sessions.set_folders([str(data / "data")])
+    window.tabs.setCurrentWidget(window.train)
+    panel = window.train
+    panel.model.setCurrentText("knn")
+    assert panel.config().adapt == "none"  # the standard figure unless asked
+    panel.adapt.setCurrentIndex(panel.adapt.findData("person"))
+    assert panel.config().adapt == "person"
+    panel.out.setText(str(tmp_path / "adapted"))
+    qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
+    metrics = json.loads((tmp_path / "adapted" / "metrics.json").read_text())
+    assert metrics["adapt"] == "person" and len(metrics["per_fold"]) == 3
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    window.grab().save(str(SHOTS / "research_train_adapted.png"))

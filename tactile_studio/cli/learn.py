@@ -86,12 +86,16 @@ def add_generalisation_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
     p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
                    help="early stopping on training trials or on whole training participants")
+    p.add_argument("--adapt", choices=("none", "person"), default="none",
+                   help="person: meet each test person on their own terms, from their own "
+                        "unlabelled windows (networks re-estimate batch-norm statistics, "
+                        "rf/knn standardise each person's features)")
 
 
 def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return {"augment": args.augment, "augment_copies": args.augment_copies,
             "participant_norm": args.participant_norm, "balance": args.balance,
-            "val_by": args.val_by}
+            "val_by": args.val_by, "adapt": args.adapt}
 
 
 def _config(args: argparse.Namespace, channels: str | None):
@@ -115,7 +119,8 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
 
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
     print(f"{name} · {m['protocol']} · channels {m['channels']} · "
-          f"{len(m['per_fold'])} fold(s)")
+          f"{len(m['per_fold'])} fold(s)"
+          + (" · adapted to each person" if m.get("adapt") == "person" else ""))
     rows = [(key, _fmt(m[key])) for key in (
         "accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",
         "balanced_accuracy", "kappa") if key in m]
@@ -226,6 +231,8 @@ def cmd_export(args: argparse.Namespace) -> int:
     print(f"trial accuracy ({report['aggregate']} over windows) "
           f"{report['trial_accuracy_torch']:.4f} -> {report['trial_accuracy_export']:.4f} "
           f"({report['n_trials']} trials)")
+    if report.get("adapt_note"):
+        print(f"note: {report['adapt_note']}")
     return 0
 
 

@@ -27,6 +27,7 @@ from tactile_studio.learn.dataset import build_dataset
 from tactile_studio.learn.experiment import (
     ExperimentConfig,
     _predictions,
+    adapt_people,
     prepare_inputs,
     run_header,
     summarise,
@@ -69,6 +70,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
     ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)
@@ -85,7 +87,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         fitted = learner.load(model_file(rec["_dir"]), info)
         idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
                else np.arange(len(ds)))
-        pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"])
+        pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"], people)
         fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
     header = {**run_header(config, ds.channels, learner.windowed),
               "mode": mode, "data": [str(p) for p in (data or config.data)]}

@@ -19,7 +19,7 @@ import platform
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,7 @@ from tactile_studio.learn.augment import parse_kinds
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.fused import display_name, rf_weight
 from tactile_studio.learn.generalise import (
+    ADAPT,
     VAL_BY,
     augmenter,
     balanced_index,
@@ -48,7 +49,7 @@ from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
-               "participant_norm", "balance", "val_by")
+               "participant_norm", "balance", "val_by", "adapt")
 
 
 @dataclass
@@ -75,6 +76,7 @@ class ExperimentConfig:
     participant_norm: bool = False       # scale each participant to a typical person
     balance: bool = False                # repeat rarer classes' training samples
     val_by: str = "trial"                # validation: trials | whole training participants
+    adapt: str = "none"                  # none | person: each test person's own statistics
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -120,8 +122,28 @@ class ExperimentConfig:
         if self.val_by not in VAL_BY:
             raise UserError(f"unknown validation split {self.val_by!r} "
                             f"(available: {', '.join(VAL_BY)})")
+        if self.adapt not in ADAPT:
+            raise UserError(f"unknown adaptation {self.adapt!r} "
+                            f"(available: {', '.join(ADAPT)})")
+        if self.adapt == "person" and self.augment and (
+                self.model in ("rf", "knn") or rf_weight(self.overrides) > 0):
+            raise UserError(f"--adapt person standardises {self.model}'s features per person; "
+                            "it does not combine with --augment (augmented windows have no "
+                            "person's statistics of their own)")
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
+
+
+def result_defaults() -> dict[str, Any]:
+    """The result-changing settings' defaults: what a run folder or sweep written before
+    a setting existed ran with (so it still resumes)."""
+    out: dict[str, Any] = {}
+    for f in fields(ExperimentConfig):
+        if f.name in RESULT_KEYS and f.default is not MISSING:
+            out[f.name] = f.default
+        elif f.name in RESULT_KEYS and f.default_factory is not MISSING:
+            out[f.name] = f.default_factory()
+    return out
 
 
 @dataclass
@@ -165,10 +187,29 @@ def _versions() -> dict[str, str]:
             "numpy": np.__version__, "torch": torch.__version__, "sklearn": sklearn.__version__}
 
 
+def adapt_people(config: ExperimentConfig, ds: TrialDataset, owner: np.ndarray
+                 ) -> np.ndarray | None:
+    """Each sample's participant when the run adapts to each test person, else None."""
+    return ds.participants[owner] if config.adapt == "person" else None
+
+
 def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndarray,
-                 labels: np.ndarray, stats) -> dict[str, Any]:
+                 labels: np.ndarray, stats, people: np.ndarray | None = None) -> dict[str, Any]:
+    """The test samples' probabilities; with ``people``, a model that can adapt
+    (``fitted.adapted``) is adapted to each person's samples before predicting them."""
     mask = np.isin(owner, idx)
-    probs = fitted.predict_proba(learner.apply_norm(x[mask], stats))
+    xt = learner.apply_norm(x[mask], stats)
+    if people is None or not hasattr(fitted, "adapted"):
+        probs = fitted.predict_proba(xt)
+    else:
+        who = people[mask]
+        probs = np.zeros((len(xt), 0), dtype=np.float32)
+        for p in np.unique(who):
+            rows = who == p
+            part = fitted.adapted(xt[rows]).predict_proba(xt[rows])
+            if probs.shape[1] == 0:
+                probs = np.zeros((len(xt), part.shape[1]), dtype=np.float32)
+            probs[rows] = part
     return {"owner": owner[mask].tolist(), "y_true": labels[owner[mask]].tolist(),
             "probs": np.round(probs, 5).tolist()}
 
@@ -176,7 +217,8 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
 def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
                 fold, round_: int, k: int, seed: int, cancel: CancelToken,
                 on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
-                balance: bool = False) -> tuple[dict[str, Any], Any]:
+                balance: bool = False, people: np.ndarray | None = None
+                ) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
     y = ds.labels
@@ -199,11 +241,12 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         "train": uid[fold.train].tolist(), "val": uid[fold.val].tolist(),
         "test": uid[fold.test].tolist(), "heldout": uid[fold.heldout].tolist(),
         "norm": stats, "history": history, "best_epoch": best,
-        "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats),
+        "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
     }
     if len(fold.heldout):
-        rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y, stats)
+        rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y,
+                                                  stats, people)
     return rec, fitted
 
 
@@ -216,13 +259,16 @@ def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
     weight = rf_weight(config.overrides)
     if weight > 0:  # fused with rf (learn/fused.py)
         header["rf_weight"] = weight
+    if config.adapt != "none":
+        header["adapt"] = config.adapt
     return header
 
 
 def run_title(config: ExperimentConfig, channels: str | None) -> str:
     """The run's title on its figures: model (fused with rf if so), preset, protocol."""
     return (f"{display_name(config.model, config.overrides)} ({config.preset}) · "
-            f"{config.protocol} · {channels}")
+            f"{config.protocol} · {channels}"
+            + (" · adapted to each person" if config.adapt == "person" else ""))
 
 
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
@@ -233,6 +279,8 @@ def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
     pieces, piece_owner = cut(ds, spec)
     x, sample_piece = learner.samples(pieces)
+    if config.adapt == "person":  # features standardised by each person's own statistics
+        x = learner.adapt_inputs(x, ds.participants[piece_owner[sample_piece]])
     extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
     return ds, x, piece_owner[sample_piece], len(pieces), spec, extra
 
@@ -304,7 +352,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
     folder = RunFolder(out) if out is not None else None
     if folder is not None:
-        folder.start(config.to_dict(), resolved, RESULT_KEYS)
+        folder.start(config.to_dict(), resolved, RESULT_KEYS, result_defaults())
         from tactile_studio.learn.trialinfo import write_trial_table
 
         write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
@@ -339,7 +387,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
 
                     progress(0.05 + 0.92 * done / total_units, f"{where} training")
                     rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
-                                              cancel, on_epoch, extra, config.balance)
+                                              cancel, on_epoch, extra, config.balance,
+                                              adapt_people(config, ds, owner))
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)

@@ -151,6 +151,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         folds.append(entry)
     report = _report(display_name(config.model, config.overrides), fmt, folds, scored,
                      ds.label_names, learner.windowed, how)
+    report.update(_adapt_note(config, learner.kind))
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
@@ -200,6 +201,7 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
         folds.append({"name": name, "n": int(len(yt)), "path": str(path), "max_abs_diff": diff})
         scored.append(_scored(rec, owner[mask], yt, ref, got))
     report = _report(config.model, "onnx", folds, scored, ds.label_names, learner.windowed, how)
+    report.update(_adapt_note(config, learner.kind))
     write_json(out_dir / "onnx.json", report)
     progress(1.0, "exported")
     return report
@@ -256,6 +258,18 @@ def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarr
                 "predictions": {"owner": owner.tolist(), "y_true": y.tolist(),
                                 "probs": np.asarray(probs, dtype=np.float64).tolist()}}
     return one(ref), one(got)
+
+
+def _adapt_note(config, kind: str) -> dict[str, str]:  # noqa: ANN001 - ExperimentConfig
+    """What a file exported from a run adapted to each person (``--adapt person``) lacks:
+    the person's statistics, which only that person's own session can give."""
+    if config.adapt != "person":
+        return {}
+    what = ("it carries the training people's batch-norm statistics, so the accuracies "
+            "here are without adaptation" if kind == "torch" else
+            "it expects features standardised by each person's own mean and spread "
+            "(learn/generalise.py person_standardised), as scored here")
+    return {"adapt": "person", "adapt_note": f"the run adapted to each test person; {what}"}
 
 
 def _report(model: str, fmt: str, folds: list[dict[str, Any]],

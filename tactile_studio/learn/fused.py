@@ -102,6 +102,13 @@ class FusedLearner:
         n, channels = _header(x)
         return x[:, HEAD:HEAD + n].reshape(len(x), channels, -1)
 
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+        """``adapt="person"``: the forest's features standardised per person (the
+        network adapts when it predicts, ``FusedFitted.adapted``)."""
+        n, _ = _header(x)
+        return np.concatenate([x[:, :HEAD + n],
+                               self.forest.adapt_inputs(x[:, HEAD + n:], people)], axis=1)
+
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
         return self.network.norm_stats(self._views(x_train))
 
@@ -149,6 +156,13 @@ class FusedFitted:
         """(network, forest) probabilities of packed, normalised samples."""
         views, features = self.learner.split(x, self.info)
         return self.network.predict_proba(views), self.forest.predict_proba(features)
+
+    def adapted(self, x: np.ndarray) -> FusedFitted:
+        """The network adapted to one person's packed samples ``x`` (the forest's
+        features were standardised per person already)."""
+        views, _ = self.learner.split(x, self.info)
+        return FusedFitted(self.network.adapted(views), self.forest, self.weight,
+                           self.learner, self.info)
 
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         net, forest = self.predict_parts(x)

@@ -10,6 +10,14 @@
   allowed for a held-out person (in use it needs a few of their touches first).
 * ``balance`` — training samples of rarer classes repeated until every class counts as
   many as the most common one.
+* ``adapt="person"`` — each test person is met on their own terms, from their own
+  unlabelled samples: a network's batch-norm statistics are re-estimated on that
+  person's windows before it predicts them (AdaBN, ``train.adapt_batchnorm``); rf and
+  knn (and a fused model's forest) see every person's features standardised by that
+  person's own mean and spread, in training and at test alike. Like
+  ``participant_norm`` it uses no labels, but it needs the person's whole session
+  (all gestures, roughly evenly, as a protocol session has), so it is for evaluating
+  recorded sessions, not for live use.
 * ``val_by="participant"`` — model selection (early stopping) on whole training
   participants held out from training, never on the test participant and never on
   trials of people the model also trains on.
@@ -26,6 +34,7 @@ from tactile_studio.learn.splits import Fold
 from tactile_studio.learn.touch_stats import REAL, trial_stats
 
 VAL_BY = ("trial", "participant")
+ADAPT = ("none", "person")
 
 
 def participant_normalised(ds):
@@ -46,6 +55,17 @@ def participant_normalised(ds):
         for i in idx:
             trials[i] = trials[i] * scale[:, None, None, None]
     return replace(ds, trials=trials)
+
+
+def person_standardised(x: np.ndarray, people: np.ndarray) -> np.ndarray:
+    """Features ``x`` (N, F) with each person's rows z-scored by that person's own mean
+    and standard deviation (a feature constant for a person is only centred)."""
+    out = np.array(x, dtype=np.float32, copy=True)
+    for p in np.unique(people):
+        rows = people == p
+        mean, std = out[rows].mean(axis=0), out[rows].std(axis=0)
+        out[rows] = (out[rows] - mean) / np.where(std > 1e-9, std, 1.0)
+    return out
 
 
 def balanced_index(y: np.ndarray, rng: np.random.Generator) -> np.ndarray:

@@ -20,6 +20,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn import baselines, fused, views
 from tactile_studio.learn.contract import DataInfo, Fitted, Learner, ModelFacts
+from tactile_studio.learn.generalise import person_standardised
 from tactile_studio.learn.train import TRAIN_KEYS, TrainSettings, train_settings
 
 if TYPE_CHECKING:
@@ -127,6 +128,11 @@ class TorchLearner:
         mean, std = views.channel_stats(x_train)
         return {"mean": mean.tolist(), "std": std.tolist()}
 
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+        """``adapt="person"``: a network adapts when it predicts (``TorchFitted.adapted``),
+        its inputs stay as they are."""
+        return x
+
     def apply_norm(self, x: np.ndarray, stats: dict[str, list[float]]) -> np.ndarray:
         return views.normalise(x, np.asarray(stats["mean"], np.float32),
                                np.asarray(stats["std"], np.float32))
@@ -176,6 +182,13 @@ class TorchFitted:
     def __init__(self, model, device) -> None:
         self.model, self.device = model, device
 
+    def adapted(self, x: np.ndarray) -> TorchFitted:
+        """This model with its batch-norm statistics re-estimated on one person's
+        normalised samples ``x`` (``adapt="person"``, learn/generalise.py)."""
+        from tactile_studio.learn.train import adapt_batchnorm
+
+        return TorchFitted(adapt_batchnorm(self.model, x, self.device), self.device)
+
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         from tactile_studio.learn.train import predict_proba
 
@@ -220,6 +233,10 @@ class BaselineLearner:
         pitch = 0.5 if ds.grid == "virtual" else 1.0
         x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch)
         return x, np.arange(len(ds.trials))
+
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+        """``adapt="person"``: every person's features standardised by their own."""
+        return person_standardised(x, people)
 
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
         return {}  # k-NN standardises with its own training statistics; rf needs none

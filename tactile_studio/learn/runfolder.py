@@ -83,17 +83,20 @@ class RunFolder:
         return self.path / "folds"
 
     def start(self, config: dict[str, Any], resolved: dict[str, Any],
-              compare_keys: tuple[str, ...]) -> bool:
+              compare_keys: tuple[str, ...], defaults: dict[str, Any] | None = None) -> bool:
         """Create the folder and config.json, or check an existing one matches (resume).
 
-        Returns True when resuming an earlier run with the same settings and data.
+        Returns True when resuming an earlier run with the same settings and data. A key
+        missing from an older run's config counts as its value in ``defaults`` (a setting
+        added since, which that run ran without).
         """
         cfg_path = self.path / CONFIG
         if self.path.exists() and not self.path.is_dir():
             raise UserError(f"{self.path}: exists and is not a folder")
         if cfg_path.exists():
             old = read_json(cfg_path)
-            diff = [k for k in compare_keys if old.get("config", {}).get(k) != clean_json(config.get(k))]
+            before = {**clean_json(defaults or {}), **old.get("config", {})}
+            diff = [k for k in compare_keys if before.get(k) != clean_json(config.get(k))]
             if diff:
                 raise UserError(f"{self.path} holds a different run (differs in: {', '.join(diff)}); "
                                 "choose another --out")

@@ -37,12 +37,14 @@ from tactile_studio.learn.experiment import (
     ExperimentConfig,
     _torch_threads,
     _train_fold,
+    adapt_people,
     folds_for,
     prepare_inputs,
     run_header,
     run_title,
     summarise,
 )
+from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import FOLD, WEIGHTS, RunFolder, read_json, write_json
 
@@ -85,7 +87,7 @@ def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, A
         ds, x, owner, _, _, extra = prepare_inputs(learner, ds, cfg)
         rec, fitted = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold,
                                   cfg.seed + round_, CancelToken(), lambda e: None, extra,
-                                  cfg.balance)
+                                  cfg.balance, adapt_people(cfg, ds, owner))
     name = getattr(fitted, "file_name", WEIGHTS)
     with tempfile.TemporaryDirectory() as tmp:  # every file the model saves (fused: two)
         fitted.save(Path(tmp) / name)
@@ -183,13 +185,13 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
 
 def _start_folder(folder: Path, base: ExperimentConfig) -> None:
     """Create OUT, or check that the sweep already in it used the same settings."""
-    from tactile_studio.learn.experiment import RESULT_KEYS
+    from tactile_studio.learn.experiment import RESULT_KEYS, result_defaults
 
     settings = {k: v for k, v in base.to_dict().items()
                 if k in RESULT_KEYS and k not in ("model", "channels")}
     path = folder / "sweep.json"
     if path.is_file():
-        old = read_json(path)
+        old = {**read_json_roundtrip(result_defaults()), **read_json(path)}
         diff = [k for k in settings if old.get(k) != read_json_roundtrip(settings[k])]
         if diff:
             raise UserError(f"{folder} holds a sweep with other settings (differs in: "
@@ -202,7 +204,7 @@ def _start_folder(folder: Path, base: ExperimentConfig) -> None:
 
 def _start_runs(folder: Path, groups: dict[str, dict[str, Any]], full) -> None:  # noqa: ANN001
     """One run folder per (model, channel set) under ``OUT/runs`` (see the module doc)."""
-    from tactile_studio.learn.experiment import RESULT_KEYS, _versions
+    from tactile_studio.learn.experiment import RESULT_KEYS, _versions, result_defaults
     from tactile_studio.learn.trialinfo import write_trial_table
 
     for g in groups.values():
@@ -212,7 +214,7 @@ def _start_runs(folder: Path, groups: dict[str, dict[str, Any]], full) -> None: 
                     "dataset": ds.summary(), "versions": _versions(),
                     "created": time.strftime("%Y-%m-%dT%H:%M:%S"), "sweep": str(folder)}
         g["run"] = RunFolder(folder / "runs" / _safe(f"{cfg.model}-{cfg.channels}"))
-        g["run"].start(cfg.to_dict(), resolved, RESULT_KEYS)
+        g["run"].start(cfg.to_dict(), resolved, RESULT_KEYS, result_defaults())
         write_trial_table(g["run"].path, ds.uids, ds.participants.tolist(), cfg.data)
 
 
@@ -250,8 +252,9 @@ def _group_row(g: dict[str, Any], records: dict[str, dict[str, Any]], labels: li
     cfg: ExperimentConfig = g["config"]
     recs = sorted((records[t] for t in g["ids"] if t in records),
                   key=lambda r: (r["round"], r["fold"]))
-    row: dict[str, Any] = {"model": cfg.model, "channels": cfg.channels,
-                           "folds_done": len(recs), "folds": len(g["ids"])}
+    row: dict[str, Any] = {"model": cfg.model, "name": display_name(cfg.model, cfg.overrides),
+                           "channels": cfg.channels, "folds_done": len(recs),
+                           "folds": len(g["ids"])}
     if not recs:
         return row, None, recs
     header = run_header(cfg, cfg.channels, g["windowed"])
@@ -279,7 +282,7 @@ def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]]
     if folder is not None:
         write_json(folder / "results.json", {"complete": complete, "rows": rows,
                                              "metrics": metrics})
-        cols = ["model", "channels", "folds_done", "folds", *TABLE_KEYS, "train_seconds"]
+        cols = ["model", "name", "channels", "folds_done", "folds", *TABLE_KEYS, "train_seconds"]
         with open(folder / "results.csv", "w", newline="") as fh:
             w = csv.DictWriter(fh, cols, extrasaction="ignore")
             w.writeheader()
@@ -292,7 +295,7 @@ def format_rows(rows: list[dict[str, Any]]) -> str:
     cols = ["model", "channels", "folds", *TABLE_KEYS, "train_s"]
     lines = ["".join(f"{c:>19s}" for c in cols)]
     for r in rows:
-        vals = [r["model"], r["channels"], f"{r['folds_done']}/{r['folds']}"]
+        vals = [r.get("name", r["model"]), r["channels"], f"{r['folds_done']}/{r['folds']}"]
         vals += ["-" if r.get(k) is None else f"{r[k]:.3f}" for k in TABLE_KEYS]
         vals.append("-" if r.get("train_seconds") is None else f"{r['train_seconds']:.1f}")
         lines.append("".join(f"{v:>19s}" for v in vals))

@@ -119,6 +119,32 @@ def predict_proba(model: nn.Module, x: np.ndarray, device: torch.device | str = 
     return np.concatenate(out)
 
 
+def adapt_batchnorm(model: nn.Module, x: np.ndarray, device: torch.device | str = "cpu",
+                    chunk: int = 2048) -> nn.Module:
+    """A copy of ``model`` whose batch-norm statistics are those of ``x`` (AdaBN).
+
+    ``x`` is one person's unlabelled, normalised samples: every batch-norm layer then
+    centres and scales by what that person's touches look like at that layer, not by
+    the training people's. The forward runs in eval mode (mirror averaging, no dropout)
+    with only the batch-norm layers collecting statistics; up to ``chunk`` samples go
+    in one pass, so the statistics are exact for a person's session. With fewer than
+    2 samples there is nothing to estimate and the copy is left as trained.
+    """
+    adapted = copy.deepcopy(model).to(device).eval()
+    if len(x) < 2:
+        return adapted
+    layers = [m for m in adapted.modules() if isinstance(m, nn.modules.batchnorm._BatchNorm)]
+    for layer in layers:
+        layer.reset_running_stats()
+        layer.momentum = None  # cumulative: the chunks' statistics averaged
+        layer.train()
+    n_chunks = -(-len(x) // chunk)
+    with torch.no_grad():
+        for part in np.array_split(np.arange(len(x)), n_chunks):
+            adapted(torch.from_numpy(np.ascontiguousarray(x[part])).to(device))
+    return adapted.eval()
+
+
 def _lr_factor(recipe: dict[str, Any], epoch: int, total: int) -> float:
     """Multiplier of the base learning rate in (1-based) ``epoch`` of ``total``."""
     warmup = int(recipe.get("warmup", 0))

@@ -42,6 +42,10 @@ class WindowModel:
                            records[0])
         self.learner = make_learner(self.config.model, self.config.preset,
                                     self.config.overrides, self.config.epochs, "cpu")
+        if self.config.adapt == "person" and self.learner.kind != "torch":
+            raise UserError(f"{run}: trained with --adapt person, so {self.config.model} reads "
+                            "features standardised by each person's own statistics, which a "
+                            "live stream does not have; for live use train without --adapt")
         self.fitted = self.learner.load(model_file(self.record["_dir"]), self.info)
         lo, hi = int(summary.get("frames_min", 64)), int(summary.get("frames_max", 64))
         self.window = max(2, (lo + hi) // 2)  # a typical trial's length in frames

@@ -317,7 +317,7 @@ class SweepPanel(QWidget):
             best = max((r for r in f["rows"] if r.get("trial_accuracy") is not None),
                        key=lambda r: r["trial_accuracy"], default=None)
             self.status.setText(f"finished into {job.out}" + (
-                f"; best per trial: {best['model']} on {best['channels']} "
+                f"; best per trial: {best.get('name', best['model'])} on {best['channels']} "
                 f"({_pct(best['trial_accuracy'])})" if best else ""))
             self.sweepFinished.emit(job.out)
         elif f.get("type") == "cancelled":
@@ -336,7 +336,8 @@ class SweepPanel(QWidget):
         best = max((r.get("trial_accuracy") or -1.0 for r in rows), default=None)
         for i, row in enumerate(rows):
             keys = ("accuracy", "trial_accuracy", "f1_macro", "balanced_accuracy", "kappa")
-            values = [row["model"], row["channels"], f"{row['folds_done']}/{row['folds']}",
+            values = [row.get("name", row["model"]), row["channels"],
+                      f"{row['folds_done']}/{row['folds']}",
                       *(row.get(k) for k in keys), row.get("train_seconds")]
             texts = [None, None, None, *(_pct(row.get(k)) for k in keys[:4]),
                      "" if row.get("kappa") is None else f"{row['kappa']:.3f}",

@@ -78,6 +78,13 @@ class TrainPanel(QWidget):
         self.epochs = QSpinBox()
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
+        self.adapt = QComboBox()
+        self.adapt.addItem("as trained", "none")
+        self.adapt.addItem("adapted to each person", "person")
+        self.adapt.setToolTip("adapted: each test person is met with statistics of their own "
+                              "unlabelled windows (networks re-estimate batch norm, rf/knn "
+                              "standardise the person's features); needs the person's whole "
+                              "session, so not for live use of rf/knn")
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.options = QTableWidget(0, 3)
@@ -88,7 +95,8 @@ class TrainPanel(QWidget):
         for label, w in (("Model", self.model), ("Preset", self.preset),
                          ("Channels", self.channels), ("Grid", self.grid),
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
-                         ("Epochs", self.epochs), ("Run folder", self.out)):
+                         ("Epochs", self.epochs), ("Test people", self.adapt),
+                         ("Run folder", self.out)):
             form.addRow(label, w)
         self.start_button = QPushButton("Train")
         self.cancel_button = QPushButton("Cancel")
@@ -182,7 +190,7 @@ class TrainPanel(QWidget):
             channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
             protocol=self.protocol.currentText(), rounds=self.rounds.value(),
             epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
-            device="cpu")
+            device="cpu", adapt=self.adapt.currentData())
 
     def _out(self) -> str:
         if not self.out.text().strip():

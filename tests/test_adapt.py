@@ -1,0 +1,175 @@
+"""Adapting to each test person (``--adapt person``, learn/generalise.py): a network's
+batch-norm statistics are re-estimated on the person's own unlabelled windows (AdaBN), rf
+and knn standardise every person's features by that person's own statistics. Real
+folds, real tiny training; the stored predictions are recomputed by hand."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import torch
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.cli import main
+from tactile_studio.errors import UserError
+from tactile_studio.learn.evaluate import load_run_data, rescore_run
+from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
+from tactile_studio.learn.generalise import person_standardised
+from tactile_studio.learn.runfolder import model_file
+from tactile_studio.learn.train import adapt_batchnorm
+from tactile_studio.learn.window_model import WindowModel
+
+GESTURES = ("Poke", "Heavy Pat", "Twist")
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    root = tmp_path_factory.mktemp("adapt")
+    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
+
+    def run(model: str, name: str, adapt: str, **overrides) -> dict:
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+                               preset="tiny", epochs=None if model == "rf" else 2, threads=1,
+                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
+                               overrides=overrides)
+        return run_experiment(cfg, root / name)
+
+    return {"root": root, "net": run("cnn1d", "net", "none"),
+            "net_adapted": run("cnn1d", "net_adapted", "person"),
+            "rf": run("rf", "rf", "none"), "rf_adapted": run("rf", "rf_adapted", "person"),
+            "fused_adapted": run("cnn1d", "fused_adapted", "person", rf_weight=0.5)}
+
+
+def _batchnorm_means(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
+    """Every batch-norm layer's mean input per channel in an eval-mode forward of ``x``
+    (a layer may be called several times, e.g. once per mirror image)."""
+    seen: dict[str, list[torch.Tensor]] = {}
+
+    def keep(name: str, value: torch.Tensor) -> None:
+        dims = [d for d in range(value.dim()) if d != 1]
+        seen.setdefault(name, []).append(value.mean(dim=dims))
+
+    hooks = [m.register_forward_hook(lambda mod, inp, out, n=name: keep(n, inp[0]))
+             for name, m in model.named_modules()
+             if isinstance(m, torch.nn.modules.batchnorm._BatchNorm)]
+    with torch.no_grad():
+        model.eval()(torch.from_numpy(x))
+    for h in hooks:
+        h.remove()
+    return {k: torch.stack(v).mean(0).numpy() for k, v in seen.items()}
+
+
+def test_adapted_batchnorm_holds_the_persons_statistics_and_leaves_the_model_alone(runs):
+    config, _, records, ds, learner, info = load_run_data(runs["root"] / "net", device="cpu")
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    fitted = learner.load(model_file(records[0]["_dir"]), info)
+    xp = learner.apply_norm(x[ds.participants[owner] == "P01"], records[0]["norm"])
+    before = {k: v.clone() for k, v in fitted.model.state_dict().items()}
+    adapted = adapt_batchnorm(fitted.model, xp)
+    inputs = _batchnorm_means(adapted, xp)
+    assert inputs  # the model has batch-norm layers, so the check below means something
+    layers = dict(adapted.named_modules())
+    for name, mean in inputs.items():  # (training-mode passes normalise by the biased
+        # variance, eval mode by the stored unbiased one: a layer's input moves slightly)
+        np.testing.assert_allclose(layers[name].running_mean.numpy(), mean, atol=5e-3)
+    for key, value in fitted.model.state_dict().items():  # the trained model is untouched
+        assert torch.equal(value, before[key]), key
+    assert not torch.allclose(adapted.state_dict()[next(iter(inputs)) + ".running_mean"],
+                              before[next(iter(inputs)) + ".running_mean"])
+    one = adapt_batchnorm(fitted.model, xp[:1])  # one sample: nothing to estimate
+    for key, value in one.state_dict().items():
+        assert torch.equal(value, before[key]), key
+
+
+def test_an_adapted_network_predicts_each_person_after_adapting_to_them(runs):
+    root = runs["root"]
+    config, _, records, ds, learner, info = load_run_data(root / "net_adapted", device="cpu")
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    for rec in records:
+        person = rec["test_participants"][0]
+        xp = learner.apply_norm(x[ds.participants[owner] == person], rec["norm"])
+        fitted = learner.load(model_file(rec["_dir"]), info)
+        by_hand = fitted.adapted(xp).predict_proba(xp)
+        stored = np.array(rec["predictions"]["probs"])
+        np.testing.assert_allclose(stored, by_hand, atol=1e-4)
+        assert not np.allclose(stored, fitted.predict_proba(xp), atol=1e-3)  # it adapted
+    metrics = json.loads((root / "net_adapted" / "metrics.json").read_text())
+    assert metrics["adapt"] == "person" and "adapt" not in runs["net"].metrics
+    rescored = rescore_run(root / "net_adapted")  # evaluate adapts the same way
+    assert rescored["confusion_counts"] == metrics["confusion_counts"]
+    assert rescored["adapt"] == "person"
+
+
+def test_rf_standardises_every_persons_features_by_their_own(runs):
+    rng = np.random.default_rng(0)
+    x = rng.normal(3.0, 2.0, (12, 4)).astype(np.float32)
+    x[:, 3] = 7.0  # constant: only centred
+    people = np.array(["A"] * 5 + ["B"] * 7)
+    z = person_standardised(x, people)
+    for p in ("A", "B"):
+        np.testing.assert_allclose(z[people == p, :3].mean(0), 0, atol=1e-5)
+        np.testing.assert_allclose(z[people == p, :3].std(0), 1, atol=1e-5)
+    assert np.all(z[:, 3] == 0)
+    root = runs["root"]
+    plain = np.concatenate([r["predictions"]["probs"] for r in runs["rf"].folds])
+    adapted = np.concatenate([r["predictions"]["probs"] for r in runs["rf_adapted"].folds])
+    assert plain.shape == adapted.shape and not np.allclose(plain, adapted, atol=1e-3)
+    rescored = rescore_run(root / "rf_adapted")
+    assert rescored["confusion_counts"] == runs["rf_adapted"].metrics["confusion_counts"]
+
+
+def test_a_fused_model_adapts_both_parts_and_evaluates_the_same(runs):
+    root = runs["root"]
+    rescored = rescore_run(root / "fused_adapted")
+    metrics = runs["fused_adapted"].metrics
+    assert rescored["confusion_counts"] == metrics["confusion_counts"]
+    assert metrics["adapt"] == "person" and metrics["rf_weight"] == 0.5
+
+
+def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):
+    root = runs["root"]
+    code = main(["train", "--data", str(root / "data"), "--model", "rf", "--preset", "tiny",
+                 "--adapt", "person", "--augment", "flip", "--cache-dir", str(root / "cache"),
+                 "--out", str(root / "bad")])
+    err = capsys.readouterr().err
+    assert code == 1 and "--adapt person" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+    with pytest.raises(UserError, match="unknown adaptation"):
+        ExperimentConfig(data=[], model="rf", adapt="people").validate()
+    code = main(["train", "--data", str(root / "data"), "--model", "knn", "--preset", "tiny",
+                 "--adapt", "person", "--cache-dir", str(root / "cache"),
+                 "--out", str(root / "knn")])
+    assert code == 0
+    config = json.loads((root / "knn" / "config.json").read_text())
+    assert config["config"]["adapt"] == "person"
+    assert "adapted to each person" in capsys.readouterr().out
+
+
+def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
+    root = runs["root"]
+    code = main(["export-model", str(root / "net_adapted"), "--format", "onnx"])
+    out = capsys.readouterr().out
+    assert code == 0 and "note: the run adapted to each test person" in out
+    assert "batch-norm statistics" in out
+    report = json.loads((root / "net_adapted" / "export" / "onnx.json").read_text())
+    assert report["adapt"] == "person" and report["changed_predictions"] == 0
+    assert WindowModel(root / "net_adapted").learner.kind == "torch"  # trained statistics
+    with pytest.raises(UserError, match="--adapt person"):
+        WindowModel(root / "rf_adapted")  # its features need the person's statistics
+
+
+def test_a_run_folder_from_before_adapt_existed_still_resumes(runs, capsys):
+    root = runs["root"]
+    args = ["train", "--data", str(root / "data"), "--model", "rf", "--preset", "tiny",
+            "--cache-dir", str(root / "cache"), "--out", str(root / "old")]
+    assert main(args) == 0
+    path = root / "old" / "config.json"
+    config = json.loads(path.read_text())
+    del config["config"]["adapt"]  # as written by the version before --adapt
+    path.write_text(json.dumps(config))
+    capsys.readouterr()
+    assert main(args) == 0, capsys.readouterr().err  # resumes: every fold loaded
+    assert main([*args[:-2], "--adapt", "person", *args[-2:]]) == 1
+    assert "differs in: adapt" in capsys.readouterr().err
