@@ -138,6 +138,9 @@ def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):
     assert len(err.strip().splitlines()) == 1
     with pytest.raises(UserError, match="unknown adaptation"):
         ExperimentConfig(data=[], model="rf", adapt="people").validate()
+    with pytest.raises(UserError, match="holds whole people out"):
+        ExperimentConfig(data=[], model="cnn1d", adapt="person",
+                         protocol="all-inclusive").validate()
     code = main(["train", "--data", str(root / "data"), "--model", "knn", "--preset", "tiny",
                  "--adapt", "person", "--cache-dir", str(root / "cache"),
                  "--out", str(root / "knn")])

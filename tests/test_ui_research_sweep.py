@@ -83,6 +83,7 @@ def test_local_sweep_shows_progress_table_and_runs(window, tmp_path, wait_until,
     panel = window.sweep
     out = tmp_path / "sweep"
     _choose(panel, out, ["rf", "knn"], ["normal", "shear"])
+    panel.adapt.setCurrentIndex(panel.adapt.findData("person"))  # each test person's own
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert panel.job is not None and panel.cancel_button.isEnabled()
     assert not panel.start_button.isEnabled()
@@ -117,6 +118,9 @@ def test_local_sweep_shows_progress_table_and_runs(window, tmp_path, wait_until,
     assert set(again.checked_models()) == {"rf", "knn"}
     assert again.checked_channels() == ["normal", "shear"]
     assert again.executor.currentData() == "local" and again.jobs.value() == 2
+    assert again.adapt.currentData() == "person"
+    metrics = json.loads((out / "runs" / "rf-normal" / "metrics.json").read_text())
+    assert metrics["adapt"] == "person"
     again.deleteLater()
 
 

@@ -125,6 +125,10 @@ class ExperimentConfig:
         if self.adapt not in ADAPT:
             raise UserError(f"unknown adaptation {self.adapt!r} "
                             f"(available: {', '.join(ADAPT)})")
+        if self.adapt == "person" and self.protocol == "all-inclusive":
+            raise UserError("--adapt person meets each test person with their own session; "
+                            "use it with a protocol that holds whole people out (lopo, "
+                            "group-kfold), not all-inclusive")
         if self.adapt == "person" and self.augment and (
                 self.model in ("rf", "knn") or rf_weight(self.overrides) > 0):
             raise UserError(f"--adapt person standardises {self.model}'s features per person; "

@@ -35,6 +35,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
+from tactile_studio.ui.research.choices import adapt_combo
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import app_settings, get_json, set_json
 
@@ -92,6 +93,7 @@ class SweepPanel(QWidget):
         self.epochs = QSpinBox()
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
+        self.adapt = adapt_combo()
         self.executor = QComboBox()
         self.executor.addItem("Local worker processes", "local")
         self.executor.addItem("Ray cluster", "ray")
@@ -111,7 +113,8 @@ class SweepPanel(QWidget):
         form.addRow("Channel sets", channels)
         for label, w in (("Preset", self.preset), ("Evaluation", self.protocol),
                          ("Rounds", self.rounds), ("Epochs", self.epochs),
-                         ("Executor", self.executor), ("Jobs", self.jobs),
+                         ("Test people", self.adapt), ("Executor", self.executor),
+                         ("Jobs", self.jobs),
                          ("Ray address", self.address)):
             form.addRow(label, w)
         form.addRow("Sweep folder", out_row)
@@ -200,7 +203,7 @@ class SweepPanel(QWidget):
                                 preset=self.preset.currentText(),
                                 protocol=self.protocol.currentText(),
                                 rounds=self.rounds.value(), epochs=self.epochs.value() or None,
-                                threads=1, device="cpu")
+                                threads=1, device="cpu", adapt=self.adapt.currentData())
 
     def _executor_changed(self) -> None:
         self.address.setEnabled(self.executor.currentData() == "ray")
@@ -218,6 +221,7 @@ class SweepPanel(QWidget):
         self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
         index = self.executor.findData(str(s.value(KEY + "executor", "local")))
         self.executor.setCurrentIndex(max(0, index))
+        self.adapt.setCurrentIndex(max(0, self.adapt.findData(str(s.value(KEY + "adapt", "none")))))
         self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
         self.address.setText(str(s.value(KEY + "address", "") or ""))
         for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
@@ -231,6 +235,7 @@ class SweepPanel(QWidget):
         set_json(s, KEY + "models", self.checked_models())
         set_json(s, KEY + "channels", self.checked_channels())
         s.setValue(KEY + "executor", self.executor.currentData())
+        s.setValue(KEY + "adapt", self.adapt.currentData())
         set_json(s, KEY + "jobs", self.jobs.value())
         s.setValue(KEY + "address", self.address.text().strip())
         s.setValue(KEY + "preset", self.preset.currentText())

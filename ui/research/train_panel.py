@@ -30,6 +30,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.train_job import TrainJob, model_settings
+from tactile_studio.ui.research.choices import adapt_combo
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
 
@@ -78,13 +79,7 @@ class TrainPanel(QWidget):
         self.epochs = QSpinBox()
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
-        self.adapt = QComboBox()
-        self.adapt.addItem("as trained", "none")
-        self.adapt.addItem("adapted to each person", "person")
-        self.adapt.setToolTip("adapted: each test person is met with statistics of their own "
-                              "unlabelled windows (networks re-estimate batch norm, rf/knn "
-                              "standardise the person's features); needs the person's whole "
-                              "session, so not for live use of rf/knn")
+        self.adapt = adapt_combo()
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.options = QTableWidget(0, 3)
