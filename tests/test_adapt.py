@@ -176,3 +176,19 @@ def test_a_run_folder_from_before_adapt_existed_still_resumes(runs, capsys):
     assert main(args) == 0, capsys.readouterr().err  # resumes: every fold loaded
     assert main([*args[:-2], "--adapt", "person", *args[-2:]]) == 1
     assert "differs in: adapt" in capsys.readouterr().err
+
+
+def test_evaluate_adapts_any_trained_network_after_the_fact(runs, capsys):
+    root = runs["root"]
+    # net and net_adapted trained alike (adaptation happens only when predicting), so a
+    # plain run evaluated with --adapt person scores exactly as the adapted run
+    assert main(["evaluate", str(root / "net"), "--adapt", "person"]) == 0
+    assert "adapted to each person" in capsys.readouterr().out
+    rescored = json.loads((root / "net" / "rescore.json").read_text())
+    assert rescored["adapt"] == "person"
+    assert rescored["confusion_counts"] == runs["net_adapted"].metrics["confusion_counts"]
+    assert rescore_run(root / "net_adapted", adapt="none")["confusion_counts"] == \
+        runs["net"].metrics["confusion_counts"]
+    code = main(["evaluate", str(root / "rf"), "--adapt", "person"])
+    err = capsys.readouterr().err
+    assert code == 1 and "cannot be re-standardised" in err and "Traceback" not in err

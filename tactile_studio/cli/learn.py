@@ -171,7 +171,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     bar = _Bar("evaluate")
     try:
         with ctrl_c_cancels(token):
-            m = rescore_run(args.run, args.data, args.cache_dir, bar, token)
+            m = rescore_run(args.run, args.data, args.cache_dir, bar, token, args.adapt)
     finally:
         bar.close()
     _print_skipped(m.get("dataset_skipped", []))
@@ -250,6 +250,9 @@ def register(subparsers) -> None:
     p.add_argument("--data", nargs="+", default=None, metavar="PATH",
                    help="data to score on (default: the run's own data)")
     p.add_argument("--cache-dir", default=None)
+    p.add_argument("--adapt", choices=("none", "person"), default=None,
+                   help="adapt a network to each test person's own windows, or not "
+                        "(default: as the run was trained; rf/knn cannot change)")
     p.set_defaults(func=cmd_evaluate)
 
     p = subparsers.add_parser("ablate", help="compare channel sets normal / shear / both")

@@ -32,6 +32,7 @@ from tactile_studio.learn.experiment import (
     run_header,
     summarise,
 )
+from tactile_studio.learn.generalise import ADAPT
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import model_file, read_run, write_json
 
@@ -64,11 +65,23 @@ def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
 
 def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                 cache_dir: str | None = None, progress: ProgressFn = no_progress,
-                cancel: CancelToken | None = None) -> dict[str, Any]:
+                cancel: CancelToken | None = None, adapt: str | None = None
+                ) -> dict[str, Any]:
     """Metrics recomputed from the saved weights (see module doc); also saved to
-    ``RUN/rescore.json``."""
+    ``RUN/rescore.json``. ``adapt`` ("person" | "none") overrides the run's adaptation
+    to each test person: any network can adapt its batch norm after the fact, while
+    rf/knn (and fused forests) were trained on features standardised or not, so theirs
+    cannot change."""
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
+    if adapt is not None and adapt != config.adapt:
+        if adapt not in ADAPT:
+            raise UserError(f"unknown adaptation {adapt!r} (available: {', '.join(ADAPT)})")
+        if learner.kind != "torch":
+            raise UserError(f"{run}: {config.model} was trained with --adapt {config.adapt}; "
+                            "its features cannot be re-standardised afterwards (a network's "
+                            "batch norm can: train again with --adapt person)")
+        config = replace(config, adapt=adapt)
     ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
     people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     index = {u: i for i, u in enumerate(ds.uids)}
