@@ -90,6 +90,10 @@ class Fitted(Protocol):
 
     def save(self, path: str | os.PathLike) -> None: ...
 
+    # optional: ``adapted(x) -> Fitted``, the model adapted to one person's normalised
+    # samples (``--adapt person``; torch models re-estimate batch norm). Without it a
+    # fitted model predicts every person as it is.
+
 
 @runtime_checkable
 class Learner(Protocol):
@@ -114,6 +118,12 @@ class Learner(Protocol):
 
     def samples(self, ds) -> Samples: ...
 
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+        """Samples as trained and tested with ``--adapt person`` (``people``: each
+        sample's participant): rf/knn standardise each person's features; a network
+        returns ``x`` (it adapts when predicting)."""
+        ...
+
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]: ...
 
     def apply_norm(self, x: np.ndarray, stats: dict[str, list[float]]) -> np.ndarray: ...
@@ -131,4 +141,5 @@ class Learner(Protocol):
 
 # the members above, for naming what a non-conforming learner lacks
 LEARNER_MEMBERS = ("kind", "name", "preset", "facts", "max_epochs", "windowed", "describe",
-                   "check", "samples", "norm_stats", "apply_norm", "fit", "load")
+                   "check", "samples", "adapt_inputs", "norm_stats", "apply_norm", "fit",
+                   "load")

@@ -134,6 +134,8 @@ def adapt_batchnorm(model: nn.Module, x: np.ndarray, device: torch.device | str 
     if len(x) < 2:
         return adapted
     layers = [m for m in adapted.modules() if isinstance(m, nn.modules.batchnorm._BatchNorm)]
+    if not layers:  # a model without batch norm has nothing to adapt
+        return adapted
     for layer in layers:
         layer.reset_running_stats()
         layer.momentum = None  # cumulative: the chunks' statistics averaged
