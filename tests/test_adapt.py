@@ -14,6 +14,7 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
+from tactile_studio.learn.compare import compare_runs
 from tactile_studio.learn.evaluate import load_run_data, rescore_run
 from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
 from tactile_studio.learn.generalise import person_standardised
@@ -100,6 +101,9 @@ def test_an_adapted_network_predicts_each_person_after_adapting_to_them(runs):
     rescored = rescore_run(root / "net_adapted")  # evaluate adapts the same way
     assert rescored["confusion_counts"] == metrics["confusion_counts"]
     assert rescored["adapt"] == "person"
+    compared = compare_runs(root / "net", root / "net_adapted")  # named by what differs
+    assert (compared["name_a"], compared["name_b"]) == ("as trained", "adapted")
+    assert compared["config_difference"] == ["adapt: none → person"]
 
 
 def test_rf_standardises_every_persons_features_by_their_own(runs):

@@ -196,3 +196,6 @@ def test_config_difference_in_words():
     assert config_difference(a, b) == ["channels: normal → both", "k: default → 3",
                                        "n_estimators: 40 → 80"]
     assert config_difference(a, a) == []
+    # a run written before a setting existed ran with its default: no difference
+    assert config_difference(a, {**a, "adapt": "none", "balance": False}) == []
+    assert config_difference(a, {**a, "adapt": "person"}) == ["adapt: none → person"]

@@ -18,14 +18,19 @@ from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.trialpreds import RunPredictions, load_predictions
 
 _DESCRIBED = ("model", "channels", "grid", "protocol", "preset", "rounds", "epochs", "seed",
-              "folds", "overrides", "data")
+              "folds", "overrides", "data", "window_s", "aggregate", "augment",
+              "augment_copies", "participant_norm", "balance", "val_by", "adapt")
+# what a run written before a setting existed ran with (so it is no difference)
+_SINCE = {"aggregate": "mean", "augment": "", "augment_copies": 1, "participant_norm": False,
+          "balance": False, "val_by": "trial", "adapt": "none"}
+_ADAPT_LABEL = {"person": "adapted", "none": "as trained"}
 
 
 def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     """The settings two run configs differ in, one phrase each ("channels: normal → both")."""
     out = []
     for key in _DESCRIBED:
-        va, vb = a.get(key), b.get(key)
+        va, vb = a.get(key, _SINCE.get(key)), b.get(key, _SINCE.get(key))
         if va == vb:
             continue
         if key == "overrides" and isinstance(va, dict) and isinstance(vb, dict):
@@ -44,11 +49,13 @@ def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
 def run_label(run: RunPredictions, other: RunPredictions) -> str:
     """A short name for a run next to another: the value of the one setting they differ
     in (e.g. ``both``), else the folder name."""
-    keys = [k for k in ("channels", "model", "grid", "preset", "protocol")
-            if run.config.get(k) != other.config.get(k)]
-    if len(keys) == 1 and run.config.get(keys[0]) is not None:
+    keys = [k for k in ("channels", "model", "grid", "preset", "protocol", "adapt")
+            if run.config.get(k, _SINCE.get(k)) != other.config.get(k, _SINCE.get(k))]
+    if len(keys) == 1 and run.config.get(keys[0], _SINCE.get(keys[0])) is not None:
         if keys[0] == "model":  # "cnn1d + rf 0.5" when fused with rf (learn/fused.py)
             return display_name(run.config["model"], run.config.get("overrides"))
+        if keys[0] == "adapt":
+            return _ADAPT_LABEL[run.config.get("adapt", "none")]
         return str(run.config[keys[0]])
     if run.name == other.name:
         return str(run.path)
