@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.experiment import result_defaults
 from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.trialpreds import RunPredictions, load_predictions
@@ -20,17 +21,15 @@ from tactile_studio.learn.trialpreds import RunPredictions, load_predictions
 _DESCRIBED = ("model", "channels", "grid", "protocol", "preset", "rounds", "epochs", "seed",
               "folds", "overrides", "data", "window_s", "aggregate", "augment",
               "augment_copies", "participant_norm", "balance", "val_by", "adapt")
-# what a run written before a setting existed ran with (so it is no difference)
-_SINCE = {"aggregate": "mean", "augment": "", "augment_copies": 1, "participant_norm": False,
-          "balance": False, "val_by": "trial", "adapt": "none"}
 _ADAPT_LABEL = {"person": "adapted", "none": "as trained"}
 
 
 def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     """The settings two run configs differ in, one phrase each ("channels: normal → both")."""
+    since = result_defaults()  # what a run written before a setting existed ran with
     out = []
     for key in _DESCRIBED:
-        va, vb = a.get(key, _SINCE.get(key)), b.get(key, _SINCE.get(key))
+        va, vb = a.get(key, since.get(key)), b.get(key, since.get(key))
         if va == vb:
             continue
         if key == "overrides" and isinstance(va, dict) and isinstance(vb, dict):
@@ -49,9 +48,10 @@ def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
 def run_label(run: RunPredictions, other: RunPredictions) -> str:
     """A short name for a run next to another: the value of the one setting they differ
     in (e.g. ``both``), else the folder name."""
+    since = result_defaults()
     keys = [k for k in ("channels", "model", "grid", "preset", "protocol", "adapt")
-            if run.config.get(k, _SINCE.get(k)) != other.config.get(k, _SINCE.get(k))]
-    if len(keys) == 1 and run.config.get(keys[0], _SINCE.get(keys[0])) is not None:
+            if run.config.get(k, since.get(k)) != other.config.get(k, since.get(k))]
+    if len(keys) == 1 and run.config.get(keys[0], since.get(keys[0])) is not None:
         if keys[0] == "model":  # "cnn1d + rf 0.5" when fused with rf (learn/fused.py)
             return display_name(run.config["model"], run.config.get("overrides"))
         if keys[0] == "adapt":

@@ -219,9 +219,9 @@ class SweepPanel(QWidget):
         s = self.settings
         self.set_models(get_json(s, KEY + "models", ["rf", "knn"]))
         self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
-        index = self.executor.findData(str(s.value(KEY + "executor", "local")))
-        self.executor.setCurrentIndex(max(0, index))
-        self.adapt.setCurrentIndex(max(0, self.adapt.findData(str(s.value(KEY + "adapt", "none")))))
+        for key, combo, default in (("executor", self.executor, "local"),
+                                    ("adapt", self.adapt, "none")):
+            combo.setCurrentIndex(max(0, combo.findData(str(s.value(KEY + key, default)))))
         self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
         self.address.setText(str(s.value(KEY + "address", "") or ""))
         for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
