@@ -16,7 +16,7 @@ the paired test says whether a difference is more than that.
 Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
-       [--participants N] [--adapt]
+       [--participants N] [--adapt [person|person-condition]] [--surfaces FLAT PILLOW]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -27,7 +27,9 @@ ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s c
 --set rf_weight=W trains it, scored from the two runs' test predictions and paired against
 rf; --keep DIR: keep the data and run folders there; --participants N: N virtual people
 instead of 10, the first 10 the same as the default's; --adapt: every model trained and
-tested with --adapt person, paired against rf adapted the same way.)
+tested with --adapt person (or the mode named), paired against rf adapted the same way;
+--surfaces FLAT PILLOW: each participant records --blocks blocks on each surface, a session
+per surface, as in the real recordings.)
 """
 
 from __future__ import annotations
@@ -67,10 +69,12 @@ def model_cost(name: str, preset: str, sets: dict[str, str]) -> tuple[int, float
 
     spec = REGISTRY[name]
     view = spec.view(preset)
+    frames = int(sets.get("view_frames", view.frames))
+    stride = int(sets.get("view_stride", view.stride or frames))
     model = spec.build(9, 3, (6, 6), preset, **sets).eval()
     # a 2 s trial of 86 frames gives one sample, or several windows for a windowed view
-    per_trial = 1 if view.kind != "windows" else 1 + max(0, (86 - view.frames) // view.stride)
-    x = torch.randn(64 * per_trial, 3, view.frames, 6, 6)
+    per_trial = 1 if view.kind != "windows" else 1 + max(0, (86 - frames) // stride)
+    x = torch.randn(64 * per_trial, 3, frames, 6, 6)
     previous = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
@@ -127,30 +131,36 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--fuse", nargs="*", type=float, default=[], metavar="W",
                     help="also score each learned model fused with rf at these rf weights "
                          "(as --set rf_weight=W trains it), paired against rf")
-    ap.add_argument("--adapt", action="store_true",
+    ap.add_argument("--adapt", nargs="?", const="person", default=None,
+                    choices=("person", "person-condition"),
                     help="--adapt person: each test person met with their own statistics "
-                         "(networks: batch norm; rf/knn: standardised features)")
+                         "(networks: batch norm; rf/knn: standardised features); "
+                         "person-condition: per person and surface")
+    ap.add_argument("--surfaces", nargs="*", default=[], metavar="SURFACE",
+                    help="a session per participant and surface (FLAT, PILLOW)")
     ap.add_argument("--keep", metavar="DIR", default=None,
                     help="write the data and every run folder here (kept, for "
                          "tactile-studio compare / trials) instead of a temporary folder")
     args = ap.parse_args(argv if argv is not None else [])
     options = dict(OPTIONS) if args.options else {}
     if args.adapt:
-        options["adapt"] = "person"
+        options["adapt"] = args.adapt
     sets = dict(item.split("=", 1) for item in args.set)
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
         data = Path(tmp) / "data"
         make_dataset_folder(data, participants=args.participants, blocks=args.blocks,
-                            difficulty="real",
-                            repeats=args.repeats)
+                            difficulty="real", repeats=args.repeats,
+                            conditions=tuple(s.upper() for s in args.surfaces))
         what = f"{args.blocks} trials" if args.repeats == 1 else \
             f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
+        if args.surfaces:
+            what += f" on each of {', '.join(s.upper() for s in args.surfaces)}"
         print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty real, preset "
               f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
                  "participant" if args.options else "")
-              + (", adapted to each test person" if args.adapt else "")
+              + (f", --adapt {args.adapt}" if args.adapt else "")
               + (f", --set {' '.join(args.set)}" if sets else ""))
         print(f"{'model':>16s}{'trial acc':>11s}{'trial f1':>9s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")

@@ -28,15 +28,17 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
                       blocks: int = 3, trial_s: float = 2.0, gap_s: float = 0.4,
                       rate: float = 43.0, sensor_seed: int = 7,
                       extra_trials: list[dict] | None = None, difficulty: str = "easy",
-                      condition: str = "FLAT", repeats: int = 1, **sim: object) -> Path:
+                      condition: str = "FLAT", repeats: int = 1, order: int = 0,
+                      **sim: object) -> Path:
     """One session of ``blocks`` x ``gestures`` trials by one virtual participant
     (``difficulty`` easy by default: tests that need clearly separable data rely on it).
     ``repeats`` > 1: each trial is that many back-to-back performances of ``trial_s``, like
-    the real recordings' ~12 s performances of a gesture repeated."""
+    the real recordings' ~12 s performances of a gesture repeated. ``order``: another
+    gesture order (a second session of the same person)."""
     simulator = SensorSimulator(SimConfig(rate=rate, seed=sensor_seed, gesture="idle",
                                           style_seed=style_seed, difficulty=difficulty,
                                           surface=condition.lower(), **sim))
-    rng = np.random.default_rng([style_seed, 11])
+    rng = np.random.default_rng([style_seed, 11] + ([order] if order else []))
     lead, trial_n, gap_n = int(rate), round(trial_s * rate), round(gap_s * rate)
     span = trial_n * repeats
     plan, frame = [], lead
@@ -62,12 +64,20 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
 
 def make_dataset_folder(folder: Path, participants: int = 4, blocks: int = 3,
                         gestures=GESTURE_NAMES, trial_s: float = 2.0,
-                        first_style: int = 101, **kw: object) -> list[Path]:
-    """``participants`` session files P01.. in ``folder`` (created)."""
+                        first_style: int = 101, conditions: tuple[str, ...] = (),
+                        **kw: object) -> list[Path]:
+    """``participants`` session files P01.. in ``folder`` (created); with ``conditions``
+    (surfaces, e.g. FLAT and PILLOW) one session per participant and condition,
+    P01_FLAT.h5 .., each of ``blocks`` blocks in its own gesture order."""
     folder.mkdir(parents=True, exist_ok=True)
-    return [write_participant(folder / f"P{p + 1:02d}.h5", f"P{p + 1:02d}", first_style + p,
-                              gestures, blocks, trial_s, **kw)
-            for p in range(participants)]
+    if not conditions:
+        return [write_participant(folder / f"P{p + 1:02d}.h5", f"P{p + 1:02d}",
+                                  first_style + p, gestures, blocks, trial_s, **kw)
+                for p in range(participants)]
+    return [write_participant(folder / f"P{p + 1:02d}_{c}.h5", f"P{p + 1:02d}",
+                              first_style + p, gestures, blocks, trial_s, condition=c,
+                              order=k, **kw)
+            for p in range(participants) for k, c in enumerate(conditions)]
 
 
 def write_pressure_session(path: Path, participant: str, lengths: list[int],

@@ -158,7 +158,7 @@ def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
     root = runs["root"]
     code = main(["export-model", str(root / "net_adapted"), "--format", "onnx"])
     out = capsys.readouterr().out
-    assert code == 0 and "note: the run adapted to each test person" in out
+    assert code == 0 and "note: the run adapted to each person" in out
     assert "batch-norm statistics" in out
     report = json.loads((root / "net_adapted" / "export" / "onnx.json").read_text())
     assert report["adapt"] == "person" and report["changed_predictions"] == 0

@@ -10,6 +10,7 @@ from typing import Any
 from tactile_studio.cli import tables
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.learn.generalise import ADAPT, ADAPT_PHRASE
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 
@@ -86,10 +87,11 @@ def add_generalisation_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
     p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
                    help="early stopping on training trials or on whole training participants")
-    p.add_argument("--adapt", choices=("none", "person"), default="none",
+    p.add_argument("--adapt", choices=ADAPT, default="none",
                    help="person: meet each test person on their own terms, from their own "
                         "unlabelled windows (networks re-estimate batch-norm statistics, "
-                        "rf/knn standardise each person's features)")
+                        "rf/knn standardise each person's features); person-condition: "
+                        "the same per person and session condition (surface)")
 
 
 def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:
@@ -120,7 +122,7 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
     print(f"{name} · {m['protocol']} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)"
-          + (" · adapted to each person" if m.get("adapt") == "person" else ""))
+          + (f" · {ADAPT_PHRASE[m['adapt']]}" if m.get("adapt", "none") != "none" else ""))
     rows = [(key, _fmt(m[key])) for key in (
         "accuracy", "trial_accuracy", "precision_macro", "recall_macro", "f1_macro",
         "balanced_accuracy", "kappa") if key in m]
@@ -250,8 +252,9 @@ def register(subparsers) -> None:
     p.add_argument("--data", nargs="+", default=None, metavar="PATH",
                    help="data to score on (default: the run's own data)")
     p.add_argument("--cache-dir", default=None)
-    p.add_argument("--adapt", choices=("none", "person"), default=None,
-                   help="adapt a network to each test person's own windows, or not "
+    p.add_argument("--adapt", choices=ADAPT, default=None,
+                   help="adapt a network to each test person's own windows (per condition "
+                        "too: person-condition), or not "
                         "(default: as the run was trained; rf/knn cannot change)")
     p.set_defaults(func=cmd_evaluate)
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from tactile_studio import __version__, paths
 
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2  # 2: each trial's session condition
 
 
 def default_cache_dir() -> Path:
@@ -66,7 +66,8 @@ def save(ds, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
     np.savez(tmp, frames=np.concatenate(ds.trials, axis=1),
              offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
              labels=ds.labels, participants=ds.participants.astype(str),
-             uids=np.array(ds.uids, dtype=str), rates=ds.rates, meta=np.array(json.dumps(meta)))
+             uids=np.array(ds.uids, dtype=str), rates=ds.rates,
+             conditions=ds.trial_conditions().astype(str), meta=np.array(json.dumps(meta)))
     os.replace(tmp, path)
     return path
 
@@ -92,6 +93,7 @@ def load(key: str, cache_dir: str | os.PathLike | None = None,
                 participants=z["participants"].astype(str), uids=z["uids"].astype(str).tolist(),
                 rates=z["rates"].astype(np.float64), label_names=list(meta["label_names"]),
                 layout=meta["layout"], grid=meta["grid"], has_shear=bool(meta["has_shear"]),
-                sources=list(meta["sources"]), trial_s=float(meta.get("trial_s", 0.0)))
+                sources=list(meta["sources"]), trial_s=float(meta.get("trial_s", 0.0)),
+                conditions=z["conditions"].astype(str))
     except (OSError, ValueError, KeyError):
         return None

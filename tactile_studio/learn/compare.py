@@ -21,7 +21,8 @@ from tactile_studio.learn.trialpreds import RunPredictions, load_predictions
 _DESCRIBED = ("model", "channels", "grid", "protocol", "preset", "rounds", "epochs", "seed",
               "folds", "overrides", "data", "window_s", "aggregate", "augment",
               "augment_copies", "participant_norm", "balance", "val_by", "adapt")
-_ADAPT_LABEL = {"person": "adapted", "none": "as trained"}
+_ADAPT_LABEL = {"person": "adapted", "person-condition": "adapted per condition",
+                "none": "as trained"}
 
 
 def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:

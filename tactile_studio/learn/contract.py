@@ -120,7 +120,8 @@ class Learner(Protocol):
 
     def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
         """Samples as trained and tested with ``--adapt person`` (``people``: each
-        sample's participant): rf/knn standardise each person's features; a network
+        sample's adaptation group, its participant or participant and condition):
+        rf/knn standardise each group's features; a network
         returns ``x`` (it adapts when predicting)."""
         ...
 

@@ -58,6 +58,8 @@ class TrialDataset:
     fingerprint: str = ""
     skipped: list[dict] = field(default_factory=list)  # resume backups, duplicate sessions
     trial_s: float = 0.0  # the protocol's trial length (s) when the sessions agree, else 0
+    # each trial's session ``condition`` (the surface: FLAT, PILLOW, ...; "" when unnamed)
+    conditions: np.ndarray = field(default_factory=lambda: np.array([], dtype=str))
 
     def __len__(self) -> int:
         return len(self.trials)
@@ -73,6 +75,12 @@ class TrialDataset:
     @property
     def grid_shape(self) -> tuple[int, int]:
         return int(self.trials[0].shape[2]), int(self.trials[0].shape[3])
+
+    def trial_conditions(self) -> np.ndarray:
+        """Each trial's condition ("" for all when the sessions name none)."""
+        if len(self.conditions) == len(self):
+            return self.conditions
+        return np.full(len(self), "", dtype=str)
 
     @property
     def participant_names(self) -> list[str]:
@@ -108,7 +116,8 @@ class TrialDataset:
         idx = np.asarray(idx, dtype=np.int64)
         return replace(self, trials=[self.trials[i] for i in idx], labels=self.labels[idx],
                        participants=self.participants[idx],
-                       uids=[self.uids[i] for i in idx], rates=self.rates[idx])
+                       uids=[self.uids[i] for i in idx], rates=self.rates[idx],
+                       conditions=self.trial_conditions()[idx])
 
     def summary(self) -> dict:
         counts = np.bincount(self.labels, minlength=self.n_classes)
@@ -174,6 +183,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
     layout_name: str | None = None
     first_file: Path | None = None
     trials, gestures, participants, uids, rates, metas = [], [], [], [], [], []
+    conditions: list[str] = []
     for k, path in enumerate(files):
         if cancel is not None:
             cancel.check()
@@ -188,6 +198,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
             meta = s.metadata
             metas.append(meta)
             participant = str(meta.get("participant") or path.stem)
+            condition = str(meta.get("condition") or "")
             ok = [t for t in s.trials if t.get("status", "ok") == "ok" and t.get("gesture")]
             if not ok:
                 continue
@@ -203,6 +214,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
                 trials.append(np.ascontiguousarray(stack, dtype=np.float32))
                 gestures.append(str(t["gesture"]))
                 participants.append(participant)
+                conditions.append(condition)
                 uids.append(f"{rel}#{int(t['index'])}")
                 rates.append(_trial_rate(s, t, start, stop))
     progress(1.0, "decoded")
@@ -217,7 +229,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
         participants=np.array(participants), uids=uids, rates=np.array(rates, dtype=np.float64),
         label_names=label_names, layout=str(layout_name), grid=grid, has_shear=has_shear,
         sources=[str(f) for f in files], skipped=list(chosen.skipped),
-        trial_s=lengths.pop() if len(lengths) == 1 else 0.0)
+        trial_s=lengths.pop() if len(lengths) == 1 else 0.0, conditions=np.array(conditions))
 
 
 def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",

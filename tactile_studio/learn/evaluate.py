@@ -68,7 +68,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                 cancel: CancelToken | None = None, adapt: str | None = None
                 ) -> dict[str, Any]:
     """Metrics recomputed from the saved weights (see module doc); also saved to
-    ``RUN/rescore.json``. ``adapt`` ("person" | "none") overrides the run's adaptation
+    ``RUN/rescore.json``. ``adapt`` (generalise.ADAPT) overrides the run's adaptation
     to each test person: any network can adapt its batch norm after the fact, while
     rf/knn (and fused forests) were trained on features standardised or not, so theirs
     cannot change."""
@@ -80,7 +80,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         if learner.kind != "torch":
             raise UserError(f"{run}: {config.model} was trained with --adapt {config.adapt}; "
                             "its features cannot be re-standardised afterwards (a network's "
-                            "batch norm can: train again with --adapt person)")
+                            f"batch norm can: train again with --adapt {adapt})")
         config = replace(config, adapt=adapt)
     ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
     people = adapt_people(config, ds, owner)  # new people adapt to themselves too

@@ -33,7 +33,9 @@ from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.fused import display_name, rf_weight
 from tactile_studio.learn.generalise import (
     ADAPT,
+    ADAPT_PHRASE,
     VAL_BY,
+    adapt_groups,
     augmenter,
     balanced_index,
     participant_normalised,
@@ -76,7 +78,7 @@ class ExperimentConfig:
     participant_norm: bool = False       # scale each participant to a typical person
     balance: bool = False                # repeat rarer classes' training samples
     val_by: str = "trial"                # validation: trials | whole training participants
-    adapt: str = "none"                  # none | person: each test person's own statistics
+    adapt: str = "none"  # none | person | person-condition: each test person's own statistics
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -125,13 +127,15 @@ class ExperimentConfig:
         if self.adapt not in ADAPT:
             raise UserError(f"unknown adaptation {self.adapt!r} "
                             f"(available: {', '.join(ADAPT)})")
-        if self.adapt == "person" and self.protocol == "all-inclusive":
-            raise UserError("--adapt person meets each test person with their own session; "
+        if self.adapt != "none" and self.protocol == "all-inclusive":
+            raise UserError(f"--adapt {self.adapt} meets each test person with their own "
+                            "session; "
                             "use it with a protocol that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
-        if self.adapt == "person" and self.augment and (
+        if self.adapt != "none" and self.augment and (
                 self.model in ("rf", "knn") or rf_weight(self.overrides) > 0):
-            raise UserError(f"--adapt person standardises {self.model}'s features per person; "
+            raise UserError(f"--adapt {self.adapt} standardises {self.model}'s features per "
+                            "person; "
                             "it does not combine with --augment (augmented windows have no "
                             "person's statistics of their own)")
         if len(self.split) != 3 or min(self.split) <= 0:
@@ -193,8 +197,10 @@ def _versions() -> dict[str, str]:
 
 def adapt_people(config: ExperimentConfig, ds: TrialDataset, owner: np.ndarray
                  ) -> np.ndarray | None:
-    """Each sample's participant when the run adapts to each test person, else None."""
-    return ds.participants[owner] if config.adapt == "person" else None
+    """Each sample's adaptation group (its participant, or participant and condition)
+    when the run adapts to each test person, else None."""
+    groups = adapt_groups(config.adapt, ds)
+    return None if groups is None else groups[owner]
 
 
 def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndarray,
@@ -272,7 +278,7 @@ def run_title(config: ExperimentConfig, channels: str | None) -> str:
     """The run's title on its figures: model (fused with rf if so), preset, protocol."""
     return (f"{display_name(config.model, config.overrides)} ({config.preset}) · "
             f"{config.protocol} · {channels}"
-            + (" · adapted to each person" if config.adapt == "person" else ""))
+            + (f" · {ADAPT_PHRASE[config.adapt]}" if config.adapt != "none" else ""))
 
 
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
@@ -283,8 +289,9 @@ def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
     pieces, piece_owner = cut(ds, spec)
     x, sample_piece = learner.samples(pieces)
-    if config.adapt == "person":  # features standardised by each person's own statistics
-        x = learner.adapt_inputs(x, ds.participants[piece_owner[sample_piece]])
+    groups = adapt_groups(config.adapt, ds)
+    if groups is not None:  # features standardised by each person's own statistics
+        x = learner.adapt_inputs(x, groups[piece_owner[sample_piece]])
     extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
     return ds, x, piece_owner[sample_piece], len(pieces), spec, extra
 

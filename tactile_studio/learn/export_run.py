@@ -45,6 +45,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluate import load_run_data
 from tactile_studio.learn.experiment import prepare_inputs
 from tactile_studio.learn.fused import RF_FILE, display_name, fuse
+from tactile_studio.learn.generalise import ADAPT_PHRASE
 from tactile_studio.learn.runfolder import model_file, write_json
 from tactile_studio.learn.summary import summarise
 from tactile_studio.learn.windowing import AGGREGATES
@@ -261,15 +262,17 @@ def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarr
 
 
 def _adapt_note(config, kind: str) -> dict[str, str]:  # noqa: ANN001 - ExperimentConfig
-    """What a file exported from a run adapted to each person (``--adapt person``) lacks:
-    the person's statistics, which only that person's own session can give."""
-    if config.adapt != "person":
+    """What a file exported from a run adapted to each person (``--adapt person`` or
+    ``person-condition``) lacks: the person's statistics, which only that person's own
+    session can give."""
+    if config.adapt == "none":
         return {}
     what = ("it carries the training people's batch-norm statistics, so the accuracies "
             "here are without adaptation" if kind == "torch" else
             "it expects features standardised by each person's own mean and spread "
             "(learn/generalise.py person_standardised), as scored here")
-    return {"adapt": "person", "adapt_note": f"the run adapted to each test person; {what}"}
+    return {"adapt": config.adapt,
+            "adapt_note": f"the run {ADAPT_PHRASE[config.adapt]}; {what}"}
 
 
 def _report(model: str, fmt: str, folds: list[dict[str, Any]],

@@ -17,7 +17,10 @@
   person's own mean and spread, in training and at test alike. Like
   ``participant_norm`` it uses no labels, but it needs the person's whole session
   (all gestures, roughly evenly, as a protocol session has), so it is for evaluating
-  recorded sessions, not for live use.
+  recorded sessions, not for live use. ``adapt="person-condition"`` does the same per
+  person *and* session condition (the surface, FLAT / PILLOW): a person's touches on a
+  soft pillow are spread and damped against the same person's on a flat table, and one
+  pooled set of statistics would carry that difference into every gesture.
 * ``val_by="participant"`` — model selection (early stopping) on whole training
   participants held out from training, never on the test participant and never on
   trials of people the model also trains on.
@@ -34,7 +37,10 @@ from tactile_studio.learn.splits import Fold
 from tactile_studio.learn.touch_stats import REAL, trial_stats
 
 VAL_BY = ("trial", "participant")
-ADAPT = ("none", "person")
+ADAPT = ("none", "person", "person-condition")
+# how titles, summaries and the GUI name an adaptation
+ADAPT_PHRASE = {"none": "as trained", "person": "adapted to each person",
+                "person-condition": "adapted to each person and condition"}
 
 
 def participant_normalised(ds):
@@ -66,6 +72,18 @@ def person_standardised(x: np.ndarray, people: np.ndarray) -> np.ndarray:
         mean, std = out[rows].mean(axis=0), out[rows].std(axis=0)
         out[rows] = (out[rows] - mean) / np.where(std > 1e-9, std, 1.0)
     return out
+
+
+def adapt_groups(adapt: str, ds) -> np.ndarray | None:
+    """Each trial's adaptation group (``ADAPT``): its participant, or its participant and
+    session condition; None without adaptation."""
+    if adapt == "none":
+        return None
+    if adapt == "person-condition":
+        # "\x1f" (unit separator) cannot occur in a participant id typed by anyone
+        return np.char.add(np.char.add(ds.participants.astype(str), "\x1f"),
+                           ds.trial_conditions().astype(str))
+    return ds.participants
 
 
 def balanced_index(y: np.ndarray, rng: np.random.Generator) -> np.ndarray:

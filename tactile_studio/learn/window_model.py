@@ -42,8 +42,9 @@ class WindowModel:
                            records[0])
         self.learner = make_learner(self.config.model, self.config.preset,
                                     self.config.overrides, self.config.epochs, "cpu")
-        if self.config.adapt == "person" and self.learner.kind != "torch":
-            raise UserError(f"{run}: trained with --adapt person, so {self.config.model} reads "
+        if self.config.adapt != "none" and self.learner.kind != "torch":
+            raise UserError(f"{run}: trained with --adapt {self.config.adapt}, so "
+                            f"{self.config.model} reads "
                             "features standardised by each person's own statistics, which a "
                             "live stream does not have; for live use train without --adapt")
         self.fitted = self.learner.load(model_file(self.record["_dir"]), self.info)

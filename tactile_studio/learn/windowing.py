@@ -63,7 +63,8 @@ def cut(ds, spec: WindowSpec):
     return replace(ds, trials=pieces, labels=ds.labels[owner_arr],
                    participants=ds.participants[owner_arr],
                    uids=[f"{ds.uids[i]}@{k}" for k, i in enumerate(owner_arr)],
-                   rates=ds.rates[owner_arr]), owner_arr
+                   rates=ds.rates[owner_arr],
+                   conditions=ds.trial_conditions()[owner_arr]), owner_arr
 
 
 def learner_samples(learner, ds, spec: WindowSpec) -> tuple[np.ndarray, np.ndarray, int]:

@@ -4,14 +4,17 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox
 
+from tactile_studio.learn.generalise import ADAPT_PHRASE
+
 
 def adapt_combo() -> QComboBox:
     """"Test people": as trained, or adapted to each person (``ExperimentConfig.adapt``)."""
     combo = QComboBox()
-    combo.addItem("as trained", "none")
-    combo.addItem("adapted to each person", "person")
+    for key, phrase in ADAPT_PHRASE.items():
+        combo.addItem(phrase, key)
     combo.setToolTip("adapted: each test person is met with statistics of their own "
                      "unlabelled windows (networks re-estimate batch norm, rf/knn "
-                     "standardise the person's features); needs the person's whole "
+                     "standardise the person's features), per condition (surface) too "
+                     "if the sessions name one; needs the person's whole "
                      "session: for lopo / group-kfold, not for live use of rf/knn")
     return combo
