@@ -43,8 +43,9 @@ def test_registry_lists_the_papers_models_with_views_and_defaults():
     assert kinds == {"cnn3d": "resample", "cnn_transformer": "windows", "cnn1d": "slices",
                      "mts3d": "gradient", "sefusion": "resample"}
     assert MODELS["cnn3d"].view("full") == ViewSpec("resample", 86)
-    assert MODELS["cnn_transformer"].view("full") == ViewSpec("windows", 27, 27)
+    assert MODELS["cnn_transformer"].view("full") == ViewSpec("windows", 86, 86)
     assert MODELS["cnn1d"].view("full") == ViewSpec("slices", 100)
+    assert MODELS["mts3d"].view("full") == ViewSpec("gradient", 32)
     assert MODELS["cnn1d"].quantizable
     # full presets: the generalisation recipe, a fixed cosine budget that fits 2 CPU cores
     # (docs/learning.md); the papers' networks are each module's PAPER overrides
