@@ -10,7 +10,7 @@ import json
 import numpy as np
 import pytest
 import torch
-from learn_fixtures import make_dataset_folder
+from learn_fixtures import make_dataset_folder, write_participant
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
@@ -163,8 +163,7 @@ def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
     report = json.loads((root / "net_adapted" / "export" / "onnx.json").read_text())
     assert report["adapt"] == "person" and report["changed_predictions"] == 0
     assert WindowModel(root / "net_adapted").learner.kind == "torch"  # trained statistics
-    with pytest.raises(UserError, match="--adapt person"):
-        WindowModel(root / "rf_adapted")  # its features need the person's statistics
+    assert WindowModel(root / "rf_adapted").needs_calibration  # the person's statistics
 
 
 def test_a_run_folder_from_before_adapt_existed_still_resumes(runs, capsys):
@@ -196,3 +195,26 @@ def test_evaluate_adapts_any_trained_network_after_the_fact(runs, capsys):
     code = main(["evaluate", str(root / "rf"), "--adapt", "person"])
     err = capsys.readouterr().err
     assert code == 1 and "cannot be re-standardised" in err and "Traceback" not in err
+
+
+def test_evaluate_adapts_an_all_inclusive_run_only_to_new_people(runs, capsys):
+    root = runs["root"]
+    code = main(["train", "--data", str(root / "data"), "--model", "cnn1d", "--preset", "tiny",
+                 "--epochs", "1", "--eval", "all-inclusive", "--cache-dir", str(root / "cache"),
+                 "--out", str(root / "inclusive")])
+    assert code == 0
+    capsys.readouterr()
+    # its test trials belong to people it trained on: adapting to them is no measurement
+    code = main(["evaluate", str(root / "inclusive"), "--adapt", "person"])
+    err = capsys.readouterr().err
+    assert code == 1 and "all-inclusive" in err and "Traceback" not in err
+    assert len([line for line in err.splitlines() if "error" in line]) == 1
+    assert not (root / "inclusive" / "rescore.json").exists()
+    # a new person's session: the deployed model meets them with their own statistics
+    (root / "new").mkdir()
+    write_participant(root / "new" / "P09.h5", "P09", 909, GESTURES, blocks=2)
+    code = main(["evaluate", str(root / "inclusive"), "--adapt", "person",
+                 "--data", str(root / "new"), "--cache-dir", str(root / "cache")])
+    assert code == 0, capsys.readouterr().err
+    rescored = json.loads((root / "inclusive" / "rescore.json").read_text())
+    assert (rescored["mode"], rescored["adapt"]) == ("external", "person")

@@ -32,14 +32,20 @@ def run(tmp_path_factory):
     return root / "run"
 
 
-@pytest.mark.slow
-def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monkeypatch):
-    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+def _window(qtbot) -> MainWindow:
+    """The main window on the simulated sensor performing Heavy Pat."""
     w = MainWindow(device="simulated", settings={"rate": "43", "gesture": "Heavy Pat"},
                    connect=True, persist=False)
     qtbot.addWidget(w)
     w.resize(1300, 760)
     w.show()
+    return w
+
+
+@pytest.mark.slow
+def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monkeypatch):
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    w = _window(qtbot)
     try:
         action = next(a for m in w.menuBar().actions() for a in m.menu().actions()
                       if "Live inference" in a.text())
@@ -75,4 +81,35 @@ def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monk
     finally:
         if getattr(w, "live_dock", None) is not None:
             w.live_dock.widget().stop()
+        w.shutdown()
+
+
+@pytest.mark.slow
+def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbot, tmp_path,
+                                                                       monkeypatch):
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    root = run.parent
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+                           preset="tiny", cache_dir=str(root / "cache"), adapt="person")
+    run_experiment(cfg, root / "rf_adapted")
+    w = _window(qtbot)
+    try:
+        panel = live_inference_dock(w).widget()
+        assert panel.load_run(str(root / "rf_adapted"))
+        assert "calibrate on a recording" in panel.calibration_label.text()
+        panel.refresh()
+        assert panel.inference is None  # its features need the person's statistics first
+        assert not panel.calibrate(str(tmp_path / "nope.h5"))
+        assert "nope.h5" in panel.message.text() and "\n" not in panel.message.text()
+        assert panel.calibrate(str(root / "data" / "P02.h5"))
+        assert "calibrated to the person in P02.h5" in panel.calibration_label.text()
+        qtbot.waitUntil(lambda: panel.inference is not None and panel.top() in GESTURES,
+                        timeout=40_000)
+        assert panel.inference.error is None
+        w.grab().save(str(SHOTS / "research_live_calibrated.png"))
+        assert panel.load_run(str(run))  # knn as trained: nothing to calibrate
+        assert not panel.calibrate_button.isEnabled()
+        assert "as trained" in panel.calibration_label.text()
+    finally:
+        panel.stop()
         w.shutdown()

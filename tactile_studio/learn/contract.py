@@ -118,11 +118,13 @@ class Learner(Protocol):
 
     def samples(self, ds) -> Samples: ...
 
-    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
+                     reference: np.ndarray | None = None) -> np.ndarray:
         """Samples as trained and tested with ``--adapt person`` (``people``: each
         sample's adaptation group, its participant or participant and condition):
-        rf/knn standardise each group's features; a network
-        returns ``x`` (it adapts when predicting)."""
+        rf/knn standardise each group's features (every sample by the ``reference``
+        samples' statistics when given: a person's calibration recording, live); a
+        network returns ``x`` (it adapts when predicting)."""
         ...
 
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]: ...

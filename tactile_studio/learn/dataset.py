@@ -128,7 +128,7 @@ class TrialDataset:
             "layout": self.layout, "grid": self.grid, "grid_shape": list(self.grid_shape),
             "channels": self.channels, "channel_names": self.channel_names,
             "frames_min": int(lengths.min()), "frames_max": int(lengths.max()),
-            "fingerprint": self.fingerprint,
+            "trial_s": self.trial_s, "fingerprint": self.fingerprint,
             "skipped": list(self.skipped), "skipped_text": describe_skipped(self.skipped),
         }
 

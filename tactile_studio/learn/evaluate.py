@@ -82,8 +82,6 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                             "its features cannot be re-standardised afterwards (a network's "
                             f"batch norm can: train again with --adapt {adapt})")
         config = replace(config, adapt=adapt)
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
-    people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)
@@ -92,6 +90,12 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         missing = sorted(wanted - found)
         raise UserError(f"{len(missing)} of the run's test trials are not in the data "
                         f"(first: {missing[0]})")
+    if mode == "folds" and config.adapt != "none" and config.protocol == "all-inclusive":
+        raise UserError(f"{run}: --adapt {config.adapt} meets each test person with their own "
+                        "session, but this all-inclusive run trained on the same people; "
+                        "adapt when evaluating new people's data (--data) or a lopo run")
+    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     fresh = []
     for k, rec in enumerate(records):
         if cancel is not None:

@@ -102,12 +102,14 @@ class FusedLearner:
         n, channels = _header(x)
         return x[:, HEAD:HEAD + n].reshape(len(x), channels, -1)
 
-    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
+                     reference: np.ndarray | None = None) -> np.ndarray:
         """``adapt="person"``: the forest's features standardised per person (the
         network adapts when it predicts, ``FusedFitted.adapted``)."""
         n, _ = _header(x)
+        ref = None if reference is None else reference[:, HEAD + n:]
         return np.concatenate([x[:, :HEAD + n],
-                               self.forest.adapt_inputs(x[:, HEAD + n:], people)], axis=1)
+                               self.forest.adapt_inputs(x[:, HEAD + n:], people, ref)], axis=1)
 
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
         return self.network.norm_stats(self._views(x_train))

@@ -63,15 +63,24 @@ def participant_normalised(ds):
     return replace(ds, trials=trials)
 
 
-def person_standardised(x: np.ndarray, people: np.ndarray) -> np.ndarray:
+def person_standardised(x: np.ndarray, people: np.ndarray,
+                        reference: np.ndarray | None = None) -> np.ndarray:
     """Features ``x`` (N, F) with each person's rows z-scored by that person's own mean
-    and standard deviation (a feature constant for a person is only centred)."""
+    and standard deviation (a feature constant for a person is only centred). With
+    ``reference`` (one person's calibration samples, for live use) every row is z-scored
+    by the reference's statistics instead."""
     out = np.array(x, dtype=np.float32, copy=True)
+    if reference is not None:
+        return _standardised(out, np.asarray(reference, dtype=np.float32))
     for p in np.unique(people):
         rows = people == p
-        mean, std = out[rows].mean(axis=0), out[rows].std(axis=0)
-        out[rows] = (out[rows] - mean) / np.where(std > 1e-9, std, 1.0)
+        out[rows] = _standardised(out[rows], out[rows])
     return out
+
+
+def _standardised(x: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    mean, std = reference.mean(axis=0), reference.std(axis=0)
+    return (x - mean) / np.where(std > 1e-9, std, 1.0)
 
 
 def adapt_groups(adapt: str, ds) -> np.ndarray | None:

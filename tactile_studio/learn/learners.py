@@ -128,7 +128,8 @@ class TorchLearner:
         mean, std = views.channel_stats(x_train)
         return {"mean": mean.tolist(), "std": std.tolist()}
 
-    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
+                     reference: np.ndarray | None = None) -> np.ndarray:
         """``adapt="person"``: a network adapts when it predicts (``TorchFitted.adapted``),
         its inputs stay as they are."""
         return x
@@ -234,9 +235,11 @@ class BaselineLearner:
         x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch)
         return x, np.arange(len(ds.trials))
 
-    def adapt_inputs(self, x: np.ndarray, people: np.ndarray) -> np.ndarray:
-        """``adapt="person"``: every person's features standardised by their own."""
-        return person_standardised(x, people)
+    def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
+                     reference: np.ndarray | None = None) -> np.ndarray:
+        """``adapt="person"``: every person's features standardised by their own (by the
+        ``reference`` samples' when given)."""
+        return person_standardised(x, people, reference)
 
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
         return {}  # k-NN standardises with its own training statistics; rf needs none

@@ -19,13 +19,16 @@ from tactile_studio.learn.dataset import TrialDataset
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import model_file, read_run
+from tactile_studio.learn.windowing import cut, window_spec
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
 
 class WindowModel:
-    def __init__(self, run: str | os.PathLike, participant: str | None = None) -> None:
-        """Loads the fold model that did not see ``participant`` (else the first fold)."""
+    def __init__(self, run: str | os.PathLike, participant: str | None = None,
+                 round_: int = 0) -> None:
+        """Loads the fold model of round ``round_`` that did not see ``participant``
+        (else the first fold)."""
         self.run = Path(run)
         cfg, records = read_run(run)
         try:
@@ -37,23 +40,62 @@ class WindowModel:
         except (KeyError, TypeError):
             raise UserError(f"{run}: not a run folder of this version (config.json lacks "
                             "the resolved data description)") from None
-        self.record = next((r for r in records
-                            if participant and participant in (r.get("test_participants") or [])),
+        self.record = next((r for r in records if participant and r.get("round", 0) == round_
+                            and participant in (r.get("test_participants") or [])),
                            records[0])
         self.learner = make_learner(self.config.model, self.config.preset,
                                     self.config.overrides, self.config.epochs, "cpu")
-        if self.config.adapt != "none" and self.learner.kind != "torch":
-            raise UserError(f"{run}: trained with --adapt {self.config.adapt}, so "
-                            f"{self.config.model} reads "
-                            "features standardised by each person's own statistics, which a "
-                            "live stream does not have; for live use train without --adapt")
-        self.fitted = self.learner.load(model_file(self.record["_dir"]), self.info)
+        self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
+        self.fitted = self.trained  # or adapted to one person by calibrate()
+        self.reference: np.ndarray | None = None  # that person's samples (rf/knn features)
+        self.calibrated_on = ""  # what calibrate() was given, for display
+        self.spec = window_spec(self.config.window_s, self.config.window_overlap,
+                                float(summary.get("trial_s") or 0.0))
         lo, hi = int(summary.get("frames_min", 64)), int(summary.get("frames_max", 64))
         self.window = max(2, (lo + hi) // 2)  # a typical trial's length in frames
 
     @property
     def name(self) -> str:
         return self.run.name
+
+    @property
+    def reads_person_features(self) -> bool:
+        """An rf/knn (or fused forest) run trained with ``--adapt`` reads features
+        standardised by the person's own statistics, so it needs a recording of them."""
+        return self.config.adapt != "none" and self.learner.kind != "torch"
+
+    @property
+    def needs_calibration(self) -> bool:
+        """True until a run that reads person features has been calibrated."""
+        return self.reads_person_features and self.reference is None
+
+    @property
+    def can_calibrate(self) -> bool:
+        """A network adapts its batch norm to anyone; rf/knn only when trained on
+        features standardised per person (``--adapt``)."""
+        return self.learner.kind != "baseline" or self.config.adapt != "none"
+
+    def calibrate(self, layout: Layout, windows: list[np.ndarray], rate: float,
+                  source: str = "", batch_norm: bool = True) -> int:
+        """Meets one person as ``--adapt person`` met each test person, from decoded
+        windows (C, N, R, X) of a recording of them (labels unused): rf/knn features
+        standardised by their statistics, and (``batch_norm``) a network's batch norm
+        re-estimated on them. Returns the number of samples it rests on."""
+        if not self.can_calibrate:
+            raise UserError(f"{self.run}: {self.config.model} was trained without --adapt; "
+                            "its features cannot be re-standardised afterwards (a network's "
+                            "batch norm can: train again with --adapt person)")
+        x, _ = self._samples(layout, windows, rate)
+        if len(x) < 2:
+            raise UserError(f"{source or 'calibration'}: too short to calibrate "
+                            f"({len(x)} window(s) of {self.window} frames)")
+        reference = x if self.config.adapt != "none" else None
+        x = self.learner.adapt_inputs(x, np.zeros(len(x)), reference)
+        fitted = self.trained
+        if batch_norm and hasattr(fitted, "adapted"):
+            fitted = fitted.adapted(self.learner.apply_norm(x, self.record["norm"]))
+        self.fitted, self.reference, self.calibrated_on = fitted, reference, source
+        return len(x)
 
     @property
     def streams(self) -> bool:
@@ -86,6 +128,24 @@ class WindowModel:
     def predict_windows(self, layout: Layout, windows: list[np.ndarray], rate: float
                         ) -> np.ndarray:
         """Probabilities (n_windows, n_classes) for decoded windows (C, N, R, X)."""
+        if self.needs_calibration:
+            raise UserError(f"{self.run}: trained with --adapt {self.config.adapt}, so "
+                            f"{self.config.model} reads features standardised by the "
+                            "person's own statistics: calibrate it on a recording of them")
+        x, owner = self._samples(layout, windows, rate)
+        if self.reference is not None:
+            x = self.learner.adapt_inputs(x, np.zeros(len(x)), self.reference)
+        probs = np.zeros((len(windows), len(self.labels)))
+        for i in range(0, len(x), 256):
+            p = self.fitted.predict_proba(self.learner.apply_norm(x[i:i + 256],
+                                                                  self.record["norm"]))
+            np.add.at(probs, owner[i:i + 256], p)
+        return probs / np.maximum(np.bincount(owner, minlength=len(windows))[:, None], 1)
+
+    def _samples(self, layout: Layout, windows: list[np.ndarray], rate: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """The learner's samples of decoded windows, each window one trial cut as the
+        run cut long trials (samples, owner window per sample)."""
         ds = TrialDataset(trials=windows, labels=np.zeros(len(windows), dtype=np.int64),
                           participants=np.array(["live"] * len(windows)),
                           uids=[f"w{i}" for i in range(len(windows))],
@@ -100,15 +160,12 @@ class WindowModel:
                             f"{ds.n_channels} channel(s) does not fit the run's models "
                             f"({self.info.grid[0]}x{self.info.grid[1]}, "
                             f"{self.info.in_channels})")
-        x, owner = self.learner.samples(ds)
-        probs = np.zeros((len(windows), len(self.labels)))
-        for i in range(0, len(x), 256):
-            p = self.fitted.predict_proba(self.learner.apply_norm(x[i:i + 256],
-                                                                  self.record["norm"]))
-            np.add.at(probs, owner[i:i + 256], p)
-        return probs / np.maximum(np.bincount(owner, minlength=len(windows))[:, None], 1)
+        pieces, piece_owner = cut(ds, self.spec)  # long windows: pieces as trained on
+        x, sample_piece = self.learner.samples(pieces)
+        return x, piece_owner[sample_piece]
 
     def describe(self) -> dict[str, Any]:
         return {"run": str(self.run), "model": self.config.model,
                 "channels": self.config.channels, "fold": self.record["name"],
-                "window": self.window, "labels": self.labels}
+                "window": self.window, "labels": self.labels, "adapt": self.config.adapt,
+                "calibrated_on": self.calibrated_on}

@@ -1,10 +1,13 @@
 """Live inference overlay for the main window: load a finished run; the top-3 gestures
 with probabilities, the smoothing window and the measured latency update as the live
-engine streams (the model runs in learn/live_inference.py's worker thread)."""
+engine streams (the model runs in learn/live_inference.py's worker thread). "Calibrate
+to person…" meets the participant as ``--adapt person`` met each test person, from a
+recording of them (playback/predictions.py ``calibrate_to_session``)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QTimer
@@ -23,6 +26,10 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.learn.live_inference import LiveInference
 from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.playback.predictions import calibrate_to_session
+from tactile_studio.ui.settings import app_settings
+
+RUN_DIR_KEY, CALIBRATION_DIR_KEY = "live/last_run_dir", "live/last_calibration_dir"
 
 
 class LiveInferencePanel(QWidget):
@@ -32,9 +39,18 @@ class LiveInferencePanel(QWidget):
         self.engine_fn, self.recording_fn = engine, recording
         self.model: WindowModel | None = None
         self.inference: LiveInference | None = None
+        self.settings = app_settings()
         self.load_button = QPushButton("Load run…")
+        self.calibrate_button = QPushButton("Calibrate to person…")
+        self.calibrate_button.setToolTip(
+            "An rf/knn run trained with --adapt reads features standardised by the "
+            "person's own statistics: take them from a recording of the participant "
+            "(a session of every gesture, recorded just before)")
+        self.calibrate_button.setEnabled(False)
         self.run_label = QLabel("no run loaded")
         self.run_label.setWordWrap(True)
+        self.calibration_label = QLabel("")
+        self.calibration_label.setWordWrap(True)
         self.smoothing = QSpinBox()
         self.smoothing.setRange(1, 50)
         self.smoothing.setValue(4)
@@ -58,12 +74,14 @@ class LiveInferencePanel(QWidget):
         self.message.setWordWrap(True)
         top = QHBoxLayout()
         top.addWidget(self.load_button)
+        top.addWidget(self.calibrate_button)
         top.addWidget(QLabel("Smoothing"))
         top.addWidget(self.smoothing)
         top.addStretch(1)
         lay = QVBoxLayout(self)
         lay.addLayout(top)
         lay.addWidget(self.run_label)
+        lay.addWidget(self.calibration_label)
         lay.addLayout(grid)
         lay.addWidget(self.latency)
         lay.addWidget(self.message)
@@ -72,13 +90,41 @@ class LiveInferencePanel(QWidget):
         self.timer.setInterval(100)
         self.timer.timeout.connect(self.refresh)
         self.load_button.clicked.connect(self._browse)
+        self.calibrate_button.clicked.connect(self._browse_calibration)
         self.smoothing.valueChanged.connect(
             lambda n: self.inference.set_smoothing(n) if self.inference else None)
 
     def _browse(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self, "Run folder")
+        folder = QFileDialog.getExistingDirectory(
+            self, "Run folder", str(self.settings.value(RUN_DIR_KEY, "")))
         if folder:
+            self.settings.setValue(RUN_DIR_KEY, str(Path(folder).parent))
             self.load_run(folder)
+
+    def _browse_calibration(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(
+            self, "Recording of the participant", str(self.settings.value(
+                CALIBRATION_DIR_KEY, "")), "Session files (*.h5)")
+        if path:
+            self.settings.setValue(CALIBRATION_DIR_KEY, str(Path(path).parent))
+            self.calibrate(path)
+
+    def calibrate(self, path: str) -> bool:
+        """The loaded model adapted to the person recorded in session file ``path``."""
+        if self.model is None:
+            return False
+        self.stop()  # restarts with the calibrated model on the next refresh
+        try:
+            # features only: a network's batch norm re-estimated on a short earlier
+            # recording lost points on virtual people (benchmarks/bench_calibration.py)
+            samples = calibrate_to_session(self.model, path, batch_norm=False)
+        except UserError as exc:
+            self.message.setText(str(exc))
+            return False
+        self.message.setText("")
+        self.calibration_label.setText(f"calibrated to the person in {Path(path).name} "
+                                       f"({samples} windows)")
+        return True
 
     def load_run(self, path: str) -> bool:
         try:
@@ -93,6 +139,14 @@ class LiveInferencePanel(QWidget):
                                f"{d['fold']}, window {d['window']} frames, "
                                f"{len(d['labels'])} gestures")
         self.message.setText("")
+        self.calibrate_button.setEnabled(model.reads_person_features)
+        self.calibration_label.setText(
+            f"trained --adapt {d['adapt']}: {d['model']} needs the participant's own "
+            "statistics; calibrate on a recording of them first (Calibrate to person…)"
+            if model.needs_calibration else
+            "as trained, with the training people's statistics" if d["adapt"] == "none" else
+            "as trained, with the training people's batch-norm statistics (re-estimated on "
+            "a short earlier recording they cost points on virtual people)")
         self.timer.start()
         return True
 
@@ -103,7 +157,7 @@ class LiveInferencePanel(QWidget):
 
     def refresh(self) -> None:
         engine = self.engine_fn()
-        if self.model is None:
+        if self.model is None or self.model.needs_calibration:
             return
         if engine is None:
             self.message.setText("no device: connect one to predict")

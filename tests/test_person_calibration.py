@@ -1,0 +1,107 @@
+"""Calibrating a finished run to one person (learn/window_model.py ``calibrate``,
+playback/predictions.py): the session player and live inference meet a person as
+``--adapt person`` met each test person in evaluation. The calibrated model must predict
+that person's trials exactly as the run's stored (adapted) predictions do. Real folds,
+real tiny training, real session files."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.evaluate import load_run_data
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.playback import SessionPlayback
+from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time
+from tactile_studio.sensor.layout import get_layout
+
+GESTURES = ("Poke", "Heavy Pat", "Twist")
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    root = tmp_path_factory.mktemp("calibration")
+    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
+    for model, adapt in (("cnn1d", "person"), ("rf", "person"), ("rf", "none")):
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+                               preset="tiny", epochs=None if model == "rf" else 2, threads=1,
+                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt)
+        run_experiment(cfg, root / f"{model}_{adapt}")
+    return root
+
+
+def _person(run, person: str):
+    """(the person's trials, their rate, layout, stored probabilities per trial)."""
+    _, _, records, ds, _, _ = load_run_data(run, device="cpu")
+    rec = next(r for r in records if r["test_participants"] == [person])
+    owner = np.array(rec["predictions"]["owner"])
+    probs = np.array(rec["predictions"]["probs"])
+    trials = np.unique(owner)
+    stored = np.stack([probs[owner == t].mean(axis=0) for t in trials])
+    return ([ds.trials[t] for t in trials], float(ds.rates[trials[0]]),
+            get_layout(ds.layout), stored)
+
+
+@pytest.mark.parametrize("run", ["cnn1d_person", "rf_person"])
+def test_a_run_calibrated_to_a_person_predicts_as_its_evaluation_did(root, run):
+    windows, rate, layout, stored = _person(root / run, "P02")
+    model = WindowModel(root / run, "P02")
+    if run.startswith("rf"):  # its features need the person's statistics first
+        assert model.needs_calibration
+        with pytest.raises(UserError, match="calibrate it on a recording"):
+            model.predict_windows(layout, windows, rate)
+    else:
+        as_trained = model.predict_windows(layout, windows, rate)
+        assert not np.allclose(as_trained, stored, atol=1e-3)
+    assert model.calibrate(layout, windows, rate, "P02's trials") >= len(windows)
+    assert not model.needs_calibration
+    np.testing.assert_allclose(model.predict_windows(layout, windows, rate), stored, atol=1e-4)
+    assert model.describe()["calibrated_on"] == "P02's trials"
+    if run.startswith("cnn1d"):  # features only (live): the network keeps its statistics
+        model.calibrate(layout, windows, rate, batch_norm=False)
+        np.testing.assert_allclose(model.predict_windows(layout, windows, rate), as_trained)
+
+
+def test_calibrating_from_a_session_file_and_its_one_line_errors(root):
+    session = root / "data" / "P03.h5"
+    rf = WindowModel(root / "rf_person", "P03")
+    pb = SessionPlayback(session)
+    try:
+        counted = sum(t.status == "ok" for t in pb.trials)
+    finally:
+        pb.close()
+    assert calibrate_to_session(rf, session) == counted  # one feature row per trial
+    with pytest.raises(UserError, match="trained without --adapt"):
+        calibrate_to_session(WindowModel(root / "rf_none", "P03"), session)
+    windows, rate, layout, _ = _person(root / "cnn1d_person", "P03")
+    with pytest.raises(UserError, match="too short to calibrate"):
+        WindowModel(root / "cnn1d_person", "P03").calibrate(layout, windows[:1], rate, "x")
+
+
+def test_the_player_adapts_an_adapted_run_to_the_session_it_plays(root):
+    pb = SessionPlayback(root / "data" / "P01.h5")
+    try:
+        _, probs, _ = predictions_over_time(root / "rf_person", pb, hop=8)
+        _, plain, _ = predictions_over_time(root / "rf_none", pb, hop=8)
+    finally:
+        pb.close()
+    # rf_person predicts only once calibrated: the player calibrated it on the session
+    assert probs.shape == plain.shape and np.isfinite(probs).all()
+    np.testing.assert_allclose(probs.sum(axis=1), 1.0, atol=1e-5)
+
+
+def test_a_long_window_is_cut_as_the_run_cut_long_trials(tmp_path):
+    # 6 s performances: the run trained on 2 s windows of them, so a 6 s window predicts
+    # as the mean over its 2 s windows (the trial prediction evaluation made)
+    make_dataset_folder(tmp_path / "data", participants=3, blocks=1, gestures=GESTURES,
+                        repeats=3)
+    cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", protocol="lopo",
+                           preset="tiny", threads=1, cache_dir=str(tmp_path / "cache"))
+    run_experiment(cfg, tmp_path / "run")
+    windows, rate, layout, stored = _person(tmp_path / "run", "P01")
+    assert windows[0].shape[1] > 2.5 * 2 * rate  # long: several windows each
+    probs = WindowModel(tmp_path / "run", "P01").predict_windows(layout, windows, rate)
+    np.testing.assert_allclose(probs, stored, atol=1e-4)
