@@ -12,6 +12,9 @@ the rest are predicted
 * calibrated on the first K trials, for each K of ``--trials``,
 * adapted to the very trials it predicts (as many as the largest K by default: does
   adaptation gain from the person, or from seeing the test trials themselves?),
+* running: each trial predicted with the statistics of the person's last R trials up to
+  and including it (``--running R``; what live inference's "Adapt as they touch" does,
+  causal: nothing after the trial is used; ``--past-only``: the R trials before it),
 * adapted to the whole session (the evaluation's figure, a ceiling for calibration),
 
 all on the same held-out trials, pooled over every round and fold; each calibrated figure
@@ -19,7 +22,7 @@ is paired against "as trained" and against the whole session (Wilcoxon over part
 McNemar over trials; learn/stats.py).
 
 Run: .venv/bin/python benchmarks/bench_calibration.py RUN [RUN ...] [--trials 3 9 18]
-       [--against RUN]   (e.g. the plain rf of the same data, as trained)
+       [--running 9] [--against RUN]   (e.g. the plain rf of the same data, as trained)
 """
 
 from __future__ import annotations
@@ -44,7 +47,8 @@ def _order(uid: str) -> tuple[str, int]:
     return file, int(re.sub(r"\D.*", "", k) or 0)
 
 
-def replay(run: Path, ks: list[int]) -> tuple[str, dict[str, list[tuple[str, int, bool]]]]:
+def replay(run: Path, ks: list[int], running: int = 0, past_only: bool = False
+           ) -> tuple[str, dict[str, list[tuple[str, int, bool]]]]:
     """(model name, condition -> [(person, trial, right?)]) over every fold of ``run``."""
     config, _, records, ds, _, _ = load_run_data(run, device="cpu")
     layout, out = get_layout(ds.layout), {}
@@ -68,6 +72,16 @@ def replay(run: Path, ks: list[int]) -> tuple[str, dict[str, list[tuple[str, int
         for k in ks:
             model.calibrate(layout, [ds.trials[i] for i in own[:k]], rate, f"first {k}")
             score(f"first {k} trials", model)
+        if running:
+            right = []
+            last = 0 if past_only else 1  # the predicted trial among its statistics?
+            for p in range(max(ks), len(own)):
+                recent = own[max(0, p - running + last):p + last]
+                model.calibrate(layout, [ds.trials[i] for i in recent], rate, "running")
+                probs = model.predict_windows(layout, [ds.trials[own[p]]], rate)[0]
+                right.append(probs.argmax() == ds.labels[own[p]])
+            out.setdefault(f"running {running}{' past' if past_only else ''}", []).extend(
+                (f"{rec.get('round', 0)}:{person}", int(i), bool(r)) for i, r in zip(rest, right))
         model.calibrate(layout, windows, rate, "predicted")
         score("predicted trials", model)
         model.calibrate(layout, [ds.trials[i] for i in own], rate, "session")
@@ -98,6 +112,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--against", type=Path, default=None, metavar="RUN",
                     help="also pair every figure with this run as trained (e.g. the plain "
                          "rf of the same data)")
+    ap.add_argument("--running", type=int, default=0, metavar="R",
+                    help="also predict each trial adapted to the person's last R trials "
+                         "up to it (live's running adaptation)")
+    ap.add_argument("--past-only", action="store_true",
+                    help="running: the R trials before each predicted trial, without it")
     args = ap.parse_args(argv)
     ks = sorted(set(args.trials))
     against = replay(args.against, ks)[1]["as trained"] if args.against else None
@@ -106,13 +125,13 @@ def main(argv: list[str] | None = None) -> int:
           "paired: points (Wilcoxon over participants / McNemar over trials)")
     for run in args.runs:
         t0 = time.perf_counter()
-        name, out = replay(run, ks)
+        name, out = replay(run, ks, args.running, args.past_only)
         first = next(iter(out.values()))
         print(f"\n{name} ({run}): {len(first)} predictions of "
               f"{len({p for p, *_ in first})} person-rounds, {time.perf_counter() - t0:.0f} s")
         for cond, rows in out.items():
             line = f"  {cond:>16}  {np.mean([r for *_, r in rows]):.3f}"
-            if cond.startswith(("first", "predicted")):
+            if cond.startswith(("first", "predicted", "running")):
                 if "as trained" in out:
                     line += f"   vs as trained {paired(rows, out['as trained'])}"
                 line += f"   vs whole session {paired(rows, out['whole session'])}"

@@ -6,13 +6,18 @@ real tiny training, real session files."""
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from learn_fixtures import make_dataset_folder
 
+from tactile_studio.devices import create_device
+from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluate import load_run_data
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time
@@ -93,7 +98,7 @@ def test_the_player_adapts_an_adapted_run_to_the_session_it_plays(root):
     np.testing.assert_allclose(probs.sum(axis=1), 1.0, atol=1e-5)
 
 
-def test_a_long_window_is_cut_as_the_run_cut_long_trials(tmp_path):
+def test_a_long_window_is_cut_as_the_run_cut_long_trials(root, tmp_path):
     # 6 s performances: the run trained on 2 s windows of them, so a 6 s window predicts
     # as the mean over its 2 s windows (the trial prediction evaluation made)
     make_dataset_folder(tmp_path / "data", participants=3, blocks=1, gestures=GESTURES,
@@ -103,5 +108,86 @@ def test_a_long_window_is_cut_as_the_run_cut_long_trials(tmp_path):
     run_experiment(cfg, tmp_path / "run")
     windows, rate, layout, stored = _person(tmp_path / "run", "P01")
     assert windows[0].shape[1] > 2.5 * 2 * rate  # long: several windows each
-    probs = WindowModel(tmp_path / "run", "P01").predict_windows(layout, windows, rate)
-    np.testing.assert_allclose(probs, stored, atol=1e-4)
+    model = WindowModel(tmp_path / "run", "P01")
+    np.testing.assert_allclose(model.predict_windows(layout, windows, rate), stored, atol=1e-4)
+    # live, such a run predicts 2 s windows (as trained), not whole performances
+    assert model.window > 2.5 * model.window_for(rate) and model.window_for(rate) == \
+        round(2 * rate)
+    short = WindowModel(root / "rf_none", "P01")  # 2 s trials: a window is a trial
+    assert short.window_for(rate) == short.window
+
+
+def _until(step, done, seconds: float = 30.0):
+    """Steps live inference until ``done(result)``; the last result."""
+    deadline, got = time.monotonic() + seconds, None
+    while time.monotonic() < deadline:
+        got = step()
+        if done(got):
+            return got
+        time.sleep(0.02)
+    return got
+
+
+@pytest.mark.parametrize("run", ["rf_person", "cnn1d_person"])
+def test_each_live_window_meets_the_statistics_of_the_last_touches_and_itself(root, run):
+    pb = SessionPlayback(root / "data" / "P02.h5")
+    try:
+        layout, base = pb.layout, pb.session.baseline(0)
+        trials = [(pb.raw[t.start:t.end], t.end) for t in pb.trials][:5]
+    finally:
+        pb.close()
+    model = WindowModel(root / run, "P02")
+    decoded = [model.decode(layout, raw, base) for raw, _ in trials]
+    idle_raw = np.repeat(base[None], len(trials[2][0]), axis=0).astype(trials[2][0].dtype)
+    idle = model.decode(layout, idle_raw, base)
+    running = RunningCalibration(model, touches=4, minimum=3)
+    rate = 43.0
+
+    def meets(windows: list[np.ndarray]) -> None:
+        fresh = WindowModel(root / run, "P02")
+        fresh.calibrate(layout, windows, rate)
+        np.testing.assert_allclose(model.reference, fresh.reference)
+        probe = [decoded[0]]
+        np.testing.assert_allclose(model.predict_windows(layout, probe, rate),
+                                   fresh.predict_windows(layout, probe, rate), atol=1e-6)
+
+    for k in range(2):
+        running.prepare(layout, trials[k][0], base, decoded[k], trials[k][1], rate)
+    assert running.count == 2 and model.reference is None  # as trained until the third
+    running.prepare(layout, trials[2][0], base, decoded[2], trials[2][1], rate)
+    meets(decoded[:3])
+    # nobody touching: not kept, but that window is predicted with its own statistics
+    running.prepare(layout, idle_raw, base, idle, trials[2][1] + len(idle_raw), rate)
+    assert running.count == 3
+    meets(decoded[:3] + [idle])
+    for k in (3, 4):
+        running.prepare(layout, trials[k][0], base, decoded[k], trials[k][1], rate)
+    assert running.count == 4  # the last four touches
+    meets(decoded[1:5])
+    # a window overlapping the last touch by more than half: not kept, still among them
+    running.prepare(layout, trials[4][0], base, decoded[4], trials[4][1] + 1, rate)
+    assert running.count == 4
+    meets(decoded[2:5] + [decoded[4]])
+    if run.startswith("cnn1d"):  # the network's batch norm moved with them
+        assert model.fitted is not model.trained
+
+
+def test_live_adapts_to_whoever_touches_from_their_last_touches(root):
+    model = WindowModel(root / "rf_person")
+    engine = AcquisitionEngine(create_device("simulated", {"rate": "400", "gesture": "idle"}))
+    engine.start()
+    try:
+        running = RunningCalibration(model, touches=4, minimum=3)
+        inf = LiveInference(engine, model, adapting=running)
+        # nobody touches: nothing is kept, nothing predicted
+        _until(inf.step, lambda _: engine.frames > 3 * model.window)
+        assert running.count == 0 and model.needs_calibration and inf.latest is None
+        engine.device.set_gesture("Heavy Pat")
+        assert _until(inf.step, lambda p: p is not None) is not None, "no prediction in 30 s"
+        assert running.count >= 3 and not model.needs_calibration
+        assert model.calibrated_on == f"their last {running.count} touches"
+        _until(inf.step, lambda _: engine.frames > running.ends[-1] + 3 * model.window)
+        assert running.count == 4 and inf.error is None  # the last four touches only
+        assert np.diff(running.ends).min() >= model.window // 2  # overlapping by half at most
+    finally:
+        engine.stop()

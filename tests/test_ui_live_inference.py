@@ -96,6 +96,9 @@ def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbo
     try:
         panel = live_inference_dock(w).widget()
         assert panel.load_run(str(root / "rf_adapted"))
+        assert panel.running_box.isEnabled() and panel.running_box.isChecked()  # default
+        assert "from their own last touches" in panel.calibration_label.text()
+        panel.running_box.setChecked(False)
         assert "calibrate on a recording" in panel.calibration_label.text()
         panel.refresh()
         assert panel.inference is None  # its features need the person's statistics first
@@ -107,8 +110,15 @@ def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbo
                         timeout=40_000)
         assert panel.inference.error is None
         w.grab().save(str(SHOTS / "research_live_calibrated.png"))
+        # adapting as they touch instead: the first prediction after three touches
+        panel.running_box.setChecked(True)
+        assert panel.model.needs_calibration and panel.inference is None
+        qtbot.waitUntil(lambda: "their last" in panel.calibration_label.text()
+                        and panel.top() in GESTURES, timeout=40_000)
+        assert panel.inference.error is None and panel.inference.adapting.count >= 3
+        w.grab().save(str(SHOTS / "research_live_adapting.png"))
         assert panel.load_run(str(run))  # knn as trained: nothing to calibrate
-        assert not panel.calibrate_button.isEnabled()
+        assert not panel.calibrate_button.isEnabled() and not panel.running_box.isEnabled()
         assert "as trained" in panel.calibration_label.text()
     finally:
         panel.stop()

@@ -58,6 +58,15 @@ class WindowModel:
     def name(self) -> str:
         return self.run.name
 
+    def window_for(self, rate: float) -> int:
+        """Frames per live window at ``rate``: a typical trial, or the run's training
+        window when its trials were long (a 12 s performance is then predicted 2 s at a
+        time, as the run trained, not 12 s behind the touch)."""
+        if not rate > 0:  # rate not known yet
+            return self.window
+        w = self.spec.frames(rate)
+        return w if self.window > self.spec.long_factor * w else self.window
+
     @property
     def reads_person_features(self) -> bool:
         """An rf/knn (or fused forest) run trained with ``--adapt`` reads features
@@ -68,6 +77,13 @@ class WindowModel:
     def needs_calibration(self) -> bool:
         """True until a run that reads person features has been calibrated."""
         return self.reads_person_features and self.reference is None
+
+    @property
+    def adapts_as_they_touch(self) -> bool:
+        """Trained with ``--adapt`` and predicted window by window, so live inference can
+        adapt it to each window with the person's last touches (live_inference.py); a
+        streaming model's cached embeddings would go stale with every re-estimate."""
+        return self.config.adapt != "none" and not self.streams
 
     @property
     def can_calibrate(self) -> bool:
@@ -96,6 +112,10 @@ class WindowModel:
             fitted = fitted.adapted(self.learner.apply_norm(x, self.record["norm"]))
         self.fitted, self.reference, self.calibrated_on = fitted, reference, source
         return len(x)
+
+    def uncalibrate(self) -> None:
+        """Back to the model as trained (a running calibration starts from nothing)."""
+        self.fitted, self.reference, self.calibrated_on = self.trained, None, ""
 
     @property
     def streams(self) -> bool:

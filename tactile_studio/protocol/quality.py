@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tactile_studio.sensor.decode import contact_map, relative_change
+from tactile_studio.sensor.decode import contact_taxels, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
 
 FLAGS = ("no_contact", "saturated", "stuck_channel", "dropped_frames", "gap", "off_centre")
@@ -99,19 +99,6 @@ def _has_gap(device_time: np.ndarray | None, seq: np.ndarray | None, rate_hz: fl
         if (np.diff(np.asarray(device_time, dtype=np.float64)) > factor / rate_hz).any():
             return True
     return False
-
-
-def contact_taxels(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
-                   contact_rel: float = 0.015) -> np.ndarray:
-    """(T, R, C) bool. Capacitance arrays: any channel of the taxel ``contact_rel`` below
-    its baseline (finer than the old 0.97 rule, which misses light pokes); pressure
-    grids: the old rule (:func:`contact_map`)."""
-    if not layout.falls_under_load:
-        return contact_map(layout, raw, baseline)
-    rel = relative_change(layout, raw, baseline) > contact_rel
-    k = layout.channels_per_taxel
-    per_taxel = rel.reshape(rel.shape[0], layout.n_taxels, k).any(axis=2)
-    return per_taxel[:, layout.grid_index()]
 
 
 def load_centroid(layout: Layout, raw: np.ndarray, baseline: np.ndarray,

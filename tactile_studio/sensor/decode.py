@@ -179,6 +179,19 @@ def contact_map(layout: Layout, raw: np.ndarray, baseline: np.ndarray) -> np.nda
     return per_taxel[:, layout.grid_index()]
 
 
+def contact_taxels(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
+                   contact_rel: float = 0.015) -> np.ndarray:
+    """(T, R, C) bool. Capacitance arrays: any channel of the taxel ``contact_rel`` below
+    its baseline (finer than the old 0.97 rule, which misses light pokes); pressure
+    grids: the old rule (:func:`contact_map`)."""
+    if not layout.falls_under_load:
+        return contact_map(layout, raw, baseline)
+    rel = relative_change(layout, raw, baseline) > contact_rel
+    k = layout.channels_per_taxel
+    per_taxel = rel.reshape(rel.shape[0], layout.n_taxels, k).any(axis=2)
+    return per_taxel[:, layout.grid_index()]
+
+
 class FrameDecoder:
     """Decodes one frame at a time for a fixed layout, baseline and grid, fast.
 
