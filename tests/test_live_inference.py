@@ -14,7 +14,7 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.devices import create_device
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.live_inference import LiveInference
+from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.window_model import WindowModel
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
@@ -54,5 +54,29 @@ def test_windowed_torch_model_streams_and_matches_the_window_path(run):
         frames = model.decode(engine.layout, chunk.raw, engine.baseline)
         ref = model.predict_windows(engine.layout, [frames], 400.0)[0]
         np.testing.assert_allclose(pred.probs, ref, atol=1e-4)
+    finally:
+        engine.stop()
+
+
+def test_a_streaming_model_adapting_as_they_touch_predicts_window_by_window(run, tmp_path):
+    cfg = ExperimentConfig(data=[str(run.parent / "data")], model="cnn_transformer",
+                           protocol="lopo", preset="tiny", epochs=1, threads=1, device="cpu",
+                           channels="both", cache_dir=str(run.parent / "cache"), adapt="person")
+    run_experiment(cfg, tmp_path / "adapted")
+    model = WindowModel(tmp_path / "adapted")
+    assert model.streams and model.adapts_as_they_touch
+    engine = AcquisitionEngine(create_device("simulated", {"rate": "400", "gesture": "Twist"}))
+    engine.start()
+    try:
+        adapting = RunningCalibration(model, touches=3, minimum=2)
+        inf = LiveInference(engine, model, adapting=adapting)
+        assert inf.streamer is None  # each re-estimate would stale the cached embeddings
+        deadline = time.monotonic() + 30
+        while adapting.count < 3 and time.monotonic() < deadline:
+            pred = inf.step()
+            time.sleep(0.02)
+        assert adapting.count == 3 and pred is not None and inf.error is None
+        assert model.fitted is not model.trained  # its batch norm met the touches
+        assert pred.top3[0][0] in GESTURES
     finally:
         engine.stop()

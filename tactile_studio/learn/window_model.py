@@ -80,10 +80,10 @@ class WindowModel:
 
     @property
     def adapts_as_they_touch(self) -> bool:
-        """Trained with ``--adapt`` and predicted window by window, so live inference can
-        adapt it to each window with the person's last touches (live_inference.py); a
-        streaming model's cached embeddings would go stale with every re-estimate."""
-        return self.config.adapt != "none" and not self.streams
+        """Trained with ``--adapt``, so live inference can adapt it to each window with
+        the person's last touches (live_inference.py). A streaming model is then predicted
+        window by window: every re-estimate changes its cached per-frame embeddings."""
+        return self.config.adapt != "none"
 
     @property
     def can_calibrate(self) -> bool:

@@ -55,10 +55,13 @@ class LiveInferencePanel(QWidget):
         self.running_box.setToolTip(
             "A run trained with --adapt meets the participant with the statistics of their "
             "own last 9 touches, the window being predicted among them, from the eighth "
-            "touch on (no recording needed). On virtual people: networks 2.6-3.6 points "
-            "above their training statistics; rf/knn level with the plain forest.")
+            "touch on (no recording needed). On virtual people: cnn1d, cnn3d, sefusion "
+            "2.6-3.6 points above their training statistics (cnn_transformer 1.9, mts3d "
+            "-0.6); rf/knn level with the plain forest. Only while the participant varies "
+            "their gestures: touches that are all one gesture normalise it away (cnn1d "
+            "15% replayed).")
         self.running_box.setEnabled(False)
-        self.running_box.setChecked(self.settings.value(RUNNING_KEY, True, type=bool))
+        self.running_box.setChecked(self.settings.value(RUNNING_KEY, False, type=bool))
         self.run_label = QLabel("no run loaded")
         self.run_label.setWordWrap(True)
         self.calibration_label = QLabel("")
@@ -180,7 +183,8 @@ class LiveInferencePanel(QWidget):
         self.calibration_label.setText(
             f"trained --adapt {adapt}: {name} adapts to the participant from their own last "
             "touches as they go" + ("" if m.needs_calibration else " (as trained until "
-                                   "enough touches)") if self.adapts_as_they_touch else
+                                   "enough touches)") + "; they must vary their gestures"
+            if self.adapts_as_they_touch else
             f"trained --adapt {adapt}: {name} needs the participant's own statistics; "
             "calibrate on a recording of them (Calibrate to person…) or tick Adapt as they "
             "touch" if m.needs_calibration else
@@ -219,8 +223,8 @@ class LiveInferencePanel(QWidget):
         p, touches = inf.latest, inf.adapting
         if touches is not None and touches.count:
             self.calibration_label.setText(
-                f"adapting to the participant: their last {touches.count} touches"
-                if touches.count >= touches.minimum else
+                f"adapting to the participant: their last {touches.count} touches (they "
+                "must vary their gestures)" if touches.count >= touches.minimum else
                 f"adapting to the participant: {touches.count} of {touches.minimum} touches"
                 + (" before the first prediction" if self.model.needs_calibration else
                    ", as trained until then"))
