@@ -68,7 +68,7 @@ def test_a_streaming_model_adapting_as_they_touch_predicts_window_by_window(run,
     engine = AcquisitionEngine(create_device("simulated", {"rate": "400", "gesture": "Twist"}))
     engine.start()
     try:
-        adapting = RunningCalibration(model, touches=3, minimum=2)
+        adapting = RunningCalibration(model, touches=3, minimum=2, alike=1.0)  # one gesture
         inf = LiveInference(engine, model, adapting=adapting)
         assert inf.streamer is None  # each re-estimate would stale the cached embeddings
         deadline = time.monotonic() + 30

@@ -140,7 +140,7 @@ def test_each_live_window_meets_the_statistics_of_the_last_touches_and_itself(ro
     decoded = [model.decode(layout, raw, base) for raw, _ in trials]
     idle_raw = np.repeat(base[None], len(trials[2][0]), axis=0).astype(trials[2][0].dtype)
     idle = model.decode(layout, idle_raw, base)
-    running = RunningCalibration(model, touches=4, minimum=3)
+    running = RunningCalibration(model, touches=4, minimum=3, alike=1.0)  # unguarded
     rate = 43.0
 
     def meets(windows: list[np.ndarray]) -> None:
@@ -170,6 +170,39 @@ def test_each_live_window_meets_the_statistics_of_the_last_touches_and_itself(ro
     meets(decoded[2:5] + [decoded[4]])
     if run.startswith("cnn1d"):  # the network's batch norm moved with them
         assert model.fitted is not model.trained
+
+
+def test_live_adapts_only_while_no_one_gesture_fills_the_touches(root):
+    run = root / "cnn1d_person"
+    windows, rate, layout, _ = _person(run, "P02")
+    model = WindowModel(run, "P02")
+    seen = model.predict_windows(layout, windows, rate, as_trained=True).argmax(axis=1)
+    a, b = windows[0], next(w for w, s in zip(windows, seen) if s != seen[0])
+    alone = model.predict_windows(layout, [a], rate)
+    running = RunningCalibration(model, touches=4, minimum=3, alike=0.75)  # 3 of 4 at most
+    end = 0
+
+    def touch(window: np.ndarray) -> bool:
+        nonlocal end
+        end += 1000
+        running.keep(layout, window, end, rate)
+        running.adapt_for(layout, window, rate, kept=True)
+        return running.adapted
+
+    # one gesture again and again: its statistics would normalise it away
+    assert not any(touch(a) for _ in range(4))
+    assert running.count == 4 and running.most_alike == 4 and model.fitted is model.trained
+    np.testing.assert_allclose(model.predict_windows(layout, [a], rate), alone)
+    assert touch(b) and running.most_alike == 3  # another gesture among them: adapted
+    fresh = WindowModel(run, "P02")
+    fresh.calibrate(layout, [a, a, a, b], rate)
+    np.testing.assert_allclose(model.predict_windows(layout, [b], rate),
+                               fresh.predict_windows(layout, [b], rate), atol=1e-6)
+    assert [touch(a) for _ in range(4)] == [True, True, True, False]  # b has left the four
+    assert model.fitted is model.trained and model.calibrated_on == ""
+    # an rf trained with --adapt has no view as trained to judge the touches by
+    assert not RunningCalibration(WindowModel(root / "rf_person", "P02")).guarded
+    assert RunningCalibration(model).alike == pytest.approx(2 / 3)  # 3 gestures: 6 of 9
 
 
 def test_live_adapts_to_whoever_touches_from_their_last_touches(root):

@@ -50,47 +50,101 @@ class RunningCalibration:
     statistics (cnn_transformer 1.9, mts3d -0.6); the same trials without the predicted
     one among them gain nothing, and 4 (3 touches and the window) cost cnn1d 2.8 points.
     rf/knn stay within two points of the plain forest. Until ``minimum`` touches are in, a
-    network predicts as trained and rf/knn do not predict."""
+    network predicts as trained and rf/knn do not predict.
+
+    Statistics of one gesture repeated normalise that gesture away: replayed, free play
+    settling on one gesture costs cnn1d 24 points unguarded. So a network adapts only while
+    no one gesture, as the model as trained sees each touch when it is kept, is more than
+    a share ``alike`` of its last touches (a third; half of 4 gestures, all of 2), and
+    predicts as trained otherwise (replayed: that case level with as trained, a protocol of
+    shuffled gestures keeps its gain). ``variety`` K, the other guard measured (K different
+    gestures or more among them), is off. rf/knn trained with ``--adapt`` have no view as
+    trained to judge by: they are not guarded."""
 
     def __init__(self, model: WindowModel, touches: int = 9, minimum: int = 8,
-                 contact_share: float = 0.05) -> None:  # a light poke: ~5-15% of 2 s
+                 alike: float | None = None, variety: int = 0,
+                 contact_share: float = 0.05) -> None:
+        # contact_share: a light poke touches ~5-15% of a 2 s window
         self.model, self.minimum, self.contact_share = model, minimum, contact_share
+        if alike is None:
+            alike = max(1 / 3, 2 / max(1, len(model.labels)))
+        self.variety = 0 if model.reads_person_features else variety
+        self.alike = 1.0 if model.reads_person_features else alike
         self.windows: collections.deque[np.ndarray] = collections.deque(maxlen=touches)
         self.ends: collections.deque[int] = collections.deque(maxlen=touches)
+        self.seen_as: collections.deque[int] = collections.deque(maxlen=touches)
         self.rate = 0.0  # of the newest window, which every window is read at
+        self.adapted = False  # the last window was predicted adapted
 
     @property
     def count(self) -> int:
         return len(self.windows)
 
-    def take(self, layout, raw: np.ndarray, baseline: np.ndarray, frames: np.ndarray,
-             end: int) -> bool:
-        """Keeps decoded ``frames`` (C, N, R, X) ending at frame ``end`` as a touch when the
+    @property
+    def gestures(self) -> int:
+        """How many different gestures the kept touches look like as trained."""
+        return len(set(self.seen_as))
+
+    @property
+    def guarded(self) -> bool:
+        return bool(self.variety) or self.alike < 1
+
+    @property
+    def ready(self) -> bool:
+        """Enough touches, and (guarded) varied enough to adapt to."""
+        if self.count < self.minimum or (self.variety and self.gestures < self.variety):
+            return False
+        return self.most_alike <= self.alike * self.count + 1e-9
+
+    @property
+    def most_alike(self) -> int:
+        """How many of the kept touches look like the most common gesture as trained."""
+        return max(collections.Counter(self.seen_as).values()) if self.seen_as else 0
+
+    def is_touch(self, layout, raw: np.ndarray, baseline: np.ndarray, end: int) -> bool:
+        """Raw counts ``raw`` (N, channels) ending at frame ``end`` are a touch when the
         sensor was touched in ``contact_share`` of them and they overlap the last touch
         kept by at most half."""
-        if self.ends and end - self.ends[-1] < max(1, frames.shape[1] // 2):
+        if self.ends and end - self.ends[-1] < max(1, len(raw) // 2):
             return False
         touching = contact_taxels(layout, raw, baseline).any(axis=(1, 2))
-        if touching.mean() < self.contact_share:
-            return False
+        return bool(touching.mean() >= self.contact_share)
+
+    def keep(self, layout, frames: np.ndarray, end: int, rate: float) -> None:
+        """Keeps decoded ``frames`` (C, N, R, X) as a touch, with the gesture it looks like
+        to the model as trained when the touches are guarded."""
+        seen = -1
+        if self.guarded:
+            seen = int(self.model.predict_windows(layout, [frames], rate,
+                                                  as_trained=True)[0].argmax())
         self.windows.append(frames)
         self.ends.append(end)
-        return True
+        self.seen_as.append(seen)
 
-    def prepare(self, layout, raw: np.ndarray, baseline: np.ndarray, frames: np.ndarray,
-                end: int, rate: float) -> None:
-        """Before predicting the window ``frames``: keeps it if it is a touch, and once
-        ``minimum`` touches are in calibrates the model on the last touches with this
-        window among them."""
-        took = self.take(layout, raw, baseline, frames, end)
-        if self.count < self.minimum:
+    def adapt_for(self, layout, frames: np.ndarray, rate: float, kept: bool) -> None:
+        """Before predicting ``frames``: the model calibrated on the last touches with this
+        window among them (``kept``: it is the newest touch), or as trained when the
+        touches are too few or too alike."""
+        self.adapted = self.ready
+        if not self.adapted:
+            if self.model.calibrated_on.startswith("their last"):
+                self.model.uncalibrate()
             return
         recent = list(self.windows)
-        if not took:
+        if not kept:
             recent = recent[1:] + [frames] if self.count == self.windows.maxlen else \
                 recent + [frames]
         self.rate = rate
         self.model.calibrate(layout, recent, rate, f"their last {self.count} touches")
+
+    def prepare(self, layout, raw: np.ndarray, baseline: np.ndarray, frames: np.ndarray,
+                end: int, rate: float) -> None:
+        """Before predicting the window ``frames`` (decoded from ``raw``): keeps it if it
+        is a touch, and adapts the model for it."""
+        kept = self.is_touch(layout, raw, baseline, end)
+        if kept:
+            self.keep(layout, frames, end, rate)
+        self.adapt_for(layout, frames, rate, kept)
 
 
 class LiveInference:

@@ -145,19 +145,21 @@ class WindowModel:
         stack = frames.stack() if layout.has_shear else frames.normal[None]
         return np.ascontiguousarray(stack, dtype=np.float32)
 
-    def predict_windows(self, layout: Layout, windows: list[np.ndarray], rate: float
-                        ) -> np.ndarray:
-        """Probabilities (n_windows, n_classes) for decoded windows (C, N, R, X)."""
-        if self.needs_calibration:
+    def predict_windows(self, layout: Layout, windows: list[np.ndarray], rate: float,
+                        as_trained: bool = False) -> np.ndarray:
+        """Probabilities (n_windows, n_classes) for decoded windows (C, N, R, X), by the
+        model as calibrated (``as_trained``: with the training people's statistics)."""
+        if self.needs_calibration or (as_trained and self.reads_person_features):
             raise UserError(f"{self.run}: trained with --adapt {self.config.adapt}, so "
                             f"{self.config.model} reads features standardised by the "
                             "person's own statistics: calibrate it on a recording of them")
         x, owner = self._samples(layout, windows, rate)
-        if self.reference is not None:
+        if self.reference is not None and not as_trained:
             x = self.learner.adapt_inputs(x, np.zeros(len(x)), self.reference)
+        fitted = self.trained if as_trained else self.fitted
         probs = np.zeros((len(windows), len(self.labels)))
         for i in range(0, len(x), 256):
-            p = self.fitted.predict_proba(self.learner.apply_norm(x[i:i + 256],
+            p = fitted.predict_proba(self.learner.apply_norm(x[i:i + 256],
                                                                   self.record["norm"]))
             np.add.at(probs, owner[i:i + 256], p)
         return probs / np.maximum(np.bincount(owner, minlength=len(windows))[:, None], 1)

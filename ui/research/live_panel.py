@@ -57,11 +57,13 @@ class LiveInferencePanel(QWidget):
             "own last 9 touches, the window being predicted among them, from the eighth "
             "touch on (no recording needed). On virtual people: cnn1d, cnn3d, sefusion "
             "2.6-3.6 points above their training statistics (cnn_transformer 1.9, mts3d "
-            "-0.6); rf/knn level with the plain forest. Only while the participant varies "
-            "their gestures: touches that are all one gesture normalise it away (cnn1d "
-            "15% replayed).")
+            "-0.6); rf/knn level with the plain forest. A network stays as trained while "
+            "over a third of the touches look like one gesture (one gesture repeated would "
+            "be normalised away: cnn1d -24 points replayed unguarded, level with as trained "
+            "guarded); rf/knn have no view as trained to judge by, so with them the "
+            "participant must vary their gestures.")
         self.running_box.setEnabled(False)
-        self.running_box.setChecked(self.settings.value(RUNNING_KEY, False, type=bool))
+        self.running_box.setChecked(self.settings.value(RUNNING_KEY, True, type=bool))
         self.run_label = QLabel("no run loaded")
         self.run_label.setWordWrap(True)
         self.calibration_label = QLabel("")
@@ -222,12 +224,7 @@ class LiveInferencePanel(QWidget):
             return
         p, touches = inf.latest, inf.adapting
         if touches is not None and touches.count:
-            self.calibration_label.setText(
-                f"adapting to the participant: their last {touches.count} touches (they "
-                "must vary their gestures)" if touches.count >= touches.minimum else
-                f"adapting to the participant: {touches.count} of {touches.minimum} touches"
-                + (" before the first prediction" if self.model.needs_calibration else
-                   ", as trained until then"))
+            self.calibration_label.setText(self._touches_text(touches))
         if p is None:
             self.message.setText("waiting for the participant's first touches…"
                                  if touches is not None else
@@ -239,6 +236,21 @@ class LiveInferencePanel(QWidget):
             bar.setValue(round(100 * prob))
         self.latency.setText(f"latency {p.latency_ms:.0f} ms (model {p.compute_ms:.0f} ms) · "
                              f"{inf.count} prediction{'' if inf.count == 1 else 's'}")
+
+    def _touches_text(self, touches: RunningCalibration) -> str:
+        n, alike = touches.count, touches.most_alike
+        if n < touches.minimum:
+            return (f"adapting to the participant: {n} of {touches.minimum} touches"
+                    + (" before the first prediction" if self.model.needs_calibration else
+                       ", as trained until then"))
+        if not touches.guarded:
+            return f"adapted to their last {n} touches (they must vary their gestures)"
+        if not touches.ready:
+            return (f"as trained: {alike} of their last {n} touches look like one gesture "
+                    f"(adapts when no gesture is over {touches.alike:.0%} of them: one "
+                    "gesture repeated would be normalised away)")
+        return (f"adapted to their last {n} touches (varied: at most {alike} look like "
+                "one gesture)")
 
     def top(self) -> str:
         return self.rows[0][0].text()
