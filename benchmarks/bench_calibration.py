@@ -120,8 +120,8 @@ def replay(run: Path, ks: list[int], running: int = 0, past_only: bool = False,
     return config.model, out
 
 
-def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: Path
-             ) -> dict[str, list[tuple[str, int, bool]]]:
+def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: Path,
+             difficulty: str = "real") -> dict[str, list[tuple[str, int, bool]]]:
     """Free play settling on one gesture: each round-0 fold's test person touches with the
     last ``touches`` trials of their session (varied), then performs one gesture ``n``
     times (a new session of the same virtual person, learn_fixtures' ``repeats``); those
@@ -139,7 +139,7 @@ def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: P
         path = folder / f"{person}.h5"
         if not path.exists():
             write_participant(path, person, 100 + int(re.sub(r"\D", "", person)), blocks=1,
-                              repeats=n, difficulty="real", order=1)
+                              repeats=n, difficulty=difficulty, order=1)
         model = WindowModel(run, person, 0)
         pb = SessionPlayback(path)
         try:
@@ -189,7 +189,8 @@ def print_repeated(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory() as folder:
         for run in args.runs:
             t0 = time.perf_counter()
-            out = repeated(run, args.repeated, touches, tuple(args.guard), Path(folder))
+            out = repeated(run, args.repeated, touches, tuple(args.guard), Path(folder),
+                           args.difficulty)
             unguarded = out[f"running {touches}"]
             print(f"\n{run}: {len(unguarded)} windows of "
                   f"{len({p for p, *_ in unguarded})} people, {time.perf_counter() - t0:.0f} s")
@@ -224,6 +225,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeated", type=int, default=0, metavar="N",
                     help="also replay free play settling on one gesture: varied touches, "
                          "then one gesture N times (round 0; with --running, default 9)")
+    ap.add_argument("--difficulty", default="real",
+                    help="--repeated: the simulator population the runs' data was made at")
     args = ap.parse_args(argv)
     import torch
 

@@ -17,6 +17,7 @@ Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
        [--participants N] [--adapt [person|person-condition]] [--surfaces FLAT PILLOW]
+       [--difficulty easy|real|hard] [--augment SPEC [--augment-copies N]]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -29,7 +30,9 @@ rf; --keep DIR: keep the data and run folders there; --participants N: N virtual
 instead of 10, the first 10 the same as the default's; --adapt: every model trained and
 tested with --adapt person (or the mode named), paired against rf adapted the same way;
 --surfaces FLAT PILLOW: each participant records --blocks blocks on each surface, a session
-per surface, as in the real recordings.)
+per surface, as in the real recordings; --difficulty hard: the simulator's hardest
+population, where the plain rf scores about what it scores on real people; --augment
+scale,shift: the learned models train on augmented windows, rf on the windows as recorded.)
 """
 
 from __future__ import annotations
@@ -54,6 +57,7 @@ from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.fused import fuse  # noqa: E402
 from tactile_studio.learn.sweep import run_sweep  # noqa: E402
 from tactile_studio.learn.trialpreds import RunPredictions, load_predictions  # noqa: E402
+from tactile_studio.simulate.population import DIFFICULTIES  # noqa: E402
 
 MODELS = ["rf", "cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
 OPTIONS = {"augment": "all", "augment_copies": 2, "participant_norm": True, "balance": True,
@@ -138,6 +142,13 @@ def main(argv: list[str] | None = None) -> None:
                          "person-condition: per person and surface")
     ap.add_argument("--surfaces", nargs="*", default=[], metavar="SURFACE",
                     help="a session per participant and surface (FLAT, PILLOW)")
+    ap.add_argument("--augment", default="", metavar="SPEC",
+                    help="augment the training windows of the learned models (e.g. scale,shift "
+                         "or all; --augment-copies N), as train --augment does; rf and knn "
+                         "train on the windows as recorded")
+    ap.add_argument("--augment-copies", type=int, default=1)
+    ap.add_argument("--difficulty", default="real", choices=DIFFICULTIES,
+                    help="the simulator's population (hard: rf near real people's 51%%)")
     ap.add_argument("--keep", metavar="DIR", default=None,
                     help="write the data and every run folder here (kept, for "
                          "tactile-studio compare / trials) instead of a temporary folder")
@@ -145,32 +156,44 @@ def main(argv: list[str] | None = None) -> None:
     options = dict(OPTIONS) if args.options else {}
     if args.adapt:
         options["adapt"] = args.adapt
+    if args.augment:
+        options.update(augment=args.augment, augment_copies=args.augment_copies)
     sets = dict(item.split("=", 1) for item in args.set)
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
         data = Path(tmp) / "data"
         make_dataset_folder(data, participants=args.participants, blocks=args.blocks,
-                            difficulty="real", repeats=args.repeats,
+                            difficulty=args.difficulty, repeats=args.repeats,
                             conditions=tuple(s.upper() for s in args.surfaces))
         what = f"{args.blocks} trials" if args.repeats == 1 else \
             f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
         if args.surfaces:
             what += f" on each of {', '.join(s.upper() for s in args.surfaces)}"
-        print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty real, preset "
-              f"{args.preset}, {args.rounds} round(s), {args.jobs} workers"
+        print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty "
+              f"{args.difficulty}, preset {args.preset}, {args.rounds} round(s), "
+              f"{args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
                  "participant" if args.options else "")
               + (f", --adapt {args.adapt}" if args.adapt else "")
+              + (f", --augment {args.augment} x{args.augment_copies} (learned models)"
+                 if args.augment else "")
               + (f", --set {' '.join(args.set)}" if sets else ""))
         print(f"{'model':>16s}{'trial acc':>11s}{'trial f1':>9s}{'train s':>9s}{'wall s':>8s}"
               f"{'params':>9s}{'ms/trial':>10s}")
         runs: dict[str, str | None] = {}
         for model in args.models:
+            baseline = model in ("rf", "knn")
+            own = dict(options)
+            if baseline and (args.augment or args.adapt):
+                # the forest the learned models are measured against trains on the windows
+                # as recorded (and --adapt's per-person features refuse augmented windows)
+                own.pop("augment", None)
+                own.pop("augment_copies", None)
             base = ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
                                     preset=args.preset, rounds=args.rounds,
-                                    epochs=None if model in ("rf", "knn") else args.epochs,
-                                    overrides={} if model in ("rf", "knn") else sets,
-                                    cache_dir=str(Path(tmp) / "cache"), **options)
+                                    epochs=None if baseline else args.epochs,
+                                    overrides={} if baseline else sets,
+                                    cache_dir=str(Path(tmp) / "cache"), **own)
             t0 = time.perf_counter()
             with LocalExecutor(args.jobs) as ex:
                 res = run_sweep(base, [model], [None], ex, out=Path(tmp) / "sweeps" / model)
