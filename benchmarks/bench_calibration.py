@@ -47,6 +47,7 @@ from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.sensor.layout import get_layout
+from tactile_studio.simulate.population import DIFFICULTIES
 
 
 def _order(uid: str) -> tuple[str, int]:
@@ -225,7 +226,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeated", type=int, default=0, metavar="N",
                     help="also replay free play settling on one gesture: varied touches, "
                          "then one gesture N times (round 0; with --running, default 9)")
-    ap.add_argument("--difficulty", default="real",
+    ap.add_argument("--difficulty", default="real", choices=DIFFICULTIES,
                     help="--repeated: the simulator population the runs' data was made at")
     args = ap.parse_args(argv)
     import torch

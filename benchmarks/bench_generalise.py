@@ -51,6 +51,7 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
+from tactile_studio.learn.baselines import BASELINES  # noqa: E402
 from tactile_studio.learn.compare import compare_predictions, compare_runs  # noqa: E402
 from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
@@ -182,7 +183,7 @@ def main(argv: list[str] | None = None) -> None:
               f"{'params':>9s}{'ms/trial':>10s}")
         runs: dict[str, str | None] = {}
         for model in args.models:
-            baseline = model in ("rf", "knn")
+            baseline = model in BASELINES
             own = dict(options)
             if baseline and (args.augment or args.adapt):
                 # the forest the learned models are measured against trains on the windows
@@ -198,7 +199,7 @@ def main(argv: list[str] | None = None) -> None:
             with LocalExecutor(args.jobs) as ex:
                 res = run_sweep(base, [model], [None], ex, out=Path(tmp) / "sweeps" / model)
             wall = time.perf_counter() - t0
-            params, ms = ("-", float("nan")) if model in ("rf", "knn") else \
+            params, ms = ("-", float("nan")) if baseline else \
                 model_cost(model, args.preset, sets)
             for row in res.rows:
                 print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"

@@ -29,6 +29,7 @@ from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.augment import parse_kinds
+from tactile_studio.learn.baselines import BASELINES
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.fused import display_name, rf_weight
 from tactile_studio.learn.generalise import (
@@ -133,7 +134,7 @@ class ExperimentConfig:
                             "use it with a protocol that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
         if self.adapt != "none" and self.augment and (
-                self.model in ("rf", "knn") or rf_weight(self.overrides) > 0):
+                self.model in BASELINES or rf_weight(self.overrides) > 0):
             raise UserError(f"--adapt {self.adapt} standardises {self.model}'s features per "
                             "person; "
                             "it does not combine with --augment (augmented windows have no "
