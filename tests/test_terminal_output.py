@@ -112,6 +112,18 @@ def test_piped_commands_print_no_control_characters(tmp_path):
         capture_output=True, text=True, env=env, timeout=60).stdout
 
 
+def test_a_reader_that_goes_away_gets_no_traceback(tmp_path):
+    # `tactile-studio compare A B | head -3`: the pipe closes while we still print
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        proc = subprocess.run([sys.executable, "-m", "tactile_studio", "devices"],
+                              stdout=write, stderr=subprocess.PIPE, text=True, timeout=60)
+    finally:
+        os.close(write)
+    assert proc.returncode == 141 and proc.stderr == "", proc.stderr
+
+
 def test_info_json_is_unchanged_json(tmp_path, capsys):
     _session(tmp_path / "s.h5")
     assert main(["info", str(tmp_path / "s.h5"), "--json"]) == 0
