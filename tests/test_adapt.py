@@ -154,6 +154,32 @@ def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):
     assert "adapted to each person" in capsys.readouterr().out
 
 
+def test_train_adapts_networks_by_default_and_forests_only_when_asked(runs, capsys):
+    root = runs["root"]
+    args = ["train", "--data", str(root / "data"), "--model", "cnn1d", "--preset", "tiny",
+            "--epochs", "2", "--threads", "1", "--device", "cpu",
+            "--cache-dir", str(root / "cache"), "--out", str(root / "default")]
+    assert main(args) == 0
+    assert "adapted to each person" in capsys.readouterr().out
+    config = json.loads((root / "default" / "config.json").read_text())["config"]
+    assert config["adapt"] == "person"  # recorded as resolved: resumes and compares so
+    saved = json.loads((root / "default" / "metrics.json").read_text())
+    assert saved["confusion_counts"] == runs["net_adapted"].metrics["confusion_counts"]
+
+    def resolved(model: str, protocol: str = "lopo", **overrides) -> str:
+        cfg = ExperimentConfig(data=[], model=model, protocol=protocol, adapt="auto",
+                               overrides=overrides)
+        cfg.validate()
+        return cfg.resolved().adapt
+
+    assert resolved("cnn1d") == resolved("mts3d", "group-kfold") == "person"
+    assert resolved("rf") == resolved("knn") == "none"  # their gain: about nothing
+    assert resolved("cnn1d", rf_weight=0.5) == "none"  # a forest inside needs statistics
+    assert resolved("cnn1d", "all-inclusive") == "none"  # no held-out people to meet
+    explicit = ExperimentConfig(data=[], model="cnn1d", adapt="none")
+    assert explicit.resolved() is explicit
+
+
 def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
     root = runs["root"]
     code = main(["export-model", str(root / "net_adapted"), "--format", "onnx"])

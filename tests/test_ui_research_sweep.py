@@ -97,9 +97,11 @@ def test_local_sweep_shows_progress_table_and_runs(window, tmp_path, wait_until,
     # the table is the sweep's results.json, row for row
     saved = json.loads((out / "results.json").read_text())
     shown = _table(panel)
-    assert set(shown) == {(m, c) for m in ("rf", "knn") for c in ("normal", "shear")}
+    assert set(shown) == {(f"{m} (adapted)", c) for m in ("rf", "knn")
+                          for c in ("normal", "shear")}
     for row in saved["rows"]:
-        cells = shown[(row["model"], row["channels"])]
+        assert row["adapt"] == "person"
+        cells = shown[(row["name"], row["channels"])]
         assert cells["folds"] == "3/3"
         assert cells["accuracy"] == f"{100 * row['accuracy']:.1f}%"
         assert cells["trial acc."] == f"{100 * row['trial_accuracy']:.1f}%"

@@ -14,7 +14,9 @@ import pytest
 from learn_fixtures import make_dataset_folder, trial_record, write_participant
 from PySide6.QtCore import Qt
 
+from tactile_studio.ui.research.train_panel import TrainPanel
 from tactile_studio.ui.research.window import ResearchWindow
+from tactile_studio.ui.settings import app_settings
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
 # screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
@@ -31,6 +33,7 @@ def data(tmp_path_factory):
 @pytest.fixture
 def window(qtbot, monkeypatch, tmp_path):
     monkeypatch.setenv("TACTILE_STUDIO_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
     w = ResearchWindow()
     qtbot.addWidget(w)
     w.resize(1400, 820)
@@ -140,8 +143,11 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     window.sessions.set_folders([str(data / "data")])
     window.tabs.setCurrentWidget(window.train)
     panel = window.train
+    panel.model.setCurrentText("cnn1d")
+    assert panel.adapt.currentData() == "auto"  # networks adapt unless told otherwise
+    assert panel.config().resolved().adapt == "person"
     panel.model.setCurrentText("knn")
-    assert panel.config().adapt == "none"  # the standard figure unless asked
+    assert panel.config().resolved().adapt == "none"  # rf/knn: as trained unless asked
     panel.adapt.setCurrentIndex(panel.adapt.findData("person"))
     assert panel.config().adapt == "person"
     panel.out.setText(str(tmp_path / "adapted"))
@@ -149,5 +155,11 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
     metrics = json.loads((tmp_path / "adapted" / "metrics.json").read_text())
     assert metrics["adapt"] == "person" and len(metrics["per_fold"]) == 3
+    # the next time the panel opens, it offers what was last started
+    again = TrainPanel(lambda: [], app_settings())
+    assert again.model.currentText() == "knn" and again.adapt.currentData() == "person"
+    assert again.out.text() == str(tmp_path / "adapted")
+    assert again.preset.currentText() == panel.preset.currentText()
+    again.deleteLater()
     SHOTS.mkdir(parents=True, exist_ok=True)
     window.grab().save(str(SHOTS / "research_train_adapted.png"))

@@ -10,7 +10,7 @@ from typing import Any
 from tactile_studio.cli import tables
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.learn.generalise import ADAPT, ADAPT_PHRASE
+from tactile_studio.learn.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 
@@ -87,11 +87,13 @@ def add_generalisation_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
     p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
                    help="early stopping on training trials or on whole training participants")
-    p.add_argument("--adapt", choices=ADAPT, default="none",
+    p.add_argument("--adapt", choices=ADAPT_CHOICES, default=ADAPT_AUTO,
                    help="person: meet each test person on their own terms, from their own "
                         "unlabelled windows (networks re-estimate batch-norm statistics, "
                         "rf/knn standardise each person's features); person-condition: "
-                        "the same per person and session condition (surface)")
+                        "the same per person and session condition (surface); none: as "
+                        "trained; auto (default): person for a network under lopo or "
+                        "group-kfold, none for rf, knn and models fused with rf")
 
 
 def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:

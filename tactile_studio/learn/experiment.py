@@ -19,7 +19,7 @@ import platform
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import MISSING, asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +33,7 @@ from tactile_studio.learn.baselines import BASELINES
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.fused import display_name, rf_weight
 from tactile_studio.learn.generalise import (
-    ADAPT,
+    ADAPT_CHOICES,
     ADAPT_PHRASE,
     VAL_BY,
     adapt_groups,
@@ -41,6 +41,7 @@ from tactile_studio.learn.generalise import (
     balanced_index,
     participant_normalised,
     participant_val,
+    resolve_adapt,
 )
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
@@ -79,7 +80,9 @@ class ExperimentConfig:
     participant_norm: bool = False       # scale each participant to a typical person
     balance: bool = False                # repeat rarer classes' training samples
     val_by: str = "trial"                # validation: trials | whole training participants
-    adapt: str = "none"  # none | person | person-condition: each test person's own statistics
+    # none | person | person-condition: each test person's own statistics; auto: person
+    # for a network under lopo / group-kfold (train's default), resolved before a run
+    adapt: str = "none"
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -97,6 +100,17 @@ class ExperimentConfig:
         if "split" in known:
             known["split"] = tuple(known["split"])
         return cls(**known)
+
+    @property
+    def forest(self) -> bool:
+        """rf / knn, or a network fused with rf: features, not batch norm, adapt."""
+        return self.model in BASELINES or rf_weight(self.overrides) > 0
+
+    def resolved(self) -> ExperimentConfig:
+        """This config with ``adapt="auto"`` made concrete for its model and protocol
+        (generalise.resolve_adapt); what a run folder records and every fold reads."""
+        adapt = resolve_adapt(self.adapt, self.protocol, self.forest)
+        return self if adapt == self.adapt else replace(self, adapt=adapt)
 
     def validate(self) -> None:
         if self.protocol not in PROTOCOLS:
@@ -125,17 +139,17 @@ class ExperimentConfig:
         if self.val_by not in VAL_BY:
             raise UserError(f"unknown validation split {self.val_by!r} "
                             f"(available: {', '.join(VAL_BY)})")
-        if self.adapt not in ADAPT:
+        if self.adapt not in ADAPT_CHOICES:
             raise UserError(f"unknown adaptation {self.adapt!r} "
-                            f"(available: {', '.join(ADAPT)})")
-        if self.adapt != "none" and self.protocol == "all-inclusive":
-            raise UserError(f"--adapt {self.adapt} meets each test person with their own "
+                            f"(available: {', '.join(ADAPT_CHOICES)})")
+        adapt = self.resolved().adapt
+        if adapt != "none" and self.protocol == "all-inclusive":
+            raise UserError(f"--adapt {adapt} meets each test person with their own "
                             "session; "
                             "use it with a protocol that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
-        if self.adapt != "none" and self.augment and (
-                self.model in BASELINES or rf_weight(self.overrides) > 0):
-            raise UserError(f"--adapt {self.adapt} standardises {self.model}'s features per "
+        if adapt != "none" and self.augment and self.forest:
+            raise UserError(f"--adapt {adapt} standardises {self.model}'s features per "
                             "person; "
                             "it does not combine with --augment (augmented windows have no "
                             "person's statistics of their own)")
@@ -321,6 +335,7 @@ def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = Non
     """
     cancel = cancel or CancelToken()
     listener = listener or (lambda event: None)
+    config = config.resolved()
     config.validate()
     with _torch_threads(config.threads):
         return _run(config, out, progress, cancel, listener, model_spec, dataset)

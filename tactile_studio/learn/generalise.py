@@ -1,4 +1,5 @@
-"""Options that help a model hold on people it has never seen (all off by default).
+"""Options that help a model hold on people it has never seen (off by default, but for
+``adapt``: ``auto`` in train, sweep and the panels, so networks adapt).
 
 * ``augment`` — geometry-aware augmented copies of the *training* windows (see
   :mod:`tactile_studio.learn.augment`), ``augment_copies`` per window, made per fold
@@ -16,8 +17,11 @@
   knn (and a fused model's forest) see every person's features standardised by that
   person's own mean and spread, in training and at test alike. Like
   ``participant_norm`` it uses no labels, but it needs the person's whole session
-  (all gestures, roughly evenly, as a protocol session has), so it is for evaluating
-  recorded sessions, not for live use. ``adapt="person-condition"`` does the same per
+  (all gestures, roughly evenly, as a protocol session has); live, a network adapts
+  to the participant's last touches instead (``live_inference.RunningCalibration``).
+  ``adapt="auto"`` (what train, sweep and the panels choose unless told): ``person`` for
+  a network on held-out people, ``none`` for rf/knn and fused models and for
+  all-inclusive (``resolve_adapt``). ``adapt="person-condition"`` does the same per
   person *and* session condition (the surface, FLAT / PILLOW): a person's touches on a
   soft pillow are spread and damped against the same person's on a flat table, and one
   pooled set of statistics would carry that difference into every gesture.
@@ -38,6 +42,9 @@ from tactile_studio.learn.touch_stats import REAL, trial_stats
 
 VAL_BY = ("trial", "participant")
 ADAPT = ("none", "person", "person-condition")
+# what train, sweep and the panels choose unless told: networks adapt, forests do not
+ADAPT_AUTO = "auto"
+ADAPT_CHOICES = (ADAPT_AUTO, *ADAPT)
 # how titles, summaries and the GUI name an adaptation
 ADAPT_PHRASE = {"none": "as trained", "person": "adapted to each person",
                 "person-condition": "adapted to each person and condition"}
@@ -81,6 +88,18 @@ def person_standardised(x: np.ndarray, people: np.ndarray,
 def _standardised(x: np.ndarray, reference: np.ndarray) -> np.ndarray:
     mean, std = reference.mean(axis=0), reference.std(axis=0)
     return (x - mean) / np.where(std > 1e-9, std, 1.0)
+
+
+def resolve_adapt(adapt: str, protocol: str, forest: bool) -> str:
+    """``adapt`` made concrete: ``auto`` is ``person`` for a network evaluated on people it
+    never saw (lopo, group-kfold), else ``none``. ``forest``: rf/knn or a model fused with
+    rf, whose standardised features would need a person's statistics before predicting
+    anything live, for a gain measured at about nothing (docs/learning.md); a network
+    adapting gained 2-12 points on every simulated population and predicts as trained
+    until it has the person's touches."""
+    if adapt != ADAPT_AUTO:
+        return adapt
+    return "none" if forest or protocol == "all-inclusive" else "person"
 
 
 def adapt_groups(adapt: str, ds) -> np.ndarray | None:

@@ -132,7 +132,8 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     tasks: dict[str, tuple[dict[str, Any], float]] = {}
     for model in models:
         for channels in channel_sets:
-            cfg = replace(base, model=model, channels=full.resolve_channels(channels))
+            cfg = replace(base, model=model,
+                          channels=full.resolve_channels(channels)).resolved()
             learner = make_learner(model, cfg.preset, cfg.overrides, cfg.epochs, cfg.device)
             learner.check(DataInfo.of(full.select(cfg.channels)))
             key = f"{model}/{cfg.channels}"
@@ -252,9 +253,11 @@ def _group_row(g: dict[str, Any], records: dict[str, dict[str, Any]], labels: li
     cfg: ExperimentConfig = g["config"]
     recs = sorted((records[t] for t in g["ids"] if t in records),
                   key=lambda r: (r["round"], r["fold"]))
-    row: dict[str, Any] = {"model": cfg.model, "name": display_name(cfg.model, cfg.overrides),
-                           "channels": cfg.channels, "folds_done": len(recs),
-                           "folds": len(g["ids"])}
+    name = display_name(cfg.model, cfg.overrides)
+    row: dict[str, Any] = {"model": cfg.model,  # each test person met on their own terms?
+                           "name": name if cfg.adapt == "none" else f"{name} (adapted)",
+                           "adapt": cfg.adapt, "channels": cfg.channels,
+                           "folds_done": len(recs), "folds": len(g["ids"])}
     if not recs:
         return row, None, recs
     header = run_header(cfg, cfg.channels, g["windowed"])
@@ -282,7 +285,8 @@ def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]]
     if folder is not None:
         write_json(folder / "results.json", {"complete": complete, "rows": rows,
                                              "metrics": metrics})
-        cols = ["model", "name", "channels", "folds_done", "folds", *TABLE_KEYS, "train_seconds"]
+        cols = ["model", "name", "adapt", "channels", "folds_done", "folds", *TABLE_KEYS,
+                "train_seconds"]
         with open(folder / "results.csv", "w", newline="") as fh:
             w = csv.DictWriter(fh, cols, extrasaction="ignore")
             w.writeheader()

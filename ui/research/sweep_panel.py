@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
 from tactile_studio.ui.research.choices import adapt_combo
@@ -220,7 +221,7 @@ class SweepPanel(QWidget):
         self.set_models(get_json(s, KEY + "models", ["rf", "knn"]))
         self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
         for key, combo, default in (("executor", self.executor, "local"),
-                                    ("adapt", self.adapt, "none")):
+                                    ("adapt", self.adapt, ADAPT_AUTO)):
             combo.setCurrentIndex(max(0, combo.findData(str(s.value(KEY + key, default)))))
         self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
         self.address.setText(str(s.value(KEY + "address", "") or ""))

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import pyqtgraph as pg
-from PySide6.QtCore import QTimer, Signal
+from PySide6.QtCore import QSettings, QTimer, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QFormLayout,
@@ -28,13 +28,16 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.train_job import TrainJob, model_settings
 from tactile_studio.ui.research.choices import adapt_combo
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
+from tactile_studio.ui.settings import app_settings, get_json, set_json
 
 FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy", "status"]
+KEY = "research/train/"
 
 
 def _typed(text: str, default: Any) -> Any:
@@ -52,9 +55,11 @@ class TrainPanel(QWidget):
     sweepRequested = Signal(str, str)  # model, channel set: continue in the Sweep tab
     error = Signal(str)
 
-    def __init__(self, data_paths: Callable[[], list[str]], parent: QWidget | None = None) -> None:
+    def __init__(self, data_paths: Callable[[], list[str]], settings: QSettings | None = None,
+                 parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.data_paths = data_paths
+        self.settings = settings or app_settings()
         self.job: TrainJob | None = None
         self.queue: list[tuple[ExperimentConfig, str]] = []
         self.ablation: list[str] = []
@@ -142,10 +147,37 @@ class TrainPanel(QWidget):
         self.ablate_button.clicked.connect(self.start_ablation)
         self.sweep_button.clicked.connect(lambda: self.sweepRequested.emit(
             self.model.currentText(), self.channels.currentText()))
+        self._load_settings()
         self.fill_options()
         self._set_running(False)
 
     # --- setup -------------------------------------------------------------------------
+    def _text_choices(self) -> tuple[tuple[str, QComboBox], ...]:
+        return (("model", self.model), ("preset", self.preset), ("channels", self.channels),
+                ("grid", self.grid), ("protocol", self.protocol))
+
+    def _load_settings(self) -> None:
+        """The choices of the last run started here (a name no longer offered is skipped)."""
+        s = self.settings
+        for key, combo in self._text_choices():
+            saved = s.value(KEY + key)
+            if saved and combo.findText(str(saved)) >= 0:
+                combo.setCurrentText(str(saved))
+        saved = str(s.value(KEY + "adapt", ADAPT_AUTO))
+        self.adapt.setCurrentIndex(max(0, self.adapt.findData(saved)))
+        self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
+        self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
+        self.out.setText(str(s.value(KEY + "out", "") or ""))
+
+    def save_settings(self) -> None:
+        s = self.settings
+        for key, combo in self._text_choices():
+            s.setValue(KEY + key, combo.currentText())
+        s.setValue(KEY + "adapt", self.adapt.currentData())
+        set_json(s, KEY + "rounds", self.rounds.value())
+        set_json(s, KEY + "epochs", self.epochs.value())
+        s.setValue(KEY + "out", self.out.text().strip())
+
     def fill_options(self) -> None:
         try:
             rows = model_settings(self.model.currentText(), self.preset.currentText())
@@ -200,6 +232,7 @@ class TrainPanel(QWidget):
             self.error.emit(str(exc))
             return False
         self.ablation = []
+        self.save_settings()
         return self._next()
 
     def start_ablation(self) -> bool:
@@ -211,6 +244,7 @@ class TrainPanel(QWidget):
             self.error.emit(str(exc))
             return False
         self.ablation = [out for _, out in self.queue]
+        self.save_settings()
         return self._next()
 
     def _next(self) -> bool:
