@@ -15,6 +15,7 @@ from importlib import resources
 from typing import Any
 
 from PySide6.QtCore import QSettings
+from PySide6.QtWidgets import QComboBox
 
 ORGANISATION = "TactileStudio"
 APPLICATION = "Tactile Studio"
@@ -45,6 +46,18 @@ def get_json(settings: QSettings, key: str, default: Any = None) -> Any:
 
 def set_json(settings: QSettings, key: str, value: Any) -> None:
     settings.setValue(key, json.dumps(value))
+
+
+def restore_text(settings: QSettings, key: str, combo: QComboBox) -> None:
+    """Select the text saved at ``key`` (a name no longer offered keeps the current one)."""
+    saved = settings.value(key)
+    if saved and combo.findText(str(saved)) >= 0:
+        combo.setCurrentText(str(saved))
+
+
+def restore_data(settings: QSettings, key: str, combo: QComboBox, default: str) -> None:
+    """Select the item whose data was saved at ``key`` (else ``default``'s, else the first)."""
+    combo.setCurrentIndex(max(0, combo.findData(str(settings.value(key, default)))))
 
 
 def style_sheet() -> str:

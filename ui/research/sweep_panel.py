@@ -38,7 +38,13 @@ from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
 from tactile_studio.ui.research.choices import adapt_combo
 from tactile_studio.ui.research.tables import fill_row, make_table
-from tactile_studio.ui.settings import app_settings, get_json, set_json
+from tactile_studio.ui.settings import (
+    app_settings,
+    get_json,
+    restore_data,
+    restore_text,
+    set_json,
+)
 
 RESULT_COLUMNS = ["model", "channels", "folds", "accuracy", "trial acc.", "macro F1",
                   "bal. acc.", "kappa", "train s"]
@@ -222,13 +228,11 @@ class SweepPanel(QWidget):
         self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
         for key, combo, default in (("executor", self.executor, "local"),
                                     ("adapt", self.adapt, ADAPT_AUTO)):
-            combo.setCurrentIndex(max(0, combo.findData(str(s.value(KEY + key, default)))))
+            restore_data(s, KEY + key, combo, default)
         self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
         self.address.setText(str(s.value(KEY + "address", "") or ""))
         for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
-            saved = s.value(KEY + key)
-            if saved and combo.findText(str(saved)) >= 0:
-                combo.setCurrentText(str(saved))
+            restore_text(s, KEY + key, combo)
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
 
     def save_settings(self) -> None:

@@ -34,7 +34,13 @@ from tactile_studio.learn.train_job import TrainJob, model_settings
 from tactile_studio.ui.research.choices import adapt_combo
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
-from tactile_studio.ui.settings import app_settings, get_json, set_json
+from tactile_studio.ui.settings import (
+    app_settings,
+    get_json,
+    restore_data,
+    restore_text,
+    set_json,
+)
 
 FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy", "status"]
 KEY = "research/train/"
@@ -160,11 +166,8 @@ class TrainPanel(QWidget):
         """The choices of the last run started here (a name no longer offered is skipped)."""
         s = self.settings
         for key, combo in self._text_choices():
-            saved = s.value(KEY + key)
-            if saved and combo.findText(str(saved)) >= 0:
-                combo.setCurrentText(str(saved))
-        saved = str(s.value(KEY + "adapt", ADAPT_AUTO))
-        self.adapt.setCurrentIndex(max(0, self.adapt.findData(saved)))
+            restore_text(s, KEY + key, combo)
+        restore_data(s, KEY + "adapt", self.adapt, ADAPT_AUTO)
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
         self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
         self.out.setText(str(s.value(KEY + "out", "") or ""))
