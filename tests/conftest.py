@@ -14,8 +14,33 @@ os.environ.setdefault("TACTILE_STUDIO_TESTING", "1")
 _APPDIRS = tempfile.mkdtemp(prefix="tactile-studio-appdirs-")
 for _name in ("DATA", "CACHE", "CONFIG"):
     os.environ.setdefault(f"TACTILE_STUDIO_{_name}_DIR", os.path.join(_APPDIRS, _name.lower()))
-# Lab Streaming Layer: loopback only, a session ID of its own (read when liblsl loads)
-os.environ.setdefault("LSLAPICFG", os.path.join(os.path.dirname(__file__), "lsl_api.cfg"))
+# Lab Streaming Layer: loopback only, a session ID of its own (read when liblsl loads);
+# under pytest-xdist one per worker, so one worker's streams never answer another's resolve
+_LSL_CFG = os.path.join(os.path.dirname(__file__), "lsl_api.cfg")
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
+if _WORKER:
+    _worker_cfg = os.path.join(_APPDIRS, "lsl_api.cfg")
+    with open(_LSL_CFG) as src, open(_worker_cfg, "w") as dst:
+        dst.write(src.read().replace("SessionID = tactile-studio-tests",
+                                     f"SessionID = tactile-studio-tests-{_WORKER}"))
+    _LSL_CFG = _worker_cfg
+os.environ.setdefault("LSLAPICFG", _LSL_CFG)
+
+# test files that start a local Ray instance: one worker runs them all, one after another
+_RAY_FILES = {"test_sweep.py", "test_ui_research_sweep.py"}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_xdist_make_scheduler(config, log):
+    """Whole files per worker (module fixtures are built once), the Ray files together."""
+    from xdist.scheduler import LoadFileScheduling
+
+    class FilesRayTogether(LoadFileScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "ray" if os.path.basename(path) in _RAY_FILES else path
+
+    return FilesRayTogether(config, log)
 
 
 
