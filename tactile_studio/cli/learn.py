@@ -13,6 +13,8 @@ from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.learn.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
+PRESET_HELP = ("full (default): each model's recipe for unseen people; tiny: the "
+               "CPU-test size, under rf on hard virtual people (docs/learning.md)")
 
 
 def _Bar(label: str) -> TerminalProgress:  # noqa: N802 - used like the class it was
@@ -58,7 +60,7 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                    help="evaluation protocol (default lopo)")
     p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")
     p.add_argument("--epochs", type=int, default=None, help="maximum epochs (default: the model's)")
-    p.add_argument("--preset", choices=("full", "tiny"), default="full")
+    p.add_argument("--preset", choices=("full", "tiny"), default="full", help=PRESET_HELP)
     p.add_argument("--set", dest="sets", nargs="+", action="extend", metavar="KEY=VALUE",
                    help="training options (lr, batch_size, patience, optimizer, weight_decay, "
                         "momentum) and model options")
