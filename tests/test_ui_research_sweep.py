@@ -82,6 +82,7 @@ def _table(panel: SweepPanel) -> dict[tuple[str, str], dict[str, str]]:
 def test_local_sweep_shows_progress_table_and_runs(window, tmp_path, wait_until, qtbot):
     panel = window.sweep
     out = tmp_path / "sweep"
+    assert panel.preset.currentText() == "full"  # as the CLI: the recipe for unseen people
     _choose(panel, out, ["rf", "knn"], ["normal", "shear"])
     panel.adapt.setCurrentIndex(panel.adapt.findData("person"))  # each test person's own
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)

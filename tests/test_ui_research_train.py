@@ -50,6 +50,8 @@ def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     window.tabs.setCurrentWidget(window.train)
     panel = window.train
     panel.model.setCurrentText("cnn1d")
+    assert panel.preset.currentText() == "full"  # as the CLI: the recipe for unseen people
+    panel.preset.setCurrentText("tiny")
     panel.protocol.setCurrentText("lopo")
     panel.epochs.setValue(30)
     assert panel.options.rowCount() > 3  # the registry's options with help
@@ -95,6 +97,7 @@ def test_one_click_ablation_and_bad_input(window, data, qtbot, tmp_path):
     window.sessions.set_folders([str(data / "data")])
     panel = window.train
     panel.model.setCurrentText("knn")
+    panel.preset.setCurrentText("tiny")
     panel.out.setText(str(tmp_path / "abl"))
     qtbot.mouseClick(panel.ablate_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: window.compare.result is not None, timeout=240_000)
@@ -149,6 +152,7 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     panel.model.setCurrentText("knn")
     assert panel.config().resolved().adapt == "none"  # rf/knn: as trained unless asked
     panel.adapt.setCurrentIndex(panel.adapt.findData("person"))
+    panel.preset.setCurrentText("tiny")
     assert panel.config().adapt == "person"
     panel.out.setText(str(tmp_path / "adapted"))
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
@@ -159,7 +163,7 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     again = TrainPanel(lambda: [], app_settings())
     assert again.model.currentText() == "knn" and again.adapt.currentData() == "person"
     assert again.out.text() == str(tmp_path / "adapted")
-    assert again.preset.currentText() == panel.preset.currentText()
+    assert again.preset.currentText() == "tiny"
     again.deleteLater()
     SHOTS.mkdir(parents=True, exist_ok=True)
     window.grab().save(str(SHOTS / "research_train_adapted.png"))

@@ -23,3 +23,15 @@ def adapt_combo() -> QComboBox:
                      "The default adapts networks only: they gained 2-12 points, "
                      "rf/knn about nothing")
     return combo
+
+
+def preset_combo() -> QComboBox:
+    """The model size: ``full`` (the default, as in the CLI) or ``tiny``."""
+    combo = QComboBox()
+    combo.addItems(["full", "tiny"])
+    combo.setItemData(0, "each model's recipe for unseen people (the figures in "
+                         "docs/learning.md)", 3)  # tooltip role
+    combo.setItemData(1, "the CPU-test size: quick, but under the random forest on hard "
+                         "virtual people and on the real recordings", 3)
+    combo.setToolTip("full: each model's recipe for unseen people; tiny: the CPU-test size")
+    return combo

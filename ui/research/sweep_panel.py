@@ -36,7 +36,7 @@ from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
-from tactile_studio.ui.research.choices import adapt_combo
+from tactile_studio.ui.research.choices import adapt_combo, preset_combo
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import (
     app_settings,
@@ -91,8 +91,7 @@ class SweepPanel(QWidget):
         for box in self.channel_boxes.values():
             channels.addWidget(box)
         channels.addStretch(1)
-        self.preset = QComboBox()
-        self.preset.addItems(["tiny", "full"])
+        self.preset = preset_combo()
         self.protocol = QComboBox()
         self.protocol.addItems(["lopo", "group-kfold", "all-inclusive"])
         self.rounds = QSpinBox()

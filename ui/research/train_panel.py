@@ -31,7 +31,7 @@ from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.train_job import TrainJob, model_settings
-from tactile_studio.ui.research.choices import adapt_combo
+from tactile_studio.ui.research.choices import adapt_combo, preset_combo
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
 from tactile_studio.ui.settings import (
@@ -77,8 +77,7 @@ class TrainPanel(QWidget):
             self.model.addItem(name)
             self.model.setItemData(self.model.count() - 1, text, 3)  # tooltip role
         self.model.setCurrentText("cnn1d")
-        self.preset = QComboBox()
-        self.preset.addItems(["tiny", "full"])
+        self.preset = preset_combo()
         self.channels = QComboBox()
         self.channels.addItems(["both", "normal", "shear"])
         self.grid = QComboBox()
