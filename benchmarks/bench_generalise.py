@@ -53,6 +53,7 @@ from learn_fixtures import make_dataset_folder  # noqa: E402
 
 from tactile_studio.learn.baselines import BASELINES  # noqa: E402
 from tactile_studio.learn.compare import compare_predictions, compare_runs  # noqa: E402
+from tactile_studio.learn.contract import PRESETS  # noqa: E402
 from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.fused import fuse  # noqa: E402
@@ -122,7 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--models", nargs="+", default=MODELS)
-    ap.add_argument("--preset", default="full", choices=("full", "tiny"))
+    ap.add_argument("--preset", default=PRESETS[0], choices=PRESETS)
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--options", action="store_true")
     ap.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")

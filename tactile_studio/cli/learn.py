@@ -10,6 +10,7 @@ from typing import Any
 from tactile_studio.cli import tables
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.learn.contract import PRESETS
 from tactile_studio.learn.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
@@ -60,7 +61,7 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                    help="evaluation protocol (default lopo)")
     p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")
     p.add_argument("--epochs", type=int, default=None, help="maximum epochs (default: the model's)")
-    p.add_argument("--preset", choices=("full", "tiny"), default="full", help=PRESET_HELP)
+    p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
     p.add_argument("--set", dest="sets", nargs="+", action="extend", metavar="KEY=VALUE",
                    help="training options (lr, batch_size, patience, optimizer, weight_decay, "
                         "momentum) and model options")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from tactile_studio.cli.learn import (
     PRESET_HELP,
+    PRESETS,
     PROTOCOL_CHOICES,
     _add_data_options,
     _Bar,
@@ -59,7 +60,7 @@ def register(subparsers) -> None:
                    help="channel sets (default all: every channel the data has)")
     p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo")
     p.add_argument("--rounds", type=int, default=1)
-    p.add_argument("--preset", choices=("full", "tiny"), default="full", help=PRESET_HELP)
+    p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
     p.add_argument("--epochs", type=int, default=None)
     p.add_argument("--set", dest="sets", nargs="+", action="extend", metavar="KEY=VALUE",
                    help="options applied to every model")

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.contract import PRESETS
 
 BASELINES = ("rf", "knn")
 MODEL_FILE = "model.onnx"
@@ -43,8 +44,8 @@ OPTION_HELP: dict[str, dict[str, str]] = {
 
 def baseline_options(name: str, preset: str, overrides: dict[str, Any]) -> dict[str, Any]:
     """Preset options with ``overrides`` applied (unknown key or bad value -> UserError)."""
-    if preset not in ("full", "tiny"):
-        raise UserError(f"unknown preset '{preset}' (available: full, tiny)")
+    if preset not in PRESETS:
+        raise UserError(f"unknown preset '{preset}' (available: {', '.join(PRESETS)})")
     options = dict(_OPTIONS[name][preset])
     for key, value in overrides.items():
         if key not in options:

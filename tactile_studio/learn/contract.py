@@ -20,6 +20,9 @@ import numpy as np
 
 from tactile_studio.jobs import CancelToken
 
+# every learner, network or baseline, comes in these sizes; full is the default
+PRESETS = ("full", "tiny")
+
 
 @dataclass(frozen=True)
 class DataInfo:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox
 
+from tactile_studio.learn.contract import PRESETS
 from tactile_studio.learn.generalise import ADAPT_AUTO, ADAPT_PHRASE
 
 
@@ -28,7 +29,7 @@ def adapt_combo() -> QComboBox:
 def preset_combo() -> QComboBox:
     """The model size: ``full`` (the default, as in the CLI) or ``tiny``."""
     combo = QComboBox()
-    combo.addItems(["full", "tiny"])
+    combo.addItems(list(PRESETS))  # full first: the default
     combo.setItemData(0, "each model's recipe for unseen people (the figures in "
                          "docs/learning.md)", 3)  # tooltip role
     combo.setItemData(1, "the CPU-test size: quick, but under the random forest on hard "

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import torch
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.contract import PRESETS
 
-PRESETS = ("full", "tiny")
 VIEW_KINDS = ("resample", "windows", "slices", "gradient")
 EXPORT_FORMATS = ("onnx", "torchscript")
 INT8_FORMATS = ("qoperator", "qdq")
