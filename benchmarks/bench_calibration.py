@@ -8,7 +8,8 @@ recording made before (Live inference > "Calibrate to person…", learn/window_m
 person, the person's first K trials (in recording order) are the calibration recording and
 the rest are predicted
 
-* as trained (no calibration; not possible for rf/knn trained with --adapt),
+* as trained (no calibration; rf/knn trained with --adapt: standardised by the training
+  people's pooled statistics, not possible for runs from before those were kept),
 * calibrated on the first K trials, for each K of ``--trials``,
 * adapted to the very trials it predicts (as many as the largest K by default: does
   adaptation gain from the person, or from seeing the test trials themselves?),
@@ -23,7 +24,9 @@ is paired against "as trained" and against the whole session (Wilcoxon over part
 McNemar over trials; learn/stats.py).
 
 ``--repeated N`` instead replays free play settling on one gesture (function
-``repeated``), where unguarded running statistics normalise the gesture away.
+``repeated``), where unguarded running statistics normalise the gesture away; with
+``--against RUN`` that run predicts the same windows as trained (e.g. the plain rf beside
+an rf trained with --adapt).
 
 Run: .venv/bin/python benchmarks/bench_calibration.py RUN [RUN ...] [--trials 3 9 18]
        [--running 9] [--guard a0.34 v5] [--against RUN]   (e.g. the plain rf, as trained)
@@ -122,12 +125,14 @@ def replay(run: Path, ks: list[int], running: int = 0, past_only: bool = False,
 
 
 def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: Path,
-             difficulty: str = "real") -> dict[str, list[tuple[str, int, bool]]]:
+             difficulty: str = "real", against: Path | None = None
+             ) -> dict[str, list[tuple[str, int, bool]]]:
     """Free play settling on one gesture: each round-0 fold's test person touches with the
     last ``touches`` trials of their session (varied), then performs one gesture ``n``
     times (a new session of the same virtual person, learn_fixtures' ``repeats``); those
     ``n`` windows are predicted as trained and adapting as they touch, unguarded and with
-    each ``guards`` (see main)."""
+    each ``guards`` (see main); ``against``: also that run's fold model for the person, as
+    trained (e.g. the plain rf of the same data, for runs that cannot predict as trained)."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
     from learn_fixtures import write_participant
 
@@ -142,6 +147,7 @@ def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: P
             write_participant(path, person, 100 + int(re.sub(r"\D", "", person)), blocks=1,
                               repeats=n, difficulty=difficulty, order=1)
         model = WindowModel(run, person, 0)
+        plain = WindowModel(against, person, 0) if against is not None else None
         pb = SessionPlayback(path)
         try:
             base = pb.session.baseline(0)
@@ -154,6 +160,8 @@ def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: P
             per = frames.shape[1] // n
             windows = [frames[:, k * per:(k + 1) * per] for k in range(n)]
             conds = {}
+            if against is not None:
+                conds["--against"] = plain.predict_windows(layout, windows, rate).argmax(axis=1)
             if not model.needs_calibration:
                 model.uncalibrate()
                 conds["as trained"] = model.predict_windows(layout, windows, rate).argmax(axis=1)
@@ -191,7 +199,7 @@ def print_repeated(args: argparse.Namespace) -> int:
         for run in args.runs:
             t0 = time.perf_counter()
             out = repeated(run, args.repeated, touches, tuple(args.guard), Path(folder),
-                           args.difficulty)
+                           args.difficulty, args.against)
             unguarded = out[f"running {touches}"]
             print(f"\n{run}: {len(unguarded)} windows of "
                   f"{len({p for p, *_ in unguarded})} people, {time.perf_counter() - t0:.0f} s")
@@ -201,6 +209,8 @@ def print_repeated(args: argparse.Namespace) -> int:
                     line += f"   vs as trained {paired(rows, out['as trained'])}"
                 if "guard" in cond:
                     line += f"   vs unguarded {paired(rows, unguarded)}"
+                if "--against" in out and cond != "--against":
+                    line += f"   vs --against {paired(rows, out['--against'])}"
                 print(line)
     return 0
 

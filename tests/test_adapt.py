@@ -64,7 +64,7 @@ def _batchnorm_means(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndar
 
 def test_adapted_batchnorm_holds_the_persons_statistics_and_leaves_the_model_alone(runs):
     config, _, records, ds, learner, info = load_run_data(runs["root"] / "net", device="cpu")
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     fitted = learner.load(model_file(records[0]["_dir"]), info)
     xp = learner.apply_norm(x[ds.participants[owner] == "P01"], records[0]["norm"])
     before = {k: v.clone() for k, v in fitted.model.state_dict().items()}
@@ -87,7 +87,7 @@ def test_adapted_batchnorm_holds_the_persons_statistics_and_leaves_the_model_alo
 def test_an_adapted_network_predicts_each_person_after_adapting_to_them(runs):
     root = runs["root"]
     config, _, records, ds, learner, info = load_run_data(root / "net_adapted", device="cpu")
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     for rec in records:
         person = rec["test_participants"][0]
         xp = learner.apply_norm(x[ds.participants[owner] == person], rec["norm"])
@@ -189,7 +189,8 @@ def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
     report = json.loads((root / "net_adapted" / "export" / "onnx.json").read_text())
     assert report["adapt"] == "person" and report["changed_predictions"] == 0
     assert WindowModel(root / "net_adapted").learner.kind == "torch"  # trained statistics
-    assert WindowModel(root / "rf_adapted").needs_calibration  # the person's statistics
+    rf = WindowModel(root / "rf_adapted")  # the person's statistics, or the pooled view
+    assert rf.reads_person_features and rf.has_view_as_trained and not rf.needs_calibration
 
 
 def test_a_run_folder_from_before_adapt_existed_still_resumes(runs, capsys):

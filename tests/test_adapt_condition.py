@@ -58,7 +58,7 @@ def test_trials_carry_their_sessions_condition_through_cache_and_windows(data):
 def test_rf_standardises_each_persons_features_per_condition(data):
     run = _run(data, "rf", "rf_pc", "person-condition")
     config, _, _, ds, learner, _ = load_run_data(data / "rf_pc")
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     groups = adapt_groups("person-condition", ds)[owner]
     for g in np.unique(groups):
         varying = x[groups == g].std(0) > 0  # constant features are only centred
@@ -75,7 +75,7 @@ def test_rf_standardises_each_persons_features_per_condition(data):
 def test_a_network_adapts_to_each_persons_session_on_each_surface(data):
     _run(data, "cnn1d", "net_pc", "person-condition")
     config, _, records, ds, learner, info = load_run_data(data / "net_pc", device="cpu")
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     conditions = ds.trial_conditions()[owner]
     for rec in records:
         person = rec["test_participants"][0]

@@ -6,7 +6,10 @@ real tiny training, real session files."""
 
 from __future__ import annotations
 
+import json
+import shutil
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -16,7 +19,7 @@ from tactile_studio.devices import create_device
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluate import load_run_data
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
 from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
@@ -54,13 +57,9 @@ def _person(run, person: str):
 def test_a_run_calibrated_to_a_person_predicts_as_its_evaluation_did(root, run):
     windows, rate, layout, stored = _person(root / run, "P02")
     model = WindowModel(root / run, "P02")
-    if run.startswith("rf"):  # its features need the person's statistics first
-        assert model.needs_calibration
-        with pytest.raises(UserError, match="calibrate it on a recording"):
-            model.predict_windows(layout, windows, rate)
-    else:
-        as_trained = model.predict_windows(layout, windows, rate)
-        assert not np.allclose(as_trained, stored, atol=1e-3)
+    assert not model.needs_calibration  # rf: the training people's pooled statistics
+    as_trained = model.predict_windows(layout, windows, rate)
+    assert not np.allclose(as_trained, stored, atol=1e-3)
     assert model.calibrate(layout, windows, rate, "P02's trials") >= len(windows)
     assert not model.needs_calibration
     np.testing.assert_allclose(model.predict_windows(layout, windows, rate), stored, atol=1e-4)
@@ -68,6 +67,45 @@ def test_a_run_calibrated_to_a_person_predicts_as_its_evaluation_did(root, run):
     if run.startswith("cnn1d"):  # features only (live): the network keeps its statistics
         model.calibrate(layout, windows, rate, batch_norm=False)
         np.testing.assert_allclose(model.predict_windows(layout, windows, rate), as_trained)
+
+
+def test_an_adapted_rf_reads_a_window_as_trained_with_its_training_people_pooled(root):
+    config, _, records, ds, learner, _ = load_run_data(root / "rf_person", device="cpu")
+    rec = next(r for r in records if r["test_participants"] == ["P02"])
+    _, raw, owner, *_ = prepare_inputs(learner, ds, replace(config, adapt="none"))
+    index = {u: i for i, u in enumerate(ds.uids)}
+    people = np.unique(ds.participants[[index[u] for u in rec["train"]]])
+    assert list(people) == ["P01", "P03"]
+    rows = np.isin(ds.participants[owner], people)  # every trial of the training people
+    model = WindowModel(root / "rf_person", "P02")
+    assert model.pooled.shape == (2, raw.shape[1])  # two rows: the pooled mean -+ spread
+    np.testing.assert_allclose(model.pooled.mean(axis=0), raw[rows].mean(axis=0), rtol=1e-4,
+                               atol=1e-4)
+    np.testing.assert_allclose(model.pooled.std(axis=0), raw[rows].std(axis=0), rtol=1e-3,
+                               atol=1e-4)
+    windows, rate, layout, stored = _person(root / "rf_person", "P02")
+    model.calibrate(layout, windows, rate)  # as trained stays the pooled view
+    np.testing.assert_allclose(model.predict_windows(layout, windows, rate), stored, atol=1e-4)
+    fresh = WindowModel(root / "rf_person", "P02")
+    np.testing.assert_allclose(model.predict_windows(layout, windows, rate, as_trained=True),
+                               fresh.predict_windows(layout, windows, rate))
+
+
+def test_an_adapted_rf_from_before_the_pooled_view_needs_calibrating(root, tmp_path):
+    old = tmp_path / "rf_person"
+    shutil.copytree(root / "rf_person", old)
+    for fold in old.glob("folds/*/fold.json"):
+        record = json.loads(fold.read_text())
+        del record["as_trained"]
+        fold.write_text(json.dumps(record))
+    windows, rate, layout, _ = _person(old, "P02")
+    model = WindowModel(old, "P02")
+    assert model.needs_calibration and not model.has_view_as_trained
+    with pytest.raises(UserError, match="calibrate it on a recording"):
+        model.predict_windows(layout, windows, rate)
+    assert not RunningCalibration(model).guarded  # nothing to judge the touches by
+    model.calibrate(layout, windows, rate)
+    assert model.predict_windows(layout, windows, rate).shape == (len(windows), 3)
 
 
 def test_calibrating_from_a_session_file_and_its_one_line_errors(root):
@@ -200,8 +238,8 @@ def test_live_adapts_only_while_no_one_gesture_fills_the_touches(root):
                                fresh.predict_windows(layout, [b], rate), atol=1e-6)
     assert [touch(a) for _ in range(4)] == [True, True, True, False]  # b has left the four
     assert model.fitted is model.trained and model.calibrated_on == ""
-    # an rf trained with --adapt has no view as trained to judge the touches by
-    assert not RunningCalibration(WindowModel(root / "rf_person", "P02")).guarded
+    # an rf trained with --adapt judges them by its training people's pooled statistics
+    assert RunningCalibration(WindowModel(root / "rf_person", "P02")).guarded
     assert RunningCalibration(model).alike == pytest.approx(2 / 3)  # 3 gestures: 6 of 9
 
 
@@ -210,14 +248,14 @@ def test_live_adapts_to_whoever_touches_from_their_last_touches(root):
     engine = AcquisitionEngine(create_device("simulated", {"rate": "400", "gesture": "idle"}))
     engine.start()
     try:
-        running = RunningCalibration(model, touches=4, minimum=3)
+        running = RunningCalibration(model, touches=4, minimum=3, alike=1.0)  # unguarded
         inf = LiveInference(engine, model, adapting=running)
-        # nobody touches: nothing is kept, nothing predicted
+        # nobody touches: nothing is kept, predicted as trained
         _until(inf.step, lambda _: engine.frames > 3 * model.window)
-        assert running.count == 0 and model.needs_calibration and inf.latest is None
+        assert running.count == 0 and model.reference is None and inf.latest is not None
         engine.device.set_gesture("Heavy Pat")
-        assert _until(inf.step, lambda p: p is not None) is not None, "no prediction in 30 s"
-        assert running.count >= 3 and not model.needs_calibration
+        _until(inf.step, lambda _: running.count >= 3)
+        assert running.count >= 3 and model.reference is not None, "no 3 touches in 30 s"
         assert model.calibrated_on == f"their last {running.count} touches"
         first = running.ends[0]  # kept until a fifth touch pushes it out
         _until(inf.step, lambda _: running.ends[0] > first)

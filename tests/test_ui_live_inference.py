@@ -85,7 +85,7 @@ def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monk
 
 
 @pytest.mark.slow
-def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbot, tmp_path,
+def test_an_adapted_rf_predicts_as_trained_until_calibrated_to_the_person(run, qtbot, tmp_path,
                                                                        monkeypatch):
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
     root = run.parent
@@ -99,9 +99,12 @@ def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbo
         assert panel.running_box.isEnabled() and panel.running_box.isChecked()  # default
         assert "from their own last touches" in panel.calibration_label.text()
         panel.running_box.setChecked(False)
+        assert "pooled feature statistics" in panel.calibration_label.text()
         assert "calibrate on a recording" in panel.calibration_label.text()
-        panel.refresh()
-        assert panel.inference is None  # its features need the person's statistics first
+        panel.refresh()  # as trained: features standardised with the training people's
+        assert panel.inference is not None and panel.model.reference is None
+        qtbot.waitUntil(lambda: panel.top() in GESTURES, timeout=40_000)
+        w.grab().save(str(SHOTS / "research_live_rf_as_trained.png"))
         assert not panel.calibrate(str(tmp_path / "nope.h5"))
         assert "nope.h5" in panel.message.text() and "\n" not in panel.message.text()
         assert panel.calibrate(str(root / "data" / "P02.h5"))
@@ -110,9 +113,9 @@ def test_an_adapted_run_is_calibrated_to_the_person_before_it_predicts(run, qtbo
                         timeout=40_000)
         assert panel.inference.error is None
         w.grab().save(str(SHOTS / "research_live_calibrated.png"))
-        # adapting as they touch instead: the first prediction after three touches
+        # adapting as they touch instead: from their last touches
         panel.running_box.setChecked(True)
-        assert panel.model.needs_calibration and panel.inference is None
+        assert panel.model.reference is None and panel.inference is None
         qtbot.waitUntil(lambda: "their last" in panel.calibration_label.text()
                         and panel.top() in GESTURES, timeout=40_000)
         assert panel.inference.error is None and panel.inference.adapting.count >= 3

@@ -94,7 +94,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         raise UserError(f"{run}: --adapt {config.adapt} meets each test person with their own "
                         "session, but this all-inclusive run trained on the same people; "
                         "adapt when evaluating new people's data (--data) or a lopo run")
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     fresh = []
     for k, rec in enumerate(records):

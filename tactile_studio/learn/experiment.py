@@ -39,8 +39,10 @@ from tactile_studio.learn.generalise import (
     adapt_groups,
     augmenter,
     balanced_index,
+    group_moments,
     participant_normalised,
     participant_val,
+    pooled_reference,
     resolve_adapt,
 )
 from tactile_studio.learn.learners import DataInfo, make_learner
@@ -242,8 +244,8 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
 def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
                 fold, round_: int, k: int, seed: int, cancel: CancelToken,
                 on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
-                balance: bool = False, people: np.ndarray | None = None
-                ) -> tuple[dict[str, Any], Any]:
+                balance: bool = False, people: np.ndarray | None = None,
+                moments=None) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
     y = ds.labels
@@ -269,6 +271,8 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
     }
+    if moments is not None and people is not None:  # rf/knn's view as trained
+        rec["as_trained"] = pooled_reference(moments, np.unique(people[tr])).tolist()
     if len(fold.heldout):
         rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y,
                                                   stats, people)
@@ -298,17 +302,21 @@ def run_title(config: ExperimentConfig, channels: str | None) -> str:
 
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     """(dataset as trained on, samples X, owner trial per sample, number of windows,
-    window spec, augmenter or None): the model inputs ``config`` asks for."""
+    window spec, augmenter or None, moments): the model inputs ``config`` asks for.
+    ``moments``: each person's feature moments before rf/knn standardise their features
+    per person (``--adapt``; ``group_moments``), else None."""
     if config.participant_norm:
         ds = participant_normalised(ds)
     spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)
     pieces, piece_owner = cut(ds, spec)
     x, sample_piece = learner.samples(pieces)
-    groups = adapt_groups(config.adapt, ds)
+    groups, moments = adapt_groups(config.adapt, ds), None
     if groups is not None:  # features standardised by each person's own statistics
+        if learner.kind == "baseline":
+            moments = group_moments(x, groups[piece_owner[sample_piece]])
         x = learner.adapt_inputs(x, groups[piece_owner[sample_piece]])
     extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
-    return ds, x, piece_owner[sample_piece], len(pieces), spec, extra
+    return ds, x, piece_owner[sample_piece], len(pieces), spec, extra, moments
 
 
 def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
@@ -384,7 +392,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
 
         write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
     progress(0.05, "making model inputs")
-    ds, x, owner, n_pieces, spec, extra = prepare_inputs(learner, ds, config)
+    ds, x, owner, n_pieces, spec, extra, moments = prepare_inputs(learner, ds, config)
     header["window_s"] = spec.seconds
     header["windows"] = n_pieces
     total_units = config.rounds * len(first_folds)
@@ -415,7 +423,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                     progress(0.05 + 0.92 * done / total_units, f"{where} training")
                     rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
                                               cancel, on_epoch, extra, config.balance,
-                                              adapt_people(config, ds, owner))
+                                              adapt_people(config, ds, owner), moments)
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)

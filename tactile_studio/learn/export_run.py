@@ -94,7 +94,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
         raise UserError(f"model '{config.model}' has no int8 export (quantizable: {small})")
     quant_format = export.int8_format(config.model)
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)  # windows, as trained
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)  # windows, as trained
     index = {u: i for i, u in enumerate(ds.uids)}
     out_dir = Path(run) / "export"
     folds, scored = [], []
@@ -170,7 +170,7 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
     hold that reference for these models)."""
     from tactile_studio.learn.baselines import BaselineModel
 
-    ds, x, owner, _, _, _ = prepare_inputs(learner, ds, config)  # windows, as trained
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)  # windows, as trained
     index = {u: i for i, u in enumerate(ds.uids)}
     out_dir = Path(run) / "export"
     folds, scored = [], []

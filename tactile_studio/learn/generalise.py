@@ -85,6 +85,32 @@ def person_standardised(x: np.ndarray, people: np.ndarray,
     return out
 
 
+Moments = dict[str, tuple[int, np.ndarray, np.ndarray]]
+
+
+def group_moments(x: np.ndarray, groups: np.ndarray) -> Moments:
+    """Each group's sample count, feature sums and sums of squares (float64), taken from
+    the features as computed, before they are standardised per person: enough to pool
+    any set of groups afterwards (``pooled_reference``)."""
+    out = {}
+    for g in np.unique(groups):
+        rows = np.asarray(x[groups == g], dtype=np.float64)
+        out[str(g)] = (len(rows), rows.sum(axis=0), np.square(rows).sum(axis=0))
+    return out
+
+
+def pooled_reference(moments: Moments, groups) -> np.ndarray:
+    """Two feature rows whose mean and spread are those of ``groups``' samples pooled:
+    ``person_standardised(x, ..., reference=this)`` reads features as a model trained on
+    those people would if it had not standardised per person. rf/knn trained with
+    ``--adapt`` keep it as their view "as trained" (live's guard, live_inference.py)."""
+    n = sum(moments[str(g)][0] for g in groups)
+    mean = sum(moments[str(g)][1] for g in groups) / max(n, 1)
+    var = sum(moments[str(g)][2] for g in groups) / max(n, 1) - np.square(mean)
+    std = np.sqrt(np.maximum(var, 0.0))
+    return np.stack([mean - std, mean + std]).astype(np.float32)
+
+
 def _standardised(x: np.ndarray, reference: np.ndarray) -> np.ndarray:
     mean, std = reference.mean(axis=0), reference.std(axis=0)
     return (x - mean) / np.where(std > 1e-9, std, 1.0)

@@ -49,8 +49,9 @@ class RunningCalibration:
     people) this lifts cnn1d, cnn3d and sefusion 2.6-3.6 points over their training
     statistics (cnn_transformer 1.9, mts3d -0.6); the same trials without the predicted
     one among them gain nothing, and 4 (3 touches and the window) cost cnn1d 2.8 points.
-    rf/knn stay within two points of the plain forest. Until ``minimum`` touches are in, a
-    network predicts as trained and rf/knn do not predict.
+    rf/knn stay within two points of the plain forest. Until ``minimum`` touches are in,
+    the model predicts as trained (rf/knn from before they kept a view as trained do not
+    predict).
 
     Statistics of one gesture repeated normalise that gesture away: replayed, free play
     settling on one gesture costs cnn1d 24 points unguarded. So a network adapts only while
@@ -58,8 +59,10 @@ class RunningCalibration:
     a share ``alike`` of its last touches (a third; half of 4 gestures, all of 2), and
     predicts as trained otherwise (replayed: that case level with as trained, a protocol of
     shuffled gestures keeps its gain). ``variety`` K, the other guard measured (K different
-    gestures or more among them), is off. rf/knn trained with ``--adapt`` have no view as
-    trained to judge by: they are not guarded."""
+    gestures or more among them), is off. rf/knn trained with ``--adapt`` judge by their
+    features standardised with the training people's pooled statistics (unguarded, free
+    play on one gesture cost the adapted forest 21 points against the plain one); runs
+    from before they kept those statistics are not guarded."""
 
     def __init__(self, model: WindowModel, touches: int = 9, minimum: int = 8,
                  alike: float | None = None, variety: int = 0,
@@ -68,8 +71,8 @@ class RunningCalibration:
         self.model, self.minimum, self.contact_share = model, minimum, contact_share
         if alike is None:
             alike = max(1 / 3, 2 / max(1, len(model.labels)))
-        self.variety = 0 if model.reads_person_features else variety
-        self.alike = 1.0 if model.reads_person_features else alike
+        self.variety = variety if model.has_view_as_trained else 0
+        self.alike = alike if model.has_view_as_trained else 1.0
         self.windows: collections.deque[np.ndarray] = collections.deque(maxlen=touches)
         self.ends: collections.deque[int] = collections.deque(maxlen=touches)
         self.seen_as: collections.deque[int] = collections.deque(maxlen=touches)

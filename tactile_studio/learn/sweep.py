@@ -84,10 +84,10 @@ def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, A
         ds = build_dataset(cfg.data, cfg.grid, cfg.channels, cfg.cache_dir, cfg.use_cache)
         info = DataInfo.of(ds)
         folds = folds_for(cfg, ds, round_)
-        ds, x, owner, _, _, extra = prepare_inputs(learner, ds, cfg)
+        ds, x, owner, _, _, extra, moments = prepare_inputs(learner, ds, cfg)
         rec, fitted = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold,
                                   cfg.seed + round_, CancelToken(), lambda e: None, extra,
-                                  cfg.balance, adapt_people(cfg, ds, owner))
+                                  cfg.balance, adapt_people(cfg, ds, owner), moments)
     name = getattr(fitted, "file_name", WEIGHTS)
     with tempfile.TemporaryDirectory() as tmp:  # every file the model saves (fused: two)
         fitted.save(Path(tmp) / name)

@@ -48,6 +48,8 @@ class WindowModel:
         self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
         self.fitted = self.trained  # or adapted to one person by calibrate()
         self.reference: np.ndarray | None = None  # that person's samples (rf/knn features)
+        pooled = self.record.get("as_trained")  # rf/knn --adapt: training people pooled
+        self.pooled = None if pooled is None else np.asarray(pooled, dtype=np.float32)
         self.calibrated_on = ""  # what calibrate() was given, for display
         self.spec = window_spec(self.config.window_s, self.config.window_overlap,
                                 float(summary.get("trial_s") or 0.0))
@@ -74,9 +76,18 @@ class WindowModel:
         return self.config.adapt != "none" and self.learner.kind != "torch"
 
     @property
+    def has_view_as_trained(self) -> bool:
+        """True when ``predict_windows(as_trained=True)`` can read a window without the
+        person's statistics: networks (batch norm as trained), plain rf/knn, and rf/knn
+        trained with ``--adapt`` whose folds kept their training people's pooled feature
+        statistics (runs from before that have none)."""
+        return not self.reads_person_features or self.pooled is not None
+
+    @property
     def needs_calibration(self) -> bool:
-        """True until a run that reads person features has been calibrated."""
-        return self.reads_person_features and self.reference is None
+        """True until a run that reads person features, and has no view as trained,
+        has been calibrated."""
+        return self.reference is None and not self.has_view_as_trained
 
     @property
     def adapts_as_they_touch(self) -> bool:
@@ -148,14 +159,17 @@ class WindowModel:
     def predict_windows(self, layout: Layout, windows: list[np.ndarray], rate: float,
                         as_trained: bool = False) -> np.ndarray:
         """Probabilities (n_windows, n_classes) for decoded windows (C, N, R, X), by the
-        model as calibrated (``as_trained``: with the training people's statistics)."""
-        if self.needs_calibration or (as_trained and self.reads_person_features):
+        model as calibrated (``as_trained``: with the training people's statistics; rf/knn
+        trained with ``--adapt`` read the features standardised by the training people's
+        pooled statistics, the nearest they have to a view without the person's)."""
+        if self.needs_calibration or (as_trained and not self.has_view_as_trained):
             raise UserError(f"{self.run}: trained with --adapt {self.config.adapt}, so "
                             f"{self.config.model} reads features standardised by the "
                             "person's own statistics: calibrate it on a recording of them")
         x, owner = self._samples(layout, windows, rate)
-        if self.reference is not None and not as_trained:
-            x = self.learner.adapt_inputs(x, np.zeros(len(x)), self.reference)
+        reference = self.pooled if as_trained or self.reference is None else self.reference
+        if reference is not None and self.reads_person_features:
+            x = self.learner.adapt_inputs(x, np.zeros(len(x)), reference)
         fitted = self.trained if as_trained else self.fitted
         probs = np.zeros((len(windows), len(self.labels)))
         for i in range(0, len(x), 256):

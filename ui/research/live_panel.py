@@ -12,7 +12,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QSignalBlocker, QTimer
+from PySide6.QtCore import QSignalBlocker, Qt, QTimer
 from PySide6.QtWidgets import (
     QCheckBox,
     QFileDialog,
@@ -68,6 +68,10 @@ class LiveInferencePanel(QWidget):
         self.run_label.setWordWrap(True)
         self.calibration_label = QLabel("")
         self.calibration_label.setWordWrap(True)
+        # three lines kept: its text changes with every touch, and a dock does not grow a
+        # wrapped label (it clipped the guard's two lines), nor should the bars jump
+        self.calibration_label.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
+        self.calibration_label.setMinimumHeight(3 * self.fontMetrics().lineSpacing() + 4)
         self.smoothing = QSpinBox()
         self.smoothing.setRange(1, 50)
         self.smoothing.setValue(4)
@@ -192,6 +196,10 @@ class LiveInferencePanel(QWidget):
             "touch" if m.needs_calibration else
             f"calibrated to the participant: {m.calibrated_on}" if m.reference is not None else
             "as trained, with the training people's statistics" if adapt == "none" else
+            "as trained, with the training people's pooled feature statistics (about 5 "
+            "points under a plain forest on virtual people): calibrate on a recording of the "
+            "participant or tick Adapt as they touch"
+            if m.reads_person_features else
             "as trained, with the training people's batch-norm statistics (re-estimated on "
             "a short earlier recording they cost points on virtual people)")
 
