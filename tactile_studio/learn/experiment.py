@@ -36,6 +36,7 @@ from tactile_studio.learn.generalise import (
     ADAPT_CHOICES,
     ADAPT_PHRASE,
     VAL_BY,
+    Moments,
     adapt_groups,
     augmenter,
     balanced_index,
@@ -245,7 +246,7 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
                 fold, round_: int, k: int, seed: int, cancel: CancelToken,
                 on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
                 balance: bool = False, people: np.ndarray | None = None,
-                moments=None) -> tuple[dict[str, Any], Any]:
+                moments: Moments | None = None) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
     y = ds.labels

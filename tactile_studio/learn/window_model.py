@@ -72,7 +72,8 @@ class WindowModel:
     @property
     def reads_person_features(self) -> bool:
         """An rf/knn (or fused forest) run trained with ``--adapt`` reads features
-        standardised by the person's own statistics, so it needs a recording of them."""
+        standardised by the person's own statistics, from a recording of them or their
+        touches (until then rf/knn read them with the training people's pooled ones)."""
         return self.config.adapt != "none" and self.learner.kind != "torch"
 
     @property
