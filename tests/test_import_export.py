@@ -7,6 +7,7 @@ Budget: ~10 s. Fixtures are small files generated in tmp_path (no downloads).
 from __future__ import annotations
 
 import csv
+import json
 import os
 import signal
 
@@ -154,6 +155,26 @@ def test_shearsense_import_makes_a_session_with_trials_and_malformed_counts(tmp_
         assert len(run) == 86 and (run == ord(t["key"])).all() and t["status"] == "ok"
         assert data.labels[t["start_sample"] - 1] == 0 and data.labels[t["end_sample"]] == 0
         assert t["start_time"] == data.times[t["start_sample"]]
+
+
+def test_info_on_a_folder_has_a_row_per_imported_file_with_what_to_check(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    assert run_cli(capsys, "import", "shearsense", str(shearsense_csv(tmp_path)),
+                   "--out", str(out))[0] == 0
+    (out / "broken.h5").write_bytes(b"not a session")
+    rc, stdout, err = run_cli(capsys, "info", str(out))
+    assert rc == 1 and "Traceback" not in err  # the unreadable file is named, the rest shown
+    rows = {line.split()[0]: line for line in stdout.splitlines()[1:] if line.strip()}
+    cells = rows["P04_lab_PILLOW.h5"].split()
+    assert cells[1:3] == ["P04", "PILLOW"] and cells[-3:] == ["3/3", "2", "z"]
+    assert "unreadable:" in rows["broken.h5"] and "broken.h5: not an HDF5 file" in stdout
+    assert "2 session file(s)" in stdout and "1 unreadable" in stdout
+    (out / "broken.h5").unlink()
+    rc, stdout, _ = run_cli(capsys, "info", str(out / "P04_lab_PILLOW.h5"), str(out), "--json")
+    listed = json.loads(stdout)
+    assert rc == 0 and len(listed) == 1 and listed[0]["unmapped_keys"] == ["z"]
+    assert listed[0]["malformed"] == 2
 
 
 def test_import_export_import_round_trips_frames_labels_and_trials(tmp_path, capsys):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,8 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_lsl_option(p)
     p.set_defaults(func=cmd_record)
 
-    p = sub.add_parser("info", help="summarise a session file")
-    p.add_argument("file", help="session file (.h5)")
+    p = sub.add_parser("info", help="summarise a session file, or a folder of them")
+    p.add_argument("file", nargs="+", help="session file (.h5); several files or a folder: "
+                                           "one row per file (e.g. after an import)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=cmd_info)
 
@@ -110,6 +112,48 @@ def device_label(device: Any) -> str:
     return f"device {info.get('plugin', '?')} on {where}" if where else f"device {info.get('plugin', '?')}"
 
 
+def _info_files(paths: list[str], as_json: bool) -> int:
+    """One row per session file under ``paths`` (folders searched recursively): what an
+    experimenter checks after importing a study (malformed rows, unmapped keys, trials).
+    A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
+    from tactile_studio.storage.session_set import scan_session_files
+
+    files, backups = scan_session_files(paths)
+    every = sorted(files + backups)
+    root = Path(os.path.commonpath([f.parent for f in every]))
+    summaries, rows, bad = [], [], 0
+    for f in every:
+        name = f.relative_to(root).as_posix()
+        try:
+            with Session(f) as s:
+                summary = s.summary()
+        except UserError as exc:
+            bad += 1
+            rows.append((name, "", "", "", "", "", "", "", f"unreadable: {exc}"))
+            summaries.append({"path": str(f), "error": str(exc)})
+            continue
+        summaries.append(summary)
+        meta, trials = summary["metadata"], summary["trials"]
+        ok = sum(1 for t in trials if t.get("status") == "ok")
+        notes = [] if summary["closed_cleanly"] else ["not closed cleanly (recovered)"]
+        if f in backups:
+            notes.append("resume backup")
+        rows.append((name, meta.get("participant") or "", meta.get("condition") or "",
+                     summary["frames"], f"{summary['rate_hz']:.2f}", f"{ok}/{len(trials)}",
+                     summary["malformed"], ", ".join(summary["unmapped_keys"]),
+                     "; ".join(notes)))
+    if as_json:
+        json.dump(summaries, sys.stdout, indent=2, default=str)
+        print()
+    else:
+        tables.table(("file", "participant", "condition", "frames", "Hz", "ok trials",
+                      "malformed", "unmapped keys", "note"), rows,
+                     right=("frames", "Hz", "ok trials", "malformed"))
+        print(f"{len(every)} session file(s) under {root}"
+              + (f"; {bad} unreadable" if bad else ""))
+    return 1 if bad else 0
+
+
 def _trial_table(trials: list[dict[str, Any]], gestures: list[str]) -> str:
     """Trials per gesture in the protocol's order (``trials`` as in the journal)."""
     from tactile_studio.protocol.report import trial_table
@@ -117,7 +161,9 @@ def _trial_table(trials: list[dict[str, Any]], gestures: list[str]) -> str:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    with Session(args.file) as s:
+    if len(args.file) > 1 or Path(args.file[0]).is_dir():
+        return _info_files(args.file, args.json)
+    with Session(args.file[0]) as s:
         summary = s.summary()
         table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
     if args.json:

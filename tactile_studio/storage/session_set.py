@@ -60,7 +60,8 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
     return "skipped " + ", ".join(parts)
 
 
-def _scan(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], list[Path]]:
+def scan_session_files(paths: Sequence[str | os.PathLike]
+                       ) -> tuple[list[Path], list[Path]]:
     """(files, backups found in folders): folders recursively (``*.h5``), files as given."""
     if not paths:
         raise UserError("no data given: pass a folder or session files")
@@ -90,7 +91,7 @@ def _rank(path: Path, s: Session) -> tuple:
 
 def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
     """The session files under ``paths`` with resume backups and duplicates left out."""
-    files, backups = _scan(paths)
+    files, backups = scan_session_files(paths)
     every = files + backups
     shown_root = Path(os.path.commonpath([f.parent for f in every])) if every else None
 
