@@ -20,6 +20,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluate import load_run_data
 from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
+from tactile_studio.learn.fused import person_columns
 from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
@@ -33,11 +34,15 @@ GESTURES = ("Poke", "Heavy Pat", "Twist")
 def root(tmp_path_factory):
     root = tmp_path_factory.mktemp("calibration")
     make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
-    for model, adapt in (("cnn1d", "person"), ("rf", "person"), ("rf", "none")):
+    for name, model, adapt, overrides in (
+            ("cnn1d_person", "cnn1d", "person", {}), ("rf_person", "rf", "person", {}),
+            ("rf_none", "rf", "none", {}),
+            ("fused_person", "cnn1d", "person", {"rf_weight": 0.5})):  # network + forest
         cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
                                preset="tiny", epochs=None if model == "rf" else 2, threads=1,
-                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt)
-        run_experiment(cfg, root / f"{model}_{adapt}")
+                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
+                               overrides=overrides)
+        run_experiment(cfg, root / name)
     return root
 
 
@@ -53,11 +58,11 @@ def _person(run, person: str):
             get_layout(ds.layout), stored)
 
 
-@pytest.mark.parametrize("run", ["cnn1d_person", "rf_person"])
+@pytest.mark.parametrize("run", ["cnn1d_person", "rf_person", "fused_person"])
 def test_a_run_calibrated_to_a_person_predicts_as_its_evaluation_did(root, run):
     windows, rate, layout, stored = _person(root / run, "P02")
     model = WindowModel(root / run, "P02")
-    assert not model.needs_calibration  # rf: the training people's pooled statistics
+    assert not model.needs_calibration  # forests: the training people's pooled statistics
     as_trained = model.predict_windows(layout, windows, rate)
     assert not np.allclose(as_trained, stored, atol=1e-3)
     assert model.calibrate(layout, windows, rate, "P02's trials") >= len(windows)
@@ -69,24 +74,28 @@ def test_a_run_calibrated_to_a_person_predicts_as_its_evaluation_did(root, run):
         np.testing.assert_allclose(model.predict_windows(layout, windows, rate), as_trained)
 
 
-def test_an_adapted_rf_reads_a_window_as_trained_with_its_training_people_pooled(root):
-    config, _, records, ds, learner, _ = load_run_data(root / "rf_person", device="cpu")
+@pytest.mark.parametrize("run", ["rf_person", "fused_person"])
+def test_an_adapted_forest_reads_a_window_as_trained_with_its_training_people_pooled(root,
+                                                                                     run):
+    config, _, records, ds, learner, _ = load_run_data(root / run, device="cpu")
     rec = next(r for r in records if r["test_participants"] == ["P02"])
-    _, raw, owner, *_ = prepare_inputs(learner, ds, replace(config, adapt="none"))
+    _, packed, owner, *_ = prepare_inputs(learner, ds, replace(config, adapt="none"))
+    raw = person_columns(learner, packed)  # a fused sample's forest features
     index = {u: i for i, u in enumerate(ds.uids)}
     people = np.unique(ds.participants[[index[u] for u in rec["train"]]])
     assert list(people) == ["P01", "P03"]
     rows = np.isin(ds.participants[owner], people)  # every trial of the training people
-    model = WindowModel(root / "rf_person", "P02")
+    model = WindowModel(root / run, "P02")
+    assert model.has_view_as_trained and RunningCalibration(model).guarded
     assert model.pooled.shape == (2, raw.shape[1])  # two rows: the pooled mean -+ spread
     np.testing.assert_allclose(model.pooled.mean(axis=0), raw[rows].mean(axis=0), rtol=1e-4,
                                atol=1e-4)
     np.testing.assert_allclose(model.pooled.std(axis=0), raw[rows].std(axis=0), rtol=1e-3,
                                atol=1e-4)
-    windows, rate, layout, stored = _person(root / "rf_person", "P02")
+    windows, rate, layout, stored = _person(root / run, "P02")
     model.calibrate(layout, windows, rate)  # as trained stays the pooled view
     np.testing.assert_allclose(model.predict_windows(layout, windows, rate), stored, atol=1e-4)
-    fresh = WindowModel(root / "rf_person", "P02")
+    fresh = WindowModel(root / run, "P02")
     np.testing.assert_allclose(model.predict_windows(layout, windows, rate, as_trained=True),
                                fresh.predict_windows(layout, windows, rate))
 

@@ -126,3 +126,32 @@ def test_an_adapted_rf_predicts_as_trained_until_calibrated_to_the_person(run, q
     finally:
         panel.stop()
         w.shutdown()
+
+
+@pytest.mark.slow
+def test_a_network_fused_with_an_adapted_forest_predicts_as_trained_too(run, qtbot, tmp_path,
+                                                                       monkeypatch):
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    root = run.parent
+    cfg = ExperimentConfig(data=[str(root / "data")], model="cnn1d", protocol="lopo",
+                           preset="tiny", epochs=2, cache_dir=str(root / "cache"),
+                           adapt="person", overrides={"rf_weight": 0.5})
+    run_experiment(cfg, root / "fused_adapted")
+    w = _window(qtbot)
+    try:
+        panel = live_inference_dock(w).widget()
+        assert panel.load_run(str(root / "fused_adapted"))
+        assert "cnn1d + rf 0.5 (all)" in panel.run_label.text()
+        assert panel.calibrate_button.isEnabled() and panel.running_box.isChecked()
+        assert "(as trained until enough touches)" in panel.calibration_label.text()
+        panel.running_box.setChecked(False)
+        text = panel.calibration_label.text()
+        assert "pooled feature statistics for its forest" in text and "5 points" not in text
+        panel.refresh()  # the network's batch norm and the forest's pooled view
+        assert panel.inference is not None and panel.model.reference is None
+        qtbot.waitUntil(lambda: panel.top() in GESTURES, timeout=40_000)
+        assert panel.inference.error is None
+        w.grab().save(str(SHOTS / "research_live_fused_as_trained.png"))
+    finally:
+        panel.stop()
+        w.shutdown()

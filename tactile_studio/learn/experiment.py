@@ -31,7 +31,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.augment import parse_kinds
 from tactile_studio.learn.baselines import BASELINES
 from tactile_studio.learn.dataset import GRIDS, TrialDataset, build_dataset
-from tactile_studio.learn.fused import display_name, rf_weight
+from tactile_studio.learn.fused import display_name, person_columns, rf_weight
 from tactile_studio.learn.generalise import (
     ADAPT_CHOICES,
     ADAPT_PHRASE,
@@ -313,8 +313,8 @@ def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     x, sample_piece = learner.samples(pieces)
     groups, moments = adapt_groups(config.adapt, ds), None
     if groups is not None:  # features standardised by each person's own statistics
-        if learner.kind == "baseline":
-            moments = group_moments(x, groups[piece_owner[sample_piece]])
+        if learner.kind != "torch":  # a forest's view as trained: pooled statistics
+            moments = group_moments(person_columns(learner, x), groups[piece_owner[sample_piece]])
         x = learner.adapt_inputs(x, groups[piece_owner[sample_piece]])
     extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)
     return ds, x, piece_owner[sample_piece], len(pieces), spec, extra, moments

@@ -105,11 +105,11 @@ class FusedLearner:
     def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
                      reference: np.ndarray | None = None) -> np.ndarray:
         """``adapt="person"``: the forest's features standardised per person (the
-        network adapts when it predicts, ``FusedFitted.adapted``)."""
+        network adapts when it predicts, ``FusedFitted.adapted``); ``reference`` holds
+        forest features (``person_columns``), not packed samples."""
         n, _ = _header(x)
-        ref = None if reference is None else reference[:, HEAD + n:]
-        return np.concatenate([x[:, :HEAD + n],
-                               self.forest.adapt_inputs(x[:, HEAD + n:], people, ref)], axis=1)
+        return np.concatenate([x[:, :HEAD + n], self.forest.adapt_inputs(
+            x[:, HEAD + n:], people, reference)], axis=1)
 
     def norm_stats(self, x_train: np.ndarray) -> dict[str, list[float]]:
         return self.network.norm_stats(self._views(x_train))
@@ -180,10 +180,17 @@ def _header(x: np.ndarray) -> tuple[int, int]:
     return (int(x[0, 0]), int(x[0, 1])) if len(x) else (0, 1)
 
 
+def person_columns(learner, x: np.ndarray) -> np.ndarray:  # noqa: ANN001 - a learner
+    """The columns ``--adapt person`` standardises by a person's statistics: a fused
+    sample's forest features, an rf/knn sample whole (their moments and calibration
+    references are kept in this space)."""
+    return x[:, HEAD + _header(x)[0]:] if learner.kind == "fused" else x
+
+
 def fuse(network: np.ndarray, forest: np.ndarray, weight: float) -> np.ndarray:
     """The fused probabilities (one formula for training, evaluation and export)."""
     return (1.0 - weight) * np.asarray(network) + weight * np.asarray(forest)
 
 
 __all__ = ["OPTION", "RF_FILE", "FusedFitted", "FusedLearner", "display_name", "fuse",
-           "rf_weight"]
+           "person_columns", "rf_weight"]

@@ -59,8 +59,8 @@ class RunningCalibration:
     a share ``alike`` of its last touches (a third; half of 4 gestures, all of 2), and
     predicts as trained otherwise (replayed: that case level with as trained, a protocol of
     shuffled gestures keeps its gain). ``variety`` K, the other guard measured (K different
-    gestures or more among them), is off. rf/knn trained with ``--adapt`` judge by their
-    features standardised with the training people's pooled statistics (unguarded, free
+    gestures or more among them), is off. rf/knn (and fused forests) trained with
+    ``--adapt`` judge by their features standardised with the training people's pooled statistics (unguarded, free
     play on one gesture cost the adapted forest 21 points against the plain one); runs
     from before they kept those statistics are not guarded."""
 

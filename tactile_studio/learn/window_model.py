@@ -17,6 +17,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.learn.dataset import TrialDataset
 from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.fused import display_name, person_columns
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import model_file, read_run
 from tactile_studio.learn.windowing import cut, window_spec
@@ -48,7 +49,7 @@ class WindowModel:
         self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
         self.fitted = self.trained  # or adapted to one person by calibrate()
         self.reference: np.ndarray | None = None  # that person's samples (rf/knn features)
-        pooled = self.record.get("as_trained")  # rf/knn --adapt: training people pooled
+        pooled = self.record.get("as_trained")  # a forest --adapt: training people pooled
         self.pooled = None if pooled is None else np.asarray(pooled, dtype=np.float32)
         self.calibrated_on = ""  # what calibrate() was given, for display
         self.spec = window_spec(self.config.window_s, self.config.window_overlap,
@@ -73,15 +74,15 @@ class WindowModel:
     def reads_person_features(self) -> bool:
         """An rf/knn (or fused forest) run trained with ``--adapt`` reads features
         standardised by the person's own statistics, from a recording of them or their
-        touches (until then rf/knn read them with the training people's pooled ones)."""
+        touches (until then they read them with the training people's pooled ones)."""
         return self.config.adapt != "none" and self.learner.kind != "torch"
 
     @property
     def has_view_as_trained(self) -> bool:
         """True when ``predict_windows(as_trained=True)`` can read a window without the
         person's statistics: networks (batch norm as trained), plain rf/knn, and rf/knn
-        trained with ``--adapt`` whose folds kept their training people's pooled feature
-        statistics (runs from before that have none)."""
+        (or a fused forest) trained with ``--adapt`` whose folds kept their training
+        people's pooled feature statistics (runs from before that have none)."""
         return not self.reads_person_features or self.pooled is not None
 
     @property
@@ -117,7 +118,7 @@ class WindowModel:
         if len(x) < 2:
             raise UserError(f"{source or 'calibration'}: too short to calibrate "
                             f"({len(x)} window(s) of {self.window} frames)")
-        reference = x if self.config.adapt != "none" else None
+        reference = person_columns(self.learner, x) if self.config.adapt != "none" else None
         x = self.learner.adapt_inputs(x, np.zeros(len(x)), reference)
         fitted = self.trained
         if batch_norm and hasattr(fitted, "adapted"):
@@ -160,8 +161,8 @@ class WindowModel:
     def predict_windows(self, layout: Layout, windows: list[np.ndarray], rate: float,
                         as_trained: bool = False) -> np.ndarray:
         """Probabilities (n_windows, n_classes) for decoded windows (C, N, R, X), by the
-        model as calibrated (``as_trained``: with the training people's statistics; rf/knn
-        trained with ``--adapt`` read the features standardised by the training people's
+        model as calibrated (``as_trained``: with the training people's statistics; a forest
+        trained with ``--adapt`` reads the features standardised by the training people's
         pooled statistics, the nearest they have to a view without the person's)."""
         if self.needs_calibration or (as_trained and not self.has_view_as_trained):
             raise UserError(f"{self.run}: trained with --adapt {self.config.adapt}, so "
@@ -202,7 +203,8 @@ class WindowModel:
         return x, piece_owner[sample_piece]
 
     def describe(self) -> dict[str, Any]:
-        return {"run": str(self.run), "model": self.config.model,
+        return {"run": str(self.run),
+                "model": display_name(self.config.model, self.config.overrides),
                 "channels": self.config.channels, "fold": self.record["name"],
                 "window": self.window, "labels": self.labels, "adapt": self.config.adapt,
                 "calibrated_on": self.calibrated_on}

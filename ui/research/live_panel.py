@@ -196,9 +196,10 @@ class LiveInferencePanel(QWidget):
             "touch" if m.needs_calibration else
             f"calibrated to the participant: {m.calibrated_on}" if m.reference is not None else
             "as trained, with the training people's statistics" if adapt == "none" else
-            "as trained, with the training people's pooled feature statistics (about 5 "
-            "points under a plain forest on virtual people): calibrate on a recording of the "
-            "participant or tick Adapt as they touch"
+            "as trained, with the training people's pooled feature statistics"
+            + (" for its forest" if m.learner.kind == "fused" else
+               " (about 5 points under a plain forest on virtual people)")
+            + ": calibrate on a recording of the participant or tick Adapt as they touch"
             if m.reads_person_features else
             "as trained, with the training people's batch-norm statistics (re-estimated on "
             "a short earlier recording they cost points on virtual people)")
