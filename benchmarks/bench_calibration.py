@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from tactile_studio.learn.evaluate import load_run_data
+from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.live_inference import RunningCalibration
 from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.window_model import WindowModel
@@ -121,7 +122,7 @@ def replay(run: Path, ks: list[int], running: int = 0, past_only: bool = False,
         score("predicted trials", model)
         model.calibrate(layout, [ds.trials[i] for i in own], rate, "session")
         score("whole session", model)
-    return config.model, out
+    return display_name(config.model, config.overrides), out
 
 
 def repeated(run: Path, n: int, touches: int, guards: tuple[str, ...], folder: Path,

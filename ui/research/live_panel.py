@@ -197,7 +197,8 @@ class LiveInferencePanel(QWidget):
             f"calibrated to the participant: {m.calibrated_on}" if m.reference is not None else
             "as trained, with the training people's statistics" if adapt == "none" else
             "as trained, with the training people's pooled feature statistics"
-            + (" for its forest" if m.learner.kind == "fused" else
+            + (" for its forest (about 2 points under a plain forest on virtual people)"
+               if m.learner.kind == "fused" else
                " (about 5 points under a plain forest on virtual people)")
             + ": calibrate on a recording of the participant or tick Adapt as they touch"
             if m.reads_person_features else
