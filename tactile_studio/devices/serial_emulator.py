@@ -37,6 +37,8 @@ from tactile_studio.errors import UserError
 FrameSource = Callable[[int], np.ndarray]
 """``source(n)`` returns the next ``n`` frames, (n, channels) integer counts."""
 
+DRAIN_SETTLE_S = 0.05  # how long the reader's queue must stay empty before unplug closes
+
 _NON_NUMERIC = (b"ERR", b"nan", b"1a", b"", b" 12", b"0x1F", b"-", b"+7")
 
 
@@ -207,8 +209,16 @@ class SerialEmulator:
         so the report stays exact.
         """
         with self._lock:
-            deadline = time.monotonic() + drain
-            while self.unread_bytes() and time.monotonic() < deadline:
+            deadline, empty_since = time.monotonic() + drain, None
+            while time.monotonic() < deadline:
+                # a write reaches the reader's queue from a kernel work queue, later under
+                # load: the queue must stay empty a moment, not be seen empty once
+                if self.unread_bytes():
+                    empty_since = None
+                elif empty_since is None:
+                    empty_since = time.monotonic()
+                elif time.monotonic() - empty_since >= DRAIN_SETTLE_S:
+                    break
                 time.sleep(0.005)
             self._close_fds()
 
