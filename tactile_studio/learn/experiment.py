@@ -272,7 +272,7 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
     }
-    if moments is not None and people is not None:  # rf/knn's view as trained
+    if moments is not None and people is not None:  # a forest's view as trained
         rec["as_trained"] = pooled_reference(moments, np.unique(people[tr])).tolist()
     if len(fold.heldout):
         rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y,
@@ -304,8 +304,8 @@ def run_title(config: ExperimentConfig, channels: str | None) -> str:
 def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     """(dataset as trained on, samples X, owner trial per sample, number of windows,
     window spec, augmenter or None, moments): the model inputs ``config`` asks for.
-    ``moments``: each person's feature moments before rf/knn standardise their features
-    per person (``--adapt``; ``group_moments``), else None."""
+    ``moments``: each person's feature moments before rf/knn (or a fused model's forest)
+    standardise their features per person (``--adapt``; ``group_moments``), else None."""
     if config.participant_norm:
         ds = participant_normalised(ds)
     spec = window_spec(config.window_s, config.window_overlap, ds.trial_s)

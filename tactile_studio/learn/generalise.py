@@ -102,8 +102,9 @@ def group_moments(x: np.ndarray, groups: np.ndarray) -> Moments:
 def pooled_reference(moments: Moments, groups) -> np.ndarray:
     """Two feature rows whose mean and spread are those of ``groups``' samples pooled:
     ``person_standardised(x, ..., reference=this)`` reads features as a model trained on
-    those people would if it had not standardised per person. rf/knn trained with
-    ``--adapt`` keep it as their view "as trained" (live's guard, live_inference.py)."""
+    those people would if it had not standardised per person. rf/knn (and fused forests)
+    trained with ``--adapt`` keep it as their view "as trained" (live's guard,
+    live_inference.py)."""
     n = sum(moments[str(g)][0] for g in groups)
     mean = sum(moments[str(g)][1] for g in groups) / max(n, 1)
     var = sum(moments[str(g)][2] for g in groups) / max(n, 1) - np.square(mean)
