@@ -88,6 +88,10 @@ class ReplayDevice(DevicePlugin):
     def finished(self) -> bool:
         return self._done
 
+    @property
+    def waits_for_reader(self) -> bool:
+        return self.settings["speed"] <= 0
+
     def _due(self) -> int:
         """How many frames of the current pass are due by now."""
         speed = self.settings["speed"]

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -76,7 +75,6 @@ class SimulatedSensor(DevicePlugin):
             fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"],
             difficulty=s["difficulty"], surface=s["surface"]))
         self._lock = threading.RLock()
-        self._pacer: Callable[[int, float], int] | None = None
         self._open = False
         self._t0 = 0.0        # wall clock at open
         self._f0 = 0          # frame index at open
@@ -108,8 +106,6 @@ class SimulatedSensor(DevicePlugin):
         external = self._sim.external  # a lockstep bench (simulate/indenter.py) paces speed 0
         if speed <= 0 and external is not None:
             n = external.allowed(self._sim.frame, max_frames, _WAIT_S)
-        elif speed <= 0 and self._pacer is not None:
-            n = self._pacer(max_frames, _WAIT_S)
         elif speed > 0:
             # a batch of at least _MIN_PERIOD_S of frames: the physics cost a fixed
             # ~0.2 ms per call, half a core at 1 kHz frame by frame (as a USB device
@@ -129,11 +125,11 @@ class SimulatedSensor(DevicePlugin):
                 time.sleep(min(max(next_at - now, 0.0005), deadline - now))
         return self._batch(n)
 
-    def pace_with(self, pacer: Callable[[int, float], int] | None) -> None:
-        """At speed 0, let ``pacer(max_frames, wait_s)`` say how many frames to make now
-        (0: none yet). Faster than real time must not mean faster than a consumer that
-        may not lose frames (a wellness check on a loaded machine lapped the ring)."""
-        self._pacer = pacer
+    @property
+    def waits_for_reader(self) -> bool:
+        """At speed 0 frames are made on demand: a wellness check on a loaded machine
+        lapped the ring before the engine held the simulator to its reader."""
+        return float(self.settings["speed"]) <= 0
 
     def sensor_id(self) -> str:
         """The simulated sensor's identity comes from its seed (baselines, gains, faults)."""

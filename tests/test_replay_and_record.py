@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from plugin_fixtures import CountingDevice
 from waiting import wait_until
 
 from tactile_studio.cli import main
@@ -74,6 +75,48 @@ def test_replay_of_a_session_reproduces_frames_and_timing(tmp_path):
         assert np.allclose(c.column("device_time"), dev_t - dev_t[0])
         assert np.array_equal(c.column("seq"), np.arange(len(raw)))
         assert c.layout.name == "shearsense-6x6"
+
+
+@pytest.mark.parametrize("device", ["replay", "simulated"])
+def test_as_fast_as_possible_waits_for_the_recorder_instead_of_lapping_the_ring(tmp_path,
+                                                                               device):
+    # a 128-frame ring and a recorder that reads every 50 ms: at speed 0 a replay or the
+    # simulator makes thousands of frames in that time, so without the hold the ring laps
+    src = tmp_path / "src.h5"
+    record_simulated(src)
+    with Session(src) as s:
+        raw = s.raw()
+    settings = {"path": str(src)} if device == "replay" else {"seed": "3"}
+    engine = AcquisitionEngine(create_device(device, {**settings, "speed": "0"}),
+                               capacity=128, baseline_frames=10)
+    copy = tmp_path / "copy.h5"
+    rec = Recorder(engine, copy).start()
+    engine.start()
+    if device == "replay":
+        wait_finished(engine)
+    else:
+        wait_until(lambda: rec.recorded >= 3000, 30.0, what="3000 simulated frames recorded")
+    engine.stop()
+    rec.stop()
+    with Session(copy) as c:
+        assert "overrun" not in [e["kind"] for e in c.events] and c.journal.counters["dropped"] == 0
+        seq = c.column("seq")
+        assert np.array_equal(seq, np.arange(len(seq)))
+        if device == "replay":
+            assert np.array_equal(c.raw(), raw)
+        assert len(seq) >= 3000 if device == "simulated" else len(seq) == len(raw)
+
+
+def test_a_real_time_device_is_not_held_back_by_a_slow_reader():
+    # the counting device streams at its own pace: a hold cannot slow it, so a reader
+    # that never reads loses frames (which it counts) while the device runs on
+    dev = CountingDevice(frames=2000)
+    engine = AcquisitionEngine(dev, capacity=128, baseline_frames=10)
+    release = engine.hold(lambda: 0)
+    engine.start()
+    wait_finished(engine)
+    assert engine.frames == 2000 and engine.read_since(0).lost == 2000 - 128
+    release()
 
 
 def test_replay_loops_with_continuous_time_and_sequence(tmp_path):

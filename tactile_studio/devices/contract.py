@@ -150,6 +150,13 @@ class DevicePlugin(abc.ABC):
         """True when a finite source (a replayed file) has delivered everything."""
         return False
 
+    @property
+    def waits_for_reader(self) -> bool:
+        """True when frames are made on demand (a file replayed or a simulation "as fast
+        as possible"): the engine then reads no faster than a reader that may not lose
+        frames takes them. A sensor streaming in real time cannot wait: False."""
+        return False
+
     def sensor_id(self) -> str | None:
         """Optional hook: the attached sensor's identity (serial number, seed), if the
         device knows it; None lets the user pick or type one. Goes in the logbook."""

@@ -12,6 +12,7 @@ import logging
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from enum import StrEnum
 from typing import Any
 
@@ -76,6 +77,8 @@ class AcquisitionEngine:
         self._tare_from: int | None = 0  # auto-tare on the first frames
         self._tare_n = baseline_frames
         self._last_seq: int | None = None
+        self._holds: dict[int, tuple[Callable[[], int], int]] = {}
+        self._next_hold = 0
 
     # ---- lifecycle -------------------------------------------------------------------
     def start(self) -> None:
@@ -130,6 +133,34 @@ class AcquisitionEngine:
                 break
             time.sleep(0.005)
         return self.ring.written >= n
+
+    # ---- readers that may not lose frames -----------------------------------------------
+    def hold(self, cursor: Callable[[], int], lead: int | None = None) -> Callable[[], None]:
+        """Keep frames for a reader that may not lose any (a recorder, a health check):
+        ``cursor()`` is the next frame it will read. A device that can wait for its
+        reader (a file replayed or the simulator at speed 0) is read at most ``lead``
+        frames (default: the ring) ahead of the slowest held cursor, so "as fast as
+        possible" means as fast as the reader, not a lapped ring. A real-time device
+        cannot wait: its frames still overrun a slow reader, which counts them.
+        Returns the function that releases the hold."""
+        with self._lock:
+            key = self._next_hold
+            self._next_hold += 1
+            self._holds[key] = (cursor, min(self.ring.capacity, lead or self.ring.capacity))
+
+        def release() -> None:
+            with self._lock:
+                self._holds.pop(key, None)
+        return release
+
+    def _room(self) -> int:
+        """Frames the device may deliver now without lapping a held reader."""
+        if not self._holds or not getattr(self.device, "waits_for_reader", False):
+            return self.read_chunk
+        with self._lock:
+            holds = list(self._holds.values())
+        written = self.ring.written
+        return max(0, min(lead - (written - cursor()) for cursor, lead in holds))
 
     # ---- events and tare -------------------------------------------------------------
     def add_event(self, kind: str, **detail: Any) -> dict[str, Any]:
@@ -216,8 +247,12 @@ class AcquisitionEngine:
         self.add_event("connect", device=dev.name)
         try:
             while not self._stop.is_set():
+                room = min(self.read_chunk, self._room())
+                if room <= 0:  # a held reader is a ring (or its lead) behind: let it read
+                    self._stop.wait(0.002)
+                    continue
                 try:
-                    batch = dev.read(self.read_chunk)
+                    batch = dev.read(room)
                 except DeviceLost as exc:
                     if not dev.supports_reconnect or not self._reconnect(exc):
                         if not self._stop.is_set():

@@ -127,21 +127,8 @@ class SimulatedPlacer(Placer):
     def attach(self, bench: Bench) -> None:
         """At speed 0 the simulator runs at most ``LEAD_FRAMES`` ahead of the check, so a
         loaded machine slows the check down instead of making it lose frames."""
-        engine = bench.engine
         self._bench = bench
-
-        def allowed(max_frames: int, wait_s: float) -> int:
-            if engine.state in (STOPPED, ERROR, FINISHED):  # this check is over
-                return max_frames
-            deadline = time.monotonic() + wait_s
-            while True:
-                room = bench.cursor + LEAD_FRAMES - engine.frames
-                if room > 0 or time.monotonic() >= deadline:
-                    return max(0, min(max_frames, room))
-                time.sleep(0.002)
-
-        if hasattr(self.device, "pace_with"):
-            self.device.pace_with(allowed)
+        bench.engine.hold(lambda: bench.cursor, lead=LEAD_FRAMES)
 
 
 class Bench:

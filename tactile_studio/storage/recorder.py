@@ -8,6 +8,7 @@ import os
 import threading
 import weakref
 from collections import Counter
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -31,9 +32,10 @@ _OPEN: weakref.WeakSet[Recorder] = weakref.WeakSet()
 class Recorder:
     """Writes every frame and event the engine produces from now on to ``path``.
 
-    Frames are pulled in chunks by cursor, so the recorder never slows the device
-    thread; if it ever falls a whole ring behind, the lost frames are recorded as an
-    ``overrun`` event and counted, never hidden.
+    Frames are pulled in chunks by cursor, so the recorder never slows a real-time
+    device; if it ever falls a whole ring behind one, the lost frames are recorded as an
+    ``overrun`` event and counted, never hidden. A device that can wait (a replay or the
+    simulator at speed 0) waits for it instead (``AcquisitionEngine.hold``).
 
     The recorder owns the file's rows: :meth:`row_of` is the one place an engine frame
     becomes a file row, and everything else that goes into the file (trials, notes,
@@ -65,6 +67,7 @@ class Recorder:
         self.start_counters = engine.counters()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        self._release: Callable[[], None] = lambda: None
         if engine.baseline is not None:
             self.writer.add_baseline(engine.baseline, 0)
         self._carry_over()
@@ -178,6 +181,11 @@ class Recorder:
         self.writer.flush()
 
     def start(self) -> Recorder:
+        """Pull in the background. A device that can wait for its reader (a replay or
+        the simulator at speed 0) is held to this recorder's pace, so nothing is lost."""
+        hold = getattr(self.engine, "hold", None)  # a plain FrameStream has no hold
+        if hold is not None:
+            self._release = hold(lambda: self._cursor)
         self._thread.start()
         return self
 
@@ -191,6 +199,7 @@ class Recorder:
         if self._thread.ident is not None:  # never started: catch_up() did the pulling
             self._thread.join()
         self._drain()
+        self._release()
         self.writer.close(background=background_compress)
         _OPEN.discard(self)
         self._log_usage()
