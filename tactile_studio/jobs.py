@@ -190,24 +190,55 @@ def _rich_progress(stream, width: int):  # noqa: ANN001, ANN202
                     refresh_per_second=8)
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (a ``kill``, a job scheduler, a shutdown) reached a command: it unwinds like
+    Ctrl-C, so ``finally`` blocks and exit handlers close open files."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+@contextmanager
+def terminate_unwinds() -> Iterator[None]:
+    """While active, SIGTERM raises :class:`Terminated` in the main thread instead of
+    ending the process on the spot (which would skip every cleanup, leaving a
+    recording's file to be repaired and a sweep's workers running)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGTERM, _raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 @contextmanager
 def ctrl_c_cancels(token: CancelToken) -> Iterator[CancelToken]:
-    """While active, the first Ctrl-C sets ``token`` (the job stops cleanly); a second
-    one interrupts at once."""
+    """While active, the first Ctrl-C or SIGTERM sets ``token`` (the job stops cleanly,
+    keeping what it finished); a second one interrupts at once."""
     if threading.current_thread() is not threading.main_thread():
         yield token
         return
-    previous = signal.getsignal(signal.SIGINT)
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.getsignal(sig) for sig in signals}
+
+    def restore() -> None:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
     def handler(signum, frame):  # noqa: ANN001
         if token.cancelled:
-            signal.signal(signal.SIGINT, previous)
-            raise KeyboardInterrupt
-        sys.stderr.write("\nstopping (Ctrl-C again to interrupt at once)...\n")
+            restore()
+            raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+        why = "" if signum == signal.SIGINT else " on SIGTERM"
+        sys.stderr.write(f"\nstopping{why} (Ctrl-C again to interrupt at once)...\n")
         token.cancel()
 
-    signal.signal(signal.SIGINT, handler)
+    for sig in signals:
+        signal.signal(sig, handler)
     try:
         yield token
     finally:
-        signal.signal(signal.SIGINT, previous)
+        restore()

@@ -225,10 +225,11 @@ def test_kill_minus_9_then_resume_loses_nothing_and_keeps_the_order(tmp_path: Pa
         assert t["end_sample"] - t["start_sample"] == 86
 
 
-def test_ctrl_c_stops_cleanly_keeping_trials(tmp_path: Path) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
+def test_ctrl_c_or_sigterm_stops_cleanly_keeping_trials(tmp_path: Path, sig) -> None:
     proc, path = _start(tmp_path, "--blocks", "2", "--speed", "10")
     _wait_trials(proc, path, 2)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert "--resume" in err and "Traceback" not in err

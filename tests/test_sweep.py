@@ -5,9 +5,15 @@ local Ray instance (2 CPUs, no dashboard) give identical metrics, equal to
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 from learn_fixtures import make_dataset_folder
+from waiting import wait_until
 
 from tactile_studio.cli import main as cli_main
 from tactile_studio.errors import Cancelled, UserError
@@ -23,6 +29,7 @@ pytestmark = pytest.mark.slow  # real worker processes and a Ray instance
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 MODELS = ["rf", "cnn1d"]
 CHANNELS = ["normal", "shear"]
+EXE = str(Path(sys.executable).parent / "tactile-studio")
 
 
 @pytest.fixture(scope="module")
@@ -126,3 +133,66 @@ def test_cli_sweep_prints_the_table(data, capsys):
     assert cli_main(["sweep", "--data", str(data / "data"), "--models", "nope",
                      "--cache-dir", str(data / "cache")]) == 1
     assert "unknown model 'nope'" in capsys.readouterr().err
+
+
+def _workers(parent: int) -> set[int]:
+    """PIDs of the sweep's worker processes (spawned children, not the resource tracker)."""
+    found = set()
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+            cmdline = (stat.parent / "cmdline").read_bytes()
+        except (OSError, IndexError, ValueError):
+            continue
+        if ppid == parent and b"spawn_main" in cmdline:
+            found.add(int(stat.parent.name))
+    return found
+
+
+def _running(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"
+
+
+def _training(pid: int) -> bool:
+    """The worker has imported torch: it is running its task (or about to)."""
+    try:
+        return "torch" in Path(f"/proc/{pid}/maps").read_text()
+    except OSError:
+        return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["sigterm", "sigkill"])
+def test_a_sweep_stopped_by_a_signal_leaves_no_worker_running(data, sig):
+    # long tasks (cnn1d for 5,000 epochs): a worker left behind would run for minutes
+    out, log = data / f"signalled-{sig.name}", data / f"signalled-{sig.name}.err"
+    workers: set[int] = set()
+    with log.open("w") as err_file:  # a file, not a pipe: orphans would hold a pipe open
+        proc = subprocess.Popen([EXE, "sweep", "--data", str(data / "data"), "--models",
+                                 "cnn1d", "--channels", "both", "--preset", "tiny",
+                                 "--epochs", "5000", "--jobs", "2", "--cache-dir",
+                                 str(data / f"cache-{sig.name}"), "--out", str(out)],
+                                stdout=subprocess.DEVNULL, stderr=err_file)
+    try:
+        wait_until(lambda: len(_workers(proc.pid)) == 2, 60.0, what="two sweep workers")
+        workers = _workers(proc.pid)
+        wait_until(lambda: all(_training(w) for w in workers), 60.0,
+                   what="the workers to start their tasks")
+        proc.send_signal(sig)
+        proc.wait(timeout=60)
+        wait_until(lambda: not any(_running(w) for w in workers), 30.0,
+                   what="the workers to exit")
+    finally:
+        proc.kill()
+        proc.wait()
+        for w in workers:  # only if the test failed: do not leave them running
+            if _running(w):
+                os.kill(w, signal.SIGKILL)
+    err = log.read_text()
+    if sig == signal.SIGTERM:  # cancelled as by Ctrl-C: the table of what finished is kept
+        assert proc.returncode == 130 and "Traceback" not in err, err
+        assert "cancelled" in err
+        assert json.loads((out / "results.json").read_text())["complete"] is False

@@ -6,6 +6,9 @@ preferences are never touched. Waits use qtbot.waitUntil, never fixed sleeps.
 
 from __future__ import annotations
 
+import os
+import signal
+
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
@@ -19,6 +22,7 @@ from tactile_studio.errors import DeviceNotFound
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Session
 from tactile_studio.ui import device_panel
+from tactile_studio.ui.app import close_on_signals, ensure_app
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
 
@@ -234,3 +238,22 @@ def test_snapshot_bad_device_or_setting_is_one_line(tmp_path, capsys, argv, mess
     err = capsys.readouterr().err
     assert code == 1 and message in err and err.count("\n") == 1
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["sigterm", "ctrl-c"])
+def test_a_signal_closes_the_window_and_finishes_its_recording(qtbot, window, tmp_path, sig):
+    # `kill` or Ctrl-C in the terminal the app was started from: a real signal to this
+    # process, handled as run_gui handles it
+    assert window.panel.connect_device()
+    path = tmp_path / "killed.h5"
+    assert window.panel.start_recording(str(path))
+    qtbot.waitUntil(lambda: window.controller.status().recorded_frames > 20, timeout=10000)
+    restore = close_on_signals(ensure_app())
+    try:
+        os.kill(os.getpid(), sig)
+        qtbot.waitUntil(lambda: not window.isVisible(), timeout=10000)
+    finally:
+        restore()
+    assert window.controller.recorder is None and not window.controller.engine.running
+    with Session(path) as s:
+        assert s.closed_cleanly and s.n_frames > 20

@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
 from tactile_studio.errors import UserError
@@ -37,7 +40,37 @@ def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
         window.shutdown()
         raise UserError(window.panel.error_text() or "cannot stream to LSL")
     window.show()
+    close_on_signals(app)
     return int(app.exec())
+
+
+def close_on_signals(app: QApplication) -> Callable[[], None]:
+    """Ctrl-C in the terminal or SIGTERM (a ``kill``, a logout) closes every window as
+    its close button does: a recording or a collection session is finished and its file
+    closed, not cut off mid-write. Returns the function that restores the old handlers."""
+    signals = (signal.SIGINT, signal.SIGTERM)
+    previous = {sig: signal.getsignal(sig) for sig in signals}
+
+    def close_all() -> None:
+        app.closeAllWindows()
+        app.quit()
+
+    def handler(signum: int, frame: object) -> None:
+        QTimer.singleShot(0, close_all)
+
+    for sig in signals:
+        signal.signal(sig, handler)
+    # Python runs a signal handler only between bytecodes: this lets it in while Qt idles
+    wake = QTimer(app)
+    wake.timeout.connect(lambda: None)
+    wake.start(200)
+
+    def restore() -> None:
+        wake.stop()
+        wake.deleteLater()
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+    return restore
 
 
 def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | os.PathLike,

@@ -12,9 +12,11 @@ import io
 import os
 import pkgutil
 import sys
+from contextlib import nullcontext
 
 from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.jobs import Terminated, terminate_unwinds
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -35,8 +37,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         args = parser.parse_args(["gui", *(argv or [])])
+    # the GUI closes its windows on SIGTERM itself (ui/app.py)
+    unwinds = terminate_unwinds() if args.func.__name__ != "cmd_gui" else nullcontext()
     try:
-        code = int(args.func(args) or 0)
+        with unwinds:
+            code = int(args.func(args) or 0)
         sys.stdout.flush()  # inside the try: a closed pipe shows here, not at exit
         return code
     except BrokenPipeError:
@@ -49,6 +54,9 @@ def main(argv: list[str] | None = None) -> int:
     except Cancelled:
         print("tactile-studio: cancelled; finished work was kept", file=sys.stderr)
         return 130
+    except Terminated:
+        print("tactile-studio: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
         print("tactile-studio: interrupted", file=sys.stderr)
         return 130

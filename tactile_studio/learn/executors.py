@@ -16,7 +16,8 @@ of the scheduler (Ray places it on a node with that many free GPUs; local worker
 it).
 
 * :class:`LocalExecutor` — ``jobs`` worker processes (spawned: no state leaks from the
-  parent, Ctrl-C reaches only the parent, which cancels).
+  parent, Ctrl-C or SIGTERM reaches only the parent, which cancels; a worker whose parent
+  was killed exits within a second).
 * :class:`RayExecutor` — ``address`` ``HOST:PORT`` of a running Ray cluster (``ray
   start --head`` on one machine, ``ray start --address HOST:PORT`` on others; every node
   needs this package installed and the data at the same path), or a local Ray instance
@@ -30,6 +31,8 @@ import multiprocessing
 import os
 import signal
 import socket
+import threading
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -39,10 +42,23 @@ from tactile_studio.jobs import CancelToken
 Task = tuple[dict[str, Any], float]  # (keyword arguments, GPUs requested)
 EXECUTORS = ("local", "ray")
 _POLL_S = 0.2
+_PARENT_CHECK_S = 1.0
 
 
-def _ignore_sigint() -> None:
+def _init_worker(parent: int) -> None:
+    """Ctrl-C and SIGTERM reach the parent only, even sent to the whole process group
+    (it cancels, then kills its workers); and a worker whose parent died without ending
+    it (killed: no handler ran) exits instead of finishing its task. ``parent`` is the
+    sweep's PID as the sweep saw it: one killed while this worker started is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(_PARENT_CHECK_S)
+        os._exit(1)  # the sweep is gone: nobody would read this task's result
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def _call(fn: Callable[..., Any], kwargs: dict[str, Any]) -> Any:
@@ -60,7 +76,8 @@ class LocalExecutor:
 
     def __enter__(self) -> LocalExecutor:
         ctx = multiprocessing.get_context("spawn")
-        self._pool = cf.ProcessPoolExecutor(self.jobs, mp_context=ctx, initializer=_ignore_sigint)
+        self._pool = cf.ProcessPoolExecutor(self.jobs, mp_context=ctx, initializer=_init_worker,
+                                          initargs=(os.getpid(),))
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -72,7 +89,7 @@ class LocalExecutor:
             return
         if kill:
             for proc in list(getattr(pool, "_processes", {}).values()):
-                proc.terminate()  # running tasks of a cancelled sweep are abandoned
+                proc.kill()  # running tasks of a cancelled sweep are abandoned
         pool.shutdown(wait=True, cancel_futures=True)
 
     def run(self, fn: Callable[..., Any], tasks: dict[str, Task],
