@@ -5,6 +5,7 @@ cell that sends garbage or nothing."""
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -109,6 +110,23 @@ def test_stage_disconnect_is_one_line(printer):
         assert "\n" not in str(info.value)
     finally:
         stage.close()
+
+
+def test_an_unplugged_instrument_link_is_gone_until_it_is_plugged_back(tmp_path):
+    # the kernel gives a freed pty number to the next pty opened anywhere: a link left
+    # behind would lead a reconnecting stage to that stranger's port
+    link = tmp_path / "printer"
+    emu = PrinterEmulator(link=str(link))
+    first = emu.open()
+    try:
+        assert os.readlink(link) == first
+        emu.unplug()
+        assert not link.is_symlink()
+        second = emu.open()
+        assert os.readlink(link) == second
+    finally:
+        emu.stop()
+    assert not link.is_symlink()
 
 
 def test_load_cell_streams_tares_and_scales(loadcell):

@@ -9,7 +9,7 @@ exact truth a receiver's counts can be compared with.
 Unplugging is :meth:`SerialEmulator.unplug` (the master closes: the reader gets an I/O
 error at once, as when a USB receiver is pulled); :meth:`SerialEmulator.open` plugs a new
 pty in. Each pty has a new ``/dev/pts/N`` name, so ``link`` keeps a stable path: a
-symlink re-pointed at the current slave on every open, left dangling while unplugged.
+symlink re-pointed at the current slave on every open, removed while unplugged.
 
 Usable in-process (tests) and from ``tactile-studio emulate-serial``.
 """
@@ -202,7 +202,10 @@ class SerialEmulator:
         return int.from_bytes(buf, sys.byteorder)
 
     def unplug(self, drain: float = 0.0) -> None:
-        """Close the pty (the reader sees an I/O error); the link is left dangling.
+        """Close the pty (the reader sees an I/O error) and remove the link, as a pulled
+        USB cable removes its port. A link left behind pointed at a pty number the kernel
+        hands to the next pty opened anywhere: a reconnecting reader then opened someone
+        else's port (seen as two tests, in parallel, each reading the other's).
 
         Closing a pty discards what the reader has not read yet, as pulling a cable
         does; ``drain`` waits up to that many seconds for the reader to take it first,
@@ -220,14 +223,14 @@ class SerialEmulator:
                 elif time.monotonic() - empty_since >= DRAIN_SETTLE_S:
                     break
                 time.sleep(0.005)
+            if self.link is not None and self.link.is_symlink():
+                self.link.unlink(missing_ok=True)
             self._close_fds()
 
     def close(self, drain: float = 0.0) -> None:
-        """Stop streaming, unplug (after ``drain``), and remove the link."""
+        """Stop streaming and unplug (after ``drain``)."""
         self.stop()
         self.unplug(drain)
-        if self.link is not None and self.link.is_symlink():
-            self.link.unlink(missing_ok=True)
 
     def _close_fds(self) -> None:
         if self._master is not None:

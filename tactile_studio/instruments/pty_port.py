@@ -21,7 +21,7 @@ class PtyPort:
 
     def open(self) -> str:
         """Plug in a new pty (raw mode); returns the slave path."""
-        self.close()
+        self._close_master()
         master, slave = os.openpty()
         tty.setraw(slave)
         self.path = os.ttyname(slave)
@@ -48,6 +48,15 @@ class PtyPort:
         return self._master is not None
 
     def close(self) -> None:
+        """Unplug: close the pty and remove the link, as a pulled cable removes its port
+        (a link left behind points at a pty number the kernel gives to the next pty
+        opened anywhere, where a reconnecting reader would go)."""
+        with self._lock:
+            if self.link is not None and self.link.is_symlink():
+                self.link.unlink(missing_ok=True)
+        self._close_master()
+
+    def _close_master(self) -> None:
         with self._lock:
             if self._master is not None:
                 os.close(self._master)
