@@ -18,9 +18,8 @@ from tactile_studio.storage.shearsense import write_shearsense_csv
 
 
 def record_simulated(path, seconds="1", *extra):
-    # 20x real time: ~860 frames a second, well inside the engine's ring, which a replay at
-    # speed 0 can lap before the recorder reads if the file holds more (at speed 0 the
-    # simulator wrote anywhere near the ring's 65,536 frames in a second)
+    # 20x real time: ~860 frames a second, a small file whatever the machine's speed (at
+    # speed 0 the simulator made up to the ring's 65,536 frames in a second)
     assert main(["record", "--device", "simulated", "--set", "speed=20", "--set", "seed=3",
                  *extra, "--seconds", seconds, "--out", str(path)]) == 0
 

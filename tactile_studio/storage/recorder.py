@@ -225,8 +225,12 @@ class Recorder:
             logging.getLogger(__name__).warning("hours of use not logged: %s", exc)
 
     def _run(self) -> None:
-        while not self._stop.wait(self.poll_s):
-            self._drain()
+        try:
+            while not self._stop.wait(self.poll_s):
+                self._drain()
+        except BaseException:
+            self._release()  # a dead recorder must not stall a device that waits for it
+            raise
 
     def _carry_over(self) -> None:
         latest: dict[str, dict[str, Any]] = {}
