@@ -195,6 +195,27 @@ class Terminated(KeyboardInterrupt):
     Ctrl-C, so ``finally`` blocks and exit handlers close open files."""
 
 
+@contextmanager
+def signals_handled(handler: Callable[[int, Any], None],
+                    *signals: signal.Signals) -> Iterator[Callable[[], None]]:
+    """While active, ``handler`` handles ``signals``; the previous handlers come back at
+    the end, or earlier through the function it yields. Outside the main thread Python
+    cannot set handlers: nothing changes there."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    previous = {sig: signal.signal(sig, handler) for sig in signals}
+
+    def restore() -> None:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+    try:
+        yield restore
+    finally:
+        restore()
+
+
 def _raise_terminated(signum: int, frame: object) -> None:
     raise Terminated
 
@@ -204,29 +225,14 @@ def terminate_unwinds() -> Iterator[None]:
     """While active, SIGTERM raises :class:`Terminated` in the main thread instead of
     ending the process on the spot (which would skip every cleanup, leaving a
     recording's file to be repaired and a sweep's workers running)."""
-    if threading.current_thread() is not threading.main_thread():
+    with signals_handled(_raise_terminated, signal.SIGTERM):
         yield
-        return
-    previous = signal.signal(signal.SIGTERM, _raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 @contextmanager
 def ctrl_c_cancels(token: CancelToken) -> Iterator[CancelToken]:
     """While active, the first Ctrl-C or SIGTERM sets ``token`` (the job stops cleanly,
     keeping what it finished); a second one interrupts at once."""
-    if threading.current_thread() is not threading.main_thread():
-        yield token
-        return
-    signals = (signal.SIGINT, signal.SIGTERM)
-    previous = {sig: signal.getsignal(sig) for sig in signals}
-
-    def restore() -> None:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
     def handler(signum, frame):  # noqa: ANN001
         if token.cancelled:
@@ -236,9 +242,5 @@ def ctrl_c_cancels(token: CancelToken) -> Iterator[CancelToken]:
         sys.stderr.write(f"\nstopping{why} (Ctrl-C again to interrupt at once)...\n")
         token.cancel()
 
-    for sig in signals:
-        signal.signal(sig, handler)
-    try:
+    with signals_handled(handler, signal.SIGINT, signal.SIGTERM) as restore:
         yield token
-    finally:
-        restore()

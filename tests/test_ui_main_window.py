@@ -248,12 +248,9 @@ def test_a_signal_closes_the_window_and_finishes_its_recording(qtbot, window, tm
     path = tmp_path / "killed.h5"
     assert window.panel.start_recording(str(path))
     qtbot.waitUntil(lambda: window.controller.status().recorded_frames > 20, timeout=10000)
-    restore = close_on_signals(ensure_app())
-    try:
+    with close_on_signals(ensure_app()):
         os.kill(os.getpid(), sig)
         qtbot.waitUntil(lambda: not window.isVisible(), timeout=10000)
-    finally:
-        restore()
     assert window.controller.recorder is None and not window.controller.engine.running
     with Session(path) as s:
         assert s.closed_cleanly and s.n_frames > 20

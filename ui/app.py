@@ -5,7 +5,8 @@ from __future__ import annotations
 import os
 import signal
 import sys
-from collections.abc import Callable
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +14,7 @@ from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
 from tactile_studio.errors import UserError
+from tactile_studio.jobs import signals_handled
 from tactile_studio.ui.main_window import MainWindow, wait_for
 from tactile_studio.ui.settings import APPLICATION, ORGANISATION
 
@@ -40,16 +42,15 @@ def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
         window.shutdown()
         raise UserError(window.panel.error_text() or "cannot stream to LSL")
     window.show()
-    close_on_signals(app)
-    return int(app.exec())
+    with close_on_signals(app):
+        return int(app.exec())
 
 
-def close_on_signals(app: QApplication) -> Callable[[], None]:
-    """Ctrl-C in the terminal or SIGTERM (a ``kill``, a logout) closes every window as
-    its close button does: a recording or a collection session is finished and its file
-    closed, not cut off mid-write. Returns the function that restores the old handlers."""
-    signals = (signal.SIGINT, signal.SIGTERM)
-    previous = {sig: signal.getsignal(sig) for sig in signals}
+@contextmanager
+def close_on_signals(app: QApplication) -> Iterator[None]:
+    """While active, Ctrl-C in the terminal or SIGTERM (a ``kill``, a logout) closes every
+    window as its close button does: a recording or a collection session is finished and
+    its file closed, not cut off mid-write."""
 
     def close_all() -> None:
         app.closeAllWindows()
@@ -58,19 +59,16 @@ def close_on_signals(app: QApplication) -> Callable[[], None]:
     def handler(signum: int, frame: object) -> None:
         QTimer.singleShot(0, close_all)
 
-    for sig in signals:
-        signal.signal(sig, handler)
     # Python runs a signal handler only between bytecodes: this lets it in while Qt idles
     wake = QTimer(app)
     wake.timeout.connect(lambda: None)
     wake.start(200)
-
-    def restore() -> None:
+    try:
+        with signals_handled(handler, signal.SIGINT, signal.SIGTERM):
+            yield
+    finally:
         wake.stop()
         wake.deleteLater()
-        for sig, old in previous.items():
-            signal.signal(sig, old)
-    return restore
 
 
 def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | os.PathLike,

@@ -12,7 +12,6 @@ import io
 import os
 import pkgutil
 import sys
-from contextlib import nullcontext
 
 from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
@@ -37,10 +36,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         args = parser.parse_args(["gui", *(argv or [])])
-    # the GUI closes its windows on SIGTERM itself (ui/app.py)
-    unwinds = terminate_unwinds() if args.func.__name__ != "cmd_gui" else nullcontext()
     try:
-        with unwinds:
+        with terminate_unwinds():  # the GUI's window loop closes its windows instead
             code = int(args.func(args) or 0)
         sys.stdout.flush()  # inside the try: a closed pipe shows here, not at exit
         return code

@@ -77,8 +77,7 @@ class AcquisitionEngine:
         self._tare_from: int | None = 0  # auto-tare on the first frames
         self._tare_n = baseline_frames
         self._last_seq: int | None = None
-        self._holds: dict[int, tuple[Callable[[], int], int]] = {}
-        self._next_hold = 0
+        self._holds: dict[object, tuple[Callable[[], int], int]] = {}
 
     # ---- lifecycle -------------------------------------------------------------------
     def start(self) -> None:
@@ -143,9 +142,8 @@ class AcquisitionEngine:
         possible" means as fast as the reader, not a lapped ring. A real-time device
         cannot wait: its frames still overrun a slow reader, which counts them.
         Returns the function that releases the hold."""
+        key = object()
         with self._lock:
-            key = self._next_hold
-            self._next_hold += 1
             self._holds[key] = (cursor, min(self.ring.capacity, lead or self.ring.capacity))
 
         def release() -> None:
@@ -155,7 +153,7 @@ class AcquisitionEngine:
 
     def _room(self) -> int:
         """Frames the device may deliver now without lapping a held reader."""
-        if not self._holds or not getattr(self.device, "waits_for_reader", False):
+        if not self._holds or not self.device.waits_for_reader:
             return self.read_chunk
         with self._lock:
             holds = list(self._holds.values())
