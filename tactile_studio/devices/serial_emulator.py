@@ -8,8 +8,8 @@ exact truth a receiver's counts can be compared with.
 
 Unplugging is :meth:`SerialEmulator.unplug` (the master closes: the reader gets an I/O
 error at once, as when a USB receiver is pulled); :meth:`SerialEmulator.open` plugs a new
-pty in. Each pty has a new ``/dev/pts/N`` name, so ``link`` keeps a stable path: a
-symlink re-pointed at the current slave on every open, removed while unplugged.
+pty in. The pty and its stable ``link`` are a :class:`~tactile_studio.devices.pty_port.PtyPort`,
+as the instrument emulators' are.
 
 Usable in-process (tests) and from ``tactile-studio emulate-serial``.
 """
@@ -23,15 +23,14 @@ import sys
 import termios
 import threading
 import time
-import tty
 from collections import Counter
 from collections.abc import Callable, Iterable
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from tactile_studio.devices.line_decoder import KINDS, encode_frame
+from tactile_studio.devices.pty_port import PtyPort
 from tactile_studio.errors import UserError
 
 FrameSource = Callable[[int], np.ndarray]
@@ -119,9 +118,8 @@ class SerialEmulator:
         if unknown or not self.kinds:
             raise UserError(f"unknown malformed kinds {sorted(unknown)} (known: {', '.join(KINDS)})")
         self.source, self.rate_hz, self.corrupt = source, float(rate_hz), float(corrupt)
-        self.link = Path(link) if link is not None else None
+        self.pty = PtyPort(link)
         self.trailing_comma, self.keep_sent, self.max_value = trailing_comma, keep_sent, max_value
-        self.path: str | None = None
         self.good = 0
         self.malformed: Counter[str] = Counter()
         self.interrupted = 0  # lines cut by unplug/stop before their end was written
@@ -129,7 +127,6 @@ class SerialEmulator:
         self._rng = np.random.default_rng(seed)
         self._sent: list[np.ndarray] = []
         self.reader_grace = reader_grace
-        self._master: int | None = None
         self._poll: Any = None
         self._reader_since: float | None = None
         self._lock = threading.RLock()
@@ -138,31 +135,20 @@ class SerialEmulator:
 
     # ---- plugging --------------------------------------------------------------------
     def open(self) -> str:
-        """Plug in a new pty (raw mode) and point ``link`` at it; returns the slave path."""
+        """Plug in a new pty and point ``link`` at it; returns the slave path."""
         with self._lock:
-            self._close_fds()
-            master, slave = os.openpty()
-            tty.setraw(slave)  # no echo, no CR/LF translation: bytes arrive as written
-            self.path = os.ttyname(slave)
-            os.close(slave)  # so the master sees POLLHUP until a reader opens the port
-            os.set_blocking(master, False)
-            self._master = master
+            path = self.pty.open()
             self._poll = select.poll()
-            self._poll.register(master, select.POLLHUP)
+            self._poll.register(self.pty.fd, select.POLLHUP)
             self._reader_since = None
             self.opens += 1
-            if self.link is not None:
-                tmp = self.link.with_name(f".{self.link.name}.{os.getpid()}.tmp")
-                tmp.unlink(missing_ok=True)
-                os.symlink(self.path, tmp)
-                os.replace(tmp, self.link)  # atomic: readers never see no link at all
-            return self.path
+            return path
 
     def has_reader(self) -> bool:
         """True when some program has the port open (and has had it for ``reader_grace``
         seconds, time for it to configure the port and flush its input)."""
         poll = self._poll
-        if self._master is None or poll is None:
+        if not self.pty.is_open or poll is None:
             return False
         if any(ev & select.POLLHUP for _, ev in poll.poll(0)):
             self._reader_since = None
@@ -173,21 +159,22 @@ class SerialEmulator:
         return now - self._reader_since >= self.reader_grace
 
     @property
+    def path(self) -> str | None:
+        """The current pty's slave path (None before the first open)."""
+        return self.pty.path
+
+    @property
     def port(self) -> str:
         """The path a receiver should open: the link if there is one."""
-        if self.link is not None:
-            return str(self.link)
-        if self.path is None:
-            raise RuntimeError("emulator not open")
-        return self.path
+        return self.pty.port
 
     @property
     def is_open(self) -> bool:
-        return self._master is not None
+        return self.pty.is_open
 
     def unread_bytes(self) -> int:
         """Bytes written that no reader has taken from the pty yet."""
-        if self._master is None or self.path is None:
+        if not self.pty.is_open or self.path is None:
             return 0
         try:
             fd = os.open(self.path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
@@ -223,22 +210,13 @@ class SerialEmulator:
                 elif time.monotonic() - empty_since >= DRAIN_SETTLE_S:
                     break
                 time.sleep(0.005)
-            if self.link is not None and self.link.is_symlink():
-                self.link.unlink(missing_ok=True)
-            self._close_fds()
+            self.pty.close()
+            self._poll = None
 
     def close(self, drain: float = 0.0) -> None:
         """Stop streaming and unplug (after ``drain``)."""
         self.stop()
         self.unplug(drain)
-
-    def _close_fds(self) -> None:
-        if self._master is not None:
-            try:
-                os.close(self._master)
-            except OSError:
-                pass
-        self._master = self._poll = None
 
     # ---- lines -----------------------------------------------------------------------
     def next_line(self) -> tuple[bytes, str | None, np.ndarray | None]:
@@ -261,7 +239,7 @@ class SerialEmulator:
 
     def _send_one(self, deadline: float) -> bool:
         while not self.has_reader():
-            if time.monotonic() >= deadline or self._master is None:
+            if time.monotonic() >= deadline or not self.pty.is_open:
                 return False
             time.sleep(0.01)
         with self._lock:
@@ -282,7 +260,7 @@ class SerialEmulator:
         """True when all written; False if cut part-way; None if nothing went out."""
         view, sent = memoryview(data), 0
         while sent < len(data):
-            master = self._master
+            master = self.pty.fd
             if master is None:
                 return None if sent == 0 else False
             left = deadline - time.monotonic()

@@ -13,7 +13,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from tactile_studio.instruments.pty_port import PtyEmulator, PtyPort
+from tactile_studio.devices.pty_port import PtyPort
+from tactile_studio.instruments.pty_emulator import PtyEmulator
 
 MODES = ("ok", "garbage", "silent")
 

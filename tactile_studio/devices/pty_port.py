@@ -1,6 +1,7 @@
-"""A pseudo-terminal the instrument emulators speak through (the plugins open its slave
-side with pyserial like any port). ``unplug`` closes it as pulling a USB cable does;
-``link`` is a stable symlink re-pointed at each new pty."""
+"""A pseudo-terminal an emulated device speaks through (the sensor's receiver, the
+instruments): the plugins open its slave side with pyserial like any port. ``close``
+unplugs it as pulling a USB cable does; ``link`` is a stable symlink re-pointed at each
+new pty, since every pty gets a new ``/dev/pts/N``."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from pathlib import Path
 
 
 class PtyPort:
+    """One pluggable pty: ``open`` plugs in a new one, ``close`` pulls it out."""
+
     def __init__(self, link: str | os.PathLike | None = None) -> None:
         self.link = Path(link) if link is not None else None
         self.path: str | None = None
@@ -23,16 +26,16 @@ class PtyPort:
         """Plug in a new pty (raw mode); returns the slave path."""
         self._close_master()
         master, slave = os.openpty()
-        tty.setraw(slave)
+        tty.setraw(slave)  # no echo, no CR/LF translation: bytes arrive as written
         self.path = os.ttyname(slave)
-        os.close(slave)
+        os.close(slave)  # so the master sees POLLHUP until a reader opens the port
         os.set_blocking(master, False)
         self._master = master
         if self.link is not None:
             tmp = self.link.with_name(f".{self.link.name}.{os.getpid()}.tmp")
             tmp.unlink(missing_ok=True)
             os.symlink(self.path, tmp)
-            os.replace(tmp, self.link)
+            os.replace(tmp, self.link)  # atomic: readers never see no link at all
         return self.path
 
     @property
@@ -46,6 +49,12 @@ class PtyPort:
     @property
     def is_open(self) -> bool:
         return self._master is not None
+
+    @property
+    def fd(self) -> int | None:
+        """The master side's descriptor (None while unplugged), for callers that poll it
+        or write with their own deadline."""
+        return self._master
 
     def close(self) -> None:
         """Unplug: close the pty and remove the link, as a pulled cable removes its port
@@ -98,45 +107,3 @@ class PtyPort:
                 pass
         *lines, self._buf = self._buf.replace(b"\r", b"").split(b"\n")
         return [ln.decode("ascii", "replace").strip() for ln in lines]
-
-
-class PtyEmulator:
-    """An instrument on the other end of a :class:`PtyPort`, served by one thread.
-
-    Subclasses set ``self.pty`` and implement ``_run`` (the serving loop, which ends when
-    ``self._stop`` is set); opening, the port path, unplugging and stopping are shared.
-    """
-
-    thread_name = "pty-emulator"
-    pty: PtyPort
-
-    def _init_thread(self) -> None:
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def open(self) -> str:
-        """Open (or reopen after an unplug) the pty and start serving; returns its path."""
-        path = self.pty.open()
-        if self._thread is None or not self._thread.is_alive():
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._run, name=self.thread_name,
-                                            daemon=True)
-            self._thread.start()
-        return path
-
-    @property
-    def port(self) -> str:
-        return self.pty.port
-
-    def unplug(self) -> None:
-        """Close the pty as a pulled cable would; ``open()`` plugs it back in."""
-        self.pty.close()
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
-        self.pty.close()
-
-    def _run(self) -> None:
-        raise NotImplementedError
