@@ -66,10 +66,10 @@ class Rig:
 
 def make_rig(tmp_path: Path, protocol: Protocol, participant: str = "P01", *, speed: float = 40.0,
              clock: Any = None, resume: Path | None = None, seed: int = 0,
-             **options: Any) -> Rig:
+             capacity: int = 1 << 16, **options: Any) -> Rig:
     device = SimulatedSensor(speed=speed, gesture="idle", seed=seed,
                              **options.pop("sim", {}))
-    engine = AcquisitionEngine(device)
+    engine = AcquisitionEngine(device, capacity=capacity)
     beeps = Beeps()
     clk = clock if clock is not None else StreamClock(engine)
     if resume is not None:

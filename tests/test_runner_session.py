@@ -55,6 +55,29 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
             b["start_sample"] >= a["end_sample"] for a, b in zip(trials, trials[1:]))
 
 
+def test_a_session_as_fast_as_possible_keeps_every_trial_in_a_small_ring(tmp_path: Path) -> None:
+    """At speed 0 the simulator runs as fast as its readers. The recorder holds it, but
+    it keeps up at once; the trial's quality check reads the trial's frames from the
+    ring only when the trial ends, so it holds the stream too: with a ring of 1.5
+    trials, no trial loses frames however far the stream could have run."""
+    protocol = mini_protocol(n_gestures=4, blocks=2, free_play_s=0.0)
+    rig = make_rig(tmp_path, protocol, "P05", speed=0.0, capacity=128)
+    n = round(protocol.trial_s * rig.device.nominal_rate_hz)
+    assert n < 128 < 2 * n
+    vp = VirtualParticipant(rig.runner, rig.device, "P05", seed=0)
+    vp.prepare()
+    try:
+        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert len(s.trials) == 8
+        for t in s.trials:
+            assert t["status"] == "ok" and "dropped_frames" not in t["flags"], t
+            seq = s.column("seq", t["start_sample"], t["end_sample"])
+            assert np.array_equal(np.diff(seq), np.ones(n - 1))
+
+
 def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> None:
     protocol = mini_protocol(n_gestures=4, blocks=2, order="free")
     rig = make_rig(tmp_path, protocol, "P03", speed=60.0)

@@ -176,10 +176,7 @@ def run(args: argparse.Namespace) -> int:
     device = create_device(name, _device_settings(args, name, seed, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
-    # at speed 0 the simulator can run far ahead of the participant: a deeper ring keeps
-    # every trial's frames available for its quality check
-    fast = name == "simulated" and float(device.settings.get("speed", 1.0)) == 0.0
-    acq = AcquisitionSession(capacity=1 << 18 if fast else 1 << 16)
+    acq = AcquisitionSession()
     engine = acq.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:

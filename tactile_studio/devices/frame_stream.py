@@ -9,6 +9,7 @@ in arrival order; events are an append-only list read by cursor.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -64,3 +65,14 @@ class RecordableStream(FrameStream, Protocol):
 
     def sensor_id(self) -> str | None:
         """The connected sensor's own ID, if it has one."""
+
+
+def hold_frames(stream: FrameStream, cursor: Callable[[], int],
+                lead: int | None = None) -> Callable[[], None]:
+    """Keep ``stream``'s frames from ``cursor()`` on until released, where the stream
+    can (``AcquisitionEngine.hold``: a device that waits for its readers is held to
+    their pace); a plain stream has nothing to hold. Returns the release function."""
+    hold = getattr(stream, "hold", None)
+    if hold is None:
+        return lambda: None
+    return hold(cursor, lead)

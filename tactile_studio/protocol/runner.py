@@ -18,7 +18,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from tactile_studio.devices.frame_stream import FrameStream
+from tactile_studio.devices.frame_stream import FrameStream, hold_frames
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
@@ -61,6 +61,11 @@ class CollectionRunner(RunnerInputs):
         self._listeners: list[Callable[[dict[str, Any]], None]] = []
         self._start_requested = False
         self._current: dict[str, Any] | None = None
+        self._release_hold: Callable[[], None] = lambda: None
+        self._keys_from: int | None = None   # held for a key naming a frame from here on
+        self._tick_frame = engine.frames
+        self._lead = 2 * self.trial_frames
+        self._hold(lambda: self._tick_frame, self._lead)
         self._phase_until = 0.0          # free play end / beep end / break minimum end
         self._paused_from: str | None = None
         self._paused_at = 0.0
@@ -94,6 +99,7 @@ class CollectionRunner(RunnerInputs):
     def _set_state(self, state: str) -> None:
         if state != self.state:
             self.state = state
+            self._hold_for(state)
             self._emit("state", state=state)
 
     def _refuse(self, hint: str) -> bool:
@@ -122,6 +128,7 @@ class CollectionRunner(RunnerInputs):
     # ---- time ----------------------------------------------------------------------------
     def tick(self) -> None:
         """Advance whatever is due now; cheap, call it often."""
+        self._tick_frame = self.engine.frames
         s = self.state
         if s == State.SETUP:
             if self._start_requested:
@@ -180,6 +187,9 @@ class CollectionRunner(RunnerInputs):
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
             "event_cursor": self.engine.event_count,
         }
+        # a stream that waits for its readers pauses just after the trial until a tick
+        # ends it: run on, it could be past the beep's end before the beep began
+        self._hold(lambda: start, self._lead)
         self._trial_starts.append(self.clock())
         self._set_state(State.RECORDING)
         self._emit("trial_started", gesture=gesture, key=key, start_frame=start)
@@ -191,7 +201,7 @@ class CollectionRunner(RunnerInputs):
         if self.engine.frames >= cur["end"]:
             self._end_trial()
         elif not self.engine.running:
-            self._current = None
+            self._drop_current()
             self._log("trial_dropped", gesture=cur["gesture"], reason="sensor stopped")
             self._refuse("the sensor stopped during the trial; it was not recorded")
             self._set_state(State.WAITING)
@@ -204,6 +214,8 @@ class CollectionRunner(RunnerInputs):
         self.recorder.catch_up()  # the trial's rows into the file, and its losses counted
         m = measure_trial(self.engine, cur["start"], n, self.rate, self.quality,
                           cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
+        end = cur["end"]
+        self._hold(lambda: end, keys_from=end)  # the next key may name any frame from here
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
         record = TrialRecord(
@@ -217,6 +229,40 @@ class CollectionRunner(RunnerInputs):
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
+
+    def _drop_current(self) -> None:
+        """Forget the running trial and let the stream go on without it."""
+        self._current = None
+        self._hold(None)
+
+    # ---- holding a stream that waits for its readers ------------------------------------
+    # A device that runs as fast as its readers (the simulator at speed 0) is held to the
+    # runner's pace (``hold_frames``; a real-time device is never slowed). A key names the
+    # frame its trial began, which may have passed (the virtual participant presses with
+    # the frame its touch began); the quality check reads a trial's frames when it ends;
+    # free play, the beep and breaks last stream time, counted at the ticks. So: a trial
+    # holds from its start and pauses the stream just after its end until a tick ends it;
+    # waiting for a key holds from where a key may begin; the timed phases let the
+    # stream run a little ahead of the last tick.
+
+    def _hold_for(self, state: str) -> None:
+        if state in (*State.KEY_STATES, State.TRIAL_END):
+            if self._keys_from is None:
+                w = self.engine.frames
+                self._hold(lambda: w, keys_from=w)
+        elif state in State.DONE:
+            self._hold(None)
+        elif state != State.RECORDING:
+            self._hold(lambda: self._tick_frame, self._lead)
+
+    def _hold(self, cursor: Callable[[], int] | None, lead: int | None = None,
+              keys_from: int | None = None) -> None:
+        """Hold the stream from ``cursor()`` on, ``lead`` frames at most ahead of it
+        (None: the ring); ``cursor`` None lets go."""
+        self._release_hold()
+        self._keys_from = keys_from
+        self._release_hold = (lambda: None) if cursor is None else \
+            hold_frames(self.engine, cursor, lead)
 
     def _next_index(self) -> int:
         return max((t.index for t in self.records), default=-1) + 1

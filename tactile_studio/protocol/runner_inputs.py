@@ -174,7 +174,7 @@ class RunnerInputs:
             return self._refuse(f"the session is already {self.state}")
         if self._current is not None:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
-            self._current = None
+            self._drop_current()
         self._log("abort", trials=len(self.records))
         self.recorder.flush()
         self._set_state(State.ABORTED)

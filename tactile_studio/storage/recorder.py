@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.frame_stream import RecordableStream
+from tactile_studio.devices.frame_stream import RecordableStream, hold_frames
 from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.session import Session
@@ -183,9 +183,7 @@ class Recorder:
     def start(self) -> Recorder:
         """Pull in the background. A device that can wait for its reader (a replay or
         the simulator at speed 0) is held to this recorder's pace, so nothing is lost."""
-        hold = getattr(self.engine, "hold", None)  # a plain FrameStream has no hold
-        if hold is not None:
-            self._release = hold(lambda: self._cursor)
+        self._release = hold_frames(self.engine, lambda: self._cursor)
         self._thread.start()
         return self
 
