@@ -78,6 +78,22 @@ def test_a_session_as_fast_as_possible_keeps_every_trial_in_a_small_ring(tmp_pat
             assert np.array_equal(np.diff(seq), np.ones(n - 1))
 
 
+def test_a_closed_session_lets_go_of_a_stream_that_waits_for_it(tmp_path: Path) -> None:
+    """Waiting for a key, the runner holds a stream that waits for its readers a ring
+    ahead of where a key may begin; closing the session mid-way must let it go (the
+    engine belongs to the caller, who may keep streaming from it)."""
+    protocol = mini_protocol(n_gestures=3, blocks=1, free_play_s=0.0)
+    rig = make_rig(tmp_path, protocol, "P06", speed=0.0, capacity=128)
+    try:
+        start(rig)
+        at_close = rig.engine.frames
+        rig.session.close()
+        assert rig.runner.state == "aborted"
+        drive(rig, lambda: rig.engine.frames > at_close + 10 * 128)
+    finally:
+        rig.close()
+
+
 def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> None:
     protocol = mini_protocol(n_gestures=4, blocks=2, order="free")
     rig = make_rig(tmp_path, protocol, "P03", speed=60.0)
