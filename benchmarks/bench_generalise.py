@@ -18,6 +18,7 @@ Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
        [--participants N] [--adapt [person|person-condition]] [--surfaces FLAT PILLOW]
        [--difficulty easy|real|hard] [--augment SPEC [--augment-copies N]]
+       [--extra-gestures NAME ...]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -32,7 +33,10 @@ tested with --adapt person (or the mode named), paired against rf adapted the sa
 --surfaces FLAT PILLOW: each participant records --blocks blocks on each surface, a session
 per surface, as in the real recordings; --difficulty hard: the simulator's hardest
 population, where the plain rf scores about what it scores on real people; --augment
-scale,shift: the learned models train on augmented windows, rf on the windows as recorded.)
+scale,shift: the learned models train on augmented windows, rf on the windows as recorded;
+--extra-gestures tap slap scratch squeeze press: 14 gestures as in the real recordings, the
+5 extra performed as the virtual participant performs cost14's, each a kin of one of the
+9 at its own intensity and speed, so harder to tell from it than a new movement would be.)
 """
 
 from __future__ import annotations
@@ -59,6 +63,7 @@ from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.fused import fuse  # noqa: E402
 from tactile_studio.learn.sweep import run_sweep  # noqa: E402
 from tactile_studio.learn.trialpreds import RunPredictions, load_predictions  # noqa: E402
+from tactile_studio.simulate import GESTURE_NAMES  # noqa: E402
 from tactile_studio.simulate.population import DIFFICULTIES  # noqa: E402
 
 MODELS = ["rf", "cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
@@ -66,8 +71,9 @@ OPTIONS = {"augment": "all", "augment_copies": 2, "participant_norm": True, "bal
            "val_by": "participant"}
 
 
-def model_cost(name: str, preset: str, sets: dict[str, str]) -> tuple[int, float]:
-    """(parameters, ms per trial) of ``name`` for 3 channels on 6x6 and 9 gestures."""
+def model_cost(name: str, preset: str, sets: dict[str, str],
+               classes: int = 9) -> tuple[int, float]:
+    """(parameters, ms per trial) of ``name`` for 3 channels on 6x6 and ``classes`` gestures."""
     import torch
 
     from tactile_studio.learn.models import MODELS as REGISTRY
@@ -77,7 +83,7 @@ def model_cost(name: str, preset: str, sets: dict[str, str]) -> tuple[int, float
     view = spec.view(preset)
     frames = int(sets.get("view_frames", view.frames))
     stride = int(sets.get("view_stride", view.stride or frames))
-    model = spec.build(9, 3, (6, 6), preset, **sets).eval()
+    model = spec.build(classes, 3, (6, 6), preset, **sets).eval()
     # a 2 s trial of 86 frames gives one sample, or several windows for a windowed view
     per_trial = 1 if view.kind != "windows" else 1 + max(0, (86 - frames) // stride)
     x = torch.randn(64 * per_trial, 3, frames, 6, 6)
@@ -149,6 +155,10 @@ def main(argv: list[str] | None = None) -> None:
                          "or all; --augment-copies N), as train --augment does; rf and knn "
                          "train on the windows as recorded")
     ap.add_argument("--augment-copies", type=int, default=1)
+    ap.add_argument("--extra-gestures", nargs="*", default=[], metavar="NAME",
+                    help="protocol gestures besides the 9 (e.g. cost14's tap slap scratch "
+                         "squeeze press), performed as a virtual participant performs them: "
+                         "a kin model at its own intensity and speed")
     ap.add_argument("--difficulty", default="real", choices=DIFFICULTIES,
                     help="the simulator's population (hard: rf near real people's 51%%)")
     ap.add_argument("--keep", metavar="DIR", default=None,
@@ -164,14 +174,17 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as scratch:
         tmp = args.keep or scratch
         data = Path(tmp) / "data"
+        gestures = (*GESTURE_NAMES, *args.extra_gestures)
         make_dataset_folder(data, participants=args.participants, blocks=args.blocks,
+                            gestures=gestures,
                             difficulty=args.difficulty, repeats=args.repeats,
                             conditions=tuple(s.upper() for s in args.surfaces))
         what = f"{args.blocks} trials" if args.repeats == 1 else \
             f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
         if args.surfaces:
             what += f" on each of {', '.join(s.upper() for s in args.surfaces)}"
-        print(f"LOPO, {args.participants} participants x 9 gestures x {what}, difficulty "
+        print(f"LOPO, {args.participants} participants x {len(gestures)} gestures "
+              f"(chance {100 / len(gestures):.1f}%) x {what}, difficulty "
               f"{args.difficulty}, preset {args.preset}, {args.rounds} round(s), "
               f"{args.jobs} workers"
               + (", options: augment all x2 + participant norm + balance + val by "
@@ -201,7 +214,7 @@ def main(argv: list[str] | None = None) -> None:
                 res = run_sweep(base, [model], [None], ex, out=Path(tmp) / "sweeps" / model)
             wall = time.perf_counter() - t0
             params, ms = ("-", float("nan")) if baseline else \
-                model_cost(model, args.preset, sets)
+                model_cost(model, args.preset, sets, len(gestures))
             for row in res.rows:
                 print(f"{row['model']:>16s}{row['trial_accuracy']:>11.3f}"
                       f"{row['trial_f1_macro']:>9.3f}{row['train_seconds']:>9.1f}{wall:>8.1f}"

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tactile_studio.protocol.virtual import sim_gesture
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.simulate import GESTURE_NAMES, SensorSimulator, SimConfig
 from tactile_studio.storage.session_writer import SessionWriter
@@ -34,7 +35,10 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
     (``difficulty`` easy by default: tests that need clearly separable data rely on it).
     ``repeats`` > 1: each trial is that many back-to-back performances of ``trial_s``, like
     the real recordings' ~12 s performances of a gesture repeated. ``order``: another
-    gesture order (a second session of the same person)."""
+    gesture order (a second session of the same person). ``gestures`` may name protocol
+    gestures the simulator has no model of (cost14's "tap", "slap"): they are performed
+    as the virtual participant performs them, a similar model at its own intensity and
+    speed (``protocol.virtual.sim_gesture``), and recorded under their own name."""
     simulator = SensorSimulator(SimConfig(rate=rate, seed=sensor_seed, gesture="idle",
                                           style_seed=style_seed, difficulty=difficulty,
                                           surface=condition.lower(), **sim))
@@ -45,7 +49,8 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
     for b in range(blocks):
         for g in rng.permutation(len(gestures)):
             for r in range(repeats):
-                simulator.perform(gestures[g], trial_s, at_frame=frame + r * trial_n)
+                model, intensity, speed = _performed_as(gestures[g])
+                simulator.perform(model, trial_s, intensity, speed, at_frame=frame + r * trial_n)
             plan.append((b, gestures[g], frame))
             frame += span + gap_n
     raw = simulator.step(frame)
@@ -60,6 +65,16 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
         for extra in extra_trials or []:
             w.add_trial(extra)
     return path
+
+
+def _performed_as(gesture: str) -> tuple[str, float | None, float | None]:
+    """(simulator model, intensity, speed) for ``gesture`` (None: the simulator's own)."""
+    if gesture in GESTURE_NAMES:
+        return gesture, None, None
+    model, intensity, speed = sim_gesture(gesture)
+    if model is None:
+        raise ValueError(f"{gesture!r} is no touch; a dataset needs touches")
+    return model, intensity, speed
 
 
 def make_dataset_folder(folder: Path, participants: int = 4, blocks: int = 3,
