@@ -189,7 +189,7 @@ def test_cancel_keeps_finished_folds_and_resume_continues(data, tmp_path):
     resumed = [e.resumed for e in events if isinstance(e, FoldEvent)]
     assert resumed == [True, False, False, False]
     assert done.metrics["complete"] and len(done.metrics["per_fold"]) == 4
-    with pytest.raises(UserError, match="differs in: model"):
+    with pytest.raises(UserError, match="differs in model: "):
         run_experiment(config(data, "rf", "lopo"), out)
 
 

@@ -96,10 +96,11 @@ class RunFolder:
         if cfg_path.exists():
             old = read_json(cfg_path)
             before = {**clean_json(defaults or {}), **old.get("config", {})}
-            diff = [k for k in compare_keys if before.get(k) != clean_json(config.get(k))]
+            diff = [f"{k}: {before.get(k)!r} there, {clean_json(config.get(k))!r} now"
+                    for k in compare_keys if before.get(k) != clean_json(config.get(k))]
             if diff:
-                raise UserError(f"{self.path} holds a different run (differs in: {', '.join(diff)}); "
-                                "choose another --out")
+                raise UserError(f"{self.path} holds a different run (differs in "
+                                f"{'; '.join(diff)}); choose another --out")
             if old.get("resolved", {}).get("dataset", {}).get("fingerprint") != \
                     resolved.get("dataset", {}).get("fingerprint"):
                 raise UserError(f"{self.path}: the data changed since this run started; "

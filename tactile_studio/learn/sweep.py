@@ -193,10 +193,11 @@ def _start_folder(folder: Path, base: ExperimentConfig) -> None:
     path = folder / "sweep.json"
     if path.is_file():
         old = {**read_json_roundtrip(result_defaults()), **read_json(path)}
-        diff = [k for k in settings if old.get(k) != read_json_roundtrip(settings[k])]
+        diff = [f"{k}: {old.get(k)!r} there, {read_json_roundtrip(settings[k])!r} now"
+                for k in settings if old.get(k) != read_json_roundtrip(settings[k])]
         if diff:
-            raise UserError(f"{folder} holds a sweep with other settings (differs in: "
-                            f"{', '.join(diff)}); choose another --out")
+            raise UserError(f"{folder} holds a sweep with other settings (differs in "
+                            f"{'; '.join(diff)}); choose another --out")
     elif folder.is_dir() and any(folder.iterdir()):
         raise UserError(f"{folder}: folder is not empty and holds no sweep; choose another --out")
     (folder / "tasks").mkdir(parents=True, exist_ok=True)
