@@ -154,7 +154,7 @@ def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):
     assert "adapted to each person" in capsys.readouterr().out
 
 
-def test_train_adapts_networks_by_default_and_forests_only_when_asked(runs, capsys):
+def test_train_adapts_every_model_to_held_out_people_by_default(runs, capsys):
     root = runs["root"]
     args = ["train", "--data", str(root / "data"), "--model", "cnn1d", "--preset", "tiny",
             "--epochs", "2", "--threads", "1", "--device", "cpu",
@@ -166,16 +166,19 @@ def test_train_adapts_networks_by_default_and_forests_only_when_asked(runs, caps
     saved = json.loads((root / "default" / "metrics.json").read_text())
     assert saved["confusion_counts"] == runs["net_adapted"].metrics["confusion_counts"]
 
-    def resolved(model: str, protocol: str = "lopo", **overrides) -> str:
+    def resolved(model: str, protocol: str = "lopo", augment: str = "", **overrides) -> str:
         cfg = ExperimentConfig(data=[], model=model, protocol=protocol, adapt="auto",
-                               overrides=overrides)
+                               augment=augment, overrides=overrides)
         cfg.validate()
         return cfg.resolved().adapt
 
     assert resolved("cnn1d") == resolved("mts3d", "group-kfold") == "person"
-    assert resolved("rf") == resolved("knn") == "none"  # their gain: about nothing
-    assert resolved("cnn1d", rf_weight=0.5) == "none"  # a forest inside needs statistics
-    assert resolved("cnn1d", "all-inclusive") == "none"  # no held-out people to meet
+    assert resolved("rf") == resolved("knn") == resolved("cnn1d", rf_weight=0.5) == "person"
+    assert resolved("cnn1d", augment="scale") == "person"
+    # augmented windows have no person's statistics for a forest's features
+    assert resolved("rf", augment="scale") == resolved("cnn1d", augment="scale",
+                                                       rf_weight=0.5) == "none"
+    assert resolved("cnn1d", "all-inclusive") == resolved("rf", "all-inclusive") == "none"
     explicit = ExperimentConfig(data=[], model="cnn1d", adapt="none")
     assert explicit.resolved() is explicit
 
@@ -197,15 +200,15 @@ def test_a_run_folder_from_before_adapt_existed_still_resumes(runs, capsys):
     root = runs["root"]
     args = ["train", "--data", str(root / "data"), "--model", "rf", "--preset", "tiny",
             "--cache-dir", str(root / "cache"), "--out", str(root / "old")]
-    assert main(args) == 0
+    assert main([*args, "--adapt", "none"]) == 0
     path = root / "old" / "config.json"
     config = json.loads(path.read_text())
     del config["config"]["adapt"]  # as written by the version before --adapt
     path.write_text(json.dumps(config))
     capsys.readouterr()
-    assert main(args) == 0, capsys.readouterr().err  # resumes: every fold loaded
-    assert main([*args[:-2], "--adapt", "person", *args[-2:]]) == 1
-    assert "differs in: adapt" in capsys.readouterr().err
+    assert main([*args, "--adapt", "none"]) == 0, capsys.readouterr().err  # every fold loaded
+    assert main(args) == 1  # today's default adapts: not what the old run did
+    assert "differs in adapt: 'none' there, 'person' now" in capsys.readouterr().err
 
 
 def test_evaluate_adapts_any_trained_network_after_the_fact(runs, capsys):

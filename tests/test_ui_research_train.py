@@ -147,10 +147,13 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     window.tabs.setCurrentWidget(window.train)
     panel = window.train
     panel.model.setCurrentText("cnn1d")
-    assert panel.adapt.currentData() == "auto"  # networks adapt unless told otherwise
+    assert panel.adapt.currentData() == "auto"  # held-out people are adapted to
     assert panel.config().resolved().adapt == "person"
     panel.model.setCurrentText("knn")
-    assert panel.config().resolved().adapt == "none"  # rf/knn: as trained unless asked
+    assert panel.config().resolved().adapt == "person"
+    panel.protocol.setCurrentText("all-inclusive")
+    assert panel.config().resolved().adapt == "none"  # nobody held out to adapt to
+    panel.protocol.setCurrentText("lopo")
     panel.adapt.setCurrentIndex(panel.adapt.findData("person"))
     panel.preset.setCurrentText("tiny")
     assert panel.config().adapt == "person"

@@ -95,8 +95,8 @@ def add_generalisation_options(p: argparse.ArgumentParser) -> None:
                         "unlabelled windows (networks re-estimate batch-norm statistics, "
                         "rf/knn standardise each person's features); person-condition: "
                         "the same per person and session condition (surface); none: as "
-                        "trained; auto (default): person for a network under lopo or "
-                        "group-kfold, none for rf, knn and models fused with rf")
+                        "trained; auto (default): person under lopo or group-kfold (none "
+                        "for a forest on --augment windows), none under all-inclusive")
 
 
 def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:

@@ -1,5 +1,6 @@
 """Options that help a model hold on people it has never seen (off by default, but for
-``adapt``: ``auto`` in train, sweep and the panels, so networks adapt).
+``adapt``: ``auto`` in train, sweep and the panels, so every model adapts to held-out
+people).
 
 * ``augment`` — geometry-aware augmented copies of the *training* windows (see
   :mod:`tactile_studio.learn.augment`), ``augment_copies`` per window, made per fold
@@ -19,9 +20,9 @@
   ``participant_norm`` it uses no labels, but it needs the person's whole session
   (all gestures, roughly evenly, as a protocol session has); live, a network adapts
   to the participant's last touches instead (``live_inference.RunningCalibration``).
-  ``adapt="auto"`` (what train, sweep and the panels choose unless told): ``person`` for
-  a network on held-out people, ``none`` for rf/knn and fused models and for
-  all-inclusive (``resolve_adapt``). ``adapt="person-condition"`` does the same per
+  ``adapt="auto"`` (what train, sweep and the panels choose unless told): ``person`` on
+  held-out people (lopo, group-kfold), ``none`` for all-inclusive and for a forest
+  trained on augmented windows, which have no person's statistics (``resolve_adapt``). ``adapt="person-condition"`` does the same per
   person *and* session condition (the surface, FLAT / PILLOW): a person's touches on a
   soft pillow are spread and damped against the same person's on a flat table, and one
   pooled set of statistics would carry that difference into every gesture.
@@ -42,7 +43,7 @@ from tactile_studio.learn.touch_stats import REAL, trial_stats
 
 VAL_BY = ("trial", "participant")
 ADAPT = ("none", "person", "person-condition")
-# what train, sweep and the panels choose unless told: networks adapt, forests do not
+# what train, sweep and the panels choose unless told: adapt to held-out people
 ADAPT_AUTO = "auto"
 ADAPT_CHOICES = (ADAPT_AUTO, *ADAPT)
 # how titles, summaries and the GUI name an adaptation
@@ -117,16 +118,17 @@ def _standardised(x: np.ndarray, reference: np.ndarray) -> np.ndarray:
     return (x - mean) / np.where(std > 1e-9, std, 1.0)
 
 
-def resolve_adapt(adapt: str, protocol: str, forest: bool) -> str:
-    """``adapt`` made concrete: ``auto`` is ``person`` for a network evaluated on people it
-    never saw (lopo, group-kfold), else ``none``. ``forest``: rf/knn or a model fused with
-    rf, whose standardised features would need a person's statistics before predicting
-    anything live, for a gain measured at about nothing (docs/learning.md); a network
-    adapting gained 2-12 points on every simulated population and predicts as trained
-    until it has the person's touches."""
+def resolve_adapt(adapt: str, protocol: str, can_adapt: bool = True) -> str:
+    """``adapt`` made concrete: ``auto`` is ``person`` when the test people were never
+    seen (lopo, group-kfold), else ``none``; also ``none`` when the model cannot adapt
+    (``can_adapt`` False: a forest on augmented windows). Adapting lifted every network
+    2-12 points on every simulated population, and rf up to 9 points (14 gestures, where
+    some differ from another by force: p 0.012 over people), never costing it more than
+    two (docs/learning.md). Live, an adapted model predicts as trained until it has the
+    person's touches, and a guard keeps it safe in free play."""
     if adapt != ADAPT_AUTO:
         return adapt
-    return "none" if forest or protocol == "all-inclusive" else "person"
+    return "person" if can_adapt and protocol != "all-inclusive" else "none"
 
 
 def adapt_groups(adapt: str, ds) -> np.ndarray | None:
