@@ -90,7 +90,13 @@ KILL_SCRIPT = textwrap.dedent("""
     from plugin_fixtures import CountingDevice
     from tactile_studio.devices.engine import AcquisitionEngine
     from tactile_studio.storage import Recorder
-    eng = AcquisitionEngine(CountingDevice(frames=0))
+
+    class OnDemand(CountingDevice):
+        # frames made as fast as they are read: held to the recorder's pace, so a
+        # loaded machine cannot lap the recorder (a real-time source would, counted)
+        waits_for_reader = True
+
+    eng = AcquisitionEngine(OnDemand(frames=0))
     eng.start(); eng.wait_frames(1)
     Recorder(eng, sys.argv[1], poll_s=0.02).start()
     print("recording", flush=True)
