@@ -109,11 +109,16 @@ class ExperimentConfig:
         """rf / knn, or a network fused with rf: features, not batch norm, adapt."""
         return self.model in BASELINES or rf_weight(self.overrides) > 0
 
+    @property
+    def can_adapt(self) -> bool:
+        """False for a forest trained on augmented windows: they carry no person's
+        statistics to standardise its features by."""
+        return not (self.forest and self.augment)
+
     def resolved(self) -> ExperimentConfig:
         """This config with ``adapt="auto"`` made concrete for its model and protocol
         (generalise.resolve_adapt); what a run folder records and every fold reads."""
-        adapt = resolve_adapt(self.adapt, self.protocol,
-                              can_adapt=not (self.forest and self.augment))
+        adapt = resolve_adapt(self.adapt, self.protocol, self.can_adapt)
         return self if adapt == self.adapt else replace(self, adapt=adapt)
 
     def validate(self) -> None:
@@ -152,7 +157,7 @@ class ExperimentConfig:
                             "session; "
                             "use it with a protocol that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
-        if adapt != "none" and self.augment and self.forest:
+        if adapt != "none" and not self.can_adapt:
             raise UserError(f"--adapt {adapt} standardises {self.model}'s features per "
                             "person; "
                             "it does not combine with --augment (augmented windows have no "

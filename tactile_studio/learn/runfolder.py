@@ -42,6 +42,13 @@ def model_file(fold_dir: str | os.PathLike) -> Path:
     return d / WEIGHTS
 
 
+def differences(before: dict[str, Any], now: dict[str, Any]) -> str:
+    """"adapt: 'none' there, 'person' now; ..." for the keys of ``now`` whose value
+    differs from ``before``'s ("" if none): what a folder refusing a run says."""
+    return "; ".join(f"{k}: {before.get(k)!r} there, {v!r} now"
+                     for k, v in now.items() if before.get(k) != v)
+
+
 def clean_json(value: Any) -> Any:
     """NaN/inf -> None and numpy scalars -> Python, recursively (strict JSON)."""
     if isinstance(value, dict):
@@ -96,11 +103,10 @@ class RunFolder:
         if cfg_path.exists():
             old = read_json(cfg_path)
             before = {**clean_json(defaults or {}), **old.get("config", {})}
-            diff = [f"{k}: {before.get(k)!r} there, {clean_json(config.get(k))!r} now"
-                    for k in compare_keys if before.get(k) != clean_json(config.get(k))]
+            diff = differences(before, {k: clean_json(config.get(k)) for k in compare_keys})
             if diff:
-                raise UserError(f"{self.path} holds a different run (differs in "
-                                f"{'; '.join(diff)}); choose another --out")
+                raise UserError(f"{self.path} holds a different run (differs in {diff}); "
+                                "choose another --out")
             if old.get("resolved", {}).get("dataset", {}).get("fingerprint") != \
                     resolved.get("dataset", {}).get("fingerprint"):
                 raise UserError(f"{self.path}: the data changed since this run started; "

@@ -46,7 +46,14 @@ from tactile_studio.learn.experiment import (
 )
 from tactile_studio.learn.fused import display_name
 from tactile_studio.learn.learners import DataInfo, make_learner
-from tactile_studio.learn.runfolder import FOLD, WEIGHTS, RunFolder, read_json, write_json
+from tactile_studio.learn.runfolder import (
+    FOLD,
+    WEIGHTS,
+    RunFolder,
+    differences,
+    read_json,
+    write_json,
+)
 
 SweepListener = Callable[[dict[str, Any]], None]
 
@@ -193,11 +200,10 @@ def _start_folder(folder: Path, base: ExperimentConfig) -> None:
     path = folder / "sweep.json"
     if path.is_file():
         old = {**read_json_roundtrip(result_defaults()), **read_json(path)}
-        diff = [f"{k}: {old.get(k)!r} there, {read_json_roundtrip(settings[k])!r} now"
-                for k in settings if old.get(k) != read_json_roundtrip(settings[k])]
+        diff = differences(old, {k: read_json_roundtrip(v) for k, v in settings.items()})
         if diff:
             raise UserError(f"{folder} holds a sweep with other settings (differs in "
-                            f"{'; '.join(diff)}); choose another --out")
+                            f"{diff}); choose another --out")
     elif folder.is_dir() and any(folder.iterdir()):
         raise UserError(f"{folder}: folder is not empty and holds no sweep; choose another --out")
     (folder / "tasks").mkdir(parents=True, exist_ok=True)
