@@ -12,6 +12,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.collect import CollectionSession, open_session, resume_session
 from tactile_studio.protocol.runner import StreamClock
+from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.storage.protocol_file import Protocol, load_protocol
 
 TIMEOUT_S = 15.0  # a safety net for a hung loop, never a timing assertion
@@ -91,6 +92,16 @@ def drive(rig: Rig, until, vp: Any = None, timeout: float = TIMEOUT_S) -> None:
         if vp is not None:
             vp.step()
         time.sleep(0.002)
+
+
+def run_virtual_participant(rig: Rig, participant: str, seed: int = 0) -> None:
+    """A virtual participant does the whole session; the rig is closed after."""
+    vp = VirtualParticipant(rig.runner, rig.device, participant, seed=seed)
+    vp.prepare()  # the engine is already running: it plans from the device's next frame
+    try:
+        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
+    finally:
+        rig.close()
 
 
 def start(rig: Rig) -> None:

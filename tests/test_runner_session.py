@@ -6,9 +6,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from collect_fixtures import do_trial, drive, make_rig, mini_protocol, perform_soon, start
+from collect_fixtures import (
+    do_trial,
+    drive,
+    make_rig,
+    mini_protocol,
+    perform_soon,
+    run_virtual_participant,
+    start,
+)
 
-from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
@@ -16,14 +23,8 @@ from tactile_studio.storage.session import Session
 def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
     protocol = load_protocol("shear9").with_overrides(blocks=2, free_play_s=1.0)
     rig = make_rig(tmp_path, protocol, "P07", speed=60.0)
-    vp = VirtualParticipant(rig.runner, rig.device, "P07", seed=0)
-    # the engine is already running here: prepare() plans from the device's next frame
-    vp.prepare()
-    try:
-        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
-        snap = rig.runner.snapshot()
-    finally:
-        rig.close()
+    run_virtual_participant(rig, "P07")
+    snap = rig.runner.snapshot()
     assert snap.trials_done == snap.trials_total == 18 and snap.progress == 1.0
     assert rig.beeps.asked == [(protocol.beep_hz, protocol.beep_s)] * 18
     n = round(protocol.trial_s * rig.device.nominal_rate_hz)
@@ -64,12 +65,7 @@ def test_a_session_as_fast_as_possible_keeps_every_trial_in_a_small_ring(tmp_pat
     rig = make_rig(tmp_path, protocol, "P05", speed=0.0, capacity=128)
     n = round(protocol.trial_s * rig.device.nominal_rate_hz)
     assert n < 128 < 2 * n
-    vp = VirtualParticipant(rig.runner, rig.device, "P05", seed=0)
-    vp.prepare()
-    try:
-        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
-    finally:
-        rig.close()
+    run_virtual_participant(rig, "P05")
     with Session(rig.session.path) as s:
         assert len(s.trials) == 8
         for t in s.trials:
@@ -97,12 +93,7 @@ def test_a_closed_session_lets_go_of_a_stream_that_waits_for_it(tmp_path: Path) 
 def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> None:
     protocol = mini_protocol(n_gestures=4, blocks=2, order="free")
     rig = make_rig(tmp_path, protocol, "P03", speed=60.0)
-    vp = VirtualParticipant(rig.runner, rig.device, "P03", seed=0)
-    vp.prepare()
-    try:
-        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
-    finally:
-        rig.close()
+    run_virtual_participant(rig, "P03")
     names = protocol.gesture_names
     with Session(rig.session.path) as s:
         order = s.metadata["block_order"]
@@ -298,15 +289,10 @@ def test_practice_then_blocks_and_other_gesture_sets(tmp_path: Path) -> None:
     protocol = load_protocol("haart7").with_overrides(blocks=1, free_play_s=0.0,
                                                        practice_trials=2, trial_s=1.0)
     rig = make_rig(tmp_path, protocol, "P11", speed=80.0)
-    vp = VirtualParticipant(rig.runner, rig.device, "P11", seed=2)
-    vp.prepare()
     seen_practice = []
     rig.runner.add_listener(lambda e: seen_practice.append(rig.runner.snapshot().practice)
                             if e["kind"] == "trial_started" else None)
-    try:
-        drive(rig, lambda: rig.runner.state == "finished", vp=vp)
-    finally:
-        rig.close()
+    run_virtual_participant(rig, "P11", seed=2)
     trials = rig.runner.trials
     assert seen_practice == [True, True] + [False] * 7
     assert [(t["block"], t["status"], t["reason"]) for t in trials[:2]] == \
