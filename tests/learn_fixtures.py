@@ -8,6 +8,7 @@ runner writes them. Participants differ by the simulator's per-participant style
 
 from __future__ import annotations
 
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -15,14 +16,29 @@ import numpy as np
 from tactile_studio.protocol.virtual import sim_gesture
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.simulate import GESTURE_NAMES, SensorSimulator, SimConfig
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session_writer import SessionWriter
 
 
 def trial_record(i: int, gesture: str, start: int, stop: int, rate: float = 43.0,
                  block: int = 0, status: str = "ok") -> dict:
-    return {"index": i, "block": block, "gesture": gesture, "key": str(i % 9 + 1),
+    return {"index": i, "block": block, "gesture": gesture, "key": gesture_key(gesture),
             "start_sample": start, "end_sample": stop, "start_time": start / rate,
             "end_time": stop / rate, "status": status, "reason": None, "flags": []}
+
+
+def gesture_key(gesture: str) -> str:
+    """The key a participant presses for ``gesture``: its key in the shipped shear9 or
+    cost14 protocol (so a fixture exported as ShearSense CSV imports with its names), else
+    the name's first letter."""
+    return _shipped_keys().get(gesture, gesture[:1].lower())
+
+
+@cache
+def _shipped_keys() -> dict[str, str]:
+    keys = {g.name: g.key for g in load_protocol("cost14").gestures}
+    keys.update({g.name: g.key for g in load_protocol("shear9").gestures})
+    return keys
 
 
 def write_participant(path: Path, participant: str, style_seed: int, gestures=GESTURE_NAMES,

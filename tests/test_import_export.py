@@ -390,3 +390,29 @@ def test_bad_inputs_give_one_line_errors(tmp_path, capsys):
     assert_one_line_error(*run_cli(capsys, "import", "cost", str(src),
                                    "--out", str(notcsv / "sub"))[::2], "cannot create")
     assert main(["import", "cost", str(src), "--out", str(tmp_path), "--force"]) == 0
+
+
+def test_a_virtual_participants_session_exported_as_shearsense_csv_imports_with_its_names(
+        tmp_path, capsys):
+    """The learn fixtures press each gesture's protocol key, as a participant does, so an
+    exported fixture session names its gestures again on import (default map: shear9's;
+    cost14's keys with ``--gestures`` built from cost14)."""
+    from learn_fixtures import write_participant
+    shear9 = [g.name for g in load_protocol("shear9").gestures]
+    cost14 = load_protocol("cost14").gestures
+    for gestures, extra in ((shear9, []), ([g.name for g in cost14], [
+            "--gestures", ",".join(f"{g.key}={g.name}" for g in cost14)])):
+        folder = tmp_path / gestures[0]
+        (folder / "csv").mkdir(parents=True)
+        (folder / "back").mkdir()
+        h5 = write_participant(folder / "P01_lab_FLAT.h5", "P01", 1, gestures, blocks=1,
+                               trial_s=0.5, gap_s=0.2)
+        assert main(["export", str(h5), "--format", "shearsense-csv",
+                     "--out", str(folder / "csv")]) == 0
+        assert main(["import", "shearsense", str(folder / "csv" / "P01_lab_FLAT.csv"),
+                     "--out", str(folder / "back"), *extra]) == 0
+        with Session(h5) as made, Session(folder / "back" / "P01_lab_FLAT.h5") as back:
+            assert [t["gesture"] for t in back.trials] == [t["gesture"] for t in made.trials]
+            assert sorted(t["gesture"] for t in back.trials) == sorted(gestures)
+            assert back.metadata.get("unmapped_keys") in (None, [])
+    capsys.readouterr()
