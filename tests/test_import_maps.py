@@ -69,6 +69,23 @@ def test_default_import_normalises_participants_and_reports_gaps(tmp_path, capsy
     assert people["P8_FLAT.csv"][1] == ["Back & Forth Rub", "Poke", "z"]  # shear9's keys
     assert people["P8_FLAT.csv"][2] == ["z"]
     assert "gesture keys:" not in stdout
+    # more keys than shear9 names: the names it gave may be wrong too, and the fix is named
+    assert ("the files use 3 gesture keys, shear9's map names 2 (p, r), perhaps wrongly: if "
+            "they were recorded with another protocol, give its keys with --gestures "
+            "(cost14, haart7, shear9, a .toml file or key=Name,...)") in stdout
+
+
+def test_a_protocol_names_the_keys_by_name_or_file(tmp_path, capsys, files):
+    from importlib import resources
+    stdout, people = _import(capsys, tmp_path, files, "--gestures", "cost14")
+    assert people["P8_FLAT.csv"][1] == ["rub", "pat", "z"]
+    assert "gesture keys: g=grab, h=hit," in stdout and "perhaps wrongly" not in stdout
+    shipped = resources.files("tactile_studio.resources") / "protocols" / "cost14.toml"
+    (tmp_path / "study.toml").write_text(shipped.read_text())
+    stdout, people = _import(capsys, tmp_path, files, "--gestures", str(tmp_path / "study.toml"))
+    assert people["P8_FLAT.csv"][1] == ["rub", "pat", "z"]
+    with Session(tmp_path / "out" / "P8_FLAT.h5") as s:
+        assert s.metadata["gestures"][:3] == ["grab", "hit", "massage"]
 
 
 def test_maps_inline_and_from_toml(tmp_path, capsys, files):
@@ -102,7 +119,9 @@ def test_maps_inline_and_from_toml(tmp_path, capsys, files):
 
 
 def test_bad_maps_are_one_line_errors(tmp_path, capsys, files):
-    for opt, value, words in [("--gestures", "r", "not old=new"),
+    for opt, value, words in [("--gestures", "r", "'r' is not key=Name,..., a .toml file or a "
+                                               "shipped protocol (cost14, haart7, shear9)"),
+                              ("--gestures", "r=", "not old=new"),
                               ("--gestures", "rr=Rub", "one character"),
                               ("--gestures", str(tmp_path / "missing.toml"), "no such file"),
                               ("--participant-map", "P8=bad id!", "bad participant id")]:

@@ -19,8 +19,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     s = fmt.add_parser("shearsense", help="the old collection software's CSVs")
     s.add_argument("files", nargs="+", help="P<participant>...<FLAT|PILLOW>.csv files")
     s.add_argument("--gestures", metavar="MAP", default=None,
-                   help="pressed key -> gesture name: a .toml file or key=Name,... (keys as "
-                        "characters or codes, e.g. r=Rub or 114=Rub); default: shear9's keys")
+                   help="pressed key -> gesture name: a .toml file, key=Name,... (keys as "
+                        "characters or codes, e.g. r=Rub or 114=Rub) or a protocol (cost14, "
+                        "or a protocol file); default: shear9's keys")
     s.add_argument("--participant-map", metavar="MAP", default=None,
                    help="file-name participant -> id: a .toml file or old=new,... (names are "
                         "first normalised: upper case, P8 = P08)")

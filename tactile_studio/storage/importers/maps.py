@@ -15,6 +15,7 @@ from pathlib import Path
 
 from tactile_studio.errors import UserError
 from tactile_studio.storage.participant_id import check_participant
+from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 
 
 class MapError(UserError):
@@ -66,7 +67,16 @@ def read_map(value: str, option: str) -> dict[str, str]:
 
 def gesture_key_map(value: str) -> dict[str, str]:
     """``--gestures``: pressed key -> gesture name. A key is one character ("r") or,
-    as the old CSV stores it, its character code ("114")."""
+    as the old CSV stores it, its character code ("114"). A protocol names its gestures'
+    keys too: a shipped one by name (``cost14``) or a protocol file (one with
+    ``[[gestures]]``), so a study recorded with it needs no hand-written map."""
+    protocol = _protocol_in(value)
+    if protocol is not None:
+        return {g.key: g.name for g in protocol.gestures}
+    if "=" not in value and not value.lower().endswith(".toml") \
+            and not Path(value).expanduser().is_file():
+        raise MapError(f"--gestures: {value!r} is not key=Name,..., a .toml file or a "
+                       f"shipped protocol ({', '.join(list_protocols())})")
     out = {}
     for key, name in read_map(value, "--gestures").items():
         if len(key) > 1 and key.isdigit():
@@ -79,6 +89,19 @@ def gesture_key_map(value: str) -> dict[str, str]:
                            "code such as 114")
         out[key] = name
     return out
+
+
+def _protocol_in(value: str) -> Protocol | None:
+    if value in list_protocols():
+        return load_protocol(value)
+    path = Path(value).expanduser()
+    if not path.is_file():
+        return None
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return None  # read_map says what is wrong with it
+    return load_protocol(path) if isinstance(data.get("gestures"), list) else None
 
 
 def participant_map(value: str) -> dict[str, str]:

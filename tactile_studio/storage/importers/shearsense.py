@@ -22,6 +22,7 @@ from tactile_studio.storage.importers._common import (
     write_session,
 )
 from tactile_studio.storage.importers.maps import normalise_participant
+from tactile_studio.storage.protocol_file import list_protocols
 from tactile_studio.storage.session import measured_rate_hz
 from tactile_studio.storage.shearsense import (
     ShearSenseData,
@@ -45,6 +46,7 @@ class ShearSenseImport:
     unmapped_keys: dict[str, list[str]] = field(default_factory=dict)  # key -> files
     key_names: dict[str, str] = field(default_factory=dict)  # the gesture map used
     custom_keys: bool = False  # key_names came from --gestures, not shear9
+    named_keys: set[str] = field(default_factory=set)  # keys seen that the map named
 
     def lines(self) -> list[str]:
         """The summary as printed by ``import shearsense``."""
@@ -62,6 +64,16 @@ class ShearSenseImport:
             out.append(f"key {key!r} (code {ord(key) if len(key) == 1 else key}) has no "
                        f"gesture name, trials keep the key: {len(files)} file(s) "
                        f"({', '.join(files[:3])}{', ...' if len(files) > 3 else ''})")
+        if self.unmapped_keys and not self.custom_keys:
+            # a study with more gestures than shear9 (cost14 shares 7 of its letters) would
+            # otherwise be silently half-named with shear9's names
+            shared = ", ".join(sorted(self.named_keys))
+            out.append(f"the files use {len(self.unmapped_keys) + len(self.named_keys)} "
+                       f"gesture keys, {PROTOCOL}'s map names {len(self.named_keys)}"
+                       + (f" ({shared}), perhaps wrongly" if shared else "")
+                       + ": if they were recorded with another protocol, give its keys "
+                       f"with --gestures ({', '.join(list_protocols())}, a .toml file or "
+                       "key=Name,...)")
         return out
 
 
@@ -158,6 +170,7 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
             report.empty_files.append(csv.name)
         for key in unmapped:
             report.unmapped_keys.setdefault(key, []).append(csv.name)
+        report.named_keys |= {t["key"] for t in trials} - set(unmapped)
     progress(1.0, f"{out.name}: {data.n_frames} frames, {len(trials)} trials")
     return out
 
