@@ -183,8 +183,12 @@ def test_progress_is_reported_and_ends_at_one(tmp_path, monkeypatch):
     path, _, _ = make_file(tmp_path, n=30)
     monkeypatch.setattr(ss, "_BLOCK_BYTES", 4096)
     seen: list[float] = []
-    read_shearsense_csv(path, progress=lambda f, m="": seen.append(f))
+    said: list[str] = []
+    read_shearsense_csv(path, progress=lambda f, m="": (seen.append(f), said.append(m)))
     assert len(seen) > 3 and seen == sorted(seen) and seen[-1] == 1.0 and seen.count(1.0) == 1
+    # a file under a megabyte (a 12 s performance is ~0.8 MB) still shows how far it is
+    size = path.stat().st_size / (1 << 20)
+    assert said[0] == f"{path.name}: 0.0 of {size:.1f} MB" and size < 1, said[:2]
 
 
 @pytest.mark.parametrize("name, expected", [

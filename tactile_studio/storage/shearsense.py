@@ -98,6 +98,12 @@ def parse_shearsense_name(path: str | os.PathLike) -> tuple[str, str]:
 
 
 # ---- reading -------------------------------------------------------------------------
+def _megabytes(done: int, size: int) -> str:
+    """"3 of 120 MB"; one decimal under 10 MB, so a 0.8 MB file is not "0 of 0 MB"."""
+    digits = 1 if size < 10 << 20 else 0
+    return f"{done / (1 << 20):.{digits}f} of {size / (1 << 20):.{digits}f} MB"
+
+
 def _check_header(path: Path, line: bytes) -> None:
     text = line.decode("utf-8", errors="replace").lstrip("\ufeff").strip()
     names = [n.strip().strip('"').strip() for n in text.split(",")]
@@ -205,7 +211,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
             if cut:
                 rows.add(data[:cut])
             done += len(chunk)
-            progress(min(done / size, 0.99), f"{path.name}: {done >> 20} of {size >> 20} MB")
+            progress(min(done / size, 0.99), f"{path.name}: {_megabytes(done, size)}")
     raw = rows.joined("raw", np.empty((0, N_CHANNELS), dtype=np.uint16))
     times = rows.joined("times", np.empty(0))
     touched = rows.joined("touched", np.empty(0, dtype=bool))
