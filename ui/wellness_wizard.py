@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDoubleSpinBox,
-    QFileDialog,
     QFormLayout,
     QHBoxLayout,
     QHeaderView,
@@ -28,6 +28,7 @@ from tactile_studio.health.wellness import WellnessSpec
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
+from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
 
 
@@ -136,8 +137,9 @@ class WellnessResultPage(QWizardPage):
 
     def save_report(self, path: str | None = None) -> str | None:
         if path is None:
-            path, _ = QFileDialog.getSaveFileName(self, "Save report", "wellness.html",
-                                                  "HTML (*.html)")
+            sensor = re.sub(r"[^\w.-]+", "_", str(self.result["sensor"]))
+            name = f"wellness-{sensor}-{self.result['check_id']}.html"
+            path = ask_save_file(self, "Save report", "report", name, "HTML (*.html)")
         if not path:
             return None
         write_report(path, f"Wellness check #{self.result['check_id']} of "

@@ -57,6 +57,8 @@ class ConfusionView(QWidget):
         bar.addStretch(1)
         for w in (QLabel("Export"), self.export_png, self.export_svg, self.export_csv):
             bar.addWidget(w)
+        for button in (self.export_png, self.export_svg, self.export_csv):
+            button.setEnabled(False)  # nothing to export until a run is shown
         self.matrix = MatrixWidget()
         self.matrix.tooltip = self._tooltip
         self.cell_label = QLabel("Click a cell to list its trials.")
@@ -95,6 +97,8 @@ class ConfusionView(QWidget):
     def set_run(self, run: RunPredictions) -> None:
         self.run = run
         self.model = ConfusionModel(run.labels, run.trials)
+        for button in (self.export_png, self.export_svg, self.export_csv):
+            button.setEnabled(True)
         for combo, values in ((self.participant, self.model.participants),
                               (self.condition, self.model.conditions)):
             combo.blockSignals(True)

@@ -15,7 +15,6 @@ from typing import Any
 from PySide6.QtCore import QSignalBlocker, Qt, QTimer
 from PySide6.QtWidgets import (
     QCheckBox,
-    QFileDialog,
     QGridLayout,
     QHBoxLayout,
     QLabel,
@@ -30,9 +29,9 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback.predictions import calibrate_to_session
+from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.settings import app_settings
 
-RUN_DIR_KEY, CALIBRATION_DIR_KEY = "live/last_run_dir", "live/last_calibration_dir"
 RUNNING_KEY = "live/adapt_as_they_touch"
 
 
@@ -118,18 +117,14 @@ class LiveInferencePanel(QWidget):
             lambda n: self.inference.set_smoothing(n) if self.inference else None)
 
     def _browse(self) -> None:
-        folder = QFileDialog.getExistingDirectory(
-            self, "Run folder", str(self.settings.value(RUN_DIR_KEY, "")))
+        folder = ask_folder(self, "Run folder", "live_run")
         if folder:
-            self.settings.setValue(RUN_DIR_KEY, str(Path(folder).parent))
             self.load_run(folder)
 
     def _browse_calibration(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(
-            self, "Recording of the participant", str(self.settings.value(
-                CALIBRATION_DIR_KEY, "")), "Session files (*.h5)")
+        path = ask_open_file(self, "Recording of the participant", "live_calibration",
+                             "Session files (*.h5)")
         if path:
-            self.settings.setValue(CALIBRATION_DIR_KEY, str(Path(path).parent))
             self.calibrate(path)
 
     def _running_toggled(self, on: bool) -> None:

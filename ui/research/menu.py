@@ -6,6 +6,8 @@ from __future__ import annotations
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QMenu
 
+SESSION_KIND = "session"  # the Open session dialogs here and in the workspace share a folder
+
 
 def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None = None
                       ) -> QAction:
@@ -34,9 +36,9 @@ def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None 
         play.setShortcut(QKeySequence.StandardKey.Open)
 
         def open_session() -> None:
-            from PySide6.QtWidgets import QFileDialog
+            from tactile_studio.ui.file_dialogs import ask_open_file
 
-            path, _ = QFileDialog.getOpenFileName(window, "Open session", "", "Sessions (*.h5)")
+            path = ask_open_file(window, "Open session", SESSION_KIND, "Sessions (*.h5)")
             if path:
                 workspace().open_session(path)
 

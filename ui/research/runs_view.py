@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
-    QFileDialog,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -16,6 +15,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.learn.compare import config_difference
 from tactile_studio.learn.workspace_index import RunRow, scan_runs
+from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 
 COLUMNS = ["run", "model", "channels", "protocol", "preset", "accuracy", "trial acc.",
@@ -67,7 +67,7 @@ class RunsView(QWidget):
         self._selection_changed()
 
     def _browse(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self, "Folder with run folders")
+        folder = ask_folder(self, "Folder with run folders", "runs_folder")
         if folder:
             self.set_root(folder)
 

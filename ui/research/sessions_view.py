@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
-    QFileDialog,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -14,6 +13,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.learn.workspace_index import SessionRow, scan_sessions
+from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 
 COLUMNS = ["session", "participant", "condition", "protocol", "sensor", "date", "ok trials",
@@ -56,7 +56,7 @@ class SessionsView(QWidget):
         self.table.itemSelectionChanged.connect(self._selection_changed)
 
     def _browse(self) -> None:
-        folder = QFileDialog.getExistingDirectory(self, "Folder of session files")
+        folder = ask_folder(self, "Folder of session files", "session_folder")
         if folder:
             self.set_folders([*self.folders, folder])
 

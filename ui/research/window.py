@@ -10,13 +10,15 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import Signal
-from PySide6.QtWidgets import QFileDialog, QLabel, QMainWindow, QTabWidget, QWidget
+from PySide6.QtWidgets import QLabel, QMainWindow, QTabWidget, QWidget
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.compare import compare_predictions
 from tactile_studio.learn.trialpreds import load_predictions
+from tactile_studio.ui.file_dialogs import ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
+from tactile_studio.ui.research.menu import SESSION_KIND
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
@@ -128,7 +130,7 @@ class ResearchWindow(QMainWindow):
         self.show_info(f"sweep saved in {out}: {n} run(s) listed in the Runs tab")
 
     def _browse_session(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open session", "", "Sessions (*.h5)")
+        path = ask_open_file(self, "Open session", SESSION_KIND, "Sessions (*.h5)")
         if path:
             self.open_session(path)
 
@@ -154,7 +156,10 @@ class ResearchWindow(QMainWindow):
         return True
 
     def _export(self, kind: str) -> None:
-        path, _ = QFileDialog.getSaveFileName(self, "Export confusion matrix", "", kind)
+        run = self.confusion.run
+        stem = f"{Path(run.path).name}-confusion" if run is not None else "confusion"
+        extension = kind.rsplit("*", 1)[-1].rstrip(")")  # "PNG image (*.png)" -> ".png"
+        path = ask_save_file(self, "Export confusion matrix", "export", stem + extension, kind)
         if path:
             self.confusion.export(path)
             self.show_info(f"exported {path}")

@@ -1,0 +1,109 @@
+"""File dialogs open where the user last was, across restarts of the app: the research
+workspace's Open session (shared with the main window's File menu), its folder pickers,
+the confusion export's suggested name, and the fallback when that folder is gone.
+
+The native dialogs are modal and cannot be clicked headless, so Qt's static dialog
+functions are replaced by a stand-in that records the folder they were opened in and
+answers as the user would; everything behind them is the real widget."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from learn_fixtures import make_dataset_folder, write_participant
+from PySide6.QtWidgets import QFileDialog, QMainWindow
+
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.ui.research.menu import add_research_menu
+from tactile_studio.ui.research.window import ResearchWindow
+
+
+class Dialogs:
+    """Answers the next dialog with ``answer`` and records where each one opened."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.opened_in: list[str] = []
+        self.answer = ""
+        for name in ("getOpenFileName", "getSaveFileName"):
+            monkeypatch.setattr(QFileDialog, name, staticmethod(self._file))
+        monkeypatch.setattr(QFileDialog, "getExistingDirectory", staticmethod(self._folder))
+
+    def _file(self, parent, title, start, filters=""):
+        self.opened_in.append(start)
+        return self.answer, ""
+
+    def _folder(self, parent, title, start):
+        self.opened_in.append(start)
+        return self.answer
+
+
+@pytest.fixture
+def dialogs(monkeypatch, tmp_path):
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    return Dialogs(monkeypatch)
+
+
+def test_open_session_starts_where_the_last_one_was_even_after_a_restart(qtbot, tmp_path,
+                                                                        dialogs):
+    (tmp_path / "study").mkdir()
+    session = write_participant(tmp_path / "study" / "P01.h5", "P01", 1, blocks=1, trial_s=0.5)
+    window = ResearchWindow()
+    qtbot.addWidget(window)
+    window._browse_session()
+    assert dialogs.opened_in[-1] == str(Path.home())  # nothing remembered yet
+    dialogs.answer = str(session)
+    window._browse_session()
+    window._browse_session()
+    assert dialogs.opened_in[-1] == str(session.parent)
+    assert window.tabs.currentWidget() is window.player  # the chosen session did open
+
+    again = ResearchWindow()  # the app restarted: settings persist
+    qtbot.addWidget(again)
+    again._browse_session()
+    assert dialogs.opened_in[-1] == str(session.parent)
+    main = QMainWindow()
+    qtbot.addWidget(main)
+    menu = main.menuBar().addMenu("&File")
+    add_research_menu(main, main.menuBar().addMenu("&View"), menu)
+    dialogs.answer = ""
+    next(a for a in menu.actions() if a.text() == "&Open session…").trigger()
+    assert dialogs.opened_in[-1] == str(session.parent)  # File > Open session shares it
+
+    # a folder picker starts beside the folder last chosen; a vanished folder: home
+    runs = tmp_path / "lab" / "runs-2026"
+    runs.mkdir(parents=True)
+    dialogs.answer = str(runs)
+    window.runs._browse()
+    window.runs._browse()
+    assert dialogs.opened_in[-1] == str(runs.parent) and window.runs.root.text() == str(runs)
+    runs.rmdir()
+    runs.parent.rmdir()
+    dialogs.answer = ""
+    window.runs._browse()
+    assert dialogs.opened_in[-1] == str(Path.home())
+
+
+def test_confusion_export_suggests_the_runs_name_in_the_last_export_folder(qtbot, tmp_path,
+                                                                          dialogs):
+    make_dataset_folder(tmp_path / "data", participants=3, blocks=1, trial_s=1.0)
+    config = ExperimentConfig(data=[str(tmp_path / "data")], model="knn", preset="tiny",
+                              protocol="lopo", cache_dir=str(tmp_path / "cache"))
+    run_experiment(config, tmp_path / "runs" / "knn-lopo")
+    window = ResearchWindow()
+    qtbot.addWidget(window)
+    conf = window.confusion
+    assert not conf.export_png.isEnabled()  # nothing shown, nothing to export
+    window.runs.set_root(str(tmp_path / "runs"))
+    window.runs.select_paths(str(tmp_path / "runs" / "knn-lopo"))
+    window.runs.open_button.click()
+    assert conf.model is not None and conf.export_png.isEnabled()
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    dialogs.answer = str(figures / "fig3.png")
+    conf.export_png.click()
+    assert dialogs.opened_in[-1] == str(Path.home() / "knn-lopo-confusion.png")
+    assert (figures / "fig3.png").stat().st_size > 0
+    dialogs.answer = ""
+    conf.export_csv.click()
+    assert dialogs.opened_in[-1] == str(figures / "knn-lopo-confusion.csv")
