@@ -16,8 +16,20 @@ from pathlib import Path
 
 import platformdirs
 
+from tactile_studio.errors import UserError
+
 APP_NAME = "tactile-studio"
 APP_AUTHOR = "TactileStudio"
+
+
+def make_out_dir(out: str | os.PathLike) -> Path:
+    """Create an output folder (and parents) like any export tool would; a folder that
+    cannot be made is a one-line error naming it."""
+    try:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{out}: cannot create output folder ({exc.strerror})") from None
+    return Path(out)
 
 
 def _folder(env: str, default: str) -> Path:

@@ -7,8 +7,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.paths import make_out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -73,17 +73,10 @@ def _bar(label: str) -> Iterator[_Bar]:
         bar.end_line()
 
 
-def _make_out_dir(out: str) -> None:
-    """Create the output folder (and parents) like any export tool would."""
-    try:
-        Path(out).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out}: cannot create output folder ({exc.strerror})") from None
-
-
 def cmd_import(args: argparse.Namespace) -> int:
-    _make_out_dir(args.out)
-    from tactile_studio.storage.importers import import_cost, import_haart, import_shearsense
+    make_out_dir(args.out)
+    from tactile_studio.storage.importers import import_cost, import_haart
+    from tactile_studio.storage.importers.shearsense import import_shearsense_study
 
     token = CancelToken()
     with ctrl_c_cancels(token), _bar(f"import {args.import_format}") as bar:
@@ -92,14 +85,9 @@ def cmd_import(args: argparse.Namespace) -> int:
             print(f"wrote {path}", flush=True)
 
         if args.import_format == "shearsense":
-            from tactile_studio.storage.importers.maps import gesture_key_map, participant_map
-            from tactile_studio.storage.importers.shearsense import ShearSenseImport
-
-            keys = gesture_key_map(args.gestures) if args.gestures else None
-            people = participant_map(args.participant_map) if args.participant_map else None
-            report = ShearSenseImport()
-            out = import_shearsense(args.files, args.out, bar, token, args.force, done,
-                                    key_names=keys, participant_map=people, report=report)
+            out, report = import_shearsense_study(args.files, args.out, args.gestures,
+                                                  args.participant_map, bar, token,
+                                                  args.force, done)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:
@@ -112,7 +100,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    _make_out_dir(args.out)
+    make_out_dir(args.out)
     from tactile_studio.storage.exporters import export_session
 
     token = CancelToken()

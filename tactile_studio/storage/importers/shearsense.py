@@ -10,6 +10,7 @@ from typing import Any
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.paths import make_out_dir
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers._common import (
     check_outputs,
@@ -21,7 +22,11 @@ from tactile_studio.storage.importers._common import (
     slice_progress,
     write_session,
 )
-from tactile_studio.storage.importers.maps import normalise_participant
+from tactile_studio.storage.importers.maps import (
+    gesture_key_map,
+    normalise_participant,
+    participant_map,
+)
 from tactile_studio.storage.protocol_file import list_protocols
 from tactile_studio.storage.session import measured_rate_hz
 from tactile_studio.storage.shearsense import (
@@ -198,6 +203,24 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
                                                        participant_map, report)
             for c, o in pairs]
     return run_jobs(jobs, progress, on_done=on_done)
+
+
+def import_shearsense_study(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
+                            gestures: str | None = None, participants: str | None = None,
+                            progress: ProgressFn | None = None,
+                            cancel: CancelToken | None = None, force: bool = False,
+                            on_done: Callable[[Path], None] | None = None,
+                            ) -> tuple[list[Path], ShearSenseImport]:
+    """What ``import shearsense`` does, for the CLI and the research workspace alike: the
+    maps as the user typed them (``--gestures``, ``--participant-map``; empty: the
+    defaults), the output folder made, every file imported, and the summary to show."""
+    keys = gesture_key_map(gestures) if gestures else None
+    people = participant_map(participants) if participants else None
+    make_out_dir(out_dir)
+    report = ShearSenseImport()
+    paths = import_shearsense(files, out_dir, progress, cancel, force, on_done,
+                              key_names=keys, participant_map=people, report=report)
+    return paths, report
 
 
 def _dup_error(pairs: list[tuple[Path, Path]]) -> UserError:
