@@ -5,8 +5,8 @@ from __future__ import annotations
 
 import json
 
-import numpy as np
 import pytest
+from csv_fixtures import labelled_csv
 
 from tactile_studio.cli import main
 from tactile_studio.storage.importers.maps import (
@@ -16,17 +16,6 @@ from tactile_studio.storage.importers.maps import (
     participant_map,
 )
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.shearsense import write_shearsense_csv
-
-
-def _csv(folder, name, seed, keys="rpz"):
-    rng = np.random.default_rng(seed)
-    raw = rng.integers(30000, 30200, size=(60 + 40 * len(keys), 180)).astype(np.uint16)
-    labels = np.zeros(len(raw), dtype=np.int64)
-    for i, k in enumerate(keys):
-        labels[30 + 40 * i: 60 + 40 * i] = ord(k)
-    return write_shearsense_csv(folder / name, raw, 1.7e9 + np.arange(len(raw)) / 43, labels,
-                                raw[:5].mean(axis=0))
 
 
 @pytest.fixture
@@ -34,8 +23,8 @@ def files(tmp_path):
     src = tmp_path / "src"
     src.mkdir()
     names = ["Pilot_FLAT.csv", "PILOT_PILLOW.csv", "P8_FLAT.csv", "P08_PILLOW.csv"]
-    out = [_csv(src, n, i) for i, n in enumerate(names)]
-    out.append(_csv(src, "P09_FLAT.csv", 9, keys=""))  # nothing labelled
+    out = [labelled_csv(src, n, i) for i, n in enumerate(names)]
+    out.append(labelled_csv(src, "P09_FLAT.csv", 9, keys=""))  # nothing labelled
     return out
 
 
@@ -105,7 +94,7 @@ def test_maps_inline_and_from_toml(tmp_path, capsys, files):
     assert json.loads(capsys.readouterr().out)["unmapped_keys"] == ["z"]
 
     # a file name without a P-number keeps its stem, which the map can rename too
-    other = _csv(tmp_path / "src", "recording 3.csv", 11)
+    other = labelled_csv(tmp_path / "src", "recording 3.csv", 11)
     stdout, people = _import(capsys, tmp_path, [other], "--participant-map", "Recording 3=P11")
     assert people["recording 3.csv"][0] == "P11" and "recording 3 -> P11" in stdout
 

@@ -53,3 +53,11 @@ def ask_folder(parent: QWidget | None, title: str, kind: str) -> str:
     if folder:
         remember(kind, Path(folder).parent)
     return folder
+
+
+def ask_open_files(parent: QWidget | None, title: str, kind: str, filters: str) -> list[str]:
+    """Files to open ([] when cancelled); their folder is where the next dialog starts."""
+    paths, _ = QFileDialog.getOpenFileNames(parent, title, start_folder(kind), filters)
+    if paths:
+        remember(kind, Path(paths[0]).parent)
+    return list(paths)

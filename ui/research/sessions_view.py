@@ -30,12 +30,15 @@ def per_gesture_text(per: dict[str, int]) -> str:
 
 class SessionsView(QWidget):
     selectionChanged = Signal()
+    importRequested = Signal()
 
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.folders: list[str] = []
         self.rows: list[SessionRow] = []
         add, clear = QPushButton("Add folder…"), QPushButton("Clear")
+        import_csv = QPushButton("Import old CSVs…")
+        import_csv.setToolTip("the old collection software's ShearSense CSVs, as sessions")
         self.filter = QLineEdit()
         self.filter.setPlaceholderText("filter: participant, condition, protocol, sensor…")
         self.table = make_table(COLUMNS)
@@ -44,6 +47,7 @@ class SessionsView(QWidget):
         top = QHBoxLayout()
         top.addWidget(add)
         top.addWidget(clear)
+        top.addWidget(import_csv)
         top.addWidget(QLabel("Filter"))
         top.addWidget(self.filter, 1)
         lay = QVBoxLayout(self)
@@ -52,6 +56,7 @@ class SessionsView(QWidget):
         lay.addWidget(self.summary)
         add.clicked.connect(self._browse)
         clear.clicked.connect(lambda: self.set_folders([]))
+        import_csv.clicked.connect(self.importRequested.emit)
         self.filter.textChanged.connect(self._apply_filter)
         self.table.itemSelectionChanged.connect(self._selection_changed)
 

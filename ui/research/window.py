@@ -18,6 +18,7 @@ from tactile_studio.learn.trialpreds import load_predictions
 from tactile_studio.ui.file_dialogs import ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
+from tactile_studio.ui.research.import_dialog import ImportDialog
 from tactile_studio.ui.research.menu import SESSION_KIND
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
@@ -65,9 +66,30 @@ class ResearchWindow(QMainWindow):
         self.sweep.sweepFinished.connect(self._sweep_finished)
         self.sweep.openRequested.connect(self.open_run)
         self.train.sweepRequested.connect(self._to_sweep)
-        open_session = self.menuBar().addMenu("&File").addAction("&Open session…")
-        open_session.triggered.connect(self._browse_session)
+        file_menu = self.menuBar().addMenu("&File")
+        file_menu.addAction("&Open session…").triggered.connect(self._browse_session)
+        file_menu.addAction("&Import old recordings (ShearSense CSV)…").triggered.connect(
+            self.open_import)
+        self.sessions.importRequested.connect(self.open_import)
+        self.import_dialog: ImportDialog | None = None
         self.resize(1200, 760)
+
+    def open_import(self) -> ImportDialog:
+        """The import dialog (one, kept); what it imports joins the Sessions tab."""
+        if self.import_dialog is None:
+            self.import_dialog = ImportDialog(self)
+            self.import_dialog.imported.connect(self._imported)
+        self.import_dialog.show()
+        self.import_dialog.raise_()
+        return self.import_dialog
+
+    def _imported(self, folder: str) -> None:
+        if folder not in self.sessions.folders:
+            self.sessions.set_folders([*self.sessions.folders, folder])
+        else:
+            self.sessions.set_folders(self.sessions.folders)
+        self.tabs.setCurrentWidget(self.sessions)
+        self.show_info(f"imported sessions in {folder} are listed in the Sessions tab")
 
     def show_error(self, text: str) -> None:
         self.message.setStyleSheet("color: #a00000")
@@ -102,6 +124,8 @@ class ResearchWindow(QMainWindow):
     def closeEvent(self, event) -> None:  # noqa: ANN001, N802 - Qt name and signature
         if self.train.job is not None and self.train.job.running:
             self.train.cancel()  # the worker stops after its epoch; folds are kept
+        if self.import_dialog is not None:
+            self.import_dialog.close()  # a running import stops; finished sessions stay
         if self.sweep.job is not None and self.sweep.job.running:
             self.sweep.cancel()  # workers are ended; finished tasks are kept
             self.sweep.job.wait(10.0)
