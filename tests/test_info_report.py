@@ -107,3 +107,28 @@ def test_imported_rate_is_one_measured_figure(tmp_path, capsys):
     assert abs(js["rate_hz"] - 499 / (times[-1] - times[0])) < 1e-3
     text = _info(capsys, tmp_path / "P01_FLAT.h5")
     assert f"({js['rate_hz']:.2f} Hz)" in text
+
+
+def test_info_on_a_folder_adds_up_the_study_and_names_who_lacks_a_gesture(tmp_path, capsys):
+    from learn_fixtures import write_participant
+
+    from tactile_studio.storage.study_summary import study_counts
+    gestures = ["Poke", "Twist", "Tickle"]
+    for i, (person, surface, done) in enumerate([
+            ("P01", "FLAT", gestures), ("P01", "PILLOW", gestures),
+            ("P02", "FLAT", gestures), ("P02", "PILLOW", ["Poke", "Tickle"]),
+            ("P03", "FLAT", ["Poke"])]):
+        write_participant(tmp_path / f"{person}_{surface}.h5", person, i, done, blocks=1,
+                          trial_s=0.3, gap_s=0.1, condition=surface)
+    assert main(["info", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.splitlines()[-4:] == [
+        "participants: 3 (P01, P02, P03)",
+        "conditions: FLAT 3 session(s), PILLOW 2 session(s)",
+        "ok trials: 12 of 3 gestures (3-5; fewer than 5: Tickle 4, Twist 3)",
+        "P03 has no ok trial of Tickle, Twist"]  # P02 did Twist on the table: no gap
+    counts = study_counts([("P01", "", {"Poke": 2, "Twist": 1}), ("P02", "", {"Poke": 1}),
+                           ("P03", "", {"Poke": 1, "Twist": 0}), ("P04", "", {})])
+    assert counts.missing == {"P02": ["Twist"], "P03": ["Twist"], "P04": ["Poke", "Twist"]}
+    assert counts.conditions == {} and counts.ok_trials == 5
+    assert counts.missing_text(people=2) == "P02 has no Twist; P03 has no Twist; 1 more"
+    assert study_counts([]).lines() == []

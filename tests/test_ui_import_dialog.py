@@ -33,8 +33,8 @@ def test_import_from_the_workspace_names_gestures_and_lists_the_sessions(window,
                                                                          tmp_path):
     src = tmp_path / "old"
     src.mkdir()
-    csvs = [str(labelled_csv(src, n, i)) for i, n in enumerate(
-        ["P01_FLAT.csv", "P1_PILLOW.csv", "P02_FLAT.csv"])]
+    csvs = [str(labelled_csv(src, n, i, keys)) for i, (n, keys) in enumerate(
+        [("P01_FLAT.csv", "rpz"), ("P1_PILLOW.csv", "rpz"), ("P02_FLAT.csv", "rp")])]
     dialog = window.open_import()
     assert not dialog.start() and "Add CSV files" in dialog.status.text()
     dialog.add_files(csvs + csvs[:1])  # a file added twice is listed once
@@ -63,7 +63,11 @@ def test_import_from_the_workspace_names_gestures_and_lists_the_sessions(window,
     # the imported folder is in the Sessions tab, ready to train on
     assert window.tabs.currentWidget() is window.sessions
     assert window.sessions.folders == [str(out)] and len(window.sessions.rows) == 3
+    assert window.sessions.summary.text() == ("3 of 3 sessions selected: 2 participants, "
+                                              "8 ok trials — P02 has no z")
     dialog.grab().save(str(SHOTS / "research_import.png"))
+    window.resize(1100, 420)
+    window.grab().save(str(SHOTS / "research_import_sessions.png"))
 
     # the same files again: refused, nothing replaced, unless asked to
     assert dialog.start()

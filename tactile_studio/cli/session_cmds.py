@@ -7,6 +7,7 @@ import json
 import os
 import sys
 import time
+from collections import Counter
 from pathlib import Path
 from typing import Any
 
@@ -117,11 +118,12 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     experimenter checks after importing a study (malformed rows, unmapped keys, trials).
     A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
     from tactile_studio.storage.session_set import scan_session_files
+    from tactile_studio.storage.study_summary import study_counts
 
     files, backups = scan_session_files(paths)
     every = sorted(files + backups)
     root = Path(os.path.commonpath([f.parent for f in every]))
-    summaries, rows, bad = [], [], 0
+    summaries, rows, bad, study = [], [], 0, []
     for f in every:
         name = f.relative_to(root).as_posix()
         try:
@@ -135,6 +137,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         summaries.append(summary)
         meta, trials = summary["metadata"], summary["trials"]
         ok = sum(1 for t in trials if t.get("status") == "ok")
+        if f not in backups:  # a resume backup repeats its session's trials
+            study.append((meta.get("participant") or "", meta.get("condition") or "",
+                          Counter(t.get("gesture") for t in trials if t.get("status") == "ok")))
         notes = [] if summary["closed_cleanly"] else ["not closed cleanly (recovered)"]
         if f in backups:
             notes.append("resume backup")
@@ -151,6 +156,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
                      right=("frames", "Hz", "ok trials", "malformed"))
         print(f"{len(every)} session file(s) under {root}"
               + (f"; {bad} unreadable" if bad else ""))
+        for line in study_counts(study).lines():
+            print(line)
     return 1 if bad else 0
 
 

@@ -13,6 +13,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.learn.workspace_index import SessionRow, scan_sessions
+from tactile_studio.storage.study_summary import study_counts
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 
@@ -103,7 +104,10 @@ class SessionsView(QWidget):
         sel = self.selected()
         ok = sum(r.ok for r in sel)
         people = len({r.participant for r in sel})
+        gaps = study_counts((r.participant, r.condition, r.per_gesture)
+                            for r in sel if not r.error).missing_text()
         self.summary.setText(f"{len(sel)} of {len(self.rows)} sessions selected: {people} "
                              f"participants, {ok} ok trials" +
-                             (" — no ok trials to train on" if sel and not ok else ""))
+                             (" — no ok trials to train on" if sel and not ok else "") +
+                             (f" — {gaps}" if gaps else ""))
         self.selectionChanged.emit()
