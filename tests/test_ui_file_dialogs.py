@@ -1,4 +1,5 @@
-"""File dialogs open where the user last was, across restarts of the app: the research
+"""File dialogs open where the user last was, and the research workspace reopens with its
+session folders and runs, across restarts of the app: the research
 workspace's Open session (shared with the main window's File menu), its folder pickers,
 the confusion export's suggested name, and the fallback when that folder is gone.
 
@@ -107,3 +108,26 @@ def test_confusion_export_suggests_the_runs_name_in_the_last_export_folder(qtbot
     dialogs.answer = ""
     conf.export_csv.click()
     assert dialogs.opened_in[-1] == str(figures / "knn-lopo-confusion.csv")
+
+
+def test_the_workspace_reopens_with_its_session_folders_and_runs(qtbot, tmp_path, dialogs):
+    make_dataset_folder(tmp_path / "a", participants=2, blocks=1, trial_s=0.5)
+    make_dataset_folder(tmp_path / "b", participants=1, blocks=1, trial_s=0.5, first_style=7)
+    (tmp_path / "runs").mkdir()
+    window = ResearchWindow()
+    qtbot.addWidget(window)
+    assert window.sessions.folders == [] and window.runs.root.text() == ""
+    window.sessions.set_folders([str(tmp_path / "a"), str(tmp_path / "b")])
+    window.runs.set_root(str(tmp_path / "runs"))
+
+    again = ResearchWindow()  # the app's next run
+    qtbot.addWidget(again)
+    assert again.sessions.folders == [str(tmp_path / "a"), str(tmp_path / "b")]
+    assert len(again.sessions.rows) == 3 and again.runs.root.text() == str(tmp_path / "runs")
+    # a folder deleted since is dropped, the rest kept
+    for f in (tmp_path / "b").iterdir():
+        f.unlink()
+    (tmp_path / "b").rmdir()
+    third = ResearchWindow()
+    qtbot.addWidget(third)
+    assert third.sessions.folders == [str(tmp_path / "a")] and len(third.sessions.rows) == 2

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QHBoxLayout,
@@ -17,6 +19,9 @@ from tactile_studio.learn.compare import config_difference
 from tactile_studio.learn.workspace_index import RunRow, scan_runs
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
+from tactile_studio.ui.settings import app_settings
+
+ROOT_KEY = "research/runs_root"
 
 COLUMNS = ["run", "model", "channels", "protocol", "preset", "accuracy", "trial acc.",
            "F1 macro", "bal. acc.", "folds", "complete", "created", "problem"]
@@ -65,6 +70,10 @@ class RunsView(QWidget):
         self.open_button.clicked.connect(self._open)
         self.compare_button.clicked.connect(self._compare)
         self._selection_changed()
+        self.settings = app_settings()
+        saved = str(self.settings.value(ROOT_KEY, "") or "")
+        if saved and Path(saved).is_dir():  # where the last run of the app left it
+            self.set_root(saved)
 
     def _browse(self) -> None:
         folder = ask_folder(self, "Folder with run folders", "runs_folder")
@@ -73,6 +82,7 @@ class RunsView(QWidget):
 
     def set_root(self, root: str) -> None:
         self.root.setText(str(root))
+        self.settings.setValue(ROOT_KEY, str(root))
         try:
             self.rows = scan_runs(root)
         except UserError as exc:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QHBoxLayout,
@@ -16,6 +18,9 @@ from tactile_studio.learn.workspace_index import SessionRow, scan_sessions
 from tactile_studio.storage.study_summary import study_counts
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
+from tactile_studio.ui.settings import app_settings, get_json, set_json
+
+FOLDERS_KEY = "research/session_folders"
 
 COLUMNS = ["session", "participant", "condition", "protocol", "sensor", "date", "ok trials",
            "flagged", "discarded", "per gesture", "problem"]
@@ -60,6 +65,11 @@ class SessionsView(QWidget):
         import_csv.clicked.connect(self.importRequested.emit)
         self.filter.textChanged.connect(self._apply_filter)
         self.table.itemSelectionChanged.connect(self._selection_changed)
+        self.settings = app_settings()
+        # the folders of the last run of the app, those that still exist
+        saved = [f for f in get_json(self.settings, FOLDERS_KEY, []) if Path(f).is_dir()]
+        if saved:
+            self.set_folders(saved)
 
     def _browse(self) -> None:
         folder = ask_folder(self, "Folder of session files", "session_folder")
@@ -68,6 +78,7 @@ class SessionsView(QWidget):
 
     def set_folders(self, folders: list[str]) -> None:
         self.folders = [str(f) for f in folders]
+        set_json(self.settings, FOLDERS_KEY, self.folders)
         self.rows = scan_sessions(self.folders)
         self.table.setSortingEnabled(False)
         self.table.setRowCount(len(self.rows))
