@@ -41,6 +41,7 @@ class ImportDialog(QDialog):
         self.setWindowTitle("Import old recordings (ShearSense CSV)")
         self.settings = app_settings()
         self.job: BackgroundJob | None = None
+        self.written: list[str] = []  # sessions the current import has finished
         self.files = QListWidget()
         self.files.setMinimumHeight(110)
         add, clear = QPushButton("Add CSV files…"), QPushButton("Clear")
@@ -130,7 +131,7 @@ class ImportDialog(QDialog):
             self.settings.setValue(KEY + key, edit.text().strip())
         gestures, people = self.gestures.text().strip(), self.people.text().strip()
         force = self.force.isChecked()
-        self.written: list[str] = []
+        self.written = []
         self.job = BackgroundJob(lambda progress, cancel: import_shearsense_study(
             files, out, gestures or None, people or None, progress, cancel, force,
             lambda path: self.written.append(str(path))), self)

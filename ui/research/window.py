@@ -84,10 +84,8 @@ class ResearchWindow(QMainWindow):
         return self.import_dialog
 
     def _imported(self, folder: str) -> None:
-        if folder not in self.sessions.folders:
-            self.sessions.set_folders([*self.sessions.folders, folder])
-        else:
-            self.sessions.set_folders(self.sessions.folders)
+        # listed once; rescanned either way, since a re-import may replace sessions
+        self.sessions.set_folders(list(dict.fromkeys([*self.sessions.folders, folder])))
         self.tabs.setCurrentWidget(self.sessions)
         self.show_info(f"imported sessions in {folder} are listed in the Sessions tab")
 
