@@ -53,12 +53,15 @@ def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     assert panel.preset.currentText() == "full"  # as the CLI: the recipe for unseen people
     panel.preset.setCurrentText("tiny")
     panel.protocol.setCurrentText("lopo")
-    panel.epochs.setValue(30)
+    # every fold trains 1000 epochs, no early stop: about 2 s a fold here, so the cancel
+    # clicked when the first fold is done lands seconds before the last fold could finish
+    # (at 30 epochs a fold took 0.1 s and a loaded CI machine finished the run first)
+    panel.epochs.setValue(1000)
     assert panel.options.rowCount() > 3  # the registry's options with help
     row = next(r for r in range(panel.options.rowCount())
                if panel.options.item(r, 0).text() == "patience")
-    panel.options.item(row, 1).setText("100")  # no early stop: every fold trains 30 epochs
-    assert panel.overrides() == {"patience": 100}
+    panel.options.item(row, 1).setText("1000")
+    assert panel.overrides() == {"patience": 1000}
     out = tmp_path / "runs" / "cnn"
     panel.out.setText(str(out))
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
