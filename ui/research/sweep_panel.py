@@ -16,7 +16,6 @@ from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
-    QFileDialog,
     QFormLayout,
     QHBoxLayout,
     QLabel,
@@ -36,7 +35,9 @@ from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
+from tactile_studio.ui.file_dialogs import ask_folder, remember
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import (
     app_settings,
@@ -100,6 +101,7 @@ class SweepPanel(QWidget):
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
         self.adapt = adapt_combo()
+        self.recipe = RecipeForm()
         self.executor = QComboBox()
         self.executor.addItem("Local worker processes", "local")
         self.executor.addItem("Ray cluster", "ray")
@@ -124,6 +126,7 @@ class SweepPanel(QWidget):
                          ("Ray address", self.address)):
             form.addRow(label, w)
         form.addRow("Sweep folder", out_row)
+        form.addRow(self.recipe)
         self.start_button = QPushButton("Start sweep")
         self.cancel_button = QPushButton("Cancel")
         buttons = QHBoxLayout()
@@ -209,17 +212,16 @@ class SweepPanel(QWidget):
                                 preset=self.preset.currentText(),
                                 protocol=self.protocol.currentText(),
                                 rounds=self.rounds.value(), epochs=self.epochs.value() or None,
-                                threads=1, device="cpu", adapt=self.adapt.currentData())
+                                threads=1, device="cpu", adapt=self.adapt.currentData(),
+                                **self.recipe.kwargs())
 
     def _executor_changed(self) -> None:
         self.address.setEnabled(self.executor.currentData() == "ray")
 
     def _browse(self) -> None:
-        start = self.out.text().strip() or str(self.settings.value(KEY + "last_dir", ""))
-        folder = QFileDialog.getExistingDirectory(self, "Sweep folder", start)
+        folder = ask_folder(self, "Sweep folder", "sweep", prefer=self.out.text().strip())
         if folder:
             self.out.setText(folder)
-            self.settings.setValue(KEY + "last_dir", str(Path(folder).parent))
 
     def _load_settings(self) -> None:
         s = self.settings
@@ -233,6 +235,7 @@ class SweepPanel(QWidget):
         for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
             restore_text(s, KEY + key, combo)
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
+        self.recipe.load(s, KEY + "recipe")
 
     def save_settings(self) -> None:
         s = self.settings
@@ -245,8 +248,9 @@ class SweepPanel(QWidget):
         s.setValue(KEY + "preset", self.preset.currentText())
         s.setValue(KEY + "protocol", self.protocol.currentText())
         set_json(s, KEY + "rounds", self.rounds.value())
-        if self.out.text().strip():
-            s.setValue(KEY + "last_dir", str(Path(self.out.text().strip()).parent))
+        self.recipe.save(s, KEY + "recipe")
+        if self.out.text().strip():  # a typed folder is where the next Browse… starts
+            remember("sweep", Path(self.out.text().strip()).expanduser().parent)
         s.sync()
 
     # --- running -------------------------------------------------------------------------

@@ -32,6 +32,7 @@ from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.train_job import TrainJob, model_settings
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
 from tactile_studio.ui.settings import (
@@ -92,6 +93,7 @@ class TrainPanel(QWidget):
         self.adapt = adapt_combo()
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
+        self.recipe = RecipeForm()
         self.options = QTableWidget(0, 3)
         self.options.setHorizontalHeaderLabels(["option", "value", "help"])
         self.options.verticalHeader().hide()
@@ -116,6 +118,7 @@ class TrainPanel(QWidget):
         left = QWidget()
         ll = QVBoxLayout(left)
         ll.addLayout(form)
+        ll.addWidget(self.recipe)
         ll.addWidget(QLabel("Model and training options (edit a value to override it)"))
         ll.addWidget(self.options, 1)
         ll.addLayout(buttons)
@@ -170,6 +173,7 @@ class TrainPanel(QWidget):
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
         self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
         self.out.setText(str(s.value(KEY + "out", "") or ""))
+        self.recipe.load(s, KEY + "recipe")
 
     def save_settings(self) -> None:
         s = self.settings
@@ -179,6 +183,7 @@ class TrainPanel(QWidget):
         set_json(s, KEY + "rounds", self.rounds.value())
         set_json(s, KEY + "epochs", self.epochs.value())
         s.setValue(KEY + "out", self.out.text().strip())
+        self.recipe.save(s, KEY + "recipe")
 
     def fill_options(self) -> None:
         try:
@@ -219,7 +224,7 @@ class TrainPanel(QWidget):
             channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
             protocol=self.protocol.currentText(), rounds=self.rounds.value(),
             epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
-            device="cpu", adapt=self.adapt.currentData())
+            device="cpu", adapt=self.adapt.currentData(), **self.recipe.kwargs())
 
     def _out(self) -> str:
         if not self.out.text().strip():
