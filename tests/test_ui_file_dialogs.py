@@ -131,3 +131,54 @@ def test_the_workspace_reopens_with_its_session_folders_and_runs(qtbot, tmp_path
     third = ResearchWindow()
     qtbot.addWidget(third)
     assert third.sessions.folders == [str(tmp_path / "a")] and len(third.sessions.rows) == 2
+
+
+def test_record_and_sweep_folders_carry_over_from_their_former_keys(qtbot, tmp_path, dialogs):
+    """The Record dialog and the sweep folder picker kept their folders under keys of their
+    own before they shared ui/file_dialogs.py: an update must not forget them."""
+    from PySide6.QtCore import QSettings
+
+    from tactile_studio.live import LiveController
+    from tactile_studio.ui.device_panel import DevicePanel
+
+    recordings, sweeps = tmp_path / "recordings", tmp_path / "sweeps"
+    recordings.mkdir()
+    sweeps.mkdir()
+    old = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
+    old.setValue("record/last_dir", str(recordings))
+    old.setValue("research/sweep/last_dir", str(sweeps))
+    old.sync()
+    panel = DevicePanel(LiveController())
+    qtbot.addWidget(panel)
+    dialogs.answer = ""
+    assert panel.ask_record_path() is None
+    opened = Path(dialogs.opened_in[-1])
+    assert opened.parent == recordings and opened.name.startswith("session-")
+    (tmp_path / "today").mkdir()
+    dialogs.answer = str(tmp_path / "today" / "P07")
+    assert panel.ask_record_path() == str(tmp_path / "today" / "P07.h5")
+    panel.ask_record_path()
+    assert Path(dialogs.opened_in[-1]).parent == tmp_path / "today"
+
+    window = ResearchWindow()
+    qtbot.addWidget(window)
+    sweep = window.sweep
+    sweep.out.setText("")
+    dialogs.answer = ""
+    sweep._browse()
+    assert dialogs.opened_in[-1] == str(sweeps)
+    # a folder the form shows wins (its parent while it does not exist yet)
+    sweep.out.setText(str(sweeps / "next-sweep"))
+    sweep._browse()
+    assert dialogs.opened_in[-1] == str(sweeps)
+    (sweeps / "next-sweep").mkdir()
+    sweep._browse()
+    assert dialogs.opened_in[-1] == str(sweeps / "next-sweep")
+    # a sweep started into a typed folder: the next Browse… starts beside it
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    sweep.out.setText(str(elsewhere / "s1"))
+    sweep.save_settings()
+    sweep.out.setText("")
+    sweep._browse()
+    assert dialogs.opened_in[-1] == str(elsewhere)

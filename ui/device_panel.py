@@ -12,14 +12,12 @@ from __future__ import annotations
 
 import os
 import time
-from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
-    QFileDialog,
     QHBoxLayout,
     QLabel,
     QPushButton,
@@ -34,10 +32,8 @@ from tactile_studio.errors import UserError
 from tactile_studio.live import LiveController, LiveStatus
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
-from tactile_studio.ui.settings import app_settings
+from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.settings_form import SettingField, SettingsForm, one_line
-
-LAST_DIR_KEY = "record/last_dir"
 
 
 class DevicePanel(QWidget):
@@ -220,19 +216,12 @@ class DevicePanel(QWidget):
 
     def ask_record_path(self) -> str | None:
         """Ask where to record, starting in the folder the user last recorded to."""
-        settings = app_settings()
-        start = str(settings.value(LAST_DIR_KEY, "") or "") or str(Path.home())
-        if not os.path.isdir(start):
-            start = str(Path.home())
-        suggested = os.path.join(start, time.strftime("session-%Y%m%d-%H%M%S.h5"))
-        path, _ = QFileDialog.getSaveFileName(self, "Record to", suggested,
-                                              "Tactile Studio session (*.h5)")
+        path = ask_save_file(self, "Record to", "record",
+                             time.strftime("session-%Y%m%d-%H%M%S.h5"),
+                             "Tactile Studio session (*.h5)")
         if not path:
             return None
-        if not path.endswith((".h5", ".hdf5")):
-            path += ".h5"
-        settings.setValue(LAST_DIR_KEY, os.path.dirname(os.path.abspath(path)))
-        return path
+        return path if path.endswith((".h5", ".hdf5")) else path + ".h5"
 
     def toggle_recording(self) -> None:
         """The Record button (and File > Record): stop, or ask where and start."""

@@ -16,11 +16,22 @@ from PySide6.QtWidgets import QFileDialog, QWidget
 from tactile_studio.ui.settings import app_settings
 
 PREFIX = "dialogs/"
+# where a kind's folder was kept before its dialog moved here: read while the new key is
+# unset, so an update does not make anyone walk from their home folder once more
+FORMER_KEYS = {"record": "record/last_dir", "sweep": "research/sweep/last_dir"}
 
 
-def start_folder(kind: str) -> str:
-    """The folder a dialog of ``kind`` opens in: where the last one was left, else home."""
-    saved = str(app_settings().value(PREFIX + kind, "") or "")
+def start_folder(kind: str, prefer: str | Path | None = None) -> str:
+    """The folder a dialog of ``kind`` opens in: ``prefer`` (a path the form already
+    shows) or its folder when it exists, else where the last one was left, else home."""
+    if prefer:
+        for folder in (Path(prefer).expanduser(), Path(prefer).expanduser().parent):
+            if str(folder) not in ("", ".") and folder.is_dir():
+                return str(folder)
+    settings = app_settings()
+    saved = str(settings.value(PREFIX + kind, "") or "")
+    if not saved and kind in FORMER_KEYS:
+        saved = str(settings.value(FORMER_KEYS[kind], "") or "")
     return saved if saved and Path(saved).is_dir() else str(Path.home())
 
 
@@ -37,19 +48,20 @@ def ask_open_file(parent: QWidget | None, title: str, kind: str, filters: str) -
 
 
 def ask_save_file(parent: QWidget | None, title: str, kind: str, name: str,
-                  filters: str) -> str:
+                  filters: str, prefer: str | Path | None = None) -> str:
     """Where to save (suggesting ``name`` in the remembered folder; "" when cancelled)."""
-    path, _ = QFileDialog.getSaveFileName(parent, title, str(Path(start_folder(kind)) / name),
-                                          filters)
+    path, _ = QFileDialog.getSaveFileName(parent, title,
+                                          str(Path(start_folder(kind, prefer)) / name), filters)
     if path:
         remember(kind, Path(path).parent)
     return path
 
 
-def ask_folder(parent: QWidget | None, title: str, kind: str) -> str:
+def ask_folder(parent: QWidget | None, title: str, kind: str,
+               prefer: str | Path | None = None) -> str:
     """A folder ("" when cancelled); the next dialog starts in its parent, beside it, where
     the sibling folders (the next participant's, the next sweep's) are."""
-    folder = QFileDialog.getExistingDirectory(parent, title, start_folder(kind))
+    folder = QFileDialog.getExistingDirectory(parent, title, start_folder(kind, prefer))
     if folder:
         remember(kind, Path(folder).parent)
     return folder
