@@ -17,6 +17,7 @@ from PySide6.QtGui import QImage
 
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
 from tactile_studio.simulate import GESTURE_NAMES
+from tactile_studio.ui.research.sessions_view import COLUMNS
 from tactile_studio.ui.research.window import ResearchWindow
 
 # screenshots for review: TACTILE_STUDIO_SCREENSHOTS=docs/screenshots pytest ...
@@ -57,7 +58,7 @@ def shot(widget, name: str) -> None:
     widget.grab().save(str(SHOTS / f"research_{name}.png"))
 
 
-def test_sessions_browser(window, workspace):
+def test_sessions_browser(window, workspace, tmp_path):
     s = window.sessions
     s.set_folders([str(workspace / "data")])
     assert s.table.rowCount() == 4
@@ -66,10 +67,19 @@ def test_sessions_browser(window, workspace):
     row = s.rows[0]
     assert row.participant == "P01" and row.condition == "FLAT" and row.sensor
     assert sum(row.per_gesture.values()) == row.ok == 18
+    problem = COLUMNS.index("problem")
+    assert s.table.isColumnHidden(problem)  # nothing wrong: no empty column
     shot(window, "sessions")
     s.filter.setText("P02")
     visible = [r for r in range(4) if not s.table.isRowHidden(r)]
     assert len(visible) == 1 and s.selected_paths()[0].endswith("P02.h5")
+    # a file that cannot be read: the column appears and says why; it is not trained on
+    (tmp_path / "junk.h5").write_bytes(b"not hdf5")
+    s.filter.setText("")
+    s.set_folders([str(workspace / "data"), str(tmp_path)])
+    assert not s.table.isColumnHidden(problem)
+    bad = next(r for r in range(s.table.rowCount()) if s.table.item(r, 0).text() == "junk.h5")
+    assert s.table.item(bad, problem).text() and len(s.selected_paths()) == 4
 
 
 def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path):

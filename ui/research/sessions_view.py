@@ -81,6 +81,7 @@ class SessionsView(QWidget):
         set_json(self.settings, FOLDERS_KEY, self.folders)
         self.rows = scan_sessions(self.folders)
         self.table.setSortingEnabled(False)
+        self.table.setRowCount(0)  # no selected row may point at a row of the last scan
         self.table.setRowCount(len(self.rows))
         for r, row in enumerate(self.rows):
             values = [row.path.rsplit("/", 1)[-1], row.participant, row.condition, row.protocol,
@@ -92,6 +93,8 @@ class SessionsView(QWidget):
                 f"{g}: {n}" for g, n in sorted(row.per_gesture.items())))
         self.table.setSortingEnabled(True)
         self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
+        # the column only when a file could not be read: otherwise it is empty and wide
+        self.table.setColumnHidden(COLUMNS.index("problem"), not any(r.error for r in self.rows))
         self._apply_filter()
         self.table.selectAll()
         self._selection_changed()

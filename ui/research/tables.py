@@ -40,6 +40,8 @@ def fill_row(table: QTableWidget, r: int, values: list[Any], texts: list[str | N
              error: str = "") -> None:
     for c, (v, txt) in enumerate(zip(values, texts)):
         item = SortItem(v, txt)
+        if isinstance(v, (int, float)) and not isinstance(v, bool):  # numbers line up right
+            item.setTextAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
         if error:
             item.setForeground(QColor(170, 0, 0))
             item.setToolTip(error)
