@@ -5,6 +5,7 @@ confusion matrix of each, and no trial's windows straddle train and test."""
 from __future__ import annotations
 
 import csv
+import json
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn import windowing
 from tactile_studio.learn.dataset import build_dataset
 from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.summary import headline
 
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 
@@ -146,3 +148,32 @@ def test_imported_long_performances_train_on_windows(tmp_path):
     assert m["windows"] == 9 * 9  # 10 s at 2 s windows, 50% overlap: 9 windows each
     assert m["n"] == 81 and m["n_trials"] == 9
     assert m["trial_accuracy"] > 0.5
+    assert headline(m) == (f"accuracy {m['trial_accuracy']:.3f} per trial "
+                           f"({m['accuracy']:.3f} per window)")
+
+
+def test_the_cli_names_accuracy_per_trial_and_per_window_when_trials_were_cut(tmp_path,
+                                                                             capsys):
+    """A performance cut into windows has two accuracies; people quote the one per
+    performance, so the summary line and the fold table must say which is which."""
+    from tactile_studio.cli import main
+    from tactile_studio.storage.importers import import_shearsense
+
+    keys = {"1": "Poke", "3": "Heavy Pat", "7": "Circular Stroke"}
+    csvs = [tmp_path / f"P0{p + 1}_demo_FLAT.csv" for p in range(3)]
+    for p, path in enumerate(csvs):
+        _old_csv(path, 300 + p, keys)
+    (tmp_path / "sessions").mkdir()
+    import_shearsense(csvs, tmp_path / "sessions")
+    assert main(["train", "--data", str(tmp_path / "sessions"), "--model", "knn",
+                 "--preset", "tiny", "--no-cache", "--out", str(tmp_path / "run")]) == 0
+    printed = capsys.readouterr()
+    m = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert headline(m) in printed.err + printed.out
+    assert "per trial (" in headline(m)
+    header = next(line for line in printed.out.splitlines() if "test participants" in line)
+    assert "trial accuracy" in header and header.rstrip().endswith("per window")
+    fold = m["per_fold"][0]
+    row = next(line for line in printed.out.splitlines()
+               if line.split()[1:2] == [fold["name"]] and line.split()[0] == "0")
+    assert row.split()[-2:] == [f"{fold['trial_accuracy']:.3f}", f"{fold['accuracy']:.3f}"]

@@ -123,6 +123,7 @@ def _fmt(v: Any) -> str:
 
 def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     from tactile_studio.learn.fused import OPTION, display_name
+    from tactile_studio.learn.summary import trials_were_cut
 
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
     print(f"{name} · {m['protocol']} · channels {m['channels']} · "
@@ -136,9 +137,15 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     rounds = len(m.get("rounds", []))
     value = f"median of {rounds} rounds" if rounds > 1 else "value"
     tables.table(("metric", value), rows, right=(value,))
-    tables.table(("round", "fold", "test participants", "accuracy"),
-                 [(f["round"], f["name"], ",".join(f["test_participants"]), _fmt(f["accuracy"]))
-                  for f in m["per_fold"]], right=("round", "accuracy"))
+    if trials_were_cut(m):  # a fold's figure per trial beside its figure per window
+        tables.table(("round", "fold", "test participants", "trial accuracy", "per window"),
+                     [(f["round"], f["name"], ",".join(f["test_participants"]),
+                       _fmt(f.get("trial_accuracy")), _fmt(f["accuracy"]))
+                      for f in m["per_fold"]], right=("round", "trial accuracy", "per window"))
+    else:
+        tables.table(("round", "fold", "test participants", "accuracy"),
+                     [(f["round"], f["name"], ",".join(f["test_participants"]),
+                       _fmt(f["accuracy"])) for f in m["per_fold"]], right=("round", "accuracy"))
     if m.get("windows") is not None:
         print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
               f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "

@@ -35,6 +35,7 @@ from tactile_studio.learn.experiment import (
 from tactile_studio.learn.generalise import ADAPT
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import model_file, read_run, write_json
+from tactile_studio.learn.summary import headline
 
 
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
@@ -111,5 +112,5 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
     metrics["dataset_skipped"] = list(ds.skipped)  # resume backups, duplicate sessions
     write_json(Path(run) / "rescore.json", metrics)
-    progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
+    progress(1.0, headline(metrics))
     return metrics

@@ -49,7 +49,7 @@ from tactile_studio.learn.generalise import (
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
 from tactile_studio.learn.splits import PROTOCOLS, make_folds
-from tactile_studio.learn.summary import fold_metrics, summarise
+from tactile_studio.learn.summary import fold_metrics, headline, summarise
 from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 
 # Config fields that change results (a resumed run must match on these).
@@ -448,6 +448,6 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     metrics = summarise(records, ds.label_names, learner.windowed, header, True)
     if folder is not None:
         folder.write_results(metrics, records, title)
-    progress(1.0, f"accuracy {metrics['accuracy']:.3f}")
+    progress(1.0, headline(metrics))
     return RunResult(metrics, config, Path(out) if out is not None else None, records, True,
                      resolved["dataset"])

@@ -92,3 +92,18 @@ def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
     return out
 
 
+
+
+def trials_were_cut(m: dict[str, Any]) -> bool:
+    """Whether ``m`` (metrics.json, or one fold's) scored several windows per trial, so
+    that accuracy per window and per trial differ."""
+    return m.get("n", 0) > m.get("n_trials", 0) > 0
+
+
+def headline(m: dict[str, Any]) -> str:
+    """The run's accuracy in one phrase; both figures when long trials were cut into
+    windows, since a figure per performance is the one people quote."""
+    if trials_were_cut(m) and m.get("trial_accuracy") is not None:
+        return (f"accuracy {m['trial_accuracy']:.3f} per trial "
+                f"({m['accuracy']:.3f} per window)")
+    return f"accuracy {m['accuracy']:.3f}"

@@ -8,8 +8,10 @@ so no Qt or torch state is inherited) that runs :func:`run_experiment` into ``ou
 * ``{"type": "progress", "fraction", "message"}``
 * ``{"type": "epoch", "round", "fold", "n_folds", "fold_name", "epoch", "train_loss",
   "train_acc", "val_loss", "val_acc"}``
-* ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy", "resumed"}``
-* ``{"type": "done", "accuracy", "out"}`` / ``{"type": "cancelled"}`` /
+* ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy",
+  "trial_accuracy", "cut", "resumed"}`` (cut: the fold's trials were cut into windows)
+* ``{"type": "done", "accuracy", "headline", "out"}`` (headline: both figures when
+  trials were cut into windows) / ``{"type": "cancelled"}`` /
   ``{"type": "error", "message"}`` — the last event of a job; a worker that dies without
   one (killed, segfault) is reported as an ``error`` too.
 
@@ -65,6 +67,7 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
     from tactile_studio.errors import Cancelled, UserError
     from tactile_studio.jobs import CancelToken
     from tactile_studio.learn.experiment import EpochEvent, FoldEvent, run_experiment
+    from tactile_studio.learn.summary import headline, trials_were_cut
 
     token = CancelToken()
 
@@ -92,12 +95,15 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
             events.put({"type": "fold", "round": event.round, "fold": event.fold,
                         "n_folds": event.n_folds, "fold_name": event.fold_name,
                         "accuracy": float(event.metrics["accuracy"]),
+                        "trial_accuracy": float(event.metrics["trial_accuracy"]),
+                        "cut": trials_were_cut(event.metrics),
                         "resumed": bool(event.resumed)})
 
     try:
         result = run_experiment(ExperimentConfig.from_dict(config), out, progress, token,
                                 listener)
-        events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]), "out": out})
+        events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]),
+                    "headline": headline(result.metrics), "out": out})
     except Cancelled:
         events.put({"type": "cancelled"})
     except UserError as exc:

@@ -43,7 +43,7 @@ from tactile_studio.ui.settings import (
     set_json,
 )
 
-FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy", "status"]
+FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy per trial", "status"]
 KEY = "research/train/"
 
 
@@ -315,17 +315,19 @@ class TrainPanel(QWidget):
     def _fold(self, run: str, e: dict[str, Any]) -> None:
         key = (run, int(e["round"]), int(e["fold"]))
         xs, ys = self.history.get(key, ([], []))
-        self._row(key, e["fold_name"], len(xs) or None, max(ys) if ys else None, e["accuracy"],
+        acc = f"{100 * e['trial_accuracy']:.1f}%" + (
+            f" ({100 * e['accuracy']:.1f}% per window)" if e.get("cut") else "")
+        self._row(key, e["fold_name"], len(xs) or None, max(ys) if ys else None, acc,
                   "resumed" if e["resumed"] else "done")
 
-    def _row(self, key, name: str, epochs, best, acc, status: str) -> None:
+    def _row(self, key, name: str, epochs, best, acc: str | None, status: str) -> None:
         if key not in self.fold_rows:
             self.fold_rows[key] = self.folds.rowCount()
             self.folds.insertRow(self.folds.rowCount())
         r = self.fold_rows[key]
         values = [key[0], name, "" if epochs is None else str(epochs),
                   "" if best is None else f"{100 * best:.1f}%",
-                  "" if acc is None else f"{100 * acc:.1f}%", status]
+                  acc or "", status]
         for c, v in enumerate(values):
             self.folds.setItem(r, c, QTableWidgetItem(v))
 
@@ -334,7 +336,7 @@ class TrainPanel(QWidget):
         self._set_running(False)
         if f.get("type") == "done":
             self.progress.setValue(100)
-            self.status.setText(f"finished: accuracy {100 * f['accuracy']:.1f}% ({job.out})")
+            self.status.setText(f"finished: {f['headline']} ({job.out})")
             self.runFinished.emit(job.out)
             if self.queue:
                 self._next()
