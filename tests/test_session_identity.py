@@ -151,3 +151,20 @@ def test_the_same_csv_imported_twice_is_one_session(tmp_path):
     ds = read_sessions([tmp_path / "one", tmp_path / "two"])
     assert len(ds) == 4 and sorted(set(ds.participants)) == ["P01", "P02"]
     assert [s["reason"] for s in ds.skipped] == ["duplicate session"]
+
+
+def test_hidden_folders_hold_no_sessions(tmp_path):
+    """A study folder with a virtual environment or a cache inside: the HDF5 files of a
+    library's tests there are not sessions, so neither train nor the workspace reads them
+    (a file named by the user, hidden or not, is read)."""
+    from tactile_studio.learn.workspace_index import scan_sessions
+
+    (tmp_path / "study").mkdir()
+    write_participant(tmp_path / "study" / "P01.h5", "P01", 1, blocks=1, trial_s=0.5)
+    stray = tmp_path / "study" / ".venv" / "lib" / "h5py" / "data.h5"
+    stray.parent.mkdir(parents=True)
+    with h5py.File(stray, "w") as f:
+        f["x"] = np.zeros(3)
+    chosen = select_sessions([tmp_path / "study"])
+    assert [p.name for p in chosen.files] == ["P01.h5"]
+    assert [Path(r.path).name for r in scan_sessions([tmp_path / "study"])] == ["P01.h5"]

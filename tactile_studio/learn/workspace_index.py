@@ -41,10 +41,11 @@ class SessionRow:
 def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
     """One row per ``*.h5`` under the folders (or the files given)."""
     from tactile_studio.storage.session import Session
+    from tactile_studio.storage.session_set import session_files_under
 
     files: list[Path] = []
     for f in map(Path, folders):
-        files.extend(sorted(f.rglob("*.h5")) if f.is_dir() else [f] if f.is_file() else [])
+        files.extend(session_files_under(f) if f.is_dir() else [f] if f.is_file() else [])
     rows = []
     for path in sorted(set(files)):
         row = SessionRow(str(path))

@@ -60,6 +60,13 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
     return "skipped " + ", ".join(parts)
 
 
+def session_files_under(folder: Path) -> list[Path]:
+    """The ``*.h5`` files below ``folder``, outside hidden folders (``.venv``, ``.git``,
+    ``.cache``: a library's test files there are no one's sessions)."""
+    return sorted(q for q in folder.rglob("*.h5") if q.is_file() and not any(
+        part.startswith(".") for part in q.relative_to(folder).parts[:-1]))
+
+
 def scan_session_files(paths: Sequence[str | os.PathLike]
                        ) -> tuple[list[Path], list[Path]]:
     """(files, backups found in folders): folders recursively (``*.h5``), files as given."""
@@ -69,7 +76,7 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
     backups: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            found = sorted(q for q in p.rglob("*.h5") if q.is_file())
+            found = session_files_under(p)
             if not found:
                 raise UserError(f"{p}: no session files (*.h5) in this folder")
             for q in found:
