@@ -18,7 +18,7 @@ Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
        [--participants N] [--adapt [person|person-condition]] [--surfaces FLAT PILLOW]
        [--difficulty easy|real|hard] [--augment SPEC [--augment-copies N]]
-       [--extra-gestures NAME ...]
+       [--extra-gestures NAME ...] [--first-person K]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
@@ -36,7 +36,9 @@ population, where the plain rf scores about what it scores on real people; --aug
 scale,shift: the learned models train on augmented windows, rf on the windows as recorded;
 --extra-gestures tap slap scratch squeeze press: 14 gestures as in the real recordings, the
 5 extra performed as the virtual participant performs cost14's, each a kin of one of the
-9 at its own intensity and speed, so harder to tell from it than a new movement would be.)
+9 at its own intensity and speed, so harder to tell from it than a new movement would be;
+--first-person 11: the simulator's people 11-20 (named P01-P10), a second population to
+replicate a finding on people the first never saw.)
 """
 
 from __future__ import annotations
@@ -137,6 +139,9 @@ def main(argv: list[str] | None = None) -> None:
                     help="each trial N back-to-back 2 s performances, cut into 2 s windows "
                          "(6 and --blocks 2: like the real recordings' ~12 s performances)")
     ap.add_argument("--blocks", type=int, default=4)
+    ap.add_argument("--first-person", type=int, default=1, metavar="K",
+                    help="the population starts at the simulator's K-th person (11: people "
+                         "11-20, a second population independent of the default's)")
     ap.add_argument("--participants", type=int, default=10,
                     help="virtual participants (LOPO folds); more people: do the networks "
                          "gain on rf?")
@@ -178,7 +183,8 @@ def main(argv: list[str] | None = None) -> None:
         make_dataset_folder(data, participants=args.participants, blocks=args.blocks,
                             gestures=gestures,
                             difficulty=args.difficulty, repeats=args.repeats,
-                            conditions=tuple(s.upper() for s in args.surfaces))
+                            conditions=tuple(s.upper() for s in args.surfaces),
+                            first_style=100 + args.first_person)
         what = f"{args.blocks} trials" if args.repeats == 1 else \
             f"{args.blocks} performances of {2 * args.repeats} s (2 s windows, 50% overlap)"
         if args.surfaces:
