@@ -137,15 +137,14 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     rounds = len(m.get("rounds", []))
     value = f"median of {rounds} rounds" if rounds > 1 else "value"
     tables.table(("metric", value), rows, right=(value,))
-    if trials_were_cut(m):  # a fold's figure per trial beside its figure per window
-        tables.table(("round", "fold", "test participants", "trial accuracy", "per window"),
-                     [(f["round"], f["name"], ",".join(f["test_participants"]),
-                       _fmt(f.get("trial_accuracy")), _fmt(f["accuracy"]))
-                      for f in m["per_fold"]], right=("round", "trial accuracy", "per window"))
-    else:
-        tables.table(("round", "fold", "test participants", "accuracy"),
-                     [(f["round"], f["name"], ",".join(f["test_participants"]),
-                       _fmt(f["accuracy"])) for f in m["per_fold"]], right=("round", "accuracy"))
+    # a fold's figure per trial beside its figure per window when trials were cut
+    cut = trials_were_cut(m)
+    keys = ("trial_accuracy", "accuracy") if cut else ("accuracy",)
+    heads = ("trial accuracy", "per window") if cut else ("accuracy",)
+    tables.table(("round", "fold", "test participants", *heads),
+                 [(f["round"], f["name"], ",".join(f["test_participants"]),
+                   *(_fmt(f.get(k)) for k in keys)) for f in m["per_fold"]],
+                 right=("round", *heads))
     if m.get("windows") is not None:
         print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
               f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "

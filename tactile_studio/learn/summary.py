@@ -92,8 +92,6 @@ def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
     return out
 
 
-
-
 def trials_were_cut(m: dict[str, Any]) -> bool:
     """Whether ``m`` (metrics.json, or one fold's) scored several windows per trial, so
     that accuracy per window and per trial differ."""
