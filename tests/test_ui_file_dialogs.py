@@ -134,8 +134,9 @@ def test_the_workspace_reopens_with_its_session_folders_and_runs(qtbot, tmp_path
 
 
 def test_record_and_sweep_folders_carry_over_from_their_former_keys(qtbot, tmp_path, dialogs):
-    """The Record dialog and the sweep folder picker kept their folders under keys of their
-    own before they shared ui/file_dialogs.py: an update must not forget them."""
+    """The Record dialog, the sweep folder picker and the live panel's pickers kept their
+    folders under keys of their own before they shared ui/file_dialogs.py: an update must
+    not forget them."""
     from PySide6.QtCore import QSettings
 
     from tactile_studio.live import LiveController
@@ -147,7 +148,12 @@ def test_record_and_sweep_folders_carry_over_from_their_former_keys(qtbot, tmp_p
     old = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
     old.setValue("record/last_dir", str(recordings))
     old.setValue("research/sweep/last_dir", str(sweeps))
+    old.setValue("live/last_run_dir", str(sweeps))  # the live panel's, moved in session 20
+    old.setValue("live/last_calibration_dir", str(recordings))
     old.sync()
+    from tactile_studio.ui.file_dialogs import start_folder
+    assert start_folder("live_run") == str(sweeps)
+    assert start_folder("live_calibration") == str(recordings)
     panel = DevicePanel(LiveController())
     qtbot.addWidget(panel)
     dialogs.answer = ""

@@ -18,7 +18,9 @@ from tactile_studio.ui.settings import app_settings
 PREFIX = "dialogs/"
 # where a kind's folder was kept before its dialog moved here: read while the new key is
 # unset, so an update does not make anyone walk from their home folder once more
-FORMER_KEYS = {"record": "record/last_dir", "sweep": "research/sweep/last_dir"}
+FORMER_KEYS = {"record": "record/last_dir", "sweep": "research/sweep/last_dir",
+               "live_run": "live/last_run_dir",
+               "live_calibration": "live/last_calibration_dir"}
 
 
 def start_folder(kind: str, prefer: str | Path | None = None) -> str:
