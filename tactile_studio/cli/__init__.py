@@ -14,7 +14,13 @@ import pkgutil
 import sys
 
 from tactile_studio import __version__
-from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.errors import (
+    EXIT_BROKEN_PIPE,
+    EXIT_CANCELLED,
+    EXIT_TERMINATED,
+    Cancelled,
+    UserError,
+)
 from tactile_studio.jobs import Terminated, terminate_unwinds
 
 
@@ -44,19 +50,19 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:
         # whoever read our output has gone (`| head`): stop quietly, as Unix tools do
         _silence_stdout()
-        return 141
+        return EXIT_BROKEN_PIPE
     except UserError as exc:
         print(f"tactile-studio: error: {exc}", file=sys.stderr)
-        return 1
+        return int(exc.exit_code)
     except Cancelled:
         print("tactile-studio: cancelled; finished work was kept", file=sys.stderr)
-        return 130
+        return EXIT_CANCELLED
     except Terminated:
         print("tactile-studio: terminated", file=sys.stderr)
-        return 143
+        return EXIT_TERMINATED
     except KeyboardInterrupt:
         print("tactile-studio: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_CANCELLED
 
 
 def _silence_stdout() -> None:
