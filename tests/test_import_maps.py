@@ -57,7 +57,7 @@ def test_default_import_normalises_participants_and_reports_gaps(tmp_path, capsy
     assert "key 'z' (code 122) has no gesture name, trials keep the key: 4 file(s)" in stdout
     assert people["P8_FLAT.csv"][1] == ["Back & Forth Rub", "Poke", "z"]  # shear9's keys
     assert people["P8_FLAT.csv"][2] == ["z"]
-    assert "gesture keys:" not in stdout
+    assert "gesture keys guessed (no map given, shear9's keys assumed): p=Poke, " in stdout
     # more keys than shear9 names: the names it gave may be wrong too, and the fix is named
     assert ("the files use 3 gesture keys, shear9's map names 2 (p, r), perhaps wrongly: if "
             "they were recorded with another protocol, give its keys with --gestures "
@@ -68,7 +68,8 @@ def test_a_protocol_names_the_keys_by_name_or_file(tmp_path, capsys, files):
     from importlib import resources
     stdout, people = _import(capsys, tmp_path, files, "--gestures", "cost14")
     assert people["P8_FLAT.csv"][1] == ["rub", "pat", "z"]
-    assert "gesture keys: g=grab, h=hit," in stdout and "perhaps wrongly" not in stdout
+    assert "gesture keys (from protocol cost14): g=grab, h=hit," in stdout
+    assert "perhaps wrongly" not in stdout and "guessed" not in stdout
     shipped = resources.files("tactile_studio.resources") / "protocols" / "cost14.toml"
     (tmp_path / "study.toml").write_text(shipped.read_text())
     stdout, people = _import(capsys, tmp_path, files, "--gestures", str(tmp_path / "study.toml"))
@@ -84,7 +85,7 @@ def test_maps_inline_and_from_toml(tmp_path, capsys, files):
     assert people["P8_FLAT.csv"][0] == people["P08_PILLOW.csv"][0] == "P07"
     assert people["P8_FLAT.csv"][1] == ["Rub", "Press", "z"]
     assert "Pilot -> P00" in stdout and "P8 -> P07" in stdout
-    assert "gesture keys: r=Rub, p=Press" in stdout
+    assert "gesture keys (from the map given): r=Rub, p=Press" in stdout
     with Session(tmp_path / "out" / "P8_FLAT.h5") as s:
         assert s.metadata["gestures"] == ["Rub", "Press", "z"]
         assert s.metadata["protocol"] == ""  # not shear9's names any more

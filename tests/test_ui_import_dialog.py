@@ -55,7 +55,8 @@ def test_import_from_the_workspace_names_gestures_and_lists_the_sessions(window,
     assert dialog.status.text().startswith(f"Imported 3 session(s) into {out}")
     assert dialog.progress.value() == 1000
     summary = dialog.summary.toPlainText()
-    assert "gesture keys: g=grab, h=hit" in summary and "participants: P01, P02, P1 -> P01" in summary
+    assert "gesture keys (from protocol cost14): g=grab, h=hit" in summary
+    assert "participants: P01, P02, P1 -> P01" in summary
     assert "key 'z' (code 122) has no gesture name" in summary
     with Session(out / "P1_PILLOW.h5") as s:
         assert [t["gesture"] for t in s.trials] == ["rub", "pat", "z"]

@@ -95,6 +95,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     if args.import_format == "shearsense":
         for line in report.lines():
             print(line)
+    else:
+        from tactile_studio.storage.importers.datasets import COST, HAART, numbering_line
+        print(numbering_line(COST if args.import_format == "cost" else HAART))
     print(f"imported {len(out)} session(s) into {args.out}")
     return 0
 

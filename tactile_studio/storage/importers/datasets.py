@@ -47,8 +47,13 @@ from tactile_studio.storage.importers._common import (
 from tactile_studio.storage.importers.table import Table, read_table
 from tactile_studio.storage.trials import TrialRecord
 
+# The corpora's own numbering. CoST's README numbers its gestures alphabetically: 1 grab,
+# 2 hit, 3 massage, 4 pat, 5 pinch, 6 poke, 7 press, 8 rub, 9 scratch, 10 slap, 11 squeeze,
+# 12 stroke, 13 tap, 14 tickle (its mean pressures agree: 11, a squeeze, presses hardest).
+# HAART names its seven gestures in its files; numbers, where a copy has them, follow the
+# challenge's alphabetical list.
 COST_GESTURES = ("grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",
-                 "slap", "stroke", "squeeze", "tap", "tickle")
+                 "slap", "squeeze", "stroke", "tap", "tickle")
 HAART_GESTURES = ("constant", "notouch", "pat", "rub", "scratch", "stroke", "tickle")
 HAART_CAPTURE_FRAMES = 432
 
@@ -149,6 +154,14 @@ def _gesture_namer(spec: DatasetSpec, protocol: Any):  # noqa: ANN202
             return by_norm.get(norm_name(spec.numbered[int(k) - 1]), spec.numbered[int(k) - 1])
         return v
     return name_of, names
+
+
+def numbering_line(spec: DatasetSpec) -> str:
+    """The label map an import applies, said where it comes from (printed by the CLI and
+    shown by the import dialog)."""
+    return (f"gesture labels: {spec.what}'s published numbering: "
+            + ", ".join(f"{i}={n}" for i, n in enumerate(spec.numbered, 1))
+            + "; names in the file are kept as named")
 
 
 def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os.PathLike,

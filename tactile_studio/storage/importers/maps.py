@@ -91,6 +91,16 @@ def gesture_key_map(value: str) -> dict[str, str]:
     return out
 
 
+def gesture_map_source(value: str) -> str:
+    """Where a ``--gestures`` map came from, as the import summary names it."""
+    if value in list_protocols():
+        return f"protocol {value}"
+    if Path(value).expanduser().is_file():
+        kind = "protocol file" if _protocol_in(value) is not None else "file"
+        return f"{kind} {Path(value).name}"
+    return "the map given"
+
+
 def _protocol_in(value: str) -> Protocol | None:
     if value in list_protocols():
         return load_protocol(value)
@@ -115,5 +125,5 @@ def participant_map(value: str) -> dict[str, str]:
     return out
 
 
-__all__ = ["MapError", "gesture_key_map", "normalise_participant", "participant_map",
-           "read_map"]
+__all__ = ["MapError", "gesture_key_map", "gesture_map_source", "normalise_participant",
+           "participant_map", "read_map"]

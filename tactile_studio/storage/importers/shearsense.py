@@ -24,6 +24,7 @@ from tactile_studio.storage.importers._common import (
 )
 from tactile_studio.storage.importers.maps import (
     gesture_key_map,
+    gesture_map_source,
     normalise_participant,
     participant_map,
 )
@@ -52,12 +53,18 @@ class ShearSenseImport:
     key_names: dict[str, str] = field(default_factory=dict)  # the gesture map used
     custom_keys: bool = False  # key_names came from --gestures, not shear9
     named_keys: set[str] = field(default_factory=set)  # keys seen that the map named
+    key_source: str = ""  # where a given map came from ("protocol cost14", "file x.toml")
 
     def lines(self) -> list[str]:
-        """The summary as printed by ``import shearsense``."""
+        """The summary as printed by ``import shearsense``: always the key map applied and
+        where it came from, "guessed" when none was given (shear9's names may be wrong)."""
         out = []
+        shown = ", ".join(f"{k}={v}" for k, v in self.key_names.items())
         if self.custom_keys:
-            out.append("gesture keys: " + ", ".join(f"{k}={v}" for k, v in self.key_names.items()))
+            out.append(f"gesture keys (from {self.key_source or 'the map given'}): {shown}")
+        elif self.key_names:
+            out.append(f"gesture keys guessed (no map given, {PROTOCOL}'s keys assumed): "
+                       f"{shown}")
         if self.participants:
             shown = ", ".join(f"{k} -> {v}" if k != v else v
                               for k, v in sorted(self.participants.items()))
@@ -217,7 +224,7 @@ def import_shearsense_study(files: Sequence[str | os.PathLike], out_dir: str | o
     keys = gesture_key_map(gestures) if gestures else None
     people = participant_map(participants) if participants else None
     make_out_dir(out_dir)
-    report = ShearSenseImport()
+    report = ShearSenseImport(key_source=gesture_map_source(gestures) if gestures else "")
     paths = import_shearsense(files, out_dir, progress, cancel, force, on_done,
                               key_names=keys, participant_map=people, report=report)
     return paths, report
