@@ -99,3 +99,54 @@ def test_the_main_window_opens_it_from_the_sensors_menu(qtbot, tmp_path, monkeyp
     assert not w.controller.engine.running  # the wizard gets the sensor to itself
     wizard.close()
     w.shutdown()
+
+
+def answer_next_box(qtbot, button, seen: list[str]) -> None:
+    """Click ``button`` on the message box the wizard is about to open (modal)."""
+    from PySide6.QtCore import QTimer
+    from PySide6.QtWidgets import QApplication, QMessageBox
+
+    def answer() -> None:
+        box = QApplication.activeModalWidget()
+        if not isinstance(box, QMessageBox):
+            QTimer.singleShot(20, answer)
+            return
+        seen.append(box.text())
+        box.button(button).click()
+    QTimer.singleShot(0, answer)
+
+
+def test_a_folder_holding_a_run_is_replaced_only_when_the_user_says_yes(qtbot, wizard, tmp_path):
+    from PySide6.QtWidgets import QMessageBox
+
+    from tactile_studio.characterise import Plan, run_characterisation
+    from tactile_studio.devices.registry import create_device
+    from tactile_studio.plugins.sim_force import SimulatedForce
+    from tactile_studio.plugins.sim_stage import SimulatedStage
+    from tactile_studio.sensor.characterise import parse_taxels
+
+    out = tmp_path / "run"
+    dev = create_device("simulated", {"speed": 0, "gesture": "idle"})
+    run_characterisation(dev, SimulatedStage(), SimulatedForce(),
+                         Plan(sequences=("normal",), dwell_s=0.5, normal_steps=4,
+                              settle_s=0.5, window_s=0.2), parse_taxels(dev.layout, "B2,B3"), out,
+                         report=False)
+    w, seen = wizard, []
+    answer_next_box(qtbot, QMessageBox.StandardButton.No, seen)
+    w.next()
+    assert w.currentPage() is w.setup  # No: stays, says why, nothing touched
+    assert "a finished characterisation of 2 taxel(s)" in seen[0] and str(out) in seen[0]
+    assert "choose another folder" in w.setup.error.text()
+    assert sorted(p.name for p in (out / "raw").iterdir()) == ["B2.json", "B3.json"]
+
+    answer_next_box(qtbot, QMessageBox.StandardButton.Yes, seen)
+    w.next()
+    assert w.currentPage() is w.plan_page and w.overwrite
+    fill_plan(w, "C3")
+    w.plan_page.set_param("sequences", "normal")
+    w.next()
+    qtbot.waitUntil(lambda: w.run_page.finished_run, timeout=90000)
+    assert w.error == ""
+    assert sorted(p.name for p in (out / "raw").iterdir()) == ["C3.json"]
+    with Session(out / "session.h5") as session:
+        assert [e["taxel"] for e in session.events if e["kind"] == "char_taxel"] == ["C3"]

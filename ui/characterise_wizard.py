@@ -20,6 +20,7 @@ from PySide6.QtWidgets import (
     QHeaderView,
     QLabel,
     QLineEdit,
+    QMessageBox,
     QProgressBar,
     QPushButton,
     QTableWidget,
@@ -30,6 +31,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.characterise import RunControl, run_characterisation
+from tactile_studio.characterise.folder import describe_run
 from tactile_studio.characterise.prepare import plan_fields, plugin_names, prepare
 from tactile_studio.characterise.report import TABLE_KEYS
 from tactile_studio.errors import Cancelled, UserError
@@ -69,6 +71,13 @@ class SetupPage(QWizardPage):
         self.out = QLineEdit(out_dir)
         form.addRow("Sensor id:", self.sensor)
         form.addRow("Output folder:", self.out)
+        self.error = QLabel()
+        self.error.setStyleSheet("color: #b00020")
+        self.error.setWordWrap(True)
+        form.addRow(self.error)
+
+    def validatePage(self) -> bool:
+        return self.wizard().confirm_out_dir()
 
     def instruments(self) -> list[str]:
         """Plugin name and settings text of the device, stage and load cell, in order."""
@@ -234,6 +243,7 @@ class CharacteriseWizard(QWizard):
         for page in (self.setup, self.plan_page, self.run_page, self.report):
             self.addPage(page)
         self.prepared = None
+        self.overwrite = False  # the user agreed to replace the run the folder holds
         self.control = RunControl()
         self.result: dict[str, Any] | None = None
         self.error = ""
@@ -251,6 +261,28 @@ class CharacteriseWizard(QWizard):
     def out_dir(self) -> Path:
         return self.setup.out_dir()
 
+    def confirm_out_dir(self) -> bool:
+        """True when the output folder can take the run: it holds none, or the user
+        answered Yes to replacing the one it holds (asked in a message box)."""
+        out, error = self.out_dir, self.setup.error
+        error.clear()
+        if out.exists() and not out.is_dir():
+            error.setText(f"{out} exists and is not a folder")
+            return False
+        held = describe_run(out)
+        self.overwrite = False
+        if held is None:
+            return True
+        box = QMessageBox(QMessageBox.Icon.Question, "Replace the earlier run?",
+                          f"{out} holds {held}.\n\nReplace it? Its session.h5, results, "
+                          "raw/ and figures/ are deleted before the new run starts.",
+                          QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No, self)
+        box.setDefaultButton(QMessageBox.StandardButton.No)
+        self.overwrite = box.exec() == QMessageBox.StandardButton.Yes
+        if not self.overwrite:
+            error.setText(f"{out} holds {held}: choose another folder")
+        return self.overwrite
+
     def prepare_run(self):  # noqa: ANN201
         return prepare(*self.setup.instruments(), self.plan_page.taxels_text(),
                        self.plan_page.params())
@@ -263,7 +295,7 @@ class CharacteriseWizard(QWizard):
 
     def _start(self) -> None:
         p, bridge, out = self.prepared, self._bridge, self.out_dir
-        sensor = self.setup.sensor_id()
+        sensor, overwrite = self.setup.sensor_id(), self.overwrite
 
         def work() -> None:
             result, error = None, ""
@@ -271,7 +303,8 @@ class CharacteriseWizard(QWizard):
                 result = run_characterisation(
                     p.device, p.stage, p.force, p.plan, p.taxels, out, sensor_id=sensor,
                     progress=lambda f, m: bridge.progress.emit(f, m), control=self.control,
-                    on_point=lambda name, pt: bridge.point.emit(name, pt))
+                    on_point=lambda name, pt: bridge.point.emit(name, pt),
+                    overwrite=overwrite)
             except (UserError, Cancelled) as exc:
                 error = str(exc) or "aborted"
             bridge.done.emit(result, error)

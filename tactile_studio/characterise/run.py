@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.characterise.analyse import analyse_taxel
+from tactile_studio.characterise.folder import check_out_dir, clear_run
 from tactile_studio.characterise.lab import Lab
 from tactile_studio.characterise.plan import Plan
 from tactile_studio.characterise.sequences import (
@@ -119,7 +120,7 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                          sensor_id: str | None = None, progress: ProgressFn = no_progress,
                          control: RunControl | None = None,
                          on_point: Any = None, on_taxel: Any = None,
-                         report: bool = True) -> dict[str, Any]:
+                         report: bool = True, overwrite: bool = False) -> dict[str, Any]:
     """Characterise ``taxels`` and return the result dict (also in characterisation.json).
 
     Raises Cancelled (after retracting and saving) when ``control`` is cancelled, and
@@ -128,9 +129,13 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends (both optional,
     called from the calling thread).
     ``report``: also write figures/ and report.html (for what was measured).
+    ``overwrite``: a folder that holds an earlier run is refused (UserError) unless set;
+    then that run's files are removed first, so two runs are never mixed.
     """
     control = control or RunControl()
     out_dir = Path(out_dir)
+    check_out_dir(out_dir, overwrite)
+    clear_run(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     layout = device.layout
     if not layout.has_shear:

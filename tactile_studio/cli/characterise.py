@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise.folder import check_out_dir
 from tactile_studio.characterise.plan import SEQUENCES
 from tactile_studio.characterise.run import save_calibration
 from tactile_studio.devices.registry import create_device, parse_set_options
@@ -45,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "active one (needs --sensor)")
     p.add_argument("--json", action="store_true", help="print the per-taxel results as JSON")
     p.add_argument("--out", default=None, help="output folder (required without --wizard)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the run a folder already holds (its files are removed "
+                        "first; without this such a folder is refused)")
     p.add_argument("--wizard", action="store_true",
                    help="open the characterisation wizard instead (--out pre-fills its folder)")
     p.set_defaults(func=run)
@@ -83,8 +87,7 @@ def run(args: argparse.Namespace) -> int:
     stage = create_stage(args.stage, parse_set_options(args.stage_set))
     force = create_force(args.force, parse_set_options(args.force_set))
     out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise UserError(f"--out {out}: exists and is not a folder")
+    check_out_dir(out, args.overwrite)
     if args.save_calibration and not args.sensor:
         raise UserError("--save-calibration needs --sensor ID (the logbook files it there)")
     control = RunControl()
@@ -93,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
         with ctrl_c_cancels(control):
             result = run_characterisation(device, stage, force, plan, taxels, out,
                                           sensor_id=args.sensor, progress=progress,
-                                          control=control)
+                                          control=control, overwrite=args.overwrite)
     except UserError as exc:
         raise UserError(f"{exc} (data so far kept in {out})") from None
     if args.save_calibration:
