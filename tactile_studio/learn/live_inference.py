@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.window_model import PREDICTION_HOP_S, WindowModel
 from tactile_studio.sensor.decode import contact_taxels
 
 
@@ -152,7 +152,8 @@ class RunningCalibration:
 
 
 class LiveInference:
-    def __init__(self, engine, model: WindowModel, hop_s: float = 0.25, smoothing: int = 4,
+    def __init__(self, engine, model: WindowModel, hop_s: float = PREDICTION_HOP_S,
+                 smoothing: int = 4,
                  recording: Callable[[], bool] = lambda: False,
                  adapting: RunningCalibration | None = None) -> None:
         self.engine, self.model, self.adapting = engine, model, adapting

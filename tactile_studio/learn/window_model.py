@@ -24,6 +24,8 @@ from tactile_studio.learn.windowing import cut, window_spec
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
+PREDICTION_HOP_S = 0.25  # live inference predicts its newest window this often; the player too
+
 
 class WindowModel:
     def __init__(self, run: str | os.PathLike, participant: str | None = None,
@@ -69,6 +71,16 @@ class WindowModel:
             return self.window
         w = self.spec.frames(rate)
         return w if self.window > self.spec.long_factor * w else self.window
+
+    def prediction_ends(self, n_frames: int, rate: float, hop: int | None = None
+                        ) -> tuple[int, np.ndarray]:
+        """(window frames, end frame (exclusive) of each window) of the predictions over
+        ``n_frames`` frames at ``rate``: the window live inference predicts with
+        (:meth:`window_for`), one every ``PREDICTION_HOP_S`` (or ``hop`` frames), the first
+        once a whole window is in: what live inference would have shown over them."""
+        w = max(2, min(self.window_for(rate), n_frames))
+        step = hop or max(1, int(round(PREDICTION_HOP_S * rate)))
+        return w, np.arange(w, n_frames + 1, max(1, step))
 
     @property
     def reads_person_features(self) -> bool:

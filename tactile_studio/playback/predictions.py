@@ -18,16 +18,15 @@ from tactile_studio.playback import SessionPlayback
 from tactile_studio.storage.trials import TrialStatus
 
 
-def predictions_over_time(run: str | os.PathLike, pb: SessionPlayback, hop: int = 4,
-                          window: int | None = None
+def predictions_over_time(run: str | os.PathLike, pb: SessionPlayback, hop: int | None = None
                           ) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """(last frame of each window, probabilities (n, classes), labels)."""
+    """(last frame of each window, probabilities (n, classes), labels): the model's own
+    window and step, as live inference predicts (``WindowModel.prediction_ends``; ``hop``
+    frames between predictions instead of live's step). A run trained on 2 s windows of
+    12 s performances predicts 2 s windows, the first 2 s into the session."""
     participant = str(pb.metadata.get("participant") or pb.path.stem)
     model = WindowModel(run, participant)
-    lengths = [t.end - t.start for t in pb.trials if t.end > t.start]
-    w = int(window or (int(np.median(lengths)) if lengths else model.window))
-    w = max(2, min(w, pb.n_frames))
-    ends = np.arange(w, pb.n_frames + 1, max(1, hop))
+    w, ends = model.prediction_ends(pb.n_frames, _rate(pb), hop)
     if not len(ends):
         raise UserError(f"{pb.path}: shorter than one prediction window ({w} frames)")
     frames = model.decode(pb.layout, pb.raw, pb.session.baseline(0))
