@@ -1,0 +1,282 @@
+"""The session validator behind ``tactile-studio check``: a file's facts agree with each other.
+
+A wrong rate, an event at the wrong frame or a trial outside its rows is worse than a
+crash, because nobody notices. This module states the invariants every session file must
+hold (docs/session-format.md, "What check verifies") and names each violation with its
+row, trial or event, so a test suite can run it on every file it writes and a user on any
+file before analysing it. Groups it does not know (``/aux``...) are ignored.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import TrialStatus
+
+STATUSES = {s.value for s in TrialStatus}
+# trial fields every trial carries (docs/session-format.md, the journal's `trial` record)
+TRIAL_FIELDS = ("index", "block", "gesture", "start_sample", "end_sample", "status")
+COUNTED_EVENTS = (("gaps", "gap"), ("reconnects", "reconnect"))
+
+
+@dataclass
+class CheckResult:
+    """One file's verdict: ``violations`` empty when it holds every invariant."""
+
+    path: str
+    violations: list[str] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        return not self.violations
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"path": self.path, "ok": self.ok, "violations": list(self.violations)}
+
+
+def is_segment_start(event: dict[str, Any]) -> bool:
+    """A resume of the file (not the runner's resume after a pause): a new recording
+    segment starts at its row."""
+    return event.get("kind") == "resume" and ("from_file" in event or "segment" in event)
+
+
+def segment_starts(events: list[dict[str, Any]], n_frames: int) -> list[dict[str, Any]]:
+    """The resume events that start a new segment inside the frames, in row order."""
+    starts = [e for e in events if is_segment_start(e)
+              and isinstance(e.get("frame"), int) and 0 < e["frame"] < n_frames]
+    return sorted(starts, key=lambda e: e["frame"])
+
+
+def check_file(path: str | os.PathLike) -> CheckResult:
+    """Open ``path`` and check it; an unreadable file raises ``SessionFileError``."""
+    with Session(path) as s:
+        return CheckResult(str(Path(path)), check_session(s))
+
+
+def check_session(s: Session) -> list[str]:
+    """Every violation of the session invariants in ``s``, one line each."""
+    out: list[str] = []
+    n = s.n_frames
+    _check_times(s, segment_starts(s.events, n), out)
+    trials = _check_trials(s, out)
+    _check_events(s, trials, out)
+    _check_metadata(s, out)
+    _check_counters(s, out)
+    return out
+
+
+# ---- frames and clocks ----------------------------------------------------------------
+def _first_backwards(t: np.ndarray, a: int, b: int) -> tuple[int, int]:
+    """(row of the first frame whose time is below its predecessor's, how many) in a..b."""
+    if b - a < 2:
+        return -1, 0
+    back = np.flatnonzero(np.diff(t[a:b]) < 0)
+    return (int(back[0]) + a + 1, len(back)) if len(back) else (-1, 0)
+
+
+def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None:
+    n = s.n_frames
+    if n < 2:
+        return
+    # a reconnect may restart a device's own clock; a resume continues it (or says by how much)
+    device_cuts = sorted({e["frame"] for e in segs} | {
+        int(e["frame"]) for e in s.events if e.get("kind") == "reconnect"
+        and isinstance(e.get("frame"), int) and 0 < e["frame"] < n})
+    host_cuts = sorted({e["frame"] for e in segs})
+    for name, cuts in (("device_time", device_cuts), ("host_time", host_cuts)):
+        t = s.column(name)
+        bounds = [0, *cuts, n]
+        for a, b in zip(bounds, bounds[1:]):
+            row, count = _first_backwards(t, a, b)
+            if row >= 0:
+                more = f" ({count} times in rows {a}-{b - 1})" if count > 1 else ""
+                out.append(f"{name} goes back at row {row}: {t[row - 1]:.6g} -> "
+                           f"{t[row]:.6g} s{more}")
+    dev = s.column("device_time")
+    for e in segs:
+        r = e["frame"]
+        if dev[r] < dev[r - 1] and "device_time_offset" not in e:
+            out.append(f"device clock restarts at row {r} after a resume ({dev[r - 1]:.6g} -> "
+                       f"{dev[r]:.6g} s) and the resume records no device_time_offset")
+
+
+def _check_metadata(s: Session, out: list[str]) -> None:
+    meta = s.metadata
+    width = int(s._f["frames/raw"].shape[1]) if s._f["frames/raw"].ndim == 2 else -1
+    if width != s.layout.n_channels:
+        out.append(f"frames/raw has {width} channels but layout {s.layout.name} has "
+                   f"{s.layout.n_channels}")
+    lay = meta.get("layout")
+    if isinstance(lay, dict):
+        try:
+            channels = int(lay["rows"]) * int(lay["cols"]) * int(lay["channels_per_taxel"])
+        except (KeyError, TypeError, ValueError):
+            channels = None
+        if channels is not None and channels != width:
+            out.append(f"metadata layout {lay.get('name')} describes {channels} channels "
+                       f"but frames/raw has {width}")
+    attr = s._f.attrs.get("layout")
+    if isinstance(attr, bytes):
+        attr = attr.decode()
+    if attr and str(attr) != s.layout.name:
+        out.append(f"file attribute layout {attr} but metadata layout {s.layout.name}")
+    device = meta.get("device")
+    if isinstance(device, dict) and device.get("layout") and device["layout"] != s.layout.name:
+        out.append(f"device delivers layout {device['layout']} but the session's is "
+                   f"{s.layout.name}")
+    sensor = meta.get("sensor_id")
+    if meta.get("calibration_id") and not sensor:
+        out.append(f"calibration_id {meta['calibration_id']} without a sensor_id")
+    if isinstance(device, dict) and device.get("sensor_id") and sensor \
+            and device["sensor_id"] != sensor:
+        out.append(f"sensor_id {sensor} but the device says {device['sensor_id']}")
+    wellness = meta.get("wellness")
+    if isinstance(wellness, dict) and wellness.get("sensor_id") and sensor \
+            and wellness["sensor_id"] != sensor:
+        out.append(f"sensor_id {sensor} but the wellness check was of {wellness['sensor_id']}")
+
+
+# ---- trials -----------------------------------------------------------------------------
+def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
+    """The trials that are well formed (others are reported), in index order."""
+    n = s.n_frames
+    meta = s.metadata
+    n_blocks = len(meta["block_order"]) if isinstance(meta.get("block_order"), list) else None
+    good: list[dict[str, Any]] = []
+    for t in s.trials:
+        name = f"trial {t.get('index', '?')}"
+        missing = [k for k in TRIAL_FIELDS if k not in t]
+        if missing:
+            out.append(f"{name}: no {', '.join(missing)}")
+            continue
+        try:
+            a, b, block = int(t["start_sample"]), int(t["end_sample"]), int(t["block"])
+        except (TypeError, ValueError):
+            out.append(f"{name}: rows or block not whole numbers")
+            continue
+        if t["status"] not in STATUSES:
+            out.append(f"{name}: status {t['status']!r} (not {', '.join(sorted(STATUSES))})")
+        if block < -1 or (n_blocks is not None and block >= n_blocks):
+            out.append(f"{name}: block {block} outside the session's blocks "
+                       f"(-1..{(n_blocks or 0) - 1})" if n_blocks is not None
+                       else f"{name}: block {block} below -1 (practice)")
+        flags = t.get("flags") or ()
+        if not 0 <= a < b:
+            out.append(f"{name}: rows {a}..{b} are not a range of frames")
+        elif b > n and "dropped_frames" not in flags:
+            out.append(f"{name}: rows {a}..{b} end past the {n} frames")
+        st, et = t.get("start_time"), t.get("end_time")
+        if isinstance(st, (int, float)) and isinstance(et, (int, float)) and et < st:
+            out.append(f"{name}: ends ({et:.6g} s) before it starts ({st:.6g} s)")
+        good.append(t)
+    by_index = sorted(good, key=lambda t: int(t["index"]))
+    for prev, t in zip(by_index, by_index[1:]):
+        if int(t["start_sample"]) < int(prev["end_sample"]):
+            out.append(f"trial {t['index']} (rows {t['start_sample']}..{t['end_sample']}) "
+                       f"starts before trial {prev['index']} ends (row {prev['end_sample']})")
+        st, pt = t.get("start_time"), prev.get("start_time")
+        if isinstance(st, (int, float)) and isinstance(pt, (int, float)) and st < pt:
+            out.append(f"trial {t['index']} starts at {st:.6g} s, before trial "
+                       f"{prev['index']} ({pt:.6g} s): its time jumps back")
+    return by_index
+
+
+# ---- events -----------------------------------------------------------------------------
+def _frame(e: dict[str, Any]) -> int | None:
+    f = e.get("frame")
+    return f if isinstance(f, int) and not isinstance(f, bool) else None
+
+
+def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> None:
+    n = s.n_frames
+    for e in s.events:
+        f = _frame(e)
+        if f is None:
+            out.append(f"event {e.get('kind')}: no frame")
+        elif not 0 <= f <= n:
+            out.append(f"event {e.get('kind')} at frame {f}, outside the {n} frames")
+    blocks: dict[int, list[dict[str, Any]]] = {}
+    for t in trials:
+        blocks.setdefault(int(t["block"]), []).append(t)
+    starts = [e for e in s.events if e.get("kind") == "block_start" and _frame(e) is not None]
+    first_start: dict[int, int] = {}
+    for e in starts:
+        try:
+            b = int(e["block"])
+        except (KeyError, TypeError, ValueError):
+            out.append(f"block_start at frame {e['frame']}: no block number")
+            continue
+        first_start[b] = min(first_start.get(b, e["frame"]), e["frame"])
+        before = [t for t in trials if int(t["block"]) < b]
+        if before:
+            last = max(before, key=lambda t: int(t["end_sample"]))
+            if e["frame"] < int(last["end_sample"]):
+                out.append(f"block_start of block {b} at frame {e['frame']} is before trial "
+                           f"{last['index']} of block {last['block']} ends (row "
+                           f"{last['end_sample']})")
+    if starts:
+        for b, ts in sorted(blocks.items()):
+            first = min(ts, key=lambda t: int(t["start_sample"]))
+            if b not in first_start:
+                out.append(f"block {b} has trials but no block_start event")
+            elif first_start[b] > int(first["start_sample"]):
+                out.append(f"block_start of block {b} at frame {first_start[b]} is after its "
+                           f"first trial {first['index']} starts (row {first['start_sample']})")
+    if trials:
+        last = max(trials, key=lambda t: int(t["end_sample"]))
+        first = min(trials, key=lambda t: int(t["start_sample"]))
+        for e in s.events:
+            f = _frame(e)
+            if f is None:
+                continue
+            if e.get("kind") == "session_end" and f < int(last["end_sample"]):
+                out.append(f"session_end at frame {f} is before trial {last['index']} ends "
+                           f"(row {last['end_sample']})")
+            if e.get("kind") in ("session_start", "free_play") and \
+                    f > int(first["start_sample"]) and not _after_resume(s, f):
+                out.append(f"{e['kind']} at frame {f} is after trial {first['index']} starts "
+                           f"(row {first['start_sample']})")
+
+
+def _after_resume(s: Session, frame: int) -> bool:
+    """A resumed run starts its session again: its session_start follows earlier trials."""
+    return any(is_segment_start(e) and _frame(e) is not None and e["frame"] <= frame
+               for e in s.events)
+
+
+def _check_counters(s: Session, out: list[str]) -> None:
+    counters = s.journal.counters
+    if not counters:
+        return
+    for key, kind in COUNTED_EVENTS:
+        if key not in counters:
+            continue
+        events = sum(1 for e in s.events if e.get("kind") == kind)
+        if int(counters[key]) != events:
+            out.append(f"counters say {counters[key]} {key} but the journal has {events} "
+                       f"{kind} events")
+    if "dropped" in counters:
+        lost = sum(int(e.get("lost") or 0) for e in s.events if e.get("kind") == "overrun")
+        if int(counters["dropped"]) != lost:
+            out.append(f"counters say {counters['dropped']} dropped frames but the overrun "
+                       f"events lost {lost}")
+
+
+def summary_line(result: CheckResult, shown: int = 3) -> str:
+    """``FILE: 2 violations: first; second`` (the first ``shown``)."""
+    v = result.violations
+    if not v:
+        return f"{result.path}: ok"
+    more = f"; {len(v) - shown} more" if len(v) > shown else ""
+    return (f"{result.path}: {len(v)} violation{'s' if len(v) != 1 else ''}: "
+            + "; ".join(v[:shown]) + more)
+
+
+__all__ = ["CheckResult", "check_file", "check_session", "is_segment_start",
+           "segment_starts", "summary_line"]
