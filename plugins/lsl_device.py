@@ -12,7 +12,6 @@ engine records the gap and goes on when the stream returns.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -20,20 +19,13 @@ import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting, layout_setting
 from tactile_studio.errors import DeviceLost, DeviceNotFound, SettingsError
-from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout, get_layout
+from tactile_studio.sensor.channels import layout_for_channels
+from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.streams.lsl_lib import load_pylsl
 from tactile_studio.streams.lsl_meta import DECODED, read_tactile_desc
 
 REOPEN_TIMEOUT_S = 1.0
 READ_WAIT_S = 0.1
-
-
-def layout_for_channels(n: int) -> Layout | None:
-    """The layout a bare channel count implies, or None."""
-    if n == SHEARSENSE_6X6.n_channels:
-        return SHEARSENSE_6X6
-    side = math.isqrt(n)
-    return get_layout(f"grid-{side}x{side}") if n > 0 and side * side == n else None
 
 
 class LslDevice(DevicePlugin):

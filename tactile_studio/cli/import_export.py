@@ -7,6 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+from tactile_studio.errors import IncompleteError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
 
@@ -34,9 +35,12 @@ def register(sub: argparse._SubParsersAction) -> None:
         q.add_argument("--force", action="store_true", help="overwrite existing sessions")
         q.set_defaults(func=cmd_import)
 
-    e = sub.add_parser("export", help="export sessions as ShearSense CSV, NPZ or a trial table")
+    e = sub.add_parser("export", help="export sessions as ShearSense CSV, NPZ, a trial table "
+                                      "or XDF")
     e.add_argument("sessions", nargs="+", help="session files (.h5)")
-    e.add_argument("--format", required=True, choices=["shearsense-csv", "npz", "csv-trials"])
+    e.add_argument("--format", required=True, choices=["shearsense-csv", "npz", "csv-trials", "xdf"],
+                   help="xdf: frames, events and trials as markers, auxiliary signals "
+                        "(the file LabRecorder writes)")
     e.add_argument("--out", default=".", help="output folder (default: .)")
     e.add_argument("--all-trials", action="store_true",
                    help="also export redone and discarded trials (default: ok only)")
@@ -99,6 +103,9 @@ def cmd_import(args: argparse.Namespace) -> int:
         from tactile_studio.storage.importers.datasets import COST, HAART, numbering_line
         print(numbering_line(COST if args.import_format == "cost" else HAART))
     print(f"imported {len(out)} session(s) into {args.out}")
+    if args.import_format == "shearsense" and report.no_frames:  # listed above
+        raise IncompleteError(f"{len(report.no_frames)} of {len(args.files)} file(s) not "
+                              "imported (no frames after the baseline row)")
     return 0
 
 

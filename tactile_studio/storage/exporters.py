@@ -1,5 +1,5 @@
-"""Exporting sessions for other tools: the old ShearSense CSV, per-trial NPZ arrays, and
-a tidy per-trial CSV for statistics.
+"""Exporting sessions for other tools: the old ShearSense CSV, per-trial NPZ arrays, a
+tidy per-trial CSV for statistics, and XDF (storage/xdf_export.py) for LSL labs.
 
 Only trials with status ``ok`` are exported unless ``all_trials`` is set. Every export
 is a long job (``progress``, ``cancel``); a cancelled export keeps the files it finished
@@ -31,7 +31,7 @@ from tactile_studio.storage.shearsense import (
 )
 from tactile_studio.storage.trials import TrialStatus
 
-FORMATS = ("shearsense-csv", "npz", "csv-trials")
+FORMATS = ("shearsense-csv", "npz", "csv-trials", "xdf")
 GRIDS = ("auto", "virtual", "physical")
 TRIAL_COLUMNS = ["session", "participant", "condition", "protocol", "index", "block",
                  "gesture", "label", "key", "status", "reason", "flags", "start_sample",
@@ -255,4 +255,8 @@ def export_session(path: str | os.PathLike, fmt: str, out_dir: str | os.PathLike
         return export_npz(path, out_dir, all_trials, grid, progress, cancel, force)
     if fmt == "csv-trials":
         return [export_csv_trials(path, out_dir, all_trials, progress, cancel, force)]
+    if fmt == "xdf":
+        from tactile_studio.storage.xdf_export import export_xdf
+
+        return [export_xdf(path, out_dir, progress, cancel, force)]
     raise UserError(f"unknown export format {fmt!r} (choose from {', '.join(FORMATS)})")

@@ -15,6 +15,7 @@ import numpy as np
 from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
+from tactile_studio.storage.aux_signals import AuxSignal, read_aux
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 
@@ -177,6 +178,10 @@ class Session:
         h.update(np.ascontiguousarray(self.raw(0, n)).tobytes())
         h.update(np.ascontiguousarray(self.column("device_time", 0, n)).tobytes())
         return derived_session_id(f"fingerprint:{h.hexdigest()}")
+
+    def aux_signals(self) -> list[AuxSignal]:
+        """Other instruments' signals kept beside the touch (storage/aux_signals.py)."""
+        return read_aux(self._f)
 
     @property
     def closed_cleanly(self) -> bool:

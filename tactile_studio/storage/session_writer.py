@@ -28,6 +28,7 @@ import numpy as np
 from tactile_studio import __version__
 from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.aux_signals import AuxSignal, write_aux
 from tactile_studio.storage.session_compress import (
     LIVE_CHUNK_BYTES,
     chunk_rows,
@@ -52,7 +53,9 @@ class SessionWriter:
     """Appends frames and journal records to a new session file; thread-safe."""
 
     def __init__(self, path: str | os.PathLike, layout: Layout, device_info: dict[str, Any],
-                 metadata: dict[str, Any] | None = None, flush_interval: float = 0.5) -> None:
+                 metadata: dict[str, Any] | None = None, flush_interval: float = 0.5,
+                 aux: list[AuxSignal] | None = None) -> None:
+        """``aux``: auxiliary signals (storage/aux_signals.py), written before SWMR."""
         self.path = Path(path)
         self.layout = layout
         self.flush_interval = flush_interval
@@ -81,6 +84,7 @@ class SessionWriter:
         }
         self._journal = f.create_dataset("journal", (0,), maxshape=(None,), dtype="u1",
                                          chunks=(16384,))
+        write_aux(f, aux or [])
         f.swmr_mode = True
         self._n = 0
         self._last_flush = time.monotonic()

@@ -17,37 +17,18 @@ from typing import Any
 import numpy as np
 
 from tactile_studio import __version__
+from tactile_studio.sensor.channels import (  # noqa: F401 - re-exported
+    DECODED,
+    DECODED_ROLES,
+    RAW,
+    ROLE_NAMES,
+    frame_channels,
+)
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.streams.clock import ClockOffset
 
-RAW, DECODED = "raw", "decoded"
 FRAME_TYPE, MARKER_TYPE = "Tactile", "Markers"
-ROLE_NAMES = ("y_neg", "x_neg", "centre", "x_pos", "y_pos")  # layout.py's channel roles
-DECODED_ROLES = ("normal", "shear_x", "shear_y")
-
-
-def frame_channels(layout: Layout, content: str) -> list[dict[str, Any]]:
-    """One dict per stream channel, in stream order (see the module docstring)."""
-    out: list[dict[str, Any]] = []
-    if content == RAW:
-        k = layout.channels_per_taxel
-        for ch in range(layout.n_channels):
-            taxel, role = divmod(ch, k)
-            r, c = layout.taxel_rc(taxel)
-            name = layout.taxel_name(r, c)
-            role_name = ROLE_NAMES[role] if k == 5 else "pressure"
-            out.append({"label": f"{name}:{role_name}" if k > 1 else name, "type": role_name,
-                        "unit": "counts", "taxel": name, "row": r, "col": c})
-        return out
-    roles = DECODED_ROLES if layout.has_shear else DECODED_ROLES[:1]
-    for role in roles:  # all normal channels first (row-major), then shear-x, shear-y
-        for r in range(layout.rows):
-            for c in range(layout.cols):
-                name = layout.taxel_name(r, c)
-                out.append({"label": f"{name}:{role}", "type": role, "unit": layout.units,
-                            "taxel": name, "row": r, "col": c})
-    return out
 
 
 def decoded_channels(layout: Layout, raw: np.ndarray, baseline: np.ndarray) -> np.ndarray:
