@@ -119,7 +119,8 @@ def test_export_model_cli(data, capsys, tmp_path):
         capsys, "export-model", out, "--format", "fp16")
     bare = tmp_path / "bare"
     shutil.copytree(out, bare, ignore=shutil.ignore_patterns("model.safetensors", "export"))
-    assert "no finished folds" in _one_line_error(capsys, "export-model", bare, "--format", "int8")
+    assert "fold r0-all is finished but its model file is missing" in _one_line_error(
+        capsys, "export-model", bare, "--format", "int8")
     damaged = tmp_path / "damaged"
     shutil.copytree(out, damaged, ignore=shutil.ignore_patterns("export"))
     (damaged / "folds" / "r0-all" / "model.safetensors").write_bytes(b"not weights")

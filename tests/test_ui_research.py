@@ -236,7 +236,7 @@ def test_run_without_weights_and_bad_session_give_messages(window, workspace, tm
     shutil.copytree(workspace / "runs" / "normal", bare,
                     ignore=shutil.ignore_patterns("model.safetensors", "model.onnx"))
     assert not window.open_run(str(bare))
-    assert "no finished folds" in window.message.text()
+    assert "its model file is missing" in window.message.text()
     bad = tmp_path / "bad.h5"
     bad.write_bytes(b"not a session")
     assert not window.open_session(str(bad))

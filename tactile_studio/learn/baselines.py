@@ -130,6 +130,10 @@ class BaselineModel:
         """(labels, probabilities (N, n_classes)) from the ONNX graph."""
         if len(x) == 0:
             return np.zeros(0, dtype=np.int64), np.zeros((0, self.n_classes))
+        x, want = np.asarray(x), self._session.get_inputs()[0].shape[1]
+        if x.ndim != 2 or x.shape[1] != want:
+            raise UserError(f"{self.name} model: {x.shape[-1]} features given, its file "
+                            f"reads {want} (a model of another run?)")
         labels, probs = self._session.run(None, {self._input: np.asarray(x, self._dtype)})
         return np.asarray(labels, dtype=np.int64), self._expand(np.asarray(probs, np.float64))
 
@@ -150,7 +154,10 @@ class BaselineModel:
         Path(path).write_bytes(self.onnx)
 
     @classmethod
-    def load(cls, path, name: str, options: dict[str, Any], n_classes: int) -> BaselineModel:
+    def load(cls, path, name: str, options: dict[str, Any], n_classes: int,
+             channel_names: list[str] | None = None) -> BaselineModel:
+        """The model in ``path``, checked to be this run's kind of model (``name``, its
+        classes, its channels when given) before anything runs it."""
         path = Path(path)
         if not path.is_file():
             raise UserError(f"{path}: no such model file")
@@ -160,8 +167,32 @@ class BaselineModel:
         except Exception as exc:  # onnxruntime raises its own untyped errors on bad files
             first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             raise UserError(f"{path}: damaged or unreadable model file ({first[:120]})") from None
+        why = model._foreign(channel_names)
+        if why:
+            raise UserError(f"{path}: not this run's model ({why}); train the run again "
+                            "into a new --out")
         model.onnx = path.read_bytes()
         return model
+
+    def _foreign(self, channel_names: list[str] | None) -> str:
+        """Why the opened graph is not a ``self.name`` model of this run ("" if it is):
+        its metadata, its input (N, features) and its two outputs (labels, probabilities)."""
+        meta, session = self.metadata, self._session
+        if meta.get("model") != self.name:
+            return f"it is a {meta.get('model') or 'foreign'} model, the run's is {self.name}"
+        if meta.get("n_classes") != str(self.n_classes) or len(self._classes) == 0 \
+                or self._classes.min() < 0 or self._classes.max() >= self.n_classes:
+            return f"it has {meta.get('n_classes')} classes, the run has {self.n_classes}"
+        if channel_names is not None and meta.get("channel_names") is not None \
+                and json.loads(meta["channel_names"]) != list(channel_names):
+            return "it reads other channels than the run's"
+        inputs, outputs = session.get_inputs(), session.get_outputs()
+        shape = inputs[0].shape if len(inputs) == 1 else []
+        if len(shape) != 2 or str(shape[1]) != meta.get("n_features"):
+            return f"its input is {[i.shape for i in inputs]}, not (N, {meta.get('n_features')})"
+        if len(outputs) != 2:
+            return f"it has {len(outputs)} outputs, not labels and probabilities"
+        return ""
 
 
 def _estimator(name: str, o: dict[str, Any], n_train: int, seed: int) -> Any:

@@ -259,4 +259,5 @@ class BaselineLearner:
         if str(path).endswith(".safetensors"):
             raise UserError(f"{path}: an rf/knn model saved before they became ONNX files; "
                             "train the run again")
-        return baselines.BaselineModel.load(path, self.name, self.options, info.n_classes)
+        return baselines.BaselineModel.load(path, self.name, self.options, info.n_classes,
+                                            list(info.channel_names))

@@ -163,19 +163,103 @@ def write_confusion_csv(path: Path, labels: list[str], matrix: list[list[float]]
             w.writerow([name, *(f"{v:.4f}" for v in row)])
 
 
-def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """(config.json contents, finished fold records in order) of a run folder."""
+FOLD_KEYS = ("round", "fold", "name", "test")  # what every reader of fold.json relies on
+
+
+def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
+    """(record, "") of the finished fold in ``d``; (None, "") when it is unfinished (no
+    fold.json yet: training resumes it); (None, why) when it is damaged."""
+    if not (d / FOLD).is_file():
+        return None, ""
+    if not model_file(d).is_file():
+        return None, (f"{d}: fold {d.name} is finished but its model file is missing "
+                      f"({' or '.join(MODEL_FILES)}); train the run again into a new --out")
+    try:
+        rec = read_json(d / FOLD)
+    except UserError as exc:
+        return None, f"fold {d.name}: {exc}"
+    if not isinstance(rec, dict) or any(k not in rec for k in FOLD_KEYS):
+        return None, f"{d / FOLD}: fold {d.name} is damaged (not a fold record of this version)"
+    return rec, ""
+
+
+def _metrics_problem(run: Path, finished: set[tuple[int, str]]) -> str:
+    """Why ``run``'s metrics.json cannot be trusted ("" when absent or sound): it must be
+    the summary of folds that are all still there."""
+    path = run / METRICS
+    if not path.is_file():
+        return ""  # a run stopped before its first fold finished, or still training
+    try:
+        m = read_json(path)
+    except UserError as exc:
+        return str(exc)
+    if not isinstance(m, dict) or not isinstance(m.get("per_fold"), list) \
+            or not isinstance(m.get("labels"), list):
+        return f"{path}: damaged (valid JSON, but not a run's metrics: no per-fold list)"
+    for f in m["per_fold"]:
+        if not isinstance(f, dict) or not isinstance(f.get("round"), int) \
+                or not isinstance(f.get("name"), str):
+            return f"{path}: damaged (a per-fold entry of another shape)"
+        safe = re.sub(r"[^A-Za-z0-9_.-]", "_", f["name"])
+        if (f["round"], safe) not in finished:
+            fold = f"r{f['round']}-{safe}"
+            return (f"{run / 'folds' / fold}: fold {fold} scored in metrics.json is "
+                    "missing or unfinished")
+    return ""
+
+
+def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | None,
+                                                   list[dict[str, Any]]]:
+    """Everything wrong with a run folder, one line each naming the fold or file, with
+    what could be read: (problems, config.json contents, finished fold records in order).
+    The one integrity check every reader uses (evaluate, export-model, compare, live
+    inference, the research workspace), so a fold that lost its model is never silently
+    left out of a score."""
     run = Path(path)
     if not run.is_dir():
-        raise UserError(f"{run}: no such run folder")
-    cfg = read_json(run / CONFIG)
-    records = []
+        return [f"{run}: no such run folder"], None, []
+    problems: list[str] = []
+    cfg: dict[str, Any] | None = None
+    try:
+        cfg = read_json(run / CONFIG)
+        if not isinstance(cfg, dict) or not isinstance(cfg.get("config"), dict) \
+                or not isinstance(cfg.get("resolved"), dict):
+            problems.append(f"{run / CONFIG}: damaged (valid JSON, but not a run's config)")
+            cfg = None
+    except UserError as exc:
+        problems.append(str(exc))
+    records, finished = [], set()
     for d in sorted((run / "folds").glob("r*-*")):
-        if (d / FOLD).is_file() and model_file(d).is_file():
-            rec = read_json(d / FOLD)
+        rec, why = _fold_record(d)
+        if why:
+            problems.append(why)
+        elif rec is not None:
             rec["_dir"] = str(d)
             records.append(rec)
-    records.sort(key=lambda r: (r["round"], r["fold"]))
-    if not records:
-        raise UserError(f"{run}: the run has no finished folds")
+            finished.add((rec["round"], d.name.split("-", 1)[1]))
+    try:
+        records.sort(key=lambda r: (r["round"], r["fold"]))
+    except TypeError:
+        problems.append(f"{run}: fold.json files of another shape (round/fold not numbers)")
+    why = _metrics_problem(run, finished)
+    if why:
+        problems.append(why)
+    return problems, cfg, records
+
+
+def check_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """(config.json contents, finished fold records) of a sound run folder; a damaged one
+    raises UserError with its first problem (and how many more there are)."""
+    problems, cfg, records = run_problems(path)
+    if problems:
+        more = f" (and {len(problems) - 1} more problems)" if len(problems) > 1 else ""
+        raise UserError(problems[0] + more)
+    if cfg is None or not records:
+        raise UserError(f"{path}: the run has no finished folds")
     return cfg, records
+
+
+def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """(config.json contents, finished fold records in order) of a run folder; a missing
+    or damaged fold model is an error naming the fold (:func:`check_run`)."""
+    return check_run(path)

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.runfolder import CONFIG, METRICS, read_json
+from tactile_studio.learn.runfolder import CONFIG, METRICS, read_json, run_problems
 
 
 @dataclass
@@ -108,30 +108,38 @@ def _number(m: dict[str, Any], *keys: str) -> float | None:
 
 
 def read_run_row(path: str | os.PathLike) -> RunRow:
+    """One run folder as a row; a damaged one (runfolder.run_problems: a fold without its
+    model, a metrics.json of another shape...) is a row whose ``error`` says why."""
     row = RunRow(str(path))
-    try:
-        cfg = read_json(Path(path) / CONFIG)
-        config = cfg.get("config", {}) if isinstance(cfg, dict) else {}
+    problems, cfg, _ = run_problems(path)
+    if cfg is not None:
+        config = cfg["config"]
         row.config = config
         row.model = str(config.get("model", ""))
         row.channels = str(config.get("channels") or "all")
         row.protocol = str(config.get("protocol", ""))
         row.preset = str(config.get("preset", ""))
         row.grid = str(config.get("grid", ""))
-        row.created = str(cfg.get("resolved", {}).get("created", ""))[:16].replace("T", " ")
-        row.folds = sum(1 for _ in (Path(path) / "folds").glob("*/fold.json"))
-        if (Path(path) / METRICS).is_file():
-            m = read_json(Path(path) / METRICS)
-            row.accuracy = _number(m, "accuracy")
-            row.trial_accuracy = _number(m, "trial_accuracy")
-            row.f1_macro = _number(m, "f1_macro")
-            row.balanced_accuracy = _number(m, "balanced_accuracy")
-            row.complete = bool(m.get("complete", False))
-            row.channels = str(m.get("channels") or row.channels)
-        else:
-            row.error = "no metrics.json (interrupted before a fold finished?)"
-    except UserError as exc:
+        row.created = str(cfg["resolved"].get("created", ""))[:16].replace("T", " ")
+    row.folds = sum(1 for _ in (Path(path) / "folds").glob("*/fold.json"))
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        row.error = "damaged: " + problems[0] + more
+        return row
+    if not (Path(path) / METRICS).is_file():
+        row.error = "no metrics.json (interrupted before a fold finished?)"
+        return row
+    try:
+        m = read_json(Path(path) / METRICS)  # its shape was checked by run_problems
+    except UserError as exc:  # removed or changed since
         row.error = str(exc)
+        return row
+    row.accuracy = _number(m, "accuracy")
+    row.trial_accuracy = _number(m, "trial_accuracy")
+    row.f1_macro = _number(m, "f1_macro")
+    row.balanced_accuracy = _number(m, "balanced_accuracy")
+    row.complete = m.get("complete") is True
+    row.channels = str(m.get("channels") or row.channels)
     return row
 
 
