@@ -10,7 +10,6 @@ source of a foreign ONNX file).
 
 from __future__ import annotations
 
-import json
 import shutil
 
 import pytest
