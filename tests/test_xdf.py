@@ -8,6 +8,7 @@ Budget: ~5 s. Sessions are written in tmp_path with SessionWriter; no LSL needed
 from __future__ import annotations
 
 import json
+import struct
 
 import numpy as np
 import pyxdf
@@ -112,3 +113,119 @@ def test_export_xdf_without_lsl_is_on_host_time_and_the_cli_writes_it(tmp_path, 
     assert set(streams) == {"TactileStudio-simulated", "TactileStudio-simulated-markers"}
     with Session(src) as s:
         assert s.aux_signals() == []
+
+
+# ---- import ----------------------------------------------------------------------------
+def chunk(tag, content, stream_id=None):
+    """One XDF chunk by hand (independent of our writer): length, tag, [id], content."""
+    head = b"" if stream_id is None else struct.pack("<I", stream_id)
+    body = struct.pack("<H", tag) + head + content
+    return b"\x04" + struct.pack("<I", len(body)) + body
+
+
+def header_xml(name, type_, n, rate, fmt, extra=""):
+    return (f'<?xml version="1.0"?><info><name>{name}</name><type>{type_}</type>'
+            f"<channel_count>{n}</channel_count><nominal_srate>{rate}</nominal_srate>"
+            f"<channel_format>{fmt}</channel_format><source_id>{name}-src</source_id>"
+            f"<desc>{extra}</desc></info>").encode()
+
+
+def numeric_samples(stamps, values, code):
+    out = [b"\x04" + struct.pack("<I", len(stamps))]
+    for t, row in zip(stamps, values):
+        out.append(b"\x08" + struct.pack("<d", t) + struct.pack(f"<{len(row)}{code}", *row))
+    return b"".join(out)
+
+
+def string_samples(stamps, texts):
+    out = [b"\x04" + struct.pack("<I", len(stamps))]
+    for t, text in zip(stamps, texts):
+        data = text.encode()
+        out.append(b"\x08" + struct.pack("<d", t) + b"\x01" + struct.pack("<B", len(data)) + data)
+    return b"".join(out)
+
+
+def foreign_xdf(path):
+    """A LabRecorder-like file: a 64-channel pressure mat at 100 Hz whose clock is 0.5 s
+    behind the recorder's, an EDA band at 32 Hz (1.25 s behind), plain-text markers."""
+    rng = np.random.default_rng(9)
+    mat_t = 1000.0 + np.arange(600) / 100.0
+    mat = rng.uniform(0, 1023, (600, 64)).astype(np.float32)
+    eda_t = 2000.0 + np.arange(192) / 32.0
+    eda = rng.normal(3, 0.2, (192, 1))
+    chans = "".join(f"<channel><label>{lab}</label><unit>uS</unit></channel>" for lab in ["gsr"])
+    parts = [b"XDF:", chunk(1, b'<?xml version="1.0"?><info><version>1.0</version></info>'),
+             chunk(2, header_xml("PressureMat", "Pressure", 64, 100, "float32"), 1),
+             chunk(2, header_xml("Shimmer-EDA", "EDA", 1, 32, "double64",
+                                 f"<channels>{chans}</channels>"), 2),
+             chunk(2, header_xml("PsychoPy", "Markers", 1, 0, "string"), 3)]
+    for k in range(3):  # interleaved as a recorder writes them
+        a, b = k * 200, (k + 1) * 200
+        parts.append(chunk(3, numeric_samples(mat_t[a:b], mat[a:b], "f"), 1))
+        parts.append(chunk(3, numeric_samples(eda_t[k * 64:(k + 1) * 64], eda[k * 64:(k + 1) * 64], "d"), 2))
+        parts.append(chunk(4, struct.pack("<dd", 1000.5 + 2 * k, 0.5), 1))
+        parts.append(chunk(4, struct.pack("<dd", 1000.5 + 2 * k, -998.75), 2))
+    parts.append(chunk(3, string_samples([1001.0, 1004.0], ["start", "stop"]), 3))
+    parts.append(chunk(4, struct.pack("<dd", 1001.0, 0.0), 3))
+    path.write_bytes(b"".join(parts))
+    return mat, eda
+
+
+def test_a_foreign_xdf_imports_with_clocks_markers_aux_and_bids_names(tmp_path, capsys):
+    src = tmp_path / "sub-P07_ses-S2_task-touch_run-1.xdf"
+    mat, eda = foreign_xdf(src)
+    out = tmp_path / "out"
+    rc = main(["import", "xdf", str(src), "--out", str(out), "--participant", "IGNORED"])
+    assert rc == 0, capsys.readouterr().err
+    with Session(out / "sub-P07_ses-S2_task-touch_run-1.h5") as s:
+        m = s.metadata
+        assert (m["participant"], m["session_label"], m["task"], m["run"]) == ("P07", "S2", "touch", "1")
+        assert s.layout.name == "grid-8x8" and s.n_frames == 600
+        np.testing.assert_array_equal(s.raw(), mat.astype(s.layout.raw_dtype))
+        times = s.column("host_time")
+        np.testing.assert_allclose(times, 1000.5 + np.arange(600) / 100.0, atol=1e-6)
+        ev = [(e["kind"], e.get("text"), e["frame"]) for e in s.events if e["kind"] == "marker"]
+        assert ev == [("marker", "start", 50), ("marker", "stop", 350)]
+        (aux,) = s.aux_signals()
+        assert (aux.name, aux.type, aux.labels, aux.unit, aux.rate_hz) == \
+            ("Shimmer-EDA", "EDA", ["gsr"], "uS", 32.0)
+        np.testing.assert_allclose(aux.time, 1001.25 + np.arange(192) / 32.0, atol=1e-6)
+        np.testing.assert_allclose(aux.values, eda)
+
+
+def test_our_own_xdf_imports_back_with_trials_events_and_aux(tmp_path, capsys):
+    src, raw, host = gap_session(tmp_path / "s.h5")
+    xdf = export_xdf(src, tmp_path)
+    out = tmp_path / "out"
+    assert main(["import", "xdf", str(xdf), "--out", str(out)]) == 0
+    with Session(src) as a, Session(out / "s.h5") as b:
+        assert b.n_frames == a.n_frames and b.layout.name == "shearsense-6x6"
+        np.testing.assert_array_equal(b.raw(), a.raw())
+        assert b.metadata["participant"] == "P03"
+        t = b.column("host_time")
+        assert t[201] - t[199] > 3.0          # the reconnect gap is still there
+        assert [(x["gesture"], x["status"], x["start_sample"], x["end_sample"], x["block"])
+                for x in b.trials] == [(x["gesture"], x["status"], x["start_sample"],
+                                        x["end_sample"], x["block"]) for x in a.trials]
+        assert {"disconnect", "gap"} <= {e["kind"] for e in b.events}
+        (aux,) = b.aux_signals()
+        assert aux.name == "EDA-1" and aux.values.shape == (120, 1)
+
+
+def test_import_xdf_refuses_a_file_without_tactile_stream_in_one_line(tmp_path, capsys):
+    src = tmp_path / "eda_only.xdf"
+    src.write_bytes(b"XDF:" + chunk(1, b"<info><version>1.0</version></info>")
+                    + chunk(2, header_xml("Shimmer-EDA", "EDA", 1, 32, "double64"), 1)
+                    + chunk(3, numeric_samples([1.0, 1.03], [[1.0], [2.0]], "d"), 1))
+    rc = main(["import", "xdf", str(src), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    lines = [ln for ln in err.splitlines() if "error:" in ln]
+    assert rc == 1 and len(lines) == 1 and err.strip().endswith(lines[0]) and "Traceback" not in err
+    assert "eda_only.xdf: no tactile stream (streams: Shimmer-EDA (1 ch))" in err
+    rc = main(["import", "xdf", str(src), "--out", str(tmp_path), "--stream", "Shimmer-EDA",
+               "--layout", "grid-1x1"])
+    assert rc == 0 and (tmp_path / "eda_only.h5").exists()
+    (tmp_path / "bad.xdf").write_bytes(b"not an xdf")
+    rc = main(["import", "xdf", str(tmp_path / "bad.xdf"), "--out", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert rc == 1 and "bad.xdf: not a readable XDF file" in err and "Traceback" not in err

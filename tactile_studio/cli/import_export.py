@@ -1,4 +1,4 @@
-"""``import`` (shearsense, cost, haart) and ``export``: files in and out of sessions."""
+"""``import`` (shearsense, cost, haart, xdf) and ``export``: files in and out of sessions."""
 
 from __future__ import annotations
 
@@ -30,7 +30,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     c.add_argument("files", nargs=1, metavar="file", help="CoST.csv")
     h = fmt.add_parser("haart", help="the HAART dataset (training.csv, testWITHLABELS.csv)")
     h.add_argument("files", nargs="+", help="training.csv and/or testWITHLABELS.csv")
-    for q in (s, c, h):
+    x = fmt.add_parser("xdf", help="XDF files (LabRecorder, pyxdf): each tactile stream a "
+                                   "session, markers as events and trials, other streams kept")
+    x.add_argument("files", nargs="+", help=".xdf files (BIDS names give participant/session)")
+    x.add_argument("--participant", default=None,
+                   help="participant when the file name has no sub-<label>")
+    x.add_argument("--stream", metavar="NAME", default=None,
+                   help="the tactile stream by name (default: recognised automatically)")
+    x.add_argument("--layout", metavar="L", default=None,
+                   help="its layout, e.g. grid-8x8 (default: from its channel count)")
+    for q in (s, c, h, x):
         q.add_argument("--out", default=".", help="folder for the session files (default: .)")
         q.add_argument("--force", action="store_true", help="overwrite existing sessions")
         q.set_defaults(func=cmd_import)
@@ -92,6 +101,11 @@ def cmd_import(args: argparse.Namespace) -> int:
             out, report = import_shearsense_study(args.files, args.out, args.gestures,
                                                   args.participant_map, bar, token,
                                                   args.force, done)
+        elif args.import_format == "xdf":
+            from tactile_studio.storage.importers.xdf import import_xdf
+
+            out = import_xdf(args.files, args.out, args.participant, args.stream, args.layout,
+                             bar, token, args.force, done)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:
