@@ -91,6 +91,9 @@ def write_report(path: str | os.PathLike, title: str, result: dict[str, Any],
         v = result["verdict"]
         parts.append(f"<h2 style='color:{_COLOURS[v]}'>{v.upper()}</h2><ul>"
                      + "".join(f"<li>{esc(r)}</li>" for r in result["reasons"]) + "</ul>")
+        if result.get("tested"):  # a pass speaks only for the taxels loaded
+            parts.append(f"<p>{esc(result['tested']['line'])}; ratios against "
+                         f"{esc(result.get('judged_against') or 'the reference')}.</p>")
         parts.append("<table><tr><th>spot</th><th>normal kPa</th><th>&Delta;C/C0</th>"
                      "<th>shear kPa</th><th>ratio</th><th>verdict</th></tr>")
         for s in result["spots"]:

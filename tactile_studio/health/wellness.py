@@ -8,7 +8,7 @@ stored: a cancelled or failed run leaves the logbook untouched).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -63,13 +63,14 @@ def reference_for(book: Logbook, sensor: str, spec: WellnessSpec,
     contact (and that check's rest baseline); for spots it did not load, what the active
     calibration predicts; else nothing (the weight's nominal stress is used)."""
     out: dict[str, Any] = {"check_id": None, "baseline": None, "spots": {},
-                           "calibration_id": None}
+                           "calibration_id": None, "source": {}}
     for check in book.checks(sensor):
         res = check["result"]
         if (check["verdict"] == PASS and res.get("weight_g") == spec.weight_g
                 and res.get("contact_mm") == spec.contact_mm):
             out.update(check_id=check["id"], baseline=res.get("baseline"),
                        spots={s["taxel"]: s["normal_kpa"] for s in res.get("spots", [])})
+            out["source"] = {t: f"check #{check['id']}" for t in out["spots"]}
             break
     cal_id = book.active_calibration(sensor)
     if cal_id is not None and layout.calibration is not None:
@@ -79,7 +80,49 @@ def reference_for(book: Logbook, sensor: str, spec: WellnessSpec,
             if taxel not in out["spots"] and taxel in fits:
                 out["spots"][taxel] = expected_nominal_kpa(layout, fits[taxel], expected)
                 out["calibration_id"] = cal_id
+                out["source"][taxel] = f"calibration #{cal_id}"
     return out
+
+
+def spot_taxels(layout: Layout, spots: tuple[str, ...]) -> list[int]:
+    """The taxels a check loads: the named spots, or every taxel for ``all``."""
+    if [s.strip().lower() for s in spots] == ["all"]:
+        return list(range(layout.n_taxels))
+    taxels = [parse_taxel(layout, s) for s in spots]
+    if not taxels:
+        raise UserError("no spots to check (give taxels such as B2,E5, or all)")
+    if len(set(taxels)) != len(taxels):
+        raise UserError(f"spots repeat a taxel: {', '.join(spots)}")
+    return taxels
+
+
+def tested_line(layout: Layout, taxels: list[str]) -> str:
+    """"5 of 36 taxels tested: B2, B5, E2, E5, C3": a pass speaks only for these."""
+    n = layout.n_taxels
+    if len(taxels) == n:
+        return f"{n} of {n} taxels tested (all)"
+    return (f"{len(taxels)} of {n} taxels tested: {', '.join(taxels)} "
+            "(spots 'all' tests every taxel)")
+
+
+def judged_against(ref: dict[str, Any], spots: tuple[str, ...]) -> str:
+    """What the spots' ratios are relative to, in words: an uncalibrated sensor is read
+    against the nominal curve, from which a healthy one may differ by some 10%."""
+    groups: dict[str, list[str]] = {}
+    for taxel in spots:
+        groups.setdefault(ref["source"].get(taxel, "nominal"), []).append(taxel)
+    parts = []
+    for source, taxels in groups.items():
+        which = "" if len(groups) == 1 else f" ({', '.join(taxels)})"
+        if source == "nominal":
+            parts.append(f"the nominal curve{which}: no calibration or earlier passing check "
+                         "with this weight covers "
+                         + ("them" if len(taxels) > 1 else "it")
+                         + "; a healthy sensor may differ from it by some 10%: calibrate it "
+                         "first for a reference of its own")
+        else:
+            parts.append(f"{source}{which}")
+    return "; ".join(parts)
 
 
 def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer | None = None,
@@ -91,9 +134,8 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
     lay = engine.layout
     if not lay.has_shear or lay.calibration is None:
         raise UserError(f"wellness checks need a calibrated shear+normal sensor, not {lay.name}")
-    spots = [parse_taxel(lay, s) for s in spec.spots]
-    if len(set(spots)) != len(spots):
-        raise UserError(f"spots repeat a taxel: {', '.join(spec.spots)}")
+    spots = spot_taxels(lay, spec.spots)
+    spec = replace(spec, spots=tuple(taxel_label(lay, t) for t in spots))
     expected = stress_kpa(spec.weight_g, spec.contact_mm)
     with Logbook() as book:
         sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
@@ -117,7 +159,11 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
     reasons = [words for _, words in rest.reasons] + [r for s in results for r in s.reasons]
     verdict = worst([rest.verdict] + [s.verdict for s in results])
     result = {
-        "sensor": sensor, "verdict": verdict, "weight_g": spec.weight_g,
+        "sensor": sensor, "verdict": verdict,
+        "tested": {"taxels": [s.taxel for s in results], "of": lay.n_taxels,
+                   "line": tested_line(lay, [s.taxel for s in results])},
+        "judged_against": judged_against(ref, spec.spots),
+        "weight_g": spec.weight_g,
         "contact_mm": spec.contact_mm, "expected_kpa": round(expected, 4),
         "spots": [s.to_dict() for s in results],
         "channels": {"dead": dead, "stuck": rest.stuck, "noisy": rest.noisy,
