@@ -111,6 +111,21 @@ def make_dataset_folder(folder: Path, participants: int = 4, blocks: int = 3,
             for p in range(participants) for k, c in enumerate(conditions)]
 
 
+def make_virtual_population(folder: Path, population_seed: int, participants: int = 10,
+                            blocks: int = 2, **kw: object) -> list[Path]:
+    """Ten (``participants``) virtual people as ``collect --virtual-participant --seed S``
+    draws them (style from the participant id and seed, one sensor per population):
+    the sample issue 37's table compares with the real recordings."""
+    from tactile_studio.protocol.virtual import style_seed
+
+    folder.mkdir(parents=True, exist_ok=True)
+    kw = {"difficulty": "real", "condition": "FLAT", **kw}
+    return [write_participant(folder / f"P{p + 1:02d}.h5", f"P{p + 1:02d}",
+                              style_seed(f"P{p + 1:02d}", population_seed), blocks=blocks,
+                              sensor_seed=population_seed, **kw)
+            for p in range(participants)]
+
+
 def write_pressure_session(path: Path, participant: str, lengths: list[int],
                            layout_name: str = "cost-8x8", seed: int = 0) -> Path:
     """A pressure-only (CoST-like) session: trials of the given lengths, two gestures
