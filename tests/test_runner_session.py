@@ -226,7 +226,7 @@ def test_discard_needs_a_reason_and_is_not_collected_again(tmp_path: Path) -> No
         g0 = r.snapshot().remaining[0]
         t0 = do_trial(rig, g0)
         assert not r.discard(t0["index"], "  ") and "reason" in r.snapshot().hint
-        assert not r.discard(99, "x") and "no trial 99" in r.snapshot().hint
+        assert not r.discard(99, "x") and "no trial 100" in r.snapshot().hint  # 1-based
         prompted = r.snapshot().prompted
         assert prompted == r.orders[0][1]
         assert r.discard(t0["index"], "participant sneezed")
@@ -254,7 +254,7 @@ def test_flagged_trial_prompts_a_redo_and_can_hold(tmp_path: Path) -> None:
         assert "no_contact" in t0["flags"] and t0["status"] == "ok"
         snap = r.snapshot()
         assert snap.state == "trial_review" and snap.can_continue
-        assert f"Trial {t0['index']} ({g0}): no contact" in snap.redo_prompt
+        assert f"Trial {t0['index'] + 1} ({g0}): no contact" in snap.redo_prompt  # 1-based
         g1 = snap.remaining[0]
         assert not r.key(r.protocol.gesture_by_name(g1).key)
         assert "checking" in r.snapshot().hint

@@ -121,7 +121,7 @@ def do_trial(qtbot, console: CollectConsole, name: str, key: str, perform: bool 
     n = len(snap(console).trials)
     if perform:
         console.engine.device.perform(name, duration_s=1.0)
-    target = console.participant if via_participant else console
+    target = console.participant if via_participant else console.mirror
     prompt = console.participant.view.prompt
     if prompt is not None:
         assert prompt.name == name  # the test follows the prompt
@@ -210,7 +210,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
 
     # 2. block 1 by key presses (alternating windows); a done gesture's key is refused
     do_trial(qtbot, console, first.name, first.key)
-    qtbot.keyClick(console, first.key)
+    qtbot.keyClick(console.mirror, first.key)
     assert "already done" in console.participant.view.hint
     assert snap(console).state == State.WAITING
     finish_block(qtbot, console, via_participant=False)
@@ -223,7 +223,8 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     console.log.select_index(1)
     click(qtbot, console, "discard")
     dialog = console.dialog
-    assert dialog is not None and "trial 1" in dialog.label.text()
+    assert dialog is not None and "trial 2 (" in dialog.label.text()  # shown 1-based
+    assert dialog.choice is None and "block 1 is over" in dialog.cost.text().lower()
     qtbot.keyClicks(dialog.edit.lineEdit(), "participant sneezed")
     qtbot.mouseClick(dialog.buttons.buttons()[0], Qt.MouseButton.LeftButton)
     t1 = snap(console).trials[1]

@@ -33,6 +33,7 @@ class BlockPlan:
         self.break_every = break_every
         self.breaks_taken: set[int] = set()
         self.redo_first: dict[int, str] = {}  # round index -> its reopened gesture
+        self.last: dict[int, list[str]] = {}  # round index -> gestures collected again last
 
     def restore(self, trials: list[TrialRecord] | list[dict[str, Any]]) -> None:
         """Mark the gestures of a resumed session's trials done (redone ones excepted),
@@ -62,7 +63,9 @@ class BlockPlan:
         """Gestures of round ``i`` (default: the current one) not done yet, in the order
         they are prompted (a redone gesture first, then the planned order)."""
         i = self.index if i is None else i
-        left = [g for g in self.rounds[i][1] if g not in self.done[i]]
+        last = self.last.get(i, [])
+        left = [g for g in self.rounds[i][1] if g not in self.done[i] and g not in last]
+        left += [g for g in last if g not in self.done[i]]
         first = self.redo_first.get(i)
         if first in left and left[0] != first:
             left.remove(first)
@@ -91,6 +94,15 @@ class BlockPlan:
         self.done[i].discard(gesture)
         self.redo_first[i] = gesture
         self.index = i
+
+    def collect_again(self, gesture: str) -> None:
+        """Put a discarded ``gesture`` of the current round back, prompted after the
+        round's other gestures (a discard's "collect again at the end of the block")."""
+        self.done[self.index].discard(gesture)
+        last = self.last.setdefault(self.index, [])
+        if gesture in last:
+            last.remove(gesture)
+        last.append(gesture)
 
     def is_last_round(self) -> bool:
         return self.index + 1 >= len(self.rounds)

@@ -72,6 +72,8 @@ class CollectionRunner(RunnerInputs):
         self._pause_pending = self._break_pending = False
         self._min_start = 0
         self._trial_starts: list[float] = []
+        # (block, gesture) collected again after a discard -> the new trial's reason
+        self._again_for: dict[tuple[int, str], str] = {}
         self._restore(previous_trials or [])
 
     # ---- restoring a resumed session ---------------------------------------------------
@@ -218,12 +220,13 @@ class CollectionRunner(RunnerInputs):
         self._hold(lambda: end, keys_from=end)  # the next key may name any frame from here
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
+        again = self._again_for.pop((cur["block"], cur["gesture"]), None)
         record = TrialRecord(
             index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
             key=cur["key"], start_sample=row0, end_sample=row0 + n,
             start_time=m.start_time, end_time=m.end_time,
             status=TrialStatus.DISCARDED if practice else TrialStatus.OK,
-            reason="practice" if practice else None, flags=tuple(m.flags))
+            reason="practice" if practice else again, flags=tuple(m.flags))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
         self._phase_until = self.clock() + self.protocol.beep_s
@@ -272,7 +275,7 @@ class CollectionRunner(RunnerInputs):
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
         if rec.flagged:
-            self.redo_prompt = (f"Trial {rec.index} ({rec.gesture}): "
+            self.redo_prompt = (f"Trial {rec.index + 1} ({rec.gesture}): "
                                 f"{describe(list(rec.flags))} - redo?")
         self._emit("trial_ended", trial=rec.to_dict())
 

@@ -98,7 +98,7 @@ class RunnerInputs:
             return self._refuse("no trial to redo yet")
         last = self.records[-1]
         if last.status == TrialStatus.REDONE:
-            return self._refuse(f"trial {last.index} is already marked redone")
+            return self._refuse(f"trial {last.index + 1} is already marked redone")
         self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None)
         self._plan.reopen(last.block, last.gesture)
         self.redo_prompt = ""
@@ -111,16 +111,41 @@ class RunnerInputs:
             self._paused_from = State.WAITING
         return True
 
-    def discard(self, index: int, reason: str) -> bool:
-        """Mark trial ``index`` discarded with ``reason``; it is not collected again."""
+    def can_collect_again(self, index: int) -> bool:
+        """True if trial ``index`` (0-based) is a usable trial of the block being
+        collected, so a discard can put its gesture back at the end of this block."""
+        trial = next((t for t in self.records if t.index == index), None)
+        return (trial is not None and trial.ok and not trial.practice
+                and trial.block == self.block and self.state not in State.DONE)
+
+    def discard(self, index: int, reason: str, again: bool = False) -> bool:
+        """Mark trial ``index`` (0-based) discarded with ``reason``.
+
+        Without ``again`` its gesture is not collected again (the block stays one
+        trial short). With ``again`` (only for a trial of the current block, see
+        :meth:`can_collect_again`) the trial is marked ``redone`` (replaced by a later
+        trial), its reason says it was discarded, and the gesture is prompted once more
+        after the block's other gestures; the new trial's reason names the one it
+        replaces and a ``discard`` event records the choice."""
         if not reason or not reason.strip():
             return self._refuse("give a reason to discard a trial")
         trial = next((t for t in self.records if t.index == index), None)
         if trial is None:
-            return self._refuse(f"no trial {index}")
+            return self._refuse(f"no trial {index + 1}")
         if not trial.ok:
-            return self._refuse(f"trial {index} is already {trial.status}")
-        self._update_trial(trial, status=TrialStatus.DISCARDED, reason=reason.strip())
+            return self._refuse(f"trial {index + 1} is already {trial.status}")
+        if again and not self.can_collect_again(index):
+            return self._refuse(f"trial {index + 1} is not in the block being collected: "
+                                "it cannot be collected again")
+        reason = reason.strip()
+        self._log("discard", trial=index, reason=reason, again=bool(again))
+        if not again:
+            self._update_trial(trial, status=TrialStatus.DISCARDED, reason=reason)
+            return True
+        self._update_trial(trial, status=TrialStatus.REDONE,
+                           reason=f"discarded ({reason}); collected again")
+        self._plan.collect_again(trial.gesture)
+        self._again_for[(trial.block, trial.gesture)] = f"collected again for trial {index + 1}"
         return True
 
     def pause(self) -> bool:

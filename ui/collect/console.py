@@ -19,9 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QSettings, Qt, QTimer
-from PySide6.QtGui import QCloseEvent, QKeySequence
+from PySide6.QtGui import QCloseEvent, QKeySequence, QShortcut
 from PySide6.QtWidgets import (
-    QApplication,
     QCheckBox,
     QGridLayout,
     QGroupBox,
@@ -90,6 +89,8 @@ class CollectConsole(ConsoleActions):
         self.participant = ParticipantScreen()
         self.participant.keyPressed.connect(self.forward_key)
         self.beeper.flash.connect(self._flash)
+        self.beeper.played.connect(self._on_beep)
+        self.setup.testSoundRequested.connect(self.test_sound)
 
         self.stack = QStackedWidget()
         self.stack.addWidget(self.setup)
@@ -101,17 +102,22 @@ class CollectConsole(ConsoleActions):
         self.timer.setTimerType(Qt.TimerType.PreciseTimer)
         self.timer.setInterval(TICK_MS)
         self.timer.timeout.connect(self.tick)
-        QApplication.instance().installEventFilter(self)
 
     # ---- layout -----------------------------------------------------------------------
     def _build_session_page(self) -> QWidget:
         self.heatmap = HeatmapView()
         self.heatmap.virtualChanged.connect(self._on_virtual)
         self.mirror = ParticipantScreen(mirror=True)
+        self.mirror.keyPressed.connect(self.forward_key)
+        self.mirror_hint = QLabel()
+        self.mirror_hint.setStyleSheet("color: #606770;")
+        self.mirror.focusChanged.connect(self._on_mirror_focus)
+        self._on_mirror_focus(False)
         mirror_box = QGroupBox("Participant screen (mirror)")
         mb = QVBoxLayout(mirror_box)
         mb.setContentsMargins(6, 6, 6, 6)
         mb.addWidget(self.mirror)
+        mb.addWidget(self.mirror_hint)
         self.state = QLabel()
         self.state.setStyleSheet("font-size: 17px; font-weight: 600;")
         self.progress = QProgressBar()
@@ -126,10 +132,16 @@ class CollectConsole(ConsoleActions):
         self.redo_banner.setStyleSheet(
             "background: #ffe3b3; color: #6b4100; border-radius: 6px; padding: 8px;"
             "font-weight: 600;")
+        self.sound_notice = QLabel()  # said once: no speaker, the screen flashes instead
+        self.sound_notice.setWordWrap(True)
+        self.sound_notice.setStyleSheet(
+            "background: #fdecea; color: #8a1c12; border-radius: 6px; padding: 6px;")
+        self.sound_notice.hide()
         self.hint_label = QLabel()
         self.hint_label.setStyleSheet("color: #c0392b;")
 
         b = self.buttons = {}
+        self.shortcuts: dict[str, QShortcut] = {}
         for name, text, key, slot in (
                 ("primary", "Start", "Ctrl+Return", self.primary_action),
                 ("redo", "Redo last", "Ctrl+Z", self.redo_last),
@@ -141,8 +153,8 @@ class CollectConsole(ConsoleActions):
                 ("end", "End session", "", self.end_session)):
             btn = QPushButton(text)
             btn.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # letters and Space are the runner's
-            if key:
-                btn.setShortcut(QKeySequence(key))
+            if key:  # a window shortcut, not the button's: setText() would replace that
+                self._shortcut(key, btn)
                 btn.setToolTip(f"{text.rstrip(ELLIPSIS)} ({key})")
             btn.clicked.connect(slot)
             b[name] = btn
@@ -167,6 +179,7 @@ class CollectConsole(ConsoleActions):
         lv.addWidget(self.progress_label)
         lv.addWidget(self.file_label)
         lv.addWidget(self.redo_banner)
+        lv.addWidget(self.sound_notice)
         lv.addWidget(self.hint_label)
         lv.addLayout(grid)
         lv.addWidget(self._build_lsl_toggle())
@@ -184,6 +197,16 @@ class CollectConsole(ConsoleActions):
         h.setContentsMargins(6, 6, 6, 6)
         h.addWidget(page)
         return outer
+
+    def _shortcut(self, key: str, button: QPushButton) -> QShortcut:
+        """``key`` clicks ``button`` whenever it is enabled, whatever its label says
+        (Start/Continue, Pause/Resume): a button's own shortcut dies with setText()."""
+        sc = QShortcut(QKeySequence(key), self)
+        sc.setContext(Qt.ShortcutContext.WindowShortcut)
+        sc.activated.connect(lambda: button.isEnabled() and button.isVisible()
+                             and self.stack.currentIndex() == 1 and button.click())
+        self.shortcuts[key] = sc
+        return sc
 
     # ---- opening and closing sessions ---------------------------------------------------
     @property
@@ -266,6 +289,8 @@ class CollectConsole(ConsoleActions):
         self.file_label.setText(f"File: {self.session.path}"
                                 + (f"   ·   {self.wellness_text}" if self.wellness_text else ""))
         self._closed_session_path = None
+        if not self.beeper.has_audio:
+            self._say_no_sound()
         self.stack.setCurrentIndex(1)
         self.timer.start()
         self.tick()
@@ -286,9 +311,30 @@ class CollectConsole(ConsoleActions):
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 (Qt)
         """Closing mid-session is safe: the file is consistent and can be resumed."""
         self.close_session()
-        QApplication.instance().removeEventFilter(self)
         self.participant.close()
         super().closeEvent(event)
+
+    # ---- the beep -------------------------------------------------------------------------
+    def _say_no_sound(self) -> None:
+        reason = self.beeper.fallback_reason or "audio output failed"
+        self.sound_notice.setText(f"No sound ({reason}): the participant screen flashes "
+                                  "white at the end of each trial instead of beeping.")
+        self.sound_notice.show()
+
+    def _on_beep(self, request: Any) -> None:
+        if request.via == "fallback" and self.sound_notice.isHidden():
+            self._say_no_sound()
+
+    def test_sound(self) -> str:
+        """The setup's "Test sound": the session's beep now, and what the lab will get."""
+        p = self.setup.current_protocol()
+        hz, length = (p.beep_hz, p.beep_s) if p is not None else (880.0, 0.2)
+        req = self.beeper.beep(hz, length)
+        text = (f"Beep played ({hz:g} Hz, {length:g} s). Did you hear it?" if req.via == "audio"
+                else f"No sound ({self.beeper.fallback_reason}): the participant screen will "
+                     "flash instead of beeping.")
+        self.setup.show_sound(text, ok=req.via == "audio")
+        return text
 
     # ---- Lab Streaming Layer (the core streams; this only forwards the toggle) -----------
     def _build_lsl_toggle(self) -> QWidget:

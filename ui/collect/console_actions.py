@@ -9,22 +9,12 @@ from __future__ import annotations
 
 from typing import Any
 
-from PySide6.QtCore import QEvent, QObject, Qt
-from PySide6.QtGui import QGuiApplication, QKeyEvent
-from PySide6.QtWidgets import (
-    QAbstractSpinBox,
-    QComboBox,
-    QLineEdit,
-    QMainWindow,
-    QMessageBox,
-    QTextEdit,
-    QWidget,
-)
+from PySide6.QtGui import QGuiApplication
+from PySide6.QtWidgets import QMainWindow, QMessageBox
 
 from tactile_studio.ui.collect.log import TextDialog
 
 DISCARD_REASONS = ("wrong gesture", "started late", "interrupted", "sensor problem")
-_TEXT_INPUTS = (QLineEdit, QTextEdit, QAbstractSpinBox, QComboBox)
 
 
 class ConsoleActions(QMainWindow):
@@ -67,24 +57,42 @@ class ConsoleActions(QMainWindow):
             self.tick()
 
     def ask_discard(self) -> TextDialog | None:
-        """Ask a reason to discard the selected trial (or the last one)."""
+        """Ask a reason to discard the selected trial (or the last one), and whether to
+        collect its gesture again at the end of the block; the dialog says what
+        discarding costs either way."""
         if self.runner is None:
             return None
         snap = self.runner.snapshot()
         index = self.log.selected_index()
         if index is None and snap.last_trial is not None:
             index = int(snap.last_trial["index"])
-        if index is None:
+        trial = next((t for t in snap.trials if t["index"] == index), None)
+        if trial is None:
             return None
-        gesture = next((t["gesture"] for t in snap.trials if t["index"] == index), "?")
-        dlg = TextDialog("Discard trial", f"Discard trial {index} ({gesture}). Reason:",
-                         DISCARD_REASONS, self)
-        dlg.accepted.connect(lambda: self._discard(index, dlg.text()))
+        number, gesture, block = index + 1, trial["gesture"], int(trial["block"])
+        if trial["status"] != "ok":
+            self.statusBar().showMessage(f"Trial {number} is already {trial['status']}", 6000)
+            return None
+        where = "practice" if block < 0 else f"block {block + 1}"
+        dlg = TextDialog("Discard trial", f"Discard trial {number} ({gesture}, {where})? It "
+                         "stays in the file, marked discarded, and is left out of training "
+                         "and of the summary. Reason:", DISCARD_REASONS, self)
+        if self.runner.can_collect_again(index):
+            dlg.add_choice(
+                f"Collect {gesture} again at the end of {where}", True,
+                f"One more trial ({self.protocol.trial_s:g} s) after the block's other "
+                f"gestures; the new trial replaces this one.",
+                f"{where.capitalize()} will have no usable {gesture} trial.")
+        else:
+            dlg.add_note(f"{where.capitalize()} is over, so {gesture} cannot be collected "
+                         f"again: {where} keeps no usable {gesture} trial.")
+        dlg.accepted.connect(lambda: self._discard(
+            index, dlg.text(), dlg.choice is not None and dlg.choice.isChecked()))
         return self._open_dialog(dlg)
 
-    def _discard(self, index: int, reason: str) -> None:
+    def _discard(self, index: int, reason: str, again: bool = False) -> None:
         if self.runner is not None:
-            self.runner.discard(index, reason)
+            self.runner.discard(index, reason, again=again)
             self.tick()
 
     def ask_note(self) -> TextDialog | None:
@@ -120,31 +128,21 @@ class ConsoleActions(QMainWindow):
 
     # ---- keys ---------------------------------------------------------------------------
     def forward_key(self, text: str) -> bool:
-        """A participant key from either window goes to the runner."""
-        if self.runner is None or not text.strip():
-            return False
+        """A participant key from the participant screen or the focused mirror (the
+        only two places where typing a letter starts a trial)."""
+        if self.runner is None or len(text) != 1 or not text.isprintable() or text.isspace():
+            return False  # Space, Ctrl+letter, arrows...: not a gesture key
         accepted = self.runner.key(text)
         self.tick()
         return bool(accepted)
 
-    def eventFilter(self, obj: QObject, event: QEvent) -> bool:  # noqa: N802 (Qt)
-        """Plain printable keys typed anywhere in the console go to the runner, unless
-        the experimenter is typing into a text field or a dialog."""
-        if event.type() != QEvent.Type.KeyPress or self.runner is None:
-            return False
-        if not isinstance(obj, QWidget) or obj.window() is not self:
-            return False
-        if self.stack.currentIndex() != 1 or isinstance(obj, _TEXT_INPUTS):
-            return False
-        assert isinstance(event, QKeyEvent)
-        mods = event.modifiers() & ~Qt.KeyboardModifier.ShiftModifier \
-            & ~Qt.KeyboardModifier.KeypadModifier
-        text = event.text()
-        if mods or len(text) != 1 or not text.isprintable() or text.isspace():
-            return False
-        if not event.isAutoRepeat():
-            self.forward_key(text)
-        return True
+    def _on_mirror_focus(self, focused: bool) -> None:
+        """Say where the participant's keys go: the mirror, only once it is clicked."""
+        self.mirror_hint.setText(
+            "Keys typed now go to the session (click elsewhere to stop)" if focused else
+            "Click the mirror to type the participant's keys on this keyboard")
+        self.mirror_hint.setStyleSheet("color: #1f6feb; font-weight: 600;" if focused
+                                       else "color: #606770;")
 
     # ---- participant window and beep flash ----------------------------------------------
     def show_participant_screen(self) -> None:

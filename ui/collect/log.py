@@ -13,6 +13,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QBrush, QColor, QFont
 from PySide6.QtWidgets import (
     QAbstractItemView,
+    QCheckBox,
     QComboBox,
     QDialog,
     QDialogButtonBox,
@@ -47,7 +48,9 @@ class TrialLog(QTableWidget):
         self.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
         self.setSelectionBehavior(QAbstractItemView.SelectionBehavior.SelectRows)
         self.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
-        self.setFocusPolicy(Qt.FocusPolicy.NoFocus)  # letters belong to the runner
+        # clicking the log takes the keyboard from the mirror: a letter typed here never
+        # starts a trial
+        self.setFocusPolicy(Qt.FocusPolicy.ClickFocus)
         self.setAlternatingRowColors(True)
         h = self.horizontalHeader()
         for col, mode in enumerate((QHeaderView.ResizeMode.ResizeToContents,
@@ -132,6 +135,8 @@ class TextDialog(QDialog):
                                         | QDialogButtonBox.StandardButton.Cancel)
         self.buttons.accepted.connect(self._accept_if_text)
         self.buttons.rejected.connect(self.reject)
+        self.choice: QCheckBox | None = None  # see add_choice
+        self.cost: QLabel | None = None
         box = QVBoxLayout(self)
         box.addWidget(self.label)
         box.addWidget(self.edit)
@@ -139,6 +144,35 @@ class TextDialog(QDialog):
 
     def text(self) -> str:
         return self.edit.currentText().strip()
+
+    def add_choice(self, text: str, checked: bool, cost_on: str, cost_off: str) -> QCheckBox:
+        """A checkbox under the text field with a line saying what either answer costs
+        (the discard dialog's "collect again at the end of the block")."""
+        box = QCheckBox(text)
+        cost = QLabel()
+        cost.setWordWrap(True)
+        cost.setStyleSheet("color: #606770;")
+
+        def say(on: bool) -> None:
+            cost.setText(cost_on if on else cost_off)
+        box.toggled.connect(say)
+        box.setChecked(checked)
+        say(checked)
+        layout = self.layout()
+        layout.insertWidget(layout.indexOf(self.buttons), box)
+        layout.insertWidget(layout.indexOf(self.buttons), cost)
+        self.choice, self.cost = box, cost
+        return box
+
+    def add_note(self, text: str) -> QLabel:
+        """A grey line above the buttons (what a choice costs when there is no choice)."""
+        label = QLabel(text)
+        label.setWordWrap(True)
+        label.setStyleSheet("color: #606770;")
+        layout = self.layout()
+        layout.insertWidget(layout.indexOf(self.buttons), label)
+        self.cost = label
+        return label
 
     def _accept_if_text(self) -> None:
         if self.text():

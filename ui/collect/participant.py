@@ -76,6 +76,7 @@ class ParticipantScreen(CardPainting, QWidget):
     """Large-type participant display; ``keyPressed`` carries the typed text."""
 
     keyPressed = Signal(str)
+    focusChanged = Signal(bool)  # the mirror shows whether the keyboard is the session's
 
     def __init__(self, parent: QWidget | None = None, mirror: bool = False) -> None:
         super().__init__(parent)
@@ -92,7 +93,9 @@ class ParticipantScreen(CardPainting, QWidget):
         self._anim.setEndValue(0.0)
         self._anim.setDuration(450)
         self._anim.valueChanged.connect(self._set_flash)
-        self.setFocusPolicy(Qt.FocusPolicy.NoFocus if mirror else Qt.FocusPolicy.StrongFocus)
+        # the mirror takes keys only once clicked (or tabbed to): the console's explicit
+        # place for typing the participant's keys; elsewhere in the console letters are text
+        self.setFocusPolicy(Qt.FocusPolicy.StrongFocus)
         self.setMinimumSize(240, 150)
         self.setWindowTitle("Tactile Studio — participant")
         self.setAutoFillBackground(False)
@@ -138,6 +141,16 @@ class ParticipantScreen(CardPainting, QWidget):
             self.keyPressed.emit(text)
             return
         super().keyPressEvent(event)
+
+    def focusInEvent(self, event: object) -> None:  # noqa: N802 (Qt)
+        super().focusInEvent(event)
+        self.focusChanged.emit(True)
+        self.update()
+
+    def focusOutEvent(self, event: object) -> None:  # noqa: N802 (Qt)
+        super().focusOutEvent(event)
+        self.focusChanged.emit(False)
+        self.update()
 
     # ---- painting -----------------------------------------------------------------
     def paintEvent(self, event: object) -> None:  # noqa: N802 (Qt)
@@ -185,6 +198,10 @@ class ParticipantScreen(CardPainting, QWidget):
             self._paint_stage(p, body, u, big=True)
         if self._flash > 0:
             p.fillRect(QRectF(0, 0, w, h), QColor(255, 255, 255, int(200 * self._flash)))
+        if self.mirror and self.hasFocus():  # keys typed now go to the session
+            p.setPen(QPen(ACCENT, 4))
+            p.setBrush(Qt.BrushStyle.NoBrush)
+            p.drawRect(QRectF(2, 2, w - 4, h - 4))
         p.end()
 
     def _paint_header(self, p: QPainter, r: QRectF, u: float) -> float:

@@ -34,6 +34,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
+from tactile_studio.paths import data_dir, make_out_dir
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
@@ -44,9 +45,16 @@ KEY_LAST_DIR = "collect/last_dir"
 KEY_DEVICE = "collect/device"
 KEY_DEVICE_VALUES = "collect/device_values/"  # + plugin name: its non-default settings
 KEY_PROTOCOL = "collect/protocol"
+KEY_PROTOCOL_FILE = "collect/protocol_file"  # a protocol chosen "From file..."
 DEFAULT_PROTOCOL = "shear9"
 DEFAULT_DEVICE = "simulated"
 _FROM_FILE = "From file\u2026"
+
+
+def default_sessions_dir() -> Path:
+    """Where sessions go until the experimenter picks a folder: the app's data folder,
+    not wherever the app happened to be started."""
+    return data_dir() / "sessions"
 
 
 @dataclass
@@ -69,13 +77,14 @@ class CollectSetup(QWidget):
 
     startRequested = Signal(object)   # SetupChoice
     resumeRequested = Signal(str)     # session file path
+    testSoundRequested = Signal()     # the console plays the protocol's beep
 
     def __init__(self, settings: QSettings, live_device: str | None = None,
                  parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.settings = settings
         self._protocol_file: str | None = None
-        title = QLabel("New collection session")
+        self.title = title = QLabel("New collection session")
         title.setStyleSheet("font-size: 20px; font-weight: 600;")
 
         self.protocol = QComboBox()
@@ -94,7 +103,7 @@ class CollectSetup(QWidget):
         self.blocks.setRange(1, 999)
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
-        self.out_dir = QLineEdit(str(settings.value(KEY_OUT_DIR, str(Path.cwd()))))
+        self.out_dir = QLineEdit(str(settings.value(KEY_OUT_DIR) or default_sessions_dir()))
         browse = QPushButton("Browse\u2026")
         browse.clicked.connect(self.choose_out_dir)
         out_row = QHBoxLayout()
@@ -122,8 +131,30 @@ class CollectSetup(QWidget):
         self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
+        self.test_sound_button = QPushButton("Test sound")
+        self.test_sound_button.setToolTip("Play the protocol's end-of-trial beep now")
+        self.test_sound_button.clicked.connect(self.testSoundRequested)
+        self.sound_result = QLabel()
+        self.sound_result.setWordWrap(True)
+        sound_row = QHBoxLayout()
+        sound_row.addWidget(self.test_sound_button)
+        sound_row.addWidget(self.sound_result, 1)
 
-        form = QFormLayout()
+        self.resume_file = QLineEdit()
+        self.resume_file.setPlaceholderText("the session file to continue (.h5)")
+        resume_browse = QPushButton("Browse\u2026")
+        resume_browse.clicked.connect(self.choose_resume_file)
+        resume_row = QHBoxLayout()
+        resume_row.addWidget(self.resume_file, 1)
+        resume_row.addWidget(resume_browse)
+        self.resume_info = QLabel("The protocol, participant, blocks and order come from the "
+                                  "file; the session continues at its next trial.")
+        self.resume_info.setWordWrap(True)
+        self.resume_info.setStyleSheet("color: #606770;")
+
+        self.form = form = QFormLayout()
+        form.addRow("Session file", resume_row)
+        form.addRow("", self.resume_info)
         form.addRow("Protocol", self.protocol)
         form.addRow("", self.protocol_info)
         form.addRow("Participant", self.participant)
@@ -136,6 +167,7 @@ class CollectSetup(QWidget):
         form.addRow("", self.device_error)
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
+        form.addRow("Beep", sound_row)
 
         self.error = QLabel()
         self.error.setWordWrap(True)
@@ -145,10 +177,18 @@ class CollectSetup(QWidget):
         self.start_button.clicked.connect(self._on_start)
         self.resume_button = QPushButton("Resume session\u2026")
         self.resume_button.clicked.connect(self.choose_resume_file)
+        self.new_button = QPushButton("New session instead")
+        self.new_button.clicked.connect(lambda: self.set_resume_mode(False))
+        self.continue_button = QPushButton("Resume")
+        self.continue_button.clicked.connect(self._on_resume)
         buttons = QHBoxLayout()
+        buttons.addWidget(self.new_button)
         buttons.addStretch(1)
         buttons.addWidget(self.resume_button)
         buttons.addWidget(self.start_button)
+        buttons.addWidget(self.continue_button)
+        self.participant.textEdited.connect(self._clear_error)
+        self.out_dir.textEdited.connect(self._clear_error)
 
         card = QWidget()
         card.setMaximumWidth(760)
@@ -170,9 +210,55 @@ class CollectSetup(QWidget):
 
         self.protocol.currentIndexChanged.connect(self._on_protocol_changed)
         saved_p = settings.value(KEY_PROTOCOL) or DEFAULT_PROTOCOL
-        if self.protocol.findData(saved_p) >= 0:
-            self.protocol.setCurrentIndex(self.protocol.findData(saved_p))
-        self._on_protocol_changed()
+        saved_file = str(settings.value(KEY_PROTOCOL_FILE) or "")
+        if not settings.value(KEY_PROTOCOL) and saved_file and Path(saved_file).is_file():
+            self.set_protocol_file(saved_file)  # the protocol file of the last session
+        else:
+            if self.protocol.findData(saved_p) >= 0:
+                self.protocol.setCurrentIndex(self.protocol.findData(saved_p))
+            self._on_protocol_changed()
+        self.set_resume_mode(False)
+
+    # ---- new session or resume -----------------------------------------------------------
+    def set_resume_mode(self, on: bool) -> None:
+        """Show the resume form (file, device, options) or the new-session form; the
+        fields that a resume takes from the file are hidden, not left to mislead."""
+        self.resuming = on
+        self.title.setText("Resume a collection session" if on else "New collection session")
+        for widget in (self.protocol, self.protocol_info, self.participant, self.condition,
+                       self.blocks, self.seed):
+            self.form.setRowVisible(widget, not on)
+        self._set_row_visible(self.out_dir, not on)
+        self.form.setRowVisible(self.resume_info, on)
+        self._set_row_visible(self.resume_file, on)
+        self.start_button.setVisible(not on)
+        self.resume_button.setVisible(not on)
+        self.new_button.setVisible(on)
+        self.continue_button.setVisible(on)
+        self.continue_button.setDefault(on)
+        self.start_button.setDefault(not on)
+        self.error.setText("")
+
+    def _set_row_visible(self, widget: QWidget, on: bool) -> None:
+        """Show or hide the form row holding ``widget`` (also inside a row's layout)."""
+        for row in range(self.form.rowCount()):
+            item = self.form.itemAt(row, QFormLayout.ItemRole.FieldRole)
+            layout = item.layout() if item is not None else None
+            if layout is not None and layout.indexOf(widget) >= 0:
+                self.form.setRowVisible(row, on)
+                return
+
+    def _on_resume(self) -> None:
+        path = self.resume_file.text().strip()
+        if not path:
+            self.choose_resume_file()
+            return
+        self._remember_dir(Path(path).expanduser().parent)
+        self.resumeRequested.emit(str(Path(path).expanduser()))
+
+    def _clear_error(self, *_: object) -> None:
+        """A message about a field goes once the field is edited."""
+        self.error.setText("")
 
     # ---- protocol ---------------------------------------------------------------------
     def _protocol_source(self) -> str | None:
@@ -230,11 +316,18 @@ class CollectSetup(QWidget):
             self._remember_dir(Path(folder))
 
     def choose_resume_file(self) -> None:
+        """Switch to the resume form and pick the file; cancelled with no file chosen,
+        the form goes back to a new session."""
+        was = self.resuming
+        self.set_resume_mode(True)
         path, _ = QFileDialog.getOpenFileName(self, "Resume session", self._last_dir(),
                                               "Sessions (*.h5)")
         if path:
+            self.resume_file.setText(path)
             self._remember_dir(Path(path).parent)
             self.resumeRequested.emit(path)
+        elif not self.resume_file.text().strip() and not was:
+            self.set_resume_mode(False)
 
     # ---- choices ----------------------------------------------------------------------
     # ---- device -----------------------------------------------------------------------
@@ -280,7 +373,9 @@ class CollectSetup(QWidget):
         participant = self.participant.text().strip()
         if not participant:
             raise UserError("enter a participant id (e.g. P01)")
-        out = Path(self.out_dir.text().strip() or ".").expanduser()
+        out = Path(self.out_dir.text().strip() or default_sessions_dir()).expanduser()
+        if out == default_sessions_dir():
+            make_out_dir(out)  # the app's own sessions folder is made on first use
         if not out.is_dir():
             raise UserError(f"{out}: output folder does not exist")
         p = load_protocol(self._protocol_source())
@@ -290,6 +385,18 @@ class CollectSetup(QWidget):
         return SetupChoice(p, participant, out, self.condition.text().strip(),
                            self.seed.value(), device, dev_settings,
                            self.hold_flagged.isChecked(), self.auto_continue.isChecked())
+
+    def show_sound(self, text: str, ok: bool) -> None:
+        """The result of "Test sound" beside its button."""
+        self.sound_result.setText(text)
+        self.sound_result.setStyleSheet("color: #606770;" if ok else "color: #c0392b;")
+
+    def current_protocol(self) -> Protocol | None:
+        """The chosen protocol, or None if it cannot be loaded."""
+        try:
+            return load_protocol(self._protocol_source())
+        except UserError:
+            return None
 
     def show_error(self, text: str) -> None:
         """The one-line message under the form ("" clears it)."""
@@ -336,6 +443,8 @@ class CollectSetup(QWidget):
         self.error.setText("")
         self.settings.setValue(KEY_OUT_DIR, str(choice.out_dir))
         self.settings.setValue(KEY_PROTOCOL, self.protocol.currentData() or "")
+        self.settings.setValue(KEY_PROTOCOL_FILE,
+                               "" if self.protocol.currentData() else self._protocol_file or "")
         if choice.device:
             self.settings.setValue(KEY_DEVICE, choice.device)
             set_json(self.settings, KEY_DEVICE_VALUES + choice.device, choice.device_settings)

@@ -104,6 +104,11 @@ def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     return v
 
 
+_PAUSED_IN = {"free_play": "during free play", "block_start": "at the start of a block",
+              "waiting_for_key": "while waiting for the participant's key",
+              "trial_review": "while reviewing the last trial", "break": "during the break"}
+
+
 def state_label(snap: Any) -> str:
     """One line for the experimenter: state and where the session is."""
     names = {"setup": "Ready to start", "free_play": "Free play", "block_start": "Block start",
@@ -123,7 +128,8 @@ def state_label(snap: Any) -> str:
         if nxt:
             text += f" \u00b7 then {nxt}"
     if snap.state == "paused" and snap.paused_state:
-        text += f" (in {names.get(snap.paused_state, snap.paused_state).lower()})"
+        text += f" {_PAUSED_IN.get(snap.paused_state, '')}".rstrip()
+        text += " — Resume (Ctrl+P) to go on"
     if snap.state == "trial_review" and snap.can_continue:
         text = "Flagged trial: Redo last, or Continue to keep it"
     if snap.state == "break" and snap.can_continue:
@@ -149,10 +155,11 @@ def progress_text(snap: Any) -> str:
 
 
 def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:
-    """Cells of one trial-log row: index, block, gesture, status, flags."""
+    """Cells of one trial-log row: number (1-based, as blocks), block, gesture,
+    status, flags."""
     t = TrialRecord.from_dict(trial)
     status = t.status.value
-    if t.reason and not t.ok:
+    if t.reason:  # an ok trial's reason says which discarded trial it replaces
         status += f" ({t.reason})"
-    return (str(t.index), "practice" if t.block == -1 else str(t.block + 1), t.gesture, status,
+    return (str(t.index + 1), "practice" if t.block == -1 else str(t.block + 1), t.gesture, status,
             ", ".join(FLAG_TEXT.get(f, f) for f in t.flags))
