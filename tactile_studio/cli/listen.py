@@ -1,0 +1,81 @@
+"""``listen``: stream a device and let an experiment script start and stop recordings
+through LabRecorder's remote-control commands (streams/remote_control.py)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+
+from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ctrl_c_cancels
+from tactile_studio.live.session import AcquisitionSession
+from tactile_studio.paths import make_out_dir
+from tactile_studio.streams.remote_control import DEFAULT_PORT, LOOPBACK, RemoteControl
+
+POLL_S = 0.05
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "listen", help="record when an experiment script says so (LabRecorder's remote "
+                       "control: start, stop, filename {...}, mark TEXT, status)",
+        description="Stream a device and take LabRecorder's remote-control commands on a "
+                    "TCP port (loopback only unless --host names another interface). "
+                    "Ctrl-C ends; a recording in progress is closed first.")
+    p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
+    p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
+    p.add_argument("--out", required=True, help="folder the recordings go into (a "
+                                                "filename's relative {root:...} is under it)")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT,
+                   help=f"TCP port (default {DEFAULT_PORT}, LabRecorder's; 0 = any free port)")
+    p.add_argument("--host", default=LOOPBACK,
+                   help="interface to listen on (default 127.0.0.1: this machine only)")
+    p.add_argument("--lsl", action="store_true",
+                   help="also publish the device on LSL (recordings then carry its clock)")
+    p.add_argument("--seconds", type=finite_float, default=None,
+                   help="stop listening after this long (default: until Ctrl-C)")
+    p.set_defaults(func=cmd_listen)
+
+
+def cmd_listen(args: argparse.Namespace) -> int:
+    out = make_out_dir(args.out)
+    device = create_device(args.device, parse_set_options(args.set))
+    session = AcquisitionSession()
+    session.use_device(device, args.device)
+    if args.lsl:
+        session.set_lsl(True)
+    control = RemoteControl(session, out, args.port, args.host,
+                            metadata={"notes": "recorded by listen"})
+    session.add_listener(lambda e: _report(e))
+    port = control.listen()
+    token = CancelToken()
+    try:
+        session.start()
+        print(f"remote control: listening on {args.host}:{port} for {args.device}; "
+              "Ctrl-C ends", file=sys.stderr, flush=True)
+        end = None if args.seconds is None else time.monotonic() + args.seconds
+        with ctrl_c_cancels(token):
+            while not token.wait(POLL_S):
+                session.poll()
+                before = len(control.log)
+                control.process()
+                for line, reply in control.log[before:]:
+                    print(f"> {line}\n< {reply}", flush=True)
+                if end is not None and time.monotonic() >= end:
+                    break
+    finally:
+        control.close()
+        session.close()
+    if session.engine is not None and session.engine.error:
+        raise UserError(f"{args.device}: {session.engine.error}")
+    return 0
+
+
+def _report(event: dict) -> None:
+    if event["kind"] == "recording_started":
+        print(f"recording {event['path']}", flush=True)
+    elif event["kind"] == "recording_stopped":
+        print(f"wrote {event['path']} ({event['reason']})", flush=True)
