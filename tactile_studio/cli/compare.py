@@ -23,6 +23,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         print(f"{p:<14}{100 * v['accuracy_a']:8.1f}{100 * v['accuracy_b']:8.1f}"
               f"{100 * (v['accuracy_b'] - v['accuracy_a']):+8.1f}  {v['trials']}")
     print(r["sentence"])
+    for s in r.get("shots", [])[1:]:  # the few-shot curve: the same comparison at each K
+        print(f"with {s['k']} shot(s) per gesture: {s['sentence']}")
     return 0
 
 

@@ -59,6 +59,11 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                         "a package registers (docs/models.md)")
     p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo",
                    help="evaluation protocol (default lopo)")
+    p.add_argument("--shots", type=_shot_counts, default=(), metavar="K[,K...]",
+                   help="few-shot personalisation under lopo/group-kfold: each held-out "
+                        "person once per K, with K labelled performances per gesture of "
+                        "theirs in the training and the rest tested (e.g. 0,1,2: the curve "
+                        "over K in metrics.json; windows of a performance never split)")
     p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")
     p.add_argument("--epochs", type=int, default=None, help="maximum epochs (default: the model's)")
     p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
@@ -78,6 +83,19 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
                    help="trial prediction from its windows: mean probability or majority vote")
     add_generalisation_options(p)
+
+
+def _shot_counts(text: str) -> tuple[int, ...]:
+    """"0,1,2" -> (0, 1, 2): distinct counts of 0 or more."""
+    try:
+        ks = tuple(int(k) for k in text.replace(" ", "").split(",") if k != "")
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a list of counts such as 0,1,2") \
+            from None
+    if not ks or min(ks) < 0 or len(set(ks)) != len(ks):
+        raise argparse.ArgumentTypeError(f"{text!r}: give distinct counts of 0 or more, "
+                                         "such as 0,1,2")
+    return tuple(sorted(ks))
 
 
 def add_generalisation_options(p: argparse.ArgumentParser) -> None:
@@ -114,7 +132,8 @@ def _config(args: argparse.Namespace, channels: str | None):
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
         device=args.device, threads=args.threads, cache_dir=args.cache_dir,
         use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
-        aggregate=args.aggregate, **generalisation_kwargs(args))
+        aggregate=args.aggregate, shots=tuple(getattr(args, "shots", ()) or ()),
+        **generalisation_kwargs(args))
 
 
 def _fmt(v: Any) -> str:
@@ -145,12 +164,33 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
                  [(f["round"], f["name"], ",".join(f["test_participants"]),
                    *(_fmt(f.get(k)) for k in keys)) for f in m["per_fold"]],
                  right=("round", *heads))
+    if m.get("shots"):
+        print_shots(m["shots"], cut)
     if m.get("windows") is not None:
         print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
               f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "
               "of its windows)")
     if out is not None:
         print(f"run folder: {out}")
+
+
+def print_shots(shots: list[dict[str, Any]], cut: bool) -> None:
+    """The few-shot curve: accuracy for K labelled performances per gesture of the test
+    person in the training (the same test trials at every K)."""
+    base = shots[0]
+    key = "trial_accuracy" if cut else "accuracy"
+    gain = f"points vs K={base['k']}"
+    heads = ("trial accuracy", "per window") if cut else ("accuracy",)
+    rows = []
+    for s in shots:
+        figures = (_fmt(s.get("trial_accuracy")), _fmt(s.get("accuracy"))) if cut else \
+            (_fmt(s.get("accuracy")),)
+        diff = "" if s is base or s.get(key) is None or base.get(key) is None else \
+            f"{100 * (s[key] - base[key]):+.1f}"
+        rows.append((s["k"], *figures, diff))
+    print("few-shot personalisation: K labelled performances per gesture of the test "
+          f"person in the training, {base.get('n_trials', '?')} test trials at every K")
+    tables.table(("K", *heads, gain), rows, right=("K", *heads, gain))
 
 
 def _print_skipped(skipped: list[dict[str, Any]]) -> None:

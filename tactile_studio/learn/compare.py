@@ -135,4 +135,21 @@ def sentence(r: dict[str, Any]) -> str:
 
 
 def compare_runs(run_a: str | os.PathLike, run_b: str | os.PathLike) -> dict[str, Any]:
-    return compare_predictions(load_predictions(run_a), load_predictions(run_b))
+    """The comparison; for few-shot runs (``--shots``) at their smallest shared K, with
+    ``shots`` listing the comparison at every K both have (a run without shots pairs
+    with each K of the other)."""
+    a, b = load_predictions(run_a), load_predictions(run_b)
+    ka, kb = a.shot_counts, b.shot_counts
+    if not ka and not kb:
+        return compare_predictions(a, b)
+    ks = sorted(set(ka) & set(kb)) if ka and kb else (ka or kb)
+    if not ks:
+        raise UserError(f"{run_a} (K {ka}) and {run_b} (K {kb}) share no shot count")
+    per_k = [(k, compare_predictions(a.at_shots(k), b.at_shots(k))) for k in ks]
+    result = dict(per_k[0][1])
+    result["shots"] = [{"k": k, **{key: r[key] for key in SHOT_FIELDS}} for k, r in per_k]
+    return result
+
+
+SHOT_FIELDS = ("accuracy_a", "accuracy_b", "difference", "n_matched", "wilcoxon_p",
+               "mcnemar_p", "sentence")

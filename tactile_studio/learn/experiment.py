@@ -48,7 +48,7 @@ from tactile_studio.learn.generalise import (
 )
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import RunFolder
-from tactile_studio.learn.splits import PROTOCOLS, make_folds
+from tactile_studio.learn.splits import PROTOCOLS, make_folds, with_shots
 from tactile_studio.learn.summary import fold_metrics, headline, summarise
 from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 
@@ -56,7 +56,7 @@ from tactile_studio.learn.windowing import AGGREGATES, cut, window_spec
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
-               "participant_norm", "balance", "val_by", "adapt")
+               "participant_norm", "balance", "val_by", "adapt", "shots")
 
 
 @dataclass
@@ -86,6 +86,9 @@ class ExperimentConfig:
     # none | person | person-condition: each test person's own statistics; auto: person
     # for a network under lopo / group-kfold (train's default), resolved before a run
     adapt: str = "none"
+    # few-shot personalisation: each held-out fold once per K, with K labelled
+    # performances per gesture of the test person in the training (() = off)
+    shots: tuple[int, ...] = ()
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -95,6 +98,7 @@ class ExperimentConfig:
         d = asdict(self)
         d["data"] = [str(Path(p).resolve()) for p in self.data]
         d["split"] = list(self.split)
+        d["shots"] = list(self.shots)
         return d
 
     @classmethod
@@ -102,6 +106,8 @@ class ExperimentConfig:
         known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
         if "split" in known:
             known["split"] = tuple(known["split"])
+        if "shots" in known:
+            known["shots"] = tuple(int(k) for k in known["shots"] or ())
         return cls(**known)
 
     @property
@@ -164,6 +170,14 @@ class ExperimentConfig:
                             "person's statistics of their own)")
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
+        if self.shots:
+            if self.protocol == "all-inclusive":
+                raise UserError("--shots gives a held-out person's labelled performances to "
+                                "the training; use it with lopo or group-kfold, not "
+                                "all-inclusive")
+            if min(self.shots) < 0 or len(set(self.shots)) != len(self.shots):
+                raise UserError(f"--shots takes distinct counts of 0 or more, got "
+                                f"{','.join(map(str, self.shots))}")
 
 
 def result_defaults() -> dict[str, Any]:
@@ -274,6 +288,7 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         "test_participants": fold.test_participants,
         "train": uid[fold.train].tolist(), "val": uid[fold.val].tolist(),
         "test": uid[fold.test].tolist(), "heldout": uid[fold.heldout].tolist(),
+        **({"shots": fold.shots} if fold.shots is not None else {}),
         "norm": stats, "history": history, "best_epoch": best,
         "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
@@ -334,6 +349,8 @@ def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
                        config.heldout_fraction, config.val_fraction, config.split)
     if config.val_by == "participant":
         folds = [participant_val(f, ds.participants, config.val_fraction, seed) for f in folds]
+    if config.shots:
+        folds = with_shots(folds, ds.labels, tuple(sorted(config.shots)), seed)
     return folds
 
 

@@ -34,6 +34,35 @@ class Fold:
     test: np.ndarray
     test_participants: list[str] = field(default_factory=list)
     heldout: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    shots: int | None = None  # labelled performances per gesture of the test people trained on
+
+
+def with_shots(folds: list[Fold], labels: np.ndarray, shots: tuple[int, ...],
+               seed: int) -> list[Fold]:
+    """Few-shot personalisation: each fold once per K in ``shots``, with K labelled
+    performances (trials, never windows: a trial's windows stay on one side) of every
+    gesture of each test person joining the training.
+
+    The shot trials are drawn once per fold and person: the first K of the same random
+    order, so K = 2 adds one trial to K = 1's. Every K of a fold tests on the same trials
+    (those never drawn for the largest K), so the curve over K compares like with like.
+    A gesture with n trials gives at most n - 1 shots (one trial stays to test)."""
+    top = max(shots)
+    out = []
+    for i, fold in enumerate(folds):
+        rng = np.random.default_rng([seed, 0x5407, i])
+        pools: list[np.ndarray] = []
+        for c in np.unique(labels[fold.test]):
+            members = fold.test[labels[fold.test] == c].copy()
+            rng.shuffle(members)
+            pools.append(members[:min(top, len(members) - 1)])
+        test = np.setdiff1d(fold.test, np.concatenate(pools) if pools else fold.test[:0])
+        for k in shots:
+            add = np.concatenate([p[:k] for p in pools]) if pools else fold.test[:0]
+            out.append(Fold(f"{fold.name} k{k}", np.union1d(fold.train, add).astype(np.int64),
+                            fold.val, test.astype(np.int64), list(fold.test_participants),
+                            fold.heldout, k))
+    return out
 
 
 def stratified_parts(idx: np.ndarray, labels: np.ndarray, fractions: tuple[float, ...],

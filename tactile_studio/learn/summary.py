@@ -52,13 +52,40 @@ def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
                            labels, windowed, aggregate)
 
 
+def shot_counts(records: list[dict[str, Any]]) -> list[int]:
+    """The K of a few-shot run's folds (``--shots``), sorted; [] for other runs."""
+    return sorted({int(r["shots"]) for r in records if r.get("shots") is not None})
+
+
 def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
               header: dict[str, Any], complete: bool) -> dict[str, Any]:
     """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics.
 
     ``accuracy`` and ``confusion_*`` are per sample (window); ``trial_accuracy`` and
     ``trial_confusion_*`` per trial, aggregated as ``header["aggregate"]`` (mean
-    probability by default)."""
+    probability by default).
+
+    A few-shot run (``--shots``) is summarised at its smallest K (0: the person never
+    seen), every fold of every K listed in ``per_fold``, and ``shots`` holds the curve:
+    per K the same figures, on the same test trials."""
+    ks = shot_counts(records)
+    if ks:
+        by_k = {k: _summarise([r for r in records if r.get("shots") == k], labels, windowed,
+                              header, complete) for k in ks}
+        out = dict(by_k[ks[0]])
+        out["per_fold"] = [m for k in ks for m in by_k[k]["per_fold"]]
+        out["shots"] = [{"k": k, **{key: by_k[k].get(key) for key in SHOT_KEYS}}
+                        for k in ks]
+        return out
+    return _summarise(records, labels, windowed, header, complete)
+
+
+SHOT_KEYS = ("accuracy", "trial_accuracy", "balanced_accuracy", "trial_balanced_accuracy",
+             "f1_macro", "trial_f1_macro", "n", "n_trials")
+
+
+def _summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+               header: dict[str, Any], complete: bool) -> dict[str, Any]:
     agg = header.get("aggregate", "mean")
     per_fold, rounds = [], []
     for rec in records:
@@ -66,6 +93,8 @@ def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
         m.update({"round": rec["round"], "fold": rec["fold"], "name": rec["name"],
                   "test_participants": rec["test_participants"],
                   "best_epoch": rec.get("best_epoch"), "n_test_trials": len(rec["test"])})
+        if rec.get("shots") is not None:
+            m["shots"] = int(rec["shots"])
         if rec.get("heldout_predictions"):
             held = fold_metrics(rec, labels, windowed, "heldout_predictions", agg)
             m["heldout_accuracy"] = held["accuracy"]

@@ -38,6 +38,7 @@ class TrialPrediction:
     probs: np.ndarray
     path: str = ""
     start_sample: int = 0
+    shots: int | None = None  # a few-shot run's K for this fold (``--shots``)
 
     @property
     def correct(self) -> bool:
@@ -60,6 +61,19 @@ class RunPredictions:
 
     def accuracy(self) -> float:
         return float(np.mean([t.correct for t in self.trials])) if self.trials else 0.0
+
+    @property
+    def shot_counts(self) -> list[int]:
+        """The K of a few-shot run (``--shots``), sorted; [] for other runs."""
+        return sorted({t.shots for t in self.trials if t.shots is not None})
+
+    def at_shots(self, k: int | None) -> RunPredictions:
+        """The predictions of the folds trained with ``k`` shots (all when None): a
+        few-shot run tests each trial once per K."""
+        if k is None or not self.shot_counts:
+            return self
+        return RunPredictions(self.path, self.config, self.resolved, self.labels,
+                              [t for t in self.trials if t.shots == k])
 
 
 def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]],
@@ -91,7 +105,8 @@ def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, An
             trial=int(ident.get("trial", -1)), condition=str(ident.get("condition", "")),
             true=int(y[first[k]]), pred=pred, confidence=float(mean[k, pred]),
             runner_up=runner, probs=mean[k], path=str(ident.get("path", "")),
-            start_sample=int(ident.get("start_sample", 0))))
+            start_sample=int(ident.get("start_sample", 0)),
+            shots=None if rec.get("shots") is None else int(rec["shots"])))
     return rows
 
 

@@ -1,0 +1,106 @@
+"""Few-shot personalisation (``train --shots``): K labelled performances per gesture of
+the held-out person join the training; split by performance, never by window."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.cli import main
+from tactile_studio.errors import UserError
+from tactile_studio.learn.dataset import read_sessions
+from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.splits import lopo, with_shots
+
+GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
+
+
+@pytest.fixture(scope="module")
+def long_trials(tmp_path_factory):
+    """3 people x 3 gestures x 3 performances of 6 s (each cut into 2 s windows)."""
+    root = tmp_path_factory.mktemp("shots")
+    make_dataset_folder(root / "data", participants=3, blocks=3, gestures=GESTURES3, repeats=3)
+    return root
+
+
+def test_shot_folds_add_whole_performances_of_the_test_person():
+    labels = np.array([0, 1, 2] * 4 + [0, 1, 2] * 4)
+    people = np.array(["A"] * 12 + ["B"] * 12)
+    folds = with_shots(lopo(labels, people, 0), labels, (0, 1, 2), seed=3)
+    assert [f.name for f in folds] == ["A k0", "A k1", "A k2", "B k0", "B k1", "B k2"]
+    for base, one, two in (folds[0:3], folds[3:6]):
+        assert base.shots == 0 and one.shots == 1 and two.shots == 2
+        # every K tests on the same trials: those never drawn as a shot
+        assert np.array_equal(base.test, one.test) and np.array_equal(one.test, two.test)
+        assert len(base.test) == 12 - 3 * 2
+        added1, added2 = np.setdiff1d(one.train, base.train), np.setdiff1d(two.train, base.train)
+        assert sorted(labels[added1]) == [0, 1, 2] and sorted(labels[added2]) == [0, 0, 1, 1, 2, 2]
+        assert set(added1) <= set(added2)  # K = 2 adds one more to K = 1's
+        assert set(people[added2]) == set(base.test_participants)
+        for f in (base, one, two):
+            assert not set(f.train) & set(f.test) and not set(f.val) & set(f.test)
+
+
+def test_a_gesture_keeps_one_performance_to_test():
+    labels = np.array([0, 1, 1, 1, 0, 1, 1, 1])
+    people = np.array(["A"] * 4 + ["B"] * 4)
+    folds = with_shots(lopo(labels, people, 0), labels, (0, 2), seed=0)
+    for f in folds:
+        assert {0, 1} <= set(labels[f.test])  # gesture 0 has one trial: never a shot
+
+
+def test_run_curve_and_no_window_leaks(long_trials):
+    ds = read_sessions([long_trials / "data"]).select(None)
+    cfg = ExperimentConfig(data=["unused"], model="rf", protocol="lopo", preset="tiny",
+                           window_s=2.0, shots=(0, 1), overrides={"n_estimators": 30})
+    result = run_experiment(cfg, dataset=ds)
+    m = result.metrics
+    assert [s["k"] for s in m["shots"]] == [0, 1]
+    assert m["shots"][0]["n_trials"] == m["shots"][1]["n_trials"] == 3 * 3 * 2  # per person 2 of 3 per gesture
+    assert m["trial_accuracy"] == m["shots"][0]["trial_accuracy"]
+    assert m["shots"][0]["n"] > m["shots"][0]["n_trials"]  # windows, several per trial
+    assert len(m["per_fold"]) == 6 and {f["shots"] for f in m["per_fold"]} == {0, 1}
+    for rec in result.folds:
+        train, test = set(rec["train"]) | set(rec["val"]), set(rec["test"])
+        assert not train & test
+        # every test window belongs to a test performance: none of a trained one
+        owners = {ds.uids[i] for i in rec["predictions"]["owner"]}
+        assert owners <= test and not owners & train
+
+
+def test_cli_prints_the_curve_and_refuses_all_inclusive(long_trials, tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["train", "--data", str(long_trials / "data"), "--model", "rf", "--preset",
+                 "tiny", "--eval", "lopo", "--shots", "0,1", "--out", str(out), "--set",
+                 "n_estimators=30", "--cache-dir", str(tmp_path / "cache")])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    assert "few-shot personalisation" in stdout and "points vs K=0" in stdout
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert [s["k"] for s in metrics["shots"]] == [0, 1]
+    assert json.loads((out / "config.json").read_text())["config"]["shots"] == [0, 1]
+    with pytest.raises(UserError, match="all-inclusive"):
+        ExperimentConfig(data=["x"], model="rf", protocol="all-inclusive", shots=(0, 1)).validate()
+    with pytest.raises(SystemExit):
+        main(["train", "--data", "x", "--model", "rf", "--out", "y", "--shots", "1,1"])
+    assert "distinct" in capsys.readouterr().err
+
+
+def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
+    runs = []
+    for model in ("rf", "knn"):
+        out = tmp_path / model
+        assert main(["train", "--data", str(long_trials / "data"), "--model", model,
+                     "--preset", "tiny", "--eval", "lopo", "--shots", "0,1", "--out", str(out),
+                     "--cache-dir", str(tmp_path / "cache")]) == 0
+        runs.append(out)
+    capsys.readouterr()
+    from tactile_studio.learn.compare import compare_runs
+    r = compare_runs(*runs)
+    assert [s["k"] for s in r["shots"]] == [0, 1]
+    assert r["n_matched"] == r["shots"][0]["n_matched"] == 18  # each trial once, at K = 0
+    assert main(["compare", str(runs[0]), str(runs[1])]) == 0
+    assert "with 1 shot(s) per gesture:" in capsys.readouterr().out
