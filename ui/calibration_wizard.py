@@ -12,6 +12,7 @@ from PySide6.QtWidgets import (
     QHeaderView,
     QLabel,
     QLineEdit,
+    QPushButton,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -19,7 +20,7 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
-from tactile_studio.health.calibration import CalibrationSpec
+from tactile_studio.health.calibration import CalibrationSpec, coverage_line, replace_instead
 from tactile_studio.health.runner import HealthRun
 from tactile_studio.ui.array_picture import SERIES_COLOURS
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
@@ -86,21 +87,43 @@ class CalibrationResultPage(QWizardPage):
         row = QHBoxLayout()
         row.addWidget(self.table, 1)
         row.addWidget(self.plot, 1)
+        self.coverage = QLabel("")
+        self.coverage.setWordWrap(True)
+        # a partial calibration merged with the active one; replacing is the user's choice
+        self.replace = QPushButton("Replace the earlier calibration instead")
+        self.replace.setToolTip("Keep only the taxels measured now: the others then read "
+                                "with the nominal curve")
+        self.replace.clicked.connect(self.replace_instead)
+        choice = QHBoxLayout()
+        choice.addWidget(self.coverage, 1)
+        choice.addWidget(self.replace)
         box = QVBoxLayout(self)
         box.addWidget(self.summary)
+        box.addLayout(choice)
         box.addLayout(row, 1)
 
     @property
     def result(self) -> dict[str, Any]:
         return self.run_page.run.result  # type: ignore[union-attr]
 
+    def replace_instead(self) -> None:
+        """Cut the merged calibration back to the taxels measured now (same version)."""
+        run = self.run_page.run
+        run.result = replace_instead(run.result, run.out)  # type: ignore[union-attr]
+        self.initializePage()
+
     def initializePage(self) -> None:  # noqa: N802 - Qt name
         cal = self.result
+        merged = bool(cal.get("coverage", {}).get("kept"))
+        self.coverage.setText(coverage_line(cal, "merged by default; the button on the "
+                                                 "right replaces instead"))
+        self.replace.setVisible(merged)
         self.summary.setText(
             f"Calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}): "
             f"rms error median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
             "of range. It is now the sensor's active calibration.")
-        fits, skipped = cal["fits"], cal.get("skipped", [])
+        skipped = cal.get("skipped", [])
+        fits = [f for f in cal["fits"] if f.get("from_calibration") is None]  # measured now
         if skipped:
             self.summary.setText(self.summary.text() + "\nNot calibrated: " + "; ".join(
                 s["reason"] for s in skipped))

@@ -24,7 +24,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.health.history import sensor_history
+from tactile_studio.health.history import covers_text, sensor_history
 from tactile_studio.storage.logbook import NOTE_KINDS, Logbook, age_text
 from tactile_studio.ui.array_picture import SERIES_COLOURS, VERDICT_COLOURS
 
@@ -54,8 +54,9 @@ class SensorsWindow(QWidget):
         self.timeline.getAxis("left").setTicks([[(0, "pass"), (1, "warn"), (2, "fail")]])
         self.timeline.setYRange(-0.5, 2.5)
         self.timeline.setMaximumHeight(170)
-        self.calibrations = QTableWidget(0, 4)
-        self.calibrations.setHorizontalHeaderLabels(["#", "when", "kind", "rms % range"])
+        self.calibrations = QTableWidget(0, 5)
+        self.calibrations.setHorizontalHeaderLabels(["#", "when", "kind", "taxels",
+                                                     "rms % range"])
         self.calibrations.horizontalHeader().setSectionResizeMode(
             QHeaderView.ResizeMode.ResizeToContents)
         self.calibrations.horizontalHeader().setStretchLastSection(True)
@@ -111,8 +112,11 @@ class SensorsWindow(QWidget):
         self.title.setText(sensor)
         last = (f"{s['last_verdict'].upper()} {age_text(s['last_check_at'])}"
                 if s["last_verdict"] else "never checked")
+        active = next((c for c in h.calibrations if c["active"]), None)
+        covers = f" ({active['taxels']} of {active['of']} taxels)" if active and \
+            active.get("taxels") is not None else ""
         self.facts.setText(f"{s['hours']:.2f} h of use · last check {last} · active "
-                           f"calibration {s['active_calibration'] or 'none'} · "
+                           f"calibration {s['active_calibration'] or 'none'}{covers} · "
                            f"registered {s['created'][:10]}")
         self.trend.clear()
         self.trend.addLine(y=1.0, pen=pg.mkPen("#999", style=Qt.PenStyle.DashLine))
@@ -126,10 +130,13 @@ class SensorsWindow(QWidget):
                                symbolSize=12, symbolBrush=VERDICT_COLOURS[verdict])
         self.calibrations.setRowCount(len(h.calibrations))
         for i, c in enumerate(h.calibrations):
+            covers = covers_text(c)
             for j, text in enumerate((f"{c['id']}{' (active)' if c['active'] else ''}",
                                       c["at"][:16].replace("T", " "), c["kind"],
-                                      f"{c['rms_pct']:.2f}")):
-                self.calibrations.setItem(i, j, QTableWidgetItem(text))
+                                      covers.split(" taxels")[0], f"{c['rms_pct']:.2f}")):
+                item = QTableWidgetItem(text)
+                item.setToolTip(covers)  # which were measured, which kept from where
+                self.calibrations.setItem(i, j, item)
         self.notes.clear()
         self.notes.addItems([f"{n['at'][:10]} [{n['kind']}] {n['text']}" for n in h.notes])
 

@@ -25,8 +25,11 @@ from tactile_studio.sensor.calibration import (
     CalibrationError,
     calibration_data,
     check_loads,
+    coverage,
     decode_calibrated,
     fit_taxel,
+    measured_only,
+    merge_calibration,
 )
 from tactile_studio.sensor.decode import StressFrames, relative_change
 from tactile_studio.sensor.layout import CENTRE
@@ -43,6 +46,7 @@ class CalibrationSpec:
     plate: bool = False
     contact_mm: float = 14.0                # indenter side (per-taxel loads)
     plate_mm: float | None = None           # plate side (default: the array's extent)
+    replace: bool = False                   # drop the active calibration's other taxels
 
 
 def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
@@ -97,12 +101,65 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
         "sensor": sensor, "contact_mm": spec.contact_mm, "plate_mm": side if spec.plate else None,
         "device": engine.device_info()})
     with Logbook() as book:
+        data = _merge_with_active(book, sensor, data, lay.n_taxels, spec.replace)
         data["calibration_id"] = book.add_calibration(sensor, kind, data["rms_pct_max"], data)
     if out is not None:
         _write_atomic(Path(out), data)
     progress(1.0, f"rms {data['rms_pct_max']:.2f}% of range")
     bench.emit("done", calibration_id=data["calibration_id"])
     return data
+
+
+def _merge_with_active(book: Logbook, sensor: str, data: dict[str, Any], n_taxels: int,
+                       replace: bool) -> dict[str, Any]:
+    """A partial calibration merges with the sensor's active one (the taxels it measured
+    replace theirs, the rest are kept) unless ``replace``; ``coverage`` says which came
+    from where, ``replaced_calibration`` which one a replacement dropped taxels of."""
+    active = book.active_calibration(sensor)
+    dropped: list[str] = []
+    if active is not None:
+        old = book.calibration(active)
+        measured = {f["taxel"] for f in data["fits"]}
+        if replace:
+            dropped = [f["taxel"] for f in old.get("fits", []) if f["taxel"] not in measured]
+        else:
+            data = merge_calibration(data, old, active)
+    data["coverage"] = coverage(n_taxels, data)
+    data["replaced_calibration"] = active if dropped else None
+    data["dropped"] = dropped
+    return data
+
+
+def replace_instead(cal: dict[str, Any], out: str | os.PathLike | None = None
+                    ) -> dict[str, Any]:
+    """The calibration ``cal`` just stored merged, kept to the taxels it measured: the user
+    chose (after seeing the merge) to replace the calibration it merged with. The same
+    logbook version (and its CAL.json ``out``) is rewritten; it stays active."""
+    if not cal.get("coverage", {}).get("kept"):
+        return cal
+    dropped = [f["taxel"] for f in cal["fits"] if f.get("from_calibration") is not None]
+    new = measured_only(cal)
+    new["coverage"] = coverage(cal["coverage"]["of"], new)
+    new["replaced_calibration"], new["dropped"] = cal.get("merged_with"), dropped
+    with Logbook() as book:
+        book.update_calibration(cal["calibration_id"], new["rms_pct_max"], new)
+    if out is not None:
+        _write_atomic(Path(out), new)
+    return new
+
+
+def coverage_line(cal: dict[str, Any], replace_hint: str = "--replace drops them") -> str:
+    """"covers 36 of 36 taxels: 4 measured now, 32 kept from calibration #1" (the CLI's
+    and the wizard's words for what a new calibration covers)."""
+    cov = cal["coverage"]
+    line = f"covers {cov['taxels']} of {cov['of']} taxels"
+    if cov["kept"]:
+        kept = ", ".join(f"{len(v)} kept from calibration #{k}" for k, v in cov["kept"].items())
+        line += f": {len(cov['measured'])} measured now, {kept} ({replace_hint})"
+    elif cal.get("dropped"):
+        line += (f" (replaced calibration #{cal['replaced_calibration']}: "
+                 f"{len(cal['dropped'])} other taxels now read with the nominal curve)")
+    return line
 
 
 def _write_atomic(path: Path, data: dict[str, Any]) -> None:

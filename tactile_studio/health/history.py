@@ -44,3 +44,13 @@ def sensor_history(sensor: str, book: Logbook | None = None) -> SensorHistory:
     finally:
         if own:
             book.close()
+
+
+def covers_text(calibration: dict[str, Any]) -> str:
+    """What one calibration (a ``Logbook.calibrations`` row) covers, in words: "36 of 36
+    taxels (4 measured, 32 from #1)"; "" for a record that cannot say."""
+    c = calibration
+    if c.get("taxels") is None:
+        return ""
+    kept = "".join(f", {len(v)} from #{k}" for k, v in c.get("kept", {}).items())
+    return f"{c['taxels']} of {c['of']} taxels ({len(c['measured'])} measured{kept})"

@@ -211,3 +211,50 @@ def expected_nominal_kpa(layout: Layout, fit: dict[str, Any], kpa: float) -> flo
             hi = mid
     r = 0.5 * (lo + hi)
     return float(layout.calibration.normal_kpa(np.array([r]))[0]) if layout.calibration else r
+
+
+def coverage(layout_taxels: int, calibration: dict[str, Any]) -> dict[str, Any]:
+    """What a calibration covers: ``taxels`` (how many have a curve), ``of`` (the array),
+    ``measured`` (names measured by this calibration) and ``kept`` (calibration id ->
+    names carried over from it when it merged with an earlier one)."""
+    fits = calibration.get("fits", [])
+    kept: dict[str, list[str]] = {}
+    for f in fits:
+        if f.get("from_calibration") is not None:
+            kept.setdefault(str(f["from_calibration"]), []).append(f["taxel"])
+    return {"taxels": len(fits), "of": layout_taxels,
+            "measured": [f["taxel"] for f in fits if f.get("from_calibration") is None],
+            "kept": kept}
+
+
+def merge_calibration(new: dict[str, Any], old: dict[str, Any], old_id: int) -> dict[str, Any]:
+    """``new`` merged over the sensor's active calibration ``old`` (id ``old_id``): the
+    taxels ``new`` measured take its curves, the others keep ``old``'s (each kept fit says
+    which calibration it came from), gains and rms summaries are over the merged set. A
+    partial calibration (4 taxels) must not drop the other 32 back to the nominal curve.
+    ``new`` unchanged when ``old`` is of another layout or covers nothing else."""
+    if old.get("layout") != new.get("layout"):
+        return new
+    measured = {f["taxel"] for f in new["fits"]}
+    kept = [{**f, "from_calibration": f.get("from_calibration", old_id)}
+            for f in old.get("fits", []) if f["taxel"] not in measured]
+    if not kept:
+        return new
+    fits = sorted([*new["fits"], *kept], key=lambda f: int(f["index"]))
+    return {**new, **with_fits(fits), "merged": True, "merged_with": old_id}
+
+
+def measured_only(calibration: dict[str, Any]) -> dict[str, Any]:
+    """A merged calibration cut back to the taxels it measured itself (a replacement of
+    the calibration it merged with: the others read with the nominal curve)."""
+    fits = [f for f in calibration["fits"] if f.get("from_calibration") is None]
+    return {**calibration, **with_fits(fits), "merged": False}
+
+
+def with_fits(fits: list[dict[str, Any]]) -> dict[str, Any]:
+    """``fits`` with the gains and rms summaries computed over them."""
+    sens = {f["taxel"]: float(f["sensitivity"]) for f in fits if f["sensitivity"] > 0}
+    median = float(np.median(list(sens.values()))) if sens else 1.0
+    rms = [float(f["rms_pct"]) for f in fits] or [0.0]
+    return {"fits": fits, "gains": {t: round(median / s, 5) for t, s in sens.items()},
+            "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms))}

@@ -211,12 +211,23 @@ class Logbook:
                 (sensor_id, _now(), kind, float(rms_pct), int(activate), json.dumps(data)))
             return int(cur.lastrowid)
 
+    def update_calibration(self, calibration_id: int, rms_pct: float,
+                           data: dict[str, Any]) -> None:
+        """Rewrite a stored version's data (a merge the user then chose to replace)."""
+        with self._write() as db:
+            cur = db.execute("UPDATE calibrations SET rms_pct=?, data=? WHERE id=?",
+                             (float(rms_pct), json.dumps(data), int(calibration_id)))
+            if cur.rowcount != 1:
+                raise UserError(f"no calibration {calibration_id} in {self.path}")
+
     def calibrations(self, sensor_id: str) -> list[dict[str, Any]]:
+        """Each version with what it covers (``taxels`` of ``of``, ``measured``, ``kept``
+        from earlier calibrations it merged with: see sensor/calibration.py)."""
         rows = self._db.execute(
-            "SELECT id, at, kind, rms_pct, active FROM calibrations WHERE sensor_id=? "
+            "SELECT id, at, kind, rms_pct, active, data FROM calibrations WHERE sensor_id=? "
             "ORDER BY id", (sensor_id,)).fetchall()
-        return [{"id": r[0], "at": r[1], "kind": r[2], "rms_pct": r[3], "active": bool(r[4])}
-                for r in rows]
+        return [{"id": r[0], "at": r[1], "kind": r[2], "rms_pct": r[3], "active": bool(r[4]),
+                 **_coverage(r[5])} for r in rows]
 
     def calibration(self, calibration_id: int) -> dict[str, Any]:
         row = self._db.execute("SELECT sensor_id, data FROM calibrations WHERE id=?",
@@ -266,6 +277,18 @@ class Logbook:
         return {**self.summary(sensor_id).to_dict(), "created": row[0], "layout": row[1],
                 "description": row[2], "checks": checks,
                 "calibrations": self.calibrations(sensor_id), "notes": self.notes(sensor_id)}
+
+
+def _coverage(data: str) -> dict[str, Any]:
+    from tactile_studio.sensor.calibration import coverage
+    from tactile_studio.sensor.layout import get_layout
+
+    try:
+        cal = json.loads(data)
+        n = get_layout(cal.get("layout")).n_taxels
+    except (ValueError, TypeError, KeyError, AttributeError, UserError):
+        return {"taxels": None, "of": None, "measured": [], "kept": {}}
+    return coverage(n, cal)
 
 
 def check_sensor_id(sensor_id: str) -> str:
