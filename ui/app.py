@@ -17,6 +17,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import signals_handled
 from tactile_studio.ui.main_window import MainWindow, wait_for
 from tactile_studio.ui.settings import APPLICATION, ORGANISATION
+from tactile_studio.ui.write_faults import write_image
 
 
 def ensure_app(argv: list[str] | None = None) -> QApplication:
@@ -99,8 +100,7 @@ def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | o
         window.refresh_status()
         window.tick()
         wait_for(0.05)
-        if not window.grab().save(str(out)):
-            raise UserError(f"{out}: cannot write the image (use a .png name)")
+        write_image(window.grab(), out)  # an unwritable place: its OSError, one line
     finally:
         window.shutdown()
         window.close()

@@ -34,6 +34,7 @@ from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.settings_form import SettingField, SettingsForm, one_line
+from tactile_studio.ui.write_faults import fault_text
 
 
 class DevicePanel(QWidget):
@@ -237,8 +238,11 @@ class DevicePanel(QWidget):
         try:
             sensor = self.sensor_box.currentText().strip()
             self.controller.start_recording(path, {"sensor_id": sensor} if sensor else None)
-        except UserError as exc:
-            self.show_error(one_line(exc))
+        except (UserError, OSError) as exc:
+            text = fault_text(exc)
+            if text is None:
+                raise
+            self.show_error(text)
             self.record_button.setChecked(False)
             return False
         self.show_error(None)

@@ -22,6 +22,7 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
+from tactile_studio.errors import UserError
 from tactile_studio.health.report import write_report
 from tactile_studio.health.runner import HealthRun
 from tactile_studio.health.wellness import WellnessSpec
@@ -30,6 +31,7 @@ from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
 from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
+from tactile_studio.ui.write_faults import show_write_fault
 
 
 def sensor_combo(current: str | None = None) -> QComboBox:
@@ -142,8 +144,13 @@ class WellnessResultPage(QWizardPage):
             path = ask_save_file(self, "Save report", "report", name, "HTML (*.html)")
         if not path:
             return None
-        write_report(path, f"Wellness check #{self.result['check_id']} of "
-                           f"{self.result['sensor']}", self.result)
+        try:
+            write_report(path, f"Wellness check #{self.result['check_id']} of "
+                               f"{self.result['sensor']}", self.result)
+        except (OSError, UserError) as exc:
+            if show_write_fault(self, "Report not saved", exc) is None:
+                raise
+            return None
         return path
 
 

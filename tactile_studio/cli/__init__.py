@@ -1,7 +1,8 @@
 """The ``tactile-studio`` command line.
 
 Every module in this package that defines ``register(subparsers)`` adds its commands;
-nothing else needs editing to add one. User errors print one line and exit 1.
+nothing else needs editing to add one. User errors print one line and exit with their
+status; so does an output that cannot be written (``output_faults``).
 """
 
 from __future__ import annotations
@@ -17,11 +18,13 @@ from tactile_studio import __version__
 from tactile_studio.errors import (
     EXIT_BROKEN_PIPE,
     EXIT_CANCELLED,
+    EXIT_ERROR,
     EXIT_TERMINATED,
     Cancelled,
     UserError,
 )
 from tactile_studio.jobs import Terminated, terminate_unwinds
+from tactile_studio.output_faults import fault_line
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -54,6 +57,14 @@ def main(argv: list[str] | None = None) -> int:
     except UserError as exc:
         print(f"tactile-studio: error: {exc}", file=sys.stderr)
         return int(exc.exit_code)
+    except OSError as exc:
+        # a place that cannot be written (read-only, full, no permission...) is the
+        # environment's fault: one line naming the file; any other OSError is a bug
+        line = fault_line(exc)
+        if line is None:
+            raise
+        print(f"tactile-studio: error: {line}", file=sys.stderr)
+        return EXIT_ERROR
     except Cancelled:
         print("tactile-studio: cancelled; finished work was kept", file=sys.stderr)
         return EXIT_CANCELLED

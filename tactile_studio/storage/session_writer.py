@@ -27,6 +27,7 @@ import numpy as np
 
 from tactile_studio import __version__
 from tactile_studio.errors import SessionFileError
+from tactile_studio.output_faults import fault_line
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.aux_signals import AuxSignal, write_aux
 from tactile_studio.storage.session_compress import (
@@ -66,7 +67,9 @@ class SessionWriter:
         try:
             self._f = h5py.File(self.path, "w", libver="latest", locking=False)
         except OSError as exc:
-            raise SessionFileError(f"{self.path}: cannot create session file ({exc})") from None
+            line = fault_line(exc)  # read-only, full, no permission: the plain cause
+            raise SessionFileError(line or f"{self.path}: cannot create session file ({exc})"
+                                   ) from None
         f, c = self._f, layout.n_channels
         f.attrs["format"] = FORMAT
         f.attrs["schema_version"] = SCHEMA_VERSION

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from PySide6.QtCore import QRect, QSize, Signal
+from PySide6.QtCore import QBuffer, QByteArray, QIODevice, QRect, QSize, Signal
 from PySide6.QtGui import QPainter
 from PySide6.QtSvg import QSvgGenerator
 from PySide6.QtWidgets import (
@@ -26,6 +26,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.learn.confusion import ConfusionModel
 from tactile_studio.learn.trialpreds import RunPredictions, TrialPrediction
 from tactile_studio.ui.research.matrix_widget import MatrixWidget
+from tactile_studio.ui.write_faults import write_image
 
 MODES = [("Counts", "counts"), ("Row % (of true)", "row"), ("Column % (of predicted)", "column")]
 TRIAL_COLUMNS = ("participant", "session", "trial", "true", "predicted", "confidence",
@@ -183,14 +184,21 @@ class ConfusionView(QWidget):
             return
         size = self.matrix.minimumSizeHint().expandedTo(QSize(700, 600))
         if path.suffix.lower() == ".svg":
+            # drawn in memory, written by Python: an unwritable place raises its OSError
+            # (Qt's own file writing fails silently)
+            data = QByteArray()
+            buffer = QBuffer(data)
+            buffer.open(QIODevice.OpenModeFlag.WriteOnly)
             gen = QSvgGenerator()
-            gen.setFileName(str(path))
+            gen.setOutputDevice(buffer)
             gen.setSize(size)
             gen.setViewBox(QRect(0, 0, size.width(), size.height()))
             gen.setTitle(self.run.name if self.run else "confusion matrix")
             p = QPainter(gen)
             self.matrix.paint(p, size.width(), size.height())
             p.end()
+            buffer.close()
+            path.write_bytes(bytes(data.data()))
         else:
             from PySide6.QtGui import QColor, QImage
 
@@ -199,4 +207,4 @@ class ConfusionView(QWidget):
             p = QPainter(img)
             self.matrix.paint(p, size.width(), size.height())
             p.end()
-            img.save(str(path))
+            write_image(img, path)

@@ -25,6 +25,7 @@ from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
 from tactile_studio.ui.research.sweep_panel import SweepPanel
 from tactile_studio.ui.research.train_panel import TrainPanel
+from tactile_studio.ui.write_faults import fault_text
 
 
 class ResearchWindow(QMainWindow):
@@ -183,5 +184,18 @@ class ResearchWindow(QMainWindow):
         extension = kind.rsplit("*", 1)[-1].rstrip(")")  # "PNG image (*.png)" -> ".png"
         path = ask_save_file(self, "Export confusion matrix", "export", stem + extension, kind)
         if path:
+            self.export_confusion(path)
+
+    def export_confusion(self, path: str | Path) -> bool:
+        """Write the confusion matrix (PNG, SVG or CSV by suffix); a place that cannot
+        be written is one line in the status bar."""
+        try:
             self.confusion.export(path)
-            self.show_info(f"exported {path}")
+        except (OSError, UserError) as exc:
+            text = fault_text(exc)
+            if text is None:
+                raise
+            self.show_error(text)
+            return False
+        self.show_info(f"exported {path}")
+        return True

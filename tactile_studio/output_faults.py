@@ -1,0 +1,77 @@
+"""A place that cannot be written is the environment's fault: one line, not a traceback.
+
+A read-only or full disk, a folder the user may not write, a path through a file, a
+name too long: every command and window that writes meets these the same way, so they
+are told apart here once. :func:`fault_line` turns such an ``OSError`` into the line the
+user sees, naming the file (a writer's temporary ``.NAME.part`` / ``NAME.tmp`` is named
+as the file it was becoming). The CLI's ``main()`` and the GUI's file actions
+(``ui/write_errors.py``) both call it. An ``OSError`` that names no file, or has another
+errno, is not the user's to fix and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import re
+from pathlib import Path
+
+from tactile_studio.errors import UserError
+
+# the place, not the program: the user can fix these by choosing another place
+ENVIRONMENT_ERRNOS = frozenset({
+    errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG,
+    errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.ENAMETOOLONG, errno.EEXIST})
+# these only ever come from writing
+WRITE_ERRNOS = frozenset({errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+# h5py reports a failed create/open with errno set but the file only in its message
+_H5PY_OPEN = re.compile(r"unable to (?:open|create) file: name = '(?P<name>.+?)', "
+                        r"errno = \d+, error message = '(?P<message>[^']*)'")
+
+
+class WriteFault(UserError):
+    """An output file or folder cannot be written (read-only, full, permission...)."""
+
+
+def fault_line(exc: BaseException) -> str | None:
+    """``'<file>: cannot write (<cause>)'`` for an environment fault, else None.
+
+    "cannot write" when the error can only come from writing or the file did not exist
+    yet (it was being created); "cannot open" when an existing file was refused, since
+    that may have been a read."""
+    if not isinstance(exc, OSError) or exc.errno not in ENVIRONMENT_ERRNOS:
+        return None
+    name, cause = exc.filename, exc.strerror or os.strerror(exc.errno)
+    if name is None:
+        match = _H5PY_OPEN.search(str(exc))
+        if match is None:
+            return None
+        name, cause = match["name"], match["message"] or cause
+    path = Path(os.fsdecode(name))
+    target = _final_name(path)
+    if exc.errno == errno.ENOENT and not path.parent.is_dir():
+        return f"{target}: folder {path.parent} does not exist"
+    if exc.errno == errno.ENOENT:
+        verb = "cannot open"
+    elif exc.errno in WRITE_ERRNOS or not os.path.lexists(path):
+        verb = "cannot write"
+    else:
+        verb = "cannot open"
+    return f"{target}: {verb} ({cause})"
+
+
+def _final_name(path: Path) -> Path:
+    """The file a writer's temporary was becoming (``.x.csv.part`` -> ``x.csv``)."""
+    name = path.name
+    for pattern in (r"^\.(.+)\.(?:part|compressing)$", r"^(.+)\.tmp\d*$"):
+        match = re.match(pattern, name)
+        if match:
+            return path.with_name(match[1])
+    return path
+
+
+def as_user_error(exc: BaseException) -> WriteFault | None:
+    """The ``WriteFault`` to raise instead of ``exc`` (None: not an environment fault)."""
+    line = fault_line(exc)
+    return WriteFault(line) if line is not None else None
