@@ -16,8 +16,9 @@ from typing import Any, ClassVar
 import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
-from tactile_studio.errors import SettingsError
+from tactile_studio.errors import SettingsError, UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
+from tactile_studio.sensor.taxels import parse_taxel
 from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig, weights
 from tactile_studio.simulate.gestures import canonical_gesture
 from tactile_studio.simulate.population import DEFAULT_DIFFICULTY, DIFFICULTIES, SURFACES
@@ -54,8 +55,8 @@ class SimulatedSensor(DevicePlugin):
         Setting("surface", "choice", "flat", "flat, or a soft pillow under the sensor",
                 choices=SURFACES),
         Setting("fault", "choice", "none", "simulated defect", choices=FAULTS),
-        Setting("fault_taxel", "int", 14, "taxel the fault affects (0..35)",
-                minimum=0, maximum=35),
+        Setting("fault_taxel", "taxel", "C3", "taxel the fault affects: a name (A1..F6) "
+                "or an index (0..35)", minimum=0, maximum=35),
         Setting("sensitivity_spread", "float", 0.0, "per-taxel sensitivity spread "
                 "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5),
     )
@@ -72,12 +73,19 @@ class SimulatedSensor(DevicePlugin):
             rate=s["rate"], seed=s["seed"], gesture=mode, intensity=s["intensity"],
             speed=s["gesture_speed"], style_seed=s["style_seed"], noise=s["noise"],
             drift=s["drift"], crosstalk=s["crosstalk"], fault=s["fault"],
-            fault_taxel=s["fault_taxel"], sensitivity_spread=s["sensitivity_spread"],
+            fault_taxel=self._taxel(s["fault_taxel"]), sensitivity_spread=s["sensitivity_spread"],
             difficulty=s["difficulty"], surface=s["surface"]))
         self._lock = threading.RLock()
         self._open = False
         self._t0 = 0.0        # wall clock at open
         self._f0 = 0          # frame index at open
+
+    def _taxel(self, spec: str | int) -> int:
+        """The fault_taxel setting ("C3" or 14) as an index of this sensor's array."""
+        try:
+            return parse_taxel(SHEARSENSE_6X6, spec)
+        except UserError as exc:
+            raise SettingsError(f"device {self.name}: setting fault_taxel: {exc}") from None
 
     # ---- contract --------------------------------------------------------------------
     @property

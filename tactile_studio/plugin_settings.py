@@ -10,8 +10,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from tactile_studio.errors import SettingsError
+from tactile_studio.sensor.taxels import taxel_token
 
-SETTING_KINDS = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str}
+# "taxel": a name ("C3") or an index ("14"), resolved by the device on its own layout
+SETTING_KINDS = {"int": int, "float": float, "str": str, "bool": bool, "choice": str, "path": str,
+                 "taxel": taxel_token}
 
 
 @dataclass(frozen=True)
@@ -19,7 +22,7 @@ class Setting:
     """One entry of a plugin's settings schema."""
 
     name: str
-    kind: str  # int | float | str | bool | choice | path
+    kind: str  # int | float | str | bool | choice | path | taxel
     default: Any
     help: str = ""
     choices: tuple[str, ...] = ()
@@ -46,6 +49,8 @@ class Setting:
             raise SettingsError(f"{where}: {value!r} is not a valid {self.kind}") from None
         if self.kind == "choice" and value not in self.choices:
             raise SettingsError(f"{where}: {value!r} is not one of {', '.join(self.choices)}")
+        if self.kind == "taxel" and isinstance(value, str):
+            return value  # a name: its range is the device layout's (parse_taxel)
         if self.minimum is not None and value < self.minimum:
             raise SettingsError(f"{where}: {value} is below the minimum {self.minimum}")
         if self.maximum is not None and value > self.maximum:

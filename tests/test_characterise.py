@@ -93,7 +93,7 @@ def test_cli_runs_headless_and_writes_the_json(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--taxels", "B2,G7"], "taxel 'G7' is not on the 6x6 array"),
+    (["--taxels", "B2,G7"], "'G7' is not a taxel of shearsense-6x6"),
     (["--stage-set", "fail_home=1"], "did not home"),
     (["--force-set", "silent=1"], "no load-cell samples"),
     (["--stage-set", "floor_z=-0.3"], "below the floor"),

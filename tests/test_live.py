@@ -152,7 +152,7 @@ def test_trail_starts_over_when_the_device_clock_goes_back():
 def test_parse_taxel_name():
     assert parse_taxel_name(SHEARSENSE_6X6, "c4") == (2, 3)
     assert parse_taxel_name(SHEARSENSE_6X6, "F6") == (5, 5)
-    with pytest.raises(UserError, match="A1 .. F6"):
+    with pytest.raises(UserError, match=r"A1\.\.F6"):
         parse_taxel_name(SHEARSENSE_6X6, "G1")
 
 

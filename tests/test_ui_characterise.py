@@ -60,7 +60,7 @@ def test_bad_taxel_stays_on_the_plan_page(qtbot, wizard):
     w.plan_page.taxels.setText("B2,H9")
     w.next()
     assert w.currentPage() is w.plan_page
-    assert "taxel 'H9' is not on the 6x6 array" in w.plan_page.error.text()
+    assert "'H9' is not a taxel of shearsense-6x6" in w.plan_page.error.text()
 
 
 def test_abort_lifts_and_reports_what_was_done(qtbot, wizard):

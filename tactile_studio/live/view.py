@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
-from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import FrameDecoder, compute_baseline
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.sensor.taxels import parse_taxel
 
 QUANTITIES = ("normal", "shear_x", "shear_y", "shear")
 QUANTITY_LABELS = {"normal": "normal", "shear_x": "shear x", "shear_y": "shear y",
@@ -98,16 +98,9 @@ def decimate_minmax(t: np.ndarray, values: np.ndarray, t0: float, t1: float,
 
 
 def parse_taxel_name(layout: Layout, name: str) -> tuple[int, int]:
-    """"C4" -> (row 2, column 3): the inverse of ``Layout.taxel_name`` (UserError if bad)."""
-    text = name.strip().upper()
-    letters = text.rstrip("0123456789")
-    digits = text[len(letters):]
-    for row in range(layout.rows):
-        for col in range(layout.cols):
-            if layout.taxel_name(row, col) == f"{letters}{digits}":
-                return row, col
-    last = layout.taxel_name(layout.rows - 1, layout.cols - 1)
-    raise UserError(f"no taxel {name!r} on {layout.name} (A1 .. {last})")
+    """"C4" (or its index) -> (row 2, column 3), through the one taxel parser
+    (:func:`tactile_studio.sensor.taxels.parse_taxel`; UserError if bad)."""
+    return layout.taxel_rc(parse_taxel(layout, name))
 
 
 class _Trail:

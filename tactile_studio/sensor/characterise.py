@@ -12,8 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import decode, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
+from tactile_studio.sensor.taxels import parse_taxels as _parse_taxels
 
 
 def taxel_signals(layout: Layout, raw: np.ndarray,
@@ -47,20 +49,12 @@ def neighbours(layout: Layout, taxel: int) -> dict[str, int]:
 
 
 def parse_taxels(layout: Layout, spec: str) -> list[int]:
-    """``"B2,B5"`` or ``"all"`` -> taxel numbers; ValueError names a bad taxel."""
-    names = {layout.taxel_name(*layout.taxel_rc(t)): t for t in range(layout.n_taxels)}
-    if spec.strip().lower() == "all":
-        return sorted(names.values(), key=lambda t: layout.taxel_rc(t))
-    out = []
-    for part in (p.strip().upper() for p in spec.split(",") if p.strip()):
-        if part not in names:
-            last = layout.taxel_name(layout.rows - 1, layout.cols - 1)
-            raise ValueError(f"taxel {part!r} is not on the {layout.rows}x{layout.cols} "
-                             f"array {layout.name} (A1..{last})")
-        out.append(names[part])
-    if not out:
-        raise ValueError("no taxels given")
-    return out
+    """``"B2,B5"``, ``"7,10"`` or ``"all"`` -> taxel numbers (the one parser,
+    :mod:`tactile_studio.sensor.taxels`); ValueError names a bad taxel."""
+    try:
+        return _parse_taxels(layout, spec)
+    except UserError as exc:
+        raise ValueError(str(exc)) from None
 
 
 @dataclass

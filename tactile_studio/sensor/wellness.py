@@ -10,7 +10,6 @@ channel. Thresholds are in :class:`Thresholds` so a lab can tune them in one pla
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,6 +18,8 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import decode, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
+from tactile_studio.sensor.taxels import parse_taxel as _parse_taxel
+from tactile_studio.sensor.taxels import taxel_label as _taxel_label
 
 PASS, WARN, FAIL = "pass", "warn", "fail"
 _RANK = {PASS: 0, WARN: 1, FAIL: 2}
@@ -58,19 +59,9 @@ def stress_kpa(mass_g: float, contact_mm: float) -> float:
     return mass_g * 1e-3 * G / (contact_mm * 1e-3) ** 2 / 1e3
 
 
-def parse_taxel(layout: Layout, name: str) -> int:
-    """Taxel index from its name ('B2' = row B, column 2); UserError if not on the array."""
-    m = re.fullmatch(r"\s*([A-Za-z])(\d+)\s*", str(name))
-    if m:
-        row, col = ord(m.group(1).upper()) - ord("A"), int(m.group(2)) - 1
-        if 0 <= row < layout.rows and 0 <= col < layout.cols:
-            return layout.taxel_at(row, col)
-    last = layout.taxel_name(layout.rows - 1, layout.cols - 1)
-    raise UserError(f"{name!r} is not a taxel of {layout.name} (A1..{last})")
-
-
-def taxel_label(layout: Layout, taxel: int) -> str:
-    return layout.taxel_name(*layout.taxel_rc(taxel))
+# the one taxel parser (names or indices) and namer, re-exported where callers look
+parse_taxel = _parse_taxel
+taxel_label = _taxel_label
 
 
 def channel_label(layout: Layout, channel: int) -> str:
