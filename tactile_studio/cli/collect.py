@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli.gui import require_display
+from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
@@ -60,6 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=".", help="output folder (default: current folder)")
     p.add_argument("--resume", metavar="FILE", help="continue a killed or closed session")
     add_lsl_option(p)
+    add_markers_option(p)
     p.add_argument("--wellness-override", metavar="NOTE",
                    help="start although the protocol's required wellness check failed, is "
                         "stale or missing (the note is stored in the session)")
@@ -144,6 +146,9 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
+    if getattr(args, "markers", None):
+        raise UserError("--markers needs --virtual-participant (or `record`); the console "
+                        "does not record other programs' markers yet")
     if getattr(args, "lsl", False):
         from tactile_studio.streams import load_pylsl
 
@@ -200,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         if args.lsl:  # stopped before the file closes: the end of streaming is recorded
             acq.add_outlet(start_lsl(engine, wait_s=args.lsl_wait)).attach_runner(session.runner)
+        if args.markers:
+            acq.add_outlet(start_markers(engine, args.markers))
         acq.start()
         _drive(session, vp, engine)
     finally:

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli import tables
+from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
@@ -35,6 +36,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     add_lsl_option(p)
+    add_markers_option(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("info", help="summarise a session file, or a folder of them")
@@ -70,6 +72,8 @@ def cmd_record(args: argparse.Namespace) -> int:
     try:
         if args.lsl:
             session.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
+        if args.markers:
+            session.add_outlet(start_markers(engine, args.markers))
     except UserError:
         session.close()
         out.unlink(missing_ok=True)

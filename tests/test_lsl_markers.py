@@ -1,0 +1,111 @@
+"""Markers from other programs (``record --markers NAME``): a real pylsl marker outlet on
+the loopback, as PsychoPy would publish it; every marker lands as an event within one
+frame period of its timestamp, and a sender that quits is reported.
+
+Budget: ~8 s (two 2-3 s recordings of the simulator at 100 Hz)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import pylsl
+from lsl_fixtures import WAIT_S, unique
+
+from tactile_studio.cli import main
+from tactile_studio.storage import Session
+
+RATE = 100.0
+
+
+def host_to_lsl() -> float:
+    """lsl = host + offset, measured here independently of the code under test."""
+    best = None
+    for _ in range(50):
+        t0 = time.time()
+        lsl = pylsl.local_clock()
+        t1 = time.time()
+        if best is None or t1 - t0 < best[0]:
+            best = (t1 - t0, lsl - (t0 + t1) / 2)
+    return best[1]
+
+
+def marker_outlet(name: str) -> pylsl.StreamOutlet:
+    return pylsl.StreamOutlet(pylsl.StreamInfo(name, "Markers", 1, pylsl.IRREGULAR_RATE,
+                                               pylsl.cf_string, f"{name}-src"))
+
+
+def frames_in(path) -> int:
+    try:
+        with Session(path) as s:
+            return s.n_frames
+    except Exception:  # noqa: BLE001 - not created yet, or mid-creation
+        return 0
+
+
+def push_when_connected(outlet, texts, gap_s, sent, path, then=None):
+    """Push ``texts`` once the recording at ``path`` holds frames (a condition, bounded)."""
+    def run():
+        deadline = time.monotonic() + WAIT_S
+        while frames_in(path) < 10 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        for text in texts:
+            ts = pylsl.local_clock() - 0.004  # stamped a little earlier, as a flip time is
+            outlet.push_sample([text], ts)
+            sent.append((text, ts))
+            time.sleep(gap_s)
+        if then is not None:
+            then()
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def test_record_markers_land_within_one_frame_of_their_timestamps(tmp_path, capsys):
+    name = unique("psychopy")
+    outlet = marker_outlet(name)
+    sent: list[tuple[str, float]] = []
+    out = tmp_path / "s.h5"
+    pusher = push_when_connected(outlet, [f"cue {i}" for i in range(5)], 0.25, sent, out)
+    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "3",
+               "--out", str(out), "--markers", name])
+    pusher.join(WAIT_S)
+    assert rc == 0, capsys.readouterr().err
+    offset = host_to_lsl()
+    with Session(out) as s:
+        host = s.column("host_time")
+        marks = [e for e in s.events if e["kind"] == "marker"]
+        (start,) = [e for e in s.events if e["kind"] == "marker_stream"]
+    assert start["stream"] == name and "time_correction" in start
+    assert [m["text"] for m in marks] == [t for t, _ in sent] and len(sent) == 5
+    for m, (_, ts) in zip(marks, sent):
+        assert m["stream"] == name and abs(m["lsl_time"] - ts) < 1e-3
+        assert abs(host[m["frame"]] - (ts - offset)) <= 1.0 / RATE + 1e-3
+
+
+def test_a_marker_stream_that_disappears_is_reported(tmp_path, capsys):
+    name = unique("stimpc")
+    holder = {"outlet": marker_outlet(name)}
+    sent: list[tuple[str, float]] = []
+    out = tmp_path / "s.h5"
+    pusher = push_when_connected(holder["outlet"], ["one"], 0.05, sent, out,
+                                 then=lambda: holder.pop("outlet"))
+    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "2.5",
+               "--out", str(out), "--markers", name])
+    pusher.join(WAIT_S)
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert f"warning: lsl: marker stream '{name}' disappeared" in err
+    with Session(out) as s:
+        kinds = [e["kind"] for e in s.events]
+        assert "marker_stream_lost" in kinds and kinds.count("marker") == 1
+        (lost,) = [e for e in s.events if e["kind"] == "marker_stream_lost"]
+        assert lost["stream"] == name and lost["frame"] < s.n_frames  # recording went on
+
+
+def test_a_marker_stream_not_found_is_one_line(tmp_path, capsys):
+    rc = main(["record", "--device", "simulated", "--seconds", "1", "--out",
+               str(tmp_path / "s.h5"), "--markers", unique("nobody")])
+    err = capsys.readouterr().err
+    assert rc == 1 and "marker stream" in err and "was not found" in err
+    assert "Traceback" not in err and not (tmp_path / "s.h5").exists()
