@@ -153,7 +153,7 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     assert panel.adapt.currentData() == "auto"  # held-out people are adapted to
     assert panel.config().resolved().adapt == "person"
     panel.model.setCurrentText("knn")
-    assert panel.config().resolved().adapt == "person"
+    assert panel.config().resolved().adapt == "none"  # forests stay as trained (people)
     panel.protocol.setCurrentText("all-inclusive")
     assert panel.config().resolved().adapt == "none"  # nobody held out to adapt to
     panel.protocol.setCurrentText("lopo")

@@ -124,7 +124,8 @@ class ExperimentConfig:
     def resolved(self) -> ExperimentConfig:
         """This config with ``adapt="auto"`` made concrete for its model and protocol
         (generalise.resolve_adapt); what a run folder records and every fold reads."""
-        adapt = resolve_adapt(self.adapt, self.protocol, self.can_adapt)
+        adapt = resolve_adapt(self.adapt, self.protocol, self.can_adapt,
+                              network=self.model not in BASELINES)
         return self if adapt == self.adapt else replace(self, adapt=adapt)
 
     def validate(self) -> None:

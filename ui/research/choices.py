@@ -12,7 +12,7 @@ def adapt_combo() -> QComboBox:
     """"Test people": adapted where they are held out (the default), as trained, or
     adapted to each person (``ExperimentConfig.adapt``)."""
     combo = QComboBox()
-    combo.addItem("adapted when held out (auto)", ADAPT_AUTO)
+    combo.addItem("networks adapted when held out (auto)", ADAPT_AUTO)
     for key, phrase in ADAPT_PHRASE.items():
         combo.addItem(phrase, key)
     combo.setToolTip("adapted: each test person is met with statistics of their own "
@@ -21,8 +21,9 @@ def adapt_combo() -> QComboBox:
                      "if the sessions name one; needs the person's whole "
                      "session: for lopo / group-kfold. Live, the model adapts to the "
                      "participant's last touches and predicts as trained until it has "
-                     "them. The default adapts whenever people are held out: networks "
-                     "gained 2-12 points, rf up to 9")
+                     "them. The default adapts a network whenever people are held out "
+                     "and leaves rf/knn as trained: on the real recordings adapting "
+                     "gained cnn3d 3.3 points and cost rf 1.7")
     return combo
 
 
