@@ -16,6 +16,7 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.aux_signals import AuxSignal, read_aux
+from tactile_studio.storage.session_checks import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 
@@ -94,6 +95,7 @@ def _open_h5(path: Path) -> h5py.File:
         raise SessionFileError(f"{path}: no such file")
     if path.is_dir():
         raise SessionFileError(f"{path}: is a folder, not a session file")
+    check_regular_file(path)  # a FIFO or device would block or never end
     _check_not_truncated(path)
     try:
         return h5py.File(path, "r", locking=False)
@@ -129,6 +131,7 @@ class Session:
             raise SessionFileError(f"{self.path}: HDF5 file but not a Tactile Studio session")
         if "frames/raw" not in f:
             raise SessionFileError(f"{self.path}: session has no frames dataset")
+        check_stored(f, self.path)  # claims backed by stored data, before any read
         self.journal = read_journal(f)
         self.schema_version = int(f.attrs.get("schema_version", 0))
         cols = [f["frames/raw"].shape[0]] + [
@@ -139,6 +142,7 @@ class Session:
         if not layout_name:
             raise SessionFileError(f"{self.path}: session metadata names no layout")
         self.layout: Layout = get_layout(str(layout_name))
+        check_frames(f, self.path, self.layout)
 
     # ---- context manager -------------------------------------------------------------
     def close(self) -> None:
@@ -189,12 +193,23 @@ class Session:
 
     def raw(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
-        return read_rows(self._f["frames/raw"], start, stop)
+        return self._read("frames/raw", start, stop)
 
     def column(self, name: str, start: int = 0, stop: int | None = None) -> np.ndarray:
         """One of device_time, host_time, seq, index."""
         stop = self.n_frames if stop is None else min(stop, self.n_frames)
-        return read_rows(self._f[f"frames/{name}"], start, stop)
+        return self._read(f"frames/{name}", start, stop)
+
+    def _read(self, name: str, start: int, stop: int) -> np.ndarray:
+        """Rows of a dataset; more than memory holds is one line, not a MemoryError."""
+        ds = self._f[name]
+        try:
+            return read_rows(ds, start, stop)
+        except MemoryError:
+            n = max(0, stop - max(0, start))
+            size = n * ds.dtype.itemsize * int(np.prod(ds.shape[1:]))
+            raise SessionFileError(f"{self.path}: {name} rows {start}-{stop} "
+                                   f"({size / 2**30:.1f} GiB) do not fit in memory") from None
 
     def baseline(self, row: int = 0) -> np.ndarray:
         """The newest recorded baseline at or before ``row`` (else the first recorded

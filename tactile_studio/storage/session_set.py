@@ -20,6 +20,7 @@ from typing import Any
 
 from tactile_studio.errors import UserError
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_checks import not_regular
 from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
@@ -49,7 +50,11 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
         return ""
     backups = [s for s in skipped if s["reason"] == "resume backup"]
     dups = [s for s in skipped if s["reason"] == "duplicate session"]
+    odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session")]
     parts = []
+    if odd:  # a FIFO, a device, a broken link named *.h5: never opened
+        parts.append(f"{len(odd)} file{'s' if len(odd) != 1 else ''} that cannot be read ("
+                     + "; ".join(f"{s['file']}: {s['reason']}" for s in odd) + ")")
     if backups:
         parts.append(f"{len(backups)} resume backup{'s' if len(backups) != 1 else ''}")
     if dups:
@@ -61,9 +66,11 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
 
 
 def session_files_under(folder: Path) -> list[Path]:
-    """The ``*.h5`` files below ``folder``, outside hidden folders (``.venv``, ``.git``,
-    ``.cache``: a library's test files there are no one's sessions)."""
-    return sorted(q for q in folder.rglob("*.h5") if q.is_file() and not any(
+    """The ``*.h5`` entries below ``folder``, outside hidden folders (``.venv``, ``.git``,
+    ``.cache``: a library's test files there are no one's sessions). Entries that are not
+    regular files (a FIFO, a device link, a broken link) are listed too, so they are
+    reported with their reason instead of silently missing; nothing here opens them."""
+    return sorted(q for q in folder.rglob("*.h5") if not q.is_dir() and not any(
         part.startswith(".") for part in q.relative_to(folder).parts[:-1]))
 
 
@@ -83,9 +90,12 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
                 (backups if is_resume_backup(q) else files).append(q)
         elif p.is_file():
             files.append(p)
+        elif p.exists():  # given by name: a FIFO or device is refused, not skipped
+            raise UserError(f"{p}: {not_regular(p)}")
         else:
             raise UserError(f"{p}: no such file or folder")
-    files = sorted({f.resolve() for f in files})
+    # links to sessions count once; a link to a device stays under its own name
+    files = sorted({f.resolve() if not not_regular(f) else f.absolute() for f in files})
     backups = sorted({b.resolve() for b in backups} - set(files))
     return files, backups
 
@@ -107,8 +117,10 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
 
     skipped: list[dict[str, Any]] = [
         {"file": rel(b), "reason": "resume backup"} for b in backups]
+    odd = {f: not_regular(f) for f in files}
+    skipped += [{"file": rel(f), "reason": why} for f, why in odd.items() if why]
     by_id: dict[str, list[tuple[tuple, Path]]] = {}
-    for f in files:
+    for f in (f for f in files if not odd[f]):
         with Session(f) as s:
             by_id.setdefault(s.session_id, []).append((_rank(f, s), f))
     keep: list[Path] = []
