@@ -174,6 +174,9 @@ class SimulatedSensor(DevicePlugin):
         the defaults of later :meth:`perform` calls."""
         with self._lock:
             self._sim.set_gesture(name, at_frame, intensity, speed)
+            # the settings (stored in every file recorded from here on) say what it does now
+            self.settings["gesture"] = (AUTO if name.strip().lower() == AUTO
+                                        else canonical_gesture(name))
 
     def set_style(self, seed: int, at_frame: int | None = None) -> None:
         """Become another virtual participant from the next frame (or ``at_frame``)."""

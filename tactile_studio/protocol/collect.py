@@ -23,6 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
@@ -54,13 +56,42 @@ class CollectionSession:
     seed: int
     resumed: bool = False
     backup: Path | None = None
+    touches: str = ""                  # who makes the touches, in words (touch_source)
+    restore_gesture: str | None = None  # a simulator's own mode before the session
 
     def close(self) -> None:
         """Stop (aborting an unfinished runner; its finished trials stay) and close the
-        file cleanly. The engine is left running: it belongs to the caller."""
+        file cleanly. The engine is left running: it belongs to the caller (a simulator
+        the session quietened goes back to what it did before)."""
         if self.runner.state not in State.DONE:
             self.runner.abort()
         self.recorder.stop()
+        if self.restore_gesture is not None:
+            self.engine.device.set_gesture(self.restore_gesture)
+            self.restore_gesture = None
+
+
+def quiet_simulator(engine: AcquisitionEngine) -> str | None:
+    """A simulated device performing by itself (its demo cycle, gesture ``auto``, or a
+    scripted gesture) goes idle from the next frame: a collection records the
+    participant's touches only, never the simulator's own. Returns the mode it had (to go
+    back to when the session closes), None when it was idle or is not a simulator."""
+    device = engine.device
+    mode = str((getattr(device, "settings", None) or {}).get("gesture", "idle"))
+    if not hasattr(device, "set_gesture") or mode == "idle":
+        return None
+    device.set_gesture("idle")
+    return mode
+
+
+def touch_source(engine: AcquisitionEngine, virtual: bool = False) -> str:
+    """Who makes the touches a collection records, as the console shows it."""
+    if virtual:
+        return "Touches: a virtual participant, on the simulated sensor"
+    if hasattr(engine.device, "set_gesture"):
+        return ("Touches: simulated sensor, idle until a virtual participant or a person "
+                "touches (its demo gestures are off during the session)")
+    return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 
 def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:
@@ -107,11 +138,18 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
-    rec = _factory(engine, recorder)(target, meta)
+    restore = quiet_simulator(engine)  # before the file: its settings say idle
+    try:
+        rec = _factory(engine, recorder)(target, meta)
+    except BaseException:
+        if restore is not None:
+            engine.device.set_gesture(restore)
+        raise
     runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
-    return CollectionSession(runner, rec, engine, target, protocol, participant, seed)
+    return CollectionSession(runner, rec, engine, target, protocol, participant, seed,
+                             touches=touch_source(engine), restore_gesture=restore)
 
 
 def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
@@ -138,6 +176,7 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
         total = sum(len(o) for o in meta["block_order"])
         return {"protocol": protocol, "participant": meta["participant"],
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
+                "sensor_id": meta.get("sensor_id"),
                 "layout": old.layout.name, "trials_done": trials_done(old.trials), "trials_total": total,
                 "frames": old.n_frames}
 
@@ -159,11 +198,40 @@ def _keep_backup(path: Path, backup: Path) -> None:
         shutil.copy2(path, backup)
 
 
+def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
+    """Why ``engine`` is not the device and sensor the file was recorded with (another
+    plugin, another sensor ID such as the simulator's seed), or None when it is."""
+    old_plugin = (info.get("device") or {}).get("plugin")
+    new_plugin = engine.device_info().get("plugin")
+    if old_plugin and new_plugin and old_plugin != new_plugin:
+        return f"recorded with device {old_plugin}, not {new_plugin}"
+    old_sensor, new_sensor = info.get("sensor_id"), engine.sensor_id()
+    if old_sensor and new_sensor and str(old_sensor) != str(new_sensor):
+        return f"recorded on sensor {old_sensor}, but the device is sensor {new_sensor}"
+    return None
+
+
+def resume_offset(old: Session, rate_hz: float) -> float:
+    """Seconds to add to a resumed device's clock so the file keeps one clock: the old
+    file's last device time plus one nominal frame period (a device starts its clock
+    again at 0 when it restarts)."""
+    n = old.n_frames
+    if n == 0:
+        return 0.0
+    last = float(old.column("device_time", n - 1, n)[0])
+    period = 1.0 / rate_hz if rate_hz and rate_hz > 0 else 0.0
+    return last + period if np.isfinite(last) else 0.0
+
+
 def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
                    clock: Clock | None = None, auto_continue: bool = True,
                    hold_flagged: bool = False,
-                   recorder: RecorderFactory | None = None) -> CollectionSession:
-    """Continue a killed or closed session at the next trial of its stored order."""
+                   recorder: RecorderFactory | None = None,
+                   allow_other_sensor: str | None = None) -> CollectionSession:
+    """Continue a killed or closed session at the next trial of its stored order.
+
+    Refused on another device or sensor than the file's, unless ``allow_other_sensor``
+    gives the reason (stored as a note and in the metadata)."""
     path = Path(path)
     info = read_resume_info(path)
     if info["trials_done"] >= info["trials_total"]:
@@ -172,22 +240,38 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     if engine.layout.name != info["layout"]:
         raise UserError(f"{path}: recorded with layout {info['layout']}, but the device "
                         f"delivers {engine.layout.name}")
+    other = other_sensor(info, engine)
+    note = " ".join(str(allow_other_sensor or "").split())
+    if other and not note:
+        raise UserError(f"{path}: {other}; resume on the same sensor (or give the reason "
+                        "with --allow-other-sensor NOTE)")
+    restore = quiet_simulator(engine)  # before the copy: its settings say idle
     tmp = path.with_name(f".{path.name}.resuming")
     backup = _backup_path(path)
     with Session(path) as old:
         meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
         meta["session_id"] = old.session_id  # kept (derived once for files without one)
         meta["resumes"] = int(meta.get("resumes", 0)) + 1
+        if other:
+            meta["other_sensor"] = [*meta.get("other_sensor", []),
+                                    {"resume": meta["resumes"], "why": other, "note": note,
+                                     "sensor_id": engine.sensor_id(),
+                                     "device": engine.device_info()}]
         n = old.n_frames
+        offset = resume_offset(old, float(engine.nominal_rate_hz or 0.0))
         if tmp.exists():
             tmp.unlink()
         rec = _factory(engine, recorder)(tmp, meta, row_offset=n,
                                          base_counters=old.journal.counters, start=False)
         trials = rec.copy_earlier(old, COPY_CHUNK)
+    rec.continue_device_clock(offset)
     if engine.baseline is not None:
         rec.add_baseline(engine.baseline, n)
+    # a new recording segment: the device clock continues, shifted by the offset
     rec.add_event("resume", frame=n, from_file=path.name, backup=backup.name,
-                  trials=len(trials))
+                  trials=len(trials), segment=True, device_time_offset=offset)
+    if other:
+        rec.add_note(f"resumed on another sensor ({other}): {note}", frame=n)
     rec.flush()
     _keep_backup(path, backup)
     os.replace(tmp, path)  # atomic: there is a complete session at ``path`` at every instant
@@ -200,4 +284,5 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                               hold_flagged=hold_flagged, previous_trials=trials)
     runner.notes = [line for line in str(meta.get("notes", "")).split("\n") if line]
     return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
-                             info["seed"], resumed=True, backup=backup)
+                             info["seed"], resumed=True, backup=backup,
+                             touches=touch_source(engine), restore_gesture=restore)

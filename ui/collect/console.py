@@ -127,6 +127,8 @@ class CollectConsole(ConsoleActions):
         self.file_label = QLabel()
         self.file_label.setStyleSheet("color: #606770;")
         self.file_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.touches_label = QLabel()  # who makes the touches (a simulator never by itself)
+        self.touches_label.setStyleSheet("color: #606770;")
         self.redo_banner = QLabel()
         self.redo_banner.setWordWrap(True)
         self.redo_banner.setStyleSheet(
@@ -178,6 +180,7 @@ class CollectConsole(ConsoleActions):
         lv.addWidget(self.progress)
         lv.addWidget(self.progress_label)
         lv.addWidget(self.file_label)
+        lv.addWidget(self.touches_label)
         lv.addWidget(self.redo_banner)
         lv.addWidget(self.sound_notice)
         lv.addWidget(self.hint_label)
@@ -286,6 +289,7 @@ class CollectConsole(ConsoleActions):
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
+        self.touches_label.setText(self.session.touches)
         self.file_label.setText(f"File: {self.session.path}"
                                 + (f"   ·   {self.wellness_text}" if self.wellness_text else ""))
         self._closed_session_path = None

@@ -1,0 +1,83 @@
+"""A collection never records a simulator performing by itself: on the main window's
+simulated device (gesture ``auto``, its demo cycle) the console's session sets it idle,
+says who makes the touches, and a trial where nobody touched comes out without load."""
+
+from __future__ import annotations
+
+import numpy as np
+from PySide6.QtCore import Qt
+
+from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.plugins.simulated import SimulatedSensor
+from tactile_studio.protocol.snapshot import State
+from tactile_studio.sensor.decode import decode
+from tactile_studio.storage.session import Session
+from tactile_studio.ui.collect.console import CollectConsole
+
+MINI = """
+name = "mini2"
+title = "Mini 2 gestures"
+trial_s = 1.0
+blocks = 1
+free_play_s = 0.0
+
+[beep]
+frequency_hz = 880.0
+length_s = 0.05
+
+[[gestures]]
+name = "Poke"
+key = "p"
+definition = "Poke it."
+
+[[gestures]]
+name = "Twist"
+key = "t"
+definition = "Twist on it."
+"""
+
+
+def test_a_console_on_the_live_demo_simulator_records_only_touches(qtbot, tmp_path,
+                                                                    monkeypatch):
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    (tmp_path / "mini2.toml").write_text(MINI)
+    out = tmp_path / "data"
+    out.mkdir()
+    device = SimulatedSensor(speed=8)  # the main window's default: the demo cycle
+    assert device.settings["gesture"] == "auto"
+    engine = AcquisitionEngine(device)
+    engine.start()
+    try:
+        console = CollectConsole(engine=engine, live_device="simulated")
+        qtbot.addWidget(console)
+        console.show()
+        s = console.setup
+        s.set_protocol_file(str(tmp_path / "mini2.toml"))
+        qtbot.keyClicks(s.participant, "P03")
+        s.out_dir.setText(str(out))
+        assert s.device.currentData() is None  # the live device
+        qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+        assert s.error.text() == "" and console.engine is engine
+        assert console.touches_label.text().startswith(
+            "Touches: simulated sensor, idle until a virtual participant or a person touches")
+        assert device.settings["gesture"] == "idle"
+        qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)  # Start
+        snap = console.runner.snapshot
+        qtbot.waitUntil(lambda: snap().state == State.WAITING, timeout=15000)
+        prompt = console.participant.view.prompt
+        qtbot.keyClick(console.participant, prompt.key)  # nobody touches the sensor
+        qtbot.waitUntil(lambda: len(snap().trials) == 1 and snap().state not in
+                        (State.RECORDING, State.TRIAL_END), timeout=15000)
+        trial = snap().trials[0]
+        assert "no_contact" in trial["flags"]
+        path = console.session.path
+        console.close()
+        assert device.settings["gesture"] == "auto"  # the live demo goes on afterwards
+    finally:
+        engine.stop()
+    with Session(path) as sess:
+        assert sess.metadata["device"]["settings"]["gesture"] == "idle"
+        t = sess.trials[0]
+        raw = sess.raw(t["start_sample"], t["end_sample"])
+        load = decode(sess.layout, raw, sess.baseline(t["start_sample"])).normal
+        assert float(np.abs(load).max()) < 1.0  # kPa: noise, no gesture
