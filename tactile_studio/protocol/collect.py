@@ -90,7 +90,7 @@ def touch_source(engine: AcquisitionEngine, virtual: bool = False) -> str:
         return "Touches: a virtual participant, on the simulated sensor"
     if hasattr(engine.device, "set_gesture"):
         return ("Touches: simulated sensor, idle until a virtual participant or a person "
-                "touches (its demo gestures are off during the session)")
+                "touches (its demo gestures are off)")
     return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 

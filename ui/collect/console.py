@@ -129,6 +129,7 @@ class CollectConsole(ConsoleActions):
         self.file_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.touches_label = QLabel()  # who makes the touches (a simulator never by itself)
         self.touches_label.setStyleSheet("color: #606770;")
+        self.touches_label.setWordWrap(True)
         self.redo_banner = QLabel()
         self.redo_banner.setWordWrap(True)
         self.redo_banner.setStyleSheet(
