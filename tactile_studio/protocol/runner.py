@@ -64,6 +64,9 @@ class CollectionRunner(RunnerInputs):
         self._release_hold: Callable[[], None] = lambda: None
         self._keys_from: int | None = None   # held for a key naming a frame from here on
         self._tick_frame = engine.frames
+        self._at = 0  # the stream frame the runner is at: its events go there
+        self._start_at: int | None = None   # the frame start() named (a virtual participant)
+        self._phase_from = 0             # the frame free play or a break began
         self._lead = 2 * self.trial_frames
         self._hold(lambda: self._tick_frame, self._lead)
         self._phase_until = 0.0          # free play end / beep end / break minimum end
@@ -110,7 +113,20 @@ class CollectionRunner(RunnerInputs):
         return False
 
     def _log(self, kind: str, **detail: Any) -> None:
-        self.recorder.add_event(kind, **detail)
+        """A runner event at the stream frame the runner is at (a trial's end, the tick
+        that ended a timed phase), never where the recorder happens to be writing: a
+        stream that runs ahead of the runner (the simulator at speed 0) or a recorder
+        that lags behind it would put the event among the wrong trials."""
+        self.recorder.add_event_at(max(self._at, self._min_start), kind, **detail)
+
+    def _reach(self, frame: int) -> None:
+        """The runner has acted at stream frame ``frame`` (a tick, an input)."""
+        self._at = max(self._at, int(frame))
+
+    def _newest(self, frames: int) -> int:
+        """The newest frame of a stream that has delivered ``frames``: where a key
+        pressed now starts its trial."""
+        return max(0, frames - 1)
 
     # ---- block bookkeeping ---------------------------------------------------------------
     @property
@@ -141,6 +157,7 @@ class CollectionRunner(RunnerInputs):
                     self._start_session()
         elif s == State.FREE_PLAY:
             if self.clock() >= self._phase_until:
+                self._reach(self._phase_end(self.free_play_s))
                 self._after_free_play()
         elif s == State.BLOCK_START:
             self._set_state(State.WAITING)
@@ -156,6 +173,7 @@ class CollectionRunner(RunnerInputs):
                 self._after_trial()
         elif s == State.BREAK:
             if self.auto_continue and self.clock() >= self._phase_until:
+                self._reach(self._phase_end(self.protocol.break_min_s))
                 self._end_break()
 
     def _held(self) -> bool:
@@ -163,15 +181,25 @@ class CollectionRunner(RunnerInputs):
 
     # ---- transitions ---------------------------------------------------------------------
     def _start_session(self) -> None:
+        self._reach(self._newest(self._tick_frame) if self._start_at is None
+                    else self._start_at)
         self._log("session_start", blocks=len(self.orders), trial_frames=self.trial_frames)
         if not self._plan.remaining():
             self._finish()
         elif self.free_play_s > 0:
             self._phase_until = self.clock() + self.free_play_s
+            self._phase_from = max(self._at, self._min_start)
             self._log("free_play", seconds=self.free_play_s)
             self._set_state(State.FREE_PLAY)
         else:
             self._enter_block()
+
+    def _phase_end(self, seconds: float) -> int:
+        """The frame a timed phase of ``seconds`` ended, seen at this tick: its length
+        in stream frames from its start, never later than the tick (a stream that ran
+        ahead of the runner does not delay it; a slow clock does not advance it)."""
+        return min(self._newest(self._tick_frame),
+                   self._phase_from + round(seconds * self.rate))
 
     def _after_free_play(self) -> None:
         self._enter_block()
@@ -307,6 +335,7 @@ class CollectionRunner(RunnerInputs):
         if scheduled:
             self._plan.take_break(self.block)
         self._phase_until = self.clock() + self.protocol.break_min_s
+        self._phase_from = max(self._at, self._min_start)
         self._log("break_start", after_block=self.block, scheduled=scheduled,
                   min_s=self.protocol.break_min_s)
         self.recorder.flush()

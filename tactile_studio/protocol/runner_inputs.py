@@ -18,11 +18,14 @@ class RunnerInputs:
     transitions (``_begin_trial``, ``_after_trial``, ``_enter_break``...).
     """
 
-    def start(self) -> bool:
-        """Leave setup: free play, practice, then block 1 (once the baseline is ready)."""
+    def start(self, at_frame: int | None = None) -> bool:
+        """Leave setup: free play, practice, then block 1 (once the baseline is ready).
+        ``at_frame``: the stream frame the session starts at (a virtual participant's
+        plan; default the newest frame at the tick that starts it)."""
         if self.state != State.SETUP:
             return self._refuse("the session has already started")
         self._start_requested = True
+        self._start_at = None if at_frame is None else int(at_frame)
         self.tick()
         return True
 
@@ -77,12 +80,14 @@ class RunnerInputs:
         if self.state == State.SETUP:
             return self.start()
         if self.state == State.FREE_PLAY:
+            self._reach(self._newest(self.engine.frames))
             self._after_free_play()
             return True
         if self.state == State.BREAK:
             left = self._phase_until - self.clock()
             if left > 0:
                 return self._refuse(f"the break has {left:.0f} s of its minimum left")
+            self._reach(self._newest(self.engine.frames))
             self._end_break()
             return True
         if self.state == State.REVIEW:
@@ -155,6 +160,7 @@ class RunnerInputs:
             self._pause_pending = True
             self.hint = "pausing after this trial"
             return True
+        self._reach(self._newest(self.engine.frames))
         self._enter_pause(self.state)
         return True
 
@@ -166,6 +172,8 @@ class RunnerInputs:
             return self._refuse("not paused")
         paused_for = self.clock() - self._paused_at
         self._phase_until += paused_for
+        self._phase_from += round(paused_for * self.rate)  # a timed phase is longer by it
+        self._reach(self._newest(self.engine.frames))
         self._log("resume", paused_s=round(paused_for, 3))
         target, self._paused_from = self._paused_from or State.WAITING, None
         self.hint = ""
@@ -180,6 +188,7 @@ class RunnerInputs:
             return True
         if self.state not in State.KEY_STATES:
             return self._refuse(f"cannot start a break in state {self.state}")
+        self._reach(self._newest(self.engine.frames))
         self._enter_break(scheduled=False)
         return True
 
@@ -197,6 +206,7 @@ class RunnerInputs:
         """Stop the session; a running trial is dropped, finished ones stay in the file."""
         if self.state in State.DONE:
             return self._refuse(f"the session is already {self.state}")
+        self._reach(self._newest(self.engine.frames))
         if self._current is not None:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
             self._drop_current()

@@ -157,8 +157,9 @@ class VirtualParticipant:
         """Act if it is time; True if a key was pressed (or the session started)."""
         r = self.runner
         if r.state == State.SETUP:
-            if r.engine.frames >= self.start_frame and r.engine.baseline is not None:
-                return r.start()
+            # started once its start frame is in: the runner's clock then reads it
+            if r.engine.frames > self.start_frame and r.engine.baseline is not None:
+                return r.start(at_frame=self.start_frame)
             return False
         if r.state not in State.KEY_STATES or r.held:
             return False

@@ -6,6 +6,7 @@ import atexit
 import logging
 import os
 import threading
+import time
 import weakref
 from collections import Counter
 from collections.abc import Callable
@@ -16,6 +17,7 @@ import numpy as np
 from tactile_studio.devices.frame_stream import RecordableStream, hold_frames
 from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.logbook_file import say_once
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.trials import TrialRecord
@@ -52,6 +54,7 @@ class Recorder:
         self.engine = engine
         self.row_offset = int(row_offset)
         self.base_counters = dict(base_counters or {})
+        self.device_time_offset = 0.0  # added to the device's clock (a resume continues it)
         self._lock = threading.RLock()
         metadata = sensor_metadata(engine, metadata)
         self.sensor_id: str | None = metadata.get("sensor_id")
@@ -73,6 +76,8 @@ class Recorder:
         self._carry_over()
         self._notes = [line for line in str(self.writer.metadata.get("notes", "")).split("\n")
                        if line]
+        # (engine frame, kind, time, detail) of events at frames not pulled yet
+        self._pending: list[tuple[int, str, float, dict[str, Any]]] = []
         _OPEN.add(self)
 
     @property
@@ -134,6 +139,14 @@ class Recorder:
                 w.set_counters(old.journal.counters)
         return trials
 
+    def continue_device_clock(self, offset: float) -> None:
+        """Shift this run's device times (frames and trial times) by ``offset`` seconds:
+        a resumed device starts its clock again, and the file keeps one clock. Before
+        any frame is recorded; the caller states the offset in the journal."""
+        if self.recorded:
+            raise ValueError("continue_device_clock: frames were already recorded")
+        self.device_time_offset = float(offset)
+
     def follow_rename(self, path: str | os.PathLike) -> None:
         """The open file was moved to ``path`` (resume); closing reopens it there."""
         self.writer.follow_rename(path)
@@ -143,6 +156,16 @@ class Recorder:
         """An event at the next row (runner and lab events; engine events come by
         themselves)."""
         self.writer.add_event(kind, **detail)
+
+    def add_event_at(self, engine_frame: int, kind: str, **detail: Any) -> None:
+        """An event at engine frame ``engine_frame`` (the collection runner's: where it
+        happened in the stream, not where writing has got to). Written with its file row
+        once this recorder has pulled that frame, when frames lost before it are known."""
+        with self._lock:
+            if engine_frame < self._cursor or self.stopped:
+                self.writer.add_event(kind, frame=self.row_of(engine_frame), **detail)
+            else:
+                self._pending.append((int(engine_frame), kind, time.time(), detail))
 
     def add_baseline(self, values: np.ndarray, row: int | None = None) -> None:
         """A baseline taken outside the engine, in force from ``row`` (default: the
@@ -159,6 +182,9 @@ class Recorder:
         self.catch_up()
         if self.rows_written < trial.end_sample and "dropped_frames" not in trial.flags:
             trial = trial.with_changes(flags=(*trial.flags, "dropped_frames"))
+        if self.device_time_offset:  # measured on the engine's clock: the file's is shifted
+            trial = trial.with_changes(start_time=trial.start_time + self.device_time_offset,
+                                       end_time=trial.end_time + self.device_time_offset)
         self.writer.add_trial(trial.to_dict())
         self.writer.flush()
         return trial
@@ -197,6 +223,8 @@ class Recorder:
         if self._thread.ident is not None:  # never started: catch_up() did the pulling
             self._thread.join()
         self._drain()
+        with self._lock:
+            self._write_pending(final=True)
         self._release()
         self.writer.close(background=background_compress)
         _OPEN.discard(self)
@@ -219,8 +247,8 @@ class Recorder:
         try:
             with Logbook() as book:
                 book.add_usage(self.sensor_id, self.recorded / rate, str(self.path))
-        except UserError as exc:  # the recording itself is safe on disk; say so and go on
-            logging.getLogger(__name__).warning("hours of use not logged: %s", exc)
+        except UserError as exc:  # the recording itself is safe on disk; say so (once), go on
+            say_once(f"sensor logbook not used for this recording: {exc}")
 
     def _run(self) -> None:
         try:
@@ -251,7 +279,10 @@ class Recorder:
             self.dropped += chunk.lost
             self.writer.add_event("overrun", lost=chunk.lost)
         if len(chunk):
-            self.writer.append_frames(chunk.raw, chunk.device_time, chunk.host_time,
+            device_time = chunk.device_time
+            if self.device_time_offset:
+                device_time = device_time + self.device_time_offset
+            self.writer.append_frames(chunk.raw, device_time, chunk.host_time,
                                       chunk.seq, index=np.arange(chunk.start, chunk.stop))
             self._cursor = chunk.stop
             self.recorded += len(chunk)
@@ -265,8 +296,19 @@ class Recorder:
                 self.writer.add_baseline(event["baseline"], frame)
                 event = {k: v for k, v in event.items() if k != "baseline"}
             self.writer.add_event(kind, frame=frame, time_s=t, **event)
+        self._write_pending(final=False)
         self.writer.set_counters(self._counters_since_start())
         self.writer.flush()
+
+    def _write_pending(self, final: bool) -> None:
+        """Events at frames pulled by now (``final``: all, the stream has ended)."""
+        keep = []
+        for frame, kind, t, detail in self._pending:
+            if final or frame < self._cursor:
+                self.writer.add_event(kind, frame=self.row_of(frame), time_s=t, **detail)
+            else:
+                keep.append((frame, kind, t, detail))
+        self._pending = keep
 
     def _counters_since_start(self) -> dict[str, Any]:
         """The file's counters: this run's engine counters plus ``base_counters``."""
@@ -315,6 +357,6 @@ def sensor_metadata(engine: RecordableStream,
             with Logbook() as book:
                 book.ensure_sensor(sensor, engine.layout.name)
                 meta["calibration_id"] = book.active_calibration(sensor)
-        except UserError as exc:
-            logging.getLogger(__name__).warning("sensor logbook unavailable: %s", exc)
+        except UserError as exc:  # damaged or unwritable: never written into; said once
+            say_once(f"sensor logbook not used for this recording: {exc}")
     return meta
