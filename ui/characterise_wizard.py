@@ -7,6 +7,7 @@ It only presents tactile_studio.characterise: the run happens in a worker thread
 from __future__ import annotations
 
 import threading
+import time
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,7 @@ import pyqtgraph as pg
 from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtGui import QPixmap
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFormLayout,
     QHBoxLayout,
@@ -32,11 +34,38 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.characterise import RunControl, run_characterisation
 from tactile_studio.characterise.folder import describe_run
-from tactile_studio.characterise.prepare import plan_fields, plugin_names, prepare
+from tactile_studio.characterise.prepare import (
+    plan_fields,
+    plugin_names,
+    prepare,
+    settings_from_text,
+)
 from tactile_studio.characterise.report import TABLE_KEYS
+from tactile_studio.characterise.run import save_calibration
+from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.paths import data_dir
+from tactile_studio.ui.settings import app_settings
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
+# the paper's 22,000-cycle repeatability test takes about 14 h: offered, not the default
+WIZARD_SEQUENCES = "normal,shear"
+KEY_PARENT = "characterise/parent_dir"  # where the last run folder was made
+
+
+def default_out_dir(sensor: str = "") -> Path:
+    """A new run folder, named by sensor and time, in the folder the last run went to
+    (first time: ``characterisation`` under the app's data folder, not the home folder)."""
+    parent = str(app_settings().value(KEY_PARENT) or "") or str(data_dir() / "characterisation")
+    return Path(parent) / f"{sensor or 'run'}-{time.strftime('%Y%m%d-%H%M')}"
+
+
+def _device_sensor_id(device: str, settings: str) -> str:
+    """The sensor ID the chosen device reports without opening it ("" if none)."""
+    try:
+        return create_device(device, settings_from_text(settings)).sensor_id() or ""
+    except Exception:  # noqa: BLE001 - a prefill only; the plan page reports real errors
+        return ""
 
 
 class _Bridge(QObject):
@@ -48,7 +77,7 @@ class _Bridge(QObject):
 
 
 class SetupPage(QWizardPage):
-    def __init__(self, out_dir: str) -> None:
+    def __init__(self, out_dir: str | None, sensor_id: str = "") -> None:
         super().__init__()
         self.setTitle("Instruments")
         self.setSubTitle("The sensor, the stage carrying the indenter, and the load cell.")
@@ -66,9 +95,10 @@ class SetupPage(QWizardPage):
             self.combos[kind], self.sets[kind] = combo, edit
             form.addRow(f"{kind.capitalize()}:", combo)
             form.addRow(f"{kind.capitalize()} settings:", edit)
-        self.sensor = QLineEdit()
+        sensor_id = sensor_id or _device_sensor_id("simulated", defaults["device"])
+        self.sensor = QLineEdit(sensor_id)
         self.sensor.setPlaceholderText("sensor id for the report (optional)")
-        self.out = QLineEdit(out_dir)
+        self.out = QLineEdit(out_dir or str(default_out_dir(sensor_id)))
         form.addRow("Sensor id:", self.sensor)
         form.addRow("Output folder:", self.out)
         self.error = QLabel()
@@ -77,7 +107,10 @@ class SetupPage(QWizardPage):
         form.addRow(self.error)
 
     def validatePage(self) -> bool:
-        return self.wizard().confirm_out_dir()
+        if not self.wizard().confirm_out_dir():
+            return False
+        app_settings().setValue(KEY_PARENT, str(self.out_dir().expanduser().resolve().parent))
+        return True
 
     def instruments(self) -> list[str]:
         """Plugin name and settings text of the device, stage and load cell, in order."""
@@ -107,12 +140,24 @@ class PlanPage(QWizardPage):
         self.table.verticalHeader().hide()
         self.table.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
+        wizard_defaults = {"sequences": WIZARD_SEQUENCES}
         for i, (name, value) in enumerate(rows):
+            value = wizard_defaults.get(name, value)
             item = QTableWidgetItem(name)
             item.setFlags(item.flags() & ~Qt.ItemIsEditable)
             self.table.setItem(i, 0, item)
             self.table.setItem(i, 1, QTableWidgetItem(value))
         lay.addWidget(self.table)
+        cycles = dict(rows)["cycles"]
+        note = QLabel(f"The paper's 'repeat' sequence ({int(cycles):,} cycles, many hours) is "
+                      "left out: add it to sequences for a repeatability run.")
+        note.setWordWrap(True)
+        note.setStyleSheet("color: #606770;")
+        lay.addWidget(note)
+        self.save_calibration = QCheckBox(
+            "Save the calibration to the sensor's logbook (it becomes the active one)")
+        self.save_calibration.setToolTip("The CLI's --save-calibration; needs a sensor id")
+        lay.addWidget(self.save_calibration)
         self.error = QLabel()
         self.error.setStyleSheet("color: #b00020")
         self.error.setWordWrap(True)
@@ -139,6 +184,10 @@ class PlanPage(QWizardPage):
 
     def validatePage(self) -> bool:
         wiz: CharacteriseWizard = self.wizard()
+        if self.save_calibration.isChecked() and not wiz.setup.sensor_id():
+            self.error.setText("Saving the calibration needs a sensor id (the logbook files "
+                               "it there): enter one on the Instruments page")
+            return False
         try:
             wiz.prepared = wiz.prepare_run()
         except UserError as exc:
@@ -155,15 +204,22 @@ class RunPage(QWizardPage):
         self.setSubTitle("Sensor against load cell at every step. Pause waits for the end of "
                          "the taxel; abort lifts the indenter first.")
         lay = QVBoxLayout(self)
-        self.plot = pg.PlotWidget(background="w")
-        self.plot.setLabel("bottom", "load cell stress (kPa)")
-        self.plot.setLabel("left", "sensor (relative change)")
-        self.plot.addLegend(offset=(10, 10))
+        # normal (tens of kPa) and shear (a few kPa either way) each on its own axes: on
+        # one plot the shear points were a smudge at the normal axis's origin
+        plots = QHBoxLayout()
+        self.plot = pg.PlotWidget(background="w", title="Normal")
+        self.plot.setLabel("bottom", "load cell normal stress (kPa)")
+        self.plot.setLabel("left", "sensor normal (relative change)")
+        self.shear_plot = pg.PlotWidget(background="w", title="Shear (along the drag)")
+        self.shear_plot.setLabel("bottom", "load cell shear stress (kPa)")
+        self.shear_plot.setLabel("left", "sensor shear (relative change)")
         self.normal = self.plot.plot([], [], pen=None, symbol="o", symbolSize=6,
                                      symbolBrush="#1f77b4", name="normal")
-        self.shear = self.plot.plot([], [], pen=None, symbol="t", symbolSize=6,
-                                    symbolBrush="#2ca02c", name="shear (along the drag)")
-        lay.addWidget(self.plot, 1)
+        self.shear = self.shear_plot.plot([], [], pen=None, symbol="t", symbolSize=6,
+                                          symbolBrush="#2ca02c", name="shear (along the drag)")
+        plots.addWidget(self.plot, 1)
+        plots.addWidget(self.shear_plot, 1)
+        lay.addLayout(plots, 1)
         self.status = QLabel("Ready")
         self.bar = QProgressBar()
         self.bar.setRange(0, 1000)
@@ -234,11 +290,15 @@ class ReportPage(QWizardPage):
 class CharacteriseWizard(QWizard):
     """Instruments → plan → run → report, on the core's characterisation API."""
 
-    def __init__(self, out_dir: str = "characterisation", parent=None) -> None:  # noqa: ANN001
+    def __init__(self, out_dir: str | None = None, parent=None,  # noqa: ANN001
+                 sensor_id: str = "") -> None:
         super().__init__(parent)
         self.setWindowTitle("Characterise taxels")
         self.setOption(QWizard.NoBackButtonOnLastPage, True)
-        self.setup, self.plan_page = SetupPage(out_dir), PlanPage()
+        self.setup, self.plan_page = SetupPage(out_dir, sensor_id), PlanPage()
+        self._auto_out = "" if out_dir else self.setup.out.text()
+        self.setup.sensor.textEdited.connect(self._name_folder)
+        self.saved_calibration: int | None = None
         self.run_page, self.report = RunPage(), ReportPage()
         for page in (self.setup, self.plan_page, self.run_page, self.report):
             self.addPage(page)
@@ -260,6 +320,12 @@ class CharacteriseWizard(QWizard):
     @property
     def out_dir(self) -> Path:
         return self.setup.out_dir()
+
+    def _name_folder(self, sensor: str) -> None:
+        """A folder the wizard named follows the sensor id typed (one typed by hand stays)."""
+        if self.setup.out.text() == self._auto_out:
+            self._auto_out = str(Path(self._auto_out).parent / default_out_dir(sensor.strip()).name)
+            self.setup.out.setText(self._auto_out)
 
     def confirm_out_dir(self) -> bool:
         """True when the output folder can take the run: it holds none, or the user
@@ -292,6 +358,10 @@ class CharacteriseWizard(QWizard):
             self._start()
         if self.page(page_id) is self.report:
             self.report.show_result(self.result, self.error, self.out_dir)
+            if self.saved_calibration is not None:
+                self.report.summary.setText(
+                    f"{self.report.summary.text()} Calibration #{self.saved_calibration} of "
+                    f"{self.setup.sensor_id()} saved to the logbook (active).")
 
     def _start(self) -> None:
         p, bridge, out = self.prepared, self._bridge, self.out_dir
@@ -323,12 +393,25 @@ class CharacteriseWizard(QWizard):
             path = self.out_dir / "characterisation.json"
             result = json.loads(path.read_text()) if path.exists() else None
         self.result, self.error = result, error
+        if result is not None and not error and self.plan_page.save_calibration.isChecked():
+            self._save_calibration()
         page = self.run_page
         page.finished_run = True
         page.status.setText("Finished" if not error else f"Stopped: {error}")
         for b in (page.pause, page.resume, page.abort):
             b.setEnabled(False)
         page.completeChanged.emit()
+
+    def _save_calibration(self) -> None:
+        """The CLI's --save-calibration: calibration.json into the logbook, active."""
+        import json
+
+        sensor = self.setup.sensor_id() or ""
+        try:
+            cal = json.loads((self.out_dir / "calibration.json").read_text())
+            self.saved_calibration = save_calibration(sensor, cal)
+        except (UserError, OSError, ValueError) as exc:
+            self.error = f"calibration not saved: {exc}"
 
     def _pause(self) -> None:
         self.control.pause()

@@ -165,6 +165,8 @@ class HealthWizard(QWizard):
         self.setWizardStyle(QWizard.WizardStyle.ClassicStyle)
         self.setup = setup
         self.run_page = HealthRunPage(f"{title}: running", self._make_run)
+        # "Cancel calibration", "Cancel wellness check": the button names what it stops
+        self.run_page.cancel_button.setText(f"Cancel {title[0].lower()}{title[1:]}")
         self.result_page = result_page(self.run_page)
         for page in (self.setup, self.run_page, self.result_page):
             self.addPage(page)

@@ -9,6 +9,7 @@ and the virtual 11x11 grid line up and arrows point the way the skin is dragged
 from __future__ import annotations
 
 import math
+import string
 
 import numpy as np
 import pyqtgraph as pg
@@ -182,9 +183,11 @@ class HeatmapView(CellPointer, QWidget):
 
     # ---- public API ----------------------------------------------------------------
     def set_layout(self, layout: Layout | None) -> None:
-        """Label the axes with the layout's taxel names (rows A.., columns 1..)."""
-        self._layout = layout
+        """Label the axes with the layout's taxel names (rows A.., columns 1..). None (no
+        device) keeps the last sensor's layout: the map keeps its taxel names whether a
+        device is connected or not."""
         if layout is not None:
+            self._layout = layout
             vr, vc = layout.virtual_shape
             self.physical_button.setText(f"Physical {layout.rows}×{layout.cols}")
             self.virtual_button.setText(f"Virtual {vr}×{vc}")
@@ -359,11 +362,13 @@ class HeatmapView(CellPointer, QWidget):
         rows = round((self._shape[0] - 1) * step) + 1
         cols = round((self._shape[1] - 1) * step) + 1
         # bounds: the margin strips left of and above the map, clear of the cells
+        # taxel names (A.. down, 1.. across) in every state, with or without a layout
+        name = lay.taxel_name if lay is not None else _taxel_name
         self.row_labels.set_labels(
-            [(lay.taxel_name(r, 0)[:-1] if lay else str(r), -0.62, r) for r in range(rows)],
+            [(name(r, 0)[:-1], -0.62, r) for r in range(rows)],
             (1, 0.5), QRectF(-1.5, -0.5, 1.0, rows))
         self.col_labels.set_labels(
-            [(str(c + 1) if lay else str(c), c, -0.6) for c in range(cols)],
+            [(str(c + 1), c, -0.6) for c in range(cols)],
             (0.5, 1), QRectF(-0.5, -1.5, cols, 1.0))
 
     def _draw_arrows(self, sx: np.ndarray | None, sy: np.ndarray | None, step: float) -> None:
@@ -374,6 +379,13 @@ class HeatmapView(CellPointer, QWidget):
         k = self._arrow_scale
         self.arrows.set_arrows(cc * step, rr * step, sx[rr, cc] * k, sy[rr, cc] * k,
                                head=0.35, min_head=0.08 * step, max_head=0.28 * step)
+
+
+def _taxel_name(row: int, col: int) -> str:
+    """A taxel's name before any sensor gave a layout (the layouts' own rule)."""
+    letters = string.ascii_uppercase
+    letter = letters[row] if row < 26 else letters[row // 26 - 1] + letters[row % 26]
+    return f"{letter}{col + 1}"
 
 
 __all__ = ["COLOR_SCHEMES", "HeatmapView", "diverging_colormap", "nice_ceil", "strip_colors"]

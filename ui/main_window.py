@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QByteArray, QEventLoop, Qt, QTimer
@@ -200,21 +199,43 @@ class MainWindow(QMainWindow):
         disconnected first: a serial port has one owner)."""
         from tactile_studio.ui.calibration_wizard import CalibrationWizard
         from tactile_studio.ui.wellness_wizard import WellnessWizard
-        if self.controller.engine is not None and self.controller.engine.running:
-            self.panel.disconnect_device()
+        was_live = self._lend_device()
         cls = WellnessWizard if kind == "wellness" else CalibrationWizard
         self._wizard = cls(self.panel.device_name() or DEFAULT_DEVICE, self.panel.values(),
                            parent=self)
+        self._return_device_after(self._wizard, was_live)
         self._wizard.show()
         return self._wizard
+
+    def _lend_device(self) -> bool:
+        """Disconnect the live view for a wizard (a serial port has one owner); True if
+        it was live, so the wizard's end connects it again."""
+        if self.controller.engine is not None and self.controller.engine.running:
+            self.panel.disconnect_device()
+            self.heatmap.set_readout_text(
+                "Disconnected while a wizard uses the device; it reconnects when the "
+                "wizard closes.")
+            return True
+        return False
+
+    def _return_device_after(self, wizard: QWidget, was_live: bool) -> None:
+        """When ``wizard`` closes, leave the live view as the wizard found it."""
+        def back(*_: object) -> None:
+            if was_live and not (self.controller.engine and self.controller.engine.running):
+                self.panel.connect_device()
+            self._update_readout()
+        wizard.finished.connect(back)
 
     def open_characterisation(self) -> QWidget:
         """The characterisation wizard; it opens its own device, stage and load cell (the
         live device is disconnected first, as for the health wizards)."""
         from tactile_studio.ui.characterise_wizard import CharacteriseWizard
-        if self.controller.engine is not None and self.controller.engine.running:
-            self.panel.disconnect_device()
-        self._wizard = CharacteriseWizard(str(Path.home() / "characterisation"))
+        sensor = self.panel.sensor_box.currentText().strip()
+        if not sensor and self.controller.engine is not None:
+            sensor = self.controller.engine.sensor_id() or ""
+        was_live = self._lend_device()
+        self._wizard = CharacteriseWizard(sensor_id=sensor)
+        self._return_device_after(self._wizard, was_live)
         self._wizard.resize(1000, 760)
         self._wizard.show()
         return self._wizard
@@ -307,10 +328,12 @@ class MainWindow(QMainWindow):
 
     def _update_readout(self) -> None:
         row, col = self._hover
-        if row < 0:
+        if row < 0 or self.live.layout is None:
             frame = self._shown
             hint = "Hover over a taxel for its readout; click it to chart it."
-            if frame is not None and frame.provisional_baseline:
+            if self.live.layout is None:  # not a stale "Taking the baseline..."
+                hint = "Not connected: choose a device and Connect."
+            elif frame is not None and frame.provisional_baseline:
                 hint = "Taking the baseline: keep hands off the sensor…"
             self.heatmap.set_readout_text(hint)
             return
@@ -354,6 +377,7 @@ class MainWindow(QMainWindow):
             self._mark_strip_taxels()
         self._shown = None
         self._painted_index = -1
+        self._update_readout()
         self.latency.clear()
         if self.persist and self.controller.device_name:
             self.save_device_settings()

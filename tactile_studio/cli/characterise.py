@@ -54,7 +54,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def run_wizard(out: str) -> int:
+def run_wizard(out: str | None, sensor: str | None = None) -> int:
+    """The wizard; without --out it names a run folder under the data folder."""
     from tactile_studio.cli.gui import require_display
 
     require_display("run `tactile-studio characterise ... --out DIR` on a headless machine")
@@ -62,7 +63,7 @@ def run_wizard(out: str) -> int:
     from tactile_studio.ui.characterise_wizard import CharacteriseWizard
 
     app = ensure_app()
-    wizard = CharacteriseWizard(out)
+    wizard = CharacteriseWizard(out, sensor_id=sensor or "")
     wizard.resize(1000, 760)
     wizard.show()
     return 0 if app.exec() == 0 else 1
@@ -70,7 +71,7 @@ def run_wizard(out: str) -> int:
 
 def run(args: argparse.Namespace) -> int:
     if args.wizard:
-        return run_wizard(args.out or "characterisation")
+        return run_wizard(args.out, args.sensor)
     if not args.out:
         raise UserError("characterise: --out DIR is required (or use --wizard)")
     params = parse_set_options(args.param)
