@@ -83,6 +83,7 @@ class MainWindow(QMainWindow):
         self.strip = StripChart(seconds=self.live.history_s)
         self.status = LiveStatusBar()
         self.setStatusBar(self.status)
+        self.status.follow(self.controller)  # a device gone silent while recording
         self.device_dock = self._dock("Device", "deviceDock", self._scrolled(self.panel),
                                       Qt.DockWidgetArea.LeftDockWidgetArea)
         self.strip_dock = self._dock("Strip chart", "stripDock", self.strip,
@@ -158,6 +159,8 @@ class MainWindow(QMainWindow):
         from tactile_studio.ui.collect.app import add_collection_menu
         add_collection_menu(self, file_menu,
                             lambda: (self.controller.engine, self.controller.device_name))
+        from tactile_studio.ui.remote_control import add_remote_control  # off by default
+        self.remote_control = add_remote_control(self, file_menu)
         file_menu.addSeparator()
         quit_action = QAction("&Quit", self)
         quit_action.setShortcut(QKeySequence.StandardKey.Quit)
@@ -448,6 +451,7 @@ class MainWindow(QMainWindow):
         self.status_timer.stop()
         if self.persist:
             self.save_settings()
+        self.remote_control.close()
         self.controller.disconnect()  # finishes a recording first (the stop order)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from PySide6.QtWidgets import QLabel, QStatusBar, QWidget
 
 from tactile_studio.live import LiveStatus
@@ -21,9 +23,35 @@ class LiveStatusBar(QStatusBar):
         self.latency = QLabel()
         self.latency.setToolTip("Device-to-paint latency: paint time minus the newest "
                                 "frame's host arrival time (median of the last second)")
+        self.warning = QLabel()  # a device gone silent while recording (stream health)
+        self.warning.setObjectName("healthWarning")
+        self.warning.setStyleSheet("QLabel#healthWarning { background: #f5c542; color: #222;"
+                                   " font-weight: bold; padding: 1px 6px; }")
+        self.warning.hide()
+        self.remote = QLabel()  # "remote :22345" while experiment scripts may drive us
+        self.remote.hide()
         self.addWidget(self.state, 1)
-        for w in (self.rate, self.fps, self.malformed, self.dropped, self.latency):
+        self.addWidget(self.warning)
+        for w in (self.remote, self.rate, self.fps, self.malformed, self.dropped, self.latency):
             self.addPermanentWidget(w)
+
+    def follow(self, session: Any) -> None:
+        """Show ``session``'s stream-health warnings (live/stream_health.py) until the
+        device sends again or the next recording starts."""
+        def on_event(event: dict[str, Any]) -> None:
+            if event["kind"] == "health":
+                self.warning.setText(f"\u26a0 {event['message']}")
+                self.warning.setToolTip(event["message"])
+                self.warning.setVisible(bool(event.get("silent")))
+            elif event["kind"] == "recording_started":
+                self.warning.hide()
+        session.add_listener(on_event)
+
+    def set_remote(self, text: str, tip: str = "") -> None:
+        """The remote control's port (empty: off)."""
+        self.remote.setText(text)
+        self.remote.setToolTip(tip)
+        self.remote.setVisible(bool(text))
 
     def update_status(self, st: LiveStatus, display_fps: float,
                       latency_ms: float | None) -> None:

@@ -13,6 +13,7 @@ from typing import Any
 
 from tactile_studio.cli import tables
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
+from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
@@ -66,6 +67,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
     session = AcquisitionSession()
+    watch_health(session)  # a device gone silent while recording: a warning line
     engine = session.use_device(device, args.device)
     # The recorder exists before the engine starts so the connect and tare events are kept.
     session.start_recording(out, metadata={"notes": args.notes, "source": "record"})

@@ -36,6 +36,7 @@ from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.live.status import LiveStatus
+from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
 
 Listener = Callable[[dict[str, Any]], None]
@@ -46,12 +47,15 @@ class AcquisitionSession:
 
     Events (``add_listener``; dicts with a ``kind``), all emitted on the caller's thread:
     ``connected`` (device), ``disconnected``, ``state`` (state: the engine's new
-    state, seen by :meth:`poll`), ``recording_started`` (path) and ``recording_stopped``
-    (path, reason: ``requested``, ``limit`` or ``device``).
+    state, seen by :meth:`poll`), ``recording_started`` (path), ``recording_stopped``
+    (path, reason: ``requested``, ``limit`` or ``device``) and ``health`` (message: the
+    device went silent while recording, or came back; live/stream_health.py).
     """
 
     #: compress a stopped recording on a worker thread (the GUI's session sets it)
     compress_in_background = False
+    #: a recording warns (event ``health``) when the device is silent this long
+    silence_warning_s = DEFAULT_SILENCE_S
 
     def __init__(self, *, capacity: int = 1 << 16,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -71,6 +75,7 @@ class AcquisitionSession:
         self._stop_at: float | None = None
         self._stop_rows: int | None = None
         self._stop_all = False
+        self._health: StreamHealth | None = None
 
     # ---- events ------------------------------------------------------------------------
     def add_listener(self, fn: Listener) -> Callable[[], None]:
@@ -165,6 +170,8 @@ class AcquisitionSession:
                                  base_counters=base_counters)
         if start:
             self.recorder.start()
+        self._health = StreamHealth(self.engine, self.device_name, self.silence_warning_s,
+                                    self.clock)
         self._emit("recording_started", path=str(path))
         return self.recorder
 
@@ -181,6 +188,7 @@ class AcquisitionSession:
         """Finish the file; returns its path (None if nothing was recording)."""
         rec, self.recorder = self.recorder, None
         self._stop_at = self._stop_rows = None
+        self._health = None
         if rec is None:
             return None
         self._close_outlets()  # an outlet's last markers go into the file too
@@ -206,6 +214,9 @@ class AcquisitionSession:
         rec = self.recorder
         if rec is None:
             return
+        health = self._health
+        for message in health.check() if health is not None else []:
+            self._emit("health", message=message, silent=health.silent)
         if rec.stopped:  # closed by its other user (a collection session's close())
             self.stop_recording()
         elif EngineState(eng.state).is_over:
