@@ -8,6 +8,7 @@ import sys
 import time
 
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
@@ -50,6 +51,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
     control = RemoteControl(session, out, args.port, args.host,
                             metadata={"notes": "recorded by listen"})
     session.add_listener(lambda e: _report(e))
+    watch_health(session)
     port = control.listen()
     token = CancelToken()
     try:

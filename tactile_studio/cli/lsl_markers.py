@@ -7,6 +7,8 @@ import argparse
 import sys
 from typing import Any
 
+from tactile_studio.cli.recording_warnings import warn
+
 MARKERS_HELP = ("record the markers of this LSL marker stream (by name; repeatable), each "
                 "as an event at the frame its timestamp falls on, e.g. PsychoPy's")
 
@@ -14,11 +16,6 @@ MARKERS_HELP = ("record the markers of this LSL marker stream (by name; repeatab
 def add_markers_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--markers", action="append", metavar="NAME", default=None,
                         help=MARKERS_HELP)
-
-
-def warn(message: str) -> None:
-    """A problem during a recording, on a line of its own (stderr)."""
-    print(f"\nwarning: {message}", file=sys.stderr, flush=True)
 
 
 def start_markers(engine: Any, names: list[str] | None) -> Any:
