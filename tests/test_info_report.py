@@ -30,7 +30,7 @@ def _collected(path, with_trials: bool = True):
         w.add_baseline(raw[:30].mean(axis=0), 0)
         t = 1.7e9 + np.arange(400) / 43.0
         w.append_frames(raw, t, t)
-        w.add_event("block_start", frame=0, block=0)
+        w.add_event("block_start", frame=70, block=0)  # after the practice trial
         if with_trials:
             for i, (b, g, k) in enumerate(plan):
                 s = 20 + 70 * i

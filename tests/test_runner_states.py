@@ -165,7 +165,7 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
         assert s.closed_cleanly and len(s.trials) == 2
         n_old = s.n_frames
         old_trials = s.trials
-    rig2 = make_rig(tmp_path, protocol, resume=path, seed=1)
+    rig2 = make_rig(tmp_path, protocol, resume=path)  # the same sensor (sim-0)
     r2 = rig2.runner
     try:
         assert rig2.session.backup.exists() and rig2.session.path == path

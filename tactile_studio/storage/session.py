@@ -16,9 +16,11 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.aux_signals import AuxSignal, read_aux
+from tactile_studio.storage.segments import segment_starts, segmented_rate_hz
 from tactile_studio.storage.session_checks import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
+from tactile_studio.storage.session_recover import open_cut_short, written_rows
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
 SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
@@ -65,11 +67,13 @@ def derived_session_id(text: str) -> str:
 _SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 
-def _check_not_truncated(path: Path) -> None:
-    """Compare the superblock's end-of-file address with the real size.
+def _check_not_truncated(path: Path) -> str:
+    """Compare the superblock's end-of-file address with the real size: "" or why the
+    file is short ("truncated (...)").
 
     A truncated file must be caught before h5py opens it: an SWMR reader retries
-    reading damaged metadata for a long time instead of failing.
+    reading damaged metadata for a long time instead of failing. A recording cut short
+    by a full disk is short too; storage/session_recover.py opens it with bounded retries.
     """
     size = path.stat().st_size
     with open(path, "rb") as fh:
@@ -87,7 +91,8 @@ def _check_not_truncated(path: Path) -> None:
         raise SessionFileError(f"{path}: damaged HDF5 superblock")
     eof = int.from_bytes(head[eof_at:eof_at + off], "little")
     if size < eof:
-        raise SessionFileError(f"{path}: truncated ({size} of {eof} bytes present)")
+        return f"{path}: truncated ({size} of {eof} bytes present)"
+    return ""
 
 
 def _open_h5(path: Path) -> h5py.File:
@@ -96,7 +101,12 @@ def _open_h5(path: Path) -> h5py.File:
     if path.is_dir():
         raise SessionFileError(f"{path}: is a folder, not a session file")
     check_regular_file(path)  # a FIFO or device would block or never end
-    _check_not_truncated(path)
+    short = _check_not_truncated(path)
+    if short:  # a recording cut short by a failed write opens; a damaged file does not
+        f = open_cut_short(path)
+        if f is None:
+            raise SessionFileError(short)
+        return f
     try:
         return h5py.File(path, "r", locking=False)
     except OSError as exc:
@@ -138,6 +148,8 @@ class Session:
             f[f"frames/{n}"].shape[0] for n in ("device_time", "host_time", "seq", "index")]
         # After a crash the columns may be one flush apart: trust the shortest.
         self.n_frames = int(min(cols))
+        if not self.journal.closed and self.n_frames:  # rows allocated, never written
+            self.n_frames = written_rows(f["frames/host_time"], f["frames/raw"], self.n_frames)
         layout_name = self.journal.metadata.get("layout", {}).get("name") or f.attrs.get("layout")
         if not layout_name:
             raise SessionFileError(f"{self.path}: session metadata names no layout")
@@ -229,10 +241,13 @@ class Session:
         """What ``tactile-studio info --json`` prints."""
         n = self.n_frames
         duration = rate = 0.0
+        # a resume starts a new segment: measured within segments, the time between two
+        # runs of the device is no frame time (docs/session-format.md, "Segments")
+        resumes = [e["frame"] for e in segment_starts(self.events, n)]
         if n >= 2:
-            rate = measured_rate_hz(self.column("device_time", 0, n))
+            rate = segmented_rate_hz(self.column("device_time", 0, n), resumes)
             if rate <= 0:
-                rate = measured_rate_hz(self.column("host_time", 0, n))
+                rate = segmented_rate_hz(self.column("host_time", 0, n), resumes)
             if rate > 0:
                 duration = n / rate
         counters = self.journal.counters
@@ -246,7 +261,9 @@ class Session:
             "rate_hz": round(rate, 3),
             "malformed": int(sum(by_kind_total.values())),
             "malformed_by_kind": by_kind,
-            "gaps": sum(1 for e in self.events if e.get("kind") == "gap"),
+            # a resume is a gap in the recording too (the device stopped between runs)
+            "gaps": sum(1 for e in self.events if e.get("kind") == "gap") + len(resumes),
+            "segments": len(resumes) + 1,
             "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
             "closed_cleanly": self.closed_cleanly,
             "layout": self.layout.name,

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.storage.segments import is_segment_start, segment_starts
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import TrialStatus
 
@@ -38,19 +39,6 @@ class CheckResult:
 
     def to_dict(self) -> dict[str, Any]:
         return {"path": self.path, "ok": self.ok, "violations": list(self.violations)}
-
-
-def is_segment_start(event: dict[str, Any]) -> bool:
-    """A resume of the file (not the runner's resume after a pause): a new recording
-    segment starts at its row."""
-    return event.get("kind") == "resume" and ("from_file" in event or "segment" in event)
-
-
-def segment_starts(events: list[dict[str, Any]], n_frames: int) -> list[dict[str, Any]]:
-    """The resume events that start a new segment inside the frames, in row order."""
-    starts = [e for e in events if is_segment_start(e)
-              and isinstance(e.get("frame"), int) and 0 < e["frame"] < n_frames]
-    return sorted(starts, key=lambda e: e["frame"])
 
 
 def check_file(path: str | os.PathLike) -> CheckResult:
@@ -101,9 +89,11 @@ def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None
     dev = s.column("device_time")
     for e in segs:
         r = e["frame"]
-        if dev[r] < dev[r - 1] and "device_time_offset" not in e:
+        if dev[r] < dev[r - 1]:
+            how = ("despite its device_time_offset" if "device_time_offset" in e
+                   else "and the resume records no device_time_offset")
             out.append(f"device clock restarts at row {r} after a resume ({dev[r - 1]:.6g} -> "
-                       f"{dev[r]:.6g} s) and the resume records no device_time_offset")
+                       f"{dev[r]:.6g} s) {how}")
 
 
 def _check_metadata(s: Session, out: list[str]) -> None:
@@ -206,6 +196,7 @@ def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> N
         blocks.setdefault(int(t["block"]), []).append(t)
     starts = [e for e in s.events if e.get("kind") == "block_start" and _frame(e) is not None]
     first_start: dict[int, int] = {}
+    last_start: dict[int, int] = {}
     for e in starts:
         try:
             b = int(e["block"])
@@ -213,19 +204,21 @@ def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> N
             out.append(f"block_start at frame {e['frame']}: no block number")
             continue
         first_start[b] = min(first_start.get(b, e["frame"]), e["frame"])
+        last_start[b] = max(last_start.get(b, e["frame"]), e["frame"])
+    # a redo may reopen an earlier block after this one began: the runner then starts
+    # this block again, so its last block_start follows every trial of earlier blocks
+    for b, frame in sorted(last_start.items()):
         before = [t for t in trials if int(t["block"]) < b]
         if before:
             last = max(before, key=lambda t: int(t["end_sample"]))
-            if e["frame"] < int(last["end_sample"]):
-                out.append(f"block_start of block {b} at frame {e['frame']} is before trial "
+            if frame < int(last["end_sample"]):
+                out.append(f"block_start of block {b} at frame {frame} is before trial "
                            f"{last['index']} of block {last['block']} ends (row "
                            f"{last['end_sample']})")
     if starts:
         for b, ts in sorted(blocks.items()):
             first = min(ts, key=lambda t: int(t["start_sample"]))
-            if b not in first_start:
-                out.append(f"block {b} has trials but no block_start event")
-            elif first_start[b] > int(first["start_sample"]):
+            if b in first_start and first_start[b] > int(first["start_sample"]):
                 out.append(f"block_start of block {b} at frame {first_start[b]} is after its "
                            f"first trial {first['index']} starts (row {first['start_sample']})")
     if trials:
@@ -278,5 +271,4 @@ def summary_line(result: CheckResult, shown: int = 3) -> str:
             + "; ".join(v[:shown]) + more)
 
 
-__all__ = ["CheckResult", "check_file", "check_session", "is_segment_start",
-           "segment_starts", "summary_line"]
+__all__ = ["CheckResult", "check_file", "check_session", "summary_line"]
