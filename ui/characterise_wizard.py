@@ -40,7 +40,7 @@ from tactile_studio.characterise.prepare import (
     prepare,
     settings_from_text,
 )
-from tactile_studio.characterise.report import TABLE_KEYS
+from tactile_studio.characterise.report import TABLE_KEYS, column_title, format_value
 from tactile_studio.characterise.run import save_calibration
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
@@ -262,7 +262,7 @@ class ReportPage(QWizardPage):
         self.summary.setTextInteractionFlags(Qt.TextSelectableByMouse)
         lay.addWidget(self.summary)
         self.table = QTableWidget(0, len(TABLE_KEYS) + 1)
-        self.table.setHorizontalHeaderLabels(["taxel", *[k.replace("_", " ") for k in TABLE_KEYS]])
+        self.table.setHorizontalHeaderLabels(["Taxel", *[column_title(k) for k in TABLE_KEYS]])
         self.table.verticalHeader().hide()
         lay.addWidget(self.table, 1)
         self.maps = QLabel()
@@ -279,8 +279,7 @@ class ReportPage(QWizardPage):
         for r, (name, m) in enumerate(taxels.items()):
             self.table.setItem(r, 0, QTableWidgetItem(name))
             for c, key in enumerate(TABLE_KEYS, start=1):
-                v = m.get(key)
-                self.table.setItem(r, c, QTableWidgetItem("–" if v is None else f"{v:.4g}"))
+                self.table.setItem(r, c, QTableWidgetItem(format_value(key, m.get(key))))
         self.table.resizeColumnsToContents()
         maps = out / "figures" / "maps.png"
         if maps.exists():

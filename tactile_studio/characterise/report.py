@@ -19,10 +19,50 @@ from tactile_studio.sensor.layout import Layout
 TABLE_KEYS = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
               "shear_sensitivity_x", "shear_sensitivity_y", "r2_shear", "crosstalk_max",
               "relaxation_s", "hysteresis", "shear_offset", "repeat_drift")
-MAPS = (("normal_sensitivity_low", "normal, low range (/kPa)"),
-        ("shear_sensitivity_x", "shear x (/kPa)"),
-        ("r2_shear", "shear R² (worst dir.)"),
-        ("crosstalk_max", "normal crosstalk (max)"))
+# what a lab notebook reads: (column title, unit, how the value is shown)
+_PCT = "pct"
+COLUMNS: dict[str, tuple[str, str, str]] = {
+    "normal_sensitivity_low": ("Normal sensitivity, low range", "/kPa", "{:.4g}"),
+    "normal_sensitivity_high": ("Normal sensitivity, high range", "/kPa", "{:.4g}"),
+    "breakpoint_kpa": ("Breakpoint", "kPa", "{:.1f}"),
+    "shear_sensitivity_x": ("Shear sensitivity x", "/kPa", "{:.4g}"),
+    "shear_sensitivity_y": ("Shear sensitivity y", "/kPa", "{:.4g}"),
+    "r2_shear": ("Shear fit R² (worst direction)", "", "{:.3f}"),
+    "crosstalk_max": ("Normal crosstalk, worst neighbour", "%", _PCT),
+    "relaxation_s": ("Relaxation time constant", "s", "{:.2f}"),
+    "hysteresis": ("Hysteresis", "% of loading area", _PCT),
+    "shear_offset": ("Shear offset after release", "% of peak", _PCT),
+    "repeat_drift": ("Peak drift over the repeats", "%", _PCT),
+}
+# maps: sensitivities against the array's median (the nominal value) within a tolerance,
+# so a 3% spread looks like the 3% it is; R² and crosstalk on fixed, readable scales
+TOLERANCE_PCT = 10.0
+MAPS = (("normal_sensitivity_low", "Normal sensitivity, low range"),
+        ("shear_sensitivity_x", "Shear sensitivity x"),
+        ("r2_shear", "Shear fit R² (worst direction)"),
+        ("crosstalk_max", "Normal crosstalk, worst neighbour"))
+
+
+def column_title(key: str) -> str:
+    """"Breakpoint (kPa)": a table header with its unit."""
+    title, unit, _ = COLUMNS.get(key, (key.replace("_", " ").capitalize(), "", ""))
+    return f"{title} ({unit})" if unit else title
+
+
+def pct(fraction: float) -> str:
+    """A fraction as a percentage with one decimal; never "-0.0%"."""
+    v = round(float(fraction) * 100, 1)
+    return f"{v + 0.0:.1f}%" if v != 0 else "0.0%"
+
+
+def format_value(key: str, v: Any) -> str:
+    """A table cell: "–" for missing or not measured, percentages for fractions."""
+    if v is None or (isinstance(v, float) and not np.isfinite(v)):
+        return "–"
+    fmt = COLUMNS.get(key, ("", "", "{:.4g}"))[2]
+    if fmt == _PCT:
+        return pct(v)[:-1]  # the header carries the unit
+    return fmt.format(v) if isinstance(v, (int, float)) else str(v)
 
 
 def _figure(w: float, h: float, fig=None):  # noqa: ANN001, ANN202
@@ -125,7 +165,7 @@ def neighbours_figure(layout: Layout, name: str, metrics: dict[str, Any],
         ax.imshow(grid, cmap="viridis", vmin=0, vmax=max(np.nanmax(grid), 1e-6)
                   if np.isfinite(grid).any() else 1)
         for (r, c), v in np.ndenumerate(grid):
-            label = name if (r, c) == (1, 1) else (f"{v * 100:.1f}%" if np.isfinite(v) else "")
+            label = name if (r, c) == (1, 1) else (pct(v) if np.isfinite(v) else "")
             ax.text(c, r, label, ha="center", va="center", fontsize=8,
                     color="white" if (r, c) != (1, 1) else "black")
         ax.set_title(f"{name}: {title}", fontsize=9)
@@ -134,25 +174,62 @@ def neighbours_figure(layout: Layout, name: str, metrics: dict[str, Any],
     return fig
 
 
+def _map_scale(key: str, grid: np.ndarray) -> tuple[np.ndarray, str, float, float, str, str]:
+    """(values to colour, colour map, low, high, colour-bar label, cell text format) of
+    one map: sensitivities as % from the array median within ±2x the tolerance, R² from
+    0.9 to 1, crosstalk in % from 0."""
+    finite = grid[np.isfinite(grid)]
+    if key.endswith(("sensitivity_low", "sensitivity_x")):
+        nominal = float(np.median(finite)) if finite.size else float("nan")
+        dev = (grid / nominal - 1) * 100 if nominal else grid * np.nan
+        span = 2 * TOLERANCE_PCT
+        return (dev, "RdBu_r", -span, span,
+                f"% from the median {nominal:.4g} /kPa (tolerance ±{TOLERANCE_PCT:g}%)",
+                "{:+.1f}%")
+    if key.startswith("r2"):
+        return grid, "viridis", 0.9, 1.0, "R² (below 0.9 shown as 0.9)", "{:.3f}"
+    top = max(10.0, float(np.ceil(finite.max() * 100)) if finite.size else 10.0)
+    return grid * 100, "magma_r", 0.0, top, "% of the target's response", "{:.1f}%"
+
+
+def _ink(cmap: str, t: float) -> str:
+    """Black or white text, whichever reads on the cell's colour (``t``: 0..1 on the map)."""
+    dark = {"RdBu_r": t < 0.2 or t > 0.8, "viridis": t < 0.55, "magma_r": t > 0.45}
+    return "white" if dark.get(cmap, False) else "black"
+
+
 def maps_figure(layout: Layout, taxels: dict[str, dict[str, Any]]):  # noqa: ANN201
-    """Heatmaps on the array: sensitivity, R², crosstalk (grey: not characterised)."""
-    fig = _figure(13, 3.6)
+    """Heatmaps on the array: sensitivity, R², crosstalk (grey: not characterised),
+    each cell labelled with its value."""
+    import matplotlib as mpl
+    from matplotlib.ticker import FormatStrFormatter
+
+    fig = _figure(14, 4.0)
     cols = [layout.taxel_name(0, c)[1:] for c in range(layout.cols)]
-    rows = [layout.taxel_name(r, 0)[0] for r in range(layout.rows)]
+    rows = [layout.taxel_name(r, 0)[:-1] for r in range(layout.rows)]
     for ax, (key, title) in zip(fig.subplots(1, len(MAPS)), MAPS):
         grid = np.full((layout.rows, layout.cols), np.nan)
         for r in range(layout.rows):
             for c in range(layout.cols):
                 v = taxels.get(layout.taxel_name(r, c), {}).get(key)
                 grid[r, c] = np.nan if v is None else v
-        import matplotlib as mpl
-
-        cmap = mpl.colormaps["viridis"].with_extremes(bad="#cccccc")
-        im = ax.imshow(np.ma.masked_invalid(grid), cmap=cmap)
+        shown, name, lo, hi, label, cell = _map_scale(key, grid)
+        cmap = mpl.colormaps[name].with_extremes(bad="#cccccc")
+        im = ax.imshow(np.ma.masked_invalid(shown), cmap=cmap, vmin=lo, vmax=hi)
+        for (r, c), v in np.ndenumerate(shown):
+            if np.isfinite(v):
+                fmt = cell.replace(".1f", ".0f") if abs(v) >= 10 and "%" in cell else cell
+                text = fmt.format(v + 0.0).replace("-0.0%", "0.0%").replace("+0.0%", "0.0%")
+                ax.text(c, r, text, ha="center", va="center", fontsize=7,
+                        color=_ink(name, float(np.clip((v - lo) / ((hi - lo) or 1), 0, 1))))
         ax.set_xticks(range(layout.cols), cols)
         ax.set_yticks(range(layout.rows), rows)
         ax.set_title(title, fontsize=9)
-        fig.colorbar(im, ax=ax, shrink=0.8)
+        bar = fig.colorbar(im, ax=ax, shrink=0.8)
+        bar.set_label(label, fontsize=7)
+        bar.ax.yaxis.set_major_formatter(FormatStrFormatter("%.2f" if key.startswith("r2")
+                                                            else "%g"))
+        bar.ax.yaxis.get_offset_text().set_visible(False)
     return fig
 
 
@@ -172,12 +249,17 @@ def taxel_figure(layout: Layout, name: str, raw: dict[str, Any], metrics: dict[s
     return fig
 
 
-def _fmt(v: Any) -> str:
-    if v is None:
-        return "–"
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    return html.escape(str(v))
+def _when(stamp: Any) -> str:
+    """"2026-01-01T09:30:00Z" -> "2026-01-01 09:30 UTC"."""
+    text = str(stamp or "")
+    return f"{text[:10]} {text[11:16]} UTC" if len(text) >= 16 and "T" in text else text or "–"
+
+
+def _plugin(info: dict[str, Any]) -> str:
+    """An instrument in words: its plugin and the settings that matter, not a dict."""
+    settings = info.get("settings") or {}
+    shown = ", ".join(f"{k} {v}" for k, v in settings.items() if not isinstance(v, dict))
+    return html.escape(f"{info.get('plugin', '?')}" + (f" ({shown})" if shown else ""))
 
 
 def write_report(out_dir: Path, result: dict[str, Any], layout: Layout,
@@ -201,9 +283,10 @@ def write_report(out_dir: Path, result: dict[str, Any], layout: Layout,
     for name, m in taxels.items():
         img = save(taxel_figure(layout, name, raw.get(name, {}), m), f"{name}.png")
         sections.append(f'<h2>{name}</h2><img src="{img}" alt="{name}">')
-    head = "".join(f"<th>{k}</th>" for k in TABLE_KEYS)
-    rows = "".join(f"<tr><td>{n}</td>" + "".join(f"<td>{_fmt(m.get(k))}</td>" for k in TABLE_KEYS)
-                   + "</tr>" for n, m in taxels.items())
+    head = "".join(f"<th>{html.escape(column_title(k))}</th>" for k in TABLE_KEYS)
+    rows = "".join(f"<tr><td>{n}</td>" + "".join(
+        f"<td>{html.escape(format_value(k, m.get(k)))}</td>" for k in TABLE_KEYS)
+        + "</tr>" for n, m in taxels.items())
     status = ("complete" if result.get("complete")
               else f"INCOMPLETE: {html.escape(str(result.get('aborted')))}")
     page = f"""<!doctype html><html><head><meta charset="utf-8">
@@ -211,10 +294,13 @@ def write_report(out_dir: Path, result: dict[str, Any], layout: Layout,
 <style>body{{font-family:sans-serif;margin:2em}} table{{border-collapse:collapse;font-size:12px}}
 td,th{{border:1px solid #ccc;padding:3px 6px}} img{{max-width:100%;display:block;margin:1em 0}}</style>
 </head><body><h1>Characterisation of {html.escape(str(result.get('sensor') or result.get('layout')))}</h1>
-<p>Run {status}; started {result.get('started')}, finished {result.get('finished')};
-stage {html.escape(result['stage']['plugin'])}, load cell {html.escape(result['force']['plugin'])},
-clock {result.get('clock')}. Units: {html.escape(str(result.get('units')))}.</p>
-<table><tr><th>taxel</th>{head}</tr>{rows}</table>
+<p>Run {status}: started {_when(result.get('started'))}, finished
+{_when(result.get('finished'))}. Stage: {_plugin(result['stage'])}; load cell:
+{_plugin(result['force'])}.</p>
+<p>Sensitivities are the sensor's relative change (&Delta;C/C0; for shear the differential
+change) per kPa measured by the load cell; a dash is a quantity the plan did not
+measure.</p>
+<table><tr><th>Taxel</th>{head}</tr>{rows}</table>
 {f'<h2>Array maps</h2><img src="{maps}" alt="maps">' if maps else ''}
 {''.join(sections)}</body></html>"""
     (out_dir / "report.html").write_text(page)

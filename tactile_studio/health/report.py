@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
-from tactile_studio.sensor.wellness import parse_taxel
+from tactile_studio.sensor.wellness import channel_label, parse_taxel
 
 _COLOURS = {"pass": "#2e8b57", "warn": "#d89a00", "fail": "#c0392b"}
 
@@ -31,21 +31,24 @@ def _figures_wellness(result: dict[str, Any], layout: Layout) -> list[str]:
     import matplotlib.pyplot as plt
 
     figs = []
-    fig, ax = plt.subplots(figsize=(4, 4))
+    fig, ax = plt.subplots(figsize=(4.6, 4.6))
     ax.set_xlim(-0.5, layout.cols - 0.5)
     ax.set_ylim(layout.rows - 0.5, -0.5)
     for r in range(layout.rows):
         for c in range(layout.cols):
-            ax.add_patch(plt.Rectangle((c - 0.45, r - 0.45), 0.9, 0.9, color="#dddddd"))
-            ax.text(c, r + 0.3, layout.taxel_name(r, c), ha="center", fontsize=7, color="#666")
+            ax.add_patch(plt.Rectangle((c - 0.45, r - 0.45), 0.9, 0.9, color="#e4e4e4"))
     for s in result["spots"]:
         r, c = layout.taxel_rc(parse_taxel(layout, s["taxel"]))
         ax.add_patch(plt.Rectangle((c - 0.45, r - 0.45), 0.9, 0.9, color=_COLOURS[s["verdict"]]))
         ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
-        ax.text(c, r, ratio, ha="center", va="center", color="white", fontsize=9)
-    ax.set_title("spots: ratio to reference")
-    ax.set_xticks([])
-    ax.set_yticks([])
+        ax.text(c, r, f"{s['taxel']}\n{ratio}", ha="center", va="center", color="white",
+                fontsize=9, fontweight="bold")
+    ax.set_title("loaded spots: sensitivity vs reference")
+    # taxel names on the axes, readable at any size (rows A.., columns 1..)
+    ax.set_xticks(range(layout.cols), [str(c + 1) for c in range(layout.cols)])
+    ax.set_yticks(range(layout.rows), [layout.taxel_name(r, 0)[:-1] for r in range(layout.rows)])
+    ax.tick_params(length=0, labelsize=10)
+    ax.xaxis.tick_top()
     figs.append(_png(fig))
     noise = np.asarray(result.get("noise") or [])
     if len(noise):
@@ -64,7 +67,7 @@ def _figures_calibration(cal: dict[str, Any]) -> list[str]:
     import matplotlib.pyplot as plt
 
     fits = cal["fits"]
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.2))
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(9, 3.2), layout="constrained")
     for f in fits:
         ax2.plot(f["loads_kpa"], f["residuals_kpa"], "o-", ms=3, lw=0.7, alpha=0.6)
     ax2.axhline(0, color="k", lw=0.5)
@@ -76,6 +79,35 @@ def _figures_calibration(cal: dict[str, Any]) -> list[str]:
     ax1.set_ylabel("rms error (% of range)")
     ax1.set_title("per-taxel rms error")
     return [_png(fig)]
+
+
+_CHANNEL_KINDS = (("dead", "Dead (no baseline)"), ("stuck", "Stuck (never moves)"),
+                  ("noisy", "Noisy (3x the median noise)"),
+                  ("saturated", "Saturated (at the rail)"))
+_REST_ROWS = (("frames", "Frames at rest", "{:d}"),
+              ("noise_counts_median", "Noise, median channel (counts)", "{:.2f}"),
+              ("noise_counts_max", "Noise, worst channel (counts)", "{:.2f}"),
+              ("drift_pct_per_min_max", "Baseline drift, worst channel (% per min)", "{:.3f}"),
+              ("baseline_shift_pct_max", "Baseline shift vs reference, worst channel (%)",
+               "{:.2f}"))
+
+
+def _channels_html(channels: dict[str, Any], layout: Layout) -> str:
+    """Channel problems in words, each channel by its taxel ("E5/centre")."""
+    rows = "".join(
+        f"<tr><td>{title}</td><td>"
+        + (html.escape(", ".join(channel_label(layout, int(c)) for c in channels.get(key) or ()))
+           or "none") + "</td></tr>"
+        for key, title in _CHANNEL_KINDS)
+    return f"<h3>Channels</h3><table>{rows}</table>"
+
+
+def _rest_html(rest: dict[str, Any]) -> str:
+    """The rest phase as a labelled table with units (no raw keys)."""
+    rows = "".join(
+        f"<tr><td>{title}</td><td>{'-' if rest.get(key) is None else fmt.format(rest[key])}"
+        "</td></tr>" for key, title, fmt in _REST_ROWS if key in rest)
+    return f"<h3>At rest</h3><table>{rows}</table>"
 
 
 def write_report(path: str | os.PathLike, title: str, result: dict[str, Any],
@@ -94,19 +126,22 @@ def write_report(path: str | os.PathLike, title: str, result: dict[str, Any],
         if result.get("tested"):  # a pass speaks only for the taxels loaded
             parts.append(f"<p>{esc(result['tested']['line'])}; ratios against "
                          f"{esc(result.get('judged_against') or 'the reference')}.</p>")
-        parts.append("<table><tr><th>spot</th><th>normal kPa</th><th>&Delta;C/C0</th>"
-                     "<th>shear kPa</th><th>ratio</th><th>verdict</th></tr>")
+        parts.append("<table><tr><th>Spot</th><th>Normal stress read (kPa)</th>"
+                     "<th>Centre response &Delta;C/C0</th><th>Shear read (kPa)</th>"
+                     "<th>Sensitivity vs reference</th><th>Verdict</th></tr>")
         for s in result["spots"]:
-            ratio = "-" if s["ratio"] is None else f"{s['ratio']:.3f}"
+            ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
             parts.append(f"<tr><td>{s['taxel']}</td><td>{s['normal_kpa']:.2f}</td>"
                          f"<td>{s['delta_c']:.4f}</td><td>{s['shear_kpa']:.2f}</td>"
                          f"<td>{ratio}</td><td>{s['verdict']}</td></tr>")
-        parts.append("</table><p>channels: " + esc(str(result["channels"])) + "</p>")
-        parts.append("<p>rest: " + esc(str(result["rest"])) + "</p>")
+        parts.append("</table>")
+        parts.append(_channels_html(result.get("channels") or {}, layout))
+        parts.append(_rest_html(result.get("rest") or {}))
         parts.extend(_figures_wellness(result, layout))
     else:
+        loads = ", ".join(f"{g:g}" for g in result.get("loads_g") or ())
         parts.append(f"<p>{esc(result['kind'])} calibration, loads "
-                     f"{esc(str(result['loads_g']))} g; median rms "
+                     f"{esc(loads)} g; median rms "
                      f"{result['rms_pct_median']:.2f}% of range, worst "
                      f"{result['rms_pct_max']:.2f}%</p>")
         parts.extend(_figures_calibration(result))
