@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from tactile_studio.errors import UserError
 from tactile_studio.health.history import covers_text, sensor_history
 from tactile_studio.storage.logbook import NOTE_KINDS, Logbook, age_text
 from tactile_studio.ui.array_picture import SERIES_COLOURS, VERDICT_COLOURS
@@ -54,6 +55,8 @@ class SensorsWindow(QWidget):
         self.timeline.getAxis("left").setTicks([[(0, "pass"), (1, "warn"), (2, "fail")]])
         self.timeline.setYRange(-0.5, 2.5)
         self.timeline.setMaximumHeight(170)
+        for plot in (self.trend, self.timeline):  # hours as hours: no "(x0.001)" prefix
+            plot.getAxis("bottom").enableAutoSIPrefix(False)
         self.calibrations = QTableWidget(0, 5)
         self.calibrations.setHorizontalHeaderLabels(["#", "when", "kind", "taxels",
                                                      "rms % range"])
@@ -90,15 +93,24 @@ class SensorsWindow(QWidget):
         split.addWidget(self.sensors)
         split.addWidget(right)
         split.setSizes([180, 900])
+        self.problem = QLabel("")  # a logbook that cannot be read: one line, in red
+        self.problem.setStyleSheet("color: #b00020")
+        self.problem.setWordWrap(True)
+        self.problem.hide()
         box = QVBoxLayout(self)
+        box.addWidget(self.problem)
         box.addWidget(split)
         self.resize(1100, 760)
         self.reload()
 
     def reload(self) -> None:
         current = self.sensors.currentItem().text() if self.sensors.currentItem() else None
-        with Logbook() as book:
-            ids = book.sensor_ids()
+        try:
+            with Logbook() as book:
+                ids = book.sensor_ids()
+        except UserError as exc:  # damaged or unreadable: said, never overwritten
+            self.show_problem(str(exc))
+            ids = []
         self.sensors.clear()
         self.sensors.addItems(ids)
         if ids:
@@ -107,7 +119,11 @@ class SensorsWindow(QWidget):
     def show_sensor(self, sensor: str) -> None:
         if not sensor:
             return
-        h = sensor_history(sensor)
+        try:
+            h = sensor_history(sensor)
+        except UserError as exc:
+            self.show_problem(str(exc))
+            return
         s = h.summary
         self.title.setText(sensor)
         last = (f"{s['last_verdict'].upper()} {age_text(s['last_check_at'])}"
@@ -128,6 +144,13 @@ class SensorsWindow(QWidget):
         for hours, verdict, _ in h.verdicts:
             self.timeline.plot([hours], [_VERDICT_Y[verdict]], pen=None, symbol="s",
                                symbolSize=12, symbolBrush=VERDICT_COLOURS[verdict])
+        # hours of use start at 0 and span at least one hour: a new sensor's few minutes
+        # showed as "(x0.001)" with negative ticks
+        seen = [float(s["hours"] or 0)] + [float(v) for v, _, _ in h.verdicts]
+        seen += [float(v) for hours, _ in h.spot_series.values() for v in hours]
+        top = max(1.0, 1.1 * max(seen))
+        for plot in (self.trend, self.timeline):
+            plot.setXRange(0.0, top, padding=0)
         self.calibrations.setRowCount(len(h.calibrations))
         for i, c in enumerate(h.calibrations):
             covers = covers_text(c)
@@ -140,12 +163,21 @@ class SensorsWindow(QWidget):
         self.notes.clear()
         self.notes.addItems([f"{n['at'][:10]} [{n['kind']}] {n['text']}" for n in h.notes])
 
+    def show_problem(self, text: str | None) -> None:
+        """One line above the lists (None hides it)."""
+        self.problem.setText(text or "")
+        self.problem.setVisible(bool(text))
+
     def add_note(self) -> None:
         item = self.sensors.currentItem()
         text = self.note_text.text().strip()
         if item is None or not text:
             return
-        with Logbook() as book:
-            book.add_note(item.text(), text, self.note_kind.currentText())
+        try:
+            with Logbook() as book:
+                book.add_note(item.text(), text, self.note_kind.currentText())
+        except UserError as exc:
+            self.show_problem(str(exc))
+            return
         self.note_text.clear()
         self.show_sensor(item.text())

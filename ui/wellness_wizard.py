@@ -38,8 +38,11 @@ def sensor_combo(current: str | None = None) -> QComboBox:
     """An editable list of the logbook's sensors (type a new ID to add one)."""
     box = QComboBox()
     box.setEditable(True)
-    with Logbook() as book:
-        box.addItems(book.sensor_ids())
+    try:
+        with Logbook() as book:
+            box.addItems(book.sensor_ids())
+    except UserError as exc:  # damaged: the check itself sets it aside and says so
+        box.setToolTip(str(exc))
     if current:
         box.setCurrentText(current)
     return box

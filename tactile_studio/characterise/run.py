@@ -109,7 +109,7 @@ def save_calibration(sensor_id: str, calibration: dict[str, Any]) -> int:
     if not calibration["fits"]:
         raise UserError("the characterisation gave no normal fit to calibrate with "
                         "(run the normal sequence)")
-    with Logbook() as book:
+    with Logbook(on_damage="replace") as book:  # a damaged one is moved aside, said once
         book.ensure_sensor(sensor_id, calibration["layout"])
         return book.add_calibration(sensor_id, "characterisation",
                                     calibration["rms_pct_median"], calibration)

@@ -65,7 +65,8 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
         raise UserError(f"{out}: the output folder does not exist")
     side = spec.plate_mm or lay.pitch_mm * max(lay.rows, lay.cols)
     kpa = np.array([stress_kpa(m, side if spec.plate else spec.contact_mm) for m in loads])
-    with Logbook() as book:
+    # a calibration must be stored: a damaged logbook is moved aside (backup or new)
+    with Logbook(on_damage="replace") as book:
         sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
     bench = bench or Bench(engine, placer, timing, cancel, on_event)
     centre = np.array([lay.channel(t, CENTRE) for t in taxels])

@@ -13,6 +13,7 @@ from typing import Any
 
 from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook, age_hours, age_text
+from tactile_studio.storage.logbook_file import LogbookDamaged, say_once
 
 
 class WellnessRequired(UserError):
@@ -70,8 +71,12 @@ def wellness_status(sensor: str | None, required: bool = False,
     """The sensor's last check from the logbook."""
     if not sensor:
         return WellnessStatus(None, required, max_age_h)
-    with Logbook() as book:
-        last = book.last_check(sensor)
+    try:
+        with Logbook() as book:
+            last = book.last_check(sensor)
+    except LogbookDamaged as exc:  # no check can be trusted: said once, treated as none
+        say_once(str(exc))
+        last = None
     if last is None:
         return WellnessStatus(sensor, required, max_age_h)
     return WellnessStatus(sensor, required, max_age_h, last["id"], last["verdict"],

@@ -137,7 +137,8 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
     spots = spot_taxels(lay, spec.spots)
     spec = replace(spec, spots=tuple(taxel_label(lay, t) for t in spots))
     expected = stress_kpa(spec.weight_g, spec.contact_mm)
-    with Logbook() as book:
+    # a check must be stored: a damaged logbook is moved aside (its backup or a new one)
+    with Logbook(on_damage="replace") as book:
         sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
         ref = reference_for(book, sensor, spec, lay)
     bench = bench or Bench(engine, placer, timing, cancel, on_event)

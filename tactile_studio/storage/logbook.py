@@ -5,6 +5,8 @@ embedded SQLite database (stdlib ``sqlite3``) in :func:`tactile_studio.paths.dat
 in WAL mode, and every write is one transaction: a process killed in the middle of a
 write leaves the previous consistent state (a check is stored with all its spots or not
 at all). The schema is versioned; :data:`MIGRATIONS` brings any older file up to date.
+The file is checked when opened and backed up (``logbook_file``): a damaged logbook is
+never written into.
 """
 
 from __future__ import annotations
@@ -21,6 +23,11 @@ from typing import Any
 
 from tactile_studio import paths
 from tactile_studio.errors import UserError
+from tactile_studio.storage import logbook_file
+from tactile_studio.storage.logbook_file import (  # noqa: F401 - re-exported for callers
+    LogbookDamaged,
+    LogbookUnavailable,
+)
 
 FILE_NAME = "logbook.sqlite"
 NOTE_KINDS = ("note", "repair", "replaced", "re-covered")
@@ -84,21 +91,46 @@ class SensorSummary:
 class Logbook:
     """The sensor logbook. Cheap to open; use as a context manager or call close()."""
 
-    def __init__(self, path: str | os.PathLike | None = None) -> None:
+    def __init__(self, path: str | os.PathLike | None = None, *,
+                 on_damage: str = "refuse") -> None:
+        """Open (or start) the logbook after checking its file (``logbook_file``). A
+        damaged file is never written into: ``on_damage="refuse"`` raises LogbookDamaged
+        (one line naming it), ``"replace"`` moves it aside and carries on with its
+        backup or a new logbook, saying so once (also in :attr:`notice`)."""
         self.path = Path(path) if path is not None else default_path()
+        self.notice: str | None = None  # what was done about a damaged file
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
+            problem = logbook_file.problem_of(self.path)
+            if problem is not None:
+                if on_damage != "replace":
+                    raise logbook_file.refusal(self.path, problem)
+                self.notice = logbook_file.set_aside(self.path, problem)
+                logbook_file.say_once(self.notice)
             self._db = sqlite3.connect(self.path, timeout=10.0, isolation_level=None,
-                                       check_same_thread=False)
+                                       check_same_thread=False,
+                                       factory=logbook_file.CheckedConnection)
+            self._db.logbook_path = self.path
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
+            self._wrote = False
             self._migrate()
+            logbook_file.refresh_backup(self._db, self.path, only_if_missing=not self._wrote)
+            self._wrote = False
         except sqlite3.DatabaseError as exc:
             raise UserError(f"{self.path}: cannot open the sensor logbook ({exc})") from None
+        except OSError as exc:
+            raise logbook_file.LogbookUnavailable(
+                f"{self.path}: cannot open the sensor logbook ({exc.strerror or exc})"
+            ) from None
 
     # ---- plumbing --------------------------------------------------------------------
     def close(self) -> None:
+        """Close; after writes, refresh the backup first (``logbook_file``)."""
+        if self._wrote:
+            self._wrote = False
+            logbook_file.refresh_backup(self._db, self.path)
         self._db.close()
 
     def __enter__(self) -> Logbook:
@@ -114,9 +146,13 @@ class Logbook:
         try:
             yield self._db
         except BaseException:
-            self._db.execute("ROLLBACK")
+            try:
+                self._db.execute("ROLLBACK")
+            except (sqlite3.Error, UserError):
+                pass  # the error that stopped the write says more than its rollback
             raise
         self._db.execute("COMMIT")
+        self._wrote = True
 
     @property
     def schema_version(self) -> int:
