@@ -34,6 +34,36 @@ class EventMark:
     text: str
 
 
+@dataclass
+class AuxTrack:
+    """An auxiliary signal's first channel on the frame axis (``frames``: fractional
+    frame position of each sample), for drawing beside the touch."""
+
+    name: str
+    label: str
+    unit: str
+    frames: np.ndarray
+    values: np.ndarray
+
+
+def aux_tracks(session: Session, n_frames: int) -> list[AuxTrack]:
+    """Every auxiliary signal (storage/aux_signals.py) placed by its own timestamps on
+    the frames' host clock; samples outside the recording are left out."""
+    if n_frames < 1:
+        return []
+    host = session.column("host_time", 0, n_frames).astype(np.float64)
+    rows = np.arange(n_frames, dtype=np.float64)
+    out = []
+    for sig in session.aux_signals():
+        inside = (sig.time >= host[0]) & (sig.time <= host[-1])
+        if not inside.any():
+            continue
+        out.append(AuxTrack(sig.name, sig.labels[0] if sig.labels else "", sig.unit,
+                            np.interp(sig.time[inside], host, rows),
+                            sig.values[inside, 0]))
+    return out
+
+
 class SessionPlayback:
     """A session file opened for playing (kept open until :meth:`close`)."""
 
@@ -59,6 +89,7 @@ class SessionPlayback:
             key=lambda sp: sp.start)
         self.events = [self._event(e) for e in s.events]
         self.metadata = s.metadata
+        self.aux = aux_tracks(s, self.n_frames)
 
     def _event(self, e: dict[str, Any]) -> EventMark:
         frame = e.get("frame", e.get("index", e.get("sample")))

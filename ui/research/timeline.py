@@ -1,17 +1,28 @@
-"""The player's timeline: trials coloured by gesture (status shown), events as ticks,
-the cursor, and under it a run's top prediction with its probability over time.
-Click or drag to scrub."""
+"""The player's timeline: trials coloured by gesture (status shown), events as ticks
+(named in the tooltip: markers from scripts and other programs too), auxiliary signals
+(EDA, ECG...) each in a lane of its own, the cursor, and under it a run's top
+prediction with its probability over time. Click or drag to scrub."""
 
 from __future__ import annotations
 
 import numpy as np
-from PySide6.QtCore import QRect, QSize, Qt, Signal
-from PySide6.QtGui import QBrush, QColor, QFont, QFontMetrics, QMouseEvent, QPainter, QPaintEvent
+from PySide6.QtCore import QPointF, QRect, QSize, Qt, Signal
+from PySide6.QtGui import (
+    QBrush,
+    QColor,
+    QFont,
+    QFontMetrics,
+    QMouseEvent,
+    QPainter,
+    QPaintEvent,
+    QPolygonF,
+)
 from PySide6.QtWidgets import QToolTip, QWidget
 
-from tactile_studio.playback import SessionPlayback
+from tactile_studio.playback import AuxTrack, SessionPlayback
 from tactile_studio.storage.trials import TrialStatus
 
+AUX_LANE = 30  # px per auxiliary signal (EDA, ECG...) drawn under the trials
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
            "#7f7f7f", "#bcbd22", "#17becf", "#393b79", "#637939", "#8c6d31", "#843c39"]
 
@@ -39,6 +50,7 @@ class Timeline(QWidget):
 
     def set_playback(self, pb: SessionPlayback | None) -> None:
         self.pb, self.cursor = pb, 0
+        self.setMinimumHeight(130 + AUX_LANE * len(pb.aux if pb else []))
         self.names = sorted({*(pb.gestures if pb else [])})
         self.pred_frames = self.pred_probs = None
         self.update()
@@ -74,6 +86,9 @@ class Timeline(QWidget):
         tip = f"{self.pb.time_of(frame):.2f} s (frame {frame})"
         if t is not None:
             tip += f"\ntrial {t.index}: {t.gesture} ({t.status}{', flagged' if t.flags else ''})"
+        near = 3 * (self.pb.n_frames - 1) / max(self.width() - 8, 1)  # 3 px either side
+        for ev in [ev for ev in self.pb.events if abs(ev.frame - frame) <= near][:6]:
+            tip += f"\n{ev.kind}: {ev.text}" if ev.text != ev.kind else f"\n{ev.kind}"
         QToolTip.showText(e.globalPosition().toPoint(), tip, self)
 
     def paintEvent(self, event: QPaintEvent) -> None:  # noqa: N802 - Qt name
@@ -89,7 +104,8 @@ class Timeline(QWidget):
         fm = QFontMetrics(font)
         h = self.height()
         lane = (6, 6 + 34)             # trials
-        pred = (lane[1] + fm.height() + 8, h - fm.height() - 6)  # predictions
+        aux0 = lane[1] + 6              # auxiliary signals, one lane each
+        pred = (aux0 + AUX_LANE * len(pb.aux) + fm.height() + 8, h - fm.height() - 6)
         p.setPen(QColor(180, 180, 180))
         p.drawRect(QRect(4, lane[0], self.width() - 8, lane[1] - lane[0]))
         for t in pb.trials:
@@ -110,6 +126,8 @@ class Timeline(QWidget):
         for ev in pb.events:
             x = int(self._x(ev.frame))
             p.drawLine(x, 0, x, lane[1] + 4)
+        for k, track in enumerate(pb.aux):
+            self._draw_aux(p, fm, track, aux0 + k * AUX_LANE, AUX_LANE - 4)
         if self.pred_frames is not None and self.pred_probs is not None and len(self.pred_frames):
             top = self.pred_probs.argmax(axis=1)
             span = pred[1] - pred[0]
@@ -120,8 +138,8 @@ class Timeline(QWidget):
                 p.fillRect(QRect(int(x0), pred[1] - ph, max(int(x1 - x0), 1), ph),
                            gesture_colour(self.names, self.pred_labels[top[k]]))
             p.setPen(QColor(120, 120, 120))
-            p.drawText(QRect(6, lane[1] + 4, self.width(), fm.height()), Qt.AlignmentFlag.AlignLeft,
-                       "prediction (height = probability)")
+            p.drawText(QRect(6, pred[0] - fm.height() - 4, self.width(), fm.height()),
+                       Qt.AlignmentFlag.AlignLeft, "prediction (height = probability)")
         p.setPen(QColor(60, 60, 60))
         p.drawText(QRect(4, h - fm.height() - 2, 200, fm.height()), Qt.AlignmentFlag.AlignLeft,
                    "0 s")
@@ -131,3 +149,22 @@ class Timeline(QWidget):
         p.setPen(QColor("black"))
         p.drawLine(x, 0, x, h)
         p.end()
+
+    def _draw_aux(self, p: QPainter, fm: QFontMetrics, track: AuxTrack, top: int,
+                  height: int) -> None:
+        """One auxiliary signal as a line scaled to its own range, named at the left."""
+        p.setPen(QColor(225, 225, 225))
+        p.drawRect(QRect(4, top, self.width() - 8, height))
+        step = max(1, len(track.values) // 4000)  # enough points for any screen
+        v, f = track.values[::step], track.frames[::step]
+        lo, hi = float(np.min(v)), float(np.max(v))
+        y = top + height - 2 - (v - lo) / ((hi - lo) or 1.0) * (height - 4)
+        x = 4 + (self.width() - 8) * f / max((self.pb.n_frames if self.pb else 1) - 1, 1)
+        p.setPen(QColor("#2a6f97"))
+        p.drawPolyline(QPolygonF([QPointF(a, b) for a, b in zip(x.tolist(), y.tolist())]))
+        unit = f" ({track.unit})" if track.unit else ""
+        text = f"{track.name}{unit}: {lo:.3g} to {hi:.3g}"
+        box = QRect(6, top + 1, fm.horizontalAdvance(text) + 4, fm.height())
+        p.fillRect(box, QColor(255, 255, 255, 220))  # readable over the trace
+        p.setPen(QColor(70, 70, 70))
+        p.drawText(box.adjusted(2, 0, 0, 0), Qt.AlignmentFlag.AlignLeft, text)

@@ -19,6 +19,7 @@ from tactile_studio.ui.file_dialogs import ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.import_dialog import ImportDialog
+from tactile_studio.ui.research.import_xdf_dialog import XdfImportDialog
 from tactile_studio.ui.research.menu import SESSION_KIND
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
@@ -71,8 +72,11 @@ class ResearchWindow(QMainWindow):
         file_menu.addAction("&Open session…").triggered.connect(self._browse_session)
         file_menu.addAction("&Import old recordings (ShearSense CSV)…").triggered.connect(
             self.open_import)
+        file_menu.addAction("Import &XDF recordings (LabRecorder)…").triggered.connect(
+            self.open_import_xdf)
         self.sessions.importRequested.connect(self.open_import)
         self.import_dialog: ImportDialog | None = None
+        self.import_xdf_dialog: XdfImportDialog | None = None
         self.resize(1200, 760)
 
     def open_import(self) -> ImportDialog:
@@ -83,6 +87,15 @@ class ResearchWindow(QMainWindow):
         self.import_dialog.show()
         self.import_dialog.raise_()
         return self.import_dialog
+
+    def open_import_xdf(self) -> XdfImportDialog:
+        """The XDF import dialog (one, kept); what it imports joins the Sessions tab."""
+        if self.import_xdf_dialog is None:
+            self.import_xdf_dialog = XdfImportDialog(self)
+            self.import_xdf_dialog.imported.connect(self._imported)
+        self.import_xdf_dialog.show()
+        self.import_xdf_dialog.raise_()
+        return self.import_xdf_dialog
 
     def _imported(self, folder: str) -> None:
         # listed once; rescanned either way, since a re-import may replace sessions
@@ -125,6 +138,8 @@ class ResearchWindow(QMainWindow):
             self.train.cancel()  # the worker stops after its epoch; folds are kept
         if self.import_dialog is not None:
             self.import_dialog.close()  # a running import stops; finished sessions stay
+        if self.import_xdf_dialog is not None:
+            self.import_xdf_dialog.close()
         if self.sweep.job is not None and self.sweep.job.running:
             self.sweep.cancel()  # workers are ended; finished tasks are kept
             self.sweep.job.wait(10.0)
