@@ -100,7 +100,8 @@ def test_every_writing_command_ends_in_one_line(name, data, capsys, monkeypatch)
     line = one_error_line(capsys.readouterr().err)
     assert code == 1
     assert line.startswith(f"{data}/blocker"), line
-    assert "Not a directory" in line or "does not exist" in line or "not a folder" in line
+    assert any(cause in line for cause in ("cannot write (Not a directory)", "does not exist",
+                                           "not a folder", "cannot create output folder"))
 
 
 def test_evaluate_and_export_model_in_a_run_folder_they_cannot_write(data, capsys, tmp_path):
