@@ -34,11 +34,13 @@ def ensure_app(argv: list[str] | None = None) -> QApplication:
 
 
 def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
-            lsl: bool = False) -> int:
+            lsl: bool = False, markers: list[str] | None = None) -> int:
     """Show the main window connected to ``device`` and run until it is closed;
-    ``lsl`` switches "Stream to LSL" on."""
+    ``lsl`` switches "Stream to LSL" on; ``markers``: LSL marker streams every recording
+    takes in (live/marker_recording.py)."""
     app = ensure_app()
     window = MainWindow(device=device, settings=settings, connect=connect)
+    window.controller.marker_streams = tuple(markers or ())
     if lsl and not window.panel.set_lsl(True):
         window.shutdown()
         raise UserError(window.panel.error_text() or "cannot stream to LSL")

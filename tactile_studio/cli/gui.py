@@ -34,13 +34,14 @@ def cmd_gui(args: argparse.Namespace) -> int:
     if device == "last":
         device = _last_device()
     settings = _checked_settings(device, args.set)
-    if args.lsl:
+    if args.lsl or args.markers:
         from tactile_studio.streams import load_pylsl
 
         load_pylsl()  # no liblsl: one line now, not a dialog later
     from tactile_studio.ui.app import run_gui
 
-    return run_gui(device, settings, connect=not args.no_connect, lsl=args.lsl)
+    return run_gui(device, settings, connect=not args.no_connect, lsl=args.lsl,
+                   markers=args.markers)
 
 
 def cmd_snapshot(args: argparse.Namespace) -> int:
@@ -81,6 +82,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--no-connect", action="store_true", help="open without connecting")
     p.add_argument("--lsl", action="store_true", help="switch on \"Stream to LSL\": frames "
                    "and markers on the Lab Streaming Layer (see docs/lsl.md)")
+    p.add_argument("--markers", action="append", metavar="NAME", default=None,
+                   help="record this LSL marker stream's markers (by name; repeatable) with "
+                        "every recording, each as an event at its frame")
     p.set_defaults(func=cmd_gui)
 
     s = subparsers.add_parser(

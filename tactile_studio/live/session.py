@@ -29,15 +29,18 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
+from tactile_studio.live.marker_recording import MarkerRecording
 from tactile_studio.live.status import LiveStatus
 from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.session_compress import wait_for_compression
 
 Listener = Callable[[dict[str, Any]], None]
 
@@ -56,6 +59,8 @@ class AcquisitionSession:
     compress_in_background = False
     #: a recording warns (event ``health``) when the device is silent this long
     silence_warning_s = DEFAULT_SILENCE_S
+    #: LSL marker streams (by name) recorded with every recording (``gui --markers``)
+    marker_streams: tuple[str, ...] = ()
 
     def __init__(self, *, capacity: int = 1 << 16,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -76,6 +81,7 @@ class AcquisitionSession:
         self._stop_rows: int | None = None
         self._stop_all = False
         self._health: StreamHealth | None = None
+        self._markers: MarkerRecording | None = None
 
     # ---- events ------------------------------------------------------------------------
     def add_listener(self, fn: Listener) -> Callable[[], None]:
@@ -172,6 +178,16 @@ class AcquisitionSession:
             self.recorder.start()
         self._health = StreamHealth(self.engine, self.device_name, self.silence_warning_s,
                                     self.clock)
+        self._markers = None
+        if self.marker_streams:  # after the recorder, so their start is in the file
+            try:
+                self._markers = self.add_outlet(MarkerRecording(self.engine,
+                                                                self.marker_streams))
+            except UserError:  # a named stream is missing: no recording, no empty file
+                self.stop_recording("requested")
+                wait_for_compression(path)
+                Path(path).unlink(missing_ok=True)
+                raise
         self._emit("recording_started", path=str(path))
         return self.recorder
 
@@ -217,6 +233,8 @@ class AcquisitionSession:
         health = self._health
         for message in health.check() if health is not None else []:
             self._emit("health", message=message, silent=health.silent)
+        for message in self._markers.messages() if self._markers is not None else []:
+            self._emit("health", message=message, silent=True)
         if rec.stopped:  # closed by its other user (a collection session's close())
             self.stop_recording()
         elif EngineState(eng.state).is_over:
