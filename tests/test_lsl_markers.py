@@ -35,19 +35,20 @@ def marker_outlet(name: str) -> pylsl.StreamOutlet:
                                                pylsl.cf_string, f"{name}-src"))
 
 
-def frames_in(path) -> int:
+def recording_ready(path) -> bool:
+    """The file at ``path`` holds frames and the inlet's start (it is connected)."""
     try:
         with Session(path) as s:
-            return s.n_frames
+            return s.n_frames >= 10 and any(e["kind"] == "marker_stream" for e in s.events)
     except Exception:  # noqa: BLE001 - not created yet, or mid-creation
-        return 0
+        return False
 
 
 def push_when_connected(outlet, texts, gap_s, sent, path, then=None):
-    """Push ``texts`` once the recording at ``path`` holds frames (a condition, bounded)."""
+    """Push ``texts`` once the recording at ``path`` is under way (a condition, bounded)."""
     def run():
         deadline = time.monotonic() + WAIT_S
-        while frames_in(path) < 10 and time.monotonic() < deadline:
+        while not recording_ready(path) and time.monotonic() < deadline:
             time.sleep(0.05)
         for text in texts:
             ts = pylsl.local_clock() - 0.004  # stamped a little earlier, as a flip time is
@@ -109,3 +110,47 @@ def test_a_marker_stream_not_found_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 1 and "marker stream" in err and "was not found" in err
     assert "Traceback" not in err and not (tmp_path / "s.h5").exists()
+
+
+def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_path):
+    """What ``gui --markers NAME`` sets: every recording of the window's session takes the
+    markers in; a lost stream is a ``health`` event (the status bar's warning)."""
+    from tactile_studio.errors import UserError
+    from tactile_studio.live.session import AcquisitionSession
+
+    session = AcquisitionSession()
+    heard: list[dict] = []
+    session.add_listener(lambda e: heard.append(e) if e["kind"] == "health" else None)
+    session.open("simulated", {"rate": RATE})
+    session.marker_streams = (unique("missing"),)
+    session.start()
+    try:
+        missing = tmp_path / "missing.h5"
+        try:
+            session.start_recording(missing)
+            raise AssertionError("a missing marker stream must refuse the recording")
+        except UserError as exc:
+            assert "was not found" in str(exc)
+        assert not session.recording and not missing.exists()
+
+        name = unique("stim")
+        holder = {"outlet": marker_outlet(name)}
+        session.marker_streams = (name,)
+        out = tmp_path / "s.h5"
+        sent: list[tuple[str, float]] = []
+        pusher = push_when_connected(holder["outlet"], ["a", "b"], 0.1, sent, out,
+                                     then=lambda: holder.pop("outlet"))
+        session.start_recording(out)
+        deadline = time.monotonic() + WAIT_S
+        while not heard and time.monotonic() < deadline:  # bounded, on a condition
+            session.poll()
+            time.sleep(0.05)
+        pusher.join(WAIT_S)
+        assert heard and heard[0]["silent"] and f"marker stream '{name}' disappeared" \
+            in heard[0]["message"]
+        session.stop_recording()
+    finally:
+        session.close()
+    with Session(out) as s:
+        assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["a", "b"]
+        assert any(e["kind"] == "marker_stream_lost" for e in s.events)
