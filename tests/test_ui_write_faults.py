@@ -94,3 +94,31 @@ def test_an_image_format_qt_cannot_write_is_refused_by_name(qtbot, tmp_path):
     with pytest.raises(UserError, match="x.nope: cannot encode an image as NOPE"):
         write_image(image, tmp_path / "x.nope")
     assert not QImage(str(write_image(image, tmp_path / "x.png"))).isNull()
+
+
+def test_background_and_training_jobs_end_in_the_one_line(qtbot, run_folder, blocker):
+    import time
+
+    from tactile_studio.learn.experiment import ExperimentConfig
+    from tactile_studio.learn.train_job import TrainJob
+    from tactile_studio.ui.background_job import BackgroundJob
+
+    job = BackgroundJob(lambda progress, cancel: (blocker / "x.h5").write_bytes(b""))
+    failures: list[str] = []
+    job.failed.connect(failures.append)
+    job.start()
+    qtbot.waitUntil(lambda: bool(failures), timeout=10000)
+    assert failures == [f"{blocker}/x.h5: cannot write (Not a directory)"]
+
+    data = run_folder.parent / "data"
+    cfg = ExperimentConfig(data=[str(data)], model="knn", protocol="lopo", preset="tiny",
+                           cache_dir=str(run_folder.parent / "cache"))
+    train = TrainJob(cfg, blocker / "run").start()
+    deadline = time.monotonic() + 120
+    while train.running and time.monotonic() < deadline:
+        train.poll()
+        time.sleep(0.05)
+    train.poll()
+    assert train.finished["type"] == "error"
+    assert train.finished["message"].startswith(f"{blocker}/run")
+    assert train.finished["message"].endswith("cannot write (Not a directory)")

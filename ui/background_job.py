@@ -17,6 +17,7 @@ from PySide6.QtCore import QObject, QTimer, Signal
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn
+from tactile_studio.output_faults import fault_line
 
 
 class BackgroundJob(QObject):
@@ -68,8 +69,10 @@ class BackgroundJob(QObject):
         except UserError as exc:
             outcome = ("failed", str(exc))
         except Exception as exc:  # a bug: the traceback goes where developers look
-            traceback.print_exc()
-            outcome = ("failed", f"{type(exc).__name__}: {exc}")
+            line = fault_line(exc)  # ... unless the place cannot be written: one line
+            if line is None:
+                traceback.print_exc()
+            outcome = ("failed", line or f"{type(exc).__name__}: {exc}")
         with self._lock:
             self._outcome = outcome
 

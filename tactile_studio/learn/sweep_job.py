@@ -32,6 +32,7 @@ from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.runfolder import read_json
+from tactile_studio.output_faults import fault_line
 
 
 @dataclass
@@ -128,6 +129,9 @@ class SweepJob:
         except UserError as exc:
             put({"type": "error", "message": str(exc)})
         except Exception as exc:  # noqa: BLE001 - the window shows one line; stderr the rest
+            if (line := fault_line(exc)) is not None:  # the sweep folder cannot be written
+                put({"type": "error", "message": line})
+                return
             traceback.print_exc(file=sys.stderr)
             first = (str(exc).strip().splitlines() or [""])[0]
             put({"type": "error", "message": f"the sweep failed: {type(exc).__name__}: {first} "

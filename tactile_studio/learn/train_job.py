@@ -111,6 +111,11 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
     except Exception as exc:  # noqa: BLE001 - the window shows it; the traceback goes to stderr
         import traceback
 
+        from tactile_studio.output_faults import fault_line
+
+        if (line := fault_line(exc)) is not None:  # the run folder cannot be written
+            events.put({"type": "error", "message": line})
+            return
         traceback.print_exc()
         events.put({"type": "error", "message": f"the training process failed: "
                                                 f"{type(exc).__name__}: {exc}"})
