@@ -5,11 +5,13 @@ from __future__ import annotations
 import os
 import signal
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
@@ -74,6 +76,38 @@ def close_on_signals(app: QApplication) -> Iterator[None]:
         wake.deleteLater()
 
 
+TOUCH_KPA = 2.0        # a snapshot waits this long for a touch this firm...
+TOUCH_WAIT_S = 4.0     # ...after its seconds of live data: an untouched map is a blank picture
+TOUCH_PEAK_S = 0.8     # then the firmest frame of that touch is the picture
+
+
+def _wait_for_touch(window: MainWindow) -> Any:
+    """Up to TOUCH_WAIT_S more for a frame with a touch, painted at once (the simulator's
+    demo begins after 3 s of idle for the tare, so ``--seconds 3`` caught an empty map);
+    returns that frame (None: no touch came, the picture shows the map as it is)."""
+    deadline = time.monotonic() + TOUCH_WAIT_S
+    while time.monotonic() < deadline:
+        frame = window.live.latest()
+        if frame is not None and not frame.provisional_baseline \
+                and float(np.nanmax(frame.normal)) >= TOUCH_KPA:
+            frame = _firmest(window, frame, time.monotonic() + TOUCH_PEAK_S)
+            window.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
+            window._shown = frame  # the picture shows this touch, not a later gap
+            return frame
+        wait_for(0.02)
+    return None
+
+
+def _firmest(window: MainWindow, best: Any, until: float) -> Any:
+    """The firmest frame of a touch that has begun (its peak, not its first instant)."""
+    while time.monotonic() < until:
+        wait_for(0.02)
+        frame = window.live.latest()
+        if frame is not None and float(np.nanmax(frame.normal)) > float(np.nanmax(best.normal)):
+            best = frame
+    return best
+
+
 def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | os.PathLike,
              virtual: bool = False, size: tuple[int, int] = (1280, 800),
              hover: str | None = None) -> Path:
@@ -96,11 +130,13 @@ def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | o
         if hover:
             window.hover_taxel(hover)
         wait_for(seconds)
+        touch = _wait_for_touch(window)
         st = window.controller.status()
         if st.error:
             raise UserError(f"device {device}: {st.error}")
         window.refresh_status()
-        window.tick()
+        if touch is None:  # else the touch is painted: a newer frame may be a gap
+            window.tick()
         wait_for(0.05)
         write_image(window.grab(), out)  # an unwritable place: its OSError, one line
     finally:

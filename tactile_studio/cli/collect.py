@@ -147,8 +147,7 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
     if getattr(args, "markers", None):
-        raise UserError("--markers needs --virtual-participant (or `record`); the console "
-                        "does not record other programs' markers yet")
+        options["markers"] = list(args.markers)  # the console's recording takes them in
     if getattr(args, "lsl", False):
         from tactile_studio.streams import load_pylsl
 

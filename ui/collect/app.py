@@ -67,13 +67,17 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
                   device: str | None = None, device_settings: dict[str, Any] | None = None,
                   out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                   seed: int | None = None, condition: str = "",
-                  resume: str | os.PathLike | None = None, lsl: bool = False) -> CollectConsole:
-    """A shown console with its setup form pre-filled (or resuming ``resume``).
+                  resume: str | os.PathLike | None = None, lsl: bool = False,
+                  markers: list[str] | None = None) -> CollectConsole:
+    """A shown console with its setup form pre-filled (or resuming ``resume``);
+    ``markers``: LSL marker streams its recording takes in (live/marker_recording.py).
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
-    console = CollectConsole(acquisition=AcquisitionSession())
+    acquisition = AcquisitionSession()
+    acquisition.marker_streams = tuple(markers or ())
+    console = CollectConsole(acquisition=acquisition)
     try:
         console.setup.prefill(
             None if protocol is None else str(protocol), participant, device,
@@ -95,13 +99,14 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
                 device: str | None = None, device_settings: dict[str, Any] | None = None,
                 out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                 seed: int | None = None, condition: str = "",
-                resume: str | os.PathLike | None = None, lsl: bool = False) -> int:
+                resume: str | os.PathLike | None = None, lsl: bool = False,
+                markers: list[str] | None = None) -> int:
     """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
     from tactile_studio.ui.app import ensure_app
 
     app = ensure_app()
     console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
-                            seed, condition, resume, lsl=lsl)
+                            seed, condition, resume, lsl=lsl, markers=markers)
     # held until the window is closed (and deleted), also if the loop ends first
     _RUNNING.append(console)
     console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))
