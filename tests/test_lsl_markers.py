@@ -154,3 +154,36 @@ def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_pa
     with Session(out) as s:
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["a", "b"]
         assert any(e["kind"] == "marker_stream_lost" for e in s.events)
+
+
+def test_the_collection_console_records_markers_from_collect_markers(qtbot, tmp_path,
+                                                                     monkeypatch):
+    """``collect --markers NAME`` without a virtual participant: the console's recording
+    takes the markers in."""
+    import argparse
+
+    from tactile_studio.cli import collect as collect_cli
+    from tactile_studio.ui.collect.app import build_console
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    name = unique("psychopy")
+    outlet = marker_outlet(name)
+    parser = argparse.ArgumentParser()
+    collect_cli.register(parser.add_subparsers())
+    args = parser.parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
+                              "--device", "simulated", "--set", "rate=100",
+                              "--out", str(tmp_path), "--markers", name])
+    options = collect_cli.console_options(args)
+    assert options["markers"] == [name]
+    console = build_console(**options)
+    qtbot.addWidget(console)
+    assert console.acquisition.marker_streams == (name,)
+    assert console.start_session(console.setup.choice())
+    path = console.session.path
+    sent: list[tuple[str, float]] = []
+    pusher = push_when_connected(outlet, ["block cue"], 0.05, sent, path)
+    qtbot.waitUntil(lambda: not pusher.is_alive(), timeout=int(WAIT_S * 1000))
+    qtbot.waitUntil(lambda: console.acquisition.engine.frames > 0, timeout=10000)
+    console.close()
+    with Session(path) as s:
+        assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["block cue"]
