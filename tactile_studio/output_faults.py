@@ -52,6 +52,8 @@ def fault_line(exc: BaseException) -> str | None:
     target = _final_name(path)
     if exc.errno == errno.ENOENT and not path.parent.is_dir():
         return f"{target}: folder {path.parent} does not exist"
+    if exc.errno == errno.EEXIST and path.exists() and not path.is_dir():
+        return f"{target}: cannot write (exists and is not a folder)"  # mkdir of a file
     if exc.errno == errno.ENOENT:
         verb = "cannot open"
     elif exc.errno in WRITE_ERRNOS or not os.path.lexists(path):

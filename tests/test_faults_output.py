@@ -187,3 +187,15 @@ def test_fault_line_names_the_file_and_keeps_programming_errors():
     assert fault_line(OSError(errno.EACCES, "Permission denied")) is None
     assert fault_line(OSError(errno.EBADF, "Bad file descriptor", "/x")) is None
     assert fault_line(ValueError("x")) is None
+
+
+@pytest.mark.parametrize("argv", [
+    ["report", "individual", "--data", "{d}/data", "--cache-dir", "{d}/cache", "--out", "{b}"],
+    ["collect", "--virtual-participant", "--protocol", "shear9", "--participant", "P01",
+     "--blocks", "1", "--out", "{b}"],
+])
+def test_a_file_where_the_output_folder_goes_is_named_as_such(argv, data, capsys):
+    argv = [a.format(d=data, b=data / "blocker") for a in argv]
+    assert main(argv) == 1
+    line = one_error_line(capsys.readouterr().err)
+    assert line == f"{data}/blocker: cannot write (exists and is not a folder)"
