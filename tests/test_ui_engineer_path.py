@@ -94,8 +94,9 @@ def test_characterisation_wizard_defaults(qtbot, tmp_path):
 
 
 def test_characterisation_wizard_saves_the_calibration_like_the_cli(qtbot, tmp_path):
-    from tactile_studio.storage.logbook import Logbook
     from test_ui_characterise import fill_plan
+
+    from tactile_studio.storage.logbook import Logbook
     w = CharacteriseWizard(str(tmp_path / "run"))
     qtbot.addWidget(w)
     w.show()
@@ -117,3 +118,43 @@ def test_characterisation_wizard_saves_the_calibration_like_the_cli(qtbot, tmp_p
     with Logbook() as book:
         assert book.active_calibration("S-42") == w.saved_calibration
         assert book.calibrations("S-42")[-1]["kind"] == "characterisation"
+
+
+def test_a_snapshot_of_the_demo_waits_for_its_first_touch(qtbot):
+    import numpy as np
+
+    from tactile_studio.ui.app import TOUCH_KPA, _wait_for_touch
+    from tactile_studio.ui.main_window import wait_for
+    w = MainWindow(device="simulated", settings={"speed": "2"}, connect=False, persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    assert w.panel.connect_device()
+    wait_for(1.5)  # `snapshot --seconds 3` at speed 1: the demo's 3 s of idle for the tare
+    frame = w.live.latest()
+    assert frame is None or float(np.nanmax(frame.normal)) < TOUCH_KPA  # was the picture
+    touch = _wait_for_touch(w)
+    assert touch is not None and float(np.nanmax(touch.normal)) >= TOUCH_KPA
+    w.tick()  # what snapshot does next: the touch stays the frame shown
+    assert w._shown is touch or float(np.nanmax(w._shown.normal)) > 0.5
+    w.shutdown()
+
+
+def test_the_sensors_window_counts_hours_from_zero_without_a_prefix(qtbot):
+    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.ui.sensors_window import SensorsWindow
+    with Logbook() as book:
+        book.ensure_sensor("NEW-1")
+        book.add_usage("NEW-1", 14.0)  # a new sensor: 14 s of use
+        book.add_check("NEW-1", {"verdict": "pass", "weight_g": 200, "reasons": [],
+                                 "spots": [{"taxel": "E5", "normal_kpa": 10.0,
+                                            "shear_kpa": 0.0, "ratio": 1.0, "verdict": "pass"}]})
+    s = SensorsWindow()
+    qtbot.addWidget(s)
+    s.show()
+    qtbot.waitExposed(s)
+    for plot in (s.trend, s.timeline):
+        plot.getPlotItem().getViewBox().updateAutoRange()  # what a paint does
+        axis = plot.getAxis("bottom")
+        (x0, x1), _ = plot.getPlotItem().viewRange()
+        assert x0 == 0.0 and x1 >= 1.0  # no negative hours, at least an hour wide
+        assert axis.autoSIPrefixScale == 1.0 and "x0.001" not in axis.labelString()
