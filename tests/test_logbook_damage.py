@@ -183,3 +183,27 @@ def test_a_logbook_that_cannot_be_read_is_refused(logbook, capsys):
     assert main(["sensors"]) == 1
     line = one_error_line(capsys.readouterr().err)
     assert line.startswith(f"{logbook}: cannot read the sensor logbook")
+
+
+def test_the_main_window_records_anyway_and_its_sensor_box_says_why(qtbot, logbook, tmp_path,
+                                                                     monkeypatch):
+    from tactile_studio.ui.main_window import MainWindow
+    from tactile_studio.ui.settings import SETTINGS_ENV
+
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    damaged = damage(logbook, "random")
+    w = MainWindow(device="simulated", settings={"rate": "200", "gesture": "idle"},
+                   persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    box = w.panel.sensor_box
+    assert "sensor logbook unavailable" in box.lineEdit().placeholderText()
+    assert f"{logbook}: the sensor logbook is damaged" in box.toolTip()
+    assert w.panel.connect_device()
+    assert w.panel.start_recording(str(tmp_path / "s.h5"))
+    qtbot.waitUntil(lambda: w.controller.recorder.rows_written > 20, timeout=10000)
+    w.panel.stop_recording()
+    w.shutdown()
+    assert logbook.read_bytes() == damaged
+    with Session(tmp_path / "s.h5") as s:
+        assert len(s.column("device_time")) > 20

@@ -342,11 +342,13 @@ def sensor_id_box() -> QComboBox:
     box = QComboBox()
     box.setEditable(True)
     box.setToolTip("The sensor's ID goes into every recording and the sensor logbook")
+    hint = "sensor ID (empty: the device's own)"
     try:
         with Logbook() as book:
             box.addItems(book.sensor_ids())
-    except UserError:
-        pass  # no logbook yet: typing an ID still works
+    except UserError as exc:  # unreadable or damaged (left as it is): typing an ID works
+        box.setToolTip(f"{box.toolTip()}\n{exc}")
+        hint = "sensor logbook unavailable (see tooltip): type the ID"
     box.setCurrentText("")
-    box.lineEdit().setPlaceholderText("sensor ID (empty: the device's own)")
+    box.lineEdit().setPlaceholderText(hint)
     return box
