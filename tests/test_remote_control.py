@@ -106,3 +106,29 @@ def test_the_psychopy_style_script_in_the_docs_works(tmp_path):
         marks = [e["text"] for e in s.events if e["kind"] == "marker"]
         assert marks == [f"trial_{i}_{w}" for i in range(3) for w in ("cue", "end")]
         assert s.n_frames > 0
+
+
+def test_a_recording_without_frames_is_an_error_not_a_silent_empty_file(tmp_path):
+    """The core driven on this thread (``handle``), a serial pty that sends nothing."""
+    import numpy as np
+
+    from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
+    from tactile_studio.live.session import AcquisitionSession
+    from tactile_studio.streams.remote_control import RemoteControl
+
+    emu = SerialEmulator(array_source(np.zeros((10, 180), np.uint16)), link=tmp_path / "port")
+    emu.open()
+    session = AcquisitionSession()
+    try:
+        session.open("serial", {"port": emu.port})
+        session.start()
+        control = RemoteControl(session, tmp_path / "rec")
+        assert control.handle("filename {participant:P02}") == "OK"
+        assert control.handle("start") == "OK"
+        reply = control.handle("stop")
+        path = tmp_path / "rec/sub-P02/sub-P02_tactile.h5"
+        assert reply == f"error: {path}: no frames were recorded (the device sent none)"
+        assert json.loads(control.handle("status"))["recording"] is False
+    finally:
+        session.close()
+        emu.close()

@@ -214,7 +214,11 @@ class RemoteControl:
         if verb == "stop" and not rest:
             if not s.recording:
                 raise CommandError("not recording")
-            s.stop_recording()
+            rows = s.recorder.rows_written
+            path = s.stop_recording()
+            if rows == 0:  # never a silent empty file
+                raise CommandError(f"{path}: no frames were recorded (the device sent "
+                                   "none)")
             return "OK"
         if verb == "mark":
             if not rest:
