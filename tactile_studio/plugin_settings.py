@@ -1,11 +1,15 @@
 """One entry of a plugin's settings schema: devices, stages and force references share it.
 
 A schema is data (name, kind, default, help, choices, range), so the CLI's ``--set`` and
-the GUI's forms are built from it and every value is checked the same way.
+the GUI's forms are built from it and every value is checked the same way. ``parse`` is the
+one validation point for every plugin kind: a float setting must be a finite number (NaN
+slips past every range check and ±inf is never a useful rate, noise or speed), so a new
+plugin gets that for free.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,8 +49,10 @@ class Setting:
                     value = bool(value)
             else:
                 value = SETTING_KINDS[self.kind](value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise SettingsError(f"{where}: {value!r} is not a valid {self.kind}") from None
+        if self.kind == "float" and not math.isfinite(value):
+            raise SettingsError(f"{where}: {value} is not a finite number")
         if self.kind == "choice" and value not in self.choices:
             raise SettingsError(f"{where}: {value!r} is not one of {', '.join(self.choices)}")
         if self.kind == "taxel" and isinstance(value, str):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 from typing import Any
 
@@ -56,9 +57,12 @@ class Plan:
                     parsed: Any = tuple(v.strip() for v in str(value).split(",") if v.strip())
                 else:
                     parsed = type(current)(value)
-            except ValueError:
+            except (ValueError, OverflowError):
                 raise SettingsError(f"characterisation parameter {key}: {value!r} is not "
                                     f"a {type(current).__name__}") from None
+            if isinstance(parsed, float) and not math.isfinite(parsed):
+                raise SettingsError(f"characterisation parameter {key}: {value} is not a "
+                                    "finite number")
             setattr(plan, key, parsed)
         plan.check()
         return plan

@@ -17,6 +17,7 @@ import os
 import sys
 import time
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.line_decoder import KINDS
 from tactile_studio.devices.serial_emulator import SerialEmulator
 from tactile_studio.errors import UserError
@@ -29,14 +30,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="stream frames in the receiver's serial format on a pseudo-terminal")
     p.add_argument("--source", default="simulated",
                    help="'simulated' (default) or a session .h5 / ShearSense .csv to loop")
-    p.add_argument("--rate", type=float, default=None,
+    p.add_argument("--rate", type=finite_float, default=None,
                    help="lines per second (default: 44, or the file's own rate)")
-    p.add_argument("--corrupt", type=float, default=0.0, metavar="FRACTION",
+    p.add_argument("--corrupt", type=finite_float, default=0.0, metavar="FRACTION",
                    help="fraction of lines sent malformed, spread over the kinds (default 0)")
     p.add_argument("--kinds", default=",".join(KINDS),
                    help=f"malformed kinds to inject (default: all of {','.join(KINDS)})")
     p.add_argument("--seed", type=int, default=0, help="random seed (simulator and corruption)")
-    p.add_argument("--seconds", type=float, default=None, help="stop after this long")
+    p.add_argument("--seconds", type=finite_float, default=None, help="stop after this long")
     p.add_argument("--link", default=None, metavar="PATH",
                    help="stable symlink to the pty, re-pointed when the emulator restarts")
     p.add_argument("--no-trailing-comma", action="store_true",

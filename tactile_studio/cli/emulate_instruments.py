@@ -14,6 +14,7 @@ import os
 import sys
 import time
 
+from tactile_studio.cli.argtypes import finite_float, non_negative_float, positive_float
 from tactile_studio.errors import UserError
 from tactile_studio.instruments.loadcell_emulator import MODES, LoadCellEmulator
 from tactile_studio.instruments.printer_emulator import PrinterEmulator
@@ -24,17 +25,17 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("emulate-printer", help="a Marlin-style 3D printer on a pseudo-terminal")
     p.add_argument("--link", default=None, metavar="PATH", help="stable symlink to the pty")
     p.add_argument("--fail-home", action="store_true", help="homing fails (endstop never triggers)")
-    p.add_argument("--seconds", type=float, default=None, help="stop after this long")
+    p.add_argument("--seconds", type=finite_float, default=None, help="stop after this long")
     p.set_defaults(func=cmd_printer)
     q = sub.add_parser("emulate-loadcell", help="a serial load cell on a pseudo-terminal")
     q.add_argument("--link", default=None, metavar="PATH", help="stable symlink to the pty")
-    q.add_argument("--rate", type=float, default=100.0, help="lines per second (default 100)")
+    q.add_argument("--rate", type=positive_float, default=100.0, help="lines per second (default 100)")
     q.add_argument("--axes", choices=("z", "xyz"), default="xyz", help="values per line")
-    q.add_argument("--force", type=float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("FX", "FY", "FZ"),
+    q.add_argument("--force", type=finite_float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("FX", "FY", "FZ"),
                    help="constant force to report (raw units)")
-    q.add_argument("--noise", type=float, default=0.001, help="Gaussian noise (raw units)")
+    q.add_argument("--noise", type=non_negative_float, default=0.001, help="Gaussian noise (raw units)")
     q.add_argument("--mode", choices=MODES, default="ok", help="ok, garbage or silent")
-    q.add_argument("--seconds", type=float, default=None, help="stop after this long")
+    q.add_argument("--seconds", type=finite_float, default=None, help="stop after this long")
     q.set_defaults(func=cmd_loadcell)
 
 

@@ -11,6 +11,7 @@ import os
 import sys
 from typing import Any
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import DEFAULT_DEVICE, parse_set_options, plugin_class
 from tactile_studio.errors import UserError
 
@@ -93,7 +94,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                     "(works without a display).")
     s.add_argument("--device", default=DEFAULT_DEVICE, help=f"device plugin (default {DEFAULT_DEVICE})")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting, repeatable")
-    s.add_argument("--seconds", type=float, default=3.0, help="seconds of live data first (3)")
+    s.add_argument("--seconds", type=finite_float, default=3.0, help="seconds of live data first (3)")
     s.add_argument("--out", required=True, help="PNG file to write")
     s.add_argument("--virtual", action="store_true", help="show the virtual 11x11 grid")
     s.add_argument("--hover", metavar="TAXEL", help="show this taxel's readout, e.g. C3")

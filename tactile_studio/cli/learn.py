@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli import tables
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.learn.contract import PRESETS
@@ -75,10 +76,10 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None,
                    help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
-    p.add_argument("--window", dest="window_s", type=float, default=None, metavar="SECONDS",
+    p.add_argument("--window", dest="window_s", type=finite_float, default=None, metavar="SECONDS",
                    help="trials longer than 1.5 windows are cut into windows this long "
                         "(default: the protocol's trial length, else 2 s)")
-    p.add_argument("--overlap", dest="window_overlap", type=float, default=0.5,
+    p.add_argument("--overlap", dest="window_overlap", type=finite_float, default=0.5,
                    help="share of a window overlapping the next (default 0.5)")
     p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
                    help="trial prediction from its windows: mean probability or majority vote")

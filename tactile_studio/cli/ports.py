@@ -6,6 +6,7 @@ import argparse
 import json
 
 from tactile_studio.cli import tables
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.discovery import list_serial_ports, scan_ble
 from tactile_studio.errors import UserError
 
@@ -16,7 +17,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_ports)
 
     p = sub.add_parser("ble-scan", help="scan for BLE sensors (for --device ble --set address=...)")
-    p.add_argument("--seconds", type=float, default=5.0, help="how long to scan (default 5)")
+    p.add_argument("--seconds", type=finite_float, default=5.0, help="how long to scan (default 5)")
     p.add_argument("--name", default="", help="only names starting with this (case-insensitive)")
     p.add_argument("--service", default="", help="only devices advertising this service UUID")
     p.add_argument("--json", action="store_true", help="print as JSON")

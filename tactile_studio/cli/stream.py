@@ -8,6 +8,7 @@ import sys
 import time
 from typing import Any
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
@@ -23,7 +24,7 @@ def add_lsl_option(parser: argparse.ArgumentParser) -> None:
 
 
 def add_lsl_wait_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--lsl-wait", type=float, default=0.0, metavar="SECONDS",
+    parser.add_argument("--lsl-wait", type=finite_float, default=0.0, metavar="SECONDS",
                         help="before the device starts, wait up to this long for an LSL "
                              "recipient (e.g. LabRecorder) to open the streams (default 0)")
 
@@ -59,7 +60,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="stream normal / shear-x / shear-y per taxel instead of raw counts")
     p.add_argument("--name", default=None, help="frame stream name (default "
                    "TactileStudio-DEVICE; the marker stream adds -markers)")
-    p.add_argument("--seconds", type=float, default=None,
+    p.add_argument("--seconds", type=finite_float, default=None,
                    help="stop after this long (default: until Ctrl-C)")
     add_lsl_wait_option(p)
     p.set_defaults(func=cmd_stream)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.learn import (
     PRESET_HELP,
     PRESETS,
@@ -67,7 +68,7 @@ def register(subparsers) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--folds", type=int, default=10, help="k for group-kfold")
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda tasks ask Ray for a GPU)")
-    p.add_argument("--window", dest="window_s", type=float, default=None, metavar="SECONDS")
+    p.add_argument("--window", dest="window_s", type=finite_float, default=None, metavar="SECONDS")
     p.add_argument("--aggregate", choices=("mean", "vote"), default="mean")
     add_generalisation_options(p)
     p.add_argument("--out", default=None, metavar="DIR", help="results and finished tasks")

@@ -12,6 +12,7 @@ is one ``UserError`` line naming the file and the field, e.g.
 from __future__ import annotations
 
 import dataclasses
+import math
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -290,6 +291,8 @@ class _Validator:
         value = data[key]
         if isinstance(value, bool) or not isinstance(value, int | float):
             self.fail(key, f"expected a number, got {value!r}")
+        if not math.isfinite(value):  # TOML has nan and inf; every field needs a number
+            self.fail(key, f"{value} is not a finite number")
         if not low <= value <= high:
             self.fail(key, f"{value} is out of range {low:g}..{high:g}")
         return float(value)

@@ -25,6 +25,11 @@ class ImportFormatError(UserError):
     """An input file that is not in the format the importer was asked for."""
 
 
+class NoFramesError(ImportFormatError):
+    """An input file that holds no frames: nothing is written for it (a 0-frame session
+    would be listed, counted and trained on as if something had been imported)."""
+
+
 def slice_progress(progress: ProgressFn, lo: float, hi: float) -> ProgressFn:
     """Map a sub-job's 0..1 onto ``lo..hi`` of the whole job's progress. Never reports
     1.0: only the whole job says it is done (a terminal bar ends its line there)."""
@@ -107,9 +112,12 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
                   counters: dict[str, Any] | None = None,
                   progress: ProgressFn | None = None,
                   cancel: CancelToken | None = None) -> Path:
-    """Write one complete session; a cancelled or failed write leaves no file behind."""
+    """Write one complete session; a cancelled or failed write leaves no file behind, and
+    no frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
     n = int(raw.shape[0])
+    if n == 0:
+        raise NoFramesError(f"{path.name}: no frames to write, nothing imported")
     writer = SessionWriter(path, layout, device_info, metadata, flush_interval=1e9)
     try:
         if baseline is not None:
@@ -145,15 +153,23 @@ def _discard(writer: SessionWriter, path: Path) -> None:
 
 def run_jobs(jobs: Sequence[Callable[[ProgressFn], Path]], progress: ProgressFn | None,
              lo: float = 0.0, hi: float = 1.0,
-             on_done: Callable[[Path], None] | None = None) -> list[Path]:
+             on_done: Callable[[Path], None] | None = None,
+             skipped: list[str] | None = None) -> list[Path]:
     """Run per-session jobs in order, each on its share of ``lo..hi``; ``on_done`` hears
-    of every finished session (a cancel later keeps them)."""
+    of every finished session (a cancel later keeps them). With a ``skipped`` list, a job
+    whose input has no frames adds its one line there and the next job runs."""
     progress = progress or no_progress
     out: list[Path] = []
     k = max(len(jobs), 1)
     for i, job in enumerate(jobs):
-        out.append(job(slice_progress(progress, lo + (hi - lo) * i / k,
-                                      lo + (hi - lo) * (i + 1) / k)))
+        try:
+            out.append(job(slice_progress(progress, lo + (hi - lo) * i / k,
+                                          lo + (hi - lo) * (i + 1) / k)))
+        except NoFramesError as exc:
+            if skipped is None:
+                raise
+            skipped.append(str(exc))
+            continue
         if on_done is not None:
             on_done(out[-1])
     progress(hi, f"{len(out)} session(s)")

@@ -13,6 +13,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.paths import make_out_dir
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers._common import (
+    NoFramesError,
     check_outputs,
     frame_interval,
     import_session_id,
@@ -49,6 +50,7 @@ class ShearSenseImport:
 
     participants: dict[str, str] = field(default_factory=dict)  # as spelled -> id used
     empty_files: list[str] = field(default_factory=list)
+    no_frames: list[str] = field(default_factory=list)  # one line per file not imported
     unmapped_keys: dict[str, list[str]] = field(default_factory=dict)  # key -> files
     key_names: dict[str, str] = field(default_factory=dict)  # the gesture map used
     custom_keys: bool = False  # key_names came from --gestures, not shear9
@@ -69,6 +71,7 @@ class ShearSenseImport:
             shown = ", ".join(f"{k} -> {v}" if k != v else v
                               for k, v in sorted(self.participants.items()))
             out.append(f"participants: {shown}")
+        out += self.no_frames
         if self.empty_files:
             out.append(f"{len(self.empty_files)} file(s) with no labelled runs (0 trials): "
                        + ", ".join(self.empty_files))
@@ -148,6 +151,8 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
     csv, out = Path(csv), Path(out)
     progress = progress or no_progress
     data = read_shearsense_csv(csv, slice_progress(progress, 0.0, 0.7), cancel, digest=True)
+    if data.n_frames == 0:  # the header and the baseline row only: no 0-frame session
+        raise NoFramesError(f"{csv}: no frames after the baseline row, nothing imported")
     protocol = load_protocol_or_none(PROTOCOL)
     custom = key_names is not None
     names = dict(key_names) if custom else default_key_names(protocol)
@@ -194,7 +199,9 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
                       key_names: dict[str, str] | None = None,
                       participant_map: dict[str, str] | None = None,
                       report: ShearSenseImport | None = None) -> list[Path]:
-    """Import CSVs in order; on cancel the sessions finished so far stay on disk.
+    """Import CSVs in order; on cancel the sessions finished so far stay on disk. A CSV
+    without frames writes nothing: with a ``report`` it is listed in ``report.no_frames``
+    and the others are imported, without one its ``NoFramesError`` is raised.
     See :func:`import_shearsense_file` for ``key_names``, ``participant_map``, ``report``."""
     out_dir = Path(out_dir)
     for f in files:
@@ -209,7 +216,8 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
     jobs = [lambda p, c=c, o=o: import_shearsense_file(c, o, p, cancel, key_names,
                                                        participant_map, report)
             for c, o in pairs]
-    return run_jobs(jobs, progress, on_done=on_done)
+    return run_jobs(jobs, progress, on_done=on_done,
+                    skipped=report.no_frames if report is not None else None)
 
 
 def import_shearsense_study(files: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
@@ -220,13 +228,21 @@ def import_shearsense_study(files: Sequence[str | os.PathLike], out_dir: str | o
                             ) -> tuple[list[Path], ShearSenseImport]:
     """What ``import shearsense`` does, for the CLI and the research workspace alike: the
     maps as the user typed them (``--gestures``, ``--participant-map``; empty: the
-    defaults), the output folder made, every file imported, and the summary to show."""
+    defaults), the output folder made, every file imported, and the summary to show.
+    Files without frames are listed in the summary (``report.no_frames``); when no file
+    had any, ``NoFramesError`` says so and nothing is written."""
     keys = gesture_key_map(gestures) if gestures else None
     people = participant_map(participants) if participants else None
     make_out_dir(out_dir)
     report = ShearSenseImport(key_source=gesture_map_source(gestures) if gestures else "")
     paths = import_shearsense(files, out_dir, progress, cancel, force, on_done,
                               key_names=keys, participant_map=people, report=report)
+    if not paths and report.no_frames:
+        if len(report.no_frames) == 1:
+            raise NoFramesError(report.no_frames[0])
+        raise NoFramesError(f"nothing imported: none of the {len(report.no_frames)} files "
+                            "has frames after its baseline row "
+                            f"({', '.join(Path(f).name for f in files)})")
     return paths, report
 
 
