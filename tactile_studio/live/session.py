@@ -37,6 +37,7 @@ from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.live.marker_recording import MarkerRecording
+from tactile_studio.live.outcome import RecordingOutcome, outcome_of
 from tactile_studio.live.status import LiveStatus
 from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
@@ -51,7 +52,9 @@ class AcquisitionSession:
     Events (``add_listener``; dicts with a ``kind``), all emitted on the caller's thread:
     ``connected`` (device), ``disconnected``, ``state`` (state: the engine's new
     state, seen by :meth:`poll`), ``recording_started`` (path), ``recording_stopped``
-    (path, reason: ``requested``, ``limit`` or ``device``) and ``health`` (message: the
+    (path, reason: ``requested``, ``limit``, ``device`` or ``write_error``; ``outcome``:
+    the :class:`~tactile_studio.live.outcome.RecordingOutcome`, ``message``: its one line
+    when the recording is incomplete, else "") and ``health`` (message: the
     device went silent while recording, or came back; live/stream_health.py).
     """
 
@@ -82,6 +85,8 @@ class AcquisitionSession:
         self._stop_all = False
         self._health: StreamHealth | None = None
         self._markers: MarkerRecording | None = None
+        #: how the last recording ended (set when it stops; live/outcome.py)
+        self.outcome: RecordingOutcome | None = None
 
     # ---- events ------------------------------------------------------------------------
     def add_listener(self, fn: Listener) -> Callable[[], None]:
@@ -210,7 +215,13 @@ class AcquisitionSession:
         self._close_outlets()  # an outlet's last markers go into the file too
         # idempotent: a collection session may have closed it already
         rec.stop(background_compress=self.compress_in_background)
-        self._emit("recording_stopped", path=str(rec.path), reason=reason)
+        eng = self.engine
+        self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
+        if rec.write_error:
+            reason = "write_error"
+        self._emit("recording_stopped", path=str(rec.path), reason=reason,
+                   message="" if self.outcome.complete else self.outcome.line,
+                   outcome=self.outcome)
         return str(rec.path)
 
     @property
@@ -235,7 +246,12 @@ class AcquisitionSession:
             self._emit("health", message=message, silent=health.silent)
         for message in self._markers.messages() if self._markers is not None else []:
             self._emit("health", message=message, silent=True)
-        if rec.stopped:  # closed by its other user (a collection session's close())
+        if rec.write_error:  # the file cannot be written: stop now, never "running"
+            if self._stop_all:
+                self.disconnect("write_error")
+            else:
+                self.stop_recording("write_error")
+        elif rec.stopped:  # closed by its other user (a collection session's close())
             self.stop_recording()
         elif EngineState(eng.state).is_over:
             self.stop_recording("device")

@@ -9,7 +9,8 @@ import threading
 import time
 import weakref
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
@@ -19,7 +20,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.logbook_file import say_once
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 from tactile_studio.storage.trials import TrialRecord
 
 # Events that state something in force until the next one (the host->LSL clock offset of a
@@ -69,6 +70,11 @@ class Recorder:
         self._event_cursor = engine.event_count
         self.start_counters = engine.counters()
         self._stop = threading.Event()
+        # the first write error (one line: file and cause); the recorder then stops
+        # writing, releases its hold and waits for stop() (see _drain)
+        self.write_error: str | None = None
+        self.started_at = time.time()  # wall clock, for "lost N s into the recording"
+        self.stopped_at: float | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._release: Callable[[], None] = lambda: None
         if engine.baseline is not None:
@@ -155,13 +161,14 @@ class Recorder:
     def add_event(self, kind: str, **detail: Any) -> None:
         """An event at the next row (runner and lab events; engine events come by
         themselves)."""
-        self.writer.add_event(kind, **detail)
+        with self._unless_failed():
+            self.writer.add_event(kind, **detail)
 
     def add_event_at(self, engine_frame: int, kind: str, **detail: Any) -> None:
         """An event at engine frame ``engine_frame`` (the collection runner's: where it
         happened in the stream, not where writing has got to). Written with its file row
         once this recorder has pulled that frame, when frames lost before it are known."""
-        with self._lock:
+        with self._lock, self._unless_failed():
             if engine_frame < self._cursor or self.stopped:
                 self.writer.add_event(kind, frame=self.row_of(engine_frame), **detail)
             else:
@@ -170,7 +177,8 @@ class Recorder:
     def add_baseline(self, values: np.ndarray, row: int | None = None) -> None:
         """A baseline taken outside the engine, in force from ``row`` (default: the
         next row)."""
-        self.writer.add_baseline(values, row)
+        with self._unless_failed():
+            self.writer.add_baseline(values, row)
 
     def add_trial(self, trial: TrialRecord) -> TrialRecord:
         """Write a finished trial (rows ``start_sample..end_sample``) and flush.
@@ -185,26 +193,41 @@ class Recorder:
         if self.device_time_offset:  # measured on the engine's clock: the file's is shifted
             trial = trial.with_changes(start_time=trial.start_time + self.device_time_offset,
                                        end_time=trial.end_time + self.device_time_offset)
-        self.writer.add_trial(trial.to_dict())
-        self.writer.flush()
+        with self._unless_failed():
+            self.writer.add_trial(trial.to_dict())
+            self.writer.flush()
         return trial
 
     def update_trial(self, index: int, **changes: Any) -> None:
         """Change a written trial (its status, reason...) and flush."""
-        self.writer.update_trial(index, **changes)
-        self.writer.flush()
+        with self._unless_failed():
+            self.writer.update_trial(index, **changes)
+            self.writer.flush()
 
     def add_note(self, text: str, **detail: Any) -> list[str]:
         """A ``note`` event plus the note appended to the metadata's ``notes`` (one per
         line); flushed. Returns all notes."""
         self._notes.append(text)
-        self.writer.add_event("note", text=text, **detail)
-        self.writer.update_metadata(notes="\n".join(self._notes))
-        self.writer.flush()
+        with self._unless_failed():
+            self.writer.add_event("note", text=text, **detail)
+            self.writer.update_metadata(notes="\n".join(self._notes))
+            self.writer.flush()
         return list(self._notes)
 
     def flush(self) -> None:
-        self.writer.flush()
+        with self._unless_failed():
+            self.writer.flush()
+
+    @contextmanager
+    def _unless_failed(self) -> Iterator[None]:
+        """Writes from the runner and the lab: after a write error they do nothing (the
+        error is in ``write_error``, which the owner's poll reports); never raised into
+        a runner mid-trial."""
+        try:
+            yield
+        except WriteFailed as exc:
+            if self.write_error is None:
+                self.write_error = str(exc)
 
     def start(self) -> Recorder:
         """Pull in the background. A device that can wait for its reader (a replay or
@@ -220,13 +243,20 @@ class Recorder:
         if self.stopped:
             return
         self._stop.set()
+        self.stopped_at = time.time()
         if self._thread.ident is not None:  # never started: catch_up() did the pulling
             self._thread.join()
         self._drain()
         with self._lock:
-            self._write_pending(final=True)
+            if self.write_error is None:
+                try:
+                    self._write_pending(final=True)
+                except WriteFailed as exc:
+                    self.write_error = str(exc)
         self._release()
-        self.writer.close(background=background_compress)
+        self.writer.close(background=background_compress)  # after a write error: no writes
+        if self.write_error is None and self.writer.failed:  # the closing touches failed
+            self.write_error = self.writer.failed
         _OPEN.discard(self)
         self._log_usage()
 
@@ -236,8 +266,19 @@ class Recorder:
 
     @property
     def running(self) -> bool:
-        """Its background thread is pulling frames (started, not stopped)."""
-        return self._thread.is_alive()
+        """Its background thread is pulling frames (started, not stopped, no write
+        error)."""
+        return self._thread.is_alive() and self.write_error is None
+
+    @property
+    def state(self) -> str:
+        """``write_error`` (the file could not be written; see ``write_error``),
+        ``stopped``, ``running`` or ``idle`` (not started: the owner pulls)."""
+        if self.write_error:
+            return "write_error"
+        if self.stopped:
+            return "stopped"
+        return "running" if self._thread.is_alive() else "idle"
 
     def _log_usage(self) -> None:
         """Add this recording's duration to the sensor's hours of use in the logbook."""
@@ -252,8 +293,9 @@ class Recorder:
 
     def _run(self) -> None:
         try:
-            while not self._stop.wait(self.poll_s):
+            while not self._stop.wait(self.poll_s) and self.write_error is None:
                 self._drain()
+            self._release()  # a write error ends the pulling: never hold a device then
         except BaseException:
             self._release()  # a dead recorder must not stall a device that waits for it
             raise
@@ -269,8 +311,15 @@ class Recorder:
                 self.writer.add_event(kind, frame=0, time_s=event["time"], carried=True, **detail)
 
     def _drain(self) -> None:
+        """Pull and write; the first write error is kept in ``write_error`` (not raised:
+        the owner's poll sees it and stops the recording) and nothing is written after."""
         with self._lock:
-            self._drain_locked()
+            if self.write_error is not None:
+                return
+            try:
+                self._drain_locked()
+            except WriteFailed as exc:
+                self.write_error = str(exc)
 
     def _drain_locked(self) -> None:
         chunk = self.engine.read_since(self._cursor)

@@ -126,6 +126,8 @@ class Session:
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
         self._f = _open_h5(self.path)
+        # ends before its recorded end: a recording cut short by a failed write
+        self.cut_short = bool(_check_not_truncated(self.path))
         try:
             self._check_and_load()
         except SessionFileError:
@@ -266,6 +268,7 @@ class Session:
             "segments": len(resumes) + 1,
             "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
             "closed_cleanly": self.closed_cleanly,
+            "cut_short": self.cut_short,
             "layout": self.layout.name,
             "events": [_user_blocks(e) for e in self.events],
             "metadata": self.metadata,

@@ -14,11 +14,15 @@ not while recording). See docs/session-format.md.
 from __future__ import annotations
 
 import datetime as _dt
+import errno
 import json
 import os
+import re
 import threading
 import time
 import uuid
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -50,8 +54,36 @@ def _jsonable(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+class WriteFailed(SessionFileError):
+    """Writing the session file failed (disk full, file-size limit, an I/O error). The
+    file keeps what was written before; the writer writes nothing more to it."""
+
+
+_CAUSES = {errno.ENOSPC: "no space left on device (disk full)",
+           errno.EFBIG: "file too large (the file-size limit was reached)",
+           errno.EDQUOT: "disk quota exceeded"}
+
+
+def describe_write_error(path: Path, exc: BaseException) -> str:
+    """One line naming the file and the cause: h5py reports a failed write as an
+    OSError or as a RuntimeError whose text carries the errno."""
+    code = getattr(exc, "errno", None)
+    if not code:
+        m = re.search(r"errno = (\d+)", str(exc))
+        code = int(m.group(1)) if m else None
+    if code:
+        cause = _CAUSES.get(code) or os.strerror(code).lower()
+    else:
+        cause = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+    return f"{path}: write failed: {cause}"
+
+
 class SessionWriter:
-    """Appends frames and journal records to a new session file; thread-safe."""
+    """Appends frames and journal records to a new session file; thread-safe.
+
+    The first write that fails (:class:`WriteFailed`) ends the writer: ``failed`` holds
+    the one-line cause, every later write raises at once without touching the file, and
+    :meth:`close` releases it without a final flush (see :meth:`_fail`)."""
 
     def __init__(self, path: str | os.PathLike, layout: Layout, device_info: dict[str, Any],
                  metadata: dict[str, Any] | None = None, flush_interval: float = 0.5,
@@ -65,7 +97,11 @@ class SessionWriter:
             raise SessionFileError(f"{self.path}: folder {self.path.parent} does not exist")
         wait_for_compression(self.path)  # an earlier recording's swap must not land on us
         try:
-            self._f = h5py.File(self.path, "w", libver="latest", locking=False)
+            # a chunk cache of two live chunks: the chunk being filled stays in memory.
+            # h5py's default (1 MiB per dataset) made a 1 kHz recording's memory grow by
+            # ~40 KB/s for as long as it ran (benchmarks/bench_soak.py)
+            self._f = h5py.File(self.path, "w", libver="latest", locking=False,
+                                rdcc_nbytes=2 * LIVE_CHUNK_BYTES)
         except OSError as exc:
             line = fault_line(exc)  # read-only, full, no permission: the plain cause
             raise SessionFileError(line or f"{self.path}: cannot create session file ({exc})"
@@ -92,6 +128,7 @@ class SessionWriter:
         self._n = 0
         self._last_flush = time.monotonic()
         self._closed = False
+        self.failed: str | None = None
         self.metadata: dict[str, Any] = {
             "session_id": str(uuid.uuid4()),  # callers (resume, imports) may pass their own
             "schema_version": SCHEMA_VERSION,
@@ -122,7 +159,7 @@ class SessionWriter:
         n = int(raw.shape[0])
         if n == 0:
             return self._n
-        with self._lock:
+        with self._lock, self._writing():
             first = self._n
             self._raw.resize(first + n, axis=0)
             self._raw[first:] = raw
@@ -137,10 +174,40 @@ class SessionWriter:
             self._maybe_flush()
             return first
 
+    # ---- write errors ----------------------------------------------------------------
+    @contextmanager
+    def _writing(self) -> Iterator[None]:
+        """Around every write: after the first failure nothing reaches the file."""
+        if self.failed:
+            raise WriteFailed(self.failed)
+        try:
+            yield
+        except (OSError, RuntimeError) as exc:
+            if self._closed:
+                raise
+            self._fail(exc)
+            raise WriteFailed(self.failed) from None
+
+    def _fail(self, exc: BaseException) -> None:
+        """Remember the cause, and point HDF5's file descriptor at /dev/null: HDF5 keeps
+        the unwritten metadata and retries it at every flush and at close, and a file it
+        can never write makes it crash the process at exit. What reached the disk before
+        stays as it is; the reader recovers it (storage/session_recover.py)."""
+        self.failed = describe_write_error(self.path, exc)
+        try:
+            fd = self._f.id.get_vfd_handle()
+            null = os.open(os.devnull, os.O_RDWR)
+            try:
+                os.dup2(null, int(fd))
+            finally:
+                os.close(null)
+        except (OSError, RuntimeError, ValueError, TypeError):
+            pass
+
     # ---- journal ---------------------------------------------------------------------
     def _record(self, record: dict[str, Any]) -> None:
         data = (json.dumps(record, default=_jsonable, separators=(",", ":")) + "\n").encode()
-        with self._lock:
+        with self._lock, self._writing():
             m = self._journal.shape[0]
             self._journal.resize(m + len(data), axis=0)
             self._journal[m:] = np.frombuffer(data, dtype=np.uint8)
@@ -179,7 +246,8 @@ class SessionWriter:
     def flush(self) -> None:
         with self._lock:
             if not self._closed:
-                self._f.flush()
+                with self._writing():
+                    self._f.flush()
                 self._last_flush = time.monotonic()
 
     def close(self, compress: bool = True, background: bool = False) -> None:
@@ -189,19 +257,36 @@ class SessionWriter:
         with self._lock:
             if self._closed:
                 return
-            self._record({"type": "closed", "time": time.time()})
-            self._f.flush()
-            self._f.close()
+            if not self.failed:
+                try:
+                    self._record({"type": "closed", "time": time.time()})
+                    self.flush()
+                except WriteFailed:
+                    pass
             self._closed = True
-        with h5py.File(self.path, "r+", locking=False) as f:
-            j = read_journal(f)
-            f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
-            f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
-            f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
+            if self.failed:  # nothing more reaches the disk; the file stays as it was cut
+                try:
+                    self._f.close()
+                except (OSError, RuntimeError):
+                    pass
+                return
+            self._f.close()
+        try:
+            with h5py.File(self.path, "r+", locking=False) as f:
+                j = read_journal(f)
+                f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
+                f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
+                f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
+        except (OSError, RuntimeError) as exc:  # closed cleanly; only the copies are missing
+            self.failed = describe_write_error(self.path, exc)
+            return
         if compress and background:
             compress_in_background(self.path)
         elif compress:
-            compress_session_file(self.path)
+            try:
+                compress_session_file(self.path)
+            except (OSError, RuntimeError):  # e.g. no room for the copy: keep it uncompressed
+                pass
 
     def __enter__(self) -> SessionWriter:
         return self
