@@ -41,6 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    _ignore_file_size_signal()
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
@@ -74,6 +75,17 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("tactile-studio: interrupted", file=sys.stderr)
         return EXIT_CANCELLED
+
+
+def _ignore_file_size_signal() -> None:
+    """A file-size limit (``ulimit -f``) must fail the write (EFBIG: the recorder stops
+    cleanly and says so) rather than kill the process with SIGXFSZ. Python ignores it at
+    start already; say so here, where an embedding program may have changed it."""
+    import signal
+    import threading
+
+    if hasattr(signal, "SIGXFSZ") and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
 
 def _silence_stdout() -> None:

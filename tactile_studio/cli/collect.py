@@ -213,6 +213,10 @@ def run(args: argparse.Namespace) -> int:
         session.close()
         acq.close()
     print(session.path)
+    if acq.outcome is not None:  # live/outcome.py: the same judgement as record and the GUI
+        if not acq.outcome.complete:
+            print(acq.outcome.summary_line, file=sys.stderr)
+        acq.outcome.raise_if_incomplete()  # device failed, write failed, frames lost: 3
     return 0
 
 
@@ -230,7 +234,10 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
                       f"tactile-studio collect --virtual-participant --resume {session.path}",
                       file=sys.stderr)
                 raise Cancelled("collection stopped")
-            if engine.state == ERROR or not engine.running and runner.state != State.SETUP:
+            if session.recorder.write_error or engine.state == ERROR:
+                runner.abort()  # the file cannot be written or the device failed: the
+                return          # outcome says which, and what was kept (exit 3)
+            if not engine.running and runner.state != State.SETUP:
                 runner.abort()
                 raise UserError(f"device {engine.device_name}: {engine.error or 'stopped'}; "
                                 f"completed trials are kept in {session.path}")

@@ -15,7 +15,6 @@ from tactile_studio.cli import tables
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
-from tactile_studio.devices.engine import ERROR
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
@@ -101,12 +100,11 @@ def cmd_record(args: argparse.Namespace) -> int:
                 break
     progress.close()
     session.close()  # engine, then the LSL outlet (its end goes into the file), then the file
-    with Session(out) as s:
-        summary = s.summary()
-    print(f"\nwrote {out}: {summary['frames']} frames, {summary['duration_s']:.2f} s, "
-          f"{summary['rate_hz']:.1f} Hz, malformed {summary['malformed']}, gaps {summary['gaps']}")
-    if engine.state == ERROR:
-        raise UserError(f"recording stopped early: {engine.error} (frames so far are in {out})")
+    outcome = session.outcome  # live/outcome.py: the same judgement as collect and the GUI
+    if outcome is None:
+        raise UserError(f"{out}: the recording did not start")
+    print(f"\n{outcome.summary_line}")
+    outcome.raise_if_incomplete()  # device lost, write failed, frames lost: exit 3
     return 0
 
 
@@ -146,7 +144,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         if f not in backups:  # a resume backup repeats its session's trials
             study.append((meta.get("participant") or "", meta.get("condition") or "",
                           Counter(t.get("gesture") for t in trials if t.get("status") == "ok")))
-        notes = [] if summary["closed_cleanly"] else ["not closed cleanly (recovered)"]
+        notes = [] if summary["closed_cleanly"] else [
+            "cut short (writes failed), recovered" if summary.get("cut_short")
+            else "not closed cleanly (recovered)"]
         if f in backups:
             notes.append("resume backup")
         rows.append((name, meta.get("participant") or "", meta.get("condition") or "",
@@ -165,6 +165,14 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         for line in study_counts(study).lines():
             print(line)
     return 1 if bad else 0
+
+
+def _closed_text(summary: dict[str, Any]) -> str:
+    if summary["closed_cleanly"]:
+        return "cleanly"
+    if summary.get("cut_short"):
+        return "NOT cleanly (recovered; cut short: its writes failed, e.g. disk full)"
+    return "NOT cleanly (recovered)"
 
 
 def _trial_table(trials: list[dict[str, Any]], gestures: list[str]) -> str:
@@ -199,7 +207,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         f"events:     {len(summary['events'])}"
         + (f" ({', '.join(sorted({e['kind'] for e in summary['events']}))})"
            if summary["events"] else ""),
-        f"closed:     {'cleanly' if summary['closed_cleanly'] else 'NOT cleanly (recovered)'}",
+        f"closed:     {_closed_text(summary)}",
     ]
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
