@@ -207,3 +207,49 @@ def test_the_main_window_records_anyway_and_its_sensor_box_says_why(qtbot, logbo
     assert logbook.read_bytes() == damaged
     with Session(tmp_path / "s.h5") as s:
         assert len(s.column("device_time")) > 20
+
+
+def test_a_logbook_in_a_read_only_folder_is_one_line_and_recording_goes_on():
+    """As the unprivileged user (root writes anywhere): the logbook's folder is not ours."""
+    import shutil
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    base = Path(tempfile.mkdtemp(prefix="ts-logbook-"))
+    try:
+        base.chmod(0o777)
+        data = base / "appdata"
+        data.mkdir()
+        with Logbook(data / "logbook.sqlite") as book:
+            book.add_usage("sim-0", 60.0)
+        data.chmod(0o555)
+        exe = [str(Path(sys.executable).with_name("tactile-studio"))]
+        if os.geteuid() == 0:
+            if shutil.which("setpriv") is None:
+                pytest.skip("running as root without setpriv: no way to drop privileges")
+            exe = ["setpriv", "--reuid=65534", "--regid=65534", "--clear-groups", *exe]
+        elif os.access(data, os.W_OK):
+            pytest.skip("this filesystem ignores permissions")
+        env = {**os.environ, "TACTILE_STUDIO_DATA_DIR": str(data), "HOME": str(base),
+               "TACTILE_STUDIO_CACHE_DIR": str(base), "MPLCONFIGDIR": str(base)}
+        sensors = subprocess.run([*exe, "sensors"], capture_output=True, text=True, env=env,
+                                 timeout=120)
+        assert sensors.returncode == 1
+        assert one_error_line(sensors.stderr).startswith(
+            f"{data}/logbook.sqlite: cannot read the sensor logbook")
+        record = subprocess.run([*exe, "record", "--device", "simulated", "--seconds", "0.3",
+                                 "--out", str(base / "r.h5")], capture_output=True, text=True,
+                                env=env, timeout=120)
+        assert record.returncode == 0 and "Traceback" not in record.stderr
+        said = [ln for ln in record.stderr.splitlines() if "sensor logbook" in ln]
+        assert len(said) == 1 and said[0].startswith(
+            f"sensor logbook not used for this recording: {data}/logbook.sqlite:")
+        with Session(base / "r.h5") as s:
+            assert len(s.column("device_time")) > 0
+    finally:
+        for path in [base, *base.rglob("*")]:
+            if path.is_dir():
+                path.chmod(0o755)
+        shutil.rmtree(base, ignore_errors=True)

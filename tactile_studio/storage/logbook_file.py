@@ -80,7 +80,7 @@ def problem_of(path: Path) -> str | None:
         finally:
             db.close()
     except sqlite3.DatabaseError as exc:
-        if getattr(exc, "sqlite_errorname", "") in PLACE_CODES:
+        if _code(exc) in PLACE_CODES:
             raise LogbookUnavailable(f"{path}: cannot read the sensor logbook ({exc})") from None
         return str(exc)
     if rows == [("ok",)]:
@@ -154,9 +154,14 @@ def refresh_backup(db: sqlite3.Connection, path: Path, only_if_missing: bool = F
         return False
 
 
+def _code(exc: sqlite3.Error) -> str:
+    """The primary result code's name ('SQLITE_READONLY' for SQLITE_READONLY_CANTINIT)."""
+    return "_".join(str(getattr(exc, "sqlite_errorname", "")).split("_")[:2])
+
+
 def user_error(exc: sqlite3.Error, path: Path) -> UserError | None:
     """The UserError for an SQLite error that is the file's or the place's fault."""
-    name = getattr(exc, "sqlite_errorname", "")
+    name = _code(exc)
     if name in DAMAGE_CODES:
         return LogbookDamaged(f"{path}: the sensor logbook is damaged ({exc}); see "
                               "docs/sensor-health.md to restore its backup")
