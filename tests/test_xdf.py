@@ -141,7 +141,9 @@ def string_samples(stamps, texts):
     out = [b"\x04" + struct.pack("<I", len(stamps))]
     for t, text in zip(stamps, texts):
         data = text.encode()
-        out.append(b"\x08" + struct.pack("<d", t) + b"\x01" + struct.pack("<B", len(data)) + data)
+        size = b"\x01" + struct.pack("<B", len(data)) if len(data) < 256 else \
+            b"\x04" + struct.pack("<I", len(data))
+        out.append(b"\x08" + struct.pack("<d", t) + size + data)
     return b"".join(out)
 
 
