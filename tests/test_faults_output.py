@@ -199,3 +199,17 @@ def test_a_file_where_the_output_folder_goes_is_named_as_such(argv, data, capsys
     assert main(argv) == 1
     line = one_error_line(capsys.readouterr().err)
     assert line == f"{data}/blocker: cannot write (exists and is not a folder)"
+
+
+def test_a_health_run_that_cannot_write_its_file_ends_in_the_one_line(tmp_path, monkeypatch):
+    """The calibration wizard's run (HealthRun): its CAL.json place is a folder."""
+    from tactile_studio.health.calibration import CalibrationSpec
+    from tactile_studio.health.runner import HealthRun
+
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "appdata"))
+    (tmp_path / "cal.json.tmp").mkdir()  # where the calibration is written first
+    run = HealthRun("simulated", {"speed": 0}, CalibrationSpec("sim-0", (100, 200, 300),
+                                                               taxels=("B2",)),
+                    auto=True, out=str(tmp_path / "cal.json")).start()
+    assert run.join(120)
+    assert run.error == f"{tmp_path}/cal.json: cannot open (Is a directory)"

@@ -20,6 +20,7 @@ from tactile_studio.health.bench import Bench, Placer, SimulatedPlacer, Timing
 from tactile_studio.health.calibration import CalibrationSpec, run_calibration
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken
+from tactile_studio.output_faults import fault_line
 
 
 @dataclass
@@ -102,8 +103,10 @@ class HealthRun:
             self.error = str(exc)
             self._emit("error", {"message": self.error})
         except Exception as exc:  # a bug: keep the traceback in the log, tell the user
-            logging.getLogger(__name__).exception("health procedure failed")
-            self.error = f"internal error: {type(exc).__name__}: {exc}"
+            line = fault_line(exc)  # ... unless the place cannot be written: one line
+            if line is None:
+                logging.getLogger(__name__).exception("health procedure failed")
+            self.error = line or f"internal error: {type(exc).__name__}: {exc}"
             self._emit("error", {"message": self.error})
         finally:
             engine.stop()
