@@ -79,4 +79,5 @@ def test_labrecorders_capture_of_a_collection_imports_with_its_trials(tmp_path, 
         # rows come from timestamps after jitter removal: a trial keeps its length to
         # within the simulator's delivery batches
         assert all(abs(g[2] - w[2]) <= 8 for g, w in zip(got, want))
-        assert "beep" in {e["kind"] for e in b.events}  # the rest of the markers: events
+        kinds = {e["kind"] for e in b.events}
+        assert "beep" in kinds and not {"trial_start", "trial_end"} & kinds  # trials, not events

@@ -136,6 +136,7 @@ class _Markers:
         self.trials: dict[int, dict[str, Any]] = {}
         self.baselines: list[tuple[int, list[float]]] = []
         self._starts: dict[int, int] = {}
+        self._last_start: int | None = None
 
     def row(self, t: float) -> int:
         i = int(np.searchsorted(self.times, t))
@@ -156,10 +157,15 @@ class _Markers:
         m.pop("frame", None)
         m.pop("row", None)
         index = m.get("index")
-        if kind == "trial_start" and index is not None:
-            self._starts[int(index)] = row
+        if kind == "trial_start":  # live markers name no index: the next end is its own
+            if index is not None:
+                self._starts[int(index)] = row
+            self._last_start = row
         elif kind == "trial_end" and index is not None:
             start = self._starts.pop(int(index), None)
+            if start is None and self._last_start is not None and self._last_start <= row:
+                start = self._last_start
+            self._last_start = None
             if start is None:
                 start = row + 1 - (int(m.get("end_sample", 1)) - int(m.get("start_sample", 0)))
             keep = {k: v for k, v in m.items() if k not in ("source", "start_sample", "end_sample")}
