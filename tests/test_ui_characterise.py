@@ -150,3 +150,17 @@ def test_a_folder_holding_a_run_is_replaced_only_when_the_user_says_yes(qtbot, w
     assert sorted(p.name for p in (out / "raw").iterdir()) == ["C3.json"]
     with Session(out / "session.h5") as session:
         assert [e["taxel"] for e in session.events if e["kind"] == "char_taxel"] == ["C3"]
+
+
+def test_a_folder_that_cannot_be_made_ends_the_run_in_one_line(qtbot, tmp_path):
+    blocker = tmp_path / "blocker"
+    blocker.write_text("a regular file: no folder can be made under it")
+    w = CharacteriseWizard(str(blocker / "run"))
+    qtbot.addWidget(w)
+    w.show()
+    w.next()
+    fill_plan(w, "B2")
+    w.next()
+    qtbot.waitUntil(lambda: w.run_page.finished_run, timeout=30000)
+    assert w.error == f"{blocker}/run: cannot write (Not a directory)"
+    assert w.run_page.status.text() == f"Stopped: {w.error}"

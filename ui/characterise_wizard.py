@@ -46,6 +46,7 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.paths import data_dir
 from tactile_studio.ui.settings import app_settings
+from tactile_studio.ui.write_faults import fault_text
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
 # the paper's 22,000-cycle repeatability test takes about 14 h: offered, not the default
@@ -376,7 +377,12 @@ class CharacteriseWizard(QWizard):
                     overwrite=overwrite)
             except (UserError, Cancelled) as exc:
                 error = str(exc) or "aborted"
-            bridge.done.emit(result, error)
+            except Exception as exc:  # the folder cannot be written: one line; a bug keeps
+                error = fault_text(exc) or f"{type(exc).__name__}: {exc}"  # its traceback
+                if fault_text(exc) is None:
+                    raise
+            finally:  # either way the run page ends
+                bridge.done.emit(result, error)
         self.button(QWizard.BackButton).setEnabled(False)
         self._thread = threading.Thread(target=work, name="characterise", daemon=True)
         self._thread.start()
