@@ -56,8 +56,9 @@ def test_import_xdf_from_the_workspace_and_play_it_with_its_eda(window, qtbot, t
     assert [e.text for e in player.pb.events if e.kind == "marker"] == ["start", "stop"]
     assert player.timeline.minimumHeight() == 130 + 30
     window.tabs.setCurrentWidget(player)
+    player.set_taxels([(3, 2), (3, 5)])
+    player.seek(250)  # mid-stroke
     window.resize(1100, 700)
     window.show()
     qtbot.waitExposed(window)
-    player.timeline.grab().save(str(SHOTS / "research_xdf_timeline.png"))
     window.grab().save(str(SHOTS / "research_xdf_player.png"))

@@ -152,9 +152,17 @@ def foreign_xdf(path):
     behind the recorder's, an EDA band at 32 Hz (1.25 s behind), plain-text markers."""
     rng = np.random.default_rng(9)
     mat_t = 1000.0 + np.arange(600) / 100.0
-    mat = rng.uniform(0, 1023, (600, 64)).astype(np.float32)
+    # a stroke: a pressure blob crossing the mat between the markers (1 s .. 4 s)
+    pos = np.clip((np.arange(600) - 100) / 300.0, 0, 1) * 7
+    on = ((np.arange(600) >= 100) & (np.arange(600) < 400)).astype(np.float32)
+    rows, cols = np.divmod(np.arange(64), 8)
+    blob = np.exp(-((rows[None] - 3.5) ** 2 + (cols[None] - pos[:, None]) ** 2) / 2.0)
+    mat = (100 + 8 * on[:, None] * blob + rng.normal(0, 0.05, (600, 64))).astype(np.float32)
     eda_t = 2000.0 + np.arange(192) / 32.0
-    eda = rng.normal(3, 0.2, (192, 1))
+    # skin conductance rises a little after the touch begins (an SCR), plus noise
+    since = np.clip(eda_t - 2000.0 - 1.25, 0, None)
+    eda = (3 + 0.4 * since * np.exp(1 - since / 1.0) * (since > 0) / 1.0
+           + rng.normal(0, 0.01, 192))[:, None]
     chans = "".join(f"<channel><label>{lab}</label><unit>uS</unit></channel>" for lab in ["gsr"])
     parts = [b"XDF:", chunk(1, b'<?xml version="1.0"?><info><version>1.0</version></info>'),
              chunk(2, header_xml("PressureMat", "Pressure", 64, 100, "float32"), 1),
