@@ -169,7 +169,7 @@ def _override_view(view: Any, overrides: dict[str, Any]) -> Any:
         if key in overrides:
             try:
                 value = int(float(overrides[key]))
-            except (TypeError, ValueError):
+            except (TypeError, ValueError, OverflowError):  # nan, inf
                 value = 0
             if value < 1:
                 raise UserError(f"{key}={overrides[key]!r} must be a positive whole number")

@@ -20,6 +20,7 @@ members: the mean of each member's loss, see ``models/_common.py``).
 from __future__ import annotations
 
 import copy
+import math
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -52,9 +53,11 @@ def train_settings(defaults: Any, overrides: dict[str, Any],
         default = getattr(s, field)
         try:
             changes[field] = type(default)(float(value) if type(default) is int else value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # int(inf) overflows
             raise UserError(f"training option {key}={value!r} is not a valid "
                             f"{type(default).__name__}") from None
+        if isinstance(changes[field], float) and not math.isfinite(changes[field]):
+            raise UserError(f"training option {key}={value!r} is not a finite number")
         if isinstance(default, int) and changes[field] != float(value):
             raise UserError(f"training option {key}={value!r} must be a whole number")
     if epochs is not None:

@@ -29,7 +29,11 @@ def _coerce(model: str, key: str, value: object, default: object) -> object:
                 raise ValueError(value)
             return int(value)  # type: ignore[arg-type]
         if isinstance(default, float):
-            return float(value)  # type: ignore[arg-type]
+            number = float(value)  # type: ignore[arg-type]
+            if not math.isfinite(number):  # nan slips past every range check below
+                raise UserError(f"model '{model}': option {key}={value!r} is not a finite "
+                                "number")
+            return number
         if isinstance(default, tuple):
             items = value.replace("x", ",").split(",") if isinstance(value, str) else value
             out = tuple(int(v) for v in items)  # type: ignore[union-attr]
@@ -37,7 +41,7 @@ def _coerce(model: str, key: str, value: object, default: object) -> object:
                 raise ValueError(value)
             return out
         return str(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         kind = type(default).__name__
         if isinstance(default, tuple):
             kind = "comma-separated integers"
