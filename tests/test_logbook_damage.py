@@ -253,3 +253,25 @@ def test_a_logbook_in_a_read_only_folder_is_one_line_and_recording_goes_on():
             if path.is_dir():
                 path.chmod(0o755)
         shutil.rmtree(base, ignore_errors=True)
+
+
+def test_the_wellness_wizard_says_it_set_the_logbook_aside(qtbot, logbook):
+    from tactile_studio.ui.wellness_wizard import WellnessWizard
+
+    damaged = damage(logbook, "empty")
+    w = WellnessWizard("simulated", {"speed": 0, "seed": 21})
+    qtbot.addWidget(w)
+    w.show()
+    w.setup.weight.setValue(200)
+    w.next()
+    page = w.run_page
+    qtbot.waitUntil(lambda: page.run is not None and not page.run.running, timeout=60000)
+    page.poll()
+    assert page.notice.isVisible()
+    assert page.notice.text().startswith(f"{logbook}: the sensor logbook was damaged (empty: "
+                                         "0 bytes); kept it as logbook.sqlite.damaged-")
+    aside = next(logbook.parent.glob("logbook.sqlite.damaged-*[0-9]Z"))
+    assert aside.read_bytes() == damaged
+    with Logbook() as book:
+        assert set(SENSORS) < set(book.sensor_ids())  # the backup's history, and the check
+        assert len(book.checks("sim-21")) == 1

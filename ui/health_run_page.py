@@ -46,6 +46,10 @@ class HealthRunPage(QWizardPage):
         self.progress.setRange(0, 1000)
         self.status = QLabel("")
         self.status.setWordWrap(True)
+        self.notice = QLabel("")  # the sensor logbook was damaged and set aside: one line
+        self.notice.setWordWrap(True)
+        self.notice.setStyleSheet("color: #b00020")
+        self.notice.hide()
         self.placed_button = QPushButton("The weight is on (not detected)")
         self.placed_button.setToolTip("Use when the weight sits on a taxel that does not "
                                       "respond: the check records it as it is")
@@ -64,6 +68,7 @@ class HealthRunPage(QWizardPage):
         box.addWidget(self.picture, 1)
         box.addWidget(self.progress)
         box.addWidget(self.status)
+        box.addWidget(self.notice)
         box.addLayout(buttons)
         self.timer = QTimer(self)
         self.timer.setInterval(50)
@@ -122,6 +127,9 @@ class HealthRunPage(QWizardPage):
                 self.picture.mark(target=self.picture.target, detected=info["at"])
             elif ev.kind == "warning":
                 self.status.setText(info["message"])
+            elif ev.kind == "logbook":
+                self.notice.setText(info["message"])
+                self.notice.show()
             elif ev.kind == "spot":
                 verdicts = dict(self.picture.verdicts)
                 verdicts[info["taxel"]] = "measured"  # judged at the end

@@ -21,11 +21,12 @@ from tactile_studio.health.calibration import CalibrationSpec, run_calibration
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken
 from tactile_studio.output_faults import fault_line
+from tactile_studio.storage.logbook import Logbook
 
 
 @dataclass
 class Event:
-    kind: str      # phase | misplaced | warning | spot | progress | done | error
+    kind: str      # phase | misplaced | warning | logbook | spot | progress | done | error
     info: dict[str, Any]
 
 
@@ -85,6 +86,10 @@ class HealthRun:
     def _run(self) -> None:
         engine = self.engine = AcquisitionEngine(self.device)
         try:
+            # what is measured is stored: a damaged logbook is set aside first, said here
+            with Logbook(on_damage="replace") as book:
+                if book.notice:
+                    self._emit("logbook", {"message": book.notice})
             engine.start()
             if not engine.wait_frames(1, timeout=10.0):
                 raise UserError(engine.error or f"device {self.device.name}: no frames in 10 s")
