@@ -44,6 +44,70 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "damaged_files: the test damages session files on purpose; the "
+                   "after-test session check skips the files it wrote")
+
+
+# (path, mtime, size) of session files already checked, and the temporary folders seen
+_CHECKED: set[tuple[str, int, int]] = set()
+_SEEN_DIRS: set[str] = set()
+
+
+def _new_session_files(request, tmp_path) -> list:
+    """``*.h5`` in the test's ``tmp_path`` and in temporary folders not looked in before
+    (a module fixture's ``tmp_path_factory.mktemp``), not checked in this state yet."""
+    from pathlib import Path
+    roots = [Path(tmp_path)] if tmp_path is not None else []
+    factory = request.config._tmp_path_factory if hasattr(request.config, "_tmp_path_factory") \
+        else None
+    base = getattr(factory, "_basetemp", None)
+    if base is not None and Path(base).is_dir():
+        for entry in Path(base).iterdir():
+            if str(entry) not in _SEEN_DIRS and entry.is_dir() and not entry.is_symlink():
+                _SEEN_DIRS.add(str(entry))
+                roots.append(entry)
+    files = []
+    for root in dict.fromkeys(roots):
+        for f in root.rglob("*.h5"):
+            try:
+                st = f.stat()
+            except OSError:
+                continue
+            key = (str(f), st.st_mtime_ns, st.st_size)
+            if f.is_file() and key not in _CHECKED:
+                _CHECKED.add(key)
+                files.append(f)
+    return files
+
+
+@pytest.fixture(autouse=True)
+def sessions_written_pass_check(request):
+    """Every session file a test writes holds the session invariants (``tactile-studio
+    check``): a class of wrong facts is caught wherever a file is written. Files that are
+    not sessions or cannot be read are left alone; ``@pytest.mark.damaged_files`` skips
+    a test's files. Set up first, so checked after every other fixture closed its files."""
+    tmp = request.getfixturevalue("tmp_path") if "tmp_path" in request.fixturenames else None
+    yield
+    files = _new_session_files(request, tmp)
+    if not files or request.node.get_closest_marker("damaged_files"):
+        return
+    from tactile_studio.errors import SessionFileError
+    from tactile_studio.storage.session_check import check_file
+    from tactile_studio.storage.session_compress import wait_for_compression
+    failed = []
+    for f in files:
+        wait_for_compression(f)
+        try:
+            result = check_file(f)
+        except (SessionFileError, OSError):
+            continue  # not a session (or damaged on purpose): nothing to hold it to
+        if not result.ok:
+            failed.append(f"{f}:\n    " + "\n    ".join(result.violations))
+    assert not failed, "session files fail `check`:\n" + "\n".join(failed)
+
+
 @pytest.fixture
 def wait_until():
     """The shared bounded wait (tests/waiting.py), for tests that prefer a fixture."""

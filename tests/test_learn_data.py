@@ -62,6 +62,7 @@ def test_channel_sets_and_virtual_grid(sim_ds, sim_folder, tmp_path):
         sim_ds.select("pressure")
 
 
+@pytest.mark.damaged_files  # the extra trials overlap the others' rows
 def test_ok_trials_only_and_labels_in_protocol_order(tmp_path):
     extra = [trial_record(100, "Poke", 50, 80, status="discarded"),
              trial_record(101, "Tickle", 90, 120, status="redone")]

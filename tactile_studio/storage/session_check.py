@@ -21,8 +21,9 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import TrialStatus
 
 STATUSES = {s.value for s in TrialStatus}
-# trial fields every trial carries (docs/session-format.md, the journal's `trial` record)
-TRIAL_FIELDS = ("index", "block", "gesture", "start_sample", "end_sample", "status")
+# trial fields every trial carries (docs/session-format.md, the journal's `trial` record;
+# readers take a missing block as 0 and a missing status as ok)
+TRIAL_FIELDS = ("index", "gesture", "start_sample", "end_sample")
 COUNTED_EVENTS = (("gaps", "gap"), ("reconnects", "reconnect"))
 
 
@@ -146,11 +147,11 @@ def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
             out.append(f"{name}: no {', '.join(missing)}")
             continue
         try:
-            a, b, block = int(t["start_sample"]), int(t["end_sample"]), int(t["block"])
+            a, b, block = int(t["start_sample"]), int(t["end_sample"]), int(t.get("block", 0))
         except (TypeError, ValueError):
             out.append(f"{name}: rows or block not whole numbers")
             continue
-        if t["status"] not in STATUSES:
+        if t.get("status", "ok") not in STATUSES:
             out.append(f"{name}: status {t['status']!r} (not {', '.join(sorted(STATUSES))})")
         if block < -1 or (n_blocks is not None and block >= n_blocks):
             out.append(f"{name}: block {block} outside the session's blocks "
@@ -166,7 +167,10 @@ def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
             out.append(f"{name}: ends ({et:.6g} s) before it starts ({st:.6g} s)")
         good.append(t)
     by_index = sorted(good, key=lambda t: int(t["index"]))
-    for prev, t in zip(by_index, by_index[1:]):
+    # in order along the frames: no two trials share a row, and their times follow
+    # their rows (a clock that went back shows as a trial starting before the last)
+    by_row = sorted(good, key=lambda t: (int(t["start_sample"]), int(t["index"])))
+    for prev, t in zip(by_row, by_row[1:]):
         if int(t["start_sample"]) < int(prev["end_sample"]):
             out.append(f"trial {t['index']} (rows {t['start_sample']}..{t['end_sample']}) "
                        f"starts before trial {prev['index']} ends (row {prev['end_sample']})")
@@ -193,7 +197,7 @@ def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> N
             out.append(f"event {e.get('kind')} at frame {f}, outside the {n} frames")
     blocks: dict[int, list[dict[str, Any]]] = {}
     for t in trials:
-        blocks.setdefault(int(t["block"]), []).append(t)
+        blocks.setdefault(int(t.get("block", 0)), []).append(t)
     starts = [e for e in s.events if e.get("kind") == "block_start" and _frame(e) is not None]
     first_start: dict[int, int] = {}
     last_start: dict[int, int] = {}
@@ -208,12 +212,12 @@ def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> N
     # a redo may reopen an earlier block after this one began: the runner then starts
     # this block again, so its last block_start follows every trial of earlier blocks
     for b, frame in sorted(last_start.items()):
-        before = [t for t in trials if int(t["block"]) < b]
+        before = [t for t in trials if int(t.get("block", 0)) < b]
         if before:
             last = max(before, key=lambda t: int(t["end_sample"]))
             if frame < int(last["end_sample"]):
                 out.append(f"block_start of block {b} at frame {frame} is before trial "
-                           f"{last['index']} of block {last['block']} ends (row "
+                           f"{last['index']} of block {last.get('block', 0)} ends (row "
                            f"{last['end_sample']})")
     if starts:
         for b, ts in sorted(blocks.items()):
