@@ -17,6 +17,7 @@ turns raw frames into kPa with any calibration of the sensor.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,6 +38,8 @@ def check_loads(loads: list[float]) -> list[float]:
     """At least three positive loads in increasing order (as a person applies them)."""
     if len(loads) < 3:
         raise CalibrationError(f"calibration needs at least 3 loads, got {len(loads)}")
+    if any(not math.isfinite(v) for v in loads):  # nan passes every comparison below
+        raise CalibrationError(f"loads must be finite numbers: {', '.join(f'{v:g}' for v in loads)}")
     if any(v <= 0 for v in loads):
         raise CalibrationError(f"loads must be positive: {', '.join(f'{v:g}' for v in loads)}")
     for a, b in zip(loads, loads[1:]):
