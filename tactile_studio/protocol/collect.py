@@ -282,7 +282,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                               meta["block_order"], practice=meta.get("practice_order", []),
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged, previous_trials=trials)
-    runner.notes = [line for line in str(meta.get("notes", "")).split("\n") if line]
+    notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
+    runner.notes = [line for line in str(notes).split("\n") if line]
     return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
                              info["seed"], resumed=True, backup=backup,
                              touches=touch_source(engine), restore_gesture=restore)
