@@ -163,8 +163,10 @@ class ImportDialog(QDialog):
     def _finished(self, out: str, paths: list[Path], report) -> None:  # noqa: ANN001
         self.progress.setValue(1000)
         self.summary.setPlainText("\n".join(report.lines()))
+        skipped = (f" {len(report.no_frames)} file(s) had no frames and were not imported "
+                   "(listed below).") if report.no_frames else ""
         self._stopped(f"Imported {len(paths)} session(s) into {out}; they are listed in "
-                      "the Sessions tab.", out)
+                      f"the Sessions tab.{skipped}", out)
 
     def _failed(self, message: str) -> None:
         # the core names the command-line switch; here the switch is the tick box
