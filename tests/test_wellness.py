@@ -162,7 +162,7 @@ def test_cli_auto_json_and_report(tmp_path, capsys):
     assert main(["wellness", "--set", "speed=0", "--set", "difficulty=easy", "--set", "seed=4",
                  "--set", "fault=worn",
                  "--set", "fault_taxel=28", "--sensor", "sim-4", "--weight-g", "200",
-                 "--auto", "--json", "--report", str(report)]) == 0
+                 "--auto", "--json", "--report", str(report)]) == 5  # FAIL: EXIT_CHECK_FAIL
     out = json.loads(capsys.readouterr().out)
     assert out["sensor"] == "sim-4" and out["verdict"] == "fail"
     assert set(out["channels"]) >= {"dead", "stuck", "noisy", "saturated"}

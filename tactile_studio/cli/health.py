@@ -10,9 +10,10 @@ from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import UserError
+from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_CHECK_WARN, EXIT_OK, CheckFailed, UserError
 from tactile_studio.health.bench import Placer, SimulatedPlacer
-from tactile_studio.health.calibration import CalibrationSpec, run_calibration
+from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
+from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
@@ -34,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     _device_args(p)
     p.add_argument("--weight-g", type=float, required=True, help="the known weight, grams")
     p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
-                   help=f"taxels to load (default {','.join(DEFAULT_SPOTS)})")
+                   help=f"taxels to load, or all (every taxel; default "
+                        f"{','.join(DEFAULT_SPOTS)}: a pass speaks only for these)")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--report", metavar="FILE.html", help="write an HTML report with figures")
     p.set_defaults(func=cmd_wellness)
@@ -45,6 +47,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--taxels", default="all", help="all, or taxels to calibrate: B2,B5,...")
     p.add_argument("--plate", action="store_true",
                    help="a uniform plate over the whole array instead of a weight per taxel")
+    p.add_argument("--replace", action="store_true",
+                   help="replace the active calibration outright: taxels this one does not "
+                        "measure fall back to the nominal curve (default: merge, keeping "
+                        "the active calibration's curves for them)")
     p.add_argument("--json", action="store_true", help="print the calibration summary as JSON")
     p.add_argument("--out", required=True, metavar="CAL.json", help="calibration file to write")
     p.set_defaults(func=cmd_calibrate)
@@ -105,15 +111,31 @@ def cmd_wellness(args: argparse.Namespace) -> int:
                      result)
     if args.json:
         _dump({k: v for k, v in result.items() if k not in ("baseline", "noise")})
-        return 0
-    print(f"sensor {result['sensor']}: {result['verdict'].upper()} (check #{result['check_id']})")
-    for s in result["spots"]:
-        ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
-        print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} kPa"
-              f"  {ratio:>5} of reference  {s['verdict']}")
-    for reason in result["reasons"]:
-        print(f"  - {reason}")
-    return 0
+    else:
+        print(f"sensor {result['sensor']}: {result['verdict'].upper()} "
+              f"(check #{result['check_id']})")
+        print(f"  {result['tested']['line']}")
+        print(f"  reference: {result['judged_against']}")
+        for s in result["spots"]:
+            ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
+            print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} "
+                  f"kPa  {ratio:>5} of reference  {s['verdict']}")
+        for reason in result["reasons"]:
+            print(f"  - {reason}")
+    return _wellness_status(result)
+
+
+def _wellness_status(result: dict[str, Any]) -> int:
+    """0 on PASS; a WARN or FAIL (stored, printed and reported already) ends with its own
+    exit status (4 / 5) so a pre-session script can stop on it."""
+    verdict = result["verdict"]
+    if verdict == "pass":
+        return EXIT_OK
+    line = (f"sensor {result['sensor']}: wellness {verdict.upper()} (check "
+            f"#{result['check_id']}, {result['tested']['line'].split(':')[0]})")
+    if result["reasons"]:
+        line += f": {result['reasons'][0]}"
+    raise CheckFailed(line, EXIT_CHECK_WARN if verdict == "warn" else EXIT_CHECK_FAIL)
 
 
 def _loads(text: str) -> tuple[float, ...]:
@@ -125,7 +147,8 @@ def _loads(text: str) -> tuple[float, ...]:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     taxels = None if args.taxels.strip().lower() == "all" else tuple(_split(args.taxels))
-    spec = CalibrationSpec(args.sensor, _loads(args.loads_g), taxels, args.plate)
+    spec = CalibrationSpec(args.sensor, _loads(args.loads_g), taxels, args.plate,
+                           replace=args.replace)
     from tactile_studio.sensor.calibration import check_loads
     check_loads(list(spec.loads_g))  # before connecting: bad input fails at once
     _check_report_path(args.out)
@@ -149,13 +172,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,
                "rms_pct_median": round(cal["rms_pct_median"], 4),
                "rms_pct_max": round(cal["rms_pct_max"], 4), "gains": cal["gains"],
-               "skipped": cal["skipped"],
+               "skipped": cal["skipped"], "coverage": cal["coverage"],
+               "replaced_calibration": cal["replaced_calibration"],
                "taxels": [{k: f[k] for k in ("taxel", "model", "rms_pct", "sensitivity")}
-                          for f in cal["fits"]]}
+                          for f in cal["fits"] if f.get("from_calibration") is None]}
     if args.json:
         _dump(summary)
         return 0
     print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
+    print(f"  {coverage_line(cal)}")
     print(f"  rms error: median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
           "of range")
     for f in summary["taxels"]:
@@ -189,6 +214,16 @@ def cmd_sensors(args: argparse.Namespace) -> int:
     return 0
 
 
+def _active_text(hist: dict[str, Any]) -> str:
+    """"#2, covers 36 of 36 taxels" (how much of the array reads with its own curve)."""
+    active = next((c for c in hist["calibrations"] if c["active"]), None)
+    if active is None:
+        return "none active"
+    if active["taxels"] is None:
+        return f"#{active['id']}"
+    return f"#{active['id']}, covers {active['taxels']} of {active['of']} taxels"
+
+
 def cmd_sensor(args: argparse.Namespace) -> int:
     with Logbook() as book:
         hist = book.history(args.id)
@@ -198,7 +233,7 @@ def cmd_sensor(args: argparse.Namespace) -> int:
     lines = [f"sensor:      {hist['id']}  ({hist['layout'] or 'layout unknown'})",
              f"registered:  {hist['created']}",
              f"hours used:  {hist['hours']:.3f}",
-             f"calibration: {hist['active_calibration'] or 'none active'}",
+             f"calibration: {_active_text(hist)}",
              f"checks:      {len(hist['checks'])}"]
     for c in hist["checks"]:
         lines.append(f"  #{c['id']} {c['at']} at {c['hours']:.2f} h  {c['verdict'].upper()}"
@@ -206,8 +241,9 @@ def cmd_sensor(args: argparse.Namespace) -> int:
         lines.extend(f"      {reason}" for reason in c["reasons"])
     lines.append(f"calibrations: {len(hist['calibrations'])}")
     for c in hist["calibrations"]:
-        lines.append(f"  #{c['id']} {c['at']} {c['kind']} rms {c['rms_pct']:.2f}% of range"
-                     + ("  (active)" if c["active"] else ""))
+        covers = covers_text(c)
+        lines.append(f"  #{c['id']} {c['at']} {c['kind']}{' ' + covers if covers else ''} "
+                     f"rms {c['rms_pct']:.2f}% of range" + ("  (active)" if c["active"] else ""))
     lines.append(f"notes:       {len(hist['notes'])}")
     lines.extend(f"  {n['at']} [{n['kind']}] {n['text']}" for n in hist["notes"])
     print("\n".join(lines))
