@@ -17,7 +17,7 @@ import time
 from typing import Any
 
 from PySide6.QtCore import QByteArray, QEventLoop, Qt, QTimer
-from PySide6.QtGui import QAction, QCloseEvent, QKeySequence
+from PySide6.QtGui import QAction, QCloseEvent, QKeySequence, QShowEvent
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QScrollArea, QWidget
 
 from tactile_studio.devices.registry import DEFAULT_DEVICE
@@ -404,7 +404,8 @@ class MainWindow(QMainWindow):
             return
         s = app_settings()
         s.setValue("window/geometry", self.saveGeometry())
-        s.setValue("window/state", self.saveState())
+        if not self.device_panel_squeezed():  # a squeezed layout is not one to come back to
+            s.setValue("window/state", self.saveState())
         set_json(s, "view/virtual", self.heatmap.virtual)
         set_json(s, "view/fixed_max", self.heatmap.fixed_max)
         set_json(s, "view/arrow_scale", self.heatmap.arrow_scale)
@@ -413,6 +414,19 @@ class MainWindow(QMainWindow):
         set_json(s, "strip/quantity", self.strip.quantity())
         self.save_device_settings()
         s.sync()
+
+    def device_panel_squeezed(self) -> bool:
+        """True when the docked device panel is narrower than its form needs (values
+        truncated, Disconnect and Record cut off)."""
+        dock = self.device_dock
+        if dock.isHidden() or dock.isFloating():  # (isHidden: also while the window closes)
+            return False
+        return dock.width() < min(DEVICE_PANEL_MIN_WIDTH, dock.widget().sizeHint().width())
+
+    def unsqueeze_device_panel(self) -> None:
+        """Give the device panel its width back (from the map, never from a dock)."""
+        if self.device_panel_squeezed():
+            self.resizeDocks([self.device_dock], [300], Qt.Orientation.Horizontal)
 
     def restore_settings(self, device: str | None = None) -> None:
         s = app_settings()
@@ -439,6 +453,12 @@ class MainWindow(QMainWindow):
             if not self.panel.set_device(name, self._saved_device_values(name)):
                 self.panel.set_device(DEFAULT_DEVICE, self._saved_device_values(DEFAULT_DEVICE))
 
+    def showEvent(self, event: QShowEvent) -> None:  # noqa: N802 - Qt name
+        """Once laid out, a restored layout that squeezes the device panel is undone (a
+        dock layout restored before the first show can come up squeezed)."""
+        super().showEvent(event)
+        QTimer.singleShot(0, self.unsqueeze_device_panel)
+
     def closeEvent(self, event: QCloseEvent) -> None:  # noqa: N802 - Qt name
         self.shutdown()
         super().closeEvent(event)
@@ -453,6 +473,9 @@ class MainWindow(QMainWindow):
             self.save_settings()
         self.remote_control.close()
         self.controller.disconnect()  # finishes a recording first (the stop order)
+
+
+DEVICE_PANEL_MIN_WIDTH = 260  # below this the device form is cut off
 
 
 def wait_for(seconds: float) -> None:

@@ -61,6 +61,12 @@ def live_inference_dock(window: QMainWindow):
         dock.setObjectName("live_inference")
         dock.setWidget(panel)
         window.addDockWidget(Qt.DockWidgetArea.RightDockWidgetArea, dock)
+        # the new dock takes its room from the map, never from the device panel (which
+        # it squeezed to a sliver: values truncated, Disconnect and Record cut off)
+        device = getattr(window, "device_dock", None)
+        if device is not None:
+            keep = max(device.width(), device.widget().sizeHint().width(), 280)
+            window.resizeDocks([device, dock], [keep, 260], Qt.Orientation.Horizontal)
         window.live_dock = dock
         window.destroyed.connect(panel.stop)
     return window.live_dock
