@@ -267,6 +267,8 @@ class DevicePanel(QWidget):
             if event["reason"] != "disconnect":
                 self.record_label.setText(f"Saved {event['path']}")
                 self.record_label.show()
+            if event.get("message"):  # incomplete: write failed, device lost, frames lost
+                self.show_error(event["message"])
 
     # ---- Lab Streaming Layer ------------------------------------------------------------
     def _build_lsl_row(self) -> QWidget:

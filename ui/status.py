@@ -28,16 +28,25 @@ class LiveStatusBar(QStatusBar):
         self.warning.setStyleSheet("QLabel#healthWarning { background: #f5c542; color: #222;"
                                    " font-weight: bold; padding: 1px 6px; }")
         self.warning.hide()
+        # a recording that ended short (write failed, device lost, frames lost): its one
+        # line (live/outcome.py), until the next recording starts
+        self.fault = QLabel()
+        self.fault.setObjectName("recordingFault")
+        self.fault.setStyleSheet("QLabel#recordingFault { background: #c62828; color: white;"
+                                 " font-weight: bold; padding: 1px 6px; }")
+        self.fault.hide()
         self.remote = QLabel()  # "remote :22345" while experiment scripts may drive us
         self.remote.hide()
         self.addWidget(self.state, 1)
         self.addWidget(self.warning)
+        self.addWidget(self.fault)
         for w in (self.remote, self.rate, self.fps, self.malformed, self.dropped, self.latency):
             self.addPermanentWidget(w)
 
     def follow(self, session: Any) -> None:
         """Show ``session``'s stream-health warnings (live/stream_health.py) until the
-        device sends again or the next recording starts."""
+        device sends again or the next recording starts, and a recording that ended short
+        of what was asked (red, its one line) until the next one starts."""
         def on_event(event: dict[str, Any]) -> None:
             if event["kind"] == "health":
                 self.warning.setText(f"\u26a0 {event['message']}")
@@ -45,6 +54,12 @@ class LiveStatusBar(QStatusBar):
                 self.warning.setVisible(bool(event.get("silent")))
             elif event["kind"] == "recording_started":
                 self.warning.hide()
+                self.fault.hide()
+            elif event["kind"] == "recording_stopped" and event.get("message"):
+                self.warning.hide()
+                self.fault.setText(f"\u26a0 {event['message']}")
+                self.fault.setToolTip(event["message"])
+                self.fault.show()
         session.add_listener(on_event)
 
     def set_remote(self, text: str, tip: str = "") -> None:

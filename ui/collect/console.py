@@ -102,6 +102,7 @@ class CollectConsole(ConsoleActions):
         self.timer.setTimerType(Qt.TimerType.PreciseTimer)
         self.timer.setInterval(TICK_MS)
         self.timer.timeout.connect(self.tick)
+        self.acquisition.add_listener(self._on_acquisition_event)
 
     # ---- layout -----------------------------------------------------------------------
     def _build_session_page(self) -> QWidget:
@@ -135,6 +136,14 @@ class CollectConsole(ConsoleActions):
         self.redo_banner.setStyleSheet(
             "background: #ffe3b3; color: #6b4100; border-radius: 6px; padding: 8px;"
             "font-weight: 600;")
+        # the recording ended short (write failed, device lost, frames lost): its one line
+        self.fault_banner = QLabel()
+        self.fault_banner.setObjectName("recordingFault")
+        self.fault_banner.setWordWrap(True)
+        self.fault_banner.setStyleSheet(
+            "background: #c62828; color: white; border-radius: 6px; padding: 8px;"
+            "font-weight: 600;")
+        self.fault_banner.hide()
         self.sound_notice = QLabel()  # said once: no speaker, the screen flashes instead
         self.sound_notice.setWordWrap(True)
         self.sound_notice.setStyleSheet(
@@ -182,6 +191,7 @@ class CollectConsole(ConsoleActions):
         lv.addWidget(self.progress_label)
         lv.addWidget(self.file_label)
         lv.addWidget(self.touches_label)
+        lv.addWidget(self.fault_banner)
         lv.addWidget(self.redo_banner)
         lv.addWidget(self.sound_notice)
         lv.addWidget(self.hint_label)
@@ -385,10 +395,22 @@ class CollectConsole(ConsoleActions):
         self.acquisition.set_lsl(False)
 
     # ---- the timer ----------------------------------------------------------------------
+    def _on_acquisition_event(self, event: dict[str, Any]) -> None:
+        """How the recording ended (live/outcome.py): a banner when it is incomplete."""
+        if event["kind"] == "recording_started":
+            self.fault_banner.hide()
+        elif event["kind"] == "recording_stopped" and event.get("message"):
+            self.fault_banner.setText(f"\u26a0 {event['message']}")
+            self.fault_banner.show()
+
     def tick(self) -> None:
         """Advance the runner and present its snapshot (called every TICK_MS)."""
         if self.runner is None:
             return
+        rec = self.session.recorder if self.session is not None else None
+        if rec is not None and rec.write_error and self.runner.state not in ("finished",
+                                                                              "aborted"):
+            self.runner.abort()  # the file cannot be written: end here (the banner says so)
         self.runner.tick()
         snap = self.runner.snapshot()
         self._ticks += 1

@@ -1,0 +1,91 @@
+"""The windows end a recording fault as the commands do (issue 33): a write that fails
+(the file-size limit, as a full disk) stops the recording, and a red banner shows the
+same one line as ``record`` (live/outcome.py) in the main window and the collection
+console. The limit is set on this process around the recording only."""
+
+from __future__ import annotations
+
+import resource
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+from PySide6.QtCore import Qt
+
+from tactile_studio.storage import Session
+from tactile_studio.ui.collect.console import CollectConsole
+from tactile_studio.ui.main_window import MainWindow
+from tactile_studio.ui.settings import SETTINGS_ENV
+
+WAIT_MS = 30_000
+ROOM = 400_000  # bytes a recording may still add before its writes fail
+
+
+@pytest.fixture(autouse=True)
+def isolated_settings(tmp_path, monkeypatch):
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+
+
+@contextmanager
+def file_size_limit(limit: int):
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+
+
+def test_main_window_stops_the_recording_and_shows_a_banner(qtbot, tmp_path):
+    w = MainWindow(device="simulated", settings={"rate": "1000"}, connect=True, persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    out = tmp_path / "full.h5"
+    try:
+        qtbot.waitUntil(lambda: w.controller.status().state == "running", timeout=WAIT_MS)
+        with file_size_limit(2_000_000):
+            assert w.panel.start_recording(str(out))
+            qtbot.waitUntil(lambda: w.controller.recorder is None, timeout=WAIT_MS)
+        assert not w.panel.record_button.isChecked()
+        assert w.status.fault.isVisible()
+        text = w.status.fault.text()
+        assert str(out) in text and "file too large" in text and "kept" in text
+        assert "file too large" in w.panel.error_label.toolTip() + w.panel.error_label.text()
+        w.grab().save(str(tmp_path / "main_window_fault.png"))
+        assert w.controller.status().state == "running"  # the live view goes on
+    finally:
+        w.shutdown()
+    with Session(out) as s:
+        assert s.n_frames > 0 and s.cut_short
+
+
+def test_collection_console_ends_the_session_with_a_banner(qtbot, tmp_path):
+    console = CollectConsole()
+    qtbot.addWidget(console)
+    console.show()
+    s = console.setup
+    s.protocol.setCurrentIndex(0)
+    qtbot.keyClicks(s.participant, "P09")
+    s.out_dir.clear()
+    (tmp_path / "data").mkdir()
+    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
+    s.device.setCurrentIndex(s.device.findData("simulated"))
+    for name, value in {"rate": "1000", "gesture": "idle"}.items():
+        editor = s.device_form.fields[name].editor
+        editor.clear()
+        qtbot.keyClicks(editor, value)
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = Path(console.session.path)
+    try:
+        with file_size_limit(path.stat().st_size + ROOM):
+            qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+        assert console.fault_banner.isVisible()
+        text = console.fault_banner.text()
+        assert str(path) in text and "file too large" in text and "kept" in text
+        assert console.runner.snapshot().state == "aborted"
+        console.grab().save(str(tmp_path / "console_fault.png"))
+    finally:
+        console.close_session()
+    with Session(path) as f:
+        assert f.n_frames > 0 and f.cut_short
