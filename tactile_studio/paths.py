@@ -32,6 +32,14 @@ def make_out_dir(out: str | os.PathLike) -> Path:
     return Path(out)
 
 
+def text_path(path: str | os.PathLike) -> str:
+    """``path`` as text every UTF-8 reader accepts (the SQLite logbook, JSON read by other
+    tools): bytes of a file name that are not UTF-8, which Python keeps as lone surrogates
+    (``os.fsdecode``), become backslash escapes (``caf\\xff.h5``) instead of ending the
+    command in a UnicodeEncodeError."""
+    return os.fsencode(path).decode("utf-8", "backslashreplace")
+
+
 def _folder(env: str, default: str) -> Path:
     value = os.environ.get(env)
     return Path(value).expanduser() if value else Path(default)

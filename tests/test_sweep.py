@@ -6,9 +6,11 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -79,13 +81,74 @@ def test_local_sweep_writes_a_table_equal_to_single_runs(data, local_run):
         assert json.loads((run / "metrics.json").read_text())["complete"] is True
 
 
-def test_ray_sweep_gives_identical_metrics(data, local_run):
+def _descendants(root: int) -> set[int]:
+    children: dict[int, list[int]] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            ppid = int(stat.read_text().rsplit(")", 1)[1].split()[1])
+        except (OSError, IndexError, ValueError):
+            continue
+        children.setdefault(ppid, []).append(int(stat.parent.name))
+    found, todo = set(), [root]
+    while todo:
+        for child in children.get(todo.pop(), []):
+            if child not in found:
+                found.add(child)
+                todo.append(child)
+    return found
+
+
+def _listening(pids: set[int]) -> list[str]:
+    """The local addresses (hex, as /proc/net/tcp{,6} spell them) of the TCP sockets
+    ``pids`` listen on."""
+    inodes = set()
+    for pid in pids:
+        try:
+            for fd in Path(f"/proc/{pid}/fd").iterdir():
+                target = os.readlink(fd)
+                if target.startswith("socket:["):
+                    inodes.add(target[8:-1])
+        except OSError:
+            continue
+    found = []
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        for line in Path(table).read_text().splitlines()[1:]:
+            cols = line.split()
+            if cols[3] == "0A" and cols[9] in inodes:  # LISTEN
+                found.append(cols[1].split(":")[0])
+    return found
+
+
+LOOPBACK_HEX = ("0100007F", "0000000000000000FFFF00000100007F",
+                "00000000000000000000000001000000")  # 127.0.0.1, ::ffff:127.0.0.1, ::1
+
+
+def test_ray_sweep_gives_identical_metrics(data, local_run, tmp_path, monkeypatch):
+    # the local instance is private to the run: loopback only, nothing in the home folder
+    # (Ray wrote ~/.ray/auth_token), its files under the app's cache folder and removed
+    # afterwards (Ray left /tmp/ray/session_* behind)
+    for name in ("home", "cache"):
+        (tmp_path / name).mkdir()
+    tmp = Path(tempfile.mkdtemp(prefix="ts", dir="/tmp"))  # short: Ray's sockets go there
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("TMPDIR", str(tmp))
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    monkeypatch.setenv("TACTILE_STUDIO_CACHE_DIR", str(tmp_path / "cache"))
     with RayExecutor(jobs=2) as ex:  # a real local Ray instance: ray.init(num_cpus=2)
         import ray
 
         assert ray.cluster_resources().get("CPU") == 2
+        listening = _listening(_descendants(os.getpid()) | {os.getpid()})
         result = run_sweep(_base(data), MODELS, CHANNELS, ex, data / "ray")
     assert not ray.is_initialized()
+    assert listening and set(listening) <= set(LOOPBACK_HEX), listening
+    assert list((tmp_path / "home").iterdir()) == [], list((tmp_path / "home").rglob("*"))[:20]
+    left = sorted(p.name for p in tmp.iterdir())
+    shutil.rmtree(tmp)
+    # torch's workers make an empty torchinductor_<user> there with any executor
+    assert [n for n in left if not n.startswith("torchinductor_")] == [], left
+    assert list((tmp_path / "cache").rglob("*")) == [tmp_path / "cache" / "ray"]
+    assert "RAY_AUTH_TOKEN" not in os.environ and "RAY_AUTH_MODE" not in os.environ
     assert _scores(result) == _scores(local_run)
     saved = json.loads((data / "ray" / "results.json").read_text())
     assert saved["complete"] and len(saved["rows"]) == 4

@@ -21,7 +21,10 @@ it).
 * :class:`RayExecutor` — ``address`` ``HOST:PORT`` of a running Ray cluster (``ray
   start --head`` on one machine, ``ray start --address HOST:PORT`` on others; every node
   needs this package installed and the data at the same path), or a local Ray instance
-  of ``jobs`` CPUs started for the run when no address is given.
+  of ``jobs`` CPUs started for the run when no address is given. The local instance is
+  private to the run (:class:`LocalRay`): it listens on the loopback address only, keeps
+  its session files under the app's cache folder and removes them afterwards, and its
+  token authentication uses a token held in the environment, never ``~/.ray``.
 """
 
 from __future__ import annotations
@@ -29,11 +32,16 @@ from __future__ import annotations
 import concurrent.futures as cf
 import multiprocessing
 import os
+import secrets
+import shutil
 import signal
 import socket
+import sys
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import Cancelled, UserError
@@ -117,25 +125,36 @@ class RayExecutor:
     def __init__(self, address: str | None = None, jobs: int | None = None) -> None:
         self.address, self.jobs = address, jobs
         self._started = False
+        self._local: LocalRay | None = None
 
     def __enter__(self) -> RayExecutor:
+        local = None if self.address else LocalRay()
         try:
+            if local is not None:
+                local.__enter__()  # before Ray is imported: it reads the environment then
             import ray
         except ImportError:
+            if local is not None:
+                local.__exit__()
             raise UserError("the ray executor needs Ray: pip install 'ray>=2.9'") from None
-        if not ray.is_initialized():
+        if ray.is_initialized():
+            if local is not None:
+                local.__exit__()
+            return self
+        try:
             if self.address:
                 check_address(self.address)
-            try:
-                if self.address:
-                    ray.init(address=self.address, include_dashboard=False,
-                             log_to_driver=False)
-                else:
-                    ray.init(num_cpus=max(1, int(self.jobs or os.cpu_count() or 1)),
-                             include_dashboard=False, log_to_driver=False)
-            except ConnectionError as exc:
-                raise UserError(f"ray: cannot connect to {self.address} ({exc})") from None
-            self._started = True
+                ray.init(address=self.address, include_dashboard=False, log_to_driver=False)
+            else:
+                ray.init(num_cpus=max(1, int(self.jobs or os.cpu_count() or 1)),
+                         include_dashboard=False, log_to_driver=False,
+                         _temp_dir=str(local.temp_dir), _node_ip_address=LOOPBACK)
+        except ConnectionError as exc:
+            raise UserError(f"ray: cannot connect to {self.address} ({exc})") from None
+        finally:
+            if local is not None and not ray.is_initialized():
+                local.__exit__()
+        self._started, self._local = True, local
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -144,6 +163,9 @@ class RayExecutor:
 
             ray.shutdown()
             self._started = False
+        local, self._local = self._local, None
+        if local is not None:
+            local.__exit__()
 
     def run(self, fn: Callable[..., Any], tasks: dict[str, Task],
             cancel: CancelToken | None = None) -> Iterator[tuple[str, Any]]:
@@ -162,6 +184,85 @@ class RayExecutor:
                 for ref in pending:
                     ray.cancel(ref, force=True)
                 raise Cancelled("sweep cancelled")
+
+
+LOOPBACK = "127.0.0.1"
+# Ray's AF_UNIX sockets live under its temp folder: the whole path must fit in 107 bytes,
+# after Ray adds "/session_<date>_<time>_<us>_<pid>/sockets/plasma_store" (~64 bytes)
+_MAX_RAY_TEMP = 40
+
+
+class LocalRay:
+    """What a local Ray instance started for one run needs, set up and undone around it.
+
+    * loopback only: Ray turns a ``127.0.0.1`` node address into the machine's routable
+      one (and its servers then listen on every interface) unless
+      ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``;
+    * token authentication with a token in ``RAY_AUTH_TOKEN`` (Ray would write one to
+      ``~/.ray/auth_token`` and keep it there);
+    * its temporary and session files in ``<cache>/ray/run-XXXX`` (``paths.cache_dir``),
+      reached through a short link in the system temp folder when that path is too long
+      for Ray's sockets; both are removed afterwards.
+
+    The environment variables are restored on exit.
+    """
+
+    def __init__(self) -> None:
+        self.temp_dir: Path | None = None
+        self._real: Path | None = None
+        self._saved: dict[str, str | None] = {}
+
+    def __enter__(self) -> LocalRay:
+        from tactile_studio.paths import cache_dir
+
+        env = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
+        if not (os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH")):
+            env["RAY_AUTH_TOKEN"] = secrets.token_hex(32)
+        for key in (*env, "RAY_AUTH_MODE"):  # Ray sets RAY_AUTH_MODE itself
+            self._saved[key] = os.environ.get(key)
+        os.environ.update(env)
+        constants = sys.modules.get("ray._private.ray_constants")
+        if constants is not None:  # Ray imported before: it read the environment then
+            constants.ENABLE_RAY_CLUSTER = False
+        base = cache_dir() / "ray"
+        try:
+            base.mkdir(parents=True, exist_ok=True)
+            self._real = Path(tempfile.mkdtemp(prefix="run-", dir=base))
+        except OSError as exc:
+            self.__exit__()
+            raise UserError(f"{base}: cannot create Ray's session folder "
+                            f"({exc.strerror or exc})") from None
+        self.temp_dir = self._real
+        if len(str(self._real)) > _MAX_RAY_TEMP:
+            short = tempfile.gettempdir()
+            if len(short) > _MAX_RAY_TEMP - 16 and os.path.isdir("/tmp"):
+                short = "/tmp"
+            link = Path(short) / f"ts-ray-{secrets.token_hex(4)}"
+            try:
+                os.symlink(self._real, link)
+            except OSError as exc:
+                self.__exit__()
+                raise UserError(f"{link}: cannot link Ray's session folder there "
+                                f"({exc.strerror or exc})") from None
+            self.temp_dir = link
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.temp_dir is not None and self.temp_dir != self._real:
+            self.temp_dir.unlink(missing_ok=True)
+        if self._real is not None:
+            shutil.rmtree(self._real, ignore_errors=True)
+        self.temp_dir = self._real = None
+        for key, value in self._saved.items():
+            if value is None:
+                os.environ.pop(key, None)
+            else:
+                os.environ[key] = value
+        self._saved = {}
+        constants = sys.modules.get("ray._private.ray_constants")
+        if constants is not None:  # as the restored environment says (a cluster run next)
+            constants.ENABLE_RAY_CLUSTER = constants.env_bool(
+                constants.ENABLE_RAY_CLUSTERS_ENV_VAR, not constants.IS_WINDOWS_OR_OSX)
 
 
 def check_address(address: str, timeout: float = 3.0) -> None:

@@ -17,6 +17,7 @@ import numpy as np
 
 from tactile_studio.devices.frame_stream import RecordableStream, hold_frames
 from tactile_studio.errors import UserError
+from tactile_studio.paths import text_path
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.logbook_file import say_once
 from tactile_studio.storage.session import Session
@@ -287,7 +288,7 @@ class Recorder:
             return
         try:
             with Logbook() as book:
-                book.add_usage(self.sensor_id, self.recorded / rate, str(self.path))
+                book.add_usage(self.sensor_id, self.recorded / rate, text_path(self.path))
         except UserError as exc:  # the recording itself is safe on disk; say so (once), go on
             say_once(f"sensor logbook not used for this recording: {exc}")
 

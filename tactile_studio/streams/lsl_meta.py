@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import re
 from dataclasses import asdict
 from typing import Any
 
@@ -53,6 +55,19 @@ def stable_source_id(device: str, content: str, settings: dict[str, Any],
     return f"tactile-studio:{device}:{content}:{ident}"
 
 
+def public_settings(settings: dict[str, Any]) -> dict[str, Any]:
+    """The device settings as a stream may publish them: a path (a replayed file, a
+    serial port) by its last part only, so the stream's metadata, which anyone on the
+    network can read, says nothing about the host's folders or user names."""
+    def public(value: Any) -> Any:
+        if isinstance(value, os.PathLike):
+            value = os.fspath(value)
+        if isinstance(value, str) and ("/" in value or "\\" in value or value[:1] == "~"):
+            return re.split(r"[\\/]", value.rstrip("/\\"))[-1]
+        return value
+    return {k: public(v) for k, v in settings.items()}
+
+
 def _append(elem: Any, values: dict[str, Any]) -> None:
     for key, value in values.items():
         if isinstance(value, dict):
@@ -81,7 +96,8 @@ def frame_stream_info(pylsl: Any, layout: Layout, device_info: dict[str, Any], c
     _append(desc.append_child("tactile_studio"), {
         "version": __version__, "content": content,
         "device": str(device_info.get("plugin", "")),
-        "settings": json.dumps(device_info.get("settings", {}), sort_keys=True, default=str),
+        "settings": json.dumps(public_settings(device_info.get("settings", {})),
+                               sort_keys=True, default=str),
         "sensor_id": str(sensor_id) if sensor_id else None,
         "layout": {"name": layout.name, "rows": str(layout.rows), "cols": str(layout.cols),
                    "channels_per_taxel": str(layout.channels_per_taxel),
