@@ -108,3 +108,17 @@ def test_the_wizard_merges_by_default_and_can_replace_on_its_result_page(qtbot, 
     assert sensors.calibrations.item(0, 3).text() == "36 of 36"
     assert sensors.calibrations.item(1, 3).toolTip() == "2 of 36 taxels (2 measured)"
     sensors.grab().save(str(tmp_path / "sensors.png"))
+
+
+def test_a_characterisation_calibration_merges_too(capsys, tmp_path):
+    calibrate(capsys, tmp_path, "plate.json", *PLATE)
+    assert main(["characterise", "--set", "speed=0", "--set", "gesture=idle", "--set",
+                 "seed=6", "--taxels", "B2", "--sequence", "normal", "--sensor", "sim-6",
+                 "--save-calibration", "--out", str(tmp_path / "run")]) == 0
+    err = capsys.readouterr().err
+    assert ("calibration #2 of sim-6 saved to the logbook (active), covers 36 of 36 taxels "
+            "(1 measured, 35 from #1)") in err
+    with Logbook() as book:
+        merged = book.calibration(2)
+    assert merged["kind"] == "characterisation" and len(merged["fits"]) == 36
+    assert [f["taxel"] for f in merged["fits"] if f.get("from_calibration") is None] == ["B2"]

@@ -33,6 +33,7 @@ from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.sensor.wellness import parse_taxel
+from tactile_studio.storage.calibration_store import store_calibration
 from tactile_studio.storage.logbook import Logbook
 
 RESULT_FORMAT = "tactile-studio-characterisation"
@@ -103,16 +104,20 @@ def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
             "taxels": taxels}
 
 
-def save_calibration(sensor_id: str, calibration: dict[str, Any]) -> int:
+def save_calibration(sensor_id: str, calibration: dict[str, Any],
+                     replace: bool = False) -> int:
     """Store a characterisation-derived calibration in the sensor logbook as the active
-    one; returns its id."""
+    one, merged with the active calibration (its other taxels kept) unless ``replace``;
+    returns its id."""
     if not calibration["fits"]:
         raise UserError("the characterisation gave no normal fit to calibrate with "
                         "(run the normal sequence)")
     with Logbook(on_damage="replace") as book:  # a damaged one is moved aside, said once
         book.ensure_sensor(sensor_id, calibration["layout"])
-        return book.add_calibration(sensor_id, "characterisation",
-                                    calibration["rms_pct_median"], calibration)
+        stored = store_calibration(book, sensor_id, "characterisation", calibration,
+                                   get_layout(calibration["layout"]).n_taxels, replace,
+                                   rms_pct=calibration["rms_pct_median"])
+        return int(stored["calibration_id"])
 
 
 def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,

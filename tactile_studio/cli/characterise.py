@@ -16,9 +16,11 @@ from tactile_studio.characterise.plan import SEQUENCES
 from tactile_studio.characterise.run import save_calibration
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
+from tactile_studio.health.history import covers_text
 from tactile_studio.instruments import create_force, create_stage
 from tactile_studio.jobs import TerminalProgress, ctrl_c_cancels
 from tactile_studio.sensor.characterise import parse_taxels
+from tactile_studio.storage.logbook import Logbook
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
 
@@ -103,8 +105,10 @@ def run(args: argparse.Namespace) -> int:
     if args.save_calibration:
         cal = json.loads((out / "calibration.json").read_text())
         cal_id = save_calibration(args.sensor, cal)
-        print(f"calibration #{cal_id} of {args.sensor} saved to the logbook (active)",
-              file=sys.stderr)
+        with Logbook() as book:  # a partial one merged with the active calibration
+            row = next(c for c in book.calibrations(args.sensor) if c["id"] == cal_id)
+        print(f"calibration #{cal_id} of {args.sensor} saved to the logbook (active), "
+              f"covers {covers_text(row)}", file=sys.stderr)
     if args.json:
         print(json.dumps(result["taxels"], indent=1))
     else:

@@ -29,11 +29,11 @@ from tactile_studio.sensor.calibration import (
     decode_calibrated,
     fit_taxel,
     measured_only,
-    merge_calibration,
 )
 from tactile_studio.sensor.decode import StressFrames, relative_change
 from tactile_studio.sensor.layout import CENTRE
 from tactile_studio.sensor.wellness import parse_taxel, stress_kpa, taxel_label
+from tactile_studio.storage.calibration_store import store_calibration
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.session import Session
 
@@ -102,32 +102,11 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
         "sensor": sensor, "contact_mm": spec.contact_mm, "plate_mm": side if spec.plate else None,
         "device": engine.device_info()})
     with Logbook() as book:
-        data = _merge_with_active(book, sensor, data, lay.n_taxels, spec.replace)
-        data["calibration_id"] = book.add_calibration(sensor, kind, data["rms_pct_max"], data)
+        data = store_calibration(book, sensor, kind, data, lay.n_taxels, spec.replace)
     if out is not None:
         _write_atomic(Path(out), data)
     progress(1.0, f"rms {data['rms_pct_max']:.2f}% of range")
     bench.emit("done", calibration_id=data["calibration_id"])
-    return data
-
-
-def _merge_with_active(book: Logbook, sensor: str, data: dict[str, Any], n_taxels: int,
-                       replace: bool) -> dict[str, Any]:
-    """A partial calibration merges with the sensor's active one (the taxels it measured
-    replace theirs, the rest are kept) unless ``replace``; ``coverage`` says which came
-    from where, ``replaced_calibration`` which one a replacement dropped taxels of."""
-    active = book.active_calibration(sensor)
-    dropped: list[str] = []
-    if active is not None:
-        old = book.calibration(active)
-        measured = {f["taxel"] for f in data["fits"]}
-        if replace:
-            dropped = [f["taxel"] for f in old.get("fits", []) if f["taxel"] not in measured]
-        else:
-            data = merge_calibration(data, old, active)
-    data["coverage"] = coverage(n_taxels, data)
-    data["replaced_calibration"] = active if dropped else None
-    data["dropped"] = dropped
     return data
 
 
