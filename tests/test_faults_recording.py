@@ -67,6 +67,24 @@ def test_the_file_size_limit_stops_the_recording_cleanly_and_the_file_opens(tmp_
     assert json.loads(info.stdout)["frames"] == n
 
 
+def test_collect_under_the_file_size_limit_ends_with_the_same_line(tmp_path):
+    """collect: the runner stops at the write error; its file opens with what was kept
+    (its frame datasets claim rows never stored: counted out, not refused)."""
+    out = tmp_path / "out"
+    proc = _cli(["collect", "--protocol", "shear9", "--participant", "P01", "--device",
+                 "simulated", "--virtual-participant", "--speed", "0", "--out", str(out)],
+                tmp_path, limit=LIMIT_BYTES)
+    _, stderr = proc.communicate(timeout=240)
+    assert proc.returncode == EXIT_INCOMPLETE, stderr[-3000:]
+    assert "Traceback" not in stderr
+    line = _error_line(stderr)
+    (path,) = out.glob("*.h5")
+    assert line.count(str(path)) == 1 and "write failed: file too large" in line
+    with Session(path) as s:
+        assert s.cut_short and s.n_frames > 1000 and f"kept {s.n_frames} frames" in line
+        assert np.all(np.diff(s.column("device_time")) > 0)
+
+
 def test_a_truncated_copy_is_still_refused_in_one_line(tmp_path):
     """Opening files cut short must not open (or hang on) a file cut by copying."""
     out = tmp_path / "whole.h5"

@@ -76,11 +76,7 @@ def recording_outcome(summary: dict[str, Any], *, write_error: str | None = None
     rate = float(summary.get("rate_hz") or 0.0)
     problems: list[str] = []
     if write_error:
-        cause = write_error
-        for prefix in (f"{path}: ", f"{Path(path).name}: "):
-            if cause.startswith(prefix):
-                cause = cause[len(prefix):]
-        problems.append(cause)
+        problems.append(_without_path(write_error, path))
     lost = _device_lost(events, rate, started_at, ended_at, reconnect_attempts)
     if lost:
         problems.append(lost)
@@ -96,6 +92,14 @@ def recording_outcome(summary: dict[str, Any], *, write_error: str | None = None
                             duration_s=float(summary.get("duration_s", 0.0)), rate_hz=rate,
                             malformed=int(summary.get("malformed", 0)),
                             gaps=int(summary.get("gaps", 0)), problems=tuple(problems))
+
+
+def _without_path(line: str, path: str) -> str:
+    """A one-line error without its leading file name (the outcome's line names it)."""
+    for prefix in (f"{path}: ", f"{Path(path).name}: "):
+        if line.startswith(prefix):
+            return line[len(prefix):]
+    return line
 
 
 def _device_lost(events: list[dict[str, Any]], rate: float, started_at: float | None,
@@ -129,8 +133,9 @@ def outcome_of(recorder: Recorder, reconnect_attempts: int | None = None) -> Rec
         with Session(recorder.path) as s:
             summary = s.summary()
     except UserError as exc:  # nothing readable was kept
-        return RecordingOutcome(str(recorder.path), 0, 0.0, 0.0, 0, 0,
-                                problems=(recorder.write_error or str(exc),))
+        path = str(recorder.path)
+        return RecordingOutcome(path, 0, 0.0, 0.0, 0, 0, problems=(
+            _without_path(recorder.write_error or str(exc), path),))
     return recording_outcome(summary, write_error=recorder.write_error,
                              started_at=recorder.started_at, ended_at=recorder.stopped_at,
                              reconnect_attempts=reconnect_attempts)

@@ -20,7 +20,7 @@ from tactile_studio.storage.segments import segment_starts, segmented_rate_hz
 from tactile_studio.storage.session_checks import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
-from tactile_studio.storage.session_recover import open_cut_short, written_rows
+from tactile_studio.storage.session_recover import cut_short_rows, open_cut_short, written_rows
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
 SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
@@ -143,13 +143,18 @@ class Session:
             raise SessionFileError(f"{self.path}: HDF5 file but not a Tactile Studio session")
         if "frames/raw" not in f:
             raise SessionFileError(f"{self.path}: session has no frames dataset")
-        check_stored(f, self.path)  # claims backed by stored data, before any read
+        if self.cut_short:  # rows grown but never stored: counted out, not refused
+            stored = cut_short_rows(f, self.path)
+        else:
+            check_stored(f, self.path)  # claims backed by stored data, before any read
         self.journal = read_journal(f)
         self.schema_version = int(f.attrs.get("schema_version", 0))
         cols = [f["frames/raw"].shape[0]] + [
             f[f"frames/{n}"].shape[0] for n in ("device_time", "host_time", "seq", "index")]
         # After a crash the columns may be one flush apart: trust the shortest.
         self.n_frames = int(min(cols))
+        if self.cut_short:
+            self.n_frames = min(self.n_frames, stored)
         if not self.journal.closed and self.n_frames:  # rows allocated, never written
             self.n_frames = written_rows(f["frames/host_time"], f["frames/raw"], self.n_frames)
         layout_name = self.journal.metadata.get("layout", {}).get("name") or f.attrs.get("layout")

@@ -26,6 +26,9 @@ import h5py
 import numpy as np
 from h5py import h5f, h5p
 
+from tactile_studio.errors import SessionFileError
+from tactile_studio.storage.session_checks import COLUMNS, _stored_rows
+
 TAIL_BLOCK = 4096  # rows read at a time from the end when looking for written rows
 
 
@@ -70,6 +73,24 @@ def open_cut_short(path: Path) -> h5py.File | None:
         f.close()
         return None
     return f
+
+
+def cut_short_rows(f: h5py.File, path: Path) -> int:
+    """The frame rows whose data is stored, in a file cut short: its datasets were grown
+    before the writes that failed, so they may claim more rows than they store (the
+    check of every other file, ``check_stored``, refuses such claims). Datasets kept in
+    other files and a journal claiming more than it stores are refused as there."""
+    datasets: list[tuple[str, h5py.Dataset]] = []
+    f.visititems(lambda name, obj: datasets.append((name, obj))
+                 if isinstance(obj, h5py.Dataset) else None)
+    for name, ds in datasets:
+        if ds.is_virtual or ds.external:
+            raise SessionFileError(f"{path}: dataset {name} is kept in other files "
+                                   "(external or virtual storage); not read")
+    if "journal" in f and f["journal"].shape[0] > _stored_rows(f["journal"]):
+        raise SessionFileError(f"{path}: its journal claims more bytes than the file holds")
+    frames = [f[f"frames/{name}"] for name in ("raw", *COLUMNS) if f"frames/{name}" in f]
+    return min((min(ds.shape[0], _stored_rows(ds)) for ds in frames if ds.shape), default=0)
 
 
 def written_rows(host_time: h5py.Dataset, raw: h5py.Dataset, n: int) -> int:
