@@ -73,3 +73,23 @@ def test_the_readme_flow_calibrates_first_and_then_passes(capsys, tmp_path):
     # a dead taxel still fails against the calibration
     code, out, err = wellness(capsys, "--set", "fault=dead_taxel", "--set", "fault_taxel=14")
     assert code == EXIT_CHECK_FAIL and "C3: no response" in out
+
+
+def test_the_wizard_tests_every_taxel_with_spots_all_and_says_so(qtbot, tmp_path):
+    from tactile_studio.ui.wellness_wizard import WellnessWizard
+
+    w = WellnessWizard("simulated", {"speed": 0, "difficulty": "easy", "seed": 2})
+    qtbot.addWidget(w)
+    w.show()
+    w.setup.weight.setValue(200)
+    w.setup.spots.setText("all")
+    w.next()
+    page = w.run_page
+    qtbot.waitUntil(lambda: page.run is not None and not page.run.running, timeout=60000)
+    qtbot.waitUntil(lambda: page.phase.text() == "Done", timeout=5000)
+    w.next()
+    res = w.result_page
+    assert res.result["verdict"] == "pass" and res.table.rowCount() == 36
+    assert res.reasons.text().startswith("36 of 36 taxels tested (all); ratios against "
+                                         "the nominal curve")
+    w.grab().save(str(tmp_path / "wellness-all.png"))

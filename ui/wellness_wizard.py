@@ -136,6 +136,9 @@ class WellnessResultPage(QWizardPage):
                 self.table.setItem(i, j, QTableWidgetItem(text))
         ch = res["channels"]
         lines = [f"• {r}" for r in res["reasons"]] or ["• every spot and channel is healthy"]
+        if res.get("tested"):  # a pass speaks only for the taxels loaded
+            lines.insert(0, f"{res['tested']['line']}; ratios against "
+                            f"{res.get('judged_against') or 'the reference'}")
         lines.append("channels: " + "; ".join(f"{k}: {', '.join(map(str, v)) or 'none'}"
                                              for k, v in ch.items()))
         self.reasons.setText("\n".join(lines))
