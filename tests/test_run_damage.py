@@ -80,7 +80,8 @@ def test_damaged_run_is_refused_everywhere(runs, tmp_path, capsys, how, names):
     # the workspace lists it, as damaged, beside the sound runs
     rows = {r.name: r for r in scan_runs(run.parent.parent)} | {
         r.name: r for r in scan_runs(runs / "runs")}
-    assert rows["damaged"].error.startswith("damaged: ") and names[0] in rows["damaged"].error
+    assert "damaged" in rows["damaged"].error and names[0] in rows["damaged"].error
+    assert str(run) not in rows["damaged"].error  # the row is the run: named from inside
     assert rows["damaged"].accuracy is None and rows["damaged"].model == "rf"
     assert not rows["rf"].error and not rows["knn"].error
 
@@ -106,5 +107,5 @@ def test_runs_view_shows_a_damaged_run(runs, tmp_path, qtbot):
     texts = {view.table.item(r, 0).text(): view.table.item(r, COLUMNS.index("problem")).text()
              for r in range(view.table.rowCount())}
     assert set(texts) == {"damaged", "knn"}
-    assert texts["damaged"].startswith("damaged: ") and "r0-P02" in texts["damaged"]
+    assert texts["damaged"].startswith("damaged: folds/r0-P02: ")
     assert texts["knn"] == ""

@@ -236,7 +236,9 @@ def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | N
         elif rec is not None:
             rec["_dir"] = str(d)
             records.append(rec)
-            finished.add((rec["round"], d.name.split("-", 1)[1]))
+        if (d / FOLD).is_file():  # finished, sound or not (a damaged one is named above)
+            round_, _, name = d.name[1:].partition("-")
+            finished.add((int(round_) if round_.isdigit() else round_, name))
     try:
         records.sort(key=lambda r: (r["round"], r["fold"]))
     except TypeError:

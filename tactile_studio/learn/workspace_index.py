@@ -124,7 +124,9 @@ def read_run_row(path: str | os.PathLike) -> RunRow:
     row.folds = sum(1 for _ in (Path(path) / "folds").glob("*/fold.json"))
     if problems:
         more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
-        row.error = "damaged: " + problems[0] + more
+        inside = str(Path(path)) + os.sep  # the row is the run: its own path is not news
+        first = problems[0].replace(inside, "")
+        row.error = (first if "damaged" in first else "damaged: " + first) + more
         return row
     if not (Path(path) / METRICS).is_file():
         row.error = "no metrics.json (interrupted before a fold finished?)"
