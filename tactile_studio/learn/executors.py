@@ -200,7 +200,8 @@ class LocalRay:
       ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``;
     * token authentication with a token in ``RAY_AUTH_TOKEN`` (Ray would write one to
       ``~/.ray/auth_token`` and keep it there);
-    * its temporary and session files in ``<cache>/ray/run-XXXX`` (``paths.cache_dir``),
+    * its temporary and session files (and torch's inductor cache, which its workers
+      would leave in the system temp folder) in ``<cache>/ray/run-XXXX`` (``paths.cache_dir``),
       reached through a short link in the system temp folder when that path is too long
       for Ray's sockets; both are removed afterwards.
 
@@ -233,6 +234,9 @@ class LocalRay:
             raise UserError(f"{base}: cannot create Ray's session folder "
                             f"({exc.strerror or exc})") from None
         self.temp_dir = self._real
+        if not os.environ.get("TORCHINDUCTOR_CACHE_DIR"):  # torch's workers: not in /tmp
+            self._saved["TORCHINDUCTOR_CACHE_DIR"] = None
+            os.environ["TORCHINDUCTOR_CACHE_DIR"] = str(self._real / "torchinductor")
         if len(str(self._real)) > _MAX_RAY_TEMP:
             short = tempfile.gettempdir()
             if len(short) > _MAX_RAY_TEMP - 16 and os.path.isdir("/tmp"):
