@@ -5,7 +5,11 @@ offscreen) at their default sizes.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+import pyqtgraph as pg
 import pytest
+from PySide6.QtCore import Qt
 
 from tactile_studio.ui.main_window import DEVICE_PANEL_MIN_WIDTH, MainWindow
 from tactile_studio.ui.research.menu import live_inference_dock
@@ -61,3 +65,71 @@ def test_a_squeezed_layout_is_not_saved(qtbot, tmp_path):
     qtbot.waitUntil(lambda: again.device_dock.width() >= DEVICE_PANEL_MIN_WIDTH, timeout=3000)
     assert not again.device_panel_squeezed()
     again.shutdown()
+
+
+@pytest.fixture(scope="module")
+def sessions(tmp_path_factory):
+    from learn_fixtures import make_dataset_folder
+    root = tmp_path_factory.mktemp("rpath")
+    make_dataset_folder(root / "data", participants=3, blocks=3,
+                        gestures=("Poke", "Heavy Pat", "Back & Forth Rub"))
+    return root / "data"
+
+
+def test_train_panel_names_its_run_folder_and_trains_without_one_typed(qtbot, sessions,
+                                                                      tmp_path, monkeypatch):
+    from PySide6.QtWidgets import QFileDialog
+
+    from tactile_studio.learn.train_job import eta_from_folds
+    from tactile_studio.ui.research.window import ResearchWindow
+    w = ResearchWindow()
+    qtbot.addWidget(w)
+    w.show()
+    panel = w.train
+    out = Path(panel.out.text())
+    assert out.parent == tmp_path / "data" / "runs" and out.name.startswith("cnn1d-")
+    panel.model.setCurrentText("knn")  # the name the panel chose follows the model
+    assert Path(panel.out.text()).name.startswith("knn-")
+    picked = tmp_path / "mine"
+    picked.mkdir()
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory",
+                        staticmethod(lambda *a, **k: str(picked)))
+    qtbot.mouseClick(panel.browse_out, Qt.MouseButton.LeftButton)
+    assert panel.out.text() == str(picked)
+    panel.model.setCurrentText("rf")  # a folder the user chose stays
+    assert panel.out.text() == str(picked)
+    panel.model.setCurrentText("knn")
+    panel.out.clear()  # nothing typed: Train names one instead of refusing
+    w.sessions.set_folders([str(sessions)])
+    assert panel.start()
+    run = Path(panel.job.out)
+    assert run.parent == picked.parent and run.name.startswith("knn-")  # beside the last
+    qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
+    assert panel.job.finished["type"] == "done", panel.job.finished
+    job = panel.job
+    assert len(job.fold_times) == job.folds_done == job.folds_total == 3 and job.eta() == 0
+    assert panel.out.text() != str(run)  # Train again: a new run, not the finished one
+    assert eta_from_folds([2.0, 4.0], 2, 5, 1.0) == pytest.approx(8.0)  # 3 x 3 s - 1 s
+    assert eta_from_folds([], 0, 5, 10.0) is None  # start-up is not a fold's pace
+
+
+def test_the_training_curve_legend_leaves_the_curves_clear(qtbot):
+    from tactile_studio.ui.research.train_panel import TrainPanel
+    panel = TrainPanel(lambda: [])
+    qtbot.addWidget(panel)
+    panel.resize(1300, 700)
+    panel.show()
+    item = panel.plot.getPlotItem()
+    epochs = list(range(1, 21))
+    curves = [item.plot(epochs, [min(0.97, 0.35 + 0.1 * e * (1 + i / 10)) for e in epochs],
+                        name=f"cnn1d-20260101 P0{i}") for i in range(6)]  # six learning folds
+    qtbot.waitExposed(panel)
+    qtbot.waitUntil(lambda: item.vb.sceneBoundingRect().width() > 200, timeout=2000)
+    item.vb.updateAutoRange()  # what the next paint does
+    assert item.vb.viewRange()[0][1] >= 20
+    legend = item.legend.sceneBoundingRect()
+    assert legend.width() > 0
+    for curve in curves:
+        for x, y in zip(*curve.getData()):
+            point = item.vb.mapViewToScene(pg.Point(x, y))
+            assert not legend.contains(point), (x, y)

@@ -56,6 +56,18 @@ def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
     return [(k, v, helps.get(k, "model option")) for k, v in options.items()]
 
 
+def eta_from_folds(durations: list[float], done: int, total: int,
+                   in_current: float) -> float | None:
+    """Remaining seconds from measured fold times: the mean of the folds trained here
+    times the folds left, less the time already spent on the current one (None before
+    a fold has finished; the run's start-up is no fold's time)."""
+    if not durations or total <= 0:
+        return None
+    mean = sum(durations) / len(durations)
+    left = max(0, total - done)
+    return max(0.0, left * mean - (in_current if left else 0.0))
+
+
 def eta_seconds(fraction: float, elapsed: float) -> float | None:
     """Remaining seconds if progress stays at its average pace (None before any)."""
     if fraction <= 0.01 or elapsed <= 0:
@@ -132,6 +144,10 @@ class TrainJob:
         self.started = 0.0
         self.fraction = 0.0
         self.finished: dict[str, Any] | None = None
+        self.fold_times: list[float] = []  # seconds per fold trained here (not resumed)
+        self.folds_done = 0
+        self.folds_total = 0
+        self._fold_began: float | None = None  # its first epoch, or the last fold's end
 
     def start(self) -> TrainJob:
         self.started = time.monotonic()
@@ -151,12 +167,28 @@ class TrainJob:
         self._stop.set()
 
     def eta(self) -> float | None:
-        return eta_seconds(self.fraction, time.monotonic() - self.started)
+        """Seconds left, from the measured times of the folds finished so far (None
+        until one has: the pace of loading data says nothing about training)."""
+        now = time.monotonic()
+        began = self._fold_began if self._fold_began is not None else now
+        return eta_from_folds(self.fold_times, self.folds_done, self.folds_total, now - began)
 
     def _take(self, event: dict[str, Any], out: list[dict[str, Any]]) -> None:
         out.append(event)
+        now = time.monotonic()
         if event["type"] == "progress":
             self.fraction = event["fraction"]
+        if event["type"] in ("epoch", "fold"):
+            self.folds_total = int(event["n_folds"]) * max(1, int(self.config.rounds))
+        if event["type"] == "epoch" and self._fold_began is None:
+            self._fold_began = now  # the first fold starts training (data loaded)
+        if event["type"] == "fold":
+            self.folds_done += 1
+            if not event.get("resumed") and self._fold_began is not None:
+                self.fold_times.append(now - self._fold_began)
+            elif not event.get("resumed"):  # a model without epochs: from the start
+                self.fold_times.append(now - self.started)
+            self._fold_began = now
         if event["type"] in ("done", "cancelled", "error"):
             self.finished = event
 

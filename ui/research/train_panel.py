@@ -4,6 +4,7 @@ resume; the channel ablation (normal / shear / both) is one click."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -31,6 +32,8 @@ from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.train_job import TrainJob, model_settings
+from tactile_studio.paths import data_dir
+from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
 from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import make_table
@@ -93,6 +96,15 @@ class TrainPanel(QWidget):
         self.adapt = adapt_combo()
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
+        self.out.setToolTip("Named from the model and the time, under the runs folder "
+                            "(the last one used); type or browse for another")
+        self._auto_out = ""  # the folder name the panel chose (it follows the model)
+        self.browse_out = QPushButton("Browse…")
+        self.browse_out.clicked.connect(self.choose_out)
+        out_row = QHBoxLayout()
+        out_row.setContentsMargins(0, 0, 0, 0)
+        out_row.addWidget(self.out, 1)
+        out_row.addWidget(self.browse_out)
         self.recipe = RecipeForm()
         self.options = QTableWidget(0, 3)
         self.options.setHorizontalHeaderLabels(["option", "value", "help"])
@@ -102,9 +114,9 @@ class TrainPanel(QWidget):
         for label, w in (("Model", self.model), ("Preset", self.preset),
                          ("Channels", self.channels), ("Grid", self.grid),
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
-                         ("Epochs", self.epochs), ("Test people", self.adapt),
-                         ("Run folder", self.out)):
+                         ("Epochs", self.epochs), ("Test people", self.adapt)):
             form.addRow(label, w)
+        form.addRow("Run folder", out_row)
         self.start_button = QPushButton("Train")
         self.cancel_button = QPushButton("Cancel")
         self.resume_button = QPushButton("Resume")
@@ -131,7 +143,10 @@ class TrainPanel(QWidget):
         self.plot.setLabel("left", "validation accuracy")
         self.plot.setLabel("bottom", "epoch")
         self.plot.setYRange(0, 1)
-        self.plot.addLegend(offset=(-10, 10))
+        # the legend at the bottom right, in two columns: at the top right it covered the
+        # curves where accuracy ends up; below them it is clear once training learns
+        self.plot.addLegend(offset=(-10, -10), labelTextSize="8pt", colCount=2,
+                            verSpacing=-6)
         self.folds = make_table(FOLD_COLUMNS)
         right = QWidget()
         rl = QVBoxLayout(right)
@@ -148,6 +163,7 @@ class TrainPanel(QWidget):
         self.timer.setInterval(100)
         self.timer.timeout.connect(self.poll)
         self.model.currentIndexChanged.connect(self.fill_options)
+        self.model.currentIndexChanged.connect(lambda _: self._follow_model())
         self.preset.currentIndexChanged.connect(self.fill_options)
         self.start_button.clicked.connect(self.start)
         self.resume_button.clicked.connect(self.start)
@@ -173,6 +189,8 @@ class TrainPanel(QWidget):
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
         self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
         self.out.setText(str(s.value(KEY + "out", "") or ""))
+        if not self.out.text() or not (Path(self.out.text()) / "config.json").is_file():
+            self.new_run_folder()  # a finished or never-started folder: a new run's name
         self.recipe.load(s, KEY + "recipe")
 
     def save_settings(self) -> None:
@@ -226,10 +244,40 @@ class TrainPanel(QWidget):
             epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
             device="cpu", adapt=self.adapt.currentData(), **self.recipe.kwargs())
 
+    def runs_root(self) -> Path:
+        """Where new runs go: the parent of the last run folder used here, else ``runs``
+        under the app's data folder."""
+        last = str(self.settings.value(KEY + "runs_root", "") or "")
+        return Path(last) if last else data_dir() / "runs"
+
+    def new_run_folder(self) -> str:
+        """A fresh run folder named from the model and the time, in the runs root."""
+        name = f"{self.model.currentText()}-{time.strftime('%Y%m%d-%H%M%S')}"
+        self._auto_out = str(self.runs_root() / name)
+        self.out.setText(self._auto_out)
+        self._set_resume_button()
+        return self._auto_out
+
+    def _follow_model(self) -> None:
+        if self.out.text() == self._auto_out:  # a name the panel chose follows the model
+            self.new_run_folder()
+
+    def choose_out(self) -> str:
+        """Browse for the run folder (an existing one resumes; a new one is made)."""
+        folder = ask_folder(self, "Run folder", "runs", self.out.text().strip() or None)
+        if folder:
+            self.out.setText(folder)
+            self._auto_out = ""
+            self.settings.setValue(KEY + "runs_root", str(Path(folder).parent))
+            self._set_resume_button()
+        return folder
+
     def _out(self) -> str:
         if not self.out.text().strip():
-            raise UserError("choose a run folder first")
-        return str(Path(self.out.text().strip()).expanduser())
+            self.new_run_folder()
+        out = Path(self.out.text().strip()).expanduser()
+        self.settings.setValue(KEY + "runs_root", str(out.parent))
+        return str(out)
 
     # --- running -----------------------------------------------------------------------
     def start(self) -> bool:
@@ -275,6 +323,11 @@ class TrainPanel(QWidget):
         self.start_button.setEnabled(not on)
         self.ablate_button.setEnabled(not on)
         self.cancel_button.setEnabled(on)
+        self._running = on
+        self._set_resume_button()
+
+    def _set_resume_button(self) -> None:
+        on = getattr(self, "_running", False)
         self.resume_button.setEnabled(not on and bool(self.out.text().strip()) and
                                       (Path(self.out.text().strip()) / "config.json").is_file())
 
@@ -287,7 +340,9 @@ class TrainPanel(QWidget):
             if e["type"] == "progress":
                 self.progress.setValue(int(1000 * e["fraction"]) // 10)
                 eta = job.eta()
-                self.status.setText(e["message"] + (f" · about {eta:.0f} s left" if eta else ""))
+                self.status.setText(e["message"] + (
+                    f" · about {eta:.0f} s left" if eta is not None
+                    else " · time left known after the first fold"))
             elif e["type"] == "epoch":
                 self._epoch(run, e)
             elif e["type"] == "fold":
@@ -338,6 +393,8 @@ class TrainPanel(QWidget):
             self.progress.setValue(100)
             self.status.setText(f"finished: {f['headline']} ({job.out})")
             self.runFinished.emit(job.out)
+            if not self.queue and self.out.text() == self._auto_out:
+                self.new_run_folder()  # Train again makes a new run, not a resume
             if self.queue:
                 self._next()
             elif self.ablation:
