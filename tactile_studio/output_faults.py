@@ -14,6 +14,7 @@ from __future__ import annotations
 import errno
 import os
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 from tactile_studio.errors import UserError
@@ -50,17 +51,27 @@ def fault_line(exc: BaseException) -> str | None:
         name, cause = match["name"], match["message"] or cause
     path = Path(os.fsdecode(name))
     target = _final_name(path)
-    if exc.errno == errno.ENOENT and not path.parent.is_dir():
+    if exc.errno == errno.ENOENT and not _probe(os.path.isdir, path.parent):
         return f"{target}: folder {path.parent} does not exist"
-    if exc.errno == errno.EEXIST and path.exists() and not path.is_dir():
+    if exc.errno == errno.EEXIST and _probe(os.path.lexists, path) \
+            and not _probe(os.path.isdir, path):
         return f"{target}: cannot write (exists and is not a folder)"  # mkdir of a file
     if exc.errno == errno.ENOENT:
         verb = "cannot open"
-    elif exc.errno in WRITE_ERRNOS or not os.path.lexists(path):
+    elif exc.errno in WRITE_ERRNOS or not _probe(os.path.lexists, path):
         verb = "cannot write"
     else:
         verb = "cannot open"
     return f"{target}: {verb} ({cause})"
+
+
+def _probe(test: Callable[[Path], bool], path: Path) -> bool:
+    """``os.path.isdir``/``lexists`` that answer False for a path the system refuses to
+    look at (too long, a loop...): describing a fault must not raise another."""
+    try:
+        return bool(test(path))
+    except (OSError, ValueError):
+        return False
 
 
 def _final_name(path: Path) -> Path:

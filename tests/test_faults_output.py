@@ -198,6 +198,11 @@ def test_fault_line_names_the_file_and_keeps_programming_errors():
     assert fault_line(OSError(errno.ENOENT, "No such file or directory",
                               "/nonexistent-folder/x.h5")) == \
         "/nonexistent-folder/x.h5: folder /nonexistent-folder does not exist"
+    deep = "/tmp/" + "x/" * 3000 + "y"  # describing it must not raise ENAMETOOLONG itself
+    assert fault_line(OSError(errno.ENAMETOOLONG, "File name too long", deep)).endswith(
+        "/y: cannot write (File name too long)")
+    assert fault_line(OSError(errno.ENOENT, "No such file or directory", deep)).endswith(
+        " does not exist")
     # no file named, or an errno that is not about the place: a bug, keeps its traceback
     assert fault_line(OSError(errno.EACCES, "Permission denied")) is None
     assert fault_line(OSError(errno.EBADF, "Bad file descriptor", "/x")) is None
