@@ -169,7 +169,14 @@ def test_fifo_and_device_links_are_refused_and_listed(good, tmp_path):
         cause = "a FIFO" if path.name == "x.h5" else "a character device"
         for result in results:
             _assert_one_line(result, path.name, cause)
-    # in a folder: info lists them with the reason (exit 1), train says it skipped them
+    # in a folder: the workspace's Sessions tab lists them with the reason, info too
+    # (exit 1), train says it skipped them
+    from tactile_studio.learn.workspace_index import scan_sessions
+
+    listed = {Path(r.path).name: r.error for r in scan_sessions([folder])}
+    assert listed["x.h5"].endswith("x.h5: a FIFO (named pipe), not a session file")
+    assert listed["zero.h5"].endswith("zero.h5: a character device, not a session file")
+    assert listed["P01.h5"] == listed["P02.h5"] == ""
     proc = subprocess.run([sys.executable, "-m", "tactile_studio", "info", str(folder)],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
