@@ -52,9 +52,9 @@ def cmd_listen(args: argparse.Namespace) -> int:
                             metadata={"notes": "recorded by listen"})
     session.add_listener(lambda e: _report(e))
     watch_health(session)
-    port = control.listen()
     token = CancelToken()
     try:
+        port = control.listen()  # a port in use: one line, nothing started
         session.start()
         print(f"remote control: listening on {args.host}:{port} for {args.device}; "
               "Ctrl-C ends", file=sys.stderr, flush=True)
