@@ -199,6 +199,8 @@ def test_a_foreign_xdf_imports_with_clocks_markers_aux_and_bids_names(tmp_path, 
         (aux,) = s.aux_signals()
         assert (aux.name, aux.type, aux.labels, aux.unit, aux.rate_hz) == \
             ("Shimmer-EDA", "EDA", ["gsr"], "uS", 32.0)
+        assert s.summary()["aux"] == [{"name": "Shimmer-EDA", "type": "EDA", "unit": "uS",
+                                       "rate_hz": 32.0, "channels": ["gsr"], "samples": 192}]
         np.testing.assert_allclose(aux.time, 1001.25 + np.arange(192) / 32.0, atol=1e-6)
         np.testing.assert_allclose(aux.values, eda)
 

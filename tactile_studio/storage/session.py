@@ -282,6 +282,9 @@ class Session:
             "gestures": self.gesture_order(),
             "unmapped_keys": list(self.metadata.get("unmapped_keys") or []),
             "trials": [_user_blocks(t) for t in self.trials],
+            "aux": [{"name": a.name, "type": a.type, "unit": a.unit, "rate_hz": a.rate_hz,
+                     "channels": a.labels, "samples": len(a.time)}
+                    for a in self.aux_signals()],
         }
         return out
 
