@@ -199,3 +199,27 @@ def test_config_difference_in_words():
     # a run written before a setting existed ran with its default: no difference
     assert config_difference(a, {**a, "adapt": "none", "balance": False}) == []
     assert config_difference(a, {**a, "adapt": "person"}) == ["adapt: none → person"]
+
+
+def test_runs_are_named_by_what_differs_and_the_cli_tables_line_up(runs, capsys):
+    """Two runs that differ in more than one setting were named by their folders ("rf-tiny
+    beats normal"); a long folder name broke the CLI's columns."""
+    both = runs["both"]
+    root = both.parent
+    long = root / "knn-three-neighbours-both-channels-a-long-folder-name"
+    cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels="both",
+                           protocol="lopo", preset="tiny", cache_dir=str(root / "cache"),
+                           overrides={"n_neighbors": 3})
+    run_experiment(cfg, long)
+    r = compare_runs(runs["normal"], long)
+    assert r["name_a"] == "normal channels · n_neighbors default"
+    assert r["name_b"] == "both channels · n_neighbors 3"
+    assert r["name_b"] in r["sentence"] and r["name_a"] in r["sentence"]
+    assert compare_runs(runs["normal"], both)["name_b"] == "both"  # one difference: its value
+    assert main(["compare", str(runs["normal"]), str(long)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    runs_table = [ln for ln in lines if ln.startswith(("A ", "B "))]
+    assert len(runs_table) == 2
+    assert runs_table[0].index("%") == runs_table[1].index("%")  # accuracies in one column
+    people = [ln for ln in lines if ln.startswith(("participant", "P0"))]
+    assert len(people) == 6 and len({len(ln) for ln in people}) == 1  # right-aligned rows

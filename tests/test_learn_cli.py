@@ -49,6 +49,8 @@ def test_train_evaluate_and_resume(data, capsys, tmp_path):
                                 "--cache-dir", data / "cache", "--set", "n_estimators=40")
     assert code == 0, err
     assert "accuracy" in stdout and "P03" in stdout and str(out) in stdout
+    fold_rows = [ln.split() for ln in stdout.splitlines() if ln.split()[1:2] == ["P03"]]
+    assert fold_rows and fold_rows[0][0] == "1"  # round 1, as "round 1/1" (stored as 0)
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["accuracy"] > 0.6 and len(metrics["per_fold"]) == 3
     for name in ("config.json", "confusion_matrix.csv", "confusion_matrix.png"):

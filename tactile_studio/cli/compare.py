@@ -7,6 +7,7 @@ import json
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    from tactile_studio.cli import tables
     from tactile_studio.learn.compare import compare_runs
     from tactile_studio.learn.runfolder import clean_json
 
@@ -14,14 +15,18 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(clean_json(r), indent=1))
         return 0
-    print(f"A  {r['name_a']:<12} {100 * r['accuracy_a']:5.1f}%  ({r['run_a']})")
-    print(f"B  {r['name_b']:<12} {100 * r['accuracy_b']:5.1f}%  ({r['run_b']})")
+    # one table helper for both tables: columns fit the longest run name or participant
+    tables.table(("", "run", "accuracy", "folder"),
+                 [("A", r["name_a"], f"{100 * r['accuracy_a']:.1f}%", r["run_a"]),
+                  ("B", r["name_b"], f"{100 * r['accuracy_b']:.1f}%", r["run_b"])],
+                 right=("accuracy",))
     if r["config_difference"]:
         print("differ in: " + "; ".join(r["config_difference"]))
-    print(f"{'participant':<14}{'A':>8}{'B':>8}{'B-A':>8}  trials")
-    for p, v in r["per_participant"].items():
-        print(f"{p:<14}{100 * v['accuracy_a']:8.1f}{100 * v['accuracy_b']:8.1f}"
-              f"{100 * (v['accuracy_b'] - v['accuracy_a']):+8.1f}  {v['trials']}")
+    tables.table(("participant", "A", "B", "B-A", "trials"),
+                 [(p, f"{100 * v['accuracy_a']:.1f}", f"{100 * v['accuracy_b']:.1f}",
+                   f"{100 * (v['accuracy_b'] - v['accuracy_a']):+.1f}", v["trials"])
+                  for p, v in r["per_participant"].items()],
+                 right=("A", "B", "B-A", "trials"))
     print(r["sentence"])
     for s in r.get("shots", [])[1:]:  # the few-shot curve: the same comparison at each K
         print(f"with {s['k']} shot(s) per gesture: {s['sentence']}")

@@ -161,8 +161,9 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     cut = trials_were_cut(m)
     keys = ("trial_accuracy", "accuracy") if cut else ("accuracy",)
     heads = ("trial accuracy", "per window") if cut else ("accuracy",)
+    # rounds numbered from 1, as the progress line's "round 1/1" (they are 0 in the files)
     tables.table(("round", "fold", "test participants", *heads),
-                 [(f["round"], f["name"], ",".join(f["test_participants"]),
+                 [(int(f["round"]) + 1, f["name"], ",".join(f["test_participants"]),
                    *(_fmt(f.get(k)) for k in keys)) for f in m["per_fold"]],
                  right=("round", *heads))
     if m.get("shots"):

@@ -46,18 +46,38 @@ def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
     return out
 
 
+_LABELLED = ("model", "channels", "grid", "preset", "protocol", "adapt")
+_PHRASE = {"channels": "{} channels", "grid": "{} grid", "preset": "preset {}",
+           "protocol": "{} evaluation"}
+
+
+def _phrase(run: RunPredictions, key: str, value: Any) -> str:
+    if key == "model":  # "cnn1d + rf 0.5" when fused with rf (learn/fused.py)
+        return display_name(run.config["model"], run.config.get("overrides"))
+    if key == "adapt":
+        return _ADAPT_LABEL[value or "none"]
+    return _PHRASE.get(key, "{}").format(value)
+
+
 def run_label(run: RunPredictions, other: RunPredictions) -> str:
-    """A short name for a run next to another: the value of the one setting they differ
-    in (e.g. ``both``), else the folder name."""
+    """A short name for a run next to another, by what differs: the value of the one
+    setting they differ in (``both``), else up to three phrases ("rf · preset tiny";
+    model options too: "n_estimators 80"), else the folder name. A folder name says
+    nothing about the runs ("rf-tiny beats normal" compared two folder names)."""
     since = result_defaults()
-    keys = [k for k in ("channels", "model", "grid", "preset", "protocol", "adapt")
+    keys = [k for k in _LABELLED
             if run.config.get(k, since.get(k)) != other.config.get(k, since.get(k))]
-    if len(keys) == 1 and run.config.get(keys[0], since.get(keys[0])) is not None:
-        if keys[0] == "model":  # "cnn1d + rf 0.5" when fused with rf (learn/fused.py)
-            return display_name(run.config["model"], run.config.get("overrides"))
-        if keys[0] == "adapt":
-            return _ADAPT_LABEL[run.config.get("adapt", "none")]
-        return str(run.config[keys[0]])
+    mine, theirs = run.config.get("overrides") or {}, other.config.get("overrides") or {}
+    opts = [k for k in sorted(set(mine) | set(theirs)) if mine.get(k) != theirs.get(k)]
+    if "model" in keys:  # a model's options differ with it: the model says it
+        opts = []
+    if len(keys) == 1 and not opts and run.config.get(keys[0], since.get(keys[0])) is not None:
+        value = run.config.get(keys[0], since.get(keys[0]))
+        return _phrase(run, keys[0], value) if keys[0] in ("model", "adapt") else str(value)
+    phrases = [_phrase(run, k, run.config.get(k, since.get(k))) for k in keys]
+    phrases += [f"{k} {mine.get(k, 'default')}" for k in opts]
+    if 1 <= len(phrases) <= 3:
+        return " · ".join(phrases)
     if run.name == other.name:
         return str(run.path)
     return run.name
