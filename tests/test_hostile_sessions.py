@@ -25,6 +25,8 @@ import numpy as np
 import pytest
 from learn_fixtures import write_participant
 
+from tactile_studio.storage.session_compress import wait_for_compression
+
 pytestmark = pytest.mark.damaged_files  # the files are hostile on purpose
 
 GESTURES = ("Poke", "Heavy Pat")
@@ -55,7 +57,9 @@ DRIVER = textwrap.dedent("""
 @pytest.fixture(scope="module")
 def good(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("hostile")
-    return write_participant(root / "good.h5", "P01", 101, gestures=GESTURES, blocks=1)
+    path = write_participant(root / "good.h5", "P01", 101, gestures=GESTURES, blocks=1)
+    wait_for_compression(path)  # compressed chunks, as every closed session has
+    return path
 
 
 def _variant(good: Path, folder: Path, name: str, change) -> Path:
@@ -88,6 +92,15 @@ def _compound(g) -> None:
     del g["raw"]
     dt = np.dtype([(f"c{i}", raw.dtype) for i in range(raw.shape[1])])
     g.create_dataset("raw", data=raw.view(dt).reshape(len(raw)))
+
+
+def _big_chunks(g) -> None:
+    """raw in one chunk of 4M frames (1.4 GiB): nothing stored, yet reading frame 0
+    would inflate all of it."""
+    n, c = g["raw"].shape
+    del g["raw"]
+    g.create_dataset("raw", (n, c), maxshape=(None, c), dtype="u2", chunks=(4_000_000, c),
+                     compression="gzip")
 
 
 def _really_big(g) -> None:
@@ -139,6 +152,7 @@ def _assert_one_line(result: tuple[object, str], name: str, cause: str, command:
     ("wide", _wide, "frames/raw claims 4,608 rows"),
     ("text_time", _text_time, "frames/device_time is text"),
     ("compound", _compound, "frames/raw is a compound type"),
+    ("big_chunks", _big_chunks, "frames/raw is stored in chunks of 1,373 MiB"),
 ])
 def test_false_claims_end_in_one_line(good, tmp_path, name, change, cause):
     path = _variant(good, tmp_path, name, change)
@@ -146,6 +160,20 @@ def test_false_claims_end_in_one_line(good, tmp_path, name, change, cause):
     for argv, result in zip(cmds, _run(cmds, tmp_path)):
         _assert_one_line(result, f"{name}.h5", cause, argv[0])
     assert not (tmp_path / "replayed.h5").exists() and not (tmp_path / "run").exists()
+
+
+def test_a_damaged_chunk_ends_in_one_line(good, tmp_path):
+    path = tmp_path / "damaged.h5"
+    shutil.copy(good, path)
+    with h5py.File(path, "r") as f:
+        chunk = f["frames/raw"].id.get_chunk_info(0)
+        assert f["frames/raw"].compression == "gzip"
+    with open(path, "r+b") as fh:  # one bad disk block in the middle of the frames
+        fh.seek(chunk.byte_offset + chunk.size // 2)
+        fh.write(bytes(64))
+    for result in _run(_commands(path, tmp_path)[1:], tmp_path):  # info reads no frames
+        _assert_one_line(result, "damaged.h5", "frames/raw rows 0-")
+        assert "cannot be read, the file is damaged" in result[1]
 
 
 def test_a_real_claim_larger_than_memory_ends_in_one_line(good, tmp_path):

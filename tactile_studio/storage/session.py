@@ -229,6 +229,10 @@ class Session:
             size = n * ds.dtype.itemsize * int(np.prod(ds.shape[1:]))
             raise SessionFileError(f"{self.path}: {name} rows {start}-{stop} "
                                    f"({size / 2**30:.1f} GiB) do not fit in memory") from None
+        except OSError as exc:  # HDF5 cannot read or inflate a chunk: damaged on disk
+            first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+            raise SessionFileError(f"{self.path}: {name} rows {start}-{stop} cannot be read, "
+                                   f"the file is damaged ({first[:100]})") from None
 
     def baseline(self, row: int = 0) -> np.ndarray:
         """The newest recorded baseline at or before ``row`` (else the first recorded

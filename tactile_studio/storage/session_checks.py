@@ -12,6 +12,7 @@ dataset resized to claim 10^12 rows costs nothing on disk yet would make ``info`
   dataset and writing it), a contiguous one no more bytes than it stores; datasets kept
   in other files (external storage, virtual datasets) are refused, since they can point
   anywhere;
+* no chunk is larger than 256 MiB (reading one row inflates its whole chunk);
 * the frame datasets have the layout's shape and numeric dtypes (``raw`` (N, channels)
   of integers or floats, the time, seq and index columns 1-D numbers, the journal bytes).
 
@@ -32,6 +33,7 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.layout import Layout
 
 COLUMNS = ("device_time", "host_time", "seq", "index")
+MAX_CHUNK_BYTES = 256 * 2**20  # ours are <= 256 KiB; reading any row inflates a whole chunk
 
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
@@ -76,6 +78,10 @@ def _check_backed(path: Path, name: str, ds: h5py.Dataset) -> None:
                                "(external or virtual storage); not read")
     if not ds.shape:
         return
+    if ds.chunks is not None and math.prod(ds.chunks) * ds.dtype.itemsize > MAX_CHUNK_BYTES:
+        raise SessionFileError(f"{path}: dataset {name} is stored in chunks of "
+                               f"{math.prod(ds.chunks) * ds.dtype.itemsize / 2**20:,.0f} MiB "
+                               "(damaged, or not written by Tactile Studio)")
     stored = _stored_rows(ds)
     if ds.shape[0] > stored:
         raise SessionFileError(f"{path}: dataset {name} claims {ds.shape[0]:,} rows but the "

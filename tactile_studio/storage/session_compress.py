@@ -147,8 +147,11 @@ def wait_for_compression(path: str | os.PathLike | None = None,
 _READ_WORKERS = max(1, min(8, os.cpu_count() or 1))
 try:  # ISA-L inflates the same deflate streams ~1.5-2x faster than zlib
     from isal.isal_zlib import decompress as _inflate
+    from isal.isal_zlib import error as _isal_error
+    _INFLATE_ERRORS: tuple[type[Exception], ...] = (zlib.error, _isal_error)
 except ImportError:  # pragma: no cover - isal is a dependency; zlib reads the same bytes
     _inflate = zlib.decompress
+    _INFLATE_ERRORS = (zlib.error,)
 
 
 def _plain_gzip_shuffle(ds: h5py.Dataset) -> bool:
@@ -182,7 +185,10 @@ def read_rows(ds: h5py.Dataset, start: int, stop: int) -> np.ndarray:
         mask, data = dsid.read_direct_chunk((k * rows,) + (0,) * len(tail))
         if mask:
             return False
-        planes = np.frombuffer(_inflate(data), dtype=np.uint8).reshape(dtype.itemsize, -1)
+        try:
+            planes = np.frombuffer(_inflate(data), dtype=np.uint8).reshape(dtype.itemsize, -1)
+        except (*_INFLATE_ERRORS, ValueError):  # a damaged chunk: h5py's read says so
+            return False
         a, b = max(start, k * rows), min(stop, (k + 1) * rows)
         e0, e1 = (a - k * rows) * row_elems, (b - k * rows) * row_elems
         flat = out[a - start:b - start].reshape(-1)
