@@ -133,3 +133,19 @@ def test_the_training_curve_legend_leaves_the_curves_clear(qtbot):
         for x, y in zip(*curve.getData()):
             point = item.vb.mapViewToScene(pg.Point(x, y))
             assert not legend.contains(point), (x, y)
+
+
+def test_the_main_windows_file_menu_imports_old_recordings(qtbot):
+    w = MainWindow(device="simulated", settings={"gesture": "idle"}, connect=False,
+                   persist=False)
+    qtbot.addWidget(w)
+    file_menu = w.menuBar().actions()[0].menu()
+    texts = [a.text().replace("&", "") for a in file_menu.actions()]
+    assert "Import old recordings (ShearSense CSV)…" in texts  # where the README points
+    w.import_action.trigger()
+    dialog = w.research_window.import_dialog
+    qtbot.addWidget(w.research_window)
+    assert dialog is not None and dialog.isVisible()
+    dialog.close()
+    w.research_window.close()
+    w.shutdown()

@@ -44,6 +44,12 @@ def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None 
 
         play.triggered.connect(open_session)
         file_menu.insertAction(file_menu.actions()[0] if file_menu.actions() else None, play)
+        # where the README sends people with old recordings: the main window's File menu
+        old = QAction("&Import old recordings (ShearSense CSV)…", window)
+        old.triggered.connect(lambda: workspace().open_import())
+        actions = file_menu.actions()
+        file_menu.insertAction(actions[1] if len(actions) > 1 else None, old)
+        window.import_action = old
     return action
 
 
