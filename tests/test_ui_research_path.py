@@ -149,3 +149,34 @@ def test_the_main_windows_file_menu_imports_old_recordings(qtbot):
     dialog.close()
     w.research_window.close()
     w.shutdown()
+
+
+def test_the_players_prediction_strip_has_a_colour_legend(qtbot, tmp_path):
+    import numpy as np
+    from learn_fixtures import write_participant
+
+    from tactile_studio.playback import SessionPlayback
+    from tactile_studio.ui.research.timeline import Timeline, gesture_colour
+    path = tmp_path / "P01.h5"
+    write_participant(path, "P01", 7, gestures=("Poke", "Heavy Pat", "Back & Forth Rub"),
+                      blocks=1)
+    pb = SessionPlayback(path)
+    t = Timeline()
+    qtbot.addWidget(t)
+    t.resize(900, 160)
+    t.set_playback(pb)
+    frames = np.linspace(0, pb.trials[-1].end, 20).astype(int)
+    probs = np.zeros((20, 3))
+    probs[:10, 0], probs[10:, 2] = 0.9, 0.7  # two gestures predicted, one never
+    labels = ["Back & Forth Rub", "Heavy Pat", "Poke"]
+    t.set_predictions(frames, probs, labels)
+    t.show()
+    entries = t.legend_entries()
+    assert [n for n, _ in entries] == ["Back & Forth Rub", "Poke"]  # what the strip shows
+    assert all(c == gesture_colour(t.names, n) for n, c in entries)  # the trials' colours
+    image = t.grab().toImage()
+    caption_rows = range(0, image.height() // 2 + 20)
+    for _, colour in entries:  # each swatch is drawn
+        assert any(image.pixelColor(x, y) == colour for y in caption_rows
+                   for x in range(image.width() // 3, image.width())), colour.name()
+    pb.close()

@@ -138,8 +138,11 @@ class Timeline(QWidget):
                 p.fillRect(QRect(int(x0), pred[1] - ph, max(int(x1 - x0), 1), ph),
                            gesture_colour(self.names, self.pred_labels[top[k]]))
             p.setPen(QColor(120, 120, 120))
-            p.drawText(QRect(6, pred[0] - fm.height() - 4, self.width(), fm.height()),
-                       Qt.AlignmentFlag.AlignLeft, "prediction (height = probability)")
+            caption = "prediction (height = probability):"
+            y = pred[0] - fm.height() - 4
+            p.drawText(QRect(6, y, self.width(), fm.height()), Qt.AlignmentFlag.AlignLeft,
+                       caption)
+            self._draw_legend(p, fm, 6 + fm.horizontalAdvance(caption) + 10, y)
         p.setPen(QColor(60, 60, 60))
         p.drawText(QRect(4, h - fm.height() - 2, 200, fm.height()), Qt.AlignmentFlag.AlignLeft,
                    "0 s")
@@ -149,6 +152,28 @@ class Timeline(QWidget):
         p.setPen(QColor("black"))
         p.drawLine(x, 0, x, h)
         p.end()
+
+    def legend_entries(self) -> list[tuple[str, QColor]]:
+        """The gestures the prediction strip shows, each with its colour (the trials'
+        colours: a prediction is right where its colour matches the trial above)."""
+        if self.pred_probs is None or not len(self.pred_probs):
+            return []
+        shown = {self.pred_labels[i] for i in np.unique(self.pred_probs.argmax(axis=1))}
+        return [(n, gesture_colour(self.names, n)) for n in self.names if n in shown]
+
+    def _draw_legend(self, p: QPainter, fm: QFontMetrics, x: int, y: int) -> None:
+        """A swatch and a name per predicted gesture, on the caption's line."""
+        box = fm.height() - 4
+        for name, colour in self.legend_entries():
+            need = box + 4 + fm.horizontalAdvance(name) + 12
+            if x + need > self.width() - 6:
+                p.drawText(QRect(x, y, 20, fm.height()), Qt.AlignmentFlag.AlignLeft, "…")
+                return
+            p.fillRect(QRect(x, y + 2, box, box), colour)
+            p.setPen(QColor(60, 60, 60))
+            p.drawText(QRect(x + box + 4, y, need, fm.height()), Qt.AlignmentFlag.AlignLeft,
+                       name)
+            x += need
 
     def _draw_aux(self, p: QPainter, fm: QFontMetrics, track: AuxTrack, top: int,
                   height: int) -> None:
