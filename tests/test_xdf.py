@@ -241,3 +241,24 @@ def test_import_xdf_refuses_a_file_without_tactile_stream_in_one_line(tmp_path, 
     rc = main(["import", "xdf", str(tmp_path / "bad.xdf"), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     assert rc == 1 and "bad.xdf: not a readable XDF file" in err and "Traceback" not in err
+
+
+def test_a_session_recorded_while_streaming_exports_the_stamps_the_outlet_sent(tmp_path,
+                                                                             capsys):
+    """``record --lsl`` with a real inlet listening: the XDF export's frame timestamps are
+    exactly the LSL timestamps the live outlet sent for the same frames."""
+    from lsl_fixtures import Collector
+
+    got = Collector("name='TactileStudio-simulated'")
+    src = tmp_path / "live.h5"
+    rc = main(["record", "--device", "simulated", "--set", "rate=100", "--seconds", "1.5",
+               "--out", str(src), "--lsl", "--lsl-wait", "10"])
+    got.stop()
+    assert rc == 0, capsys.readouterr().err
+    streams, _ = load(export_xdf(src, tmp_path), synchronize_clocks=True,
+                      dejitter_timestamps=False)
+    frames = streams["TactileStudio-simulated"]
+    with Session(src) as s:
+        assert len(frames["time_stamps"]) == s.n_frames == len(got.stamps)
+        np.testing.assert_array_equal(frames["time_series"], np.asarray(got.samples))
+    np.testing.assert_allclose(frames["time_stamps"], got.stamps, rtol=0, atol=1e-9)
