@@ -64,9 +64,9 @@ def test_local_sweep_writes_a_table_equal_to_single_runs(data, local_run):
     rows = {(r["model"], r["channels"]): r for r in local_run.rows}
     assert set(rows) == {(m, c) for m in MODELS for c in CHANNELS}
     assert all(r["folds_done"] == r["folds"] == 3 for r in rows.values())
-    # auto: every model meets each held-out person on their own terms
+    # auto: a network meets each held-out person on their own terms, a forest as trained
     assert {r["model"]: (r["adapt"], r["name"]) for r in rows.values()} == {
-        "rf": ("person", "rf (adapted)"), "cnn1d": ("person", "cnn1d (adapted)")}
+        "rf": ("none", "rf"), "cnn1d": ("person", "cnn1d (adapted)")}
     csv_lines = (data / "local" / "results.csv").read_text().splitlines()
     assert csv_lines[0].startswith("model,name,adapt,channels,folds_done") and len(csv_lines) == 5
     assert len(list((data / "local" / "tasks").glob("*.json"))) == 12

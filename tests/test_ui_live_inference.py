@@ -34,7 +34,8 @@ def run(tmp_path_factory):
 
 def _window(qtbot) -> MainWindow:
     """The main window on the simulated sensor performing Heavy Pat."""
-    w = MainWindow(device="simulated", settings={"rate": "43", "gesture": "Heavy Pat"},
+    w = MainWindow(device="simulated", settings={"rate": "43", "gesture": "Heavy Pat",
+                                                    "difficulty": "easy"},
                    connect=True, persist=False)
     qtbot.addWidget(w)
     w.resize(1300, 760)
@@ -67,7 +68,7 @@ def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monk
         w.grab().save(str(SHOTS / "research_live_inference.png"))
         # record while the gesture changes: the prediction changes and is recorded
         path = tmp_path / "rec.h5"
-        w.controller.connect("simulated", {"rate": "43", "gesture": "Poke"})
+        w.controller.connect("simulated", {"rate": "43", "gesture": "Poke", "difficulty": "easy"})
         w.controller.start_recording(path)
         qtbot.waitUntil(lambda: panel.inference is not None
                         and panel.inference.engine is w.controller.engine
