@@ -1,6 +1,6 @@
 """Draw the shear9 gesture pictograms (one PNG per gesture) with QPainter.
 
-``QT_QPA_PLATFORM=offscreen .venv/bin/python resources/protocols/images/make_images.py
+``QT_QPA_PLATFORM=offscreen .venv/bin/python tools/make_protocol_images.py
 [OUT_DIR]`` (default: this folder) rewrites the nine PNGs that shear9.toml references.
 Each is a top view of the sensor pad with a right hand (palm down, wrist at the bottom)
 and the motion in amber, so the participant can tell the gestures apart at a glance.

@@ -1,6 +1,6 @@
 """Screenshots of the characterisation wizard on the simulated bench (offscreen).
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_characterise_screenshots.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_characterise_screenshots.py
 """
 
 from __future__ import annotations

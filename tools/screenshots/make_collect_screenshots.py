@@ -1,6 +1,6 @@
 """Screenshots of the collection screens from a real session on the simulated sensor.
 
-``QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_collect_screenshots.py
+``QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_collect_screenshots.py
 [OUT_DIR]`` (default: this folder) writes collect-*.png: the setup step (with the
 simulator's settings form), the participant screen prompting the next gesture, refusing
 another gesture's key, during a trial countdown and in a break, and the experimenter

@@ -3,7 +3,7 @@
 Everything runs on the simulated sensor in a temporary logbook; the run pages are
 grabbed in each phase while the simulated device places the weights in real time.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_health_screenshots.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_health_screenshots.py
 """
 
 from __future__ import annotations

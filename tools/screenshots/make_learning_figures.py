@@ -5,7 +5,7 @@ run (14 gestures, uneven rows, one gesture with a single test trial, one with no
 the figures show the cases that used to mislead: a row of one trial, an empty row, and
 20 leave-one-participant-out folds that stop at different epochs.
 
-    .venv/bin/python docs/screenshots/make_learning_figures.py
+    .venv/bin/python tools/screenshots/make_learning_figures.py
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Regenerate lsl-device-main-window.png: the live window viewing, through the `lsl` device,
 the stream another engine publishes (offscreen, loopback-only LSL).
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_lsl_screenshot.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_lsl_screenshot.py
 
 (lsl-device-panel.png and lsl-collect-console.png come from tests/test_lsl_ui.py with
 TACTILE_STUDIO_SHOTS=docs/screenshots.)

@@ -2,7 +2,7 @@
 ShearSense CSV (quoted decimal counts) with 6 short rows and 2 merged numbers; the
 status bar and device panel show them by kind, as `import` counts them.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_replay_screenshot.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_replay_screenshot.py
 """
 
 from __future__ import annotations

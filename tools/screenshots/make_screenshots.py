@@ -5,7 +5,7 @@ pictures show pressure and shear arrows at a reproducible moment. The third pict
 stress below baseline with the diverging colour map: the sensor was tared while a palm
 rested on it, so where the palm was, counts now read above the baseline.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_screenshots.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_screenshots.py
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ the lines malformed; the window connects to it through the emulator's link path,
 user typing the port would, and is grabbed mid-gesture once every kind of bad line has
 been counted at least once... or after a while, whichever comes first.
 
-    QT_QPA_PLATFORM=offscreen .venv/bin/python docs/screenshots/make_serial_screenshot.py
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/screenshots/make_serial_screenshot.py
 """
 
 from __future__ import annotations
