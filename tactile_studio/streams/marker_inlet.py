@@ -94,8 +94,11 @@ class MarkerInlets:
             except Exception:  # noqa: BLE001 - pylsl.LostError: the sender went away
                 self._lost(name)
                 continue
-            if k < len(self.inlets) and samples:
-                correction = float(inlet.time_correction(0.5)) if stamps else correction
+            if samples:  # liblsl refreshes its estimate every few seconds; ask it now
+                try:
+                    correction = float(inlet.time_correction(0.5))
+                except Exception:  # noqa: BLE001 - gone meanwhile: the last estimate stands
+                    pass
                 self.inlets[k] = (name, inlet, correction)
             for sample, ts in zip(samples, stamps):
                 lsl_time = float(ts) + correction
