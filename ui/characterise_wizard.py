@@ -218,6 +218,8 @@ class RunPage(QWizardPage):
                                      symbolBrush="#1f77b4", name="normal")
         self.shear = self.shear_plot.plot([], [], pen=None, symbol="t", symbolSize=6,
                                           symbolBrush="#2ca02c", name="shear (along the drag)")
+        for plot in (self.plot, self.shear_plot):  # relative changes as they are, no "(x0.001)"
+            plot.getAxis("left").enableAutoSIPrefix(False)
         plots.addWidget(self.plot, 1)
         plots.addWidget(self.shear_plot, 1)
         lay.addLayout(plots, 1)
@@ -263,7 +265,9 @@ class ReportPage(QWizardPage):
         self.summary.setTextInteractionFlags(Qt.TextSelectableByMouse)
         lay.addWidget(self.summary)
         self.table = QTableWidget(0, len(TABLE_KEYS) + 1)
-        self.table.setHorizontalHeaderLabels(["Taxel", *[column_title(k) for k in TABLE_KEYS]])
+        # the unit on a second line: the columns stay as narrow as their numbers
+        self.table.setHorizontalHeaderLabels(
+            ["Taxel", *[column_title(k).replace(" (", "\n(") for k in TABLE_KEYS]])
         self.table.verticalHeader().hide()
         lay.addWidget(self.table, 1)
         self.maps = QLabel()
