@@ -6,7 +6,6 @@ Anything else that escapes is a programming error and keeps its traceback.
 
 from __future__ import annotations
 
-
 # The CLI's exit statuses (README, "Exit status"): one table for every command.
 EXIT_OK = 0
 EXIT_ERROR = 1        # bad input, a refused request, a file that cannot be read or written
