@@ -237,7 +237,7 @@ class LocalRay:
         if not os.environ.get("TORCHINDUCTOR_CACHE_DIR"):  # torch's workers: not in /tmp
             self._saved["TORCHINDUCTOR_CACHE_DIR"] = None
             os.environ["TORCHINDUCTOR_CACHE_DIR"] = str(self._real / "torchinductor")
-        if len(str(self._real)) > _MAX_RAY_TEMP:
+        if len(str(self._real)) > _MAX_RAY_TEMP and sys.platform != "win32":  # no AF_UNIX
             short = tempfile.gettempdir()
             if len(short) > _MAX_RAY_TEMP - 16 and os.path.isdir("/tmp"):
                 short = "/tmp"
