@@ -1,6 +1,9 @@
 """The confusion matrix a researcher explores: counts or shares, ordered by confusion,
 per-class precision / recall / F1, filtered by participant or condition, and the trials
 behind each cell. Views (GUI, CSV) only present what this model computes.
+
+A few-shot run (``train --shots``) tests each trial once per K: the model shows one K at
+a time (``shots``, the smallest by default), never the K mixed.
 """
 
 from __future__ import annotations
@@ -23,12 +26,25 @@ class ConfusionModel:
     participant: str | None = None
     condition: str | None = None
     order: list[int] = field(default_factory=list)  # display order of label indices
+    shots: int | None = None  # a few-shot run's K shown (None: the smallest it has)
 
     def __post_init__(self) -> None:
         if not self.order:
             self.order = list(range(len(self.labels)))
+        if self.shots is None and self.shot_counts:
+            self.shots = self.shot_counts[0]
 
     # --- selection -------------------------------------------------------------------------
+    @property
+    def shot_counts(self) -> list[int]:
+        """The K of a few-shot run's folds, sorted ([] for other runs)."""
+        return sorted({t.shots for t in self.trials if t.shots is not None})
+
+    def set_shots(self, k: int) -> None:
+        if k not in self.shot_counts:
+            raise ValueError(f"K={k} not in the run's {self.shot_counts}")
+        self.shots = k
+
     @property
     def participants(self) -> list[str]:
         return sorted({t.participant for t in self.trials})
@@ -39,7 +55,8 @@ class ConfusionModel:
 
     def selected(self) -> list[TrialPrediction]:
         return [t for t in self.trials
-                if (self.participant is None or t.participant == self.participant)
+                if (self.shots is None or t.shots == self.shots)
+                and (self.participant is None or t.participant == self.participant)
                 and (self.condition is None or t.condition == self.condition)]
 
     def set_filter(self, participant: str | None = None, condition: str | None = None) -> None:

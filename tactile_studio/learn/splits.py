@@ -65,6 +65,20 @@ def with_shots(folds: list[Fold], labels: np.ndarray, shots: tuple[int, ...],
     return out
 
 
+def parse_shot_counts(text: str) -> tuple[int, ...]:
+    """"0,1,2" -> (0, 1, 2) (sorted); "" -> () (no few-shot personalisation)."""
+    text = text.replace(" ", "")
+    if not text:
+        return ()
+    try:
+        ks = tuple(int(k) for k in text.split(",") if k != "")
+    except ValueError:
+        raise UserError(f"shots {text!r}: not a list of counts such as 0,1,2") from None
+    if not ks or min(ks) < 0 or len(set(ks)) != len(ks):
+        raise UserError(f"shots {text!r}: give distinct counts of 0 or more, such as 0,1,2")
+    return tuple(sorted(ks))
+
+
 def stratified_parts(idx: np.ndarray, labels: np.ndarray, fractions: tuple[float, ...],
                      rng: np.random.Generator) -> list[np.ndarray]:
     """Split trial indices ``idx`` by class into parts with the given fractions.

@@ -134,3 +134,15 @@ def headline(m: dict[str, Any]) -> str:
         return (f"accuracy {m['trial_accuracy']:.3f} per trial "
                 f"({m['accuracy']:.3f} per window)")
     return f"accuracy {m['accuracy']:.3f}"
+
+
+def shots_curve(shots: list[dict[str, Any]] | None) -> str:
+    """A few-shot run's curve in one phrase ("K=0 0.61, K=1 0.70, K=2 0.74"): accuracy
+    per performance (trial) at each K, the figure people quote; "" for other runs."""
+    parts = []
+    for s in shots or []:
+        v = s.get("trial_accuracy")
+        v = s.get("accuracy") if v is None else v
+        if v is not None:
+            parts.append(f"K={s['k']} {v:.2f}")
+    return ", ".join(parts)

@@ -10,8 +10,9 @@ so no Qt or torch state is inherited) that runs :func:`run_experiment` into ``ou
   "train_acc", "val_loss", "val_acc"}``
 * ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy",
   "trial_accuracy", "cut", "resumed"}`` (cut: the fold's trials were cut into windows)
-* ``{"type": "done", "accuracy", "headline", "out"}`` (headline: both figures when
-  trials were cut into windows) / ``{"type": "cancelled"}`` /
+* ``{"type": "done", "accuracy", "headline", "shots", "out"}`` (headline: both figures when
+  trials were cut into windows; ``shots``: a few-shot run's curve over K, else "") /
+  ``{"type": "cancelled"}`` /
   ``{"type": "error", "message"}`` — the last event of a job; a worker that dies without
   one (killed, segfault) is reported as an ``error`` too.
 
@@ -79,7 +80,7 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
     from tactile_studio.errors import Cancelled, UserError
     from tactile_studio.jobs import CancelToken
     from tactile_studio.learn.experiment import EpochEvent, FoldEvent, run_experiment
-    from tactile_studio.learn.summary import headline, trials_were_cut
+    from tactile_studio.learn.summary import headline, shots_curve, trials_were_cut
 
     token = CancelToken()
 
@@ -115,7 +116,8 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
         result = run_experiment(ExperimentConfig.from_dict(config), out, progress, token,
                                 listener)
         events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]),
-                    "headline": headline(result.metrics), "out": out})
+                    "headline": headline(result.metrics),
+                    "shots": shots_curve(result.metrics.get("shots")), "out": out})
     except Cancelled:
         events.put({"type": "cancelled"})
     except UserError as exc:

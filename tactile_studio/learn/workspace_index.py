@@ -15,6 +15,7 @@ from typing import Any
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.runfolder import CONFIG, METRICS, read_json, run_problems
+from tactile_studio.learn.summary import shots_curve
 
 
 @dataclass
@@ -84,6 +85,7 @@ class RunRow:
     trial_accuracy: float | None = None
     f1_macro: float | None = None
     balanced_accuracy: float | None = None
+    shots: str = ""  # a few-shot run's curve, "K=0 0.61, K=1 0.70" (per trial)
     folds: int = 0
     complete: bool = False
     created: str = ""
@@ -140,6 +142,7 @@ def read_run_row(path: str | os.PathLike) -> RunRow:
     row.trial_accuracy = _number(m, "trial_accuracy")
     row.f1_macro = _number(m, "f1_macro")
     row.balanced_accuracy = _number(m, "balanced_accuracy")
+    row.shots = shots_curve(m.get("shots") if isinstance(m.get("shots"), list) else None)
     row.complete = m.get("complete") is True
     row.channels = str(m.get("channels") or row.channels)
     return row

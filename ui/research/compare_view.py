@@ -82,6 +82,20 @@ class PairedBars(QWidget):
         p.end()
 
 
+def shots_text(r: dict[str, Any]) -> str:
+    """The few-shot comparison, one line per K (the matrix and bars below are the
+    smallest K's); "" when neither run is a few-shot run."""
+    shots = r.get("shots") or []
+    if not shots:
+        return ""
+    lines = [f"Few-shot curve (K labelled performances per gesture of the test person; "
+             f"below: K = {shots[0]['k']}):"]
+    for s in shots:
+        lines.append(f"K = {s['k']}: {r['name_a']} {100 * s['accuracy_a']:.1f}%, "
+                     f"{r['name_b']} {100 * s['accuracy_b']:.1f}% — {s['sentence']}")
+    return "\n".join(lines)
+
+
 class CompareView(QWidget):
     def __init__(self, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -94,6 +108,11 @@ class CompareView(QWidget):
         self.sentence.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.details = QLabel("")
         self.details.setWordWrap(True)
+        # two few-shot runs (train --shots): the comparison at every K both have
+        self.shots = QLabel("")
+        self.shots.setWordWrap(True)
+        self.shots.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.shots.hide()
         self.matrix = MatrixWidget()
         self.matrix.tooltip = self._tooltip
         self.bars = PairedBars()
@@ -105,6 +124,7 @@ class CompareView(QWidget):
         lay = QVBoxLayout(self)
         lay.addWidget(self.sentence)
         lay.addWidget(self.details)
+        lay.addWidget(self.shots)
         lay.addWidget(split, 1)
 
     def set_result(self, r: dict[str, Any]) -> None:
@@ -114,6 +134,8 @@ class CompareView(QWidget):
             f"A = {r['name_a']} ({r['run_a']}): {100 * r['accuracy_a']:.1f}%   ·   "
             f"B = {r['name_b']} ({r['run_b']}): {100 * r['accuracy_b']:.1f}%   ·   differ in: "
             + ("; ".join(r["config_difference"]) or "nothing recorded"))
+        self.shots.setText(shots_text(r))
+        self.shots.setVisible(bool(r.get("shots")))
         diff = np.asarray(r["difference_matrix"])
         texts = [[f"{100 * v:+.0f}" if abs(v) >= 0.005 else "" for v in row] for row in diff]
         scale = max(float(np.abs(diff).max()), 0.05)

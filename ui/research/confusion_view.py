@@ -48,12 +48,18 @@ class ConfusionView(QWidget):
         self.ordered = QCheckBox("Order by confusion")
         self.participant = QComboBox()
         self.condition = QComboBox()
+        self.shots = QComboBox()  # a few-shot run's K (train --shots); hidden otherwise
+        self.shots.setToolTip("few-shot personalisation: the folds trained with K labelled "
+                              "performances per gesture of the test person (each test "
+                              "trial is scored once per K)")
+        self.shots_label = QLabel("Shots per gesture")
         self.export_png = QPushButton("PNG…")
         self.export_svg = QPushButton("SVG…")
         self.export_csv = QPushButton("CSV…")
         bar = QHBoxLayout()
         for w in (QLabel("Show"), self.mode, self.ordered, QLabel("Participant"),
-                  self.participant, QLabel("Condition"), self.condition):
+                  self.participant, QLabel("Condition"), self.condition,
+                  self.shots_label, self.shots):
             bar.addWidget(w)
         bar.addStretch(1)
         for w in (QLabel("Export"), self.export_png, self.export_svg, self.export_csv):
@@ -90,6 +96,7 @@ class ConfusionView(QWidget):
         self.ordered.toggled.connect(self._order_changed)
         self.participant.currentIndexChanged.connect(self._filter_changed)
         self.condition.currentIndexChanged.connect(self._filter_changed)
+        self.shots.currentIndexChanged.connect(self._shots_changed)
         self.matrix.cellClicked.connect(self.show_cell)
         self.table.cellDoubleClicked.connect(
             lambda r, _c: self.trialActivated.emit(self.cell_rows[r]))
@@ -107,6 +114,13 @@ class ConfusionView(QWidget):
             combo.addItem("all")
             combo.addItems(values)
             combo.blockSignals(False)
+        self.shots.blockSignals(True)
+        self.shots.clear()
+        for k in self.model.shot_counts:
+            self.shots.addItem(f"K = {k}", k)
+        self.shots.blockSignals(False)
+        for w in (self.shots, self.shots_label):
+            w.setVisible(bool(self.model.shot_counts))
         if self.ordered.isChecked():
             self.model.order_by_confusion()
         self.table.setRowCount(0)
@@ -123,6 +137,17 @@ class ConfusionView(QWidget):
             return
         p, c = self.participant.currentText(), self.condition.currentText()
         self.model.set_filter(None if p == "all" else p, None if c == "all" else c)
+        self.refresh()
+
+    def _shots_changed(self) -> None:
+        if self.model is None or self.shots.currentData() is None:
+            return
+        self.model.set_shots(int(self.shots.currentData()))
+        if self.ordered.isChecked():
+            self.model.order_by_confusion()
+        self.table.setRowCount(0)
+        self.cell_rows = []
+        self.matrix.selected = None
         self.refresh()
 
     def _order_changed(self, on: bool) -> None:
@@ -147,7 +172,8 @@ class ConfusionView(QWidget):
         shown = len(m.selected())
         title = (f"{self.run.name} · {self.run.config.get('model', '')} · "
                  f"{self.run.config.get('channels') or 'all'} · accuracy "
-                 f"{100 * m.accuracy():.1f}% over {shown} trials")
+                 f"{100 * m.accuracy():.1f}% over {shown} trials"
+                 + (f" · K={m.shots} shot(s) per gesture" if m.shots is not None else ""))
         self.title.setText(str(self.run.path))
         self.matrix.set_matrix(m.ordered_labels(), values, texts, margins, False,
                                max(scale, 1.0), title)

@@ -24,7 +24,7 @@ from tactile_studio.ui.settings import app_settings
 ROOT_KEY = "research/runs_root"
 
 COLUMNS = ["run", "model", "channels", "protocol", "preset", "accuracy", "trial acc.",
-           "F1 macro", "bal. acc.", "folds", "complete", "created", "problem"]
+           "F1 macro", "bal. acc.", "few-shot (trial acc. per K)", "folds", "complete", "created", "problem"]
 
 
 def _pct(v: float | None) -> str | None:
@@ -92,10 +92,11 @@ class RunsView(QWidget):
         self.table.setRowCount(len(self.rows))
         for r, row in enumerate(self.rows):
             values = [row.name, row.model, row.channels, row.protocol, row.preset, row.accuracy,
-                      row.trial_accuracy, row.f1_macro, row.balanced_accuracy, row.folds,
+                      row.trial_accuracy, row.f1_macro, row.balanced_accuracy, row.shots,
+                      row.folds,
                       "yes" if row.complete else "no", row.created, row.error]
             texts = [None] * 5 + [_pct(row.accuracy), _pct(row.trial_accuracy),
-                                  _pct(row.f1_macro), _pct(row.balanced_accuracy)] + [None] * 4
+                                  _pct(row.f1_macro), _pct(row.balanced_accuracy)] + [None] * 5
             fill_row(self.table, r, values, texts, row.error)
         self.table.setSortingEnabled(True)
         self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
@@ -125,7 +126,10 @@ class RunsView(QWidget):
                                     ("; ".join(diff) if diff else "same settings"))
         elif len(sel) == 1:
             self.difference.setText(f"{sel[0].path}" + (f" — {sel[0].error}" if sel[0].error
-                                                        else ""))
+                                                        else "")
+                                    + (f" — few-shot curve (accuracy per trial with K "
+                                       f"labelled performances per gesture of the test "
+                                       f"person): {sel[0].shots}" if sel[0].shots else ""))
         else:
             self.difference.setText("Select one run to open it, two to compare them.")
 

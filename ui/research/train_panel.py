@@ -31,6 +31,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
 from tactile_studio.learn.learners import available_models
+from tactile_studio.learn.splits import parse_shot_counts
 from tactile_studio.learn.train_job import TrainJob, model_settings
 from tactile_studio.paths import data_dir
 from tactile_studio.ui.file_dialogs import ask_folder
@@ -94,6 +95,14 @@ class TrainPanel(QWidget):
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
         self.adapt = adapt_combo()
+        self.shots = QLineEdit()
+        self.shots.setPlaceholderText("off (e.g. 0,1,2)")
+        self.shots.setToolTip(
+            "Few-shot personalisation (lopo / group-kfold): each held-out person once per "
+            "K, with K labelled performances per gesture of theirs in the training and "
+            "their other performances tested (the same ones at every K): the curve over K "
+            "shows what a few labelled touches of a new person gain. Whole performances "
+            "join the training, never single windows")
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.out.setToolTip("Named from the model and the time, under the runs folder "
@@ -114,7 +123,8 @@ class TrainPanel(QWidget):
         for label, w in (("Model", self.model), ("Preset", self.preset),
                          ("Channels", self.channels), ("Grid", self.grid),
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
-                         ("Epochs", self.epochs), ("Test people", self.adapt)):
+                         ("Epochs", self.epochs), ("Test people", self.adapt),
+                         ("Shots per gesture of\nthe held-out person", self.shots)):
             form.addRow(label, w)
         form.addRow("Run folder", out_row)
         self.start_button = QPushButton("Train")
@@ -165,6 +175,7 @@ class TrainPanel(QWidget):
         self.model.currentIndexChanged.connect(self.fill_options)
         self.model.currentIndexChanged.connect(lambda _: self._follow_model())
         self.preset.currentIndexChanged.connect(self.fill_options)
+        self.protocol.currentIndexChanged.connect(self._protocol_changed)
         self.start_button.clicked.connect(self.start)
         self.resume_button.clicked.connect(self.start)
         self.cancel_button.clicked.connect(self.cancel)
@@ -173,6 +184,7 @@ class TrainPanel(QWidget):
             self.model.currentText(), self.channels.currentText()))
         self._load_settings()
         self.fill_options()
+        self._protocol_changed()
         self._set_running(False)
 
     # --- setup -------------------------------------------------------------------------
@@ -188,6 +200,7 @@ class TrainPanel(QWidget):
         restore_data(s, KEY + "adapt", self.adapt, ADAPT_AUTO)
         self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
         self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
+        self.shots.setText(str(s.value(KEY + "shots", "") or ""))
         self.out.setText(str(s.value(KEY + "out", "") or ""))
         if not self.out.text() or not (Path(self.out.text()) / "config.json").is_file():
             self.new_run_folder()  # a finished or never-started folder: a new run's name
@@ -200,6 +213,7 @@ class TrainPanel(QWidget):
         s.setValue(KEY + "adapt", self.adapt.currentData())
         set_json(s, KEY + "rounds", self.rounds.value())
         set_json(s, KEY + "epochs", self.epochs.value())
+        s.setValue(KEY + "shots", self.shots.text().strip())
         s.setValue(KEY + "out", self.out.text().strip())
         self.recipe.save(s, KEY + "recipe")
 
@@ -242,7 +256,18 @@ class TrainPanel(QWidget):
             channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
             protocol=self.protocol.currentText(), rounds=self.rounds.value(),
             epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
-            device="cpu", adapt=self.adapt.currentData(), **self.recipe.kwargs())
+            device="cpu", adapt=self.adapt.currentData(), shots=self.shot_counts(),
+            **self.recipe.kwargs())
+
+    def shot_counts(self) -> tuple[int, ...]:
+        """The K of few-shot personalisation ("0,1,2"), () when off or not offered."""
+        if not self.shots.isEnabled():
+            return ()
+        return parse_shot_counts(self.shots.text())
+
+    def _protocol_changed(self) -> None:
+        """Shots need people held out: lopo and group-kfold only."""
+        self.shots.setEnabled(self.protocol.currentText() in ("lopo", "group-kfold"))
 
     def runs_root(self) -> Path:
         """Where new runs go: the parent of the last run folder used here, else ``runs``
@@ -391,7 +416,8 @@ class TrainPanel(QWidget):
         self._set_running(False)
         if f.get("type") == "done":
             self.progress.setValue(100)
-            self.status.setText(f"finished: {f['headline']} ({job.out})")
+            curve = f" · few-shot curve {f['shots']}" if f.get("shots") else ""
+            self.status.setText(f"finished: {f['headline']}{curve} ({job.out})")
             self.runFinished.emit(job.out)
             if not self.queue and self.out.text() == self._auto_out:
                 self.new_run_folder()  # Train again makes a new run, not a resume

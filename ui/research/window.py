@@ -13,7 +13,7 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QLabel, QMainWindow, QTabWidget, QWidget
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.compare import compare_predictions
+from tactile_studio.learn.compare import compare_runs as compare_run_folders
 from tactile_studio.learn.trialpreds import load_predictions
 from tactile_studio.ui.file_dialogs import ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
@@ -124,7 +124,7 @@ class ResearchWindow(QMainWindow):
 
     def compare_runs(self, a: str, b: str) -> bool:
         try:
-            result = compare_predictions(load_predictions(a), load_predictions(b))
+            result = compare_run_folders(a, b)  # few-shot runs: per K, never mixed
         except UserError as exc:
             self.show_error(str(exc))
             return False
