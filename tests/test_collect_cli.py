@@ -237,3 +237,18 @@ def test_ctrl_c_or_sigterm_stops_cleanly_keeping_trials(tmp_path: Path, sig) -> 
         assert s.closed_cleanly
         assert 2 <= len(s.trials) < 18
         assert any(e["kind"] == "abort" for e in s.events)
+
+
+def test_the_console_without_out_keeps_its_own_folder_not_the_current_one(
+        tmp_path: Path, capsys, qtbot, monkeypatch) -> None:
+    """`collect` without --out opened the console on the folder the command ran in."""
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "data"))
+    monkeypatch.chdir(tmp_path)
+    code, err, opened = _run_console_cli(capsys, "--protocol", "shear9", "--participant",
+                                         "P01", "--device", "simulated")
+    assert code == 0, err
+    s = opened[0].setup
+    assert s.out_dir.text() == str(tmp_path / "data" / "sessions")
+    assert s.blocks.value() == 52  # the protocol's own count
+    opened[0].close()

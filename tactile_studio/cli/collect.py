@@ -58,7 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--blocks", type=int, default=None, help="run only the first N blocks")
     p.add_argument("--seed", type=int, default=None, help="randomisation and simulation seed")
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
-    p.add_argument("--out", default=".", help="output folder (default: current folder)")
+    p.add_argument("--out", default=None,
+                   help="output folder (default: the current folder; the console: its form's "
+                        "folder, sessions under the app's data folder or the last one used)")
     p.add_argument("--resume", metavar="FILE", help="continue a killed or closed session")
     add_lsl_option(p)
     add_markers_option(p)
@@ -131,9 +133,11 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     else:
         protocol, participant, _ = _new_session(args)
         name, settings = args.device, {}
-        out = Path(args.out).expanduser().resolve()
-        out.mkdir(parents=True, exist_ok=True)  # the form refuses a missing folder
-        options = {"protocol": args.protocol, "participant": participant, "out_dir": str(out),
+        out = None if args.out is None else Path(args.out).expanduser().resolve()
+        if out is not None:
+            out.mkdir(parents=True, exist_ok=True)  # the form refuses a missing folder
+        options = {"protocol": args.protocol, "participant": participant,
+                   "out_dir": None if out is None else str(out),
                    "blocks": protocol.blocks if args.blocks is not None else None,
                    "seed": args.seed, "condition": args.condition}
     if args.speed is not None:
@@ -189,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
-        out = Path(args.out)
+        out = Path(args.out or ".")
         out.mkdir(parents=True, exist_ok=True)
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
