@@ -1,38 +1,82 @@
-"""The core's import layers (pyproject.toml [tool.importlinter]) hold, and they would
-catch a forbidden import: the same contracts fail on a copy of the core with one added."""
+"""The whole house's import contracts (pyproject.toml [tool.importlinter]) hold on the
+product code as Python imports it (ui/ and plugins/ placed inside tactile_studio/, by
+tools/house_imports.py), and they would catch a break: the same contracts fail on a copy
+with a forbidden import planted."""
 
 from __future__ import annotations
 
-import shutil
-import subprocess
-import sys
-from pathlib import Path
+import tomllib
 
-ROOT = Path(__file__).resolve().parents[1]
-LINT = Path(sys.executable).parent / "lint-imports"
+import pytest
+from house_fixtures import ROOT, house_imports
 
 
-def _lint(cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([str(LINT), "--config", str(cwd / "pyproject.toml")], cwd=cwd,
-                          capture_output=True, text=True, timeout=240)
+@pytest.fixture(scope="module")
+def contracts() -> dict[str, dict]:
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["importlinter"]
+    return {c["name"]: c for c in config["contracts"]}
 
 
-def test_the_layers_hold():
-    result = _lint(ROOT)
-    assert result.returncode == 0, result.stdout[-3000:]
-    assert "Contracts: 2 kept, 0 broken." in result.stdout
+def test_the_layers_hold_over_the_whole_house(tmp_path):
+    house = house_imports.build_house(tmp_path / "house")
+    assert (house / "tactile_studio" / "ui" / "main_window.py").exists()
+    assert (house / "tactile_studio" / "plugins" / "replay.py").exists()
+    result = house_imports.lint(house)
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-2000:]
+    assert "Contracts: 5 kept, 0 broken." in result.stdout
+    # the GUI launchers are the only imports let through, and each one is used
+    assert "only ui imports Qt KEPT (5 ignored imports)" in result.stdout
 
 
-def test_a_downward_import_breaks_the_contract(tmp_path):
-    shutil.copytree(ROOT / "tactile_studio", tmp_path / "tactile_studio",
-                    ignore=shutil.ignore_patterns("__pycache__"))
-    shutil.copy(ROOT / "pyproject.toml", tmp_path / "pyproject.toml")
-    # the sensor maths reaching up into storage, and the core importing Qt
-    (tmp_path / "tactile_studio" / "sensor" / "bad_upward.py").write_text(
-        "import tactile_studio.storage.session\n")
-    (tmp_path / "tactile_studio" / "learn" / "bad_qt.py").write_text(
-        "import PySide6.QtCore\n")
-    result = _lint(tmp_path)
+def test_only_ui_is_left_out_of_the_qt_ban(contracts):
+    """A new top-level package or module is banned from Qt (and from naming a plugin)
+    as soon as it exists: the contracts list every one but ui (and plugins, for itself)."""
+    tops = {p.stem for p in (ROOT / "tactile_studio").iterdir()
+            if (p.suffix == ".py" and p.stem != "__init__") or (p / "__init__.py").exists()}
+    tops |= set(house_imports.PLACED)
+    qt = {m.removeprefix("tactile_studio.") for m in contracts["only ui imports Qt"]
+          ["source_modules"]}
+    assert qt == tops - {"ui"}
+    plugins = {m.removeprefix("tactile_studio.") for m in
+               contracts["plugins are reached only through entry points"]["source_modules"]}
+    assert plugins == tops - {"plugins"}
+    # the declared exceptions are the CLI's GUI launchers, nothing else
+    for line in contracts["only ui imports Qt"]["ignore_imports"]:
+        importer, imported = line.split(" -> ")
+        assert importer.startswith("tactile_studio.cli.")
+        assert imported.startswith("tactile_studio.ui.")
+
+
+PLANTED = {
+    # ui reaching up into the CLI
+    ("ui", "bad_upward.py"): "import tactile_studio.cli.gui\n",
+    # the sensor maths reaching up into storage
+    ("sensor", "bad_upward.py"): "import tactile_studio.storage.session\n",
+    # the core, and a plugin, importing Qt
+    ("learn", "bad_qt.py"): "import PySide6.QtCore\n",
+    ("plugins", "bad_qt.py"): "import pyqtgraph\n",
+    # the collection screens reaching into the research workspace
+    ("ui", "collect", "bad_research.py"): "import tactile_studio.ui.research.player\n",
+    # a widget building its own engine instead of asking the session
+    ("ui", "bad_engine.py"): "from tactile_studio.devices.engine import AcquisitionEngine\n",
+    # the core naming a plugin instead of finding it through its entry point
+    ("live", "bad_plugin.py"): "import tactile_studio.plugins.simulated\n",
+}
+
+
+def test_a_planted_import_breaks_the_contracts(tmp_path):
+    house = house_imports.build_house(tmp_path / "house")
+    for parts, text in PLANTED.items():
+        (house / "tactile_studio").joinpath(*parts).write_text(text)
+    result = house_imports.lint(house)
     assert result.returncode != 0
-    assert "tactile_studio.sensor.bad_upward -> tactile_studio.storage.session" in result.stdout
-    assert "tactile_studio.learn.bad_qt -> PySide6" in result.stdout
+    out = result.stdout
+    assert "Contracts: 0 kept, 5 broken." in out, out[-3000:]
+    for line in ("tactile_studio.ui.bad_upward -> tactile_studio.cli.gui",
+                 "tactile_studio.sensor.bad_upward -> tactile_studio.storage.session",
+                 "tactile_studio.learn.bad_qt -> PySide6",
+                 "tactile_studio.plugins.bad_qt -> pyqtgraph",
+                 "tactile_studio.ui.collect.bad_research -> tactile_studio.ui.research.player",
+                 "tactile_studio.ui.bad_engine -> tactile_studio.devices.engine",
+                 "tactile_studio.live.bad_plugin -> tactile_studio.plugins.simulated"):
+        assert line in out, line

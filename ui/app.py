@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -17,22 +16,9 @@ from PySide6.QtWidgets import QApplication
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import signals_handled
+from tactile_studio.ui.application import ensure_app
 from tactile_studio.ui.main_window import MainWindow, wait_for
-from tactile_studio.ui.settings import APPLICATION, ORGANISATION
 from tactile_studio.ui.write_faults import write_image
-
-
-def ensure_app(argv: list[str] | None = None) -> QApplication:
-    """The running QApplication, created (with our names) if there is none."""
-    app = QApplication.instance()
-    if app is None:
-        # The device, recorder and GUI threads share the GIL: hand it over every 1 ms
-        # (not 5 ms) so the display timer is not starved by a 1 kHz device thread.
-        sys.setswitchinterval(0.001)
-        app = QApplication(argv if argv is not None else sys.argv[:1])
-        app.setOrganizationName(ORGANISATION)
-        app.setApplicationName(APPLICATION)
-    return app  # type: ignore[return-value]
 
 
 def run_gui(device: str, settings: dict[str, Any], connect: bool = True,

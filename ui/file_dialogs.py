@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QFileDialog, QWidget
 from tactile_studio.ui.settings import app_settings
 
 PREFIX = "dialogs/"
+SESSION_KIND = "session"  # the Open session dialogs of the main window and the workspace
 # where a kind's folder was kept before its dialog moved here: read while the new key is
 # unset, so an update does not make anyone walk from their home folder once more
 FORMER_KEYS = {"record": "record/last_dir", "sweep": "research/sweep/last_dir",

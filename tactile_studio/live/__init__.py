@@ -9,7 +9,9 @@ The code lives in focused modules of this package; their public names are export
 - :mod:`tactile_studio.live.session`: :class:`AcquisitionSession`, device + engine +
   optional recorder + optional LSL outlets with one start order, auto-stop and events
   (every place that acquires uses it); :mod:`tactile_studio.live.controller`:
-  :class:`LiveController`, the main window's session;
+  :class:`LiveController`, the main window's session. The session is ui's only way to
+  acquisition (an import-linter contract): :class:`AcquisitionEngine`, the engine it
+  hands out (``session.engine``), is re-exported here for the widgets that hold one;
 - :mod:`tactile_studio.live.status`: :class:`LiveStatus` and :func:`format_malformed`;
 - :mod:`tactile_studio.live.meters`: :class:`RateMeter` (display fps) and
   :class:`LatencyMeter` (device-to-paint latency);
@@ -18,6 +20,7 @@ The code lives in focused modules of this package; their public names are export
 
 from __future__ import annotations
 
+from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.live.controller import LiveController
 from tactile_studio.live.discovery import (
     discover_is_instant,
@@ -39,8 +42,8 @@ from tactile_studio.live.view import (
 )
 
 __all__ = [
-    "QUANTITIES", "QUANTITY_LABELS", "AcquisitionSession", "CellReadout", "History", "LatencyMeter",
-    "LiveController", "LiveFrame", "LiveStatus", "LiveView", "RateMeter",
+    "QUANTITIES", "QUANTITY_LABELS", "AcquisitionEngine", "AcquisitionSession", "CellReadout",
+    "History", "LatencyMeter", "LiveController", "LiveFrame", "LiveStatus", "LiveView", "RateMeter",
     "discover_is_instant", "discover_setting", "discover_settings", "format_malformed",
     "parse_taxel_name", "run_discovery",
 ]

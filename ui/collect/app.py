@@ -17,9 +17,8 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QMenu, QWidget
 
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.live import AcquisitionSession
+from tactile_studio.live import AcquisitionEngine, AcquisitionSession
 from tactile_studio.ui.collect.console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
@@ -102,7 +101,7 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
                 resume: str | os.PathLike | None = None, lsl: bool = False,
                 markers: list[str] | None = None) -> int:
     """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
-    from tactile_studio.ui.app import ensure_app
+    from tactile_studio.ui.application import ensure_app
 
     app = ensure_app()
     console = build_console(protocol, participant, device, device_settings, out_dir, blocks,

@@ -34,11 +34,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
-from tactile_studio.live import AcquisitionSession, LiveView
+from tactile_studio.live import AcquisitionEngine, AcquisitionSession, LiveView
 from tactile_studio.live.meters import PaintPacer
 from tactile_studio.protocol.collect import open_session, resume_session
 from tactile_studio.ui.collect.beep import QtBeeper

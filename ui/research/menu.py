@@ -6,7 +6,7 @@ from __future__ import annotations
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QMenu
 
-SESSION_KIND = "session"  # the Open session dialogs here and in the workspace share a folder
+from tactile_studio.ui.file_dialogs import SESSION_KIND, ask_open_file
 
 
 def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None = None
@@ -36,8 +36,6 @@ def add_research_menu(window: QMainWindow, menu: QMenu, file_menu: QMenu | None 
         play.setShortcut(QKeySequence.StandardKey.Open)
 
         def open_session() -> None:
-            from tactile_studio.ui.file_dialogs import ask_open_file
-
             path = ask_open_file(window, "Open session", SESSION_KIND, "Sessions (*.h5)")
             if path:
                 workspace().open_session(path)

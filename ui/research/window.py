@@ -15,12 +15,11 @@ from PySide6.QtWidgets import QLabel, QMainWindow, QTabWidget, QWidget
 from tactile_studio.errors import UserError
 from tactile_studio.learn.compare import compare_runs as compare_run_folders
 from tactile_studio.learn.trialpreds import load_predictions
-from tactile_studio.ui.file_dialogs import ask_open_file, ask_save_file
+from tactile_studio.ui.file_dialogs import SESSION_KIND, ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.import_dialog import ImportDialog
 from tactile_studio.ui.research.import_xdf_dialog import XdfImportDialog
-from tactile_studio.ui.research.menu import SESSION_KIND
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.runs_view import RunsView
 from tactile_studio.ui.research.sessions_view import SessionsView
