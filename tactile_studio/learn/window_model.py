@@ -50,6 +50,10 @@ class WindowModel:
                                     self.config.overrides, self.config.epochs, "cpu")
         self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
         self.fitted = self.trained  # or adapted to one person by calibrate()
+        self.run_trained = self.trained  # the run's own fold model (personalise() swaps)
+        self.run_norm = self.record["norm"]
+        self.norm = self.run_norm  # the input normalisation of ``trained``
+        self.personalised: Any = None  # learn/personalise.py's Personalised, when used
         self.reference: np.ndarray | None = None  # that person's samples (rf/knn features)
         pooled = self.record.get("as_trained")  # a forest --adapt: training people pooled
         self.pooled = None if pooled is None else np.asarray(pooled, dtype=np.float32)
@@ -134,13 +138,26 @@ class WindowModel:
         x = self.learner.adapt_inputs(x, np.zeros(len(x)), reference)
         fitted = self.trained
         if batch_norm and hasattr(fitted, "adapted"):
-            fitted = fitted.adapted(self.learner.apply_norm(x, self.record["norm"]))
+            fitted = fitted.adapted(self.learner.apply_norm(x, self.norm))
         self.fitted, self.reference, self.calibrated_on = fitted, reference, source
         return len(x)
 
     def uncalibrate(self) -> None:
         """Back to the model as trained (a running calibration starts from nothing)."""
         self.fitted, self.reference, self.calibrated_on = self.trained, None, ""
+
+    def personalise(self, personal: Any) -> None:
+        """Predict with a model personalised with the person's labelled touches
+        (learn/personalise.py) in place of the run's fold model, as trained for it."""
+        self.trained = self.fitted = personal.fitted
+        self.norm, self.personalised = personal.norm, personal
+        self.reference = personal.reference
+        self.calibrated_on = "their labelled touches" if personal.reference is not None else ""
+
+    def forget_personalisation(self) -> None:
+        """Back to the run's own fold model, as trained."""
+        self.trained, self.norm, self.personalised = self.run_trained, self.run_norm, None
+        self.uncalibrate()
 
     @property
     def streams(self) -> bool:
@@ -152,7 +169,7 @@ class WindowModel:
         from tactile_studio.learn.models import Streaming
         from tactile_studio.learn.streaming import StreamingPredictor
 
-        facts, norm = self.learner.facts, self.record["norm"]
+        facts, norm = self.learner.facts, self.norm
         # hop far beyond any stream: frames are only pushed, predict() is called per step
         return StreamingPredictor(self.fitted.model, self.learner.view, mean=norm["mean"],
                                   std=norm["std"], hop=1 << 30,
@@ -188,7 +205,7 @@ class WindowModel:
         probs = np.zeros((len(windows), len(self.labels)))
         for i in range(0, len(x), 256):
             p = fitted.predict_proba(self.learner.apply_norm(x[i:i + 256],
-                                                                  self.record["norm"]))
+                                                                  self.norm))
             np.add.at(probs, owner[i:i + 256], p)
         return probs / np.maximum(np.bincount(owner, minlength=len(windows))[:, None], 1)
 

@@ -1,0 +1,147 @@
+"""Few-shot personalisation of a finished run's fold model with a new person's labelled
+touches: live inference's form of ``train --shots K`` (splits.with_shots).
+
+Offline, K labelled performances per gesture of the held-out person join the fold's
+training. Live, the experimenter prompts the person for each gesture K times and each
+prompt gives one labelled window of the model's window length; :func:`personalise` then
+
+* rf / knn: refits the fold's model on its training windows (the run's data, read
+  again through the dataset cache, exactly the fold's ``train`` trials) plus the
+  person's windows: the offline mechanism, the same learner and options;
+* a network: fine-tunes its output layers on the person's windows (the rest
+  frozen, batch norm as trained): quick on a CPU and without the training data. A
+  refit of a whole network on its training data plus a few windows takes minutes,
+  which a participant waiting at the sensor does not have.
+
+The result is used by ``WindowModel.personalise`` until ``forget_personalisation``.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.sensor.layout import Layout
+
+FINE_TUNE_STEPS = 150
+FINE_TUNE_LR = 3e-3
+
+
+@dataclass
+class Personalised:
+    fitted: Any                    # the refitted / fine-tuned model (predict_proba)
+    norm: dict[str, Any]           # its input normalisation
+    reference: np.ndarray | None   # the person's feature statistics (rf/knn --adapt runs)
+    how: str                       # "refit" (rf/knn) or "fine-tuned" (a network's head)
+    windows: int                   # labelled windows it rests on
+    per_gesture: int               # the fewest labelled windows of a gesture (K)
+
+
+def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
+                gestures: Sequence[str], rate: float, seed: int = 0,
+                dataset: Any = None) -> Personalised:
+    """``model``'s fold model personalised with decoded windows (C, N, R, X) of one
+    person, labelled ``gestures`` (names of the run's gestures). ``dataset``: the run's
+    TrialDataset when the caller has it (else read from the run's data paths)."""
+    if len(windows) != len(gestures) or not len(windows):
+        raise UserError("personalisation needs labelled windows: none were recorded")
+    unknown = sorted(set(gestures) - set(model.labels))
+    if unknown:
+        raise UserError(f"{model.run}: the run has no gesture {', '.join(unknown)}")
+    y_win = np.array([model.labels.index(g) for g in gestures], dtype=np.int64)
+    per_gesture = int(min(np.bincount(y_win, minlength=len(model.labels))[np.unique(y_win)]))
+    x_p, owner = model._samples(layout, list(windows), rate)
+    y_p = y_win[owner]
+    learner = model.learner
+    reference = None
+    if model.reads_person_features:  # the person's features standardised by their own
+        from tactile_studio.learn.fused import person_columns
+
+        reference = person_columns(learner, x_p)
+        x_p = learner.adapt_inputs(x_p, np.zeros(len(x_p)), reference)
+    if learner.kind == "baseline":
+        x_tr, y_tr = fold_training_samples(model, dataset)
+        x_all, y_all = np.concatenate([x_tr, x_p]), np.concatenate([y_tr, y_p])
+        stats = learner.norm_stats(x_all)
+        fitted, _, _ = learner.fit(model.info, (learner.apply_norm(x_all, stats), y_all),
+                                   (x_all[:0], y_all[:0]), seed, None, None, norm=stats)
+        return Personalised(fitted, stats, reference, "refit", len(windows), per_gesture)
+    if learner.kind != "torch":
+        raise UserError(f"{model.run}: {model.config.model} (a fused model) cannot be "
+                        "personalised yet; use its rf or network run")
+    fitted = fine_tune_head(model.trained, learner.apply_norm(x_p, model.run_norm), y_p,
+                            len(model.labels), seed)
+    return Personalised(fitted, model.run_norm, None, "fine-tuned", len(windows),
+                        per_gesture)
+
+
+def fold_training_samples(model: WindowModel, dataset: Any = None
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """The samples (and labels) the fold model was trained on: the run's data, made into
+    model inputs as the run made them, of the fold's ``train`` trials."""
+    from tactile_studio.learn.dataset import build_dataset
+    from tactile_studio.learn.experiment import prepare_inputs
+
+    cfg = model.config
+    if dataset is None:
+        try:
+            dataset = build_dataset(cfg.data, cfg.grid, cfg.channels, cfg.cache_dir,
+                                    cfg.use_cache)
+        except UserError as exc:
+            raise UserError(f"{model.run}: its training data cannot be read to refit "
+                            f"with the person's touches ({exc})") from None
+    elif cfg.channels not in (None, dataset.channels):
+        dataset = dataset.select(cfg.channels)
+    ds, x, owner, *_ = prepare_inputs(model.learner, dataset, cfg)
+    wanted = set(model.record.get("train") or [])
+    idx = np.array([i for i, u in enumerate(ds.uids) if u in wanted], dtype=np.int64)
+    if len(idx) < len(wanted):
+        raise UserError(f"{model.run}: its data changed since training ({len(wanted) - len(idx)}"
+                        f" of the fold's {len(wanted)} training trials are gone from "
+                        f"{', '.join(map(str, cfg.data))})")
+    mask = np.isin(owner, idx)
+    return x[mask], ds.labels[owner[mask]]
+
+
+def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
+                   seed: int = 0, steps: int = FINE_TUNE_STEPS, lr: float = FINE_TUNE_LR
+                   ) -> Any:
+    """A copy of a network whose output layers (every linear or convolution layer with
+    ``n_classes`` outputs: the network's own, its statistics head's, each ensemble
+    member's) are trained further on normalised samples ``x`` labelled ``y``; everything
+    else frozen, in eval mode (batch norm and dropout as trained)."""
+    import torch
+
+    from tactile_studio.learn.learners import TorchFitted
+
+    torch.manual_seed(seed)
+    net = copy.deepcopy(fitted.model).cpu()
+    net.eval()
+    kinds = (torch.nn.Linear, torch.nn.Conv1d, torch.nn.Conv2d, torch.nn.Conv3d)
+    heads = [m for m in net.modules() if isinstance(m, kinds) and n_classes ==
+             getattr(m, "out_features", getattr(m, "out_channels", None))]
+    if not heads:
+        raise UserError(f"the network has no output layer of {n_classes} classes to "
+                        "fine-tune")
+    for p in net.parameters():
+        p.requires_grad_(False)
+    params = [p for m in heads for p in m.parameters()]
+    for p in params:
+        p.requires_grad_(True)
+    opt = torch.optim.Adam(params, lr=lr)
+    xt = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
+    yt = torch.from_numpy(np.asarray(y, dtype=np.int64))
+    for _ in range(steps):
+        opt.zero_grad()
+        loss = torch.nn.functional.cross_entropy(net(xt).float(), yt)
+        loss.backward()
+        opt.step()
+    for p in net.parameters():
+        p.requires_grad_(False)
+    return TorchFitted(net, "cpu")
