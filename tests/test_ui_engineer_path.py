@@ -158,3 +158,19 @@ def test_the_sensors_window_counts_hours_from_zero_without_a_prefix(qtbot):
         (x0, x1), _ = plot.getPlotItem().viewRange()
         assert x0 == 0.0 and x1 >= 1.0  # no negative hours, at least an hour wide
         assert axis.autoSIPrefixScale == 1.0 and "x0.001" not in axis.labelString()
+
+
+def test_the_map_names_its_taxels_before_the_first_frame_and_after_the_last(qtbot):
+    import numpy as np
+
+    from tactile_studio.sensor.layout import SHEARSENSE_6X6
+    from tactile_studio.ui.heatmap import HeatmapView
+    hv = HeatmapView()
+    qtbot.addWidget(hv)
+    hv.set_layout(SHEARSENSE_6X6)  # connected, no frame drawn yet
+    assert (hv.row_labels.texts(), hv.col_labels.texts()) == NAMES
+    hv.set_frame(np.ones((6, 6)))
+    assert (hv.row_labels.texts(), hv.col_labels.texts()) == NAMES
+    hv.clear()
+    hv.set_layout(None)  # disconnected
+    assert (hv.row_labels.texts(), hv.col_labels.texts()) == NAMES

@@ -191,6 +191,11 @@ class HeatmapView(CellPointer, QWidget):
             vr, vc = layout.virtual_shape
             self.physical_button.setText(f"Physical {layout.rows}×{layout.cols}")
             self.virtual_button.setText(f"Virtual {vr}×{vc}")
+            if self._shape is None:  # no frame yet: the empty grid is named already
+                empty = layout.virtual_shape if self._virtual else (layout.rows, layout.cols)
+                self._update_ticks(empty)
+                self._set_view_range(empty)
+                return
         self._update_ticks()
 
     @property
@@ -341,26 +346,29 @@ class HeatmapView(CellPointer, QWidget):
             virtual = self._virtual
         return 0.5 if virtual else 1.0
 
-    def _set_view_range(self) -> None:
-        if self._shape is None:
+    def _set_view_range(self, shape: tuple[int, int] | None = None) -> None:
+        shape = shape or self._shape
+        if shape is None:
             return
-        step = self._cell_step(self._shape)
-        r, c = self._shape
+        step = self._cell_step(shape)
+        r, c = shape
         # leave room on the left and top for the row letters and column numbers
         self.plot.setRange(xRange=(-1.05, (c - 0.5) * step), yRange=(-1.0, (r - 0.5) * step),
                            padding=0.01)
 
-    def _update_ticks(self) -> None:
+    def _update_ticks(self, shape: tuple[int, int] | None = None) -> None:
         """Row letters and column numbers right next to the map (axes would sit at the
-        edge of the aspect-locked view, far from the cells)."""
+        edge of the aspect-locked view, far from the cells); ``shape``: a grid not drawn
+        yet (a sensor connected, no frame so far)."""
         lay = self._layout
-        if self._shape is None:
+        shape = shape or self._shape
+        if shape is None:
             self.row_labels.set_labels([], (1, 0.5), QRectF())
             self.col_labels.set_labels([], (0.5, 1), QRectF())
             return
-        step = self._cell_step(self._shape)
-        rows = round((self._shape[0] - 1) * step) + 1
-        cols = round((self._shape[1] - 1) * step) + 1
+        step = self._cell_step(shape)
+        rows = round((shape[0] - 1) * step) + 1
+        cols = round((shape[1] - 1) * step) + 1
         # bounds: the margin strips left of and above the map, clear of the cells
         # taxel names (A.. down, 1.. across) in every state, with or without a layout
         name = lay.taxel_name if lay is not None else _taxel_name
