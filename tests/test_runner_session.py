@@ -302,3 +302,37 @@ def test_practice_then_blocks_and_other_gesture_sets(tmp_path: Path) -> None:
     for t in real:  # "no touch" is performed as nothing at all: exactly that one is flagged
         assert ("no_contact" in t["flags"]) == (t["gesture"] == "no touch"), t
     assert rig.runner.snapshot().trials_done == 7
+
+
+def test_a_discarded_trial_collected_again_in_the_break_after_its_block(tmp_path: Path) -> None:
+    """Discard-and-collect-again while the break after the block runs: the block is
+    reopened for that gesture once the break ends, the next block follows, and the file
+    passes its checks (the conftest runs `check` on it)."""
+    protocol = mini_protocol(n_gestures=2, blocks=2, break_every=1, break_min_s=0.0)
+    rig = make_rig(tmp_path, protocol, auto_continue=True)
+    r = rig.runner
+    try:
+        start(rig)
+        order = list(r.orders[0])
+        first = do_trial(rig, order[0])
+        do_trial(rig, order[1])
+        drive(rig, lambda: r.state in ("break", "waiting_for_key"))
+        assert r.can_collect_again(first["index"]) and r.block == 0
+        assert r.discard(first["index"], "started late", again=True)
+        drive(rig, lambda: r.state == "waiting_for_key")
+        assert r.block == 0 and r.snapshot().prompted == order[0]  # block 1, once more
+        again = do_trial(rig, order[0])
+        assert again["block"] == 0 and again["reason"] == "collected again for trial 1"
+        drive(rig, lambda: r.state == "waiting_for_key" and r.block == 1)
+        assert not r.can_collect_again(first["index"])  # block 1 is over now
+        assert not r.discard(again["index"], "x", again=True)
+        assert "not in the block being collected" in r.snapshot().hint
+        for g in r.orders[1]:
+            do_trial(rig, g)
+        drive(rig, lambda: r.state == "finished")
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        statuses = [(t["block"], t["gesture"], t["status"]) for t in s.trials]
+    assert statuses.count((0, order[0], "redone")) == 1
+    assert statuses.count((0, order[0], "ok")) == 1 and len(statuses) == 5
