@@ -85,6 +85,19 @@ def test_collect_under_the_file_size_limit_ends_with_the_same_line(tmp_path):
         assert np.all(np.diff(s.column("device_time")) > 0)
 
 
+def test_characterise_stops_at_the_write_error_instead_of_measuring_on(tmp_path):
+    out = tmp_path / "run"
+    proc = _cli(["characterise", "--set", "speed=0", "--set", "gesture=idle", "--taxels",
+                 "C4,C3,D4", "--out", str(out)], tmp_path, limit=1_500_000)
+    _, stderr = proc.communicate(timeout=240)
+    assert proc.returncode == EXIT_INCOMPLETE, stderr[-3000:]
+    assert "Traceback" not in stderr
+    line = _error_line(stderr)
+    assert "session.h5: write failed: file too large" in line
+    with Session(out / "session.h5") as s:
+        assert s.n_frames > 0
+
+
 def test_a_truncated_copy_is_still_refused_in_one_line(tmp_path):
     """Opening files cut short must not open (or hang on) a file cut by copying."""
     out = tmp_path / "whole.h5"

@@ -17,6 +17,7 @@ import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.errors import IncompleteError
 from tactile_studio.instruments.contract import ForcePlugin, InstrumentError, StagePlugin
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.characterise import taxel_signals
@@ -95,6 +96,9 @@ class Lab:
         deadline = time.monotonic() + timeout_s
         period = 1.0 / max(self.device.nominal_rate_hz, 1.0)
         while True:
+            if self.recorder.write_error:  # disk full: stop, never measure into a dead file
+                raise IncompleteError(f"{self.recorder.write_error}; characterisation "
+                                      "stopped (what was measured is kept)")
             self._pull_frames()
             if len(self._t) and self._t[-1] >= t1 - 1.5 * period:
                 break

@@ -101,7 +101,9 @@ def run(args: argparse.Namespace) -> int:
                                           sensor_id=args.sensor, progress=progress,
                                           control=control, overwrite=args.overwrite)
     except UserError as exc:
-        raise UserError(f"{exc} (data so far kept in {out})") from None
+        stopped = UserError(f"{exc} (data so far kept in {out})")
+        stopped.exit_code = exc.exit_code  # a full disk stays "incomplete" (3), not 1
+        raise stopped from None
     if args.save_calibration:
         cal = json.loads((out / "calibration.json").read_text())
         cal_id = save_calibration(args.sensor, cal)
