@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_CHECK_WARN, EXIT_OK, CheckFailed, UserError
@@ -33,7 +34,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots")
     _device_args(p)
-    p.add_argument("--weight-g", type=float, required=True, help="the known weight, grams")
+    p.add_argument("--weight-g", type=finite_float, required=True, help="the known weight, grams")
     p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
                    help=f"taxels to load, or all (every taxel; default "
                         f"{','.join(DEFAULT_SPOTS)}: a pass speaks only for these)")
