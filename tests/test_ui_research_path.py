@@ -55,7 +55,7 @@ def test_a_squeezed_layout_is_not_saved(qtbot, tmp_path):
     dock = live_inference_dock(w)
     dock.show()
     w.resize(760, 800)  # a window too narrow for the map, the dock and the panel
-    qtbot.waitUntil(lambda: w.width() <= 800 and w.device_panel_squeezed(), timeout=3000)
+    qtbot.waitUntil(w.device_panel_squeezed, timeout=3000)
     w.shutdown()  # saves, but not the squeezed layout
     again = MainWindow(device="simulated", settings={"gesture": "idle"}, connect=False)
     qtbot.addWidget(again)
