@@ -10,11 +10,14 @@ from tactile_studio.devices.registry import (
     create_device,
     parse_set_options,
     plugin_class,
+    register_device,
+    unregister_device,
 )
 from tactile_studio.devices.ring import FrameChunk, RingBuffer
 
 __all__ = [
     "DEFAULT_DEVICE", "OPTIONAL_HOOKS", "AcquisitionEngine", "DevicePlugin", "FrameBatch",
     "FrameChunk", "FrameStream", "PluginCheckError", "RecordableStream", "RingBuffer", "Setting", "available_plugins",
-    "check_plugin", "create_device", "parse_set_options", "plugin_class",
+    "check_plugin", "create_device", "parse_set_options", "plugin_class", "register_device",
+    "unregister_device",
 ]

@@ -1,41 +1,39 @@
-"""Finding device plugins through the ``tactile_studio.devices`` entry-point group."""
+"""Finding device plugins: the ``tactile_studio.devices`` entry-point group plus
+:func:`register_device` (one :class:`~tactile_studio.registry.Registry`, lazy and cached)."""
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
 from typing import Any
 
 from tactile_studio.devices.contract import DevicePlugin
-from tactile_studio.errors import SettingsError, UserError
+from tactile_studio.errors import SettingsError
+from tactile_studio.registry import Registry, subclass_of
 
 GROUP = "tactile_studio.devices"
 DEFAULT_DEVICE = "simulated"
 
+DEVICES: Registry[type[DevicePlugin]] = Registry(GROUP, "device", subclass_of(DevicePlugin))
+
 
 def available_plugins() -> dict[str, type[DevicePlugin] | Exception]:
     """Every registered plugin by name; a plugin that fails to load maps to its error."""
-    found: dict[str, type[DevicePlugin] | Exception] = {}
-    for ep in sorted(entry_points(group=GROUP), key=lambda e: e.name):
-        try:
-            cls = ep.load()
-        except Exception as exc:  # a broken third-party plugin must not break the app
-            found[ep.name] = exc
-            continue
-        if not (isinstance(cls, type) and issubclass(cls, DevicePlugin)):
-            found[ep.name] = TypeError(f"{ep.value} is not a DevicePlugin subclass")
-            continue
-        found[ep.name] = cls
-    return found
+    return dict(sorted(DEVICES.all().items()))
+
+
+def register_device(cls: type[DevicePlugin], *, replace: bool = False) -> type[DevicePlugin]:
+    """Make the plugin class ``cls`` available as ``cls.name`` in this process (a notebook,
+    a script, a test), as an entry point would; returns ``cls``."""
+    return DEVICES.register(cls.name, cls, replace=replace)
+
+
+def unregister_device(name: str) -> None:
+    """Forget a device registered with :func:`register_device`."""
+    DEVICES.unregister(name)
 
 
 def plugin_class(name: str) -> type[DevicePlugin]:
-    plugins = available_plugins()
-    if name not in plugins:
-        raise UserError(f"unknown device {name!r} (available: {', '.join(plugins) or 'none'})")
-    cls = plugins[name]
-    if isinstance(cls, Exception):
-        raise UserError(f"device plugin {name!r} failed to load: {cls}")
-    return cls
+    """The plugin class called ``name``; a one-line UserError if unknown or broken."""
+    return DEVICES.get(name)
 
 
 def parse_set_options(pairs: list[str] | None) -> dict[str, str]:

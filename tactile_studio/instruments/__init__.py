@@ -1,7 +1,8 @@
 """Instrument plugins beside devices: positioning stages and force references.
 
 Contracts in :mod:`.contract`, discovery through the ``tactile_studio.stages`` and
-``tactile_studio.forces`` entry-point groups in :mod:`.registry`, conformance checks
+``tactile_studio.forces`` entry-point groups (or ``register_stage`` / ``register_force``)
+in :mod:`.registry`, conformance checks
 for plugin authors in :mod:`.conformance`. See docs/characterisation.md.
 """
 
@@ -14,10 +15,16 @@ from tactile_studio.instruments.contract import (
     SoftLimitError,
     StagePlugin,
 )
-from tactile_studio.instruments.registry import available, create_force, create_stage
+from tactile_studio.instruments.registry import (
+    available,
+    create_force,
+    create_stage,
+    register_force,
+    register_stage,
+)
 
 __all__ = [
     "ForcePlugin", "ForceSamples", "InstrumentCheckError", "InstrumentError", "LabClock",
     "SoftLimitError", "StagePlugin", "available", "check_force", "check_stage", "create_force",
-    "create_stage",
+    "create_stage", "register_force", "register_stage",
 ]

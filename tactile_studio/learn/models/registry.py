@@ -5,35 +5,33 @@ group (``name = "package.module:MODEL"`` in a package's pyproject.toml; the buil
 declared in this project's) or registered in-process with :func:`register_model` (for a
 notebook, a script, a test). Entry points are listed without importing anything; a model's
 module is imported the first time the model is asked for, so listing names stays cheap and
-a broken third-party model cannot break the others.
+a broken third-party model cannot break the others (one
+:class:`~tactile_studio.registry.Registry`, as devices and instruments are found).
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Iterator, Mapping
-from importlib.metadata import EntryPoint, entry_points
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.models.spec import ModelSpec, check_preset
+from tactile_studio.registry import Registry
 
 GROUP = "tactile_studio.models"
 RESERVED = ("rf", "knn")  # the scikit-learn baselines (learn/baselines.py)
 NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
 
-_registered: dict[str, ModelSpec] = {}
-_loaded: dict[str, ModelSpec | Exception] = {}
-_entry_points: dict[str, EntryPoint] | None = None
+
+def _accept(name: str, spec: object, origin: str) -> ModelSpec:
+    if not isinstance(spec, ModelSpec):
+        raise TypeError(f"{origin} is a {type(spec).__name__}, not a ModelSpec")
+    if spec.name != name:
+        raise ValueError(f"{origin} declares the model {spec.name!r}, registered as {name!r}")
+    return spec
 
 
-def _discovered() -> dict[str, EntryPoint]:
-    """The group's entry points by name, in declaration order (read once per process)."""
-    global _entry_points
-    if _entry_points is None:
-        _entry_points = {}
-        for ep in entry_points(group=GROUP):
-            _entry_points.setdefault(ep.name, ep)
-    return _entry_points
+_MODELS: Registry[ModelSpec] = Registry(GROUP, "model", _accept)
 
 
 def register_model(spec: ModelSpec, *, replace: bool = False) -> ModelSpec:
@@ -46,41 +44,17 @@ def register_model(spec: ModelSpec, *, replace: bool = False) -> ModelSpec:
     if not NAME_RE.match(spec.name) or spec.name in RESERVED:
         raise ValueError(f"model name {spec.name!r}: use lowercase letters, digits, - or _, "
                          f"and not {', '.join(RESERVED)}")
-    if not replace and spec.name in model_names() and _registered.get(spec.name) is not spec:
-        raise ValueError(f"a model named {spec.name!r} is already registered")
-    _registered[spec.name] = spec
-    return spec
+    return _MODELS.register(spec.name, spec, replace=replace)
 
 
 def unregister_model(name: str) -> None:
     """Forget a model registered with :func:`register_model` (tests clean up with it)."""
-    _registered.pop(name, None)
+    _MODELS.unregister(name)
 
 
 def model_names() -> list[str]:
     """Every model name: entry points first, in declaration order, then registered ones."""
-    return [*_discovered(), *(n for n in _registered if n not in _discovered())]
-
-
-def _load(name: str) -> ModelSpec | Exception:
-    if name in _registered:
-        return _registered[name]
-    if name not in _loaded:
-        ep = _discovered()[name]
-        try:
-            spec = ep.load()
-        except Exception as exc:  # a broken third-party model must not break the others
-            _loaded[name] = exc
-        else:
-            if not isinstance(spec, ModelSpec):
-                _loaded[name] = TypeError(f"{ep.value} is a {type(spec).__name__}, "
-                                          "not a ModelSpec")
-            elif spec.name != name:
-                _loaded[name] = ValueError(f"{ep.value} declares the model {spec.name!r}, "
-                                           f"registered as {name!r}")
-            else:
-                _loaded[name] = spec
-    return _loaded[name]
+    return _MODELS.names()
 
 
 def get_model_spec(name: str) -> ModelSpec:
@@ -90,7 +64,7 @@ def get_model_spec(name: str) -> ModelSpec:
         hint = (", ".join(names) if names else
                 "none: reinstall the package (pip install -e .) to register the built-ins")
         raise UserError(f"unknown model '{name}' (available: {hint})")
-    spec = _load(name)
+    spec = _MODELS.load(name)
     if isinstance(spec, Exception):
         raise UserError(f"model '{name}' failed to load: {type(spec).__name__}: {spec}")
     return spec
