@@ -98,6 +98,35 @@ def test_characterise_stops_at_the_write_error_instead_of_measuring_on(tmp_path)
         assert s.n_frames > 0
 
 
+def test_listen_says_a_recording_it_was_told_to_make_ended_short(tmp_path):
+    """The remote control (``listen``): a script's recording that hits the size limit is
+    stopped at once, the script sees it stopped, and the command ends with exit 3."""
+    import signal
+    import time
+
+    from tactile_studio.streams.remote_control import send_commands
+
+    proc = _cli(["listen", "--device", "simulated", "--set", "rate=1000", "--port", "0",
+                 "--out", str(tmp_path / "rec")], tmp_path, limit=LIMIT_BYTES)
+    try:
+        line = proc.stderr.readline()
+        assert "listening on 127.0.0.1:" in line, line + proc.stderr.read()
+        port = int(line.split("127.0.0.1:")[1].split()[0])
+        assert send_commands(["start"], port) == ["OK"]
+        deadline = time.monotonic() + 60  # a bound for a hung process, not a timing check
+        status = {"recording": True}
+        while status["recording"] and time.monotonic() < deadline:
+            status = json.loads(send_commands(["status"], port)[0])
+            time.sleep(0.1)
+        assert status["recording"] is False  # stopped by the write error, not by us
+    finally:
+        proc.send_signal(signal.SIGINT)
+        _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == EXIT_INCOMPLETE, stderr[-3000:]
+    assert "Traceback" not in stderr
+    assert "write failed: file too large" in _error_line(stderr)
+
+
 def test_a_truncated_copy_is_still_refused_in_one_line(tmp_path):
     """Opening files cut short must not open (or hang on) a file cut by copying."""
     out = tmp_path / "whole.h5"

@@ -10,7 +10,7 @@ import time
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import UserError
+from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.paths import make_out_dir
@@ -50,7 +50,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
         session.set_lsl(True)
     control = RemoteControl(session, out, args.port, args.host,
                             metadata={"notes": "recorded by listen"})
-    session.add_listener(lambda e: _report(e))
+    incomplete: list[str] = []  # lines of recordings that ended short (live/outcome.py)
+    session.add_listener(lambda e: _report(e, incomplete))
     watch_health(session)
     token = CancelToken()
     try:
@@ -71,13 +72,20 @@ def cmd_listen(args: argparse.Namespace) -> int:
     finally:
         control.close()
         session.close()
+    if incomplete:  # a recording ended short (disk full, device lost, frames lost): exit 3
+        raise IncompleteError(incomplete[-1] if len(incomplete) == 1 else
+                              f"{len(incomplete)} recordings incomplete; the last: "
+                              f"{incomplete[-1]}")
     if session.engine is not None and session.engine.error:
         raise UserError(f"{args.device}: {session.engine.error}")
     return 0
 
 
-def _report(event: dict) -> None:
+def _report(event: dict, incomplete: list[str]) -> None:
     if event["kind"] == "recording_started":
         print(f"recording {event['path']}", flush=True)
     elif event["kind"] == "recording_stopped":
         print(f"wrote {event['path']} ({event['reason']})", flush=True)
+        if event.get("message"):
+            incomplete.append(event["message"])
+            print(event["message"], file=sys.stderr, flush=True)
