@@ -4,7 +4,10 @@ engine streams (the model runs in learn/live_inference.py's worker thread). "Cal
 to person…" meets the participant as ``--adapt person`` met each test person, from a
 recording of them (playback/predictions.py ``calibrate_to_session``); "Adapt as they
 touch" does it from their own last touches instead (learn/live_inference.py
-``RunningCalibration``)."""
+``RunningCalibration``). "Personalise with touches…" is few-shot personalisation
+(``train --shots``) live: the experimenter prompts each gesture K times and the run's
+model is retrained with those labelled touches (personalise_dialog.py,
+learn/personalise.py); "Forget personalisation" returns to the run's model."""
 
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from tactile_studio.learn.live_inference import LiveInference, RunningCalibratio
 from tactile_studio.learn.window_model import WindowModel
 from tactile_studio.playback.predictions import calibrate_to_session
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
+from tactile_studio.ui.research.personalise_dialog import PersonaliseDialog, describe
 from tactile_studio.ui.settings import app_settings
 
 RUNNING_KEY = "live/adapt_as_they_touch"
@@ -50,6 +54,16 @@ class LiveInferencePanel(QWidget):
             "person's own statistics: take them from a recording of the participant "
             "(a session of every gesture, recorded just before)")
         self.calibrate_button.setEnabled(False)
+        self.personalise_button = QPushButton("Personalise with touches…")
+        self.personalise_button.setToolTip(
+            "Few-shot personalisation (train --shots K, live): prompt the participant for "
+            "each gesture K times; the run's model is retrained with their labelled "
+            "touches (rf/knn refit with its training windows, a network's output layers "
+            "fine-tuned) and predicts for them from then on")
+        self.personalise_button.setEnabled(False)
+        self.forget_button = QPushButton("Forget personalisation")
+        self.forget_button.setEnabled(False)
+        self.dialog: PersonaliseDialog | None = None
         self.running_box = QCheckBox("Adapt as they touch")
         self.running_box.setToolTip(
             "A run trained with --adapt meets the participant with the statistics of their "
@@ -98,12 +112,17 @@ class LiveInferencePanel(QWidget):
         top.addWidget(self.load_button)
         top.addWidget(self.calibrate_button)
         top.addStretch(1)
+        personal = QHBoxLayout()
+        personal.addWidget(self.personalise_button)
+        personal.addWidget(self.forget_button)
+        personal.addStretch(1)
         smoothing = QHBoxLayout()
         smoothing.addWidget(QLabel("Smoothing"))
         smoothing.addWidget(self.smoothing)
         smoothing.addStretch(1)
         lay = QVBoxLayout(self)
         lay.addLayout(top)
+        lay.addLayout(personal)
         lay.addWidget(self.running_box)
         lay.addLayout(smoothing)
         lay.addWidget(self.run_label)
@@ -117,6 +136,8 @@ class LiveInferencePanel(QWidget):
         self.timer.timeout.connect(self.refresh)
         self.load_button.clicked.connect(self._browse)
         self.calibrate_button.clicked.connect(self._browse_calibration)
+        self.personalise_button.clicked.connect(self.open_personalise)
+        self.forget_button.clicked.connect(self.forget_personalisation)
         self.running_box.toggled.connect(self._running_toggled)
         self.smoothing.valueChanged.connect(
             lambda n: self.inference.set_smoothing(n) if self.inference else None)
@@ -164,6 +185,35 @@ class LiveInferencePanel(QWidget):
                                        f"({samples} windows)")
         return True
 
+    def open_personalise(self) -> PersonaliseDialog | None:
+        """The prompts dialog for the loaded run (non-modal: the predictions stay in view)."""
+        if self.model is None:
+            return None
+        self.dialog = PersonaliseDialog(self.model, self.engine_fn, self)
+        self.dialog.personalised.connect(self.use_personalised)
+        self.dialog.show()
+        return self.dialog
+
+    def use_personalised(self, personal: Any) -> None:
+        """Predict with the model retrained with the person's labelled touches."""
+        if self.model is None:
+            return
+        self.stop()  # restarts with the personalised model on the next refresh
+        self.model.personalise(personal)
+        with QSignalBlocker(self.running_box):  # their labelled touches, fixed
+            self.running_box.setChecked(False)
+        self.forget_button.setEnabled(True)
+        self.calibration_label.setText(describe(personal))
+
+    def forget_personalisation(self) -> None:
+        """Back to the run's own model, as trained."""
+        if self.model is None or self.model.personalised is None:
+            return
+        self.stop()
+        self.model.forget_personalisation()
+        self.forget_button.setEnabled(False)
+        self._describe_calibration()
+
     def load_run(self, path: str) -> bool:
         try:
             model = WindowModel(path)
@@ -178,6 +228,8 @@ class LiveInferencePanel(QWidget):
                                f"{len(d['labels'])} gestures")
         self.message.setText("")
         self.calibrate_button.setEnabled(model.reads_person_features)
+        self.personalise_button.setEnabled(True)
+        self.forget_button.setEnabled(False)
         self.running_box.setEnabled(model.adapts_as_they_touch)
         self._describe_calibration()
         self.timer.start()
