@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
@@ -52,7 +53,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
     p.add_argument("--virtual-participant", action="store_true",
                    help="a simulated participant presses the keys and performs the gestures")
-    p.add_argument("--speed", type=float, default=None,
+    p.add_argument("--speed", type=finite_float, default=None,
                    help=f"simulator speed, x real time (headless default {DEFAULT_SPEED:g}, "
                         "console 1)")
     p.add_argument("--blocks", type=int, default=None, help="run only the first N blocks")
@@ -62,6 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="output folder (default: the current folder; the console: its form's "
                         "folder, sessions under the app's data folder or the last one used)")
     p.add_argument("--resume", metavar="FILE", help="continue a killed or closed session")
+    p.add_argument("--allow-other-sensor", metavar="NOTE",
+                   help="resume although the device or sensor differs from the file's (the "
+                        "note, why, is stored in the session)")
     add_lsl_option(p)
     add_markers_option(p)
     p.add_argument("--wellness-override", metavar="NOTE",
@@ -107,7 +111,10 @@ def _new_session(args: argparse.Namespace) -> tuple[Protocol, str, int]:
     if args.blocks is not None:
         if args.blocks < 1:
             raise UserError(f"--blocks must be at least 1, got {args.blocks}")
-        protocol = protocol.with_overrides(blocks=min(args.blocks, protocol.blocks))
+        if args.blocks > protocol.blocks:  # refused, never silently the protocol's count
+            raise UserError(f"--blocks {args.blocks}: protocol {protocol.name} has "
+                            f"{protocol.blocks} blocks")
+        protocol = protocol.with_overrides(blocks=args.blocks)
     return protocol, check_participant(args.participant), 0 if args.seed is None else args.seed
 
 
@@ -189,7 +196,8 @@ def run(args: argparse.Namespace) -> int:
     clock = StreamClock(engine)
     if args.resume:
         session = resume_session(args.resume, engine, clock=clock,
-                                 recorder=acq.start_recording)
+                                 recorder=acq.start_recording,
+                                 allow_other_sensor=args.allow_other_sensor)
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:

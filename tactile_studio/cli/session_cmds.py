@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli import tables
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
@@ -31,7 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("record", help="record a device to a session file")
     p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
-    p.add_argument("--seconds", type=float, required=True, help="how long to record")
+    p.add_argument("--seconds", type=finite_float, required=True, help="how long to record")
     p.add_argument("--out", required=True, help="session file to write (.h5)")
     p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
@@ -121,11 +122,14 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     """One row per session file under ``paths`` (folders searched recursively): what an
     experimenter checks after importing a study (malformed rows, unmapped keys, trials).
     A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
-    from tactile_studio.storage.session_set import scan_session_files
+    from tactile_studio.storage.session_set import is_resume_backup, scan_session_files
     from tactile_studio.storage.study_summary import study_counts
 
     files, backups = scan_session_files(paths)
-    every = sorted(files + backups)
+    # a backup named explicitly is still a backup: its trials are its session's again
+    backups = sorted({*backups, *(f for f in files if is_resume_backup(f))})
+    every = sorted(set(files) | set(backups))
+    counted: dict[str, int] = {}  # session_id -> index in ``study``: each session once
     root = Path(os.path.commonpath([f.parent for f in every]))
     summaries, rows, bad, study = [], [], 0, []
     for f in every:
@@ -142,8 +146,14 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         meta, trials = summary["metadata"], summary["trials"]
         ok = sum(1 for t in trials if t.get("status") == "ok")
         if f not in backups:  # a resume backup repeats its session's trials
-            study.append((meta.get("participant") or "", meta.get("condition") or "",
-                          Counter(t.get("gesture") for t in trials if t.get("status") == "ok")))
+            entry = (meta.get("participant") or "", meta.get("condition") or "",
+                     Counter(t.get("gesture") for t in trials if t.get("status") == "ok"))
+            sid = str(summary.get("session_id"))
+            if sid not in counted:  # a copy of a session counts once (the fuller one)
+                counted[sid] = len(study)
+                study.append(entry)
+            elif sum(entry[2].values()) > sum(study[counted[sid]][2].values()):
+                study[counted[sid]] = entry
         notes = [] if summary["closed_cleanly"] else [
             "cut short (writes failed), recovered" if summary.get("cut_short")
             else "not closed cleanly (recovered)"]
@@ -154,8 +164,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
                      summary["malformed"], ", ".join(summary["unmapped_keys"]),
                      "; ".join(notes)))
     if as_json:
-        json.dump(summaries, sys.stdout, indent=2, default=str)
-        print()
+        _print_json(summaries)
     else:
         tables.table(("file", "participant", "condition", "frames", "Hz", "ok trials",
                       "malformed", "unmapped keys", "note"), rows,
@@ -165,6 +174,15 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         for line in study_counts(study).lines():
             print(line)
     return 1 if bad else 0
+
+
+def _print_json(obj: Any) -> None:
+    """Strict JSON on stdout: NaN and infinities (an old file's ``rate=nan`` setting, a
+    rate that cannot be measured) become null, so every JSON parser reads ``info --json``."""
+    from tactile_studio.learn.runfolder import clean_json
+
+    json.dump(clean_json(obj), sys.stdout, indent=2, default=str, allow_nan=False)
+    print()
 
 
 def _closed_text(summary: dict[str, Any]) -> str:
@@ -188,8 +206,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         summary = s.summary()
         table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
     if args.json:
-        json.dump(summary, sys.stdout, indent=2, default=str)
-        print()
+        _print_json(summary)
         return 0
     meta = summary["metadata"]
     device = meta.get("device", {})

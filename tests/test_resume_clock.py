@@ -1,0 +1,127 @@
+"""Resuming a killed collection keeps one device clock and the device's rate, counts the
+resume as a gap, refuses another sensor unless told why, and ``info`` never counts a
+resume backup's trials twice (the real commands, a real SIGKILL)."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from tactile_studio.cli import main
+from tactile_studio.errors import SessionFileError
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_check import check_file
+
+EXE = str(Path(sys.executable).parent / "tactile-studio")
+WAIT_S = 60.0  # safety net only
+
+
+def _ok_trials(path: Path) -> int:
+    try:
+        with Session(path) as s:
+            return sum(1 for t in s.trials if t["status"] == "ok")
+    except SessionFileError:  # between creating the file and its first flush
+        return 0
+
+
+def _killed_session(out: Path, trials: int = 3) -> Path:
+    """A shear9 block killed with SIGKILL once ``trials`` trials are in the file."""
+    proc = subprocess.Popen([EXE, "collect", "--protocol", "shear9", "--participant", "P05",
+                             "--virtual-participant", "--speed", "20", "--blocks", "1",
+                             "--seed", "5", "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + WAIT_S
+    try:
+        while not list(out.glob("*.h5")) or _ok_trials(next(out.glob("*.h5"))) < trials:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "no progress"
+            time.sleep(0.05)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.communicate()
+    return next(out.glob("*.h5"))
+
+
+def _resume(capsys, path: Path, *extra: str) -> tuple[int, str]:
+    code = main(["collect", "--resume", str(path), "--virtual-participant", "--speed", "40",
+                 *extra])
+    return code, capsys.readouterr().err
+
+
+def test_resume_continues_the_device_clock_and_refuses_another_sensor(
+        tmp_path: Path, capsys) -> None:
+    path = _killed_session(tmp_path)
+    with Session(path) as s:
+        n_old, last_old = s.n_frames, float(s.column("device_time")[-1])
+    # another sensor (the simulator's seed is its identity): one line, the file untouched
+    code, err = _resume(capsys, path, "--set", "seed=7")
+    assert code == 1 and err.count("\n") == 1
+    assert "recorded on sensor sim-5, but the device is sensor sim-7" in err
+    assert not list(tmp_path.glob("*.bak-*.h5"))
+
+    code, err = _resume(capsys, path)
+    assert code == 0, err
+    result = check_file(path)
+    assert result.ok, result.violations
+    with Session(path) as s:
+        dev = s.column("device_time")
+        resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
+        starts = [t["start_time"] for t in s.trials]
+        rate = 1.0 / s.metadata["device"]["nominal_rate_hz"]
+    # the resumed run's clock goes on one frame period after the old file's last frame
+    assert resume["frame"] == n_old and resume["device_time_offset"] == last_old + rate
+    assert dev[n_old] == last_old + rate and np.all(np.diff(dev) >= 0)
+    assert len(starts) == 9 and starts == sorted(starts)
+
+    assert main(["info", "--json", str(path)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert abs(info["rate_hz"] - 43.0) < 0.5  # the device's rate, not 64-151 Hz
+    assert info["gaps"] == 1 and info["segments"] == 2  # the resume is a gap
+
+    # named explicitly, the backup is marked and its trials are not counted again
+    backup = next(tmp_path.glob("*.bak-1.h5"))
+    assert main(["info", str(path), str(backup)]) == 0
+    out = capsys.readouterr().out
+    assert "resume backup" in out and "ok trials: 9 of 9 gestures (1 each)" in out
+
+
+def test_resume_on_another_sensor_with_a_note_keeps_the_note(tmp_path: Path, capsys) -> None:
+    path = _killed_session(tmp_path, trials=2)
+    code, err = _resume(capsys, path, "--set", "seed=7", "--allow-other-sensor",
+                        "sim-5 cable broke; same participant on sim-7")
+    assert code == 0, err
+    with Session(path) as s:
+        other = s.metadata["other_sensor"]
+        notes = [e for e in s.events if e["kind"] == "note"]
+    assert other[0]["sensor_id"] == "sim-7" and "sim-5" in other[0]["why"]
+    assert other[0]["note"] == "sim-5 cable broke; same participant on sim-7"
+    assert "cable broke" in notes[0]["text"] and "cable broke" in s.metadata["notes"]
+    assert check_file(path).ok
+
+
+def test_the_console_refuses_a_resume_on_another_sensor_in_one_line(
+        qtbot, tmp_path: Path, monkeypatch) -> None:
+    from tactile_studio.ui.collect.console import CollectConsole
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    (tmp_path / "data").mkdir()
+    path = _killed_session(tmp_path / "data", trials=1)
+    console = CollectConsole()
+    qtbot.addWidget(console)
+    console.show()
+    setup = console.setup
+    setup.device.setCurrentIndex(setup.device.findData("simulated"))
+    seed = setup.device_form.fields["seed"].editor
+    seed.clear()
+    qtbot.keyClicks(seed, "7")
+    assert not console.resume_from(path)
+    text = setup.error.text()
+    assert "recorded on sensor sim-5, but the device is sensor sim-7" in text
+    assert "\n" not in text and console.stack.currentIndex() == 0
+    assert not list(path.parent.glob("*.bak-*.h5"))
