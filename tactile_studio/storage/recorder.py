@@ -75,6 +75,7 @@ class Recorder:
         # writing, releases its hold and waits for stop() (see _drain)
         self.write_error: str | None = None
         self.started_at = time.time()  # wall clock, for "lost N s into the recording"
+        self._counters_written: dict[str, Any] | None = None
         self.stopped_at: float | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._release: Callable[[], None] = lambda: None
@@ -347,7 +348,10 @@ class Recorder:
                 event = {k: v for k, v in event.items() if k != "baseline"}
             self.writer.add_event(kind, frame=frame, time_s=t, **event)
         self._write_pending(final=False)
-        self.writer.set_counters(self._counters_since_start())
+        counters = self._counters_since_start()
+        if counters != self._counters_written:  # a journal line per change, not per poll
+            self.writer.set_counters(counters)
+            self._counters_written = counters
         self.writer.flush()
 
     def _write_pending(self, final: bool) -> None:
