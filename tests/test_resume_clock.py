@@ -125,3 +125,26 @@ def test_the_console_refuses_a_resume_on_another_sensor_in_one_line(
     assert "recorded on sensor sim-5, but the device is sensor sim-7" in text
     assert "\n" not in text and console.stack.currentIndex() == 0
     assert not list(path.parent.glob("*.bak-*.h5"))
+
+
+def test_the_console_resumes_on_the_file_s_device(qtbot, tmp_path: Path, monkeypatch) -> None:
+    from tactile_studio.ui.collect.console import CollectConsole
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    (tmp_path / "data").mkdir()
+    path = _killed_session(tmp_path / "data", trials=1)
+    console = CollectConsole()
+    qtbot.addWidget(console)
+    console.show()
+    setup = console.setup
+    setup.device.setCurrentIndex(setup.device.findData("simulated"))
+    seed = setup.device_form.fields["seed"].editor
+    seed.clear()
+    qtbot.keyClicks(seed, "7")  # the form's device is another sensor than the file's
+    setup.set_resume_mode(True)
+    setup.resume_file.setText(str(path))
+    setup.continue_button.click()  # the form takes the file's device, then resumes
+    assert console.session is not None, setup.error.text()
+    assert console.engine.sensor_id() == "sim-5"
+    assert setup.device_form.changed_values().get("seed") in (5, "5")
+    console.close_session()

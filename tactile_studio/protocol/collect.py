@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
@@ -209,6 +210,29 @@ def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
     if old_sensor and new_sensor and str(old_sensor) != str(new_sensor):
         return f"recorded on sensor {old_sensor}, but the device is sensor {new_sensor}"
     return None
+
+
+def resume_device(info: dict[str, Any]) -> tuple[str | None, dict[str, Any]]:
+    """The device a resume of the file (``read_resume_info``) runs on unless the user
+    says otherwise: the file's plugin and its settings that differ from the plugin's
+    defaults, so the sensor is the file's (a simulator's seed); a simulator's speed and
+    scripted gesture are left out (a virtual participant's, not a session's). (None, {})
+    when the file names no plugin installed here."""
+    old = info.get("device") or {}
+    name = old.get("plugin") or None
+    if name is None:
+        return None, {}
+    try:
+        schema = plugin_class(name).settings_schema
+    except UserError:
+        return None, {}
+    defaults = {s.name: s.default for s in schema}
+    settings = {k: v for k, v in (old.get("settings") or {}).items()
+                if k in defaults and defaults[k] != v}
+    if name == "simulated":
+        settings.pop("speed", None)
+        settings.pop("gesture", None)
+    return name, settings
 
 
 def resume_offset(old: Session, rate_hz: float) -> float:

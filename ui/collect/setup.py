@@ -35,6 +35,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.paths import data_dir, make_out_dir
+from tactile_studio.protocol.collect import read_resume_info, resume_device
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
@@ -254,6 +255,7 @@ class CollectSetup(QWidget):
             self.choose_resume_file()
             return
         self._remember_dir(Path(path).expanduser().parent)
+        self.device_from_file(str(Path(path).expanduser()))
         self.resumeRequested.emit(str(Path(path).expanduser()))
 
     def _clear_error(self, *_: object) -> None:
@@ -325,6 +327,7 @@ class CollectSetup(QWidget):
         if path:
             self.resume_file.setText(path)
             self._remember_dir(Path(path).parent)
+            self.device_from_file(path)
             self.resumeRequested.emit(path)
         elif not self.resume_file.text().strip() and not was:
             self.set_resume_mode(False)
@@ -345,6 +348,17 @@ class CollectSetup(QWidget):
         self.device_error.setText(error or "")
         self.device_error.setVisible(bool(error))
         return error
+
+    def device_from_file(self, path: str) -> None:
+        """A resume runs on the file's device and sensor (its plugin and settings, e.g.
+        the simulator's seed): the form shows them. A file that cannot be read keeps the
+        form as it is (the resume then says why in one line)."""
+        try:
+            name, values = resume_device(read_resume_info(path))
+        except UserError:
+            return
+        if name is not None:
+            self.set_device(name, values)
 
     def set_device(self, name: str, values: dict[str, Any] | None = None) -> bool:
         """Choose plugin ``name`` with exactly ``values`` over its defaults (what the
