@@ -29,6 +29,7 @@ from tactile_studio.protocol.collect import (
     check_participant,
     open_session,
     read_resume_info,
+    resume_device,
     resume_session,
 )
 from tactile_studio.protocol.runner import State, StreamClock
@@ -126,16 +127,10 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     interactive session's).
     """
     if args.resume:
-        old = _check_resume(args)["device"]
-        name = args.device or old.get("plugin") or None
-        settings: dict[str, Any] = {}
-        if name is not None and name == old.get("plugin"):
-            defaults = {s.name: s.default for s in plugin_class(name).settings_schema}
-            settings = {k: v for k, v in (old.get("settings") or {}).items()
-                        if k in defaults and defaults[k] != v}
-            if name == "simulated":
-                settings.pop("speed", None)
-                settings.pop("gesture", None)
+        info = _check_resume(args)
+        file_device, file_settings = resume_device(info)  # the console's form does the same
+        name = args.device or info["device"].get("plugin") or None
+        settings: dict[str, Any] = dict(file_settings) if name == file_device else {}
         options: dict[str, Any] = {"resume": str(Path(args.resume).resolve())}
     else:
         protocol, participant, _ = _new_session(args)
