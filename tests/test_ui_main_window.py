@@ -21,7 +21,6 @@ from tactile_studio.devices.contract import DevicePlugin, FrameBatch
 from tactile_studio.errors import DeviceNotFound
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Session
-from tactile_studio.ui import device_panel
 from tactile_studio.ui.app import close_on_signals, ensure_app
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
@@ -155,14 +154,15 @@ class _NoSensor(DevicePlugin):
         pass
 
 
-def test_plugin_error_is_shown_and_the_app_lives_on(qtbot, monkeypatch):
-    real = registry.available_plugins
+@pytest.fixture
+def nosensor():
+    """The broken plugin registered in this process, as a notebook would add one."""
+    registry.register_device(_NoSensor)
+    yield _NoSensor
+    registry.unregister_device(_NoSensor.name)
 
-    def with_broken() -> dict:
-        return {**real(), "nosensor": _NoSensor}
 
-    monkeypatch.setattr(registry, "available_plugins", with_broken)
-    monkeypatch.setattr(device_panel, "available_plugins", with_broken)
+def test_plugin_error_is_shown_and_the_app_lives_on(qtbot, nosensor):
     w = MainWindow(device="nosensor")
     qtbot.addWidget(w)
     w.show()
