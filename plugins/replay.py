@@ -27,7 +27,7 @@ def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int]]:
     ShearSense CSV."""
     if not path.exists():
         raise DeviceNotFound(f"replay: {path}: no such file")
-    from tactile_studio.storage.session_checks import not_regular
+    from tactile_studio.storage.file_guards import not_regular
 
     if not_regular(path):  # a FIFO or device would block or never end
         raise UserError(f"replay: {path}: {not_regular(path)}")

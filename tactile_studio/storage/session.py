@@ -16,8 +16,8 @@ from tactile_studio.errors import SessionFileError
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.aux_signals import AuxSignal, read_aux
+from tactile_studio.storage.file_guards import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.segments import segment_starts, segmented_rate_hz
-from tactile_studio.storage.session_checks import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 from tactile_studio.storage.session_recover import cut_short_rows, open_cut_short, written_rows

@@ -27,7 +27,7 @@ import numpy as np
 from h5py import h5f, h5p
 
 from tactile_studio.errors import SessionFileError
-from tactile_studio.storage.session_checks import COLUMNS, _stored_rows
+from tactile_studio.storage.file_guards import COLUMNS, _stored_rows
 
 TAIL_BLOCK = 4096  # rows read at a time from the end when looking for written rows
 

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.file_guards import not_regular
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_checks import not_regular
 from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
