@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 from PySide6.QtCore import Qt
 
+from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.storage import Session
 from tactile_studio.ui.collect.console import CollectConsole
 from tactile_studio.ui.main_window import MainWindow
@@ -89,3 +90,31 @@ def test_collection_console_ends_the_session_with_a_banner(qtbot, tmp_path):
         console.close_session()
     with Session(path) as f:
         assert f.n_frames > 0 and f.cut_short
+
+
+def test_main_window_says_the_device_was_lost_when_the_recording_ends(qtbot, tmp_path):
+    import numpy as np
+
+    raw = np.random.default_rng(0).normal(30000, 8000, (997, 180)).clip(0, 65535)
+    emu = SerialEmulator(array_source(raw.astype(np.uint16)), rate_hz=200,
+                         link=tmp_path / "port", reader_grace=0.05)
+    emu.open()
+    emu.start()
+    w = MainWindow(device="serial", settings={"port": emu.port}, connect=True, persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    out = tmp_path / "lost.h5"
+    try:
+        qtbot.waitUntil(lambda: w.controller.status().state == "running", timeout=WAIT_MS)
+        assert w.panel.start_recording(str(out))
+        qtbot.waitUntil(lambda: w.controller.recorder.rows_written >= 50, timeout=WAIT_MS)
+        emu.close()  # unplugged for good
+        qtbot.waitUntil(lambda: w.controller.status().state == "reconnecting", timeout=WAIT_MS)
+        assert not w.status.fault.isVisible()  # still trying: the recording goes on
+        w.panel.stop_recording()
+        assert w.status.fault.isVisible()
+        text = w.status.fault.text()
+        assert str(out) in text and "device lost" in text and "tried to reconnect" in text
+    finally:
+        w.shutdown()
+        emu.close()
