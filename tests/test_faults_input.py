@@ -4,6 +4,8 @@ the protocol; an import that finds no frames. Through the real CLI and real file
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
 import re
 from pathlib import Path
@@ -13,10 +15,14 @@ import pytest
 from csv_fixtures import labelled_csv
 
 from tactile_studio.cli import build_parser, main
+from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import EXIT_ERROR, EXIT_INCOMPLETE, EXIT_USAGE, SettingsError
 from tactile_studio.instruments.registry import FORCE_GROUP, STAGE_GROUP, available
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.shearsense import write_shearsense_csv
 
 NON_FINITE = ("nan", "NaN", "inf", "-inf", "Infinity", "1e999")
@@ -129,6 +135,73 @@ def test_calibration_loads_must_be_finite(capsys, tmp_path):
     assert not (tmp_path / "cal.json").exists()
 
 
+def test_info_json_is_strict_json_even_for_an_old_file_holding_nan(capsys, tmp_path):
+    """Files written before the check may hold ``rate=nan``: JSON has no NaN, so it is null."""
+    path = tmp_path / "old.h5"
+    device = {"plugin": "serial", "settings": {"rate": math.nan, "port": "/dev/ttyUSB0"}}
+    with SessionWriter(path, SHEARSENSE_6X6, device, {"gain": [1.0, math.inf]}) as w:
+        n = 5
+        w.append_frames(np.full((n, SHEARSENSE_6X6.n_channels), 30000, np.uint16),
+                        np.arange(n) / 44.0, np.arange(n) / 44.0)
+
+    def strict(text: str):
+        def refuse(constant: str):
+            raise AssertionError(f"invalid JSON constant {constant}")
+        return json.loads(text, parse_constant=refuse)
+
+    for argv in (["info", path, "--json"], ["info", tmp_path, "--json"]):
+        code, out, err = run_cli(capsys, *argv)
+        assert code == 0, err
+        doc = strict(out)
+        summary = doc[0] if isinstance(doc, list) else doc
+        assert summary["metadata"]["device"]["settings"]["rate"] is None
+        assert summary["metadata"]["gain"] == [1.0, None]
+        assert summary["frames"] == n
+
+
+# ---- CLI options: one argparse type for every float option ------------------------------
+def _float_options(parser: argparse.ArgumentParser, where: str = "tactile-studio"):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, sub in action.choices.items():
+                yield from _float_options(sub, f"{where} {name}")
+        elif action.type is float:
+            yield f"{where} {'/'.join(action.option_strings) or action.dest}"
+
+
+def test_no_cli_option_parses_a_bare_float():
+    """``type=float`` takes nan and inf; every number option uses cli.argtypes instead."""
+    assert list(_float_options(build_parser())) == []
+
+
+def test_finite_float_is_what_the_options_use():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    record = sub.choices["record"]
+    seconds = next(a for a in record._actions if "--seconds" in a.option_strings)
+    assert seconds.type is finite_float
+
+
+@pytest.mark.parametrize("option, value, argv", [
+    ("--seconds", "nan", ["record", "--seconds", "nan", "--out", "x.h5"]),
+    ("--seconds", "inf", ["record", "--seconds", "inf", "--out", "x.h5"]),
+    ("--seconds", "-inf", ["record", "--seconds=-inf", "--out", "x.h5"]),
+    ("--rate", "nan", ["emulate-serial", "--rate", "nan"]),
+    ("--corrupt", "nan", ["emulate-serial", "--corrupt", "nan"]),
+    ("--speed", "nan", ["collect", "--speed", "nan", "--virtual-participant"]),
+    ("--seconds", "inf", ["stream", "--seconds", "inf"]),
+    ("--lsl-wait", "nan", ["record", "--seconds", "1", "--out", "x.h5", "--lsl-wait", "nan"]),
+    ("--weight-g", "nan", ["wellness", "--sensor", "s", "--weight-g", "nan"]),
+    ("--window", "inf", ["train", "--data", "d", "--window", "inf"]),
+    ("--overlap", "nan", ["train", "--data", "d", "--overlap", "nan"]),
+    ("--force", "nan", ["emulate-loadcell", "--force", "0", "nan", "0"]),
+    ("--rate", "1e999", ["emulate-loadcell", "--rate", "1e999"]),
+])
+def test_float_options_refuse_non_finite_numbers(capsys, option, value, argv):
+    line = usage_error(capsys, *argv)
+    assert f"argument {option}" in line and f"'{value}' is not a finite number" in line
+
+
 # ---- protocol files -----------------------------------------------------------------------
 GESTURE = '[[gestures]]\nname = "Poke"\nkey = "p"\ndefinition = "poke it"\n'
 
@@ -151,6 +224,17 @@ def test_protocol_float_fields_refuse_non_finite_values(capsys, tmp_path, table,
     assert code == EXIT_ERROR
     field = f"{table}.{key}" if table else key
     assert one_line(err).endswith(f"bad.toml: {field}: {float(value)} is not a finite number")
+    assert not list(tmp_path.glob("**/*.h5"))
+
+
+# ---- collect --blocks beyond the protocol ---------------------------------------------------
+def test_collect_refuses_more_blocks_than_the_protocol_has(capsys, tmp_path):
+    blocks = load_protocol("shear9").blocks
+    code, _, err = run_cli(capsys, "collect", "--protocol", "shear9", "--participant", "P01",
+                           "--virtual-participant", "--blocks", blocks + 1,
+                           "--out", tmp_path / "out")
+    assert code == EXIT_ERROR
+    assert one_line(err).endswith(f"--blocks {blocks + 1}: protocol shear9 has {blocks} blocks")
     assert not list(tmp_path.glob("**/*.h5"))
 
 
