@@ -17,7 +17,13 @@ from csv_fixtures import labelled_csv
 from tactile_studio.cli import build_parser, main
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import available_plugins
-from tactile_studio.errors import EXIT_ERROR, EXIT_INCOMPLETE, EXIT_USAGE, SettingsError
+from tactile_studio.errors import (
+    EXIT_ERROR,
+    EXIT_INCOMPLETE,
+    EXIT_USAGE,
+    SettingsError,
+    UserError,
+)
 from tactile_studio.instruments.registry import FORCE_GROUP, STAGE_GROUP, available
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.protocol_file import load_protocol
@@ -281,7 +287,6 @@ def test_import_keeps_the_good_files_lists_the_empty_one_and_exits_3(capsys, tmp
 
 # ---- model and training options (`train --set`) -------------------------------------------
 def test_every_float_option_of_every_registered_model_refuses_non_finite_values():
-    from tactile_studio.errors import UserError
     from tactile_studio.learn.models import resolve_options
     from tactile_studio.learn.models.registry import get_model_spec, model_names
 
@@ -350,3 +355,32 @@ def test_the_workspace_import_lists_a_csv_without_frames_and_imports_the_rest(
     qtbot.waitUntil(lambda: not dialog.job.running, timeout=20000)
     assert dialog.status.text() == f"{empty}: no frames after the baseline row, nothing imported"
     assert sorted(p.name for p in out.glob("*.h5")) == ["P01_FLAT.h5"]
+
+
+def test_the_collection_setup_offers_no_more_blocks_than_the_protocol_has(qtbot, tmp_path):
+    from PySide6.QtCore import QSettings
+
+    from tactile_studio.ui.collect.setup import CollectSetup
+
+    setup = CollectSetup(QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(setup)
+    setup.prefill(protocol="shear9", blocks=999)
+    blocks = load_protocol("shear9").blocks
+    assert setup.blocks.maximum() == blocks and setup.blocks.value() == blocks
+    setup.prefill(protocol="haart7")
+    assert setup.blocks.maximum() == load_protocol("haart7").blocks
+
+
+def test_a_non_finite_device_setting_is_named_in_the_collection_setup(qtbot, tmp_path):
+    from PySide6.QtCore import QSettings
+
+    from tactile_studio.ui.collect.setup import CollectSetup
+
+    setup = CollectSetup(QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(setup)
+    editor = setup.device_form.fields["noise"].editor
+    editor.clear()
+    qtbot.keyClicks(editor, "nan")
+    assert setup.device_error.text() == "noise: nan is not a finite number"
+    with pytest.raises(UserError, match="device simulated: noise: nan is not a finite number"):
+        setup.device_choice()

@@ -293,6 +293,7 @@ class CollectSetup(QWidget):
             self.error.setText(str(exc))
             return
         self.error.setText("")
+        self.blocks.setMaximum(p.blocks)  # its first N blocks; never more than it has
         self.blocks.setValue(p.blocks)
         self.seed.setValue(p.seed)
         brk = (f"break \u2265 {p.break_min_s:g} s every {p.break_every} blocks"
