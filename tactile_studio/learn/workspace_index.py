@@ -30,7 +30,15 @@ class SessionRow:
     ok: int = 0
     flagged: int = 0
     discarded: int = 0
-    error: str = ""
+    error: str = ""  # the file cannot be read: not listed for training
+    violations: list[str] = field(default_factory=list)  # what ``check`` finds wrong
+
+    @property
+    def problem(self) -> str:
+        """Why the file is not to be trusted as it is ("" when it is)."""
+        from tactile_studio.storage.session_check import verdict_text
+
+        return self.error or (verdict_text(self.violations) if self.violations else "")
 
     def matches(self, text: str) -> bool:
         """Case-insensitive filter over the visible fields."""
@@ -40,8 +48,10 @@ class SessionRow:
 
 
 def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
-    """One row per ``*.h5`` under the folders (or the files given)."""
+    """One row per ``*.h5`` under the folders (or the files given), each checked
+    (``session_check``: it reads the journal and the two time columns, not the frames)."""
     from tactile_studio.storage.session import Session
+    from tactile_studio.storage.session_check import check_session
     from tactile_studio.storage.session_set import session_files_under
 
     files: list[Path] = []
@@ -67,6 +77,7 @@ def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
                     row.discarded += status == "discarded"
                     row.flagged += bool(t.get("flags"))
                 row.per_gesture = dict(counts)
+                row.violations = check_session(s)
         except (UserError, OSError, KeyError, ValueError) as exc:
             row.error = str(exc).splitlines()[0]
         rows.append(row)

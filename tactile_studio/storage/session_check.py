@@ -275,4 +275,13 @@ def summary_line(result: CheckResult, shown: int = 3) -> str:
             + "; ".join(v[:shown]) + more)
 
 
-__all__ = ["CheckResult", "check_file", "check_session", "summary_line"]
+def verdict_text(violations: list[str]) -> str:
+    """The one line a window shows for a file (the player's badge, the Sessions tab's
+    problem column): "passes check", or "fails check: 3 problems: <the first>"."""
+    if not violations:
+        return "passes check"
+    n = len(violations)
+    return f"fails check: {n} problem{'s' if n != 1 else ''}: {violations[0]}"
+
+
+__all__ = ["CheckResult", "check_file", "check_session", "summary_line", "verdict_text"]

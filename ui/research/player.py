@@ -12,6 +12,7 @@ from PySide6.QtWidgets import (
     QComboBox,
     QHBoxLayout,
     QLabel,
+    QListWidget,
     QPushButton,
     QVBoxLayout,
     QWidget,
@@ -19,11 +20,15 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.playback import PlayClock, SessionPlayback, session_history
+from tactile_studio.storage.session_check import check_file, verdict_text
 from tactile_studio.ui.heatmap import HeatmapView, strip_colors
 from tactile_studio.ui.research.timeline import Timeline
 from tactile_studio.ui.stripchart import StripChart
 
 SPEEDS = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+CHECKED = "clocks, trials, events, metadata and counters agree"
+VALID_STYLE = "color: #1b7a1b; font-weight: bold"
+INVALID_STYLE = "color: #b00000; font-weight: bold"
 
 
 class SessionPlayer(QWidget):
@@ -51,6 +56,24 @@ class SessionPlayer(QWidget):
         self.loop = QCheckBox("Loop trial")
         self.position = QLabel("no session")
         self.prediction = QLabel("")
+        # the file's validity (tactile-studio check), said before anyone trusts what plays
+        self.validity = QLabel("")
+        self.validity.setWordWrap(True)
+        self.check_button = QPushButton("Check file")
+        self.check_button.setToolTip("check the file again (as tactile-studio check): "
+                                     + CHECKED)
+        self.check_button.setEnabled(False)
+        # every violation, one a line, folded away until asked for (the map keeps its room)
+        self.show_problems = QPushButton("Show problems")
+        self.show_problems.setCheckable(True)
+        self.show_problems.hide()
+        self.problems = QListWidget()
+        self.problems.setMaximumHeight(76)  # four lines, then it scrolls
+        self.problems.hide()
+        head = QHBoxLayout()
+        head.addWidget(self.validity, 1)
+        head.addWidget(self.show_problems)
+        head.addWidget(self.check_button)
         bar = QHBoxLayout()
         for w in (self.play_button, self.back_button, self.next_button, QLabel("Speed"),
                   self.speed, QLabel("Trial"), self.trial_box, self.loop):
@@ -58,6 +81,8 @@ class SessionPlayer(QWidget):
         bar.addStretch(1)
         bar.addWidget(self.position)
         lay = QVBoxLayout(self)
+        lay.addLayout(head)
+        lay.addWidget(self.problems)
         lay.addWidget(self.heatmap, 1)
         lay.addWidget(self.strip)
         lay.addLayout(bar)
@@ -67,6 +92,8 @@ class SessionPlayer(QWidget):
         self.timer.setInterval(30)
         self._last = time.perf_counter()
         self.timer.timeout.connect(self._tick)
+        self.check_button.clicked.connect(self.check)
+        self.show_problems.toggled.connect(self._fold_problems)
         self.play_button.clicked.connect(self.toggle_play)
         self.back_button.clicked.connect(lambda: self.step(-1))
         self.next_button.clicked.connect(lambda: self.step(1))
@@ -104,7 +131,41 @@ class SessionPlayer(QWidget):
         self.pred_frames = self.pred_probs = None
         self.prediction.setText("")
         self.seek(0)
+        self.check()
         return True
+
+    def check(self) -> list[str] | None:
+        """Check the open file (``session_check``, what ``tactile-studio check`` runs) and
+        show the verdict; the violations, or None when the file cannot be read now. It
+        reads the journal and the time columns only, far less than opening the file."""
+        self.check_button.setEnabled(self.pb is not None)
+        if self.pb is None:
+            return None
+        try:
+            violations = check_file(self.pb.path).violations
+        except (UserError, OSError) as exc:
+            self._show_verdict(f"cannot check the file: {exc}", [], INVALID_STYLE)
+            return None
+        if violations:
+            self._show_verdict("⚠ " + verdict_text(violations), violations, INVALID_STYLE)
+        else:
+            self._show_verdict(f"✓ valid session: passes check ({CHECKED})", [], VALID_STYLE)
+        return violations
+
+    def _show_verdict(self, text: str, violations: list[str], style: str) -> None:
+        self.validity.setText(text)
+        self.validity.setStyleSheet(style)
+        self.validity.setToolTip("\n".join(violations) or text)
+        self.problems.clear()
+        self.problems.addItems(violations)
+        self.show_problems.setVisible(bool(violations))
+        if not violations:
+            self.show_problems.setChecked(False)
+        self._fold_problems(self.show_problems.isChecked())
+
+    def _fold_problems(self, shown: bool) -> None:
+        self.problems.setVisible(shown and self.problems.count() > 0)
+        self.show_problems.setText("Hide problems" if shown else "Show problems")
 
     def set_predictions(self, frames: np.ndarray, probs: np.ndarray, labels: list[str]) -> None:
         self.pred_frames, self.pred_probs, self.pred_labels = frames, probs, labels

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
+from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
     QHBoxLayout,
     QLabel,
@@ -86,18 +87,31 @@ class SessionsView(QWidget):
         for r, row in enumerate(self.rows):
             values = [row.path.rsplit("/", 1)[-1], row.participant, row.condition, row.protocol,
                       row.sensor, row.date, row.ok, row.flagged, row.discarded,
-                      per_gesture_text(row.per_gesture), row.error]
+                      per_gesture_text(row.per_gesture), row.problem]
             fill_row(self.table, r, values, [None] * len(values), row.error)
             self.table.item(r, 0).setToolTip(row.path)
             self.table.item(r, 9).setToolTip("\n".join(
                 f"{g}: {n}" for g, n in sorted(row.per_gesture.items())))
+            if row.violations and not row.error:  # readable, but its facts disagree
+                self._flag_failed_check(r, row.violations)
         self.table.setSortingEnabled(True)
         self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
-        # the column only when a file could not be read: otherwise it is empty and wide
-        self.table.setColumnHidden(COLUMNS.index("problem"), not any(r.error for r in self.rows))
+        # the column only when a file could not be read or fails the check: otherwise it
+        # is empty and wide
+        self.table.setColumnHidden(COLUMNS.index("problem"),
+                                   not any(r.problem for r in self.rows))
         self._apply_filter()
         self.table.selectAll()
         self._selection_changed()
+
+    def _flag_failed_check(self, r: int, violations: list[str]) -> None:
+        """Amber name and problem cell, every violation in their tooltip (``check``'s list)."""
+        tip = f"tactile-studio check finds {len(violations)} problem(s):\n" + "\n".join(
+            f"• {v}" for v in violations)
+        for c in (0, COLUMNS.index("problem")):
+            item = self.table.item(r, c)
+            item.setForeground(QColor(170, 95, 0))
+            item.setToolTip(tip if c else f"{self.rows[r].path}\n{tip}")
 
     def _apply_filter(self) -> None:
         text = self.filter.text()
@@ -120,8 +134,11 @@ class SessionsView(QWidget):
         people = len({r.participant for r in sel})
         gaps = study_counts((r.participant, r.condition, r.per_gesture)
                             for r in sel if not r.error).missing_text()
+        failing = sum(1 for r in sel if r.violations and not r.error)
         self.summary.setText(f"{len(sel)} of {len(self.rows)} sessions selected: {people} "
                              f"participants, {ok} ok trials" +
                              (" — no ok trials to train on" if sel and not ok else "") +
-                             (f" — {gaps}" if gaps else ""))
+                             (f" — {gaps}" if gaps else "") +
+                             (f" — {failing} fail{'s' if failing == 1 else ''} check "
+                              "(see the problem column)" if failing else ""))
         self.selectionChanged.emit()
