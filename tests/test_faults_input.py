@@ -384,3 +384,40 @@ def test_a_non_finite_device_setting_is_named_in_the_collection_setup(qtbot, tmp
     assert setup.device_error.text() == "noise: nan is not a finite number"
     with pytest.raises(UserError, match="device simulated: noise: nan is not a finite number"):
         setup.device_choice()
+
+
+def _xdf(path: Path, mats: dict[str, int]) -> Path:
+    """An XDF file with a 64-channel pressure mat per name, each with that many samples."""
+    from test_xdf import chunk, header_xml, numeric_samples
+
+    parts = [b"XDF:", chunk(1, b'<?xml version="1.0"?><info><version>1.0</version></info>')]
+    for k, name in enumerate(mats, 1):
+        parts.append(chunk(2, header_xml(name, "Pressure", 64, 100, "float32"), k))
+    for k, (name, n) in enumerate(mats.items(), 1):
+        if n:
+            t = 10.0 + np.arange(n) / 100.0
+            parts.append(chunk(3, numeric_samples(t, np.full((n, 64), 5.0, np.float32), "f"), k))
+    path.write_bytes(b"".join(parts))
+    return path
+
+
+def test_xdf_import_lists_a_tactile_stream_without_samples_and_imports_the_rest(capsys, tmp_path):
+    src = _xdf(tmp_path / "two.xdf", {"MatA": 50, "MatB": 0})
+    out = tmp_path / "out"
+    code, stdout, err = run_cli(capsys, "import", "xdf", src, "--out", out)
+    assert code == EXIT_INCOMPLETE
+    assert f"{src}: stream 'MatB' has no samples, nothing imported" in stdout
+    assert "numbering" not in stdout  # CoST's and HAART's label maps are not an XDF's
+    assert one_line(err).endswith("1 tactile stream(s) not imported (no samples; listed above)")
+    assert sorted(p.name for p in out.glob("*.h5")) == ["two_MatA.h5"]
+    with Session(out / "two_MatA.h5") as s:
+        assert s.n_frames == 50
+
+
+def test_xdf_import_whose_only_tactile_stream_is_empty_writes_nothing(capsys, tmp_path):
+    src = _xdf(tmp_path / "empty.xdf", {"MatA": 0})
+    out = tmp_path / "out"
+    code, _, err = run_cli(capsys, "import", "xdf", src, "--out", out)
+    assert code == EXIT_ERROR
+    assert one_line(err).endswith(f"{src}: stream 'MatA' has no samples, nothing imported")
+    assert not list(out.glob("*.h5"))

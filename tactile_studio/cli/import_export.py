@@ -92,6 +92,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     from tactile_studio.storage.importers.shearsense import import_shearsense_study
 
     token = CancelToken()
+    skipped: list[str] = []  # inputs without frames: listed, never a 0-frame session
     with ctrl_c_cancels(token), _bar(f"import {args.import_format}") as bar:
         def done(path: Path) -> None:
             bar.end_line()
@@ -105,13 +106,16 @@ def cmd_import(args: argparse.Namespace) -> int:
             from tactile_studio.storage.importers.xdf import import_xdf
 
             out = import_xdf(args.files, args.out, args.participant, args.stream, args.layout,
-                             bar, token, args.force, done)
+                             bar, token, args.force, done, skipped)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:
             out = import_haart(args.files, args.out, bar, token, args.force, done)
     if args.import_format == "shearsense":
-        for line in report.lines():
+        for line in report.lines():  # its files without frames among them
+            print(line)
+    elif args.import_format == "xdf":
+        for line in skipped:
             print(line)
     else:
         from tactile_studio.storage.importers.datasets import COST, HAART, numbering_line
@@ -120,6 +124,9 @@ def cmd_import(args: argparse.Namespace) -> int:
     if args.import_format == "shearsense" and report.no_frames:  # listed above
         raise IncompleteError(f"{len(report.no_frames)} of {len(args.files)} file(s) not "
                               "imported (no frames after the baseline row)")
+    if skipped:
+        raise IncompleteError(f"{len(skipped)} tactile stream(s) not imported (no samples; "
+                              "listed above)")
     return 0
 
 

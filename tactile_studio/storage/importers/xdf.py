@@ -36,6 +36,7 @@ from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.importers._common import (
     WRITE_CHUNK,
     ImportFormatError,
+    NoFramesError,
     _discard,
     check_outputs,
     file_sha256,
@@ -261,8 +262,13 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
                participant: str | None = None, stream: str | None = None,
                layout: str | None = None, progress: ProgressFn | None = None,
                cancel: CancelToken | None = None, force: bool = False,
-               on_done: Callable[[Path], None] | None = None) -> list[Path]:
-    """Each tactile stream of each file -> ``<file>[_<stream>].h5`` in ``out_dir``."""
+               on_done: Callable[[Path], None] | None = None,
+               skipped: list[str] | None = None) -> list[Path]:
+    """Each tactile stream of each file -> ``<file>[_<stream>].h5`` in ``out_dir``.
+
+    A tactile stream without samples writes no session: with a ``skipped`` list its line
+    goes there and the other streams are imported (``NoFramesError`` when none had any);
+    without one its ``NoFramesError`` is raised before anything is written."""
     progress = progress or no_progress
     jobs: list[Callable[[ProgressFn], Path]] = []
     for k, p in enumerate(paths):
@@ -292,6 +298,14 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
         check_outputs(outs, force)
         for (s, lay), out in zip(tactile, outs):
             if not len(s["time_stamps"]):
-                raise ImportFormatError(f"{path}: stream '{_stream_name(s)}' has no samples")
+                line = f"{path}: stream '{_stream_name(s)}' has no samples, nothing imported"
+                if skipped is None:
+                    raise NoFramesError(line)
+                skipped.append(line)
+                continue
             jobs.append(_session_job(path, out, sha, s, lay, markers, aux, meta, cancel))
+    if not jobs and skipped:
+        raise NoFramesError(skipped[0] if len(skipped) == 1 else
+                            f"nothing imported: none of the {len(skipped)} tactile streams "
+                            "has samples (" + ", ".join(Path(p).name for p in paths) + ")")
     return run_jobs(jobs, progress, 0.5, 1.0, on_done)
