@@ -421,3 +421,23 @@ def test_xdf_import_whose_only_tactile_stream_is_empty_writes_nothing(capsys, tm
     assert code == EXIT_ERROR
     assert one_line(err).endswith(f"{src}: stream 'MatA' has no samples, nothing imported")
     assert not list(out.glob("*.h5"))
+
+
+def test_the_workspace_xdf_import_says_which_stream_had_no_samples(qtbot, tmp_path,
+                                                                    monkeypatch):
+    from tactile_studio.ui.research.window import ResearchWindow
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    window = ResearchWindow()
+    qtbot.addWidget(window)
+    src = _xdf(tmp_path / "two.xdf", {"MatA": 50, "MatB": 0})
+    dialog = window.open_import_xdf()
+    out = tmp_path / "sessions"
+    dialog.out.setText(str(out))
+    dialog.add_files([str(src)])
+    assert dialog.start()
+    qtbot.waitUntil(lambda: not dialog.job.running, timeout=20000)
+    assert dialog.status.text() == (
+        f"Imported 1 session(s) into {out}; they are listed in the Sessions tab.\n"
+        f"Not imported: {src}: stream 'MatB' has no samples, nothing imported")
+    assert sorted(p.name for p in out.glob("*.h5")) == ["two_MatA.h5"]

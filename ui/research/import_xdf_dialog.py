@@ -122,13 +122,15 @@ class XdfImportDialog(QDialog):
         layout = self.layout_name.text().strip() or None
         force = self.force.isChecked()
         self.written = []
+        skipped: list[str] = []  # tactile streams without samples (no session written)
         self.job = BackgroundJob(lambda progress, cancel: import_xdf(
             files, out, participant, stream, layout, progress, cancel, force,
-            lambda path: self.written.append(str(path))), self)
+            lambda path: self.written.append(str(path)), skipped), self)
         self.job.progressed.connect(self._progressed)
         self.job.finished.connect(lambda paths: self._stopped(
             f"Imported {len(paths)} session(s) into {out}; they are listed in the "
-            "Sessions tab.", out, done=True))
+            "Sessions tab." + "".join(f"\nNot imported: {line}" for line in skipped),
+            out, done=True))
         self.job.failed.connect(self._failed)
         self.job.cancelled.connect(lambda: self._stopped(
             f"Cancelled: the {len(self.written)} session(s) finished are kept in {out}.", out))
