@@ -441,3 +441,22 @@ def test_the_workspace_xdf_import_says_which_stream_had_no_samples(qtbot, tmp_pa
         f"Imported 1 session(s) into {out}; they are listed in the Sessions tab.\n"
         f"Not imported: {src}: stream 'MatB' has no samples, nothing imported")
     assert sorted(p.name for p in out.glob("*.h5")) == ["two_MatA.h5"]
+
+
+# ---- --json output is strict JSON ------------------------------------------------------
+def test_print_json_writes_null_for_nan_and_infinity(capsys):
+    from tactile_studio.cli.json_output import print_json
+
+    print_json({"rate": math.nan, "gain": [1.0, math.inf, -math.inf], "n": np.int64(3)},
+               indent=None)
+    assert capsys.readouterr().out == '{"rate": null, "gain": [1.0, null, null], "n": 3}\n'
+
+
+def test_every_command_prints_its_json_through_print_json():
+    """A new ``--json`` that calls json.dump(s) itself could print NaN again."""
+    import tactile_studio.cli as cli
+
+    folder = Path(cli.__file__).parent
+    own = [f.name for f in sorted(folder.glob("*.py"))
+           if f.name != "json_output.py" and re.search(r"\bjson\.dumps?\(", f.read_text())]
+    assert own == []

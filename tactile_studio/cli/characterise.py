@@ -14,6 +14,7 @@ from tactile_studio.characterise import Plan, RunControl, run_characterisation
 from tactile_studio.characterise.folder import check_out_dir
 from tactile_studio.characterise.plan import SEQUENCES
 from tactile_studio.characterise.run import save_calibration
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.health.history import covers_text
@@ -112,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"calibration #{cal_id} of {args.sensor} saved to the logbook (active), "
               f"covers {covers_text(row)}", file=sys.stderr)
     if args.json:
-        print(json.dumps(result["taxels"], indent=1))
+        print_json(result["taxels"], indent=1)
     else:
         print(f"characterised {len(result['taxels'])} taxel(s); report: {out / 'report.html'}",
               file=sys.stderr)

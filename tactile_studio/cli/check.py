@@ -7,9 +7,8 @@ their first violations; 1 with one line when a file cannot be read at all.
 from __future__ import annotations
 
 import argparse
-import json
-import sys
 
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.errors import CheckFailed, UserError
 from tactile_studio.storage.session_check import CheckResult, check_file, summary_line
 
@@ -39,8 +38,7 @@ def cmd_check(args: argparse.Namespace) -> int:
             if args.json:
                 results.append(CheckResult(str(path), [f"unreadable: {exc}"]))
     if args.json:
-        json.dump([r.to_dict() for r in results], sys.stdout, indent=2)
-        print()
+        print_json([r.to_dict() for r in results])
     else:
         for r in results:
             if r.ok:

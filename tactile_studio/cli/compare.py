@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import argparse
-import json
+
+from tactile_studio.cli.json_output import print_json
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from tactile_studio.cli import tables
     from tactile_studio.learn.compare import compare_runs
-    from tactile_studio.learn.runfolder import clean_json
 
     r = compare_runs(args.run_a, args.run_b)
     if args.json:
-        print(json.dumps(clean_json(r), indent=1))
+        print_json(r, indent=1)
         return 0
     # one table helper for both tables: columns fit the longest run name or participant
     tables.table(("", "run", "accuracy", "folder"),

@@ -12,12 +12,12 @@ replug: the recorder reconnects and carries on in the same file.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 import time
 
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.line_decoder import KINDS
 from tactile_studio.devices.serial_emulator import SerialEmulator
 from tactile_studio.errors import UserError
@@ -88,7 +88,7 @@ def cmd_emulate_serial(args: argparse.Namespace) -> int:
         emu.close(drain=1.0)  # let the reader take what is queued, so the counts are exact
     report = emu.report()
     if args.json:
-        print(json.dumps(report))
+        print_json(report, indent=None)
     else:
         print(_summary(report))
     return 0

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_CHECK_WARN, EXIT_OK, CheckFailed, UserError
@@ -193,8 +193,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _dump(obj: Any) -> None:
-    json.dump(obj, sys.stdout, indent=2, default=str)
-    print()
+    print_json(obj)
 
 
 def cmd_sensors(args: argparse.Namespace) -> int:

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 
 from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.discovery import list_serial_ports, scan_ble
 from tactile_studio.errors import UserError
 
@@ -27,8 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_ports(args: argparse.Namespace) -> int:
     ports = list_serial_ports()
     if args.json:
-        print(json.dumps([{"device": d, "description": desc, "vid_pid": vp}
-                          for d, desc, vp in ports]))
+        print_json([{"device": d, "description": desc, "vid_pid": vp}
+                    for d, desc, vp in ports], indent=None)
     elif not ports:
         print("no serial ports found")
     elif ports:
@@ -42,7 +42,7 @@ def cmd_ble_scan(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     found = scan_ble(args.seconds, args.name, args.service)
     if args.json:
-        print(json.dumps([{"address": a, "name": n, "rssi": r} for a, n, r in found]))
+        print_json([{"address": a, "name": n, "rssi": r} for a, n, r in found], indent=None)
     elif not found:
         print("no BLE devices found")
     for address, name, rssi in [] if args.json else found:

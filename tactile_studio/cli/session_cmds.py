@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import sys
 import time
 from collections import Counter
 from pathlib import Path
@@ -13,6 +11,7 @@ from typing import Any
 
 from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.json_output import print_json
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
@@ -164,7 +163,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
                      summary["malformed"], ", ".join(summary["unmapped_keys"]),
                      "; ".join(notes)))
     if as_json:
-        _print_json(summaries)
+        print_json(summaries)
     else:
         tables.table(("file", "participant", "condition", "frames", "Hz", "ok trials",
                       "malformed", "unmapped keys", "note"), rows,
@@ -174,15 +173,6 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         for line in study_counts(study).lines():
             print(line)
     return 1 if bad else 0
-
-
-def _print_json(obj: Any) -> None:
-    """Strict JSON on stdout: NaN and infinities (an old file's ``rate=nan`` setting, a
-    rate that cannot be measured) become null, so every JSON parser reads ``info --json``."""
-    from tactile_studio.learn.runfolder import clean_json
-
-    json.dump(clean_json(obj), sys.stdout, indent=2, default=str, allow_nan=False)
-    print()
 
 
 def _closed_text(summary: dict[str, Any]) -> str:
@@ -206,7 +196,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         summary = s.summary()
         table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
     if args.json:
-        _print_json(summary)
+        print_json(summary)
         return 0
     meta = summary["metadata"]
     device = meta.get("device", {})
