@@ -148,3 +148,61 @@ def test_the_console_resumes_on_the_file_s_device(qtbot, tmp_path: Path, monkeyp
     assert console.engine.sensor_id() == "sim-5"
     assert setup.device_form.changed_values().get("seed") in (5, "5")
     console.close_session()
+
+
+def test_the_console_says_the_sensor_differs_and_resumes_on_it_with_a_note(
+        qtbot, tmp_path: Path, monkeypatch) -> None:
+    from PySide6.QtCore import Qt
+
+    from tactile_studio.ui.collect.console import CollectConsole
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    (tmp_path / "data").mkdir()
+    path = _killed_session(tmp_path / "data", trials=1)
+    console = CollectConsole()
+    qtbot.addWidget(console)
+    console.show()
+    setup = console.setup
+    setup.set_resume_mode(True)
+    setup.resume_file.setText(str(path))
+    setup.device_from_file(str(path))  # what choosing the file does: the file's sim-5
+    assert setup.other_sensor_button.isHidden() and setup.other_sensor_info.text() == ""
+    seed = setup.device_form.fields["seed"].editor
+    seed.clear()
+    qtbot.keyClicks(seed, "7")  # the experimenter picks another sensor, after the file
+    # the setup says so before anything is tried, and offers the explicit choice
+    info = setup.other_sensor_info.text()
+    assert "The simulated device's settings differ from the file's (seed 5 there, 7 here)" \
+        in info, info
+    assert not setup.other_sensor_button.isHidden()
+    console.grab().save(str(tmp_path / "resume_other_sensor.png"))
+
+    # plain Resume keeps the chosen device and is refused in one line, the file untouched
+    setup.continue_button.click()
+    assert console.session is None and console.stack.currentIndex() == 0
+    error = setup.error.text()
+    assert "recorded on sensor sim-5, but the device is sensor sim-7" in error
+    assert "\n" not in error and "--allow-other-sensor" not in error  # no CLI option here
+    assert setup.device_form.values().get("seed") == "7"
+    assert not setup.other_sensor_button.isHidden()
+    assert not list(path.parent.glob("*.bak-*.h5"))
+
+    # "Resume on this other sensor…" asks why; no note, no resume
+    setup.other_sensor_button.click()
+    dialog = console.dialog
+    assert dialog is not None and "sim-5" in dialog.label.text()
+    qtbot.mouseClick(dialog.buttons.buttons()[0], Qt.MouseButton.LeftButton)
+    assert console.session is None and dialog.isVisible()
+    qtbot.keyClicks(dialog.edit.lineEdit(), "sim-5 cable broke; same participant on sim-7")
+    qtbot.mouseClick(dialog.buttons.buttons()[0], Qt.MouseButton.LeftButton)
+    assert console.session is not None, setup.error.text()
+    assert console.engine.sensor_id() == "sim-7"
+    console.close_session()
+    # stored exactly as collect --allow-other-sensor stores it
+    with Session(path) as s:
+        other = s.metadata["other_sensor"]
+        notes = [e["text"] for e in s.events if e["kind"] == "note"]
+    assert other[0]["sensor_id"] == "sim-7" and "sim-5" in other[0]["why"]
+    assert other[0]["note"] == "sim-5 cable broke; same participant on sim-7"
+    assert any("resumed on another sensor" in n and "cable broke" in n for n in notes)
+    assert check_file(path).ok

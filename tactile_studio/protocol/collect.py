@@ -28,6 +28,7 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
+from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
 from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
@@ -199,6 +200,16 @@ def _keep_backup(path: Path, backup: Path) -> None:
         shutil.copy2(path, backup)
 
 
+class OtherSensorRefused(UserError):
+    """A resume on another device or sensor than the file's, with no note saying why:
+    the command names the option that overrides it, the console offers the choice."""
+
+    def __init__(self, path: Path, why: str) -> None:
+        self.path, self.why = path, why
+        super().__init__(f"{path}: {why}; resume on the same sensor (or give the reason "
+                         "with --allow-other-sensor NOTE)")
+
+
 def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
     """Why ``engine`` is not the device and sensor the file was recorded with (another
     plugin, another sensor ID such as the simulator's seed), or None when it is."""
@@ -235,6 +246,31 @@ def resume_device(info: dict[str, Any]) -> tuple[str | None, dict[str, Any]]:
     return name, settings
 
 
+def device_differences(info: dict[str, Any], name: str | None,
+                       settings: dict[str, Any]) -> str | None:
+    """How device ``name`` with ``settings`` (a form's or ``--set``'s values) differs from
+    the device the file (``read_resume_info``) was recorded with, in words ("seed 5 there,
+    7 here"); None when it is the same, or when that cannot be told before the device is
+    opened (the live device, a plugin not installed here, a value the form refuses).
+    Settings such as a port may differ on the same sensor: ``other_sensor`` decides."""
+    file_name, file_settings = resume_device(info)
+    if name is None or file_name is None:
+        return None
+    if name != file_name:
+        return f"the file was recorded with device {file_name}, not {name}"
+    schema = plugin_class(name).settings_schema
+    try:
+        theirs = validate_settings(schema, file_settings, name)
+        mine = validate_settings(schema, settings, name)
+    except UserError:
+        return None
+    ignored = ("speed", "gesture") if name == "simulated" else ()  # not the sensor's
+    diffs = [f"{k} {theirs[k]} there, {mine[k]} here" for k in theirs
+             if k not in ignored and theirs[k] != mine[k]]
+    return (f"the {name} device's settings differ from the file's ({'; '.join(diffs)})"
+            if diffs else None)
+
+
 def resume_offset(old: Session, rate_hz: float) -> float:
     """Seconds to add to a resumed device's clock so the file keeps one clock: the old
     file's last device time plus one nominal frame period (a device starts its clock
@@ -267,8 +303,7 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     other = other_sensor(info, engine)
     note = " ".join(str(allow_other_sensor or "").split())
     if other and not note:
-        raise UserError(f"{path}: {other}; resume on the same sensor (or give the reason "
-                        "with --allow-other-sensor NOTE)")
+        raise OtherSensorRefused(path, other)
     restore = quiet_simulator(engine)  # before the copy: its settings say idle
     tmp = path.with_name(f".{path.name}.resuming")
     backup = _backup_path(path)

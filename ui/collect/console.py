@@ -39,7 +39,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import AcquisitionEngine, AcquisitionSession, LiveView
 from tactile_studio.live.meters import PaintPacer
-from tactile_studio.protocol.collect import open_session, resume_session
+from tactile_studio.protocol.collect import OtherSensorRefused, open_session, resume_session
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console_actions import ConsoleActions
 from tactile_studio.ui.collect.log import TextDialog, TrialLog
@@ -85,6 +85,7 @@ class CollectConsole(ConsoleActions):
                                   live_device=live_device if engine is not None else None)
         self.setup.startRequested.connect(self.start_session)
         self.setup.resumeRequested.connect(self.resume_from)
+        self.setup.otherSensorRequested.connect(self.ask_other_sensor_note)
         self.participant = ParticipantScreen()
         self.participant.keyPressed.connect(self.forward_key)
         self.beeper.flash.connect(self._flash)
@@ -270,8 +271,11 @@ class CollectConsole(ConsoleActions):
             return self.shared_engine.sensor_id() if self.shared_engine is not None else None
         return create_device(choice.device, choice.device_settings).sensor_id()
 
-    def resume_from(self, path: str | Path) -> bool:
-        """Continue a killed or closed session file at its next trial."""
+    def resume_from(self, path: str | Path, allow_other_sensor: str | None = None) -> bool:
+        """Continue a killed or closed session file at its next trial, on the device the
+        form shows; on another sensor than the file's only with ``allow_other_sensor``
+        (the note kept in the session, as ``collect --allow-other-sensor``)."""
+        self.setup.keep_resume_file(str(path))
         hold, auto = self.setup.run_options()
         try:
             device, dev_settings = self.setup.device_choice()
@@ -281,13 +285,29 @@ class CollectConsole(ConsoleActions):
         return self._open(lambda eng: resume_session(
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
             hold_flagged=hold, auto_continue=auto,
-            recorder=self.acquisition.start_recording), device, dev_settings)
+            recorder=self.acquisition.start_recording,
+            allow_other_sensor=allow_other_sensor), device, dev_settings)
+
+    def ask_other_sensor_note(self, path: str) -> TextDialog:
+        """"Resume on this other sensor…": why, then the resume on the form's device."""
+        why = self.setup.other_sensor_why or "the device is not the file's"
+        dlg = TextDialog("Resume on another sensor",
+                         f"{why[:1].upper()}{why[1:]}.\nThe session goes on with this "
+                         "device's frames after the file's. Why? (kept in the session)",
+                         (), self)
+        dlg.accepted.connect(lambda: self.resume_from(path, dlg.text()))
+        return self._open_dialog(dlg)
 
     def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
         self.close_session()
         try:  # the session's start order: device, recorder (the file), LSL, then start
             engine = self._engine_for(device, dev_settings)
             self.session = make(engine)
+        except OtherSensorRefused as exc:  # offered: resume on it, saying why
+            self.setup.show_error(f"{exc.path.name}: {exc.why}.")
+            self.setup.offer_other_sensor(exc.why)
+            self.acquisition.disconnect()
+            return False
         except UserError as exc:
             self.setup.show_error(str(exc))
             self.acquisition.disconnect()

@@ -35,7 +35,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.paths import data_dir, make_out_dir
-from tactile_studio.protocol.collect import read_resume_info, resume_device
+from tactile_studio.protocol.collect import device_differences, read_resume_info, resume_device
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
@@ -78,6 +78,7 @@ class CollectSetup(QWidget):
 
     startRequested = Signal(object)   # SetupChoice
     resumeRequested = Signal(str)     # session file path
+    otherSensorRequested = Signal(str)  # resume this file on the form's other sensor
     testSoundRequested = Signal()     # the console plays the protocol's beep
 
     def __init__(self, settings: QSettings, live_device: str | None = None,
@@ -85,6 +86,10 @@ class CollectSetup(QWidget):
         super().__init__(parent)
         self.settings = settings
         self._protocol_file: str | None = None
+        self._device_file: str | None = None  # the resume file the device form was set from
+        self._resume_info: dict[str, Any] | None = None  # that file's read_resume_info
+        self.other_sensor_why: str | None = None  # why the device is not the file's
+        self.resuming = False
         self.title = title = QLabel("New collection session")
         title.setStyleSheet("font-size: 20px; font-weight: 600;")
 
@@ -119,10 +124,21 @@ class CollectSetup(QWidget):
             self.device.addItem(name, name)
         self.device_form = SettingsForm("Device settings")
         self.device_form.changed.connect(self._check_device)
+        self.device_form.changed.connect(self._check_other_sensor)
         self.device_error = QLabel()
         self.device_error.setWordWrap(True)
         self.device_error.setStyleSheet("color: #c0392b;")
         self.device_error.hide()
+        # a resume on another device or sensor than the file's: said, and chosen explicitly
+        self.other_sensor_info = QLabel()
+        self.other_sensor_info.setWordWrap(True)
+        self.other_sensor_info.setStyleSheet("color: #a15c00; font-weight: 600;")
+        self.other_sensor_button = QPushButton("Resume on this other sensor\u2026")
+        self.other_sensor_button.setToolTip(
+            "continue the session on the device chosen here, not the file's; asks why "
+            "(the note is kept in the session, as collect --allow-other-sensor)")
+        self.other_sensor_button.clicked.connect(
+            lambda: self.otherSensorRequested.emit(self.resume_path()))
         self.device.currentIndexChanged.connect(self._on_device_changed)
         saved = settings.value(KEY_DEVICE)
         if not live_device:
@@ -166,6 +182,9 @@ class CollectSetup(QWidget):
         form.addRow("Device", self.device)
         form.addRow(self.device_form)
         form.addRow("", self.device_error)
+        form.addRow("", self.other_sensor_info)
+        form.setRowVisible(self.other_sensor_info, False)
+        self.other_sensor_button.hide()
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
         form.addRow("Beep", sound_row)
@@ -187,6 +206,7 @@ class CollectSetup(QWidget):
         buttons.addStretch(1)
         buttons.addWidget(self.resume_button)
         buttons.addWidget(self.start_button)
+        buttons.addWidget(self.other_sensor_button)
         buttons.addWidget(self.continue_button)
         self.participant.textEdited.connect(self._clear_error)
         self.out_dir.textEdited.connect(self._clear_error)
@@ -239,6 +259,7 @@ class CollectSetup(QWidget):
         self.continue_button.setDefault(on)
         self.start_button.setDefault(not on)
         self.error.setText("")
+        self._check_other_sensor()
 
     def _set_row_visible(self, widget: QWidget, on: bool) -> None:
         """Show or hide the form row holding ``widget`` (also inside a row's layout)."""
@@ -249,14 +270,20 @@ class CollectSetup(QWidget):
                 self.form.setRowVisible(row, on)
                 return
 
-    def _on_resume(self) -> None:
+    def resume_path(self) -> str:
+        """The resume form's file ("" when none)."""
         path = self.resume_file.text().strip()
+        return str(Path(path).expanduser()) if path else ""
+
+    def _on_resume(self) -> None:
+        path = self.resume_path()
         if not path:
             self.choose_resume_file()
             return
-        self._remember_dir(Path(path).expanduser().parent)
-        self.device_from_file(str(Path(path).expanduser()))
-        self.resumeRequested.emit(str(Path(path).expanduser()))
+        self._remember_dir(Path(path).parent)
+        if path != self._device_file:  # a device chosen after the file is left as chosen
+            self.device_from_file(path)
+        self.resumeRequested.emit(path)
 
     def _clear_error(self, *_: object) -> None:
         """A message about a field goes once the field is edited."""
@@ -343,6 +370,7 @@ class CollectSetup(QWidget):
             saved = get_json(self.settings, KEY_DEVICE_VALUES + name, {})
             self.device_form.set_values(saved if isinstance(saved, dict) else {})
         self._check_device()
+        self._check_other_sensor()
 
     def _check_device(self) -> str | None:
         error = self.device_form.first_error()
@@ -355,11 +383,52 @@ class CollectSetup(QWidget):
         the simulator's seed): the form shows them. A file that cannot be read keeps the
         form as it is (the resume then says why in one line)."""
         try:
-            name, values = resume_device(read_resume_info(path))
+            info = read_resume_info(path)
         except UserError:
             return
+        name, values = resume_device(info)
+        self._resume_info, self._device_file = info, path
         if name is not None:
             self.set_device(name, values)
+        self._check_other_sensor()
+
+    def keep_resume_file(self, path: str) -> None:
+        """The resume form for ``path`` with the device the form shows now (the console
+        resuming a file it was given): a refusal can then offer the other-sensor choice."""
+        if not self.resuming:
+            self.set_resume_mode(True)
+        self.resume_file.setText(path)
+        if path != self._device_file:
+            try:
+                self._resume_info = read_resume_info(path)
+            except UserError:
+                self._resume_info = None
+            self._device_file = path
+        self._check_other_sensor()
+
+    def _check_other_sensor(self, *_: object) -> None:
+        """In the resume form, say when the chosen device is not the file's (the core's
+        ``device_differences``) and offer to resume on it with a note."""
+        if not self.resuming and self.other_sensor_why is None:
+            return  # nothing shown, nothing to say (also while the form is being built)
+        why = None
+        if self.resuming and self._resume_info is not None \
+                and self.resume_path() == self._device_file:
+            why = device_differences(self._resume_info, self.device.currentData(),
+                                     self.device_form.values())
+        self.offer_other_sensor(why)
+
+    def offer_other_sensor(self, why: str | None) -> None:
+        """Show (or with None hide) that the device is another sensor than the file's and
+        the explicit choice to resume on it; the console calls it when a resume is
+        refused for that reason."""
+        self.other_sensor_why = why
+        self.other_sensor_info.setText(
+            f"\u26a0 {why[:1].upper()}{why[1:]}. A resume on another sensor is refused "
+            "unless you say why: \u201cResume on this other sensor\u2026\u201d asks for a "
+            "note, kept in the session." if why else "")
+        self.form.setRowVisible(self.other_sensor_info, bool(why))
+        self.other_sensor_button.setVisible(bool(why) and self.resuming)
 
     def set_device(self, name: str, values: dict[str, Any] | None = None) -> bool:
         """Choose plugin ``name`` with exactly ``values`` over its defaults (what the
@@ -372,6 +441,7 @@ class CollectSetup(QWidget):
         self.device_form.set_plugin(self.plugins[name])
         self.device_form.set_values(values or {})
         self._check_device()
+        self._check_other_sensor()
         return True
 
     def device_choice(self) -> tuple[str | None, dict[str, Any]]:
