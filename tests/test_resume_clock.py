@@ -206,3 +206,14 @@ def test_the_console_says_the_sensor_differs_and_resumes_on_it_with_a_note(
     assert other[0]["note"] == "sim-5 cable broke; same participant on sim-7"
     assert any("resumed on another sensor" in n and "cable broke" in n for n in notes)
     assert check_file(path).ok
+
+    # resumed again, the file's device is now sim-7 (the form shows it): no second note
+    setup.resume_file.setText(str(path))
+    setup.device_from_file(str(path))
+    assert setup.device_form.values().get("seed") == "7" and setup.other_sensor_info.isHidden()
+    setup.continue_button.click()
+    assert console.session is not None, setup.error.text()
+    console.close_session()
+    with Session(path) as s:
+        assert len(s.metadata["other_sensor"]) == 1 and s.metadata["resumes"] == 2
+    assert check_file(path).ok

@@ -179,6 +179,7 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
         return {"protocol": protocol, "participant": meta["participant"],
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
                 "sensor_id": meta.get("sensor_id"),
+                "other_sensor": meta.get("other_sensor") or [],
                 "layout": old.layout.name, "trials_done": trials_done(old.trials), "trials_total": total,
                 "frames": old.n_frames}
 
@@ -212,13 +213,17 @@ class OtherSensorRefused(UserError):
 
 def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
     """Why ``engine`` is not the device and sensor the file was recorded with (another
-    plugin, another sensor ID such as the simulator's seed), or None when it is."""
+    plugin, another sensor ID such as the simulator's seed), or None when it is. A sensor
+    an earlier resume went on to with a note is the file's too: the file's device is
+    then that one, and resuming it again needs no second note."""
     old_plugin = (info.get("device") or {}).get("plugin")
     new_plugin = engine.device_info().get("plugin")
     if old_plugin and new_plugin and old_plugin != new_plugin:
         return f"recorded with device {old_plugin}, not {new_plugin}"
     old_sensor, new_sensor = info.get("sensor_id"), engine.sensor_id()
-    if old_sensor and new_sensor and str(old_sensor) != str(new_sensor):
+    approved = {str(e.get("sensor_id")) for e in info.get("other_sensor") or []
+                if isinstance(e, dict) and e.get("sensor_id")}
+    if old_sensor and new_sensor and str(new_sensor) not in {str(old_sensor), *approved}:
         return f"recorded on sensor {old_sensor}, but the device is sensor {new_sensor}"
     return None
 
