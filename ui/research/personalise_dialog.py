@@ -6,6 +6,7 @@ are there; this dialog only shows them)."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -81,6 +82,12 @@ class PersonaliseDialog(QDialog):
         self.timer = QTimer(self)
         self.timer.setInterval(50)
         self.timer.timeout.connect(self.poll)
+        # the retraining runs in a thread (a network's fine-tuning can take a minute on a
+        # busy CPU): the window stays responsive, this timer picks up its result
+        self.retrain_timer = QTimer(self)
+        self.retrain_timer.setInterval(100)
+        self.retrain_timer.timeout.connect(self._retrained)
+        self._retrain: dict[str, Any] = {}
         self.start_button.clicked.connect(self.start)
         self.skip_button.clicked.connect(self.skip)
         self.redo_button.clicked.connect(self.redo)
@@ -170,13 +177,36 @@ class PersonaliseDialog(QDialog):
         self.prompt.setText("Retraining…")
         self.state.setText(f"{len(p.answers)} labelled touches; {self.model.config.model} "
                            "is retrained with them")
-        self.repaint()
         try:
-            self.result = p.personalise(self._engine().layout)
+            layout = self._engine().layout
         except UserError as exc:
             self.prompt.setText("Not personalised")
             self.state.setText(str(exc))
             return
+        job: dict[str, Any] = {}
+        self._retrain = job
+
+        def work() -> None:
+            try:
+                job["result"] = p.personalise(layout)
+            except UserError as exc:
+                job["error"] = str(exc)
+
+        job["thread"] = threading.Thread(target=work, name="personalise", daemon=True)
+        job["thread"].start()
+        self.retrain_timer.start()
+
+    def _retrained(self) -> None:
+        job = self._retrain
+        if not job or job["thread"].is_alive():
+            return
+        self.retrain_timer.stop()
+        self._retrain = {}
+        if "result" not in job:
+            self.prompt.setText("Not personalised")
+            self.state.setText(job.get("error") or "the retraining failed (see the log)")
+            return
+        self.result = job["result"]
         self.prompt.setText("Personalised")
         self.state.setText(describe(self.result))
         self.personalised.emit(self.result)
