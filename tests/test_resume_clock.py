@@ -217,3 +217,19 @@ def test_the_console_says_the_sensor_differs_and_resumes_on_it_with_a_note(
     with Session(path) as s:
         assert len(s.metadata["other_sensor"]) == 1 and s.metadata["resumes"] == 2
     assert check_file(path).ok
+
+
+def test_device_differences_names_what_is_not_the_file_s() -> None:
+    from tactile_studio.protocol.collect import device_differences
+
+    info = {"device": {"plugin": "simulated",
+                       "settings": {"seed": 5, "speed": 20.0, "gesture": "idle"}}}
+    # the same sensor, whatever the virtual participant's speed or the scripted gesture
+    assert device_differences(info, "simulated", {"seed": "5", "speed": "1"}) is None
+    assert device_differences(info, "simulated", {"seed": "7"}) == (
+        "the simulated device's settings differ from the file's (seed 5 there, 7 here)")
+    assert device_differences(info, "serial", {}) == (
+        "the file was recorded with device simulated, not serial")
+    # not to be told before the device opens: the live device, a value the form refuses
+    assert device_differences(info, None, {}) is None
+    assert device_differences(info, "simulated", {"seed": "x"}) is None
