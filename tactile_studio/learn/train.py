@@ -100,26 +100,46 @@ def _batches(n: int, size: int, rng: np.random.Generator | None) -> list[np.ndar
 
 
 def _evaluate(model: nn.Module, x: np.ndarray, y: np.ndarray, device: torch.device,
-              batch_size: int) -> tuple[float, float]:
+              batch_size: int, raw: torch.Tensor | None = None) -> tuple[float, float]:
     if len(y) == 0:
         return float("nan"), float("nan")
-    probs = predict_proba(model, x, device, batch_size)
+    probs = predict_proba(model, x, device, batch_size, raw=raw)
     p = np.clip(probs[np.arange(len(y)), y], 1e-12, None)
     return float(-np.log(p).mean()), float((probs.argmax(axis=1) == y).mean())
 
 
 def predict_proba(model: nn.Module, x: np.ndarray, device: torch.device | str = "cpu",
-                  batch_size: int = 256) -> np.ndarray:
-    """Class probabilities for samples ``x`` (S, C, T, R, X), in eval mode."""
+                  batch_size: int = 256, raw: torch.Tensor | None = None) -> np.ndarray:
+    """Class probabilities for samples ``x`` (S, C, T, R, X), in eval mode; ``raw``: the
+    samples' precomputed window statistics (:func:`feature_cache`), when there are."""
     model.eval()
     out = []
     with torch.no_grad():
         for i in range(0, len(x), batch_size):
             xb = torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size])).to(device)
-            out.append(torch.softmax(model(xb).float(), dim=1).cpu().numpy())
+            logits = model(xb) if raw is None else model(xb, raw=raw[i:i + batch_size])
+            out.append(torch.softmax(logits.float(), dim=1).cpu().numpy())
     if not out:
         return np.zeros((0, 0), dtype=np.float32)
     return np.concatenate(out)
+
+
+def feature_cache(model: nn.Module, x: np.ndarray, device: torch.device | str = "cpu",
+                  chunk: int = 512) -> torch.Tensor | None:
+    """The model's weight-free window statistics of every sample of ``x`` (and of its
+    mirror images), computed once before training (``RecipeModel.feature_cache``); None
+    for a model without them. Profiled on cnn1d's full preset they were a third of a
+    fold's time when computed per batch every epoch and per validation pass."""
+    cache = getattr(model, "feature_cache", None)
+    if cache is None or len(x) == 0:
+        return None
+    parts = []
+    for i in range(0, len(x), chunk):
+        part = cache(torch.from_numpy(np.ascontiguousarray(x[i:i + chunk])).to(device))
+        if part is None:
+            return None
+        parts.append(part)
+    return torch.cat(parts)
 
 
 def adapt_batchnorm(model: nn.Module, x: np.ndarray, device: torch.device | str = "cpu",
@@ -177,6 +197,8 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
     step = getattr(model, "training_step", None)  # ensembles: each member's own loss
     xt, yt = train
     xv, yv = val
+    raw_t = feature_cache(model, xt, device)
+    raw_v = feature_cache(model, xv, device)
     history: list[dict[str, Any]] = []
     best_loss, best_epoch, best_state, stale = float("inf"), 0, None, 0
     for epoch in range(1, s.max_epochs + 1):
@@ -191,7 +213,9 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
             xb = torch.from_numpy(xt[idx]).to(device)
             yb = torch.from_numpy(yt[idx]).to(device)
             opt.zero_grad(set_to_none=True)
-            if step is not None:
+            if step is not None and raw_t is not None:
+                loss, logits = step(xb, yb, loss_fn, raw=raw_t[torch.from_numpy(idx)])
+            elif step is not None:
                 loss, logits = step(xb, yb, loss_fn)
             else:
                 logits = model(xb)
@@ -203,7 +227,7 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
             total += float(loss.detach()) * len(idx)
             correct += int((logits.argmax(1) == yb).sum())
             count += len(idx)
-        val_loss, val_acc = _evaluate(model, xv, yv, device, max(s.batch_size, 64))
+        val_loss, val_acc = _evaluate(model, xv, yv, device, max(s.batch_size, 64), raw_v)
         watch = val_loss if np.isfinite(val_loss) else total / count
         rec = {"epoch": epoch, "train_loss": total / count, "train_acc": correct / count,
                "val_loss": val_loss, "val_acc": val_acc,

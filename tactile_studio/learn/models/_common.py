@@ -168,6 +168,11 @@ class WindowStatistics(nn.Module):
         self.norm = nn.BatchNorm1d(self.out_features)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:  # (B, C, T, R, X)
+        return self.norm(self.raw(x))
+
+    def raw(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, out_features) statistics before the batch norm: they hold no learned
+        weight, so training computes them once per window (``RecipeModel.feature_cache``)."""
         b, c, t = x.shape[:3]
         flat = x.reshape(b, c, t, -1)
         signals = [flat.mean(-1), flat.amax(-1), flat.amin(-1), flat.std(-1)]
@@ -194,8 +199,7 @@ class WindowStatistics(nn.Module):
             mean, std, ordered[..., :1], ordered[..., -1:], ordered[..., self.q_index],
             (z ** 3).mean(-1, keepdim=True), (z ** 4).mean(-1, keepdim=True) - 3,
             (s ** 2).mean(-1, keepdim=True), trend, share], dim=-1).reshape(b, -1)
-        feats = torch.sign(feats) * torch.log1p(feats.abs())
-        return self.norm(feats)
+        return torch.sign(feats) * torch.log1p(feats.abs())
 
     @staticmethod
     def _contact(load: torch.Tensor) -> torch.Tensor:
@@ -250,16 +254,32 @@ class StatisticsHead(nn.Module):
         """``count`` more independently initialised layer stacks over the same statistics."""
         self.more.extend(self._layers() for _ in range(count))
 
-    def member_logits(self, x: torch.Tensor) -> list[torch.Tensor]:
-        """Logits of every member's layers over the (shared) statistics of ``x``."""
-        feats = self.features(x)
+    def member_logits(self, x: torch.Tensor,
+                      raw: torch.Tensor | None = None) -> list[torch.Tensor]:
+        """Logits of every member's layers over the (shared) statistics of ``x`` (or of
+        its :meth:`raw_features` ``raw``, computed beforehand)."""
+        feats = self.features(x, raw)
         return [self.mlp(feats)] + [layers(feats) for layers in self.more]
 
-    def features(self, x: torch.Tensor) -> torch.Tensor:
-        """The window statistics of ``x``, and its gesture metrics when the head has them."""
+    def raw_features(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, in_features) statistics (and gesture metrics) of ``x`` before their batch
+        norms: a function of the window alone, so a training set's can be computed once."""
         if self.gesture is None:
-            return self.stats(x)
-        return torch.cat([self.stats(x), self.gesture(x)], dim=1)
+            return self.stats.raw(x)
+        return torch.cat([self.stats.raw(x), self.gesture.raw(x)], dim=1)
+
+    def features(self, x: torch.Tensor, raw: torch.Tensor | None = None) -> torch.Tensor:
+        """The window statistics of ``x``, and its gesture metrics when the head has them
+        (from ``raw`` = :meth:`raw_features` of ``x`` when given)."""
+        if raw is None:
+            if self.gesture is None:
+                return self.stats(x)
+            return torch.cat([self.stats(x), self.gesture(x)], dim=1)
+        if self.gesture is None:
+            return self.stats.norm(raw)
+        cut = self.stats.out_features
+        return torch.cat([self.stats.norm(raw[:, :cut].contiguous()),
+                          self.gesture.norm(raw[:, cut:].contiguous())], dim=1)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.mlp(self.features(x))
@@ -305,17 +325,29 @@ def random_mirror(x: torch.Tensor) -> torch.Tensor:
     """Each sample of a training batch mirrored left-right and/or top-bottom with
     probability 1/2 each (shear turned with the grid, see :func:`mirror_average`):
     geometry-respecting augmentation inside the model, free of extra copies."""
+    return random_mirror_index(x)[0]
+
+
+def random_mirror_index(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`random_mirror` and, per sample, which of :func:`mirror_images` it became
+    (0 as is, 1 left-right, 2 top-bottom, 3 both): precomputed statistics of the
+    mirror images (``RecipeModel.feature_cache``) are picked by it."""
     b, c = x.shape[:2]
     sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))
-    for dim, shear in ((4, sx), (3, sy)):
+    index = torch.zeros(b, dtype=torch.long, device=x.device)
+    x = x.clone()  # the caller's batch stays as it was
+    for dim, shear, weight in ((4, sx, 1), (3, sy, 2)):
         pick = torch.rand(b, device=x.device) < 0.5
-        flipped = torch.flip(x, (dim,))
+        index = index + pick.long() * weight
+        # only the picked samples are flipped and written back (a torch.where over the
+        # whole batch and its flipped copy took ~5x longer on CPU; the same values)
+        flipped = torch.flip(x[pick], (dim,))
         if shear is not None:
             sign = torch.ones(c, dtype=x.dtype, device=x.device)
             sign[shear] = -1.0
             flipped = flipped * sign.view(1, c, 1, 1, 1)
-        x = torch.where(pick.view(b, 1, 1, 1, 1), flipped, x)
-    return x
+        x[pick] = flipped
+    return x, index
 
 
 # options every model's full recipe adds (tiny presets keep them off)
@@ -370,8 +402,10 @@ class RecipeModel(nn.Module):
     def network_logits(self, x: torch.Tensor) -> torch.Tensor:  # pragma: no cover
         raise NotImplementedError
 
-    def member_logits(self, x: torch.Tensor) -> torch.Tensor:
-        """(members, B, n_classes): each member's network logits plus its statistics layer."""
+    def member_logits(self, x: torch.Tensor, raw: torch.Tensor | None = None) -> torch.Tensor:
+        """(members, B, n_classes): each member's network logits plus its statistics layer
+        (over ``raw``, the statistics head's :meth:`StatisticsHead.raw_features` of ``x``,
+        when the caller computed them beforehand)."""
         outs = []
         for net in (self, *self.others):
             out = net.network_logits(x)
@@ -380,27 +414,56 @@ class RecipeModel(nn.Module):
                 out = out * keep.to(out.dtype) / (1.0 - self.branch_dropout)
             outs.append(out)
         if self.stats is not None:
-            outs = [out + head for out, head in zip(outs, self.stats.member_logits(x))]
+            outs = [out + head for out, head in zip(outs, self.stats.member_logits(x, raw))]
         return torch.stack(outs)
 
-    def _fused(self, x: torch.Tensor) -> torch.Tensor:
-        logits = self.member_logits(x)
+    def _fused(self, x: torch.Tensor, raw: torch.Tensor | None = None) -> torch.Tensor:
+        logits = self.member_logits(x, raw)
         return logits[0] if len(logits) == 1 else logits.mean(0)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        if self.mirror and self.training:
-            x = random_mirror(x)
-        elif self.mirror:
-            return mirror_average(self._fused, x)
-        return self._fused(x)
+    def feature_cache(self, x: torch.Tensor) -> torch.Tensor | None:
+        """(B, images, F): the statistics head's raw features of every window of ``x``
+        and (when mirroring) of its three mirror images, in :func:`mirror_images` order;
+        None without a statistics head. They depend on the window only, not on learned
+        weights, so train.fit computes a training and validation set's once and passes
+        them to :meth:`training_step` and :meth:`forward` (``raw``) every epoch: the
+        same figures as computing them per batch, without 40 epochs of repeating it."""
+        if self.stats is None:
+            return None
+        images = mirror_images(x) if self.mirror else [x]
+        with torch.no_grad():
+            return torch.stack([self.stats.raw_features(image) for image in images], dim=1)
 
-    def training_step(self, x: torch.Tensor, y: torch.Tensor,
-                      loss_fn) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, x: torch.Tensor, raw: torch.Tensor | None = None) -> torch.Tensor:
+        """Logits of windows ``x``; ``raw``: their :meth:`feature_cache` (optional)."""
+        if self.mirror and self.training:
+            x, index = random_mirror_index(x)
+            if raw is not None:
+                raw = raw[torch.arange(len(index), device=raw.device), index]
+        elif self.mirror:
+            if raw is None:
+                return mirror_average(self._fused, x)
+            images = mirror_images(x)
+            total = self._fused(images[0], raw[:, 0])
+            for k in range(1, 4):
+                total = total + self._fused(images[k], raw[:, k])
+            return total / 4
+        elif raw is not None:
+            raw = raw[:, 0]
+        return self._fused(x, raw)
+
+    def training_step(self, x: torch.Tensor, y: torch.Tensor, loss_fn,
+                      raw: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """(loss, mean logits) of a training batch: the mean of the members' own losses
-        (train.fit calls this when a model has it)."""
+        (train.fit calls this when a model has it); ``raw``: the batch's
+        :meth:`feature_cache` (optional)."""
         if self.mirror:
-            x = random_mirror(x)
-        logits = self.member_logits(x)
+            x, index = random_mirror_index(x)
+            if raw is not None:
+                raw = raw[torch.arange(len(index), device=raw.device), index]
+        elif raw is not None:
+            raw = raw[:, 0]
+        logits = self.member_logits(x, raw)
         loss = sum(loss_fn(member, y) for member in logits) / len(logits)
         return loss, logits.mean(0)
 

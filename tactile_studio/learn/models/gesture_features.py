@@ -87,8 +87,12 @@ class GestureFeatures(nn.Module):
             self.cell_pitch.fill_(float(cell_pitch))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.norm(self.raw(x))
+
+    def raw(self, x: torch.Tensor) -> torch.Tensor:
+        """The compressed metrics before the batch norm (no learned weight in them)."""
         m = self.metrics(x)
-        return self.norm(torch.sign(m) * torch.log1p(m.abs()))
+        return torch.sign(m) * torch.log1p(m.abs())
 
     def metrics(self, x: torch.Tensor) -> torch.Tensor:
         """(B, out_features) metrics in physical units, as ``gesture_metrics`` defines

@@ -1,0 +1,84 @@
+"""Training speed-ups that must not change what is learned: the window statistics of a
+training set computed once (train.feature_cache) instead of per batch every epoch, the
+random mirror images flipped in place. Same math: same weights, same output."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from tactile_studio.learn.models import MODELS
+from tactile_studio.learn.models._common import (
+    mirror_images,
+    random_mirror,
+    random_mirror_index,
+)
+from tactile_studio.learn.train import feature_cache, fit, predict_proba, train_settings
+
+RECIPE_MODELS = ["cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
+
+
+def _data(name: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    frames = MODELS[name].view("tiny").frames
+    x = rng.normal(size=(n, 3, frames, 4, 4)).astype(np.float32)
+    y = (np.arange(n) % 3).astype(np.int64)
+    x[:, 0] += y[:, None, None, None] * 0.5  # something to learn
+    return x, y
+
+
+def _train(name: str, cached: bool, gesture: bool = False):
+    torch.manual_seed(0)
+    model = MODELS[name].build(3, 3, (4, 4), "tiny", stats=True, mirror=True, members=2,
+                               branch_dropout=0.5, gesture=gesture)
+    if not cached:
+        model.feature_cache = None  # train.fit then computes the statistics per batch
+    settings = train_settings(MODELS[name].train["tiny"], {"epochs": 3, "batch_size": 8})
+    state, history, _ = fit(model, _data(name, 30, 1), _data(name, 12, 2), settings, seed=3,
+                            device=torch.device("cpu"))
+    return model, state, history
+
+
+@pytest.mark.parametrize("name", RECIPE_MODELS)
+def test_precomputed_window_statistics_train_the_same_weights(name):
+    a, state_a, hist_a = _train(name, cached=True)
+    b, state_b, hist_b = _train(name, cached=False)
+    assert state_a.keys() == state_b.keys()  # saved run folders stay loadable
+    for key in state_a:
+        assert torch.allclose(state_a[key].float(), state_b[key].float(), atol=1e-4), key
+    for ra, rb in zip(hist_a, hist_b, strict=True):
+        assert ra["val_loss"] == pytest.approx(rb["val_loss"], abs=1e-5)
+        assert ra["train_loss"] == pytest.approx(rb["train_loss"], abs=1e-5)
+    x, _ = _data(name, 10, 5)
+    np.testing.assert_allclose(predict_proba(a, x), predict_proba(b, x), atol=1e-5)
+
+
+def test_gesture_metrics_are_cached_too_and_train_the_same():
+    _, state_a, _ = _train("cnn1d", cached=True, gesture=True)
+    _, state_b, _ = _train("cnn1d", cached=False, gesture=True)
+    for key in state_a:
+        assert torch.allclose(state_a[key].float(), state_b[key].float(), atol=1e-4), key
+
+
+def test_cached_statistics_give_the_eval_output_of_the_uncached_forward():
+    torch.manual_seed(0)
+    model = MODELS["cnn1d"].build(5, 3, (6, 6), "full").eval()
+    x = torch.randn(4, 3, MODELS["cnn1d"].view("full").frames, 6, 6)
+    raw = feature_cache(model, x.numpy())
+    assert raw.shape[:2] == (4, 4)
+    with torch.no_grad():
+        assert torch.allclose(model(x, raw=raw), model(x), atol=1e-5)
+
+
+def test_random_mirror_index_names_the_mirror_image_each_sample_became():
+    torch.manual_seed(0)
+    x = torch.randn(16, 3, 5, 4, 6)
+    images = mirror_images(x)
+    torch.manual_seed(4)
+    y, index = random_mirror_index(x)
+    assert set(index.tolist()) == {0, 1, 2, 3}
+    for i, k in enumerate(index.tolist()):
+        assert torch.equal(y[i], images[k][i])
+    torch.manual_seed(4)  # the plain version draws the same random numbers
+    assert torch.equal(random_mirror(x), y)
