@@ -97,6 +97,12 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
         assert panel.model.personalised is None and panel.model.trained is run_model
         assert "personalised" not in panel.calibration_label.text()
         assert not panel.forget_button.isEnabled()
+        # prompts for one run end when another run is loaded: they are not applied to it
+        second = panel.open_personalise()
+        qtbot.addWidget(second)
+        assert second.start() and second.timer.isActive()
+        assert panel.load_run(str(run))
+        assert not second.isVisible() and not second.timer.isActive()
     finally:
         panel = live_inference_dock(w).widget()
         panel.stop()

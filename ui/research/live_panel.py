@@ -189,8 +189,13 @@ class LiveInferencePanel(QWidget):
         """The prompts dialog for the loaded run (non-modal: the predictions stay in view)."""
         if self.model is None:
             return None
-        self.dialog = PersonaliseDialog(self.model, self.engine_fn, self)
-        self.dialog.personalised.connect(self.use_personalised)
+        if self.dialog is not None:
+            self.dialog.close()
+        model = self.model
+        self.dialog = PersonaliseDialog(model, self.engine_fn, self)
+        # a run loaded meanwhile is not given another run's personalisation
+        self.dialog.personalised.connect(
+            lambda personal: self.use_personalised(personal) if self.model is model else None)
         self.dialog.show()
         return self.dialog
 
@@ -221,6 +226,8 @@ class LiveInferencePanel(QWidget):
             self.message.setText(str(exc))
             return False
         self.stop()
+        if self.dialog is not None:  # its prompts were for the previous run
+            self.dialog.close()
         self.model = model
         d = model.describe()
         self.run_label.setText(f"{model.name}: {d['model']} ({d['channels'] or 'all'}), fold "

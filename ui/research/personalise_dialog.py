@@ -95,6 +95,13 @@ class PersonaliseDialog(QDialog):
         self._buttons()
         self.resize(520, 260)
 
+    def done(self, result: int) -> None:  # Cancel / Close / the window closed
+        """Stops watching the stream; a retraining still running is not used."""
+        self.timer.stop()
+        self.retrain_timer.stop()
+        self._retrain = {}
+        super().done(result)
+
     def _engine(self) -> Any:
         engine = self.engine_fn()
         if engine is None:
