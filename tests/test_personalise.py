@@ -27,11 +27,11 @@ def root(tmp_path_factory):
     return root
 
 
-def _run(root, model: str):
-    out = root / f"run-{model}"
+def _run(root, model: str, adapt: str = "none"):
+    out = root / f"run-{model}-{adapt}"
     if not (out / "metrics.json").is_file():
         run_experiment(ExperimentConfig(data=[str(root / "data")], model=model,
-                                        protocol="lopo", preset="tiny",
+                                        protocol="lopo", preset="tiny", adapt=adapt,
                                         cache_dir=str(root / "cache")), out)
     return out
 
@@ -54,9 +54,12 @@ def _accuracy(model: WindowModel, layout, rate, windows, gestures) -> float:
     return float(np.mean([model.labels[p] == g for p, g in zip(probs.argmax(1), gestures)]))
 
 
-@pytest.mark.parametrize("name", ["rf", "knn", pytest.param("cnn1d", marks=pytest.mark.slow)])
-def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name):
-    model = WindowModel(_run(root, name))
+@pytest.mark.parametrize("name,adapt", [
+    ("rf", "none"), ("knn", "none"),
+    ("rf", "person"),  # features standardised per person: theirs by their own touches
+    pytest.param("cnn1d", "none", marks=pytest.mark.slow)])
+def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt):
+    model = WindowModel(_run(root, name, adapt))
     layout, rate, windows, gestures, blocks = _new_person(model, root / "new.h5")
     test = [i for i, b in enumerate(blocks) if b >= 2]
     tw, tg = [windows[i] for i in test], [gestures[i] for i in test]
@@ -69,6 +72,7 @@ def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name):
                                [gestures[i] for i in shots], rate, seed=0)
         assert personal.per_gesture == k and personal.windows == 9 * k
         assert personal.how == ("fine-tuned" if name == "cnn1d" else "refit")
+        assert (personal.reference is not None) == (adapt == "person")
         model.personalise(personal)
         gains.append(_accuracy(model, layout, rate, tw, tg) - before)
         model.forget_personalisation()
