@@ -80,7 +80,11 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     curve = ", ".join(f"K={s['k']} {s['trial_accuracy']:.2f}" for s in metrics["shots"])
     assert f"few-shot curve {curve}" in panel.status.text()
     names = [panel.folds.item(r, 1).text() for r in range(panel.folds.rowCount())]
-    assert sorted(names) == sorted(f"P0{p} k{k}" for p in (1, 2, 3) for k in (0, 1))
+    assert sorted(names[:6]) == sorted(f"P0{p} k{k}" for p in (1, 2, 3) for k in (0, 1))
+    # the curve under the folds: all people at each K
+    assert names[6:] == ["all, K=0", "all, K=1"]
+    assert [panel.folds.item(r, 4).text() for r in (6, 7)] == \
+        [f"{100 * s['trial_accuracy']:.1f}%" for s in metrics["shots"]]
     SHOTS.mkdir(parents=True, exist_ok=True)
     w.grab().save(str(SHOTS / "research_train_shots.png"))
     # persisted with the panel's other choices

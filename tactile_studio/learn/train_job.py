@@ -10,8 +10,9 @@ so no Qt or torch state is inherited) that runs :func:`run_experiment` into ``ou
   "train_acc", "val_loss", "val_acc"}``
 * ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy",
   "trial_accuracy", "cut", "resumed"}`` (cut: the fold's trials were cut into windows)
-* ``{"type": "done", "accuracy", "headline", "shots", "out"}`` (headline: both figures when
-  trials were cut into windows; ``shots``: a few-shot run's curve over K, else "") /
+* ``{"type": "done", "accuracy", "headline", "shots", "curve", "out"}`` (headline: both
+  figures when trials were cut into windows; ``shots``: a few-shot run's curve over K in
+  words, else ""; ``curve``: its ``{"k", "accuracy", "trial_accuracy"}`` per K) /
   ``{"type": "cancelled"}`` /
   ``{"type": "error", "message"}`` — the last event of a job; a worker that dies without
   one (killed, segfault) is reported as an ``error`` too.
@@ -117,7 +118,10 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
                                 listener)
         events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]),
                     "headline": headline(result.metrics),
-                    "shots": shots_curve(result.metrics.get("shots")), "out": out})
+                    "shots": shots_curve(result.metrics.get("shots")),
+                    "curve": [{key: s.get(key) for key in ("k", "accuracy", "trial_accuracy")}
+                              for s in result.metrics.get("shots") or []],
+                    "out": out})
     except Cancelled:
         events.put({"type": "cancelled"})
     except UserError as exc:

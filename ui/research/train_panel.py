@@ -418,6 +418,12 @@ class TrainPanel(QWidget):
             self.progress.setValue(100)
             curve = f" · few-shot curve {f['shots']}" if f.get("shots") else ""
             self.status.setText(f"finished: {f['headline']}{curve} ({job.out})")
+            for s in f.get("curve") or []:  # the curve under the folds: all people per K
+                acc = s.get("trial_accuracy")
+                acc = s.get("accuracy") if acc is None else acc
+                self._row((Path(job.out).name, -1, int(s["k"])), f"all, K={s['k']}", None,
+                          None, None if acc is None else f"{100 * acc:.1f}%",
+                          "few-shot curve")
             self.runFinished.emit(job.out)
             if not self.queue and self.out.text() == self._auto_out:
                 self.new_run_folder()  # Train again makes a new run, not a resume
