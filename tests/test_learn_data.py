@@ -211,6 +211,13 @@ def test_all_inclusive_stratified_70_20_10():
     assert not np.array_equal(f.test, g.test)  # new seed, new split
 
 
+def test_all_inclusive_with_one_trial_per_gesture_is_refused_in_one_line():
+    """A session cut short after one trial of each gesture (disk full mid-collection) left
+    the test part empty and ``train`` ended in a numpy reshape traceback."""
+    with pytest.raises(UserError, match="no test trial: 7 trial"):
+        all_inclusive(np.arange(7), seed=0)
+
+
 def test_group_kfold_holds_out_participants():
     labels, parts = _toy(12, 9)
     folds = group_kfold(labels, parts, seed=0, k=5)

@@ -114,6 +114,10 @@ def all_inclusive(labels: np.ndarray, seed: int,
                   fractions: tuple[float, float, float] = (0.7, 0.2, 0.1)) -> list[Fold]:
     rng = np.random.default_rng([seed, 0xA11])
     train, val, test = stratified_parts(np.arange(len(labels)), labels, fractions, rng)
+    if len(test) == 0:  # every gesture has one trial: nothing to test on (was a traceback)
+        raise UserError(f"the all-inclusive split has no test trial: {len(labels)} trial(s), "
+                        "one of each gesture, and a gesture needs 2 trials to reach the "
+                        "test set; record more trials")
     return [Fold("all", train, val, test)]
 
 
