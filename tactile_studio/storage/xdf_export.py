@@ -13,7 +13,9 @@ Streams (ids in this order):
 
 Timestamps: when the session has ``lsl_clock`` events (it was recorded while streaming
 to LSL), every time is on LSL's clock, ``host_time + offset_s`` with the offset in force
-at that row, exactly the stamps the live outlet sent; otherwise host (Unix) time. Every
+at that row, exactly the stamps the live outlet sent; otherwise host (Unix) time, paced
+by the device clock when the recording ran faster or slower than real time (the
+simulator's or replay's ``speed`` other than 1: ``paced_host``). Every
 stream is on that one clock, so the ClockOffset chunks (one per stream every 10 s of
 data, like LabRecorder's) all say 0. Every redone or discarded trial is written too,
 with its status.
@@ -115,9 +117,32 @@ def _frame_stream(s: Session, host: np.ndarray, stamps: np.ndarray, lsl: bool) -
                      s.raw().astype(np.int32 if integer else np.float32), desc)
 
 
-def session_markers(s: Session, host: np.ndarray, index: np.ndarray
-                    ) -> list[tuple[float, dict[str, Any]]]:
-    """(host time, marker) of every event and trial boundary, in time order."""
+def paced_host(s: Session, host: np.ndarray) -> np.ndarray:
+    """The host clock of a recording made faster or slower than real time (a simulator or
+    replay ``speed`` other than 1: speed 0 writes a minute in a second, in bursts) follows
+    the device clock from the first frame's host time, so an XDF reader sees the real rate
+    and pyxdf's dejittering keeps every marker on its frame; other sessions keep theirs."""
+    try:
+        speed = float(((s.metadata.get("device") or {}).get("settings") or {}).get("speed"))
+    except (TypeError, ValueError):
+        return host
+    dev = s.column("device_time")
+    if speed == 1.0 or len(dev) != len(host) or not np.all(np.diff(dev) >= 0):
+        return host
+    return host[0] + (dev - dev[0])
+
+
+def _on_clock(times: np.ndarray, recorded: np.ndarray, host: np.ndarray) -> np.ndarray:
+    """Host times (events without a frame, auxiliary samples) on ``host``'s clock."""
+    if host is recorded:
+        return times
+    return np.interp(times, recorded, host)
+
+
+def session_markers(s: Session, host: np.ndarray, index: np.ndarray,
+                    recorded: np.ndarray | None = None) -> list[tuple[float, dict[str, Any]]]:
+    """(host time, marker) of every event and trial boundary, in time order; ``recorded``:
+    the file's own host times when ``host`` is paced (:func:`paced_host`)."""
     n = len(host)
     out: list[tuple[float, dict[str, Any]]] = []
 
@@ -136,6 +161,8 @@ def session_markers(s: Session, host: np.ndarray, index: np.ndarray
             marker["row"] = int(row)
         else:
             t = float(e.get("time") or (host[-1] if n else 0.0))
+            if recorded is not None and e.get("time"):
+                t = float(_on_clock(np.array([t]), recorded, host)[0])
         out.append((t, marker))
     for t in s.trials:
         a, b = int(t["start_sample"]), min(int(t["end_sample"]), n)
@@ -159,9 +186,12 @@ def session_streams(s: Session) -> list[XdfStream]:
     if len(host) == 0:
         raise UserError(f"{s.path}: session has no frames to export")
     clock = Timeline(host, s.events)
+    recorded = host
+    if not clock.lsl:
+        host = paced_host(s, host)
     stamps = host + clock.rows_offset(np.arange(len(host)))
     frames = _frame_stream(s, host, stamps, clock.lsl)
-    markers = session_markers(s, host, s.column("index"))
+    markers = session_markers(s, host, s.column("index"), recorded)
     texts = [[json.dumps(m, separators=(",", ":"), default=str)] for _, m in markers]
     mtimes = np.array([t for t, _ in markers], dtype=np.float64)
     mdesc = {"tactile_studio": {"format": "json", "frame_stream": frames.name,
@@ -173,7 +203,8 @@ def session_streams(s: Session) -> list[XdfStream]:
         chans = [{"label": label, "unit": aux.unit} for label in aux.labels]
         streams.append(XdfStream(aux.name, aux.type or "Misc", "double64", aux.rate_hz,
                                  aux.source_id or f"tactile-studio:aux:{aux.name}",
-                                 aux.time + clock.times_offset(aux.time), aux.values,
+                                 _on_clock(aux.time, recorded, host)
+                                 + clock.times_offset(aux.time), aux.values,
                                  {"channels": {"channel": chans}}))
     return streams
 
