@@ -223,3 +223,18 @@ def test_runs_are_named_by_what_differs_and_the_cli_tables_line_up(runs, capsys)
     assert runs_table[0].index("%") == runs_table[1].index("%")  # accuracies in one column
     people = [ln for ln in lines if ln.startswith(("participant", "P0"))]
     assert len(people) == 6 and len({len(ln) for ln in people}) == 1  # right-aligned rows
+
+
+def test_a_run_on_the_models_default_channels_is_named_by_the_channels_it_used(runs):
+    """train without --channels stores channels None: compare named that run "None
+    channels" beside a run on the same channels (walking the README: rf vs cnn1d)."""
+    root = runs["both"].parent
+    cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels=None,
+                           protocol="lopo", preset="tiny", cache_dir=str(root / "cache"),
+                           overrides={"n_neighbors": 3})
+    run_experiment(cfg, root / "default-channels")
+    r = compare_runs(root / "default-channels", runs["both"])
+    assert (r["name_a"], r["name_b"]) == ("n_neighbors 3", "n_neighbors default")
+    assert compare_runs(runs["normal"], root / "default-channels")["name_b"] == \
+        "both channels · n_neighbors 3"
+    assert "None" not in r["sentence"]

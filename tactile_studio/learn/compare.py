@@ -59,22 +59,32 @@ def _phrase(run: RunPredictions, key: str, value: Any) -> str:
     return _PHRASE.get(key, "{}").format(value)
 
 
+def _labelled(run: RunPredictions) -> dict[str, Any]:
+    """The run's labelled settings as it ran: ``channels`` left to the model's default
+    (None, as train without --channels writes it) is the set it used ("None channels"
+    named a difference two runs on the same channels did not have)."""
+    since = result_defaults()
+    out = {k: run.config.get(k, since.get(k)) for k in _LABELLED}
+    if out["channels"] is None:
+        out["channels"] = (run.resolved.get("dataset") or {}).get("channels")
+    return out
+
+
 def run_label(run: RunPredictions, other: RunPredictions) -> str:
     """A short name for a run next to another, by what differs: the value of the one
     setting they differ in (``both``), else up to three phrases ("rf · preset tiny";
     model options too: "n_estimators 80"), else the folder name. A folder name says
     nothing about the runs ("rf-tiny beats normal" compared two folder names)."""
-    since = result_defaults()
-    keys = [k for k in _LABELLED
-            if run.config.get(k, since.get(k)) != other.config.get(k, since.get(k))]
+    mine_set, theirs_set = _labelled(run), _labelled(other)
+    keys = [k for k in _LABELLED if mine_set[k] != theirs_set[k]]
     mine, theirs = run.config.get("overrides") or {}, other.config.get("overrides") or {}
     opts = [k for k in sorted(set(mine) | set(theirs)) if mine.get(k) != theirs.get(k)]
     if "model" in keys:  # a model's options differ with it: the model says it
         opts = []
-    if len(keys) == 1 and not opts and run.config.get(keys[0], since.get(keys[0])) is not None:
-        value = run.config.get(keys[0], since.get(keys[0]))
+    if len(keys) == 1 and not opts and mine_set[keys[0]] is not None:
+        value = mine_set[keys[0]]
         return _phrase(run, keys[0], value) if keys[0] in ("model", "adapt") else str(value)
-    phrases = [_phrase(run, k, run.config.get(k, since.get(k))) for k in keys]
+    phrases = [_phrase(run, k, mine_set[k]) for k in keys]
     phrases += [f"{k} {mine.get(k, 'default')}" for k in opts]
     if 1 <= len(phrases) <= 3:
         return " · ".join(phrases)
