@@ -198,12 +198,17 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
     xt, yt = train
     xv, yv = val
     raw_t = feature_cache(model, xt, device)
+    # a model may train faster with its weights in another memory layout (mts3d's 3-D
+    # convolutions: channels-last, ~30% less CPU per step; slower in evaluation)
+    layout = getattr(model, "train_memory_format", None) if device.type == "cpu" else None
     raw_v = feature_cache(model, xv, device)
     history: list[dict[str, Any]] = []
     best_loss, best_epoch, best_state, stale = float("inf"), 0, None, 0
     for epoch in range(1, s.max_epochs + 1):
         t0 = time.perf_counter()
         model.train()
+        if layout is not None:  # see below; back to the usual layout before evaluating
+            model.to(memory_format=layout)
         for group in opt.param_groups:
             group["lr"] = s.lr * _lr_factor(recipe, epoch, s.max_epochs)
         total, correct, count = 0.0, 0, 0
@@ -227,6 +232,8 @@ def fit(model: nn.Module, train: tuple[np.ndarray, np.ndarray],
             total += float(loss.detach()) * len(idx)
             correct += int((logits.argmax(1) == yb).sum())
             count += len(idx)
+        if layout is not None:
+            model.to(memory_format=torch.contiguous_format)
         val_loss, val_acc = _evaluate(model, xv, yv, device, max(s.batch_size, 64), raw_v)
         watch = val_loss if np.isfinite(val_loss) else total / count
         rec = {"epoch": epoch, "train_loss": total / count, "train_acc": correct / count,

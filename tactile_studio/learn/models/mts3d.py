@@ -82,6 +82,14 @@ class BasicBlock3D(nn.Module):
         return F.relu(h + self.shortcut(x))
 
 
+class _Dropout(nn.Dropout):
+    """Dropout drawn over the usual (contiguous) layout: with channels-last feature maps
+    (``MTS3D.train_memory_format``) the same random numbers would land on other cells."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return super().forward(x.contiguous())
+
+
 class Backbone(nn.Module):
     """ResNet3D-18-style feature extractor: (B, C, T, R, X) -> (B, widths[-1])."""
 
@@ -98,7 +106,7 @@ class Backbone(nn.Module):
             layers = [BasicBlock3D(cin, width, 1 if i == 0 else 2)]
             layers += [BasicBlock3D(width, width, 1) for _ in range(n - 1)]
             if i == 1:
-                layers.append(nn.Dropout(dropout))
+                layers.append(_Dropout(dropout))
             stages.append(nn.Sequential(*layers))
             cin = width
         self.stages = nn.Sequential(*stages)
@@ -108,6 +116,10 @@ class Backbone(nn.Module):
 
 
 class MTS3D(RecipeModel):
+    # train.fit trains it with channels-last weights: oneDNN's 3-D convolutions take ~30%
+    # less CPU per training step that way (evaluation is faster in the usual layout)
+    train_memory_format = torch.channels_last_3d
+
     def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
                  dropout: float, stats: bool = False, stats_hidden: int = 16,
                  mirror: bool = False, branch_dropout: float = 0.0, gesture: bool = False,
