@@ -16,7 +16,7 @@ from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
-from tactile_studio.errors import UserError
+from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.storage.session import Session
@@ -105,6 +105,8 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(f"{out}: the recording did not start")
     print(f"\n{outcome.summary_line}")
     outcome.raise_if_incomplete()  # device lost, write failed, frames lost: exit 3
+    if token.cancelled:  # Ctrl-C or SIGTERM before --seconds: exit 130, as collect and train
+        raise Cancelled
     return 0
 
 
