@@ -89,6 +89,10 @@ def test_resume_continues_the_device_clock_and_refuses_another_sensor(
     assert main(["info", str(path), str(backup)]) == 0
     out = capsys.readouterr().out
     assert "resume backup" in out and "ok trials: 9 of 9 gestures (1 each)" in out
+    # named alone it says so too, and which file the session continues in
+    assert main(["info", str(backup)]) == 0
+    out = capsys.readouterr().out
+    assert f"backup:     a resume backup: the session continues in {path.name}" in out
 
 
 def test_resume_on_another_sensor_with_a_note_keeps_the_note(tmp_path: Path, capsys) -> None:

@@ -218,6 +218,12 @@ def cmd_info(args: argparse.Namespace) -> int:
            if summary["events"] else ""),
         f"closed:     {_closed_text(summary)}",
     ]
+    from tactile_studio.storage.session_set import BACKUP_RE, is_resume_backup
+
+    if is_resume_backup(Path(args.file[0])):  # as the table of several files marks it
+        lines.insert(1, f"backup:     a resume backup: the session continues in "
+                        f"{BACKUP_RE.sub('', Path(args.file[0]).stem)}.h5 "
+                        "(folders and datasets skip this file)")
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
     if meta.get("notes"):
