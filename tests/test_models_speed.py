@@ -84,20 +84,22 @@ def test_random_mirror_index_names_the_mirror_image_each_sample_became():
     assert torch.equal(random_mirror(x), y)
 
 
-def test_mts3d_trains_the_same_in_the_channels_last_layout():
-    """mts3d trains with channels-last weights (faster 3-D convolutions on CPU); its
-    dropout still draws over the usual layout, so the same weights come out."""
+@pytest.mark.parametrize("name,layout", [("mts3d", torch.channels_last_3d),
+                                         ("cnn_transformer", torch.channels_last)])
+def test_a_model_trains_the_same_in_its_channels_last_layout(name, layout):
+    """mts3d and cnn_transformer train with channels-last weights (faster convolutions on
+    CPU); mts3d's dropout still draws over the usual layout, so the same weights come out."""
     out = []
-    for layout in (True, False):
+    for faster in (True, False):
         torch.manual_seed(0)
-        model = MODELS["mts3d"].build(3, 3, (4, 4), "tiny", stats=True, mirror=True,
-                                      dropout=0.3)
-        assert model.train_memory_format == torch.channels_last_3d
-        if not layout:
+        model = MODELS[name].build(3, 3, (4, 4), "tiny", stats=True, mirror=True, dropout=0.3)
+        assert model.train_memory_format == layout
+        if not faster:
             model.train_memory_format = None
-        settings = train_settings(MODELS["mts3d"].train["tiny"], {"epochs": 3, "batch_size": 8})
-        state, _, _ = fit(model, _data("mts3d", 30, 1), _data("mts3d", 12, 2), settings,
+        settings = train_settings(MODELS[name].train["tiny"], {"epochs": 3, "batch_size": 8})
+        state, _, _ = fit(model, _data(name, 30, 1), _data(name, 12, 2), settings,
                           seed=3, device=torch.device("cpu"))
         assert all(v.is_contiguous() for v in state.values())  # saved as usual
-        out.append(predict_proba(model, _data("mts3d", 10, 5)[0]))
-    np.testing.assert_allclose(out[0], out[1], atol=1e-4)
+        out.append(predict_proba(model, _data(name, 10, 5)[0]))
+    # float noise of another summation order only (different dropout draws: ~0.2)
+    np.testing.assert_allclose(out[0], out[1], atol=2e-3)

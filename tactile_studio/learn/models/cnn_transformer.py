@@ -149,6 +149,10 @@ class FrameCNN(nn.Module):
 
 
 class CNNTransformer(RecipeModel):
+    # train.fit trains it with channels-last conv weights: the per-frame CNN's steps take
+    # ~10% less CPU that way (no dropout acts on its feature maps, so nothing else changes)
+    train_memory_format = torch.channels_last
+
     def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int], filters,
                  dense: int, d_model: int, heads: int, layers: int, ff: int, dropout: float,
                  mirror: bool = False, stats: bool = False, stats_hidden: int = 16,
