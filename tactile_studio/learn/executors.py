@@ -218,7 +218,7 @@ class LocalRay:
 
         env = {"RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER": "0"}
         if not (os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH")):
-            env["RAY_AUTH_TOKEN"] = secrets.token_hex(32)
+            env["RAY_AUTH_TOKEN"] = _process_token()
         for key in (*env, "RAY_AUTH_MODE"):  # Ray sets RAY_AUTH_MODE itself
             self._saved[key] = os.environ.get(key)
         os.environ.update(env)
@@ -267,6 +267,18 @@ class LocalRay:
         if constants is not None:  # as the restored environment says (a cluster run next)
             constants.ENABLE_RAY_CLUSTER = constants.env_bool(
                 constants.ENABLE_RAY_CLUSTERS_ENV_VAR, not constants.IS_WINDOWS_OR_OSX)
+
+
+_TOKEN: list[str] = []
+
+
+def _process_token() -> str:
+    """One token for every local Ray instance this process starts: Ray's driver keeps the
+    token it first read, so a second instance with a new one failed to start ("Failed to
+    start GCS": its health check was refused)."""
+    if not _TOKEN:
+        _TOKEN.append(secrets.token_hex(32))
+    return _TOKEN[0]
 
 
 def check_address(address: str, timeout: float = 3.0) -> None:
