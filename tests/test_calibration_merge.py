@@ -10,6 +10,7 @@ import json
 import pytest
 
 from tactile_studio.cli import main
+from tactile_studio.errors import EXIT_INCOMPLETE
 from tactile_studio.storage.logbook import Logbook
 
 SIM = ["--device", "simulated", "--set", "speed=0", "--set", "seed=6", "--sensor", "sim-6",
@@ -122,3 +123,18 @@ def test_a_characterisation_calibration_merges_too(capsys, tmp_path):
         merged = book.calibration(2)
     assert merged["kind"] == "characterisation" and len(merged["fits"]) == 36
     assert [f["taxel"] for f in merged["fits"] if f.get("from_calibration") is None] == ["B2"]
+
+
+def test_a_taxel_that_cannot_be_calibrated_stores_the_others_and_exits_3(capsys, tmp_path):
+    """Asked for B2 and E5 with B2 dead: E5 was stored and the command exited 0, as if
+    both had been calibrated (walking issue 33's 'documented non-zero exit')."""
+    dead = ["--set", "fault=dead_taxel", "--set", "fault_taxel=B2"]
+    code = main(["calibrate", *SIM, *dead, "--loads-g", "20,50,100,200,500", "--taxels",
+                 "B2,E5", "--out", str(tmp_path / "two.json")])
+    out, err = capsys.readouterr()
+    assert code == EXIT_INCOMPLETE
+    assert "not calibrated: B2:" in out
+    errors = [ln for ln in err.splitlines() if ln.startswith("tactile-studio: error:")]
+    assert len(errors) == 1 and "1 taxel(s) not calibrated (B2: " in errors[0]
+    cals = sensor_json(capsys)["calibrations"]
+    assert [(c["id"], c["measured"], c["active"]) for c in cals] == [(1, ["E5"], True)]

@@ -11,7 +11,14 @@ from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_CHECK_WARN, EXIT_OK, CheckFailed, UserError
+from tactile_studio.errors import (
+    EXIT_CHECK_FAIL,
+    EXIT_CHECK_WARN,
+    EXIT_OK,
+    CheckFailed,
+    IncompleteError,
+    UserError,
+)
 from tactile_studio.health.bench import Placer, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
 from tactile_studio.health.history import covers_text
@@ -179,6 +186,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                           for f in cal["fits"] if f.get("from_calibration") is None]}
     if args.json:
         _dump(summary)
+        _raise_if_skipped(cal)
         return 0
     print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
     print(f"  {coverage_line(cal)}")
@@ -189,7 +197,19 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
               f"rms {f['rms_pct']:.2f}%")
     for skip in cal["skipped"]:
         print(f"  not calibrated: {skip['reason']}")
+    _raise_if_skipped(cal)
     return 0
+
+
+def _raise_if_skipped(cal: dict) -> None:
+    """Some asked-for taxels could not be calibrated (dead, misplaced, saturated): what
+    was measured is stored, and the exit status says the request was not met (3)."""
+    if cal["skipped"]:
+        n = len(cal["skipped"])
+        raise IncompleteError(
+            f"calibration #{cal['calibration_id']} of {cal['sensor']}: {n} taxel(s) not "
+            f"calibrated ({cal['skipped'][0]['reason']}{'; ...' if n > 1 else ''}); "
+            "the others were stored")
 
 
 def _dump(obj: Any) -> None:
