@@ -17,6 +17,7 @@ from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
 from tactile_studio.sensor.wellness import parse_taxel
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.sensor_book import sensor_metadata
 from tactile_studio.storage.session import Session
 
 TAXELS = ("B2", "B5", "E2", "E5", "A1", "C4")
@@ -94,7 +95,7 @@ def test_sessions_decode_with_any_calibration_of_their_sensor(tmp_path):
     # record a known 150 g press with the active calibration
     dev = SimulatedSensor(speed=0, gesture="idle", sensitivity_spread=0.15, seed=6)
     engine = AcquisitionEngine(dev)
-    rec = Recorder(engine, tmp_path / "s.h5").start()
+    rec = Recorder(engine, tmp_path / "s.h5", sensor_metadata(engine, None)).start()
     engine.start()
     assert engine.wait_frames(200, timeout=20)
     trial = dev.place_weight(150, "C3", duration_s=15)

@@ -16,6 +16,7 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
+from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.storage.logbook import MIGRATIONS, Logbook, UnknownSensor
 from tactile_studio.storage.recorder import Recorder
@@ -97,17 +98,29 @@ def test_recording_stores_sensor_and_calibration_and_adds_hours(data_dir, tmp_pa
     with Logbook() as book:
         book.ensure_sensor("sim-7")
         cal = book.add_calibration("sim-7", "plate", 0.3, {"fits": []})
-    engine = AcquisitionEngine(SimulatedSensor(seed=7, speed=0, gesture="idle"))
-    rec = Recorder(engine, tmp_path / "s.h5").start()
-    engine.start()
+    acq = AcquisitionSession()  # the session books the sensor; the file writer never does
+    engine = acq.use_device(SimulatedSensor(seed=7, speed=0, gesture="idle"))
+    acq.start_recording(tmp_path / "s.h5")
+    acq.start()
     assert engine.wait_frames(430, timeout=20)
-    engine.stop()
-    rec.stop()
+    acq.disconnect()
     with Session(tmp_path / "s.h5") as s:
         meta, frames = s.metadata, s.n_frames
     assert meta["sensor_id"] == "sim-7" and meta["calibration_id"] == cal
     with Logbook() as book:
         assert book.hours("sim-7") * 3600 == pytest.approx(frames / 43.0)
+
+
+def test_the_file_writer_never_opens_the_logbook(data_dir, tmp_path):
+    engine = AcquisitionEngine(SimulatedSensor(seed=7, speed=0, gesture="idle"))
+    rec = Recorder(engine, tmp_path / "s.h5").start()
+    engine.start()
+    assert engine.wait_frames(100, timeout=20)
+    engine.stop()
+    rec.stop()
+    with Session(tmp_path / "s.h5") as s:  # the device's own sensor ID, no calibration
+        assert s.metadata["sensor_id"] == "sim-7" and "calibration_id" not in s.metadata
+    assert not (data_dir / "logbook.sqlite").exists()
 
 
 def test_record_cli_with_a_typed_sensor_id(data_dir, tmp_path):

@@ -22,6 +22,7 @@ from tactile_studio.instruments.contract import ForcePlugin, InstrumentError, St
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.characterise import taxel_signals
 from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 
 _KEEP_S = 120.0  # how much recent sensor/force history a measurement can look back on
 
@@ -51,8 +52,8 @@ class Lab:
         self.clock = stage.clock()
         self.engine = AcquisitionEngine(device)
         self.engine.start()
-        self.recorder = Recorder(self.engine, session_path, metadata={
-            **metadata, "characterisation_clock": self.clock.name}).start()
+        self.recorder = Recorder(self.engine, session_path, sensor_metadata(self.engine, {
+            **metadata, "characterisation_clock": self.clock.name})).start()
         self._cursor = self.engine.frames
         self._t = np.empty(0)
         self._raw = np.empty((0, self.layout.n_channels), dtype=self.layout.raw_dtype)
@@ -68,6 +69,7 @@ class Lab:
 
     def close(self) -> None:
         self.recorder.stop()
+        book_usage(self.recorder)
         self.engine.stop()
 
     # ---- streams ---------------------------------------------------------------------

@@ -41,6 +41,7 @@ from tactile_studio.live.outcome import RecordingOutcome, outcome_of
 from tactile_studio.live.status import LiveStatus
 from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 from tactile_studio.storage.session_compress import wait_for_compression
 
 Listener = Callable[[dict[str, Any]], None]
@@ -177,8 +178,8 @@ class AcquisitionSession:
             raise UserError("connect a device before recording")
         self.stop_recording()
         self._stop_at = self._stop_rows = None
-        self.recorder = Recorder(self.engine, path, metadata, row_offset=row_offset,
-                                 base_counters=base_counters)
+        self.recorder = Recorder(self.engine, path, sensor_metadata(self.engine, metadata),
+                                 row_offset=row_offset, base_counters=base_counters)
         if start:
             self.recorder.start()
         self._health = StreamHealth(self.engine, self.device_name, self.silence_warning_s,
@@ -215,6 +216,7 @@ class AcquisitionSession:
         self._close_outlets()  # an outlet's last markers go into the file too
         # idempotent: a collection session may have closed it already
         rec.stop(background_compress=self.compress_in_background)
+        book_usage(rec)  # the hours of use: booked here, never by the file writer
         eng = self.engine
         self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
         if rec.write_error:

@@ -16,10 +16,6 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.frame_stream import RecordableStream, hold_frames
-from tactile_studio.errors import UserError
-from tactile_studio.paths import text_path
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.logbook_file import say_once
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 from tactile_studio.storage.trials import TrialRecord
@@ -58,9 +54,13 @@ class Recorder:
         self.base_counters = dict(base_counters or {})
         self.device_time_offset = 0.0  # added to the device's clock (a resume continues it)
         self._lock = threading.RLock()
-        metadata = sensor_metadata(engine, metadata)
-        self.sensor_id: str | None = metadata.get("sensor_id")
+        # the sensor comes in from outside (storage/sensor_book.py looks it up in the
+        # logbook): the writer never opens the logbook; else the device's own ID
+        metadata = dict(metadata or {})
+        metadata["sensor_id"] = metadata.get("sensor_id") or engine.sensor_id()
+        self.sensor_id: str | None = metadata["sensor_id"]
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
+        self.usage_booked = False  # set by storage/sensor_book.book_usage
         self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
                                     flush_interval=flush_interval)
         self.poll_s = poll_s
@@ -86,6 +86,7 @@ class Recorder:
                        if line]
         # (engine frame, kind, time, detail) of events at frames not pulled yet
         self._pending: list[tuple[int, str, float, dict[str, Any]]] = []
+        self._end: int | None = None  # engine frame the file ends before (end_at)
         _OPEN.add(self)
 
     @property
@@ -165,6 +166,14 @@ class Recorder:
         themselves)."""
         with self._unless_failed():
             self.writer.add_event(kind, **detail)
+
+    def end_at(self, engine_frame: int) -> None:
+        """The file ends before engine frame ``engine_frame`` (a collection's end): later
+        frames are not written, and a device that waits for this recorder is let go
+        once it is reached. A simulator at speed 0 streams ahead of a finished runner,
+        so without this a collection's length depended on the simulator's speed."""
+        with self._lock:
+            self._end = int(engine_frame)
 
     def add_event_at(self, engine_frame: int, kind: str, **detail: Any) -> None:
         """An event at engine frame ``engine_frame`` (the collection runner's: where it
@@ -253,6 +262,8 @@ class Recorder:
             if self.write_error is None:
                 try:
                     self._write_pending(final=True)
+                    if self._end is not None:  # pulled past the end before it was known
+                        self.writer.truncate(self.row_of(self._end))
                 except WriteFailed as exc:
                     self.write_error = str(exc)
         self._release()
@@ -260,7 +271,6 @@ class Recorder:
         if self.write_error is None and self.writer.failed:  # the closing touches failed
             self.write_error = self.writer.failed
         _OPEN.discard(self)
-        self._log_usage()
 
     @property
     def stopped(self) -> bool:
@@ -281,17 +291,6 @@ class Recorder:
         if self.stopped:
             return "stopped"
         return "running" if self._thread.is_alive() else "idle"
-
-    def _log_usage(self) -> None:
-        """Add this recording's duration to the sensor's hours of use in the logbook."""
-        rate = float(self.engine.nominal_rate_hz or 0.0)
-        if not self.sensor_id or rate <= 0 or self.recorded == 0:
-            return
-        try:
-            with Logbook() as book:
-                book.add_usage(self.sensor_id, self.recorded / rate, text_path(self.path))
-        except UserError as exc:  # the recording itself is safe on disk; say so (once), go on
-            say_once(f"sensor logbook not used for this recording: {exc}")
 
     def _run(self) -> None:
         try:
@@ -324,7 +323,8 @@ class Recorder:
                 self.write_error = str(exc)
 
     def _drain_locked(self) -> None:
-        chunk = self.engine.read_since(self._cursor)
+        limit = None if self._end is None else max(0, self._end - self._cursor)
+        chunk = self.engine.read_since(self._cursor, limit)
         if chunk.lost:
             self._losses.append((chunk.start - chunk.lost, chunk.start, self.dropped))
             self.dropped += chunk.lost
@@ -337,11 +337,16 @@ class Recorder:
                                       chunk.seq, index=np.arange(chunk.start, chunk.stop))
             self._cursor = chunk.stop
             self.recorded += len(chunk)
+        if self._end is not None and self._cursor >= self._end:
+            self._release()  # the file is complete: a waiting device may run on
+            self._release = lambda: None
         for event in self.engine.events_since(self._event_cursor):
             self._event_cursor += 1
             event = dict(event)
             kind = event.pop("kind")
             frame = self.row_of(int(event.pop("frame")))
+            if self._end is not None:  # after the file's end: at its last row
+                frame = min(frame, self.row_of(self._end))
             t = event.pop("time")
             if kind == "tare" and "baseline" in event:
                 self.writer.add_baseline(event["baseline"], frame)
@@ -359,6 +364,8 @@ class Recorder:
         keep = []
         for frame, kind, t, detail in self._pending:
             if final or frame < self._cursor:
+                if self._end is not None:
+                    frame = min(frame, self._end)
                 self.writer.add_event(kind, frame=self.row_of(frame), time_s=t, **detail)
             else:
                 keep.append((frame, kind, t, detail))
@@ -398,19 +405,3 @@ def _stop_open_recorders() -> None:
         except Exception:  # noqa: BLE001 - exiting anyway; the next file must still close
             logging.getLogger(__name__).exception("%s: not closed at exit", recorder.path)
 
-
-def sensor_metadata(engine: RecordableStream,
-                    metadata: dict[str, Any] | None) -> dict[str, Any]:
-    """Session metadata with the sensor ID (given, else the device's own) and the ID of
-    the sensor's active calibration in the logbook (so any later decode knows it)."""
-    meta = dict(metadata or {})
-    sensor = meta.get("sensor_id") or engine.sensor_id()
-    meta["sensor_id"] = sensor
-    if sensor and "calibration_id" not in meta:
-        try:
-            with Logbook() as book:
-                book.ensure_sensor(sensor, engine.layout.name)
-                meta["calibration_id"] = book.active_calibration(sensor)
-        except UserError as exc:  # damaged or unwritable: never written into; said once
-            say_once(f"sensor logbook not used for this recording: {exc}")
-    return meta
