@@ -81,3 +81,10 @@ def test_event_frames_and_trial_rows_are_the_same_at_speed_0_1_and_20(
     assert events[-1][2] == trials[-1][4] and events[3][2] == trials[2][4]
     assert trials[2][4] <= events[5][2] <= trials[3][3]
     assert written["0"] == written["20"] and written["1"] == written["20"]
+    # and so does the file's length: it ends with the session, not a ring of idle frames
+    # later (speed 0 wrote 7,461 frames against 2,881 at speed 20)
+    lengths = {}
+    for speed, path in runs.items():
+        with Session(path) as s:
+            lengths[speed] = s.n_frames
+    assert lengths["0"] == lengths["1"] == lengths["20"] == events[-1][2] + 1, lengths

@@ -359,6 +359,9 @@ class CollectionRunner(RunnerInputs):
 
     def _finish(self) -> None:
         self._log("session_end", trials=len(self.records))
+        end_at = getattr(self.recorder, "end_at", None)
+        if end_at is not None:  # the file ends with the session, whatever the stream's pace
+            end_at(max(self._at, self._min_start) + 1)
         self.recorder.flush()
         self._set_state(State.FINISHED)
 

@@ -174,6 +174,19 @@ class SessionWriter:
             self._maybe_flush()
             return first
 
+    def truncate(self, n: int) -> None:
+        """Keep only the first ``n`` rows (a collection that ends before the frames the
+        recorder had already pulled: its file ends with it)."""
+        with self._lock, self._writing():
+            n = max(0, min(int(n), self._n))
+            if n == self._n:
+                return
+            self._raw.resize(n, axis=0)
+            for ds in self._cols.values():
+                ds.resize(n, axis=0)
+            self._n = n
+            self.flush()
+
     # ---- write errors ----------------------------------------------------------------
     @contextmanager
     def _writing(self) -> Iterator[None]:
