@@ -8,6 +8,7 @@ from pathlib import Path
 from waiting import wait_until
 
 from tactile_studio.live import AcquisitionSession
+from tactile_studio.live.sinks import FILE, OUTLET, Sink
 from tactile_studio.storage.session import Session
 
 
@@ -87,3 +88,37 @@ def test_a_recorder_closed_by_its_collection_is_released_on_poll(tmp_path: Path)
         assert [e["reason"] for e in seen if e["kind"] == "recording_stopped"] == ["requested"]
     finally:
         s.close()
+
+
+class _MarkerSink:
+    """A sink beside the file: writes its end as an event into the recording."""
+
+    def __init__(self, session: AcquisitionSession) -> None:
+        self.session, self.stopped_with_file_open = session, None
+
+    def start(self) -> "_MarkerSink":
+        return self
+
+    def stop(self) -> None:
+        rec = self.session.recorder
+        self.stopped_with_file_open = rec is not None and not rec.stopped
+        if rec is not None:
+            rec.add_event("sink_end")
+
+
+def test_the_file_and_the_outlets_are_sinks_stopped_in_order(tmp_path: Path) -> None:
+    s = AcquisitionSession()
+    engine = s.open("simulated", {"rate": "400", "speed": "4"})
+    rec = s.start_recording(tmp_path / "s.h5")
+    sink = s.add_outlet(_MarkerSink(s).start())
+    assert isinstance(rec, Sink) and isinstance(sink, Sink)
+    assert s.sinks.of_rank(OUTLET) == [sink] and s.sinks.of_rank(FILE) == [rec]
+    s.start()
+    try:
+        wait_until(lambda: engine.frames > 50, what="50 frames")
+    finally:
+        s.close()
+    assert sink.stopped_with_file_open  # the outlets stop first: their end is in the file
+    assert s.sinks.of_rank(OUTLET) == [] and s.sinks.of_rank(FILE) == []
+    with Session(tmp_path / "s.h5") as f:
+        assert "sink_end" in [e["kind"] for e in f.events]

@@ -38,6 +38,7 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.live.marker_recording import MarkerRecording
 from tactile_studio.live.outcome import RecordingOutcome, outcome_of
+from tactile_studio.live.sinks import FILE, OUTLET, PUBLISHING, LslPublishing, SinkList
 from tactile_studio.live.status import LiveStatus
 from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
@@ -74,11 +75,11 @@ class AcquisitionSession:
         self.recorder: Recorder | None = None
         self.device_name: str | None = None
         self.settings: dict[str, Any] = {}
-        self.lsl: Any = None              # the shared LslStreamer while streaming
         self.lsl_wanted = False
         self.lsl_error: str | None = None
         self._owns_engine = False
-        self._outlets: list[Any] = []
+        # the sinks in stop order (live/sinks.py): outlets, the file, LSL publishing
+        self.sinks = SinkList()
         self._listeners: list[Listener] = []
         self._seen_state: str | None = None
         self._stop_at: float | None = None
@@ -180,6 +181,8 @@ class AcquisitionSession:
         self._stop_at = self._stop_rows = None
         self.recorder = Recorder(self.engine, path, sensor_metadata(self.engine, metadata),
                                  row_offset=row_offset, base_counters=base_counters)
+        self.recorder.background_compress = self.compress_in_background
+        self.sinks.add(self.recorder, FILE)
         if start:
             self.recorder.start()
         self._health = StreamHealth(self.engine, self.device_name, self.silence_warning_s,
@@ -215,7 +218,7 @@ class AcquisitionSession:
             return None
         self._close_outlets()  # an outlet's last markers go into the file too
         # idempotent: a collection session may have closed it already
-        rec.stop(background_compress=self.compress_in_background)
+        self.sinks.stop(FILE)
         book_usage(rec)  # the hours of use: booked here, never by the file writer
         eng = self.engine
         self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
@@ -268,8 +271,7 @@ class AcquisitionSession:
     def add_outlet(self, outlet: Any) -> Any:
         """An outlet made by the caller (anything with ``stop()``): stopped before the
         recording closes, so its end is in the file."""
-        self._outlets.append(outlet)
-        return outlet
+        return self.sinks.add(outlet, OUTLET)
 
     def close_outlets(self) -> None:
         """Stop the outlets added with :meth:`add_outlet` now (before closing a
@@ -277,9 +279,7 @@ class AcquisitionSession:
         self._close_outlets()
 
     def _close_outlets(self) -> None:
-        outlets, self._outlets = self._outlets, []
-        for outlet in outlets:
-            outlet.stop()
+        self.sinks.stop(OUTLET)
 
     def set_lsl(self, on: bool) -> None:
         """Publish the device on LSL now and after every (re)connect; LslUnavailable
@@ -302,6 +302,12 @@ class AcquisitionSession:
                 self.lsl_wanted = False
                 raise
 
+    @property
+    def lsl(self) -> Any:
+        """The shared LslStreamer while the device is published on LSL, else None."""
+        publishing = self.sinks.of_rank(PUBLISHING)
+        return publishing[0].streamer if publishing else None
+
     def lsl_status(self) -> str:
         """Two short lines for the panel: what is streamed, or why not."""
         if self.lsl is not None:
@@ -309,11 +315,9 @@ class AcquisitionSession:
         return self.lsl_error or ""
 
     def _start_lsl(self) -> None:
-        from tactile_studio.streams.lsl_outlet import acquire_streamer
-
         if self.lsl is None or self.lsl.engine is not self.engine:
             self._release_lsl()
-            self.lsl = acquire_streamer(self.engine)
+            self.sinks.add(LslPublishing(self.engine).start(), PUBLISHING)
 
     def _sync_lsl_quietly(self) -> None:
         self._release_lsl()
@@ -324,11 +328,7 @@ class AcquisitionSession:
                 self.lsl_error = str(exc)
 
     def _release_lsl(self) -> None:
-        lsl, self.lsl = self.lsl, None
-        if lsl is not None:
-            from tactile_studio.streams.lsl_outlet import release_streamer
-
-            release_streamer(lsl)
+        self.sinks.stop(PUBLISHING)
 
     # ---- status ----------------------------------------------------------------------------
     def status(self) -> LiveStatus:

@@ -61,6 +61,7 @@ class Recorder:
         self.sensor_id: str | None = metadata["sensor_id"]
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
         self.usage_booked = False  # set by storage/sensor_book.book_usage
+        self.background_compress = False  # stop() compresses on a worker thread
         self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
                                     flush_interval=flush_interval)
         self.poll_s = poll_s
@@ -247,10 +248,13 @@ class Recorder:
         self._thread.start()
         return self
 
-    def stop(self, background_compress: bool = False) -> None:
+    def stop(self, background_compress: bool | None = None) -> None:
         """Write what is left, then close the file cleanly (once; later calls do nothing).
-        With ``background_compress`` the file is compressed on a worker thread (a GUI
-        caller does not freeze; the complete uncompressed file is there meanwhile)."""
+        With ``background_compress`` (default: the attribute, which a GUI's session sets)
+        the file is compressed on a worker thread (a GUI caller does not freeze; the
+        complete uncompressed file is there meanwhile)."""
+        if background_compress is None:
+            background_compress = self.background_compress
         if self.stopped:
             return
         self._stop.set()
