@@ -126,6 +126,11 @@ def test_export_model_cli(data, capsys, tmp_path):
     damaged = tmp_path / "damaged"
     shutil.copytree(out, damaged, ignore=shutil.ignore_patterns("export"))
     (damaged / "folds" / "r0-all" / "model.safetensors").write_bytes(b"not weights")
+    assert "not the one trained for it" in _one_line_error(capsys, "evaluate", damaged)
+    fold_json = damaged / "folds" / "r0-all" / "fold.json"  # a run from before fingerprints
+    record = json.loads(fold_json.read_text())
+    del record["model_sha256"]
+    fold_json.write_text(json.dumps(record))
     assert "cannot load model weights" in _one_line_error(capsys, "evaluate", damaged)
 
 

@@ -10,6 +10,7 @@ source of a foreign ONNX file).
 
 from __future__ import annotations
 
+import json
 import shutil
 
 import pytest
@@ -41,9 +42,14 @@ def _damaged(runs, tmp_path, how: str):
     fold = run / "folds" / "r0-P02"
     if how == "missing":
         (fold / "model.onnx").unlink()
-    elif how == "foreign":
+    elif how == "foreign":  # in a run written before folds kept their model's fingerprint
         shutil.copy(runs / "runs" / "knn" / "folds" / "r0-P02" / "model.onnx",
                     fold / "model.onnx")
+        record = json.loads((fold / "fold.json").read_text())
+        del record["model_sha256"]
+        (fold / "fold.json").write_text(json.dumps(record))
+    elif how == "other fold":  # the same kind of model, trained with P02 among its people
+        shutil.copy(run / "folds" / "r0-P01" / "model.onnx", fold / "model.onnx")
     elif how == "fold gone":
         shutil.rmtree(fold)
     else:
@@ -94,6 +100,19 @@ def test_foreign_model_in_a_fold_is_named(runs, tmp_path, capsys):
         assert "r0-P02" in line and "not this run's model" in line and "knn" in line, line
     with pytest.raises(UserError, match="r0-P02.*not this run's model"):
         WindowModel(run, participant="P02")  # the fold that did not see P02
+
+
+def test_a_model_copied_from_another_fold_is_named(runs, tmp_path, capsys):
+    """An rf of fold P01 (which trained on P02) copied into fold P02 passes every check
+    of kind, classes and shape; the fold's fingerprint tells it apart."""
+    run = _damaged(runs, tmp_path, "other fold")
+    data = ("--data", runs / "data", "--cache-dir", runs / "cache")
+    for argv in (("evaluate", run, *data), ("export-model", run, "--format", "onnx", *data),
+                 ("compare", run, runs / "runs" / "knn")):
+        line = _one_line(capsys, *argv)
+        assert "r0-P02" in line and "not the one trained for it" in line, line
+    with pytest.raises(UserError, match="r0-P02"):
+        WindowModel(run, participant="P02")
 
 
 def test_runs_view_shows_a_damaged_run(runs, tmp_path, qtbot):

@@ -19,6 +19,7 @@ how re-running with the same ``--out`` resumes.
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import math
 import os
@@ -132,6 +133,9 @@ class RunFolder:
         d = self.fold_dir(record["round"], record["name"])
         d.mkdir(parents=True, exist_ok=True)
         fitted.save(d / fitted.file_name)
+        # what was saved, so a model file copied in from another fold is told apart
+        record["model_sha256"] = {f.name: file_digest(f) for f in sorted(d.iterdir())
+                                  if f.is_file() and f.name != FOLD}
         write_json(d / FOLD, record)
 
     def write_results(self, metrics: dict[str, Any], records: list[dict[str, Any]],
@@ -180,7 +184,26 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
         return None, f"fold {d.name}: {exc}"
     if not isinstance(rec, dict) or any(k not in rec for k in FOLD_KEYS):
         return None, f"{d / FOLD}: fold {d.name} is damaged (not a fold record of this version)"
+    saved = rec.get("model_sha256")
+    if isinstance(saved, dict):  # runs written before fingerprints have none to check
+        for name, digest in saved.items():
+            f = d / str(name)
+            if not f.is_file():
+                return None, (f"{f}: fold {d.name} is finished but its model file is "
+                              "missing; train the run again into a new --out")
+            if file_digest(f) != digest:
+                return None, (f"{f}: fold {d.name}'s model file is not the one trained "
+                              "for it (replaced or copied from another fold or run)")
     return rec, ""
+
+
+def file_digest(path: Path) -> str:
+    """SHA-256 of a file's bytes (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
 
 
 def _metrics_problem(run: Path, finished: set[tuple[int, str]]) -> str:
