@@ -54,10 +54,10 @@ def main(argv: list[str] | None = None) -> None:
             job = TrainJob(cfg, Path(tmp) / "run").start()
             epochs = 0
             while not epochs and job.running:  # measure once the worker is really training
-                epochs += sum(e["type"] == "epoch" for e in job.poll())
+                epochs += sum(e.type == "epoch" for e in job.poll())
                 wait_for(0.1)
             busy = painted_fps(w, args.seconds)
-            epochs += sum(e["type"] == "epoch" for e in job.poll())
+            epochs += sum(e.type == "epoch" for e in job.poll())
             job.cancel()
             while job.running:
                 job.poll()

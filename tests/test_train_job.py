@@ -47,24 +47,24 @@ def test_worker_events_cancel_and_resume(data, tmp_path):
     out = tmp_path / "run"
     job = TrainJob(cnn_config(data), out).start()
     events = wait_until_finished(
-        job, stop_on=lambda ev: any(e["type"] == "fold" for e in ev))
+        job, stop_on=lambda ev: any(e.type == "fold" for e in ev))
     job.cancel()
     events += wait_until_finished(job)
-    kinds = [e["type"] for e in events]
+    kinds = [e.type for e in events]
     assert "epoch" in kinds and "progress" in kinds
-    first = next(e for e in events if e["type"] == "epoch")
-    assert first["epoch"] == 1 and "val_acc" in first and first["n_folds"] == 3
-    assert job.finished["type"] in ("cancelled", "done")
+    first = next(e for e in events if e.type == "epoch")
+    assert first.epoch == 1 and first.val_acc is not None and first.n_folds == 3
+    assert job.finished.type in ("cancelled", "done")
     kept = sorted(p.parent.name for p in (out / "folds").glob("*/fold.json"))
     assert len(kept) >= 1
-    if job.finished["type"] == "cancelled":
+    if job.finished.type == "cancelled":
         assert not json.loads((out / "metrics.json").read_text())["complete"]
     # resume: the finished folds are not trained again
     job2 = TrainJob(cnn_config(data), out).start()
     events2 = wait_until_finished(job2)
-    assert job2.finished["type"] == "done", job2.finished
-    folds = [e for e in events2 if e["type"] == "fold"]
-    assert len(folds) == 3 and sum(e["resumed"] for e in folds) == len(kept)
+    assert job2.finished.type == "done", job2.finished
+    folds = [e for e in events2 if e.type == "fold"]
+    assert len(folds) == 3 and sum(e.resumed for e in folds) == len(kept)
     assert json.loads((out / "metrics.json").read_text())["complete"]
 
 
@@ -78,15 +78,15 @@ def test_worker_errors_are_messages(data, tmp_path):
                            use_cache=False)
     job = TrainJob(cfg, tmp_path / "r1").start()
     wait_until_finished(job)
-    assert job.finished["type"] == "error"
-    assert "no trials with status ok" in job.finished["message"]
+    assert job.finished.type == "error"
+    assert "no trials with status ok" in job.finished.message
     # a worker that dies (killed) is reported, and the caller lives on
     job = TrainJob(cnn_config(data), tmp_path / "r2").start()
-    wait_until_finished(job, stop_on=lambda ev: any(e["type"] == "progress" for e in ev))
+    wait_until_finished(job, stop_on=lambda ev: any(e.type == "progress" for e in ev))
     os.kill(job.pid, signal.SIGKILL)
     wait_until_finished(job, 30)
-    assert job.finished["type"] == "error"
-    assert "ended unexpectedly (exit code -9)" in job.finished["message"]
+    assert job.finished.type == "error"
+    assert "ended unexpectedly (exit code -9)" in job.finished.message
 
 
 def test_model_settings_and_eta():

@@ -105,7 +105,7 @@ def test_train_panel_names_its_run_folder_and_trains_without_one_typed(qtbot, se
     run = Path(panel.job.out)
     assert run.parent == picked.parent and run.name.startswith("knn-")  # beside the last
     qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
-    assert panel.job.finished["type"] == "done", panel.job.finished
+    assert panel.job.finished.type == "done", panel.job.finished
     job = panel.job
     assert len(job.fold_times) == job.folds_done == job.folds_total == 3 and job.eta() == 0
     assert panel.out.text() != str(run)  # Train again: a new run, not the finished one

@@ -97,7 +97,7 @@ def test_a_run_from_the_panel_trains_with_the_recipe(qtbot, tmp_path, monkeypatc
     panel.recipe.balance.setChecked(True)
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: not panel.job.running, timeout=240_000)
-    assert panel.job.finished["type"] == "done", panel.job.finished
+    assert panel.job.finished.type == "done", panel.job.finished
     saved = json.loads((tmp_path / "run" / "config.json").read_text())["config"]
     assert (saved["window_s"], saved["aggregate"], saved["augment"], saved["balance"]) == \
         (0.5, "vote", "flip", True)

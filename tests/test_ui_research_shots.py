@@ -74,7 +74,7 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     panel.out.setText(str(out))
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: not panel.job.running, timeout=180_000)
-    assert panel.job.finished["type"] == "done", panel.job.finished
+    assert panel.job.finished.type == "done", panel.job.finished
     metrics = json.loads((out / "metrics.json").read_text())
     assert [s["k"] for s in metrics["shots"]] == [0, 1]
     curve = ", ".join(f"K={s['k']} {s['trial_accuracy']:.2f}" for s in metrics["shots"])

@@ -93,7 +93,7 @@ def test_local_sweep_shows_progress_table_and_runs(window, tmp_path, wait_until,
     SHOTS.mkdir(parents=True, exist_ok=True)
     window.grab().save(str(SHOTS / "research_sweep_running.png"))
     wait_until(_pumped(lambda: not panel.job.running), timeout=300, what="the sweep's end")
-    assert panel.job.finished["type"] == "done", panel.job.finished
+    assert panel.job.finished.type == "done", panel.job.finished
     assert panel.tasks.rowCount() == 12 and "tasks 12 / 12" in panel.counts.text()
     # the table is the sweep's results.json, row for row
     saved = json.loads((out / "results.json").read_text())
@@ -142,7 +142,7 @@ def test_cancel_stops_workers_and_keeps_finished_tasks(window, tmp_path, wait_un
     wait_until(lambda: not any(p.is_alive() for p in workers), timeout=15,
                what="the workers to end")
     job = panel.job
-    assert job.finished["type"] == "cancelled" and 1 <= job.done < job.total == 54
+    assert job.finished.type == "cancelled" and 1 <= job.done < job.total == 54
     assert len(list((out / "tasks").glob("*.json"))) == job.done
     assert "cancelled" in panel.status.text() and "continues" in panel.status.text()
     assert panel.start_button.isEnabled() and not panel.cancel_button.isEnabled()
@@ -188,7 +188,7 @@ def test_ray_sweep_from_the_gui_matches_local_workers(window, tmp_path, wait_unt
         _choose(panel, tmp_path / executor, ["rf", "knn"], ["both"], executor=executor)
         qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
         wait_until(_pumped(lambda: not panel.job.running), timeout=300, what=executor)
-        assert panel.job.finished["type"] == "done", panel.job.finished
+        assert panel.job.finished.type == "done", panel.job.finished
         tables[executor] = {k: {c: v for c, v in row.items() if c != "train s"}
                             for k, row in _table(panel).items()}
     assert tables["ray"] == tables["local"] and len(tables["ray"]) == 2

@@ -74,11 +74,11 @@ def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     window.grab().save(str(SHOTS / "research_train.png"))
     qtbot.mouseClick(panel.cancel_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: not panel.job.running, timeout=120_000)
-    assert panel.job.finished["type"] == "cancelled"
+    assert panel.job.finished.type == "cancelled"
     assert "Resume continues" in panel.status.text() and panel.resume_button.isEnabled()
     qtbot.mouseClick(panel.resume_button, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: not panel.job.running, timeout=240_000)
-    assert panel.job.finished["type"] == "done", panel.job.finished
+    assert panel.job.finished.type == "done", panel.job.finished
     statuses = [panel.folds.item(r, 5).text() for r in range(panel.folds.rowCount())]
     assert "resumed" in statuses and statuses.count("done") >= 1
     # the run is listed; open its matrix; click a cell; the trial plays

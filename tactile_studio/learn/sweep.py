@@ -45,6 +45,7 @@ from tactile_studio.learn.experiment import (
     summarise,
 )
 from tactile_studio.learn.fused import display_name
+from tactile_studio.learn.job_events import Plan, Task
 from tactile_studio.learn.learners import DataInfo, make_learner
 from tactile_studio.learn.runfolder import (
     FOLD,
@@ -55,7 +56,7 @@ from tactile_studio.learn.runfolder import (
     write_json,
 )
 
-SweepListener = Callable[[dict[str, Any]], None]
+SweepListener = Callable[[Plan | Task], None]
 
 TABLE_KEYS = ("accuracy", "trial_accuracy", "f1_macro", "trial_f1_macro", "balanced_accuracy",
               "kappa")
@@ -123,9 +124,9 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     """Run ``models`` x ``channel_sets`` x ``base.rounds`` x folds on ``executor`` (an
     entered :mod:`~tactile_studio.learn.executors` executor); see the module doc.
 
-    ``listener`` receives ``{"type": "plan", "total", "done"}`` once the tasks are known
-    and ``{"type": "task", "id", "model", "channels", "done", "total", "accuracy",
-    "seconds"}`` as each one finishes (the GUI's per-task progress)."""
+    ``listener`` receives a :class:`~tactile_studio.learn.job_events.Plan` once the tasks
+    are known and a :class:`~tactile_studio.learn.job_events.Task` as each one finishes
+    (the GUI's per-task progress)."""
     cancel = cancel or CancelToken()
     listener = listener or (lambda event: None)
     if not models or not channel_sets:
@@ -166,7 +167,7 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     total = len(tasks) + len(records)
     owners = {tid: g for g in groups.values() for tid in g["ids"]}
     progress(len(records) / total, f"{len(tasks)} tasks to run ({len(records)} done before)")
-    listener({"type": "plan", "total": total, "done": len(records)})
+    listener(Plan(total=total, done=len(records)))
     t0 = time.perf_counter()
     complete = True
     try:
@@ -178,10 +179,9 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
                 _save_fold(owners[tid]["run"], rec, model_file)
             progress(len(records) / total, f"{tid} done ({time.perf_counter() - t0:.0f} s)")
             cfg = owners[tid]["config"]
-            listener({"type": "task", "id": tid, "model": cfg.model, "channels": cfg.channels,
-                      "done": len(records), "total": total, "seconds": rec["seconds"],
-                      "accuracy": _accuracy(rec),
-                      "row": _group_row(owners[tid], records, full.label_names)[0]})
+            listener(Task(id=tid, model=cfg.model, channels=cfg.channels, done=len(records),
+                          total=total, seconds=rec["seconds"], accuracy=_accuracy(rec),
+                          row=_group_row(owners[tid], records, full.label_names)[0]))
     except Cancelled:
         complete = False
     result = _table(groups, records, full.label_names, complete, folder)

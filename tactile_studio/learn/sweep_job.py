@@ -8,13 +8,12 @@ executor's worker processes (local, spawned) or on Ray. Cancelling sets the swee
 running ones within a poll interval, and the finished tasks stay in the sweep folder (a
 table of them is written; starting the same sweep into the same folder runs only the rest).
 
-:meth:`SweepJob.poll` returns the events since the last call, plain dicts:
-
-* ``{"type": "progress", "fraction", "message"}``
-* ``{"type": "plan", "total", "done"}`` — the tasks are known (``done``: kept from before)
-* ``{"type": "task", "id", "model", "channels", "done", "total", "accuracy", "seconds"}``
-* ``{"type": "done", "rows", "out"}`` / ``{"type": "cancelled", "rows", "message"}`` /
-  ``{"type": "error", "message"}`` — the last event of a job.
+:meth:`SweepJob.poll` returns the events since the last call, the typed
+:mod:`~tactile_studio.learn.job_events`: :class:`~.job_events.Progress`,
+:class:`~.job_events.Plan` (the tasks are known; ``done``: kept from before),
+:class:`~.job_events.Task` per finished task, then one of :class:`~.job_events.Done`
+(``rows``, ``out``) / :class:`~.job_events.Cancelled` (``rows``, ``message``) /
+:class:`~.job_events.Failed` — the last event of a job.
 """
 
 from __future__ import annotations
@@ -28,9 +27,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.errors import Cancelled as Stopped
+from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.job_events import (
+    Cancelled,
+    Done,
+    Failed,
+    JobEvent,
+    Plan,
+    Progress,
+    Task,
+    is_final,
+)
 from tactile_studio.learn.runfolder import read_json
 from tactile_studio.output_faults import fault_line
 
@@ -51,13 +61,13 @@ class SweepJob:
         self.base, self.models, self.channel_sets = base, list(models), list(channel_sets)
         self.executor, self.out = executor, str(out)
         self.token = CancelToken()
-        self._events: queue.Queue[dict[str, Any]] = queue.Queue()
+        self._events: queue.Queue[JobEvent] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="sweep", daemon=True)
         self.started = 0.0
         self.total = 0
         self.done = 0
         self.done_before = 0
-        self.finished: dict[str, Any] | None = None
+        self.finished: Done | Cancelled | Failed | None = None
 
     def start(self) -> SweepJob:
         self.started = time.monotonic()
@@ -84,20 +94,20 @@ class SweepJob:
             return None
         return eta_seconds((self.done - self.done_before) / todo, self.elapsed())
 
-    def poll(self) -> list[dict[str, Any]]:
-        out: list[dict[str, Any]] = []
+    def poll(self) -> list[JobEvent]:
+        out: list[JobEvent] = []
         while self.finished is None:
             try:
                 event = self._events.get_nowait()
             except queue.Empty:
                 break
             out.append(event)
-            if event["type"] == "plan":
-                self.total, self.done = event["total"], event["done"]
-                self.done_before = event["done"]
-            elif event["type"] == "task":
-                self.total, self.done = event["total"], event["done"]
-            elif event["type"] in ("done", "cancelled", "error"):
+            if isinstance(event, Plan):
+                self.total, self.done = event.total, event.done
+                self.done_before = event.done
+            elif isinstance(event, Task):
+                self.total, self.done = event.total, event.done
+            elif is_final(event):
                 self.finished = event
         if self.finished is not None:
             self._thread.join(timeout=5)
@@ -117,25 +127,23 @@ class SweepJob:
         try:
             ex = make_executor(self.executor.name, self.executor.jobs,
                                self.executor.address or None)
-            put({"type": "progress", "fraction": 0.0, "message": f"starting {ex.name} workers"})
+            put(Progress(0.0, f"starting {ex.name} workers"))
             with ex:
                 result = run_sweep(self.base, self.models, self.channel_sets, ex, self.out,
-                                   lambda f, m: put({"type": "progress", "fraction": float(f),
-                                                     "message": m}),
+                                   lambda f, m: put(Progress(float(f), m)),
                                    self.token, put)
-            put({"type": "done", "rows": result.rows, "out": self.out})
-        except Cancelled as exc:
-            put({"type": "cancelled", "rows": self._saved_rows(), "message": str(exc)})
+            put(Done(out=self.out, rows=result.rows))
+        except Stopped as exc:
+            put(Cancelled(message=str(exc), rows=self._saved_rows()))
         except UserError as exc:
-            put({"type": "error", "message": str(exc)})
+            put(Failed(str(exc)))
         except Exception as exc:  # noqa: BLE001 - the window shows one line; stderr the rest
             if (line := fault_line(exc)) is not None:  # the sweep folder cannot be written
-                put({"type": "error", "message": line})
+                put(Failed(line))
                 return
             traceback.print_exc(file=sys.stderr)
             first = (str(exc).strip().splitlines() or [""])[0]
-            put({"type": "error", "message": f"the sweep failed: {type(exc).__name__}: {first} "
-                                             "(details on stderr)"})
+            put(Failed(f"the sweep failed: {type(exc).__name__}: {first} (details on stderr)"))
 
     def _saved_rows(self) -> list[dict[str, Any]]:
         path = Path(self.out) / "results.json"

@@ -1,21 +1,14 @@
 """Training in a separate process, for the GUI: the window never freezes, a crash in the
-worker never takes it down, and events arrive as plain dicts.
+worker never takes it down, and events arrive as the typed
+:mod:`~tactile_studio.learn.job_events`.
 
 ``TrainJob(config, out).start()`` spawns a fresh interpreter (multiprocessing "spawn",
 so no Qt or torch state is inherited) that runs :func:`run_experiment` into ``out``.
 :meth:`TrainJob.poll` returns the events that arrived since the last call:
-
-* ``{"type": "progress", "fraction", "message"}``
-* ``{"type": "epoch", "round", "fold", "n_folds", "fold_name", "epoch", "train_loss",
-  "train_acc", "val_loss", "val_acc"}``
-* ``{"type": "fold", "round", "fold", "n_folds", "fold_name", "accuracy",
-  "trial_accuracy", "cut", "resumed"}`` (cut: the fold's trials were cut into windows)
-* ``{"type": "done", "accuracy", "headline", "shots", "curve", "out"}`` (headline: both
-  figures when trials were cut into windows; ``shots``: a few-shot run's curve over K in
-  words, else ""; ``curve``: its ``{"k", "accuracy", "trial_accuracy"}`` per K) /
-  ``{"type": "cancelled"}`` /
-  ``{"type": "error", "message"}`` — the last event of a job; a worker that dies without
-  one (killed, segfault) is reported as an ``error`` too.
+:class:`~.job_events.Progress`, :class:`~.job_events.Epoch`, :class:`~.job_events.Fold`,
+then one of :class:`~.job_events.Done` / :class:`~.job_events.Cancelled` /
+:class:`~.job_events.Failed` — the last event of a job; a worker that dies without one
+(killed, segfault) is reported as a ``Failed`` too.
 
 Cancelling keeps the finished folds (the run folder is resumable: starting the same
 config into the same folder trains only what is missing).
@@ -31,6 +24,16 @@ import time
 from typing import Any
 
 from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.job_events import (
+    Cancelled,
+    Done,
+    Epoch,
+    Failed,
+    Fold,
+    JobEvent,
+    Progress,
+    is_final,
+)
 
 _TRAIN_HELP = {
     "optimizer": "optimiser (adam, adamw, sgd)", "lr": "learning rate",
@@ -78,7 +81,8 @@ def eta_seconds(fraction: float, elapsed: float) -> float | None:
 
 
 def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
-    from tactile_studio.errors import Cancelled, UserError
+    from tactile_studio.errors import Cancelled as Stopped
+    from tactile_studio.errors import UserError
     from tactile_studio.jobs import CancelToken
     from tactile_studio.learn.experiment import EpochEvent, FoldEvent, run_experiment
     from tactile_studio.learn.summary import headline, shots_curve, trials_were_cut
@@ -96,47 +100,41 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
         now = time.monotonic()
         if now - last[0] > 0.1 or fraction >= 1.0 or message.endswith(("done", "training")):
             last[0] = now
-            events.put({"type": "progress", "fraction": float(fraction), "message": message})
+            events.put(Progress(float(fraction), message))
 
     def listener(event: Any) -> None:
         if isinstance(event, EpochEvent):
-            e = event.record
-            events.put({"type": "epoch", "round": event.round, "fold": event.fold,
-                        "n_folds": event.n_folds, "fold_name": event.fold_name,
-                        **{k: (float(v) if isinstance(v, (int, float)) else v)
-                           for k, v in e.items()}})
+            events.put(Epoch.of(event.round, event.fold, event.n_folds, event.fold_name,
+                                event.record))
         elif isinstance(event, FoldEvent):
-            events.put({"type": "fold", "round": event.round, "fold": event.fold,
-                        "n_folds": event.n_folds, "fold_name": event.fold_name,
-                        "accuracy": float(event.metrics["accuracy"]),
-                        "trial_accuracy": float(event.metrics["trial_accuracy"]),
-                        "cut": trials_were_cut(event.metrics),
-                        "resumed": bool(event.resumed)})
+            events.put(Fold(round=event.round, fold=event.fold, n_folds=event.n_folds,
+                            fold_name=event.fold_name,
+                            accuracy=float(event.metrics["accuracy"]),
+                            trial_accuracy=float(event.metrics["trial_accuracy"]),
+                            cut=trials_were_cut(event.metrics), resumed=bool(event.resumed)))
 
     try:
         result = run_experiment(ExperimentConfig.from_dict(config), out, progress, token,
                                 listener)
-        events.put({"type": "done", "accuracy": float(result.metrics["accuracy"]),
-                    "headline": headline(result.metrics),
-                    "shots": shots_curve(result.metrics.get("shots")),
-                    "curve": [{key: s.get(key) for key in ("k", "accuracy", "trial_accuracy")}
-                              for s in result.metrics.get("shots") or []],
-                    "out": out})
-    except Cancelled:
-        events.put({"type": "cancelled"})
+        events.put(Done(out=out, accuracy=float(result.metrics["accuracy"]),
+                        headline=headline(result.metrics),
+                        shots=shots_curve(result.metrics.get("shots")),
+                        curve=[{key: s.get(key) for key in ("k", "accuracy", "trial_accuracy")}
+                               for s in result.metrics.get("shots") or []]))
+    except Stopped:
+        events.put(Cancelled())
     except UserError as exc:
-        events.put({"type": "error", "message": str(exc)})
+        events.put(Failed(str(exc)))
     except Exception as exc:  # noqa: BLE001 - the window shows it; the traceback goes to stderr
         import traceback
 
         from tactile_studio.output_faults import fault_line
 
         if (line := fault_line(exc)) is not None:  # the run folder cannot be written
-            events.put({"type": "error", "message": line})
+            events.put(Failed(line))
             return
         traceback.print_exc()
-        events.put({"type": "error", "message": f"the training process failed: "
-                                                f"{type(exc).__name__}: {exc}"})
+        events.put(Failed(f"the training process failed: {type(exc).__name__}: {exc}"))
 
 
 class TrainJob:
@@ -149,7 +147,7 @@ class TrainJob:
                                     args=(config.to_dict(), self.out, self._events, self._stop))
         self.started = 0.0
         self.fraction = 0.0
-        self.finished: dict[str, Any] | None = None
+        self.finished: Done | Cancelled | Failed | None = None
         self.fold_times: list[float] = []  # seconds per fold trained here (not resumed)
         self.folds_done = 0
         self.folds_total = 0
@@ -179,27 +177,27 @@ class TrainJob:
         began = self._fold_began if self._fold_began is not None else now
         return eta_from_folds(self.fold_times, self.folds_done, self.folds_total, now - began)
 
-    def _take(self, event: dict[str, Any], out: list[dict[str, Any]]) -> None:
+    def _take(self, event: JobEvent, out: list[JobEvent]) -> None:
         out.append(event)
         now = time.monotonic()
-        if event["type"] == "progress":
-            self.fraction = event["fraction"]
-        if event["type"] in ("epoch", "fold"):
-            self.folds_total = int(event["n_folds"]) * max(1, int(self.config.rounds))
-        if event["type"] == "epoch" and self._fold_began is None:
+        if isinstance(event, Progress):
+            self.fraction = event.fraction
+        if isinstance(event, (Epoch, Fold)):
+            self.folds_total = int(event.n_folds) * max(1, int(self.config.rounds))
+        if isinstance(event, Epoch) and self._fold_began is None:
             self._fold_began = now  # the first fold starts training (data loaded)
-        if event["type"] == "fold":
+        if isinstance(event, Fold):
             self.folds_done += 1
-            if not event.get("resumed") and self._fold_began is not None:
+            if not event.resumed and self._fold_began is not None:
                 self.fold_times.append(now - self._fold_began)
-            elif not event.get("resumed"):  # a model without epochs: from the start
+            elif not event.resumed:  # a model without epochs: from the start
                 self.fold_times.append(now - self.started)
             self._fold_began = now
-        if event["type"] in ("done", "cancelled", "error"):
+        if is_final(event):
             self.finished = event
 
-    def poll(self) -> list[dict[str, Any]]:
-        out: list[dict[str, Any]] = []
+    def poll(self) -> list[JobEvent]:
+        out: list[JobEvent] = []
         if self.finished is not None:
             return out
         dead = self.started and not self._process.is_alive()
@@ -211,9 +209,8 @@ class TrainJob:
             self._take(event, out)
         if self.finished is None and dead:
             code = self._process.exitcode
-            self._take({"type": "error", "message":
-                        f"the training process ended unexpectedly (exit code {code}); "
-                        f"finished folds are kept in {self.out}"}, out)
+            self._take(Failed(f"the training process ended unexpectedly (exit code {code}); "
+                              f"finished folds are kept in {self.out}"), out)
         if self.finished is not None:
             self._process.join(timeout=5)
         return out

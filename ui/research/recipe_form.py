@@ -176,6 +176,10 @@ class RecipeForm(QWidget):
         saved = get_json(settings, key, {})
         self.set_kwargs(saved if isinstance(saved, dict) else {})
 
+    def set_saved(self, saved: Any) -> None:
+        """A saved value (anything but a dict, e.g. a damaged entry, is the empty recipe)."""
+        self.set_kwargs(saved if isinstance(saved, dict) else {})
+
     def save(self, settings: QSettings, key: str) -> None:
         set_json(settings, key, self.kwargs())
 

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from PySide6.QtCore import QSettings, Qt, QTimer, Signal
+from PySide6.QtCore import QSettings, Qt, Signal
 from PySide6.QtGui import QFont
 from PySide6.QtWidgets import (
     QCheckBox,
@@ -33,18 +33,17 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
+from tactile_studio.learn.job_events import Cancelled, Done, Failed, JobEvent, Progress, Task
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
 from tactile_studio.ui.file_dialogs import ask_folder, remember
+from tactile_studio.ui.research.bound_settings import BoundSettings
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import (
     app_settings,
-    get_json,
-    restore_data,
-    restore_text,
-    set_json,
 )
 
 RESULT_COLUMNS = ["model", "channels", "folds", "accuracy", "trial acc.", "macro F1",
@@ -65,7 +64,8 @@ def _clock(seconds: float | None) -> str:
     return f"{s // 3600}:{s // 60 % 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
 
 
-class SweepPanel(QWidget):
+class SweepPanel(JobPanel):
+    CANCELLING = "cancelling: stopping the workers (finished tasks are kept)…"
     sweepFinished = Signal(str)   # the sweep folder (its runs/ hold one run per row)
     openRequested = Signal(str)   # a results row's run folder
     error = Signal(str)
@@ -162,14 +162,12 @@ class SweepPanel(QWidget):
         split.addWidget(right)
         split.setSizes([380, 820])
         QVBoxLayout(self).addWidget(split)
-        self.timer = QTimer(self)
-        self.timer.setInterval(100)
-        self.timer.timeout.connect(self.poll)
         self.start_button.clicked.connect(self.start)
         self.cancel_button.clicked.connect(self.cancel)
         self.browse.clicked.connect(self._browse)
         self.executor.currentIndexChanged.connect(self._executor_changed)
         self.results.cellDoubleClicked.connect(self._open_row)
+        self.bound = self._bind_settings()
         self._load_settings()
         self._executor_changed()
         self._set_running(False)
@@ -223,32 +221,27 @@ class SweepPanel(QWidget):
         if folder:
             self.out.setText(folder)
 
+    def _bind_settings(self) -> BoundSettings:
+        """Every remembered choice of the tab, in one list (see bound_settings.py)."""
+        b = BoundSettings(KEY)
+        b.json("models", self.checked_models, self.set_models, ["rf", "knn"])
+        b.json("channels", self.checked_channels, self.set_channels, ["normal", "both"])
+        b.combo_data("executor", self.executor, "local")
+        b.combo_data("adapt", self.adapt, ADAPT_AUTO)
+        b.spin("jobs", self.jobs, os.cpu_count() or 1)
+        b.text("address", self.address)
+        b.combo_text("preset", self.preset)
+        b.combo_text("protocol", self.protocol)
+        b.spin("rounds", self.rounds, 1)
+        b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
+        return b
+
     def _load_settings(self) -> None:
-        s = self.settings
-        self.set_models(get_json(s, KEY + "models", ["rf", "knn"]))
-        self.set_channels(get_json(s, KEY + "channels", ["normal", "both"]))
-        for key, combo, default in (("executor", self.executor, "local"),
-                                    ("adapt", self.adapt, ADAPT_AUTO)):
-            restore_data(s, KEY + key, combo, default)
-        self.jobs.setValue(int(get_json(s, KEY + "jobs", os.cpu_count() or 1)))
-        self.address.setText(str(s.value(KEY + "address", "") or ""))
-        for key, combo in (("preset", self.preset), ("protocol", self.protocol)):
-            restore_text(s, KEY + key, combo)
-        self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
-        self.recipe.load(s, KEY + "recipe")
+        self.bound.load(self.settings)
 
     def save_settings(self) -> None:
         s = self.settings
-        set_json(s, KEY + "models", self.checked_models())
-        set_json(s, KEY + "channels", self.checked_channels())
-        s.setValue(KEY + "executor", self.executor.currentData())
-        s.setValue(KEY + "adapt", self.adapt.currentData())
-        set_json(s, KEY + "jobs", self.jobs.value())
-        s.setValue(KEY + "address", self.address.text().strip())
-        s.setValue(KEY + "preset", self.preset.currentText())
-        s.setValue(KEY + "protocol", self.protocol.currentText())
-        set_json(s, KEY + "rounds", self.rounds.value())
-        self.recipe.save(s, KEY + "recipe")
+        self.bound.save(s)
         if self.out.text().strip():  # a typed folder is where the next Browse… starts
             remember("sweep", Path(self.out.text().strip()).expanduser().parent)
         s.sync()
@@ -266,46 +259,29 @@ class SweepPanel(QWidget):
         self._show_rows([])
         self.progress.setValue(0)
         out = str(Path(self.out.text().strip()).expanduser())
-        self.job = SweepJob(base, self.checked_models(), self.checked_channels(),
-                            self.executor_choice(), out).start()
-        self.status.setText(f"starting: {len(self.checked_models())} model(s) x "
-                            f"{len(self.checked_channels())} channel set(s), "
-                            f"{self.protocol.currentText()}, into {out}")
-        self._set_running(True)
-        self.timer.start()
+        job = SweepJob(base, self.checked_models(), self.checked_channels(),
+                       self.executor_choice(), out).start()
+        self.launch(job, f"starting: {len(self.checked_models())} model(s) x "
+                         f"{len(self.checked_channels())} channel set(s), "
+                         f"{self.protocol.currentText()}, into {out}")
         return True
 
-    def cancel(self) -> None:
-        if self.job is not None and self.job.running:
-            self.job.cancel()
-            self.status.setText("cancelling: stopping the workers (finished tasks are kept)…")
+    def on_event(self, job: SweepJob, e: JobEvent) -> None:
+        if isinstance(e, Progress):
+            self.progress.setValue(int(100 * e.fraction))
+            self.status.setText(e.message)
+        elif isinstance(e, Task):
+            self._task_row(e)
+            self._partial_row(e.row)
 
-    def _set_running(self, on: bool) -> None:
-        self.start_button.setEnabled(not on)
-        self.cancel_button.setEnabled(on)
-
-    def poll(self) -> None:
-        job = self.job
-        if job is None:
-            return
-        for e in job.poll():
-            if e["type"] == "progress":
-                self.progress.setValue(int(100 * e["fraction"]))
-                self.status.setText(e["message"])
-            elif e["type"] == "task":
-                self._task_row(e)
-                self._partial_row(e["row"])
+    def after_events(self, job: SweepJob) -> None:
         self.counts.setText(f"tasks {job.done} / {job.total or '?'} · elapsed "
                             f"{_clock(job.elapsed())} · about {_clock(job.eta())} left")
-        if job.finished is not None:
-            self.timer.stop()
-            self._finished(job)
 
-    def _task_row(self, e: dict[str, Any]) -> None:
+    def _task_row(self, e: Task) -> None:
         self.tasks.insertRow(0)  # newest first: the latest task is always in view
-        fill_row(self.tasks, 0, [e["id"], e["model"], e["channels"], e["accuracy"],
-                                 e["seconds"]],
-                 [None, None, None, _pct(e["accuracy"]), f"{e['seconds']:.1f}"])
+        fill_row(self.tasks, 0, [e.id, e.model, e.channels, e.accuracy, e.seconds],
+                 [None, None, None, _pct(e.accuracy), f"{e.seconds:.1f}"])
 
     def _partial_row(self, row: dict[str, Any]) -> None:
         """While running: the (model, channel set)'s row over its folds finished so far."""
@@ -320,26 +296,27 @@ class SweepPanel(QWidget):
         return (models.index(row["model"]) if row["model"] in models else len(models),
                 sets.index(row["channels"]) if row["channels"] in sets else len(sets))
 
-    def _finished(self, job: SweepJob) -> None:
-        f = job.finished or {}
+    def on_finished(self, job: SweepJob) -> None:
+        f = job.finished
         self._set_running(False)
         self.counts.setText(f"tasks {job.done} / {job.total} · took {_clock(job.elapsed())}")
-        if f.get("type") == "done":
+        if isinstance(f, Done):
             self.progress.setValue(100)
-            self._show_rows(f["rows"])
-            best = max((r for r in f["rows"] if r.get("trial_accuracy") is not None),
+            self._show_rows(f.rows)
+            best = max((r for r in f.rows if r.get("trial_accuracy") is not None),
                        key=lambda r: r["trial_accuracy"], default=None)
             self.status.setText(f"finished into {job.out}" + (
                 f"; best per trial: {best.get('name', best['model'])} on {best['channels']} "
                 f"({_pct(best['trial_accuracy'])})" if best else ""))
             self.sweepFinished.emit(job.out)
-        elif f.get("type") == "cancelled":
-            self._show_rows(f.get("rows") or [])
-            self.status.setText(f"{f['message']}; Start sweep with the same folder continues")
+        elif isinstance(f, Cancelled):
+            self._show_rows(f.rows)
+            self.status.setText(f"{f.message}; Start sweep with the same folder continues")
             self.sweepFinished.emit(job.out)
         else:
-            self.status.setText("stopped: " + str(f.get("message")))
-            self.error.emit(str(f.get("message")))
+            message = f.message if isinstance(f, Failed) else "the sweep ended without a result"
+            self.status.setText("stopped: " + message)
+            self.error.emit(message)
 
     def _show_rows(self, rows: list[dict[str, Any]]) -> None:
         self.rows = list(rows)

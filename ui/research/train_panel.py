@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Any
 
 import pyqtgraph as pg
-from PySide6.QtCore import QSettings, QTimer, Signal
+from PySide6.QtCore import QSettings, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QFormLayout,
@@ -30,21 +30,28 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.learn.experiment import ExperimentConfig
 from tactile_studio.learn.generalise import ADAPT_AUTO
+from tactile_studio.learn.job_events import (
+    Cancelled,
+    Done,
+    Epoch,
+    Failed,
+    Fold,
+    JobEvent,
+    Progress,
+)
 from tactile_studio.learn.learners import available_models
 from tactile_studio.learn.splits import parse_shot_counts
 from tactile_studio.learn.train_job import TrainJob, model_settings
 from tactile_studio.paths import data_dir
 from tactile_studio.ui.file_dialogs import ask_folder
+from tactile_studio.ui.research.bound_settings import BoundSettings
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
 from tactile_studio.ui.settings import (
     app_settings,
-    get_json,
-    restore_data,
-    restore_text,
-    set_json,
 )
 
 FOLD_COLUMNS = ["run", "fold", "epochs", "best val acc", "test accuracy per trial", "status"]
@@ -60,7 +67,8 @@ def _typed(text: str, default: Any) -> Any:
     return text
 
 
-class TrainPanel(QWidget):
+class TrainPanel(JobPanel):
+    CANCELLING = "cancelling after the current epoch (finished folds are kept)…"
     runFinished = Signal(str)
     ablationFinished = Signal(list)
     sweepRequested = Signal(str, str)  # model, channel set: continue in the Sweep tab
@@ -169,9 +177,6 @@ class TrainPanel(QWidget):
         split.addWidget(right)
         split.setSizes([430, 800])
         QVBoxLayout(self).addWidget(split)
-        self.timer = QTimer(self)
-        self.timer.setInterval(100)
-        self.timer.timeout.connect(self.poll)
         self.model.currentIndexChanged.connect(self.fill_options)
         self.model.currentIndexChanged.connect(lambda _: self._follow_model())
         self.preset.currentIndexChanged.connect(self.fill_options)
@@ -182,6 +187,7 @@ class TrainPanel(QWidget):
         self.ablate_button.clicked.connect(self.start_ablation)
         self.sweep_button.clicked.connect(lambda: self.sweepRequested.emit(
             self.model.currentText(), self.channels.currentText()))
+        self.bound = self._bind_settings()
         self._load_settings()
         self.fill_options()
         self._protocol_changed()
@@ -192,30 +198,27 @@ class TrainPanel(QWidget):
         return (("model", self.model), ("preset", self.preset), ("channels", self.channels),
                 ("grid", self.grid), ("protocol", self.protocol))
 
+    def _bind_settings(self) -> BoundSettings:
+        """Every remembered choice of the tab, in one list (see bound_settings.py)."""
+        b = BoundSettings(KEY)
+        for key, combo in self._text_choices():
+            b.combo_text(key, combo)
+        b.combo_data("adapt", self.adapt, ADAPT_AUTO)
+        b.spin("rounds", self.rounds, 1)
+        b.spin("epochs", self.epochs, 0)
+        b.text("shots", self.shots)
+        b.text("out", self.out)
+        b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
+        return b
+
     def _load_settings(self) -> None:
         """The choices of the last run started here (a name no longer offered is skipped)."""
-        s = self.settings
-        for key, combo in self._text_choices():
-            restore_text(s, KEY + key, combo)
-        restore_data(s, KEY + "adapt", self.adapt, ADAPT_AUTO)
-        self.rounds.setValue(int(get_json(s, KEY + "rounds", 1)))
-        self.epochs.setValue(int(get_json(s, KEY + "epochs", 0)))
-        self.shots.setText(str(s.value(KEY + "shots", "") or ""))
-        self.out.setText(str(s.value(KEY + "out", "") or ""))
+        self.bound.load(self.settings)
         if not self.out.text() or not (Path(self.out.text()) / "config.json").is_file():
             self.new_run_folder()  # a finished or never-started folder: a new run's name
-        self.recipe.load(s, KEY + "recipe")
 
     def save_settings(self) -> None:
-        s = self.settings
-        for key, combo in self._text_choices():
-            s.setValue(KEY + key, combo.currentText())
-        s.setValue(KEY + "adapt", self.adapt.currentData())
-        set_json(s, KEY + "rounds", self.rounds.value())
-        set_json(s, KEY + "epochs", self.epochs.value())
-        s.setValue(KEY + "shots", self.shots.text().strip())
-        s.setValue(KEY + "out", self.out.text().strip())
-        self.recipe.save(s, KEY + "recipe")
+        self.bound.save(self.settings)
 
     def fill_options(self) -> None:
         try:
@@ -331,23 +334,17 @@ class TrainPanel(QWidget):
         if not self.queue:
             return False
         config, out = self.queue.pop(0)
-        self.job = TrainJob(config, out).start()
-        self.status.setText(f"training {config.model} ({config.channels}) into {out}…")
-        self._set_running(True)
-        self.timer.start()
+        self.launch(TrainJob(config, out).start(),
+                    f"training {config.model} ({config.channels}) into {out}…")
         return True
 
-    def cancel(self) -> None:
-        if self.job is not None and self.job.running:
-            self.queue = []
-            self.ablation = []
-            self.job.cancel()
-            self.status.setText("cancelling after the current epoch (finished folds are kept)…")
+    def before_cancel(self) -> None:
+        self.queue = []
+        self.ablation = []
 
     def _set_running(self, on: bool) -> None:
-        self.start_button.setEnabled(not on)
+        super()._set_running(on)
         self.ablate_button.setEnabled(not on)
-        self.cancel_button.setEnabled(on)
         self._running = on
         self._set_resume_button()
 
@@ -356,49 +353,40 @@ class TrainPanel(QWidget):
         self.resume_button.setEnabled(not on and bool(self.out.text().strip()) and
                                       (Path(self.out.text().strip()) / "config.json").is_file())
 
-    def poll(self) -> None:
-        job = self.job
-        if job is None:
-            return
+    def on_event(self, job: TrainJob, e: JobEvent) -> None:
         run = Path(job.out).name
-        for e in job.poll():
-            if e["type"] == "progress":
-                self.progress.setValue(int(1000 * e["fraction"]) // 10)
-                eta = job.eta()
-                self.status.setText(e["message"] + (
-                    f" · about {eta:.0f} s left" if eta is not None
-                    else " · time left known after the first fold"))
-            elif e["type"] == "epoch":
-                self._epoch(run, e)
-            elif e["type"] == "fold":
-                self._fold(run, e)
-        if job.finished is not None:
-            self.timer.stop()
-            self._finished(job)
+        if isinstance(e, Progress):
+            self.progress.setValue(int(1000 * e.fraction) // 10)
+            eta = job.eta()
+            self.status.setText(e.message + (
+                f" · about {eta:.0f} s left" if eta is not None
+                else " · time left known after the first fold"))
+        elif isinstance(e, Epoch):
+            self._epoch(run, e)
+        elif isinstance(e, Fold):
+            self._fold(run, e)
 
-    def _epoch(self, run: str, e: dict[str, Any]) -> None:
-        key = (run, int(e["round"]), int(e["fold"]))
-        if int(e["epoch"]) == 1:  # a fold (re)starts: e.g. the one cancelled, on resume
+    def _epoch(self, run: str, e: Epoch) -> None:
+        key = (run, int(e.round), int(e.fold))
+        if int(e.epoch) == 1:  # a fold (re)starts: e.g. the one cancelled, on resume
             self.history[key] = ([], [])
         xs, ys = self.history.setdefault(key, ([], []))
-        acc = e.get("val_acc")
-        acc = e.get("train_acc") if acc is None or acc != acc else acc
-        xs.append(float(e["epoch"]))
-        ys.append(float(acc or 0.0))
+        xs.append(float(e.epoch))
+        ys.append(e.accuracy)
         if key not in self.curves:
             colour = PALETTE[len(self.curves) % len(PALETTE)]
             self.curves[key] = self.plot.plot(pen=pg.mkPen(colour, width=2),
-                                              name=f"{run} {e['fold_name']}")
+                                              name=f"{run} {e.fold_name}")
         self.curves[key].setData(xs, ys)
-        self._row(key, e["fold_name"], len(xs), max(ys), None, "training")
+        self._row(key, e.fold_name, len(xs), max(ys), None, "training")
 
-    def _fold(self, run: str, e: dict[str, Any]) -> None:
-        key = (run, int(e["round"]), int(e["fold"]))
+    def _fold(self, run: str, e: Fold) -> None:
+        key = (run, int(e.round), int(e.fold))
         xs, ys = self.history.get(key, ([], []))
-        acc = f"{100 * e['trial_accuracy']:.1f}%" + (
-            f" ({100 * e['accuracy']:.1f}% per window)" if e.get("cut") else "")
-        self._row(key, e["fold_name"], len(xs) or None, max(ys) if ys else None, acc,
-                  "resumed" if e["resumed"] else "done")
+        acc = f"{100 * e.trial_accuracy:.1f}%" + (
+            f" ({100 * e.accuracy:.1f}% per window)" if e.cut else "")
+        self._row(key, e.fold_name, len(xs) or None, max(ys) if ys else None, acc,
+                  "resumed" if e.resumed else "done")
 
     def _row(self, key, name: str, epochs, best, acc: str | None, status: str) -> None:
         if key not in self.fold_rows:
@@ -411,14 +399,14 @@ class TrainPanel(QWidget):
         for c, v in enumerate(values):
             self.folds.setItem(r, c, QTableWidgetItem(v))
 
-    def _finished(self, job: TrainJob) -> None:
-        f = job.finished or {}
+    def on_finished(self, job: TrainJob) -> None:
+        f = job.finished
         self._set_running(False)
-        if f.get("type") == "done":
+        if isinstance(f, Done):
             self.progress.setValue(100)
-            curve = f" · few-shot curve {f['shots']}" if f.get("shots") else ""
-            self.status.setText(f"finished: {f['headline']}{curve} ({job.out})")
-            for s in f.get("curve") or []:  # the curve under the folds: all people per K
+            curve = f" · few-shot curve {f.shots}" if f.shots else ""
+            self.status.setText(f"finished: {f.headline}{curve} ({job.out})")
+            for s in f.curve:  # the curve under the folds: all people per K
                 acc = s.get("trial_accuracy")
                 acc = s.get("accuracy") if acc is None else acc
                 self._row((Path(job.out).name, -1, int(s["k"])), f"all, K={s['k']}", None,
@@ -432,10 +420,11 @@ class TrainPanel(QWidget):
             elif self.ablation:
                 runs, self.ablation = self.ablation, []
                 self.ablationFinished.emit(runs)
-        elif f.get("type") == "cancelled":
+        elif isinstance(f, Cancelled):
             self.status.setText(f"cancelled; finished folds are kept in {job.out} — Resume "
                                 "continues")
         else:
-            self.status.setText("stopped: " + str(f.get("message")))
-            self.error.emit(str(f.get("message")))
+            message = f.message if isinstance(f, Failed) else "the run ended without a result"
+            self.status.setText("stopped: " + message)
+            self.error.emit(message)
         self._set_running(False)
