@@ -37,7 +37,7 @@ def rss_kb() -> int:
 def soak(minutes: float, rate: float = 1000.0, sample_s: float = 10.0,
          folder: Path | None = None) -> dict:
     """Record ``minutes`` at ``rate`` Hz; RSS samples and the slope after the ring fills."""
-    from tactile_studio.live.session import AcquisitionSession
+    from tactile_studio.acquisition.session import AcquisitionSession
 
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
         acq = AcquisitionSession()

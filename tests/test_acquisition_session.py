@@ -7,8 +7,8 @@ from pathlib import Path
 
 from waiting import wait_until
 
-from tactile_studio.live import AcquisitionSession
-from tactile_studio.live.sinks import FILE, OUTLET, Sink
+from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition.sinks import FILE, OUTLET, Sink
 from tactile_studio.storage.session import Session
 
 

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 from waiting import wait_until
 
+from tactile_studio.acquisition.outcome import recording_outcome
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.errors import EXIT_INCOMPLETE, SessionFileError
-from tactile_studio.live.outcome import recording_outcome
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.storage import Session
 
 LIMIT_BYTES = 3 * 1024 * 1024

@@ -1,4 +1,4 @@
-"""LiveView / LiveController: what the live screen shows, checked without any widget.
+"""LiveView / the main window's AcquisitionSession: what the live screen shows, checked without any widget.
 
 Real engine and real simulated sensor; waits poll the engine, never sleep-and-assert.
 """
@@ -8,11 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from tactile_studio.acquisition import AcquisitionSession
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.errors import SettingsError, UserError
 from tactile_studio.live import (
     LatencyMeter,
-    LiveController,
     LiveView,
     RateMeter,
     parse_taxel_name,
@@ -172,7 +172,7 @@ def test_meters():
 
 
 def test_controller_connect_record_disconnect(tmp_path):
-    c = LiveController()
+    c = AcquisitionSession(compress_in_background=True)
     assert c.status().state == "disconnected"
     with pytest.raises(SettingsError):
         c.connect("simulated", {"rate": "fast"})

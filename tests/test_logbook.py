@@ -13,10 +13,10 @@ import time
 
 import pytest
 
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.storage.logbook import MIGRATIONS, Logbook, UnknownSensor
 from tactile_studio.storage.recorder import Recorder

@@ -115,8 +115,8 @@ def test_a_marker_stream_not_found_is_one_line(tmp_path, capsys):
 def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_path):
     """What ``gui --markers NAME`` sets: every recording of the window's session takes the
     markers in; a lost stream is a ``health`` event (the status bar's warning)."""
+    from tactile_studio.acquisition.session import AcquisitionSession
     from tactile_studio.errors import UserError
-    from tactile_studio.live.session import AcquisitionSession
 
     session = AcquisitionSession()
     heard: list[dict] = []

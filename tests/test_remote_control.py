@@ -112,8 +112,8 @@ def test_a_recording_without_frames_is_an_error_not_a_silent_empty_file(tmp_path
     """The core driven on this thread (``handle``), a serial pty that sends nothing."""
     import numpy as np
 
+    from tactile_studio.acquisition.session import AcquisitionSession
     from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-    from tactile_studio.live.session import AcquisitionSession
     from tactile_studio.streams.remote_control import RemoteControl
 
     emu = SerialEmulator(array_source(np.zeros((10, 180), np.uint16)), link=tmp_path / "port")

@@ -9,8 +9,8 @@ import numpy as np
 from serial_helpers import received_all
 from waiting import wait_until
 
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.storage import Session
 
 

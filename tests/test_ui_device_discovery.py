@@ -12,9 +12,9 @@ import pytest
 from ble_fakes import BACKENDS, RADIO, FakePeripheral, NoAdapterClient, NoAdapterScanner
 from PySide6.QtCore import Qt
 
+from tactile_studio.acquisition import LiveStatus, format_malformed
 from tactile_studio.devices.discovery import list_serial_ports
 from tactile_studio.devices.serial_emulator import SerialEmulator
-from tactile_studio.live import LiveStatus, format_malformed
 from tactile_studio.plugins import ble_device
 from tactile_studio.storage.frame_sources import simulated_source
 from tactile_studio.ui.device_discovery import DiscoverField

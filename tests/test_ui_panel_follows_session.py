@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 from waiting import wait_until
 
-from tactile_studio.live import AcquisitionSession
+from tactile_studio.acquisition import AcquisitionSession
 from tactile_studio.storage import Session
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV

@@ -1,6 +1,6 @@
 """The windows end a recording fault as the commands do (issue 33): a write that fails
 (the file-size limit, as a full disk) stops the recording, and a red banner shows the
-same one line as ``record`` (live/outcome.py) in the main window and the collection
+same one line as ``record`` (acquisition/outcome.py) in the main window and the collection
 console. The limit is set on this process around the recording only."""
 
 from __future__ import annotations

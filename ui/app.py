@@ -25,7 +25,7 @@ def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
             lsl: bool = False, markers: list[str] | None = None) -> int:
     """Show the main window connected to ``device`` and run until it is closed;
     ``lsl`` switches "Stream to LSL" on; ``markers``: LSL marker streams every recording
-    takes in (live/marker_recording.py)."""
+    takes in (acquisition/marker_recording.py)."""
     app = ensure_app()
     window = MainWindow(device=device, settings=settings, connect=connect)
     window.controller.marker_streams = tuple(markers or ())

@@ -26,10 +26,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from tactile_studio.acquisition import AcquisitionSession, LiveStatus
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.live import LiveController, LiveStatus
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.file_dialogs import ask_save_file
@@ -40,7 +40,7 @@ from tactile_studio.ui.write_faults import fault_text
 class DevicePanel(QWidget):
     """Device chooser + generated settings form + connect/tare/record + live state.
 
-    Handed the main window's session (:class:`LiveController`): it forwards the verbs
+    Handed the main window's session (:class:`AcquisitionSession`): it forwards the verbs
     and shows what the session reports; the session decides when a recording stops (its
     events drive the Record button). Emits ``engineChanged`` after connect or disconnect
     so the owner can point its live view at the new engine, ``recordingChanged(path)``
@@ -51,7 +51,7 @@ class DevicePanel(QWidget):
     recordingChanged = Signal(str)
     deviceChosen = Signal(str)
 
-    def __init__(self, controller: LiveController, parent: QWidget | None = None) -> None:
+    def __init__(self, controller: AcquisitionSession, parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.controller = controller
         controller.add_listener(self._on_session_event)

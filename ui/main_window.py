@@ -20,11 +20,11 @@ from PySide6.QtCore import QByteArray, QEventLoop, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence, QShowEvent
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QScrollArea, QWidget
 
+from tactile_studio.acquisition import AcquisitionSession
 from tactile_studio.devices.registry import DEFAULT_DEVICE
 from tactile_studio.errors import UserError
 from tactile_studio.live import (
     LatencyMeter,
-    LiveController,
     LiveFrame,
     LiveView,
     RateMeter,
@@ -60,7 +60,8 @@ class MainWindow(QMainWindow):
         self.setWindowTitle("Tactile Studio")
         self.setStyleSheet(style_sheet())
         self.persist = persist
-        self.controller = LiveController()
+        # stopping a recording must not freeze the window: compressed on a worker thread
+        self.controller = AcquisitionSession(compress_in_background=True)
         self.live = LiveView()
         self.fps = RateMeter(1.0)
         self.latency = LatencyMeter(keep=600)

@@ -6,7 +6,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QLabel, QStatusBar, QWidget
 
-from tactile_studio.live import LiveStatus
+from tactile_studio.acquisition import LiveStatus
 
 
 class LiveStatusBar(QStatusBar):
@@ -29,7 +29,7 @@ class LiveStatusBar(QStatusBar):
                                    " font-weight: bold; padding: 1px 6px; }")
         self.warning.hide()
         # a recording that ended short (write failed, device lost, frames lost): its one
-        # line (live/outcome.py), until the next recording starts
+        # line (acquisition/outcome.py), until the next recording starts
         self.fault = QLabel()
         self.fault.setObjectName("recordingFault")
         self.fault.setStyleSheet("QLabel#recordingFault { background: #c62828; color: white;"
@@ -44,7 +44,7 @@ class LiveStatusBar(QStatusBar):
             self.addPermanentWidget(w)
 
     def follow(self, session: Any) -> None:
-        """Show ``session``'s stream-health warnings (live/stream_health.py) until the
+        """Show ``session``'s stream-health warnings (acquisition/stream_health.py) until the
         device sends again or the next recording starts, and a recording that ended short
         of what was asked (red, its one line) until the next one starts."""
         def on_event(event: dict[str, Any]) -> None:

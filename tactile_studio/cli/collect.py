@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
@@ -23,7 +24,6 @@ from tactile_studio.devices.registry import create_device, parse_set_options, pl
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.protocol.collect import (
     CollectionSession,
     check_participant,
@@ -220,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
         session.close()
         acq.close()
     print(session.path)
-    if acq.outcome is not None:  # live/outcome.py: the same judgement as record and the GUI
+    if acq.outcome is not None:  # acquisition/outcome.py: the same judgement as record and the GUI
         if not acq.outcome.complete:
             print(acq.outcome.summary_line, file=sys.stderr)
         acq.outcome.raise_if_incomplete()  # device failed, write failed, frames lost: 3

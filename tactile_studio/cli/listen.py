@@ -7,12 +7,12 @@ import argparse
 import sys
 import time
 
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.recording_warnings import watch_health
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.paths import make_out_dir
 from tactile_studio.streams.remote_control import DEFAULT_PORT, LOOPBACK, RemoteControl
 
@@ -50,7 +50,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
         session.set_lsl(True)
     control = RemoteControl(session, out, args.port, args.host,
                             metadata={"notes": "recorded by listen"})
-    incomplete: list[str] = []  # lines of recordings that ended short (live/outcome.py)
+    incomplete: list[str] = []  # lines of recordings that ended short (acquisition/outcome.py)
     session.add_listener(lambda e: _report(e, incomplete))
     watch_health(session)
     token = CancelToken()

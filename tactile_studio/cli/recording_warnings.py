@@ -1,5 +1,5 @@
 """Problems during a recording, said on a line of their own as they happen: a device gone
-silent (live/stream_health.py), a marker stream that disappeared."""
+silent (acquisition/stream_health.py), a marker stream that disappeared."""
 
 from __future__ import annotations
 

@@ -9,6 +9,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
@@ -18,7 +19,6 @@ from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.live.session import AcquisitionSession
 from tactile_studio.storage.session import Session
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
@@ -100,7 +100,7 @@ def cmd_record(args: argparse.Namespace) -> int:
                 break
     progress.close()
     session.close()  # engine, then the LSL outlet (its end goes into the file), then the file
-    outcome = session.outcome  # live/outcome.py: the same judgement as collect and the GUI
+    outcome = session.outcome  # acquisition/outcome.py: the same judgement as collect and the GUI
     if outcome is None:
         raise UserError(f"{out}: the recording did not start")
     print(f"\n{outcome.summary_line}")

@@ -17,8 +17,8 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QMenu, QWidget
 
+from tactile_studio.acquisition import AcquisitionEngine, AcquisitionSession
 from tactile_studio.errors import UserError
-from tactile_studio.live import AcquisitionEngine, AcquisitionSession
 from tactile_studio.ui.collect.console import CollectConsole
 
 LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
@@ -69,7 +69,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
                   resume: str | os.PathLike | None = None, lsl: bool = False,
                   markers: list[str] | None = None) -> CollectConsole:
     """A shown console with its setup form pre-filled (or resuming ``resume``);
-    ``markers``: LSL marker streams its recording takes in (live/marker_recording.py).
+    ``markers``: LSL marker streams its recording takes in (acquisition/marker_recording.py).
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.

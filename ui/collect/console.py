@@ -7,7 +7,7 @@ buttons. One QTimer drives ``runner.tick()`` and every repaint (never one repain
 sample). Widgets only present ``runner.snapshot()`` and forward intent to the runner;
 opening, resuming and closing the session file is the core's ``open_session`` /
 ``resume_session`` / ``close``, and the device, engine, recorder and LSL outlet belong
-to the :class:`~tactile_studio.live.session.AcquisitionSession` the console is handed
+to the :class:`~tactile_studio.acquisition.session.AcquisitionSession` the console is handed
 (it never builds an engine or a recorder itself).
 """
 
@@ -34,10 +34,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from tactile_studio.acquisition import AcquisitionEngine, AcquisitionSession
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
-from tactile_studio.live import AcquisitionEngine, AcquisitionSession, LiveView
+from tactile_studio.live import LiveView
 from tactile_studio.live.meters import PaintPacer
 from tactile_studio.protocol.collect import OtherSensorRefused, open_session, resume_session
 from tactile_studio.ui.collect.beep import QtBeeper
@@ -415,7 +416,7 @@ class CollectConsole(ConsoleActions):
 
     # ---- the timer ----------------------------------------------------------------------
     def _on_acquisition_event(self, event: dict[str, Any]) -> None:
-        """How the recording ended (live/outcome.py): a banner when it is incomplete."""
+        """How the recording ended (acquisition/outcome.py): a banner when it is incomplete."""
         if event["kind"] == "recording_started":
             self.fault_banner.hide()
         elif event["kind"] == "recording_stopped" and event.get("message"):

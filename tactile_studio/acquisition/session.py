@@ -32,15 +32,15 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.acquisition.marker_recording import MarkerRecording
+from tactile_studio.acquisition.outcome import RecordingOutcome, outcome_of
+from tactile_studio.acquisition.sinks import FILE, OUTLET, PUBLISHING, LslPublishing, SinkList
+from tactile_studio.acquisition.status import LiveStatus
+from tactile_studio.acquisition.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
-from tactile_studio.live.marker_recording import MarkerRecording
-from tactile_studio.live.outcome import RecordingOutcome, outcome_of
-from tactile_studio.live.sinks import FILE, OUTLET, PUBLISHING, LslPublishing, SinkList
-from tactile_studio.live.status import LiveStatus
-from tactile_studio.live.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 from tactile_studio.storage.session_compress import wait_for_compression
@@ -55,21 +55,23 @@ class AcquisitionSession:
     ``connected`` (device), ``disconnected``, ``state`` (state: the engine's new
     state, seen by :meth:`poll`), ``recording_started`` (path), ``recording_stopped``
     (path, reason: ``requested``, ``limit``, ``device`` or ``write_error``; ``outcome``:
-    the :class:`~tactile_studio.live.outcome.RecordingOutcome`, ``message``: its one line
+    the :class:`~tactile_studio.acquisition.outcome.RecordingOutcome`, ``message``: its one line
     when the recording is incomplete, else "") and ``health`` (message: the
-    device went silent while recording, or came back; live/stream_health.py).
+    device went silent while recording, or came back; acquisition/stream_health.py).
     """
 
-    #: compress a stopped recording on a worker thread (the GUI's session sets it)
-    compress_in_background = False
     #: a recording warns (event ``health``) when the device is silent this long
     silence_warning_s = DEFAULT_SILENCE_S
     #: LSL marker streams (by name) recorded with every recording (``gui --markers``)
     marker_streams: tuple[str, ...] = ()
 
     def __init__(self, *, capacity: int = 1 << 16,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic,
+                 compress_in_background: bool = False) -> None:
         self.capacity = capacity
+        # the main window's session compresses a stopped recording on a worker thread
+        # (stopping a recording must not freeze the window)
+        self.compress_in_background = compress_in_background
         self.clock = clock
         self.engine: AcquisitionEngine | None = None
         self.recorder: Recorder | None = None
@@ -78,7 +80,7 @@ class AcquisitionSession:
         self.lsl_wanted = False
         self.lsl_error: str | None = None
         self._owns_engine = False
-        # the sinks in stop order (live/sinks.py): outlets, the file, LSL publishing
+        # the sinks in stop order (acquisition/sinks.py): outlets, the file, LSL publishing
         self.sinks = SinkList()
         self._listeners: list[Listener] = []
         self._seen_state: str | None = None
@@ -87,7 +89,7 @@ class AcquisitionSession:
         self._stop_all = False
         self._health: StreamHealth | None = None
         self._markers: MarkerRecording | None = None
-        #: how the last recording ended (set when it stops; live/outcome.py)
+        #: how the last recording ended (set when it stops; acquisition/outcome.py)
         self.outcome: RecordingOutcome | None = None
 
     # ---- events ------------------------------------------------------------------------

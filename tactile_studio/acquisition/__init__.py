@@ -1,0 +1,22 @@
+"""Acquisition, Qt-free: device → engine → sinks, one seam for every place that acquires.
+
+- :mod:`tactile_studio.acquisition.session`: :class:`AcquisitionSession`, device +
+  engine + sinks with one start order, auto-stop and events (the main window, ``record``,
+  ``collect`` and the collection console all use it; ui's only way to acquisition, an
+  import-linter contract). :class:`AcquisitionEngine`, the engine it hands out
+  (``session.engine``), is re-exported for the widgets that hold one;
+- :mod:`tactile_studio.acquisition.sinks`: the :class:`Sink` protocol (the HDF5
+  recorder, outlets, LSL publishing) and the stop order;
+- :mod:`tactile_studio.acquisition.outcome`: how a recording ended;
+- :mod:`tactile_studio.acquisition.status`: :class:`LiveStatus` and :func:`format_malformed`;
+- :mod:`tactile_studio.acquisition.stream_health` and ``marker_recording``: a silent
+  device and other programs' LSL markers while recording.
+"""
+
+from __future__ import annotations
+
+from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.status import LiveStatus, format_malformed
+from tactile_studio.devices.engine import AcquisitionEngine
+
+__all__ = ["AcquisitionEngine", "AcquisitionSession", "LiveStatus", "format_malformed"]
