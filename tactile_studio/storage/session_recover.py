@@ -29,6 +29,7 @@ from h5py import h5f, h5p
 from tactile_studio.errors import SessionFileError
 from tactile_studio.storage.file_guards import COLUMNS, _stored_rows
 
+JOURNAL_SLACK = 1 << 20  # bytes a cut-short journal may claim beyond its stored chunks
 TAIL_BLOCK = 4096  # rows read at a time from the end when looking for written rows
 
 
@@ -87,7 +88,9 @@ def cut_short_rows(f: h5py.File, path: Path) -> int:
         if ds.is_virtual or ds.external:
             raise SessionFileError(f"{path}: dataset {name} is kept in other files "
                                    "(external or virtual storage); not read")
-    if "journal" in f and f["journal"].shape[0] > _stored_rows(f["journal"]):
+    # the write that failed may have been the journal's own growth: a claim a little past
+    # what is stored reads as zeros there, which the journal's reader skips as a cut line
+    if "journal" in f and f["journal"].shape[0] > _stored_rows(f["journal"]) + JOURNAL_SLACK:
         raise SessionFileError(f"{path}: its journal claims more bytes than the file holds")
     frames = [f[f"frames/{name}"] for name in ("raw", *COLUMNS) if f"frames/{name}" in f]
     return min((min(ds.shape[0], _stored_rows(ds)) for ds in frames if ds.shape), default=0)
