@@ -85,7 +85,7 @@ def cmd_emulate_serial(args: argparse.Namespace) -> int:
                 if args.seconds is not None and time.monotonic() - start >= args.seconds:
                     break
     finally:
-        emu.close(drain=1.0)  # let the reader take what is queued, so the counts are exact
+        emu.close(drain=5.0)  # let the reader take what is queued, so the counts are exact
     report = emu.report()
     if args.json:
         print_json(report, indent=None)

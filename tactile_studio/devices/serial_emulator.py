@@ -36,7 +36,7 @@ from tactile_studio.errors import UserError
 FrameSource = Callable[[int], np.ndarray]
 """``source(n)`` returns the next ``n`` frames, (n, channels) integer counts."""
 
-DRAIN_SETTLE_S = 0.05  # how long the reader's queue must stay empty before unplug closes
+DRAIN_SETTLE_S = 0.3  # how long the reader's queue must stay empty before unplug closes
 
 _NON_NUMERIC = (b"ERR", b"nan", b"1a", b"", b" 12", b"0x1F", b"-", b"+7")
 
