@@ -119,6 +119,6 @@ def test_background_and_training_jobs_end_in_the_one_line(qtbot, run_folder, blo
         train.poll()
         time.sleep(0.05)
     train.poll()
-    assert train.finished["type"] == "error"
-    assert train.finished["message"].startswith(f"{blocker}/run")
-    assert train.finished["message"].endswith("cannot write (Not a directory)")
+    assert train.finished.type == "error"
+    assert train.finished.message.startswith(f"{blocker}/run")
+    assert train.finished.message.endswith("cannot write (Not a directory)")
