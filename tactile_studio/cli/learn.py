@@ -87,16 +87,18 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
 
 
 def _shot_counts(text: str) -> tuple[int, ...]:
-    """"0,1,2" -> (0, 1, 2): distinct counts of 0 or more."""
+    """``--shots``: the train panel's parser (learn.splits.parse_shot_counts), as a usage
+    error; on the command line the option names at least one count."""
+    from tactile_studio.errors import UserError
+    from tactile_studio.learn.splits import parse_shot_counts
+
     try:
-        ks = tuple(int(k) for k in text.replace(" ", "").split(",") if k != "")
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a list of counts such as 0,1,2") \
-            from None
-    if not ks or min(ks) < 0 or len(set(ks)) != len(ks):
-        raise argparse.ArgumentTypeError(f"{text!r}: give distinct counts of 0 or more, "
-                                         "such as 0,1,2")
-    return tuple(sorted(ks))
+        ks = parse_shot_counts(text)
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    if not ks:
+        raise argparse.ArgumentTypeError("give counts such as 0,1,2")
+    return ks
 
 
 def add_generalisation_options(p: argparse.ArgumentParser) -> None:
