@@ -124,12 +124,7 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
             writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
         if counters:
             writer.set_counters(counters)
-        for i in range(0, n, WRITE_CHUNK):
-            if cancel is not None:
-                cancel.check()
-            j = min(n, i + WRITE_CHUNK)
-            writer.append_frames(raw[i:j], times[i:j], times[i:j])
-            progress(min(j / max(n, 1), 0.99), f"{path.name}: {j} of {n} frames")
+        append_in_chunks(writer, raw, times, path.name, progress, cancel)
         for t in trials:
             writer.add_trial(t)
         writer.close()
@@ -138,6 +133,19 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
         raise
     progress(1.0, f"{path.name}: {n} frames, {len(trials)} trials")
     return path
+
+
+def append_in_chunks(writer: SessionWriter, raw: np.ndarray, times: np.ndarray, name: str,
+                     progress: ProgressFn, cancel: CancelToken | None) -> None:
+    """Frames (host time = device time, as an import knows them) in chunks of
+    ``WRITE_CHUNK``, with progress and a cancel check between chunks."""
+    n = int(raw.shape[0])
+    for i in range(0, n, WRITE_CHUNK):
+        if cancel is not None:
+            cancel.check()
+        j = min(n, i + WRITE_CHUNK)
+        writer.append_frames(raw[i:j], times[i:j], times[i:j])
+        progress(min(j / max(n, 1), 0.99), f"{name}: {j} of {n} frames")
 
 
 def _discard(writer: SessionWriter, path: Path) -> None:

@@ -34,10 +34,10 @@ from tactile_studio.sensor.channels import RAW, layout_for_channels
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.importers._common import (
-    WRITE_CHUNK,
     ImportFormatError,
     NoFramesError,
     _discard,
+    append_in_chunks,
     check_outputs,
     file_sha256,
     import_session_id,
@@ -220,12 +220,7 @@ def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout
             for row, values in markers.baselines:
                 if len(values) == lay.n_channels:
                     writer.add_baseline(np.asarray(values), row)
-            for i in range(0, n, WRITE_CHUNK):
-                if cancel is not None:
-                    cancel.check()
-                j = min(n, i + WRITE_CHUNK)
-                writer.append_frames(raw[i:j], times[i:j], times[i:j])
-                progress(min(j / max(n, 1), 0.99), f"{out.name}: {j} of {n} frames")
+            append_in_chunks(writer, raw, times, out.name, progress, cancel)
             for a, _b in segments[1:]:
                 writer.add_event("gap", int(a), float(times[a]), cause="xdf",
                                  seconds=round(float(times[a] - times[a - 1]), 6))
