@@ -19,7 +19,6 @@ how re-running with the same ``--out`` resumes.
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
 import math
 import os
@@ -28,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.input_files import file_sha256
 
 CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
 MODEL_FILES = (WEIGHTS, "model.onnx")  # torch weights, or a baseline's ONNX file
@@ -134,7 +134,7 @@ class RunFolder:
         d.mkdir(parents=True, exist_ok=True)
         fitted.save(d / fitted.file_name)
         # what was saved, so a model file copied in from another fold is told apart
-        record["model_sha256"] = {f.name: file_digest(f) for f in sorted(d.iterdir())
+        record["model_sha256"] = {f.name: file_sha256(f) for f in sorted(d.iterdir())
                                   if f.is_file() and f.name != FOLD}
         write_json(d / FOLD, record)
 
@@ -191,19 +191,10 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
             if not f.is_file():
                 return None, (f"{f}: fold {d.name} is finished but its model file is "
                               "missing; train the run again into a new --out")
-            if file_digest(f) != digest:
+            if file_sha256(f) != digest:
                 return None, (f"{f}: fold {d.name}'s model file is not the one trained "
                               "for it (replaced or copied from another fold or run)")
     return rec, ""
-
-
-def file_digest(path: Path) -> str:
-    """SHA-256 of a file's bytes (hex)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def _metrics_problem(run: Path, finished: set[tuple[int, str]]) -> str:

@@ -3,7 +3,6 @@ gesture names from the shipped protocols, progress slices."""
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
 from collections.abc import Callable, Sequence
@@ -76,15 +75,6 @@ def load_protocol_or_none(name: str) -> Any:
         return load_protocol(name)
     except UserError:
         return None
-
-
-def file_sha256(path: Path) -> str:
-    """Hash of a file's bytes (1 MB blocks)."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def import_session_id(fmt: str, sha256: str, part: str = "") -> str:

@@ -35,7 +35,6 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
 from tactile_studio.storage.importers._common import (
     check_outputs,
-    file_sha256,
     import_session_id,
     load_protocol_or_none,
     norm_name,
@@ -45,6 +44,7 @@ from tactile_studio.storage.importers._common import (
     write_session,
 )
 from tactile_studio.storage.importers.table import Table, read_table
+from tactile_studio.storage.input_files import file_sha256
 from tactile_studio.storage.trials import TrialRecord
 
 # The corpora's own numbering. CoST's README numbers its gestures alphabetically: 1 grab,

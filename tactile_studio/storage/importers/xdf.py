@@ -39,11 +39,10 @@ from tactile_studio.storage.importers._common import (
     _discard,
     append_in_chunks,
     check_outputs,
-    file_sha256,
     import_session_id,
     run_jobs,
 )
-from tactile_studio.storage.input_files import check_input_file
+from tactile_studio.storage.input_files import check_input_file, file_sha256
 from tactile_studio.storage.session_writer import SessionWriter
 
 # jitter removal fits a line per segment: a pause longer than max(BREAK_S, BREAK_SAMPLES
