@@ -121,12 +121,7 @@ class ConfusionView(QWidget):
         self.shots.blockSignals(False)
         for w in (self.shots, self.shots_label):
             w.setVisible(bool(self.model.shot_counts))
-        if self.ordered.isChecked():
-            self.model.order_by_confusion()
-        self.table.setRowCount(0)
-        self.cell_rows = []
-        self.matrix.selected = None
-        self.refresh()
+        self._redraw_from_scratch()
 
     @property
     def mode_key(self) -> str:
@@ -143,6 +138,10 @@ class ConfusionView(QWidget):
         if self.model is None or self.shots.currentData() is None:
             return
         self.model.set_shots(int(self.shots.currentData()))
+        self._redraw_from_scratch()
+
+    def _redraw_from_scratch(self) -> None:
+        """Another run or K: its order, no selected cell, no trial rows of the last one."""
         if self.ordered.isChecked():
             self.model.order_by_confusion()
         self.table.setRowCount(0)
