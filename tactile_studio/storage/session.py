@@ -50,13 +50,9 @@ def _user_blocks(record: dict[str, Any]) -> dict[str, Any]:
 
 
 def measured_rate_hz(times: np.ndarray) -> float:
-    """Frames per second over a recording: (frames - 1) / time spanned; 0 when it
-    cannot be measured. ``info`` and the importers' device metadata both use it."""
-    n = len(times)
-    if n < 2:
-        return 0.0
-    span = float(times[-1] - times[0])
-    return (n - 1) / span if span > 0 else 0.0
+    """Frames per second over a recording of one segment: (frames - 1) / time spanned; 0
+    when it cannot be measured (the importers' and the XDF export's device metadata)."""
+    return segmented_rate_hz(times, [])
 
 
 def derived_session_id(text: str) -> str:
