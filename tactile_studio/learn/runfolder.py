@@ -191,10 +191,23 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
             if not f.is_file():
                 return None, (f"{f}: fold {d.name} is finished but its model file is "
                               "missing; train the run again into a new --out")
-            if file_sha256(f) != digest:
+            if _model_digest(f) != digest:
                 return None, (f"{f}: fold {d.name}'s model file is not the one trained "
                               "for it (replaced or copied from another fold or run)")
     return rec, ""
+
+
+_DIGESTS: dict[tuple[str, int, int], str] = {}
+
+
+def _model_digest(path: Path) -> str:
+    """A model file's SHA-256, read once per version of the file: the workspace checks
+    every run it lists at each rescan, and a paper-size network's folds hold ~20 MB each."""
+    st = path.stat()
+    key = (str(path.resolve()), st.st_ctime_ns, st.st_size)  # ctime: any write changes it
+    if key not in _DIGESTS:
+        _DIGESTS[key] = file_sha256(path)
+    return _DIGESTS[key]
 
 
 def _metrics_problem(run: Path, finished: set[tuple[int, str]]) -> str:
