@@ -23,9 +23,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.baselines import BaselineModel, baseline_options  # noqa: E402
-from tactile_studio.learn.dataset import build_dataset  # noqa: E402
-from tactile_studio.learn.features import feature_matrix  # noqa: E402
+from tactile_studio.learn.data.dataset import build_dataset  # noqa: E402
+from tactile_studio.learn.data.features import feature_matrix  # noqa: E402
+from tactile_studio.learn.learners.baselines import BaselineModel, baseline_options  # noqa: E402
 
 
 def _per_call(fn, runs: int) -> float:

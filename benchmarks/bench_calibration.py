@@ -2,7 +2,7 @@
 
 Evaluation with ``--adapt person`` adapts a model to each test person from their whole
 session, the very trials it then predicts. Live, the model can only be calibrated on a
-recording made before (Live inference > "Calibrate to person…", learn/window_model.py
+recording made before (Live inference > "Calibrate to person…", learn/deploy/window_model.py
 ``calibrate``). This benchmark replays that on finished lopo runs (e.g. the folders
 ``bench_generalise.py --adapt --keep DIR`` keeps): for every fold model and its test
 person, the person's first K trials (in recording order) are the calibration recording and
@@ -21,7 +21,7 @@ the rest are predicted
 
 all on the same held-out trials, pooled over every round and fold; each calibrated figure
 is paired against "as trained" and against the whole session (Wilcoxon over participants,
-McNemar over trials; learn/stats.py).
+McNemar over trials; learn/evaluation/stats.py).
 
 ``--repeated N`` instead replays free play settling on one gesture (function
 ``repeated``), where unguarded running statistics normalise the gesture away; with
@@ -44,11 +44,11 @@ from pathlib import Path
 
 import numpy as np
 
-from tactile_studio.learn.evaluate import load_run_data
-from tactile_studio.learn.fused import display_name
-from tactile_studio.learn.live_inference import RunningCalibration
-from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.live_inference import RunningCalibration
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.evaluation.evaluate import load_run_data
+from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
+from tactile_studio.learn.learners.fused import display_name
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.simulate.population import DIFFICULTIES

@@ -9,7 +9,7 @@ rounds (the cost on one core), the sweep's wall time, the parameters of the mode
 channels, 6x6, 9 gestures) and its inference time per 2 s trial (batch of 64, one thread,
 including the mirror averaging of the full recipe). With rf among the models (first),
 every learned model is also compared with it trial by trial on the same test trials of
-every round (learn/compare.py: the accuracy difference, Wilcoxon signed-rank over the
+every round (learn/evaluation/compare.py: the accuracy difference, Wilcoxon signed-rank over the
 participants, McNemar over the trials): one accuracy has a standard error of ~2.5 points,
 the paired test says whether a difference is more than that.
 
@@ -57,14 +57,14 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.baselines import BASELINES  # noqa: E402
-from tactile_studio.learn.compare import compare_predictions, compare_runs  # noqa: E402
-from tactile_studio.learn.contract import PRESETS  # noqa: E402
-from tactile_studio.learn.executors import LocalExecutor  # noqa: E402
-from tactile_studio.learn.experiment import ExperimentConfig  # noqa: E402
-from tactile_studio.learn.fused import fuse  # noqa: E402
-from tactile_studio.learn.sweep import run_sweep  # noqa: E402
-from tactile_studio.learn.trialpreds import RunPredictions, load_predictions  # noqa: E402
+from tactile_studio.learn.evaluation.compare import compare_predictions, compare_runs  # noqa: E402
+from tactile_studio.learn.evaluation.trialpreds import RunPredictions, load_predictions  # noqa: E402
+from tactile_studio.learn.experiments.executors import LocalExecutor  # noqa: E402
+from tactile_studio.learn.experiments.experiment import ExperimentConfig  # noqa: E402
+from tactile_studio.learn.experiments.sweep import run_sweep  # noqa: E402
+from tactile_studio.learn.learners.baselines import BASELINES  # noqa: E402
+from tactile_studio.learn.learners.contract import PRESETS  # noqa: E402
+from tactile_studio.learn.learners.fused import fuse  # noqa: E402
 from tactile_studio.simulate import GESTURE_NAMES  # noqa: E402
 from tactile_studio.simulate.population import DIFFICULTIES  # noqa: E402
 
@@ -103,7 +103,7 @@ def model_cost(name: str, preset: str, sets: dict[str, str],
 
 
 def fused_trials(rf: RunPredictions, net: RunPredictions, w: float) -> RunPredictions:
-    """``net``'s test trials with learn/fused.py's probabilities, (1 - w) * net + w * rf:
+    """``net``'s test trials with learn/learners/fused.py's probabilities, (1 - w) * net + w * rf:
     what ``--set rf_weight=w`` predicts, since the fused model trains the same network and
     forest with the same seeds (tests/test_fused.py). Per trial: mean window probabilities."""
     by_trial = {(t.round, t.uid): t for t in rf.trials}

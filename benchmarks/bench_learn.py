@@ -27,10 +27,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.dataset import build_dataset  # noqa: E402
-from tactile_studio.learn.features import trial_features  # noqa: E402
-from tactile_studio.learn.learners import DataInfo, available_models, make_learner  # noqa: E402
-from tactile_studio.learn.train import fit  # noqa: E402
+from tactile_studio.learn.data.dataset import build_dataset  # noqa: E402
+from tactile_studio.learn.data.features import trial_features  # noqa: E402
+from tactile_studio.learn.learners.families import DataInfo, available_models, make_learner  # noqa: E402
+from tactile_studio.learn.learners.train import fit  # noqa: E402
 
 
 def timed(fn, budget_s: float = 1.0, min_runs: int = 5, max_runs: int = 200) -> list[float]:

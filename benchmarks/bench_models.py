@@ -23,16 +23,16 @@ import torch.nn.functional as F
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from tactile_studio.learn.export import (  # noqa: E402
+from tactile_studio.learn.deploy.export import (  # noqa: E402
     export_onnx,
     int8_format,
     load_onnx_predictor,
     model_size_bytes,
     quantize_onnx_int8,
 )
+from tactile_studio.learn.deploy.streaming import StreamingPredictor  # noqa: E402
 from tactile_studio.learn.models import MODELS  # noqa: E402
 from tactile_studio.learn.models._common import count_parameters  # noqa: E402
-from tactile_studio.learn.streaming import StreamingPredictor  # noqa: E402
 
 THREADS = 2
 N_CLASSES = 9

@@ -4,7 +4,7 @@ difficulties do to a random forest leave-one-participant-out.
 Part 1, the table: populations of 10 virtual people as ``collect --virtual-participant
 --seed S`` draws them (default ``real`` difficulty, shear9, 2 blocks, flat surface),
 decoded with the project's ``decode`` on the physical grid; the statistics of
-``tactile_studio.learn.touch_stats`` (median [IQR] over trials, CV of the participants'
+``tactile_studio.learn.data.touch_stats`` (median [IQR] over trials, CV of the participants'
 medians) for population seed 0 alone and pooled over ``--populations`` seeds (the mean,
 with the lowest and highest CV: ten people are a small sample), then each pooled figure
 divided by the real one (issue 37 asks 0.75-1.25).
@@ -26,14 +26,14 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder, make_virtual_population  # noqa: E402
 
-from tactile_studio.learn.dataset import read_sessions  # noqa: E402
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment  # noqa: E402
-from tactile_studio.learn.touch_stats import (  # noqa: E402
+from tactile_studio.learn.data.dataset import read_sessions  # noqa: E402
+from tactile_studio.learn.data.touch_stats import (  # noqa: E402
     format_table,
     pooled,
     population_stats,
     ratios_to_real,
 )
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment  # noqa: E402
 
 COHORTS = (("easy", "FLAT"), ("real", "FLAT"), ("real", "PILLOW"), ("hard", "FLAT"))
 

@@ -35,9 +35,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-import tactile_studio.learn.experiment as experiment  # noqa: E402
-from tactile_studio.learn.contract import DataInfo  # noqa: E402
-from tactile_studio.learn.dataset import read_sessions  # noqa: E402
+import tactile_studio.learn.experiments.experiment as experiment  # noqa: E402
+from tactile_studio.learn.data.dataset import read_sessions  # noqa: E402
+from tactile_studio.learn.learners.contract import DataInfo  # noqa: E402
 from tactile_studio.learn.models import MODELS  # noqa: E402
 from tactile_studio.simulate import GESTURE_NAMES  # noqa: E402
 
@@ -81,7 +81,7 @@ def inference_ms(model: str, ds, batch: int = 64, repeat: int = 5) -> float:
     """CPU ms per window of the full preset's eval forward (one thread, weights as built)."""
     import torch
 
-    from tactile_studio.learn.train import predict_proba
+    from tactile_studio.learn.learners.train import predict_proba
 
     info = DataInfo.of(ds)
     net = MODELS[model].build(info.n_classes, info.in_channels, info.grid, "full")

@@ -32,8 +32,8 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=8.0)
     args = ap.parse_args(argv or [])
-    from tactile_studio.learn.experiment import ExperimentConfig
-    from tactile_studio.learn.train_job import TrainJob
+    from tactile_studio.learn.experiments.experiment import ExperimentConfig
+    from tactile_studio.learn.experiments.train_job import TrainJob
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.main_window import MainWindow, wait_for
 

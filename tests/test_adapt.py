@@ -1,4 +1,4 @@
-"""Adapting to each test person (``--adapt person``, learn/generalise.py): a network's
+"""Adapting to each test person (``--adapt person``, learn/learners/generalise.py): a network's
 batch-norm statistics are re-estimated on the person's own unlabelled windows (AdaBN), rf
 and knn standardise every person's features by that person's own statistics. Real
 folds, real tiny training; the stored predictions are recomputed by hand."""
@@ -14,13 +14,17 @@ from learn_fixtures import make_dataset_folder, write_participant
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.compare import compare_runs
-from tactile_studio.learn.evaluate import load_run_data, rescore_run
-from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
-from tactile_studio.learn.generalise import person_standardised
-from tactile_studio.learn.runfolder import model_file
-from tactile_studio.learn.train import adapt_batchnorm
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.evaluation.compare import compare_runs
+from tactile_studio.learn.evaluation.evaluate import load_run_data, rescore_run
+from tactile_studio.learn.experiments.experiment import (
+    ExperimentConfig,
+    prepare_inputs,
+    run_experiment,
+)
+from tactile_studio.learn.experiments.runfolder import model_file
+from tactile_studio.learn.learners.generalise import person_standardised
+from tactile_studio.learn.learners.train import adapt_batchnorm
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 

@@ -12,12 +12,16 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
-from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.evaluate import load_run_data, rescore_run
-from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
-from tactile_studio.learn.generalise import adapt_groups
-from tactile_studio.learn.runfolder import model_file
-from tactile_studio.learn.windowing import WindowSpec, cut
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.data.windowing import WindowSpec, cut
+from tactile_studio.learn.evaluation.evaluate import load_run_data, rescore_run
+from tactile_studio.learn.experiments.experiment import (
+    ExperimentConfig,
+    prepare_inputs,
+    run_experiment,
+)
+from tactile_studio.learn.experiments.runfolder import model_file
+from tactile_studio.learn.learners.generalise import adapt_groups
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 

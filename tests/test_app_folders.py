@@ -10,8 +10,8 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio import paths
 from tactile_studio.cli import main
-from tactile_studio.learn.cache import default_cache_dir
-from tactile_studio.learn.dataset import build_dataset
+from tactile_studio.learn.data.cache import default_cache_dir
+from tactile_studio.learn.data.dataset import build_dataset
 
 CORE = Path(__file__).resolve().parents[1] / "tactile_studio"
 

@@ -15,14 +15,14 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.baselines import BaselineModel, baseline_options
-from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.evaluate import rescore_run
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.export_run import export_run
-from tactile_studio.learn.features import feature_matrix
-from tactile_studio.learn.learners import DataInfo
-from tactile_studio.learn.streaming import StreamingPredictor
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.data.features import feature_matrix
+from tactile_studio.learn.deploy.export_run import export_run
+from tactile_studio.learn.deploy.streaming import StreamingPredictor
+from tactile_studio.learn.evaluation.evaluate import rescore_run
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.baselines import BaselineModel, baseline_options
+from tactile_studio.learn.learners.families import DataInfo
 
 
 @pytest.fixture(scope="module")

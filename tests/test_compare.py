@@ -13,11 +13,11 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.compare import compare_runs, config_difference
-from tactile_studio.learn.confusion import ConfusionModel
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.stats import mcnemar_exact, wilcoxon_signed_rank
-from tactile_studio.learn.trialpreds import TrialPrediction, load_predictions
+from tactile_studio.learn.evaluation.compare import compare_runs, config_difference
+from tactile_studio.learn.evaluation.confusion import ConfusionModel
+from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
+from tactile_studio.learn.evaluation.trialpreds import TrialPrediction, load_predictions
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub", "Tickle")
 

@@ -14,7 +14,7 @@ import torch
 import torch.nn.functional as F
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.export import (
+from tactile_studio.learn.deploy.export import (
     export_onnx,
     int8_format,
     load_onnx_predictor,

@@ -12,8 +12,8 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main as cli_main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.export_run import export_run
+from tactile_studio.learn.deploy.export_run import export_run
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 

@@ -1,4 +1,4 @@
-"""A learned model fused with the random forest (``--set rf_weight=W``, learn/fused.py):
+"""A learned model fused with the random forest (``--set rf_weight=W``, learn/learners/fused.py):
 trained side by side on real folds, its probabilities are exactly the weighted mean of the
 network's and the forest's alone (same seeds), and it evaluates, exports and predicts live
 windows like any model."""
@@ -13,12 +13,12 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.compare import compare_runs
-from tactile_studio.learn.contract import LEARNER_MEMBERS, Learner
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.learners import make_learner
-from tactile_studio.learn.train_job import model_settings
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.evaluation.compare import compare_runs
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.train_job import model_settings
+from tactile_studio.learn.learners.contract import LEARNER_MEMBERS, Learner
+from tactile_studio.learn.learners.families import make_learner
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 
@@ -109,8 +109,8 @@ def test_rf_weight_is_for_learned_models_only_and_listed_in_their_options(capsys
 
 
 def test_a_fused_sweep_task_brings_both_model_files_back(runs, tmp_path):
-    from tactile_studio.learn.executors import LocalExecutor
-    from tactile_studio.learn.sweep import format_rows, run_sweep
+    from tactile_studio.learn.experiments.executors import LocalExecutor
+    from tactile_studio.learn.experiments.sweep import format_rows, run_sweep
 
     base = ExperimentConfig(data=[str(runs["root"] / "data")], model="cnn1d", protocol="lopo",
                             preset="tiny", epochs=2, device="cpu", overrides={"rf_weight": 0.3},

@@ -10,12 +10,16 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import augment as A
-from tactile_studio.learn.dataset import read_sessions
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.generalise import balanced_index, participant_normalised, participant_val
-from tactile_studio.learn.splits import make_folds
-from tactile_studio.learn.touch_stats import REAL, trial_stats
+from tactile_studio.learn.data import augment as A
+from tactile_studio.learn.data.dataset import read_sessions
+from tactile_studio.learn.data.splits import make_folds
+from tactile_studio.learn.data.touch_stats import REAL, trial_stats
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.generalise import (
+    balanced_index,
+    participant_normalised,
+    participant_val,
+)
 from tactile_studio.sensor.decode import compute_baseline, decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate import SensorSimulator

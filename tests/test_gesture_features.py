@@ -9,13 +9,13 @@ import pytest
 import torch
 from learn_fixtures import make_dataset_folder
 
-from tactile_studio.learn import views
-from tactile_studio.learn.contract import DataInfo
-from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.features import trial_features
-from tactile_studio.learn.learners import make_learner
+from tactile_studio.learn.data import views
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.data.features import trial_features
+from tactile_studio.learn.learners.contract import DataInfo
+from tactile_studio.learn.learners.families import make_learner
+from tactile_studio.learn.learners.train import load_weights, save_weights
 from tactile_studio.learn.models.gesture_features import GestureFeatures, metric_names
-from tactile_studio.learn.train import load_weights, save_weights
 from tactile_studio.sensor.gesture_metrics import MOVEMENT_TYPES
 
 FRAMES = 86  # a 2 s window at 43 Hz

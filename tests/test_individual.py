@@ -11,7 +11,7 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main as cli_main
-from tactile_studio.learn.individual import individual_report
+from tactile_studio.learn.experiments.individual import individual_report
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
 

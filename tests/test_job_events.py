@@ -7,7 +7,7 @@ import pickle
 
 import pytest
 
-from tactile_studio.learn import job_events as je
+from tactile_studio.learn.experiments import job_events as je
 
 EXAMPLES = [
     je.Progress(0.25, "reading data"),

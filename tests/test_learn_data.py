@@ -15,11 +15,11 @@ from learn_fixtures import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import cache, views
-from tactile_studio.learn.dataset import build_dataset, read_sessions
-from tactile_studio.learn.features import feature_matrix, gesture_metrics, trial_features
-from tactile_studio.learn.metrics import classification_metrics, vote
-from tactile_studio.learn.splits import all_inclusive, group_kfold, lopo
+from tactile_studio.learn.data import cache, views
+from tactile_studio.learn.data.dataset import build_dataset, read_sessions
+from tactile_studio.learn.data.features import feature_matrix, gesture_metrics, trial_features
+from tactile_studio.learn.data.splits import all_inclusive, group_kfold, lopo
+from tactile_studio.learn.evaluation.metrics import classification_metrics, vote
 from tactile_studio.simulate import GESTURES
 
 
@@ -304,7 +304,7 @@ def test_gesture_metrics_on_known_patterns():
 def test_baselines_predict_like_sklearn_and_round_trip_as_onnx(tmp_path):
     from sklearn.ensemble import RandomForestClassifier
 
-    from tactile_studio.learn.baselines import BaselineModel, baseline_options
+    from tactile_studio.learn.learners.baselines import BaselineModel, baseline_options
 
     rng = np.random.default_rng(0)
     x = rng.normal(size=(120, 7))

@@ -17,13 +17,13 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.learn import views
-from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.evaluate import rescore_run
-from tactile_studio.learn.experiment import ExperimentConfig, FoldEvent, run_experiment
-from tactile_studio.learn.learners import available_models
-from tactile_studio.learn.runfolder import read_run
-from tactile_studio.learn.train import load_weights
+from tactile_studio.learn.data import views
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.evaluation.evaluate import rescore_run
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, FoldEvent, run_experiment
+from tactile_studio.learn.experiments.runfolder import read_run
+from tactile_studio.learn.learners.families import available_models
+from tactile_studio.learn.learners.train import load_weights
 
 FAMILIES = sorted(available_models())
 CHANCE = 1 / 9
@@ -222,7 +222,7 @@ def test_rounds_report_medians_and_group_kfold_heldout(data, tmp_path):
 
 
 def test_export_onnx_and_int8_measure_accuracy_change(data):
-    from tactile_studio.learn.export_run import export_run
+    from tactile_studio.learn.deploy.export_run import export_run
 
     _, out = trained(data, "cnn1d", "all-inclusive")
     onnx = export_run(out, "onnx")

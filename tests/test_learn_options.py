@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.learners import DataInfo, make_learner
-from tactile_studio.learn.train import TRAIN_KEYS, _batches
+from tactile_studio.learn.learners.families import DataInfo, make_learner
+from tactile_studio.learn.learners.train import TRAIN_KEYS, _batches
 
 
 @pytest.mark.parametrize("model", ["cnn1d", "cnn3d"])

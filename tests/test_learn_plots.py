@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-from tactile_studio.learn import plots
+from tactile_studio.learn.evaluation import plots
 
 LABELS = ["grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",
           "slap", "stroke", "squeeze", "tap", "tickle"]

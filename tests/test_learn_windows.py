@@ -12,10 +12,10 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import windowing
-from tactile_studio.learn.dataset import build_dataset
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.summary import headline
+from tactile_studio.learn.data import windowing
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.evaluation.summary import headline
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 
@@ -89,7 +89,7 @@ def test_vote_aggregate_and_bad_settings(data, tmp_path):
 
 @pytest.mark.parametrize("how", ["mean", "vote"])
 def test_per_trial_predictions_aggregate_as_the_run_does(data, tmp_path, how):
-    from tactile_studio.learn import trialpreds
+    from tactile_studio.learn.evaluation import trialpreds
 
     run = run_experiment(_config(data, "rf", aggregate=how), tmp_path / how)
     preds = trialpreds.load_predictions(tmp_path / how)

@@ -13,9 +13,9 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.devices import create_device
 from tactile_studio.devices.engine import AcquisitionEngine
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.live_inference import LiveInference, RunningCalibration
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 

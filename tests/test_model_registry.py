@@ -16,9 +16,12 @@ import torch
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn import Learner, ModelCheckError, check_model
-from tactile_studio.learn.contract import Fitted
-from tactile_studio.learn.export import int8_format
-from tactile_studio.learn.learners import available_models, make_learner
+from tactile_studio.learn.deploy.export import int8_format
+from tactile_studio.learn.deploy.streaming import StreamingPredictor
+from tactile_studio.learn.experiments.sweep import task_gpus
+from tactile_studio.learn.experiments.train_job import model_settings
+from tactile_studio.learn.learners.contract import Fitted
+from tactile_studio.learn.learners.families import available_models, make_learner
 from tactile_studio.learn.models import (
     GROUP,
     MODELS,
@@ -28,9 +31,6 @@ from tactile_studio.learn.models import (
     register_model,
     unregister_model,
 )
-from tactile_studio.learn.streaming import StreamingPredictor
-from tactile_studio.learn.sweep import task_gpus
-from tactile_studio.learn.train_job import model_settings
 
 BUILT_INS = ("cnn3d", "cnn_transformer", "cnn1d", "mts3d", "sefusion")
 
@@ -64,7 +64,7 @@ def test_built_in_models_register_through_the_entry_point_group():
 
 def test_listing_models_imports_no_model_module_and_learn_imports_no_torch():
     code = ("import sys\n"
-            "import tactile_studio.learn.splits\n"
+            "import tactile_studio.learn.data.splits\n"
             "assert 'torch' not in sys.modules, 'learn/__init__ pulled in torch'\n"
             "from tactile_studio.learn.models import model_names\n"
             "names = model_names()\n"
@@ -182,8 +182,8 @@ def test_every_built_in_model_passes_check_model(name):
 
 
 def test_fitted_models_satisfy_the_fitted_protocol():
-    from tactile_studio.learn.baselines import BaselineModel
-    from tactile_studio.learn.learners import TorchFitted
+    from tactile_studio.learn.learners.baselines import BaselineModel
+    from tactile_studio.learn.learners.families import TorchFitted
 
     assert isinstance(TorchFitted(torch.nn.Linear(2, 2), "cpu"), Fitted)
     assert isinstance(BaselineModel("rf", {}, 3), Fitted)

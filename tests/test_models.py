@@ -12,7 +12,7 @@ import torch
 import torch.nn.functional as F
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import views
+from tactile_studio.learn.data import views
 from tactile_studio.learn.models import (
     MODELS,
     ModelSpec,

@@ -78,7 +78,7 @@ def test_training_step_is_the_mean_of_the_members_own_losses_and_reaches_all_of_
 
 @pytest.mark.parametrize("name", ["cnn1d", "cnn3d"])
 def test_members_export_to_onnx_with_the_same_logits(name):
-    from tactile_studio.learn.export import cpu_session, onnx_bytes
+    from tactile_studio.learn.deploy.export import cpu_session, onnx_bytes
 
     model = _build(name, 3).eval()
     x = _x(name)

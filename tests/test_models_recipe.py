@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 import torch
 
+from tactile_studio.learn.learners.train import _lr_factor
 from tactile_studio.learn.models import MODELS, cnn1d, cnn3d, cnn_transformer, mts3d, sefusion
 from tactile_studio.learn.models._common import WindowStatistics, mirror_average, random_mirror
-from tactile_studio.learn.train import _lr_factor
 
 PAPERS = {"cnn1d": cnn1d, "cnn3d": cnn3d, "cnn_transformer": cnn_transformer,
           "mts3d": mts3d, "sefusion": sefusion}
@@ -82,7 +82,7 @@ def test_every_model_keeps_the_papers_network_as_overrides_beside_the_full_recip
 
 
 def test_full_recipe_exports_to_onnx_with_its_mirror_averaging_and_statistics():
-    from tactile_studio.learn.export import cpu_session, onnx_bytes
+    from tactile_studio.learn.deploy.export import cpu_session, onnx_bytes
 
     torch.manual_seed(0)
     spec = MODELS["cnn1d"]

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 import torch
 
+from tactile_studio.learn.learners.train import feature_cache, fit, predict_proba, train_settings
 from tactile_studio.learn.models import MODELS
 from tactile_studio.learn.models._common import (
     mirror_images,
     random_mirror,
     random_mirror_index,
 )
-from tactile_studio.learn.train import feature_cache, fit, predict_proba, train_settings
 
 RECIPE_MODELS = ["cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
 

@@ -1,4 +1,4 @@
-"""Calibrating a finished run to one person (learn/window_model.py ``calibrate``,
+"""Calibrating a finished run to one person (learn/deploy/window_model.py ``calibrate``,
 playback/predictions.py): the session player and live inference meet a person as
 ``--adapt person`` met each test person in evaluation. The calibrated model must predict
 that person's trials exactly as the run's stored (adapted) predictions do. Real folds,
@@ -18,11 +18,15 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.devices import create_device
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.learn.evaluate import load_run_data
-from tactile_studio.learn.experiment import ExperimentConfig, prepare_inputs, run_experiment
-from tactile_studio.learn.fused import person_columns
-from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.live_inference import LiveInference, RunningCalibration
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.evaluation.evaluate import load_run_data
+from tactile_studio.learn.experiments.experiment import (
+    ExperimentConfig,
+    prepare_inputs,
+    run_experiment,
+)
+from tactile_studio.learn.learners.fused import person_columns
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time
 from tactile_studio.sensor.layout import get_layout

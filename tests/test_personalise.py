@@ -1,4 +1,4 @@
-"""Live few-shot personalisation (learn/personalise.py): a run's fold model retrained with
+"""Live few-shot personalisation (learn/deploy/personalise.py): a run's fold model retrained with
 labelled windows of a new virtual person predicts that person's other performances
 better than the run's own model; forgetting it returns to the run's model."""
 
@@ -9,9 +9,9 @@ import pytest
 from learn_fixtures import make_dataset_folder, write_participant
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.personalise import personalise
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.personalise import personalise
+from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.playback import SessionPlayback
 
 BLOCKS_NEW = 5  # the new person: blocks 0-1 give the shots, 2-4 are tested

@@ -8,7 +8,7 @@ import pytest
 from learn_fixtures import make_dataset_folder, trial_record, write_participant
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.playback import PlayClock, SessionPlayback, session_history
 from tactile_studio.playback.predictions import predictions_over_time
 

@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 from learn_fixtures import make_dataset_folder
 
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.window_model import PREDICTION_HOP_S, WindowModel
+from tactile_studio.learn.deploy.window_model import PREDICTION_HOP_S, WindowModel
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import predictions_over_time
 

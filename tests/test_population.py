@@ -9,15 +9,15 @@ import pytest
 from learn_fixtures import make_dataset_folder, make_virtual_population
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.dataset import read_sessions
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.touch_stats import (
+from tactile_studio.learn.data.dataset import read_sessions
+from tactile_studio.learn.data.touch_stats import (
     REAL,
     pooled,
     population_stats,
     ratios_to_real,
     trial_stats,
 )
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.sensor.decode import compute_baseline, decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate import SensorSimulator, SimConfig, Style, TrialParams

@@ -14,7 +14,7 @@ from collect_fixtures import do_trial, drive, make_rig, mini_protocol, start
 from learn_fixtures import write_participant
 
 from tactile_studio.cli import main
-from tactile_studio.learn.dataset import build_dataset, read_sessions
+from tactile_studio.learn.data.dataset import build_dataset, read_sessions
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers import import_shearsense
 from tactile_studio.storage.session import Session
@@ -157,7 +157,7 @@ def test_hidden_folders_hold_no_sessions(tmp_path):
     """A study folder with a virtual environment or a cache inside: the HDF5 files of a
     library's tests there are not sessions, so neither train nor the workspace reads them
     (a file named by the user, hidden or not, is read)."""
-    from tactile_studio.learn.workspace_index import scan_sessions
+    from tactile_studio.learn.experiments.workspace_index import scan_sessions
 
     (tmp_path / "study").mkdir()
     write_participant(tmp_path / "study" / "P01.h5", "P01", 1, blocks=1, trial_s=0.5)

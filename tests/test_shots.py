@@ -11,9 +11,9 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.dataset import read_sessions
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.splits import lopo, with_shots
+from tactile_studio.learn.data.dataset import read_sessions
+from tactile_studio.learn.data.splits import lopo, with_shots
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
 GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
 
@@ -98,7 +98,7 @@ def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
                      "--cache-dir", str(tmp_path / "cache")]) == 0
         runs.append(out)
     capsys.readouterr()
-    from tactile_studio.learn.compare import compare_runs
+    from tactile_studio.learn.evaluation.compare import compare_runs
     r = compare_runs(*runs)
     assert [s["k"] for s in r["shots"]] == [0, 1]
     assert r["n_matched"] == r["shots"][0]["n_matched"] == 18  # each trial once, at K = 0

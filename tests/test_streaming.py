@@ -10,9 +10,9 @@ import pytest
 import torch
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn import views
+from tactile_studio.learn.data import views
+from tactile_studio.learn.deploy.streaming import StreamingPredictor, frames_from_raw
 from tactile_studio.learn.models import MODELS
-from tactile_studio.learn.streaming import StreamingPredictor, frames_from_raw
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, get_layout
 
 

@@ -11,8 +11,8 @@ import time
 import pytest
 from learn_fixtures import make_dataset_folder, trial_record, write_participant
 
-from tactile_studio.learn.experiment import ExperimentConfig
-from tactile_studio.learn.train_job import TrainJob, eta_seconds, model_settings
+from tactile_studio.learn.experiments.experiment import ExperimentConfig
+from tactile_studio.learn.experiments.train_job import TrainJob, eta_seconds, model_settings
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub")
 

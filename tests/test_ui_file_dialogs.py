@@ -15,7 +15,7 @@ import pytest
 from learn_fixtures import make_dataset_folder, write_participant
 from PySide6.QtWidgets import QFileDialog, QMainWindow
 
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.ui.research.menu import add_research_menu
 from tactile_studio.ui.research.window import ResearchWindow
 

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 from learn_fixtures import make_dataset_folder
 
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.research.menu import live_inference_dock
 from tactile_studio.ui.settings import SETTINGS_ENV

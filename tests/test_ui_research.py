@@ -15,7 +15,7 @@ from learn_fixtures import make_dataset_folder
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QImage
 
-from tactile_studio.learn.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.simulate import GESTURE_NAMES
 from tactile_studio.ui.research.sessions_view import COLUMNS
 from tactile_studio.ui.research.window import ResearchWindow
@@ -205,7 +205,7 @@ def test_fourteen_long_gesture_names_stay_readable(window, workspace):
     size, and the screenshot is kept for review."""
     import numpy as np
 
-    from tactile_studio.learn.trialpreds import RunPredictions, TrialPrediction
+    from tactile_studio.learn.evaluation.trialpreds import RunPredictions, TrialPrediction
 
     names = [f"{g} ({k})" for k, g in enumerate(
         ["Back & Forth Rub", "Circular Stroke", "Constant Touch", "Heavy Pat", "Isometric Rub",

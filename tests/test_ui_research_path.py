@@ -80,7 +80,7 @@ def test_train_panel_names_its_run_folder_and_trains_without_one_typed(qtbot, se
                                                                       tmp_path, monkeypatch):
     from PySide6.QtWidgets import QFileDialog
 
-    from tactile_studio.learn.train_job import eta_from_folds
+    from tactile_studio.learn.experiments.train_job import eta_from_folds
     from tactile_studio.ui.research.window import ResearchWindow
     w = ResearchWindow()
     qtbot.addWidget(w)

@@ -99,8 +99,8 @@ def test_an_image_format_qt_cannot_write_is_refused_by_name(qtbot, tmp_path):
 def test_background_and_training_jobs_end_in_the_one_line(qtbot, run_folder, blocker):
     import time
 
-    from tactile_studio.learn.experiment import ExperimentConfig
-    from tactile_studio.learn.train_job import TrainJob
+    from tactile_studio.learn.experiments.experiment import ExperimentConfig
+    from tactile_studio.learn.experiments.train_job import TrainJob
     from tactile_studio.ui.background_job import BackgroundJob
 
     job = BackgroundJob(lambda progress, cancel: (blocker / "x.h5").write_bytes(b""))

@@ -15,7 +15,7 @@ from typing import Any
 def print_json(obj: Any, indent: int | None = 2) -> None:
     """``obj`` as strict JSON and a newline on stdout: NaN and ±inf become null, numpy
     values plain numbers, anything else JSON lacks its ``str``."""
-    from tactile_studio.learn.runfolder import clean_json
+    from tactile_studio.learn.experiments.runfolder import clean_json
 
     json.dump(clean_json(obj), sys.stdout, indent=indent, default=str, allow_nan=False)
     print()

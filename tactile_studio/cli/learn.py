@@ -11,8 +11,8 @@ from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.learn.contract import PRESETS
-from tactile_studio.learn.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
+from tactile_studio.learn.learners.contract import PRESETS
+from tactile_studio.learn.learners.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 PRESET_HELP = ("full (default): each model's recipe for unseen people; tiny: the "
@@ -28,7 +28,7 @@ def _Bar(label: str) -> TerminalProgress:  # noqa: N802 - used like the class it
 def _fold_rows(bar: TerminalProgress):  # noqa: ANN202
     """A run_experiment listener showing the current round's folds and the current
     fold's epochs as rows nested under the run's bar (in a terminal)."""
-    from tactile_studio.learn.experiment import EpochEvent, FoldEvent
+    from tactile_studio.learn.experiments.experiment import EpochEvent, FoldEvent
 
     def listener(event: Any) -> None:
         where = f"round {event.round + 1}"
@@ -87,10 +87,10 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
 
 
 def _shot_counts(text: str) -> tuple[int, ...]:
-    """``--shots``: the train panel's parser (learn.splits.parse_shot_counts), as a usage
+    """``--shots``: the train panel's parser (learn.data.splits.parse_shot_counts), as a usage
     error; on the command line the option names at least one count."""
     from tactile_studio.errors import UserError
-    from tactile_studio.learn.splits import parse_shot_counts
+    from tactile_studio.learn.data.splits import parse_shot_counts
 
     try:
         ks = parse_shot_counts(text)
@@ -127,7 +127,7 @@ def generalisation_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _config(args: argparse.Namespace, channels: str | None):
-    from tactile_studio.learn.experiment import ExperimentConfig
+    from tactile_studio.learn.experiments.experiment import ExperimentConfig
 
     return ExperimentConfig(
         data=list(args.data), model=args.model, channels=channels, grid=args.grid,
@@ -144,8 +144,8 @@ def _fmt(v: Any) -> str:
 
 
 def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
-    from tactile_studio.learn.fused import OPTION, display_name
-    from tactile_studio.learn.summary import trials_were_cut
+    from tactile_studio.learn.evaluation.summary import trials_were_cut
+    from tactile_studio.learn.learners.fused import OPTION, display_name
 
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
     print(f"{name} · {m['protocol']} · channels {m['channels']} · "
@@ -206,7 +206,7 @@ def _print_skipped(skipped: list[dict[str, Any]]) -> None:
 
 
 def cmd_train(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.experiment import run_experiment
+    from tactile_studio.learn.experiments.experiment import run_experiment
 
     token = CancelToken()
     bar = _Bar("train")
@@ -222,7 +222,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.evaluate import rescore_run
+    from tactile_studio.learn.evaluation.evaluate import rescore_run
 
     token = CancelToken()
     bar = _Bar("evaluate")
@@ -238,7 +238,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
 
 
 def cmd_ablate(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.experiment import run_experiment
+    from tactile_studio.learn.experiments.experiment import run_experiment
 
     token = CancelToken()
     rows = []
@@ -264,7 +264,7 @@ def cmd_ablate(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.export_run import export_run
+    from tactile_studio.learn.deploy.export_run import export_run
 
     token = CancelToken()
     bar = _Bar("export")

@@ -10,7 +10,7 @@ from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 
 
 def cmd_report_individual(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.individual import individual_report
+    from tactile_studio.learn.experiments.individual import individual_report
 
     token = CancelToken()
     bar = _Bar("report")

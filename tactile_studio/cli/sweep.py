@@ -21,9 +21,9 @@ from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.executors import make_executor
-    from tactile_studio.learn.experiment import ExperimentConfig
-    from tactile_studio.learn.sweep import format_rows, run_sweep
+    from tactile_studio.learn.experiments.executors import make_executor
+    from tactile_studio.learn.experiments.experiment import ExperimentConfig
+    from tactile_studio.learn.experiments.sweep import format_rows, run_sweep
 
     base = ExperimentConfig(
         data=list(args.data), model=args.models[0], grid=args.grid, protocol=args.protocol,

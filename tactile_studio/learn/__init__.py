@@ -1,4 +1,8 @@
-"""Learning core: datasets, models, training, evaluation, streaming inference.
+"""Learning core, in rooms named for what they hold (docs/learning.md has a page per room):
+``data`` (trials, views, windows, splits), ``models`` (the torch networks and their
+registry), ``learners`` (the model contract, baselines, training, adaptation),
+``experiments`` (runs, jobs, sweeps, run folders), ``evaluation`` (metrics, statistics,
+comparison) and ``deploy`` (export, streaming, live inference, personalisation).
 
 The model extension seam (docs/models.md) is importable from here; it loads on first use,
 so importing a submodule of this package does not pull in torch.
@@ -9,12 +13,12 @@ from __future__ import annotations
 from typing import Any
 
 _SEAM = {
-    "check_model": "tactile_studio.learn.conformance",
-    "ModelCheckError": "tactile_studio.learn.conformance",
-    "Learner": "tactile_studio.learn.contract",
-    "Fitted": "tactile_studio.learn.contract",
-    "ModelFacts": "tactile_studio.learn.contract",
-    "DataInfo": "tactile_studio.learn.contract",
+    "check_model": "tactile_studio.learn.learners.conformance",
+    "ModelCheckError": "tactile_studio.learn.learners.conformance",
+    "Learner": "tactile_studio.learn.learners.contract",
+    "Fitted": "tactile_studio.learn.learners.contract",
+    "ModelFacts": "tactile_studio.learn.learners.contract",
+    "DataInfo": "tactile_studio.learn.learners.contract",
     "ModelSpec": "tactile_studio.learn.models",
     "Streaming": "tactile_studio.learn.models",
     "TrainDefaults": "tactile_studio.learn.models",

@@ -13,7 +13,7 @@ import os
 import numpy as np
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.storage.trials import TrialStatus
 

@@ -54,7 +54,7 @@ def synthetic_records(n_folds: int, seed: int = 4) -> list[dict]:
 
 
 def main() -> int:
-    from tactile_studio.learn import plots
+    from tactile_studio.learn.evaluation import plots
 
     cm = synthetic_counts(len(GESTURES))
     plots.confusion_png(HERE / "confusion-matrix.png", GESTURES, cm.tolist(),

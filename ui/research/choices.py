@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox
 
-from tactile_studio.learn.contract import PRESETS
-from tactile_studio.learn.generalise import ADAPT_AUTO, ADAPT_PHRASE
+from tactile_studio.learn.learners.contract import PRESETS
+from tactile_studio.learn.learners.generalise import ADAPT_AUTO, ADAPT_PHRASE
 
 
 def adapt_combo() -> QComboBox:

@@ -3,7 +3,7 @@ cancel -> finished, written once so a new job panel cannot forget to stop its ti
 re-enable Start, or read a job's last event differently from the others.
 
 A subclass makes ``start_button``, ``cancel_button`` and ``status`` and implements
-:meth:`on_event` (each typed :mod:`~tactile_studio.learn.job_events` event) and
+:meth:`on_event` (each typed :mod:`~tactile_studio.learn.experiments.job_events` event) and
 :meth:`on_finished`; it starts a job with :meth:`launch`. The job is any object with
 ``poll()``, ``cancel()``, ``running`` and ``finished`` (TrainJob, SweepJob).
 """
@@ -15,7 +15,7 @@ from typing import Any
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QWidget
 
-from tactile_studio.learn.job_events import JobEvent
+from tactile_studio.learn.experiments.job_events import JobEvent
 
 
 class JobPanel(QWidget):

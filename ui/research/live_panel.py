@@ -1,13 +1,13 @@
 """Live inference overlay for the main window: load a finished run; the top-3 gestures
 with probabilities, the smoothing window and the measured latency update as the live
-engine streams (the model runs in learn/live_inference.py's worker thread). "Calibrate
+engine streams (the model runs in learn/deploy/live_inference.py's worker thread). "Calibrate
 to person…" meets the participant as ``--adapt person`` met each test person, from a
 recording of them (playback/predictions.py ``calibrate_to_session``); "Adapt as they
-touch" does it from their own last touches instead (learn/live_inference.py
+touch" does it from their own last touches instead (learn/deploy/live_inference.py
 ``RunningCalibration``). "Personalise with touches…" is few-shot personalisation
 (``train --shots``) live: the experimenter prompts each gesture K times and the run's
 model is retrained with those labelled touches (personalise_dialog.py,
-learn/personalise.py); "Forget personalisation" returns to the run's model."""
+learn/deploy/personalise.py); "Forget personalisation" returns to the run's model."""
 
 from __future__ import annotations
 
@@ -29,8 +29,8 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.live_inference import LiveInference, RunningCalibration
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.live_inference import LiveInference, RunningCalibration
+from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.playback.predictions import calibrate_to_session
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.research.personalise_dialog import PersonaliseDialog, describe

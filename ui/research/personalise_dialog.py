@@ -1,7 +1,7 @@
 """Personalise to this person: the experimenter picks K, the dialog prompts "Perform
 <gesture> now" for each of the run's gestures K times on the live stream (one labelled
 window per prompt, taken once the touch is there; Skip / Redo), then the run's fold model
-is retrained with those windows (learn/personalise.py: the prompts and the retraining
+is retrained with those windows (learn/deploy/personalise.py: the prompts and the retraining
 are there; this dialog only shows them)."""
 
 from __future__ import annotations
@@ -23,12 +23,12 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.personalise import Personalised, TouchPrompts
-from tactile_studio.learn.window_model import WindowModel
+from tactile_studio.learn.deploy.personalise import Personalised, TouchPrompts
+from tactile_studio.learn.deploy.window_model import WindowModel
 
 
 class PersonaliseDialog(QDialog):
-    personalised = Signal(object)  # learn.personalise.Personalised
+    personalised = Signal(object)  # learn.deploy.personalise.Personalised
 
     def __init__(self, model: WindowModel, engine: Callable[[], Any],
                  parent: QWidget | None = None) -> None:

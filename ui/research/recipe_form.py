@@ -28,8 +28,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.learn.augment import KINDS
-from tactile_studio.learn.experiment import ExperimentConfig
+from tactile_studio.learn.data.augment import KINDS
+from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.ui.settings import get_json, set_json
 
 FIELDS = ("window_s", "window_overlap", "aggregate", "augment", "augment_copies",

@@ -15,8 +15,8 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.compare import config_difference
-from tactile_studio.learn.workspace_index import RunRow, scan_runs
+from tactile_studio.learn.evaluation.compare import config_difference
+from tactile_studio.learn.experiments.workspace_index import RunRow, scan_runs
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import app_settings

@@ -15,7 +15,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.learn.workspace_index import SessionRow, scan_sessions
+from tactile_studio.learn.experiments.workspace_index import SessionRow, scan_sessions
 from tactile_studio.storage.study_summary import study_counts
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table

@@ -1,7 +1,7 @@
 """Sweep panel: several models x channel sets under one evaluation protocol, run by the
 same executors as ``tactile-studio sweep`` (local worker processes or a Ray cluster),
 with per-task progress, cancel and the sweep's results table. The sweep itself is
-:class:`~tactile_studio.learn.sweep_job.SweepJob` (core); this widget only gathers the
+:class:`~tactile_studio.learn.experiments.sweep_job.SweepJob` (core); this widget only gathers the
 choices, shows the events and remembers the choices in QSettings."""
 
 from __future__ import annotations
@@ -31,11 +31,18 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiment import ExperimentConfig
-from tactile_studio.learn.generalise import ADAPT_AUTO
-from tactile_studio.learn.job_events import Cancelled, Done, Failed, JobEvent, Progress, Task
-from tactile_studio.learn.learners import available_models
-from tactile_studio.learn.sweep_job import ExecutorChoice, SweepJob
+from tactile_studio.learn.experiments.experiment import ExperimentConfig
+from tactile_studio.learn.experiments.job_events import (
+    Cancelled,
+    Done,
+    Failed,
+    JobEvent,
+    Progress,
+    Task,
+)
+from tactile_studio.learn.experiments.sweep_job import ExecutorChoice, SweepJob
+from tactile_studio.learn.learners.families import available_models
+from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.ui.file_dialogs import ask_folder, remember
 from tactile_studio.ui.research.bound_settings import BoundSettings
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo

@@ -1,5 +1,5 @@
 """Train / evaluate panel: an experiment from the model registry, run in a worker
-process (learn/train_job.py) with live per-fold curves, a fold table, ETA, cancel and
+process (learn/experiments/train_job.py) with live per-fold curves, a fold table, ETA, cancel and
 resume; the channel ablation (normal / shear / both) is one click."""
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiment import ExperimentConfig
-from tactile_studio.learn.generalise import ADAPT_AUTO
-from tactile_studio.learn.job_events import (
+from tactile_studio.learn.data.splits import parse_shot_counts
+from tactile_studio.learn.experiments.experiment import ExperimentConfig
+from tactile_studio.learn.experiments.job_events import (
     Cancelled,
     Done,
     Epoch,
@@ -39,9 +39,9 @@ from tactile_studio.learn.job_events import (
     JobEvent,
     Progress,
 )
-from tactile_studio.learn.learners import available_models
-from tactile_studio.learn.splits import parse_shot_counts
-from tactile_studio.learn.train_job import TrainJob, model_settings
+from tactile_studio.learn.experiments.train_job import TrainJob, model_settings
+from tactile_studio.learn.learners.families import available_models
+from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.paths import data_dir
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.bound_settings import BoundSettings

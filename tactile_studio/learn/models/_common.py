@@ -289,7 +289,7 @@ def mirror_images(x: torch.Tensor, rows: int = 3, cols: int = 4) -> list[torch.T
     """``x`` and its three mirror images (left-right, top-bottom, both), the grid's rows
     and columns being dimensions ``rows`` and ``cols`` (3, 4 for windows (B, C, T, R, X);
     2, 3 for frames (N, C, R, X)), shear components turned with the grid as in
-    ``learn/augment.py`` (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal +
+    ``learn/data/augment.py`` (channels: 1 = normal/pressure, 2 = shear x/y, 3 = normal +
     shear x/y). Flips become reversed slices in an ONNX export."""
     c = int(x.shape[1])  # a Python int also while tracing for ONNX (the channels are fixed)
     sx, sy = {3: (1, 2), 2: (0, 1)}.get(c, (None, None))

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import torch
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.contract import PRESETS
+from tactile_studio.learn.learners.contract import PRESETS
 
 VIEW_KINDS = ("resample", "windows", "slices", "gradient")
 EXPORT_FORMATS = ("onnx", "torchscript")
@@ -54,7 +54,7 @@ class TrainDefaults:
 class Streaming:
     """How live inference may run the model on the live frame stream.
 
-    ``sliding``: every new frame is pushed through learn/streaming.py's StreamingPredictor
+    ``sliding``: every new frame is pushed through learn/deploy/streaming.py's StreamingPredictor
     and the model predicts on the newest ``view.frames`` frames (the model must take the
     "windows" view); otherwise live inference classifies the newest trial-long window.
     ``cached``: the model has ``frame_features(frames (N, C, R, X)) -> (N, d)`` and

@@ -1,0 +1,116 @@
+"""Re-scoring a finished run from its saved weights (``tactile-studio evaluate``).
+
+Every fold's saved model is loaded (torch weights from safetensors, rf / knn as ONNX run
+by onnxruntime; no pickle) and predicts again:
+
+* ``folds`` mode — the data holds the run's test trials (found by their uids): each fold
+  model re-predicts its own test trials, which reproduces the run's metrics (a check that
+  the saved weights and normalisation are complete);
+* ``external`` mode — none of the run's test trials are in the data (e.g. new
+  participants): every fold model predicts every trial, and the metrics pool them.
+
+The result is written to ``RUN/rescore.json`` (metrics.json is left as trained).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.evaluation.summary import headline
+from tactile_studio.learn.experiments.experiment import (
+    ExperimentConfig,
+    _predictions,
+    adapt_people,
+    prepare_inputs,
+    run_header,
+    summarise,
+)
+from tactile_studio.learn.experiments.runfolder import model_file, read_run, write_json
+from tactile_studio.learn.learners.families import DataInfo, make_learner
+from tactile_studio.learn.learners.generalise import ADAPT
+
+
+def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
+                  cache_dir: str | None = None, device: str = "auto",
+                  progress: ProgressFn = no_progress, cancel: CancelToken | None = None):
+    """(config, resolved, fold records, dataset with run-label indices, learner, info)."""
+    cfg_json, records = read_run(run)
+    config = ExperimentConfig.from_dict(cfg_json["config"])
+    resolved = cfg_json["resolved"]
+    info = DataInfo.from_dict(resolved["data_info"])
+    labels = list(resolved["dataset"]["labels"])
+    ds = build_dataset(data or config.data, config.grid, config.channels,
+                       cache_dir or config.cache_dir, config.use_cache, progress, cancel)
+    if ds.grid_shape != tuple(info.grid) or ds.n_channels != info.in_channels:
+        raise UserError(f"the data ({ds.layout}, {ds.grid_shape[0]}x{ds.grid_shape[1]}, "
+                        f"{ds.n_channels} channels) does not fit the run's models "
+                        f"({info.grid[0]}x{info.grid[1]}, {info.in_channels} channels)")
+    unknown = sorted(set(ds.label_names) - set(labels))
+    if unknown:
+        raise UserError(f"gesture '{unknown[0]}' in the data is not one of the run's labels "
+                        f"({', '.join(labels)})")
+    remap = np.array([labels.index(g) for g in ds.label_names], dtype=np.int64)
+    ds = replace(ds, labels=remap[ds.labels], label_names=labels)
+    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
+                           device)
+    return config, resolved, records, ds, learner, info
+
+
+def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
+                cache_dir: str | None = None, progress: ProgressFn = no_progress,
+                cancel: CancelToken | None = None, adapt: str | None = None
+                ) -> dict[str, Any]:
+    """Metrics recomputed from the saved weights (see module doc); also saved to
+    ``RUN/rescore.json``. ``adapt`` (generalise.ADAPT) overrides the run's adaptation
+    to each test person: any network can adapt its batch norm after the fact, while
+    rf/knn (and fused forests) were trained on features standardised or not, so theirs
+    cannot change."""
+    config, resolved, records, ds, learner, info = load_run_data(
+        run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
+    if adapt is not None and adapt != config.adapt:
+        if adapt not in ADAPT:
+            raise UserError(f"unknown adaptation {adapt!r} (available: {', '.join(ADAPT)})")
+        if learner.kind != "torch":
+            raise UserError(f"{run}: {config.model} was trained with --adapt {config.adapt}; "
+                            "its features cannot be re-standardised afterwards (a network's "
+                            f"batch norm can: train again with --adapt {adapt})")
+        config = replace(config, adapt=adapt)
+    index = {u: i for i, u in enumerate(ds.uids)}
+    wanted = {u for rec in records for u in rec["test"]}
+    found = wanted & set(index)
+    mode = "folds" if found else "external"
+    if found and found != wanted:
+        missing = sorted(wanted - found)
+        raise UserError(f"{len(missing)} of the run's test trials are not in the data "
+                        f"(first: {missing[0]})")
+    if mode == "folds" and config.adapt != "none" and config.protocol == "all-inclusive":
+        raise UserError(f"{run}: --adapt {config.adapt} meets each test person with their own "
+                        "session, but this all-inclusive run trained on the same people; "
+                        "adapt when evaluating new people's data (--data) or a lopo run")
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
+    people = adapt_people(config, ds, owner)  # new people adapt to themselves too
+    fresh = []
+    for k, rec in enumerate(records):
+        if cancel is not None:
+            cancel.check()
+        progress(0.3 + 0.7 * k / len(records), f"fold {rec['name']}")
+        fitted = learner.load(model_file(rec["_dir"]), info)
+        idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
+               else np.arange(len(ds)))
+        pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"], people)
+        fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
+    header = {**run_header(config, ds.channels, learner.windowed),
+              "mode": mode, "data": [str(p) for p in (data or config.data)]}
+    metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)
+    metrics["dataset_skipped"] = list(ds.skipped)  # resume backups, duplicate sessions
+    write_json(Path(run) / "rescore.json", metrics)
+    progress(1.0, headline(metrics))
+    return metrics

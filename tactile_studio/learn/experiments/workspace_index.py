@@ -1,0 +1,168 @@
+"""What the research workspace lists: session files (one row each) and run folders.
+
+Both scans are defensive: a damaged session or a run folder of another layout becomes a
+row with an ``error`` text instead of stopping the scan, so one bad file never hides the
+others.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.errors import UserError
+from tactile_studio.learn.evaluation.summary import shots_curve
+from tactile_studio.learn.experiments.runfolder import CONFIG, METRICS, read_json, run_problems
+
+
+@dataclass
+class SessionRow:
+    path: str
+    participant: str = ""
+    condition: str = ""
+    protocol: str = ""
+    sensor: str = ""
+    date: str = ""
+    per_gesture: dict[str, int] = field(default_factory=dict)  # ok trials per gesture
+    ok: int = 0
+    flagged: int = 0
+    discarded: int = 0
+    error: str = ""  # the file cannot be read: not listed for training
+    violations: list[str] = field(default_factory=list)  # what ``check`` finds wrong
+
+    @property
+    def problem(self) -> str:
+        """Why the file is not to be trusted as it is ("" when it is)."""
+        from tactile_studio.storage.session_check import verdict_text
+
+        return self.error or (verdict_text(self.violations) if self.violations else "")
+
+    def matches(self, text: str) -> bool:
+        """Case-insensitive filter over the visible fields."""
+        hay = " ".join([self.path, self.participant, self.condition, self.protocol,
+                        self.sensor, self.date]).lower()
+        return all(word in hay for word in text.lower().split())
+
+
+def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
+    """One row per ``*.h5`` under the folders (or the files given), each checked
+    (``session_check``: it reads the journal and the two time columns, not the frames)."""
+    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.session_check import check_session
+    from tactile_studio.storage.session_set import session_files_under
+
+    files: list[Path] = []
+    for f in map(Path, folders):
+        files.extend(session_files_under(f) if f.is_dir() else [f] if f.is_file() else [])
+    rows = []
+    for path in sorted(set(files)):
+        row = SessionRow(str(path))
+        try:
+            with Session(path) as s:
+                meta = s.metadata
+                row.participant = str(meta.get("participant") or path.stem)
+                row.condition = str(meta.get("condition") or "")
+                row.protocol = str(meta.get("protocol") or "")
+                row.sensor = s.layout.name
+                row.date = str(meta.get("created") or "")[:16].replace("T", " ")
+                counts: Counter[str] = Counter()
+                for t in s.trials:
+                    status = t.get("status", "ok")
+                    if status == "ok" and t.get("gesture"):
+                        counts[str(t["gesture"])] += 1
+                        row.ok += 1
+                    row.discarded += status == "discarded"
+                    row.flagged += bool(t.get("flags"))
+                row.per_gesture = dict(counts)
+                row.violations = check_session(s)
+        except (UserError, OSError, KeyError, ValueError) as exc:
+            row.error = str(exc).splitlines()[0]
+        rows.append(row)
+    return rows
+
+
+@dataclass
+class RunRow:
+    path: str
+    model: str = ""
+    channels: str = ""
+    protocol: str = ""
+    preset: str = ""
+    grid: str = ""
+    accuracy: float | None = None
+    trial_accuracy: float | None = None
+    f1_macro: float | None = None
+    balanced_accuracy: float | None = None
+    shots: str = ""  # a few-shot run's curve, "K=0 0.61, K=1 0.70" (per trial)
+    folds: int = 0
+    complete: bool = False
+    created: str = ""
+    config: dict[str, Any] = field(default_factory=dict)
+    error: str = ""
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+
+def _number(m: dict[str, Any], *keys: str) -> float | None:
+    """The first of ``keys`` that holds a number (old and new metrics.json spell
+    trial-level accuracy differently)."""
+    for k in keys:
+        v = m.get(k)
+        if isinstance(v, dict):
+            v = v.get("accuracy") if "accuracy" in v else v.get("value")
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            return float(v)
+    return None
+
+
+def read_run_row(path: str | os.PathLike) -> RunRow:
+    """One run folder as a row; a damaged one (runfolder.run_problems: a fold without its
+    model, a metrics.json of another shape...) is a row whose ``error`` says why."""
+    row = RunRow(str(path))
+    problems, cfg, _ = run_problems(path)
+    if cfg is not None:
+        config = cfg["config"]
+        row.config = config
+        row.model = str(config.get("model", ""))
+        row.channels = str(config.get("channels") or "all")
+        row.protocol = str(config.get("protocol", ""))
+        row.preset = str(config.get("preset", ""))
+        row.grid = str(config.get("grid", ""))
+        row.created = str(cfg["resolved"].get("created", ""))[:16].replace("T", " ")
+    row.folds = sum(1 for _ in (Path(path) / "folds").glob("*/fold.json"))
+    if problems:
+        more = f" (and {len(problems) - 1} more)" if len(problems) > 1 else ""
+        inside = str(Path(path)) + os.sep  # the row is the run: its own path is not news
+        first = problems[0].replace(inside, "")
+        row.error = (first if "damaged" in first else "damaged: " + first) + more
+        return row
+    if not (Path(path) / METRICS).is_file():
+        row.error = "no metrics.json (interrupted before a fold finished?)"
+        return row
+    try:
+        m = read_json(Path(path) / METRICS)  # its shape was checked by run_problems
+    except UserError as exc:  # removed or changed since
+        row.error = str(exc)
+        return row
+    row.accuracy = _number(m, "accuracy")
+    row.trial_accuracy = _number(m, "trial_accuracy")
+    row.f1_macro = _number(m, "f1_macro")
+    row.balanced_accuracy = _number(m, "balanced_accuracy")
+    row.shots = shots_curve(m.get("shots") if isinstance(m.get("shots"), list) else None)
+    row.complete = m.get("complete") is True
+    row.channels = str(m.get("channels") or row.channels)
+    return row
+
+
+def scan_runs(root: str | os.PathLike) -> list[RunRow]:
+    """Every folder under ``root`` (itself included) that holds a ``config.json``."""
+    root = Path(root)
+    if not root.is_dir():
+        raise UserError(f"{root}: no such folder")
+    found = sorted({p.parent for p in root.rglob(CONFIG)})
+    return [read_run_row(p) for p in found if (p / "folds").is_dir() or (p / METRICS).is_file()]
