@@ -1,0 +1,29 @@
+"""learn/ stays in rooms: a researcher finds "where is export" by the room's name, so the
+package holds rooms only (no loose modules) and each room stays a handful of modules,
+each room saying in its docstring what it holds."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import tactile_studio.learn as learn
+
+ROOMS = {"data", "models", "learners", "experiments", "evaluation", "deploy"}
+LEARN = Path(learn.__file__).parent
+
+
+def test_learn_holds_rooms_only() -> None:
+    loose = sorted(p.name for p in LEARN.glob("*.py") if p.name != "__init__.py")
+    assert loose == [], f"modules outside a room in learn/: {loose}"
+    rooms = {p.name for p in LEARN.iterdir() if (p / "__init__.py").is_file()}
+    assert rooms == ROOMS
+
+
+def test_each_room_is_a_handful_of_modules_and_says_what_it_holds() -> None:
+    for room in sorted(ROOMS):
+        modules = [p for p in (LEARN / room).glob("*.py") if p.name != "__init__.py"]
+        assert 3 <= len(modules) <= 12, f"learn/{room} has {len(modules)} modules"
+        doc = ast.get_docstring(ast.parse((LEARN / room / "__init__.py").read_text()))
+        assert doc and len(doc.split()) >= 10, f"learn/{room}/__init__.py says nothing"
+
