@@ -20,7 +20,8 @@ from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.data import views
 from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.evaluation.evaluate import rescore_run
-from tactile_studio.learn.experiments.experiment import ExperimentConfig, FoldEvent, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.job_events import Fold
 from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.train import load_weights
@@ -174,7 +175,7 @@ def test_cancel_keeps_finished_folds_and_resume_continues(data, tmp_path):
 
     def listener(event):
         events.append(event)
-        if isinstance(event, FoldEvent):
+        if isinstance(event, Fold):
             token.cancel()
 
     cfg = config(data, "knn", "lopo")
@@ -186,7 +187,7 @@ def test_cancel_keeps_finished_folds_and_resume_continues(data, tmp_path):
     assert partial["complete"] is False and len(partial["per_fold"]) == 1
     events.clear()
     done = run_experiment(cfg, out, listener=events.append)
-    resumed = [e.resumed for e in events if isinstance(e, FoldEvent)]
+    resumed = [e.resumed for e in events if isinstance(e, Fold)]
     assert resumed == [True, False, False, False]
     assert done.metrics["complete"] and len(done.metrics["per_fold"]) == 4
     with pytest.raises(UserError, match="differs in model: "):
@@ -205,8 +206,8 @@ def test_cancel_during_epochs_and_epoch_events(data, tmp_path):
     with pytest.raises(Cancelled):
         run_experiment(config(data, "cnn3d", "lopo"), tmp_path / "r", cancel=token,
                        listener=listener)
-    assert [e.record["epoch"] for e in seen] == [1, 2, 3]
-    assert [len(e.history) for e in seen] == [1, 2, 3]
+    assert [e.epoch for e in seen] == [1, 2, 3]  # the typed events the GUI's job sends
+    assert {(e.round, e.fold, e.type) for e in seen} == {(0, 0, "epoch")}
     assert not list((tmp_path / "r" / "folds").glob("*/fold.json"))
 
 

@@ -28,17 +28,17 @@ def _Bar(label: str) -> TerminalProgress:  # noqa: N802 - used like the class it
 def _fold_rows(bar: TerminalProgress):  # noqa: ANN202
     """A run_experiment listener showing the current round's folds and the current
     fold's epochs as rows nested under the run's bar (in a terminal)."""
-    from tactile_studio.learn.experiments.experiment import EpochEvent, FoldEvent
+    from tactile_studio.learn.experiments.job_events import Epoch, Fold
 
     def listener(event: Any) -> None:
         where = f"round {event.round + 1}"
-        if isinstance(event, EpochEvent):
+        if isinstance(event, Epoch):
             bar.subtask("fold", f"fold {event.fold + 1}/{event.n_folds} {event.fold_name}",
-                        event.record["epoch"], None, f"epoch {event.record['epoch']}")
-        elif isinstance(event, FoldEvent):
+                        event.epoch, None, f"epoch {event.epoch}")
+        elif isinstance(event, Fold):
             bar.end_subtask("fold")
             bar.subtask("round", where, event.fold + 1, event.n_folds,
-                        f"fold {event.fold_name} accuracy {_fmt(event.metrics.get('accuracy'))}")
+                        f"fold {event.fold_name} accuracy {_fmt(event.accuracy)}")
     return listener
 
 

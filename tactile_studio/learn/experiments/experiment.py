@@ -3,8 +3,9 @@
 It is the single entry point the CLI and (later) the GUI call: it takes a
 :class:`ExperimentConfig`, a progress callback ``(fraction, message)``, a
 :class:`~tactile_studio.jobs.CancelToken` and an optional ``listener`` that receives
-:class:`EpochEvent` / :class:`FoldEvent` objects with partial results (per-epoch curves,
-finished folds' metrics). Cancelling keeps finished folds on disk (and writes the
+the typed job events :class:`~tactile_studio.learn.experiments.job_events.Epoch` /
+:class:`~tactile_studio.learn.experiments.job_events.Fold` (per-epoch curves, finished
+folds' accuracy): the same objects the GUI's training process sends on its queue. Cancelling keeps finished folds on disk (and writes the
 metrics of those) before ``Cancelled`` propagates; running again with the same ``out``
 resumes with the unfinished folds.
 
@@ -32,7 +33,13 @@ from tactile_studio.learn.data.augment import parse_kinds
 from tactile_studio.learn.data.dataset import GRIDS, TrialDataset, build_dataset
 from tactile_studio.learn.data.splits import PROTOCOLS, make_folds, with_shots
 from tactile_studio.learn.data.windowing import AGGREGATES, cut, window_spec
-from tactile_studio.learn.evaluation.summary import fold_metrics, headline, summarise
+from tactile_studio.learn.evaluation.summary import (
+    fold_metrics,
+    headline,
+    summarise,
+    trials_were_cut,
+)
+from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
@@ -191,26 +198,6 @@ def result_defaults() -> dict[str, Any]:
         elif f.name in RESULT_KEYS and f.default_factory is not MISSING:
             out[f.name] = f.default_factory()
     return out
-
-
-@dataclass
-class EpochEvent:
-    round: int
-    fold: int
-    n_folds: int
-    fold_name: str
-    record: dict[str, Any]
-    history: list[dict[str, Any]]
-
-
-@dataclass
-class FoldEvent:
-    round: int
-    fold: int
-    n_folds: int
-    fold_name: str
-    metrics: dict[str, Any]
-    resumed: bool
 
 
 @dataclass
@@ -443,7 +430,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         frac = 0.05 + 0.92 * (done + min(e["epoch"] / max_ep, 1.0)) / total_units
                         acc = e["val_acc"] if e["val_acc"] == e["val_acc"] else e["train_acc"]
                         progress(frac, f"{where} epoch {e['epoch']} acc {acc:.2f}")
-                        listener(EpochEvent(r, k, len(folds), fold.name, e, list(history)))
+                        listener(Epoch.of(r, k, len(folds), fold.name, e))
 
                     progress(0.05 + 0.92 * done / total_units, f"{where} training")
                     rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
@@ -454,9 +441,12 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                 records.append(rec)
                 done += 1
                 progress(0.05 + 0.92 * done / total_units, f"{where} done")
-                listener(FoldEvent(r, k, len(folds), fold.name,
-                                   fold_metrics(rec, ds.label_names, learner.windowed,
-                                                aggregate=config.aggregate), resumed))
+                fm = fold_metrics(rec, ds.label_names, learner.windowed,
+                                  aggregate=config.aggregate)
+                listener(Fold(round=r, fold=k, n_folds=len(folds), fold_name=fold.name,
+                              accuracy=float(fm["accuracy"]),
+                              trial_accuracy=float(fm["trial_accuracy"]),
+                              cut=trials_were_cut(fm), resumed=resumed))
     except Cancelled:
         if records and folder is not None:
             metrics = summarise(records, ds.label_names, learner.windowed, header, False)

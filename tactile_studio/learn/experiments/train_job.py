@@ -84,8 +84,8 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
     from tactile_studio.errors import Cancelled as Stopped
     from tactile_studio.errors import UserError
     from tactile_studio.jobs import CancelToken
-    from tactile_studio.learn.evaluation.summary import headline, shots_curve, trials_were_cut
-    from tactile_studio.learn.experiments.experiment import EpochEvent, FoldEvent, run_experiment
+    from tactile_studio.learn.evaluation.summary import headline, shots_curve
+    from tactile_studio.learn.experiments.experiment import run_experiment
 
     token = CancelToken()
 
@@ -102,16 +102,8 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
             last[0] = now
             events.put(Progress(float(fraction), message))
 
-    def listener(event: Any) -> None:
-        if isinstance(event, EpochEvent):
-            events.put(Epoch.of(event.round, event.fold, event.n_folds, event.fold_name,
-                                event.record))
-        elif isinstance(event, FoldEvent):
-            events.put(Fold(round=event.round, fold=event.fold, n_folds=event.n_folds,
-                            fold_name=event.fold_name,
-                            accuracy=float(event.metrics["accuracy"]),
-                            trial_accuracy=float(event.metrics["trial_accuracy"]),
-                            cut=trials_were_cut(event.metrics), resumed=bool(event.resumed)))
+    def listener(event: Epoch | Fold) -> None:  # already the typed events: pass them on
+        events.put(event)
 
     try:
         result = run_experiment(ExperimentConfig.from_dict(config), out, progress, token,
