@@ -1,6 +1,8 @@
 """Live few-shot personalisation (learn/deploy/personalise.py): a run's fold model retrained with
 labelled windows of a new virtual person predicts that person's other performances
-better than the run's own model; forgetting it returns to the run's model."""
+better than the run's own model (rf/knn refit, a network fine-tuned, a network fused with
+rf both); forgetting it returns to the run's model. With two rounds of touches the
+result carries a held-out check measured on the person's own touches."""
 
 from __future__ import annotations
 
@@ -8,7 +10,8 @@ import numpy as np
 import pytest
 from learn_fixtures import make_dataset_folder, write_participant
 
-from tactile_studio.errors import UserError
+from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.deploy.personalise import personalise
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
@@ -27,12 +30,13 @@ def root(tmp_path_factory):
     return root
 
 
-def _run(root, model: str, adapt: str = "none"):
-    out = root / f"run-{model}-{adapt}"
+def _run(root, model: str, adapt: str = "none", rf_weight: float = 0.0):
+    out = root / f"run-{model}-{adapt}-{rf_weight:g}"
     if not (out / "metrics.json").is_file():
         run_experiment(ExperimentConfig(data=[str(root / "data")], model=model,
                                         protocol="lopo", preset="tiny", adapt=adapt,
-                                        cache_dir=str(root / "cache")), out)
+                                        overrides={"rf_weight": rf_weight} if rf_weight
+                                        else {}, cache_dir=str(root / "cache")), out)
     return out
 
 
@@ -54,12 +58,17 @@ def _accuracy(model: WindowModel, layout, rate, windows, gestures) -> float:
     return float(np.mean([model.labels[p] == g for p, g in zip(probs.argmax(1), gestures)]))
 
 
-@pytest.mark.parametrize("name,adapt", [
-    ("rf", "none"), ("knn", "none"),
-    ("rf", "person"),  # features standardised per person: theirs by their own touches
-    pytest.param("cnn1d", "none", marks=pytest.mark.slow)])
-def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt):
-    model = WindowModel(_run(root, name, adapt))
+HOW = {"rf": "refit", "knn": "refit", "cnn1d": "fine-tuned"}
+
+
+@pytest.mark.parametrize("name,adapt,weight", [
+    ("rf", "none", 0), ("knn", "none", 0),
+    ("rf", "person", 0),  # features standardised per person: theirs by their own touches
+    pytest.param("cnn1d", "none", 0, marks=pytest.mark.slow),
+    # a network fused with rf: the forest refit, the network fine-tuned, fused again
+    pytest.param("cnn1d", "person", 0.5, marks=pytest.mark.slow)])
+def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt, weight):
+    model = WindowModel(_run(root, name, adapt, weight))
     layout, rate, windows, gestures, blocks = _new_person(model, root / "new.h5")
     test = [i for i, b in enumerate(blocks) if b >= 2]
     tw, tg = [windows[i] for i in test], [gestures[i] for i in test]
@@ -71,7 +80,8 @@ def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt)
         personal = personalise(model, layout, [windows[i] for i in shots],
                                [gestures[i] for i in shots], rate, seed=0)
         assert personal.per_gesture == k and personal.windows == 9 * k
-        assert personal.how == ("fine-tuned" if name == "cnn1d" else "refit")
+        assert personal.how == ("refit and fine-tuned" if weight else HOW[name])
+        assert personal.check is None  # no rounds given: nothing measured
         assert (personal.reference is not None) == (adapt == "person")
         model.personalise(personal)
         gains.append(_accuracy(model, layout, rate, tw, tg) - before)
@@ -92,3 +102,56 @@ def test_refused_in_one_line(root):
     model.config.use_cache = False
     with pytest.raises(UserError, match="training data cannot be read"):
         personalise(model, layout, windows[:9], gestures[:9], rate)
+
+
+def test_a_fused_model_personalises_both_parts_and_keeps_its_weight(root):
+    model = WindowModel(_run(root, "cnn1d", "person", 0.5))
+    layout, rate, windows, gestures, blocks = _new_person(model, root / "new.h5")
+    shots = [i for i, b in enumerate(blocks) if b < 1]
+    personal = personalise(model, layout, [windows[i] for i in shots],
+                           [gestures[i] for i in shots], rate, seed=0)
+    run_fused, fused = model.run_trained, personal.fitted
+    assert fused.weight == run_fused.weight == 0.5 and personal.how == "refit and fine-tuned"
+    assert fused.forest is not run_fused.forest  # refit, as rf alone is
+    assert personal.reference is not None  # --adapt person: the forest's features
+    before, after = (dict(f.network.model.named_parameters()) for f in (run_fused, fused))
+    changed = {k for k in before if not np.array_equal(before[k].detach().numpy(),
+                                                       after[k].detach().numpy())}
+    assert changed and len(changed) < len(before)  # the output layers only
+    assert all(before[k].shape[0] == len(model.labels) for k in changed if k.endswith("weight"))
+
+
+def test_two_rounds_of_touches_carry_a_measured_held_out_check(root):
+    """The check's figures are what the personalised models measure: each round predicted
+    by the model personalised with the other round, the run's model on the same touches."""
+    model = WindowModel(_run(root, "rf"))
+    layout, rate, windows, gestures, blocks = _new_person(model, root / "new.h5")
+    shots = [i for i, b in enumerate(blocks) if b < 2]
+    w, g, rounds = [windows[i] for i in shots], [gestures[i] for i in shots], \
+        [blocks[i] for i in shots]
+    seen = []
+    personal = personalise(model, layout, w, g, rate, seed=0, rounds=rounds,
+                           progress=lambda f, msg="": seen.append(f))
+    check = personal.check
+    assert check is not None and check.touches == 18 and check.rounds == 2
+    assert seen == sorted(seen) and seen[-1] == 1.0
+    hits = []
+    for r in (0, 1):
+        learn = [i for i, b in enumerate(rounds) if b != r]
+        test = [i for i, b in enumerate(rounds) if b == r]
+        one = personalise(model, layout, [w[i] for i in learn], [g[i] for i in learn], rate)
+        model.personalise(one)
+        probs = model.predict_windows(layout, [w[i] for i in test], rate)
+        hits += [model.labels[p] == g[i] for p, i in zip(probs.argmax(1), test)]
+        model.forget_personalisation()
+    assert check.after == pytest.approx(np.mean(hits))
+    assert check.before == pytest.approx(_accuracy(model, layout, rate, w, g))
+    # one round: nothing left to check on
+    first = [i for i, b in enumerate(rounds) if b == 0]
+    assert personalise(model, layout, [w[i] for i in first], [g[i] for i in first], rate,
+                       rounds=[0] * len(first)).check is None
+    # cancelled: nothing comes back
+    token = CancelToken()
+    token.cancel()
+    with pytest.raises(Cancelled):
+        personalise(model, layout, w, g, rate, rounds=rounds, cancel=token)

@@ -14,6 +14,16 @@ prompt gives one labelled window of the model's window length; :func:`personalis
   waiting at the sensor does not have. Measured on a new virtual person (full cnn1d
   trained on 4 people, 27 test performances, 0.41 as trained): output layers K=1 0.52,
   K=2 0.70; every layer 0.48 / 0.67 and 1.5-3x slower; so the output layers.
+  (Offline, ``--shots`` joins the shots to a network's training instead: it has the
+  time.)
+* a network fused with rf (``--set rf_weight=W``): both at once, the forest refit as
+  rf is, the network's output layers fine-tuned, fused again with the same W.
+
+With two or more rounds of prompts (K >= 2) the result carries a measured
+:class:`HeldOutCheck`: each round's touches predicted by the model personalised with the
+other rounds', beside the run's model as trained on the same touches. With K = 1 no
+touch is left over to check on, and nothing is measured. ``progress`` and ``cancel``
+are the usual long-job pair (the live panel's dialog runs this off the GUI thread).
 
 The result is used by ``WindowModel.personalise`` until ``forget_personalisation``.
 """
@@ -28,7 +38,9 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.learners.fused import FusedFitted, person_columns
 from tactile_studio.sensor.decode import contact_taxels
 from tactile_studio.sensor.layout import Layout
 
@@ -37,21 +49,42 @@ FINE_TUNE_LR = 3e-3
 
 
 @dataclass
+class HeldOutCheck:
+    """The person's own prompted touches, each predicted by a model that did not see it:
+    one round of prompts left out at a time (``rounds`` >= 2, so K >= 2), the model
+    personalised with the other rounds' touches; and the run's model as trained on the
+    same touches. Accuracy per touch (one window each)."""
+
+    before: float | None  # the run's model as trained (None: it has no view as trained)
+    after: float          # personalised without the touch's own round
+    touches: int          # touches tested
+    rounds: int           # rounds left out in turn
+
+
+@dataclass
 class Personalised:
     fitted: Any                    # the refitted / fine-tuned model (predict_proba)
     norm: dict[str, Any]           # its input normalisation
     reference: np.ndarray | None   # the person's feature statistics (rf/knn --adapt runs)
-    how: str                       # "refit" (rf/knn) or "fine-tuned" (a network's head)
+    how: str                       # "refit" (rf/knn), "fine-tuned" (a network's head) or
+                                   # "refit and fine-tuned" (a fused model: both parts)
     windows: int                   # labelled windows it rests on
     per_gesture: int               # the fewest labelled windows of a gesture (K)
+    check: HeldOutCheck | None = None  # measured on their touches when K >= 2
 
 
 def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
                 gestures: Sequence[str], rate: float, seed: int = 0,
-                dataset: Any = None) -> Personalised:
+                dataset: Any = None, rounds: Sequence[int] | None = None,
+                progress: ProgressFn = no_progress, cancel: CancelToken | None = None
+                ) -> Personalised:
     """``model``'s fold model personalised with decoded windows (C, N, R, X) of one
     person, labelled ``gestures`` (names of the run's gestures). ``dataset``: the run's
-    TrialDataset when the caller has it (else read from the run's data paths)."""
+    TrialDataset when the caller has it (else read from the run's data paths).
+    ``rounds``: the prompt round of each window; with two or more, the result carries a
+    :class:`HeldOutCheck` (one more fit per round). Always starts from the run's own fold
+    model (a second personalisation replaces the first)."""
+    cancel = cancel or CancelToken()
     if len(windows) != len(gestures) or not len(windows):
         raise UserError("personalisation needs labelled windows: none were recorded")
     unknown = sorted(set(gestures) - set(model.labels))
@@ -60,28 +93,119 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
     y_win = np.array([model.labels.index(g) for g in gestures], dtype=np.int64)
     per_gesture = int(min(np.bincount(y_win, minlength=len(model.labels))[np.unique(y_win)]))
     x_p, owner = model._samples(layout, list(windows), rate)
-    y_p = y_win[owner]
-    learner = model.learner
+    training = None
+    if model.learner.kind != "torch":  # the forest is refit with the fold's training
+        progress(0.0, "reading the run's training windows…")
+        training = fold_training_samples(model, dataset)
+        cancel.check()
+    folds = sorted(set(rounds)) if rounds is not None and len(set(rounds)) >= 2 else []
+    fits = 1 + len(folds)
+
+    def part(i: int) -> ProgressFn:
+        return lambda f, msg="": progress((i + f) / fits, msg)
+
+    fitted, norm, reference, how = _fit(model, x_p, y_win[owner], training, seed,
+                                        part(0), cancel)
+    check = None
+    if folds:
+        check = _held_out_check(model, x_p, owner, y_win, np.asarray(rounds), folds,
+                                training, seed, part, cancel)
+    cancel.check()  # cancelled while the last step ran: nothing changes
+    progress(1.0, "personalised")
+    return Personalised(fitted, norm, reference, how, len(windows), per_gesture, check)
+
+
+def _fit(model: WindowModel, x_p: np.ndarray, y_p: np.ndarray,
+         training: tuple[np.ndarray, np.ndarray] | None, seed: int, progress: ProgressFn,
+         cancel: CancelToken) -> tuple[Any, dict[str, Any], np.ndarray | None, str]:
+    """(fitted, norm, reference, how): the run's fold model retrained with the person's
+    samples ``x_p`` labelled ``y_p``: rf/knn refit on the fold's training samples plus
+    theirs; a network's output layers fine-tuned on theirs; a fused model both, fused
+    again with the run's weight."""
+    learner, info = model.learner, model.info
     reference = None
     if model.reads_person_features:  # the person's features standardised by their own
-        from tactile_studio.learn.learners.fused import person_columns
-
         reference = person_columns(learner, x_p)
         x_p = learner.adapt_inputs(x_p, np.zeros(len(x_p)), reference)
     if learner.kind == "baseline":
-        x_tr, y_tr = fold_training_samples(model, dataset)
-        x_all, y_all = np.concatenate([x_tr, x_p]), np.concatenate([y_tr, y_p])
+        assert training is not None
+        x_all = np.concatenate([training[0], x_p])
+        y_all = np.concatenate([training[1], y_p])
         stats = learner.norm_stats(x_all)
-        fitted, _, _ = learner.fit(model.info, (learner.apply_norm(x_all, stats), y_all),
-                                   (x_all[:0], y_all[:0]), seed, None, None, norm=stats)
-        return Personalised(fitted, stats, reference, "refit", len(windows), per_gesture)
-    if learner.kind != "torch":
-        raise UserError(f"{model.run}: {model.config.model} (a fused model) cannot be "
-                        "personalised yet; use its rf or network run")
-    fitted = fine_tune_head(model.trained, learner.apply_norm(x_p, model.run_norm), y_p,
-                            len(model.labels), seed)
-    return Personalised(fitted, model.run_norm, None, "fine-tuned", len(windows),
-                        per_gesture)
+        progress(0.1, f"refitting {model.config.model} on its training windows and theirs…")
+        fitted, _, _ = learner.fit(info, (learner.apply_norm(x_all, stats), y_all),
+                                   (x_all[:0], y_all[:0]), seed, cancel, None, norm=stats)
+        return fitted, stats, reference, "refit"
+    base, norm = model.run_trained, model.run_norm
+    xn = learner.apply_norm(x_p, norm)
+    if learner.kind == "torch":
+        return (fine_tune_head(base, xn, y_p, len(model.labels), seed, progress=progress,
+                               cancel=cancel), norm, None, "fine-tuned")
+    if learner.kind != "fused":
+        raise UserError(f"{model.run}: {model.config.model} cannot be personalised")
+    assert training is not None
+    views, features = learner.split(xn, info)
+    progress(0.05, "refitting its forest on its training windows and theirs…")
+    forest, _, _ = learner.forest.fit(
+        info, (np.concatenate([learner.split(training[0], info)[1], features]),
+               np.concatenate([training[1], y_p])), (features[:0], y_p[:0]), seed, cancel,
+        None)
+    network = fine_tune_head(base.network, views, y_p, len(model.labels), seed,
+                             progress=lambda f, msg="": progress(0.2 + 0.8 * f, msg),
+                             cancel=cancel)
+    fused = FusedFitted(network, forest, base.weight, learner, info)
+    return fused, norm, reference, "refit and fine-tuned"
+
+
+def predict_personalised(model: WindowModel, fitted: Any, norm: dict[str, Any],
+                         reference: np.ndarray | None, x: np.ndarray, owner: np.ndarray,
+                         n: int) -> np.ndarray:
+    """Probabilities (n, classes) of samples ``x`` of ``n`` windows (``owner``) by
+    ``fitted``, as ``WindowModel.predict_windows`` reads them once it uses that model
+    (without changing the model live inference is predicting with)."""
+    learner = model.learner
+    if reference is not None and model.reads_person_features:
+        x = learner.adapt_inputs(x, np.zeros(len(x)), reference)
+    probs = np.zeros((n, len(model.labels)))
+    np.add.at(probs, owner, fitted.predict_proba(learner.apply_norm(x, norm)))
+    return probs / np.maximum(np.bincount(owner, minlength=n)[:, None], 1)
+
+
+def _held_out_check(model: WindowModel, x_p: np.ndarray, owner: np.ndarray,
+                    y_win: np.ndarray, rounds: np.ndarray, folds: list[int],
+                    training: Any, seed: int, part: Any, cancel: CancelToken
+                    ) -> HeldOutCheck:
+    """Each round's touches predicted by the model personalised with the other rounds'
+    touches (a round none of whose touches is left to learn from is not tested), and by
+    the run's model as trained."""
+    hits_after, tested = [], []
+    for i, r in enumerate(folds, start=1):
+        test_win = np.flatnonzero(rounds == r)
+        learn = ~np.isin(owner, test_win)
+        if not learn.any():
+            continue
+        step = part(i)
+        step(0.0, f"held-out check: round {r + 1} predicted by the model of the others…")
+        fitted, norm, reference, _ = _fit(model, x_p[learn], y_win[owner[learn]], training,
+                                          seed, step, cancel)
+        sel = np.isin(owner, test_win)
+        local = np.searchsorted(test_win, owner[sel])
+        probs = predict_personalised(model, fitted, norm, reference, x_p[sel], local,
+                                     len(test_win))
+        hits_after.append(probs.argmax(1) == y_win[test_win])
+        tested.append(test_win)
+    cancel.check()
+    win = np.concatenate(tested)
+    before = None
+    if model.has_view_as_trained:
+        sel = np.isin(owner, win)
+        probs = predict_personalised(model, model.run_trained, model.run_norm,
+                                     model.pooled if model.reads_person_features else None,
+                                     x_p[sel], np.searchsorted(np.sort(win), owner[sel]),
+                                     len(win))
+        before = float(np.mean(probs.argmax(1) == y_win[np.sort(win)]))
+    return HeldOutCheck(before, float(np.mean(np.concatenate(hits_after))), len(win),
+                        len(tested))
 
 
 def fold_training_samples(model: WindowModel, dataset: Any = None
@@ -113,7 +237,8 @@ def fold_training_samples(model: WindowModel, dataset: Any = None
 
 
 def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
-                   seed: int = 0, steps: int = FINE_TUNE_STEPS, lr: float = FINE_TUNE_LR
+                   seed: int = 0, steps: int = FINE_TUNE_STEPS, lr: float = FINE_TUNE_LR,
+                   progress: ProgressFn = no_progress, cancel: CancelToken | None = None
                    ) -> Any:
     """A copy of a network whose output layers (every linear or convolution layer with
     ``n_classes`` outputs: the network's own, its statistics head's, each ensemble
@@ -140,7 +265,11 @@ def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
     opt = torch.optim.Adam(params, lr=lr)
     xt = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
     yt = torch.from_numpy(np.asarray(y, dtype=np.int64))
-    for _ in range(steps):
+    for step in range(steps):
+        if cancel is not None:
+            cancel.check()
+        if step % 10 == 0:
+            progress(step / steps, f"fine-tuning its output layers: step {step} of {steps}")
         opt.zero_grad()
         loss = torch.nn.functional.cross_entropy(net(xt).float(), yt)
         loss.backward()
@@ -250,6 +379,11 @@ class TouchPrompts:
         return ([self.answers[i][0] for i in keys], [self.prompts[i] for i in keys],
                 float(np.median(rates)) if rates else 0.0)
 
-    def personalise(self, layout: Layout, seed: int = 0) -> Personalised:
+    def personalise(self, layout: Layout, seed: int = 0, progress: ProgressFn = no_progress,
+                    cancel: CancelToken | None = None) -> Personalised:
+        """The run's model personalised with the answered prompts, with the held-out
+        check when two or more rounds were answered."""
         windows, gestures, rate = self.labelled()
-        return personalise(self.model, layout, windows, gestures, rate, seed)
+        rounds = [i // len(self.model.labels) for i in sorted(self.answers)]
+        return personalise(self.model, layout, windows, gestures, rate, seed, rounds=rounds,
+                           progress=progress, cancel=cancel)
