@@ -17,7 +17,7 @@ import re
 from collections.abc import Callable
 from pathlib import Path
 
-from tactile_studio.errors import UserError
+from tactile_studio.errors import IncompleteError, UserError
 
 # the place, not the program: the user can fix these by choosing another place
 ENVIRONMENT_ERRNOS = frozenset({
@@ -25,6 +25,8 @@ ENVIRONMENT_ERRNOS = frozenset({
     errno.ENOENT, errno.ENOTDIR, errno.EISDIR, errno.ENAMETOOLONG, errno.EEXIST})
 # these only ever come from writing
 WRITE_ERRNOS = frozenset({errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+# the place ran out of room part way: a disk full, a quota, the file-size limit
+FULL_ERRNOS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
 
 # h5py reports a failed create/open with errno set but the file only in its message
 _H5PY_OPEN = re.compile(r"unable to (?:open|create) file: name = '(?P<name>.+?)', "
@@ -88,3 +90,25 @@ def as_user_error(exc: BaseException) -> WriteFault | None:
     """The ``WriteFault`` to raise instead of ``exc`` (None: not an environment fault)."""
     line = fault_line(exc)
     return WriteFault(line) if line is not None else None
+
+
+def out_of_room(exc: BaseException) -> bool:
+    """A write failed for want of room (``FULL_ERRNOS``): an ``OSError`` or a session
+    writer's ``WriteFailed``, which carries the errno of its cause."""
+    return getattr(exc, "errno", None) in FULL_ERRNOS
+
+
+def ran_out_of_room(exc: BaseException, kept: int, noun: str, verb: str) -> UserError | None:
+    """The one line for a command that writes several outputs in turn (``import``,
+    ``export``) and runs out of room part way, or None when ``exc`` is another fault.
+
+    The output being written is removed (a cut session, CSV or XDF passes for a whole
+    one, and its source is still there to do again); the ``kept`` ones finished before
+    it stay. Some kept: ``IncompleteError`` (exit 3); none: ``WriteFault`` (exit 1)."""
+    if not out_of_room(exc):
+        return None
+    line = fault_line(exc) or str(exc)
+    if kept:
+        return IncompleteError(f"{line}; that {noun} was removed, the {kept} {noun}(s) "
+                               f"{verb} before it are kept")
+    return WriteFault(f"{line}; that {noun} was removed, nothing was {verb}")

@@ -7,8 +7,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from tactile_studio.errors import IncompleteError
+from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.output_faults import ran_out_of_room
 from tactile_studio.paths import make_out_dir
 
 
@@ -93,9 +94,12 @@ def cmd_import(args: argparse.Namespace) -> int:
 
     token = CancelToken()
     skipped: list[str] = []  # inputs without frames: listed, never a 0-frame session
-    with ctrl_c_cancels(token), _bar(f"import {args.import_format}") as bar:
+    written: list[Path] = []
+    with _kept_when_full(written, "session", "imported"), ctrl_c_cancels(token), \
+            _bar(f"import {args.import_format}") as bar:
         def done(path: Path) -> None:
             bar.end_line()
+            written.append(path)
             print(f"wrote {path}", flush=True)
 
         if args.import_format == "shearsense":
@@ -135,14 +139,26 @@ def cmd_export(args: argparse.Namespace) -> int:
     from tactile_studio.storage.exporters import export_session
 
     token = CancelToken()
-    total = 0
-    with ctrl_c_cancels(token):
+    written: list[Path] = []
+    with _kept_when_full(written, "file", "exported"), ctrl_c_cancels(token):
         for session in args.sessions:
             with _bar(f"export {Path(session).name}") as bar:
                 paths = export_session(session, args.format, args.out, args.all_trials,
-                                       args.grid, bar, token, args.force)
-            total += len(paths)
+                                       args.grid, bar, token, args.force, written.append)
             shown = paths[0] if len(paths) == 1 else f"{len(paths)} files in {args.out}"
             print(f"{session}: wrote {shown}", flush=True)
-    print(f"exported {len(args.sessions)} session(s), {total} file(s)")
+    print(f"exported {len(args.sessions)} session(s), {len(written)} file(s)")
     return 0
+
+
+@contextmanager
+def _kept_when_full(written: list[Path], noun: str, verb: str) -> Iterator[None]:
+    """A full disk (or the file-size limit) part way: the output being written is
+    removed and those finished stay; exit 3 when some were, else 1 (output_faults)."""
+    try:
+        yield
+    except (OSError, UserError) as exc:
+        error = ran_out_of_room(exc, len(written), noun, verb)
+        if error is None:
+            raise
+        raise error from None

@@ -21,7 +21,11 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.gesture_metrics import gesture_metrics
-from tactile_studio.storage.importers._common import check_outputs, frame_interval
+from tactile_studio.storage.importers._common import (
+    check_outputs,
+    frame_interval,
+    write_through_part,
+)
 from tactile_studio.storage.importers.maps import normalise_participant
 from tactile_studio.storage.session import Session, user_block
 from tactile_studio.storage.shearsense import (
@@ -57,18 +61,6 @@ def gesture_labels(session: Session) -> list[str]:
     """The session's ordered label set (metadata ``gestures``, else sorted trial gestures)."""
     names = list(session.metadata.get("gestures") or [])
     return names + sorted({str(t.get("gesture")) for t in session.trials} - set(names))
-
-
-def _atomic(path: Path, write: Callable[[Path], Any]) -> Path:
-    """Write through a temporary name so a cancelled export leaves no half file."""
-    tmp = path.with_name(f".{path.name}.part")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
 
 
 def _slug(text: str) -> str:
@@ -112,7 +104,7 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
         times = _frame_times(s)
     def shown(fraction: float, message: str = "") -> None:
         progress(fraction, message.replace(f".{out.name}.part", out.name))
-    return _atomic(out, lambda tmp: write_shearsense_csv(
+    return write_through_part(out, lambda tmp: write_shearsense_csv(
         tmp, raw, times, labels, baseline, progress=shown, cancel=cancel))
 
 
@@ -125,11 +117,13 @@ def trial_stack(s: Session, trial: dict[str, Any], virtual: bool) -> np.ndarray:
 
 def export_npz(path: str | os.PathLike, out_dir: str | os.PathLike, all_trials: bool = False,
                grid: str = "auto", progress: ProgressFn | None = None,
-               cancel: CancelToken | None = None, force: bool = False) -> list[Path]:
+               cancel: CancelToken | None = None, force: bool = False,
+               done: Callable[[Path], None] | None = None) -> list[Path]:
     """One ``.npz`` per trial: ``x`` (3, T, R, C) plus label, gesture, participant, index.
 
     ``grid``: ``virtual`` (the paper's 11x11 for the 6x6 sensor), ``physical``, or
     ``auto`` (virtual when the layout has shear, physical for pressure-only grids).
+    ``done`` hears of each finished file (they stay when a later one fails).
     """
     if grid not in GRIDS:
         raise UserError(f"unknown grid {grid!r} (choose from {', '.join(GRIDS)})")
@@ -160,7 +154,9 @@ def export_npz(path: str | os.PathLike, out_dir: str | os.PathLike, all_trials: 
                 gestures=np.array(labels, dtype=str), session=np.str_(s.path.name),
                 channels=np.array(["normal", "shear_x", "shear_y"]), units=np.str_(s.layout.units),
                 grid=np.str_("virtual" if virtual else "physical"), rate_hz=np.float64(rate))
-            written.append(_atomic(name, lambda tmp, f=fields: _savez(tmp, f)))
+            written.append(write_through_part(name, lambda tmp, f=fields: _savez(tmp, f)))
+            if done is not None:
+                done(written[-1])
             progress(min((i + 1) / max(len(trials), 1), 0.99), f"{name.name}")
     progress(1.0, f"{len(written)} trials")
     return written
@@ -225,7 +221,7 @@ def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
             w = csv.DictWriter(fh, fieldnames=TRIAL_COLUMNS + FEATURE_COLUMNS + extra)
             w.writeheader()
             w.writerows(rows)
-    _atomic(out, write)
+    write_through_part(out, write)
     progress(1.0, f"{out.name}: {len(rows)} trials")
     return out
 
@@ -245,18 +241,24 @@ def _frame_times(s: Session) -> np.ndarray:
 def export_session(path: str | os.PathLike, fmt: str, out_dir: str | os.PathLike,
                    all_trials: bool = False, grid: str = "auto",
                    progress: ProgressFn | None = None, cancel: CancelToken | None = None,
-                   force: bool = False) -> list[Path]:
-    """Export one session in ``fmt`` (one of FORMATS) into ``out_dir``."""
+                   force: bool = False,
+                   done: Callable[[Path], None] | None = None) -> list[Path]:
+    """Export one session in ``fmt`` (one of FORMATS) into ``out_dir``; ``done`` hears
+    of each finished file (npz writes one per trial: those finished before a failure stay)."""
     if not Path(out_dir).is_dir():
         raise UserError(f"{out_dir}: output folder does not exist")
-    if fmt == "shearsense-csv":
-        return [export_shearsense_csv(path, out_dir, all_trials, progress, cancel, force)]
     if fmt == "npz":
-        return export_npz(path, out_dir, all_trials, grid, progress, cancel, force)
-    if fmt == "csv-trials":
-        return [export_csv_trials(path, out_dir, all_trials, progress, cancel, force)]
-    if fmt == "xdf":
+        return export_npz(path, out_dir, all_trials, grid, progress, cancel, force, done)
+    if fmt == "shearsense-csv":
+        out = export_shearsense_csv(path, out_dir, all_trials, progress, cancel, force)
+    elif fmt == "csv-trials":
+        out = export_csv_trials(path, out_dir, all_trials, progress, cancel, force)
+    elif fmt == "xdf":
         from tactile_studio.storage.xdf_export import export_xdf
 
-        return [export_xdf(path, out_dir, progress, cancel, force)]
-    raise UserError(f"unknown export format {fmt!r} (choose from {', '.join(FORMATS)})")
+        out = export_xdf(path, out_dir, progress, cancel, force)
+    else:
+        raise UserError(f"unknown export format {fmt!r} (choose from {', '.join(FORMATS)})")
+    if done is not None:
+        done(out)
+    return [out]

@@ -56,7 +56,13 @@ def _jsonable(value: Any) -> Any:
 
 class WriteFailed(SessionFileError):
     """Writing the session file failed (disk full, file-size limit, an I/O error). The
-    file keeps what was written before; the writer writes nothing more to it."""
+    file keeps what was written before; the writer writes nothing more to it. ``errno``
+    is the cause's (None when unknown), so callers can tell a full disk from the rest
+    (``output_faults.out_of_room``)."""
+
+    def __init__(self, message: str, errno: int | None = None) -> None:
+        super().__init__(message)
+        self.errno = errno
 
 
 _CAUSES = {errno.ENOSPC: "no space left on device (disk full)",
@@ -64,13 +70,19 @@ _CAUSES = {errno.ENOSPC: "no space left on device (disk full)",
            errno.EDQUOT: "disk quota exceeded"}
 
 
-def describe_write_error(path: Path, exc: BaseException) -> str:
-    """One line naming the file and the cause: h5py reports a failed write as an
-    OSError or as a RuntimeError whose text carries the errno."""
+def write_errno(exc: BaseException) -> int | None:
+    """The errno of a failed write: h5py reports one as an OSError or as a RuntimeError
+    whose text carries it."""
     code = getattr(exc, "errno", None)
     if not code:
         m = re.search(r"errno = (\d+)", str(exc))
         code = int(m.group(1)) if m else None
+    return code or None
+
+
+def describe_write_error(path: Path, exc: BaseException) -> str:
+    """One line naming the file and the cause (see :func:`write_errno`)."""
+    code = write_errno(exc)
     if code:
         cause = _CAUSES.get(code) or os.strerror(code).lower()
     else:
@@ -129,6 +141,7 @@ class SessionWriter:
         self._last_flush = time.monotonic()
         self._closed = False
         self.failed: str | None = None
+        self.failed_errno: int | None = None
         self.metadata: dict[str, Any] = {
             "session_id": str(uuid.uuid4()),  # callers (resume, imports) may pass their own
             "schema_version": SCHEMA_VERSION,
@@ -192,14 +205,14 @@ class SessionWriter:
     def _writing(self) -> Iterator[None]:
         """Around every write: after the first failure nothing reaches the file."""
         if self.failed:
-            raise WriteFailed(self.failed)
+            raise WriteFailed(self.failed, self.failed_errno)
         try:
             yield
         except (OSError, RuntimeError) as exc:
             if self._closed:
                 raise
             self._fail(exc)
-            raise WriteFailed(self.failed) from None
+            raise WriteFailed(self.failed, self.failed_errno) from None
 
     def _fail(self, exc: BaseException) -> None:
         """Remember the cause, and point HDF5's file descriptor at /dev/null: HDF5 keeps
@@ -207,6 +220,7 @@ class SessionWriter:
         can never write makes it crash the process at exit. What reached the disk before
         stays as it is; the reader recovers it (storage/session_recover.py)."""
         self.failed = describe_write_error(self.path, exc)
+        self.failed_errno = write_errno(exc)
         try:
             fd = self._f.id.get_vfd_handle()
             null = os.open(os.devnull, os.O_RDWR)
@@ -292,6 +306,7 @@ class SessionWriter:
                 f.attrs["trials_json"] = json.dumps(j.trials, default=_jsonable)
         except (OSError, RuntimeError) as exc:  # closed cleanly; only the copies are missing
             self.failed = describe_write_error(self.path, exc)
+            self.failed_errno = write_errno(exc)
             return
         if compress and background:
             compress_in_background(self.path)

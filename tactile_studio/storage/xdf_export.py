@@ -35,7 +35,7 @@ from tactile_studio import __version__
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.channels import RAW, frame_channels
-from tactile_studio.storage.importers._common import check_outputs
+from tactile_studio.storage.importers._common import check_outputs, write_through_part
 from tactile_studio.storage.session import Session, measured_rate_hz
 from tactile_studio.storage.xdf_writer import XdfWriter
 
@@ -257,12 +257,6 @@ def export_xdf(path: str | os.PathLike, out_dir: str | os.PathLike,
         out = Path(out_dir) / f"{s.path.stem}.xdf"
         check_outputs([out], force)
         streams = session_streams(s)
-    tmp = out.with_name(f".{out.name}.part")
-    try:
-        write_xdf(tmp, streams, progress, cancel)
-        os.replace(tmp, out)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_through_part(out, lambda tmp: write_xdf(tmp, streams, progress, cancel))
     progress(1.0, f"{out.name}: {len(streams)} streams, {len(streams[0].stamps)} frames")
     return out

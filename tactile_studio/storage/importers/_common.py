@@ -15,7 +15,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 
 WRITE_CHUNK = 8192
 
@@ -117,11 +117,36 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
         append_in_chunks(writer, raw, times, path.name, progress, cancel)
         for t in trials:
             writer.add_trial(t)
-        writer.close()
+        close_complete(writer)
     except BaseException:
         _discard(writer, path)
         raise
     progress(1.0, f"{path.name}: {n} frames, {len(trials)} trials")
+    return path
+
+
+def close_complete(writer: SessionWriter) -> None:
+    """Close an import's writer and raise its write failure: the last frames reach the
+    disk only at close (``flush_interval=1e9``), and a failure there (a full disk) would
+    otherwise leave a session cut short that says it was imported whole."""
+    writer.close()
+    if writer.failed:
+        raise WriteFailed(writer.failed, writer.failed_errno)
+
+
+def write_through_part(path: Path, write: Callable[[Path], Any]) -> Path:
+    """``write(tmp)`` to ``.NAME.part`` beside ``path``, then rename it to ``path``: a
+    cancelled or failed export leaves no half file (a cut CSV or XDF would pass for a
+    whole one). A failed write names ``path`` (``fh.write`` errors name no file)."""
+    tmp = path.with_name(f".{path.name}.part")
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and exc.filename is None:
+            exc.filename = str(path)
+        raise
     return path
 
 

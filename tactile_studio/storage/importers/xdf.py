@@ -39,6 +39,7 @@ from tactile_studio.storage.importers._common import (
     _discard,
     append_in_chunks,
     check_outputs,
+    close_complete,
     import_session_id,
     run_jobs,
 )
@@ -227,7 +228,7 @@ def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout
                 writer.add_event(kind, row, t, **detail)
             for index in sorted(markers.trials):
                 writer.add_trial(markers.trials[index])
-            writer.close()
+            close_complete(writer)
         except BaseException:
             _discard(writer, out)
             raise
