@@ -20,7 +20,7 @@ Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--difficulty easy|real|hard] [--augment SPEC [--augment-copies N]]
        [--extra-gestures NAME ...] [--first-person K]
 (--rounds R: each model's median over R rounds, every round listed;
---options: the generalisation options of docs/learning.md on top: augment all x2,
+--options: the generalisation options of docs/learning/learners.md on top: augment all x2,
 participant norm, balance, validation by participant; --set: model options for the
 learned models, e.g. --set members=1 to measure one network instead of the preset's
 ensemble; --repeats 6 --blocks 2: each trial 6 back-to-back performances, 12 s cut into

@@ -12,7 +12,7 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-DOCS = sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"]
+DOCS = sorted((ROOT / "docs").rglob("*.md")) + [ROOT / "README.md"]  # docs/learning/ too
 TOOLS = sorted((ROOT / "tools").rglob("*.py"))
 REPO_PATH = re.compile(r"^(?:\./)?(?:docs|tools|resources|tests|tactile_studio|ui|plugins|"
                        r"benchmarks)/[\w./&-]+\.(?:py|png|toml|md|csv|json|qss|svg)$")

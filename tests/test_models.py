@@ -48,7 +48,7 @@ def test_registry_lists_the_papers_models_with_views_and_defaults():
     assert MODELS["mts3d"].view("full") == ViewSpec("gradient", 32)
     assert MODELS["cnn1d"].quantizable
     # full presets: the generalisation recipe, a fixed cosine budget that fits 2 CPU cores
-    # (docs/learning.md); the papers' networks are each module's PAPER overrides
+    # (docs/learning/models.md); the papers' networks are each module's PAPER overrides
     for name in NAMES:
         d = MODELS[name].train_defaults("full")
         assert isinstance(d, TrainDefaults)

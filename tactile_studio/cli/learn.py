@@ -16,7 +16,7 @@ from tactile_studio.learn.learners.generalise import ADAPT, ADAPT_AUTO, ADAPT_CH
 
 PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 PRESET_HELP = ("full (default): each model's recipe for unseen people; tiny: the "
-               "CPU-test size, under rf on hard virtual people (docs/learning.md)")
+               "CPU-test size, under rf on hard virtual people (docs/learning/figures.md)")
 
 
 def _Bar(label: str) -> TerminalProgress:  # noqa: N802 - used like the class it was

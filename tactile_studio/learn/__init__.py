@@ -1,4 +1,4 @@
-"""Learning core, in rooms named for what they hold (docs/learning.md has a page per room):
+"""Learning core, in rooms named for what they hold (docs/learning/ has a page per room):
 ``data`` (trials, views, windows, splits), ``models`` (the torch networks and their
 registry), ``learners`` (the model contract, baselines, training, adaptation),
 ``experiments`` (runs, jobs, sweeps, run folders), ``evaluation`` (metrics, statistics,

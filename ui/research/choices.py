@@ -32,7 +32,7 @@ def preset_combo() -> QComboBox:
     combo = QComboBox()
     combo.addItems(list(PRESETS))  # full first: the default
     combo.setItemData(0, "each model's recipe for unseen people (the figures in "
-                         "docs/learning.md)", 3)  # tooltip role
+                         "docs/learning/figures.md)", 3)  # tooltip role
     combo.setItemData(1, "the CPU-test size: quick, but under the random forest on hard "
                          "virtual people and on the real recordings", 3)
     combo.setToolTip("full: each model's recipe for unseen people; tiny: the CPU-test size")

@@ -1,12 +1,17 @@
-"""Personalise to this person: the experimenter picks K, the dialog prompts "Perform
-<gesture> now" for each of the run's gestures K times on the live stream (one labelled
-window per prompt, taken once the touch is there; Skip / Redo), then the run's fold model
-is retrained with those windows (learn/deploy/personalise.py: the prompts and the retraining
-are there; this dialog only shows them)."""
+"""Calibrate to this person: the live panel's one way to meet a new participant.
+
+The experimenter picks K and the dialog prompts "Perform <gesture> now" for each of the
+run's gestures K times on the live stream (one labelled window per prompt, taken once the
+touch is there; Skip / Redo), then the run's fold model is retrained with those windows
+off the GUI thread (``ui/background_job.py``: progress and Cancel; the live predictions
+go on meanwhile) and the result says what was done and, with K >= 2, the held-out check
+measured on the person's own touches (learn/deploy/personalise.py does all of it; this
+dialog only shows it). "From an earlier recording…" is the statistics calibration of an
+rf/knn (or fused) run trained with ``--adapt`` on a recording of the participant instead.
+"""
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -25,27 +30,48 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.personalise import Personalised, TouchPrompts
 from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.learners.fused import display_name
+from tactile_studio.ui.background_job import BackgroundJob
+from tactile_studio.ui.file_dialogs import ask_open_file
+
+STEPS = 1000  # the progress bar's resolution while retraining
 
 
 class PersonaliseDialog(QDialog):
     personalised = Signal(object)  # learn.deploy.personalise.Personalised
 
     def __init__(self, model: WindowModel, engine: Callable[[], Any],
-                 parent: QWidget | None = None) -> None:
+                 parent: QWidget | None = None,
+                 calibrate: Callable[[str], tuple[bool, str]] | None = None) -> None:
+        """``calibrate(path)``: the panel's statistics calibration on a recording,
+        (done, one line to show)."""
         super().__init__(parent)
-        self.setWindowTitle("Personalise to this person")
-        self.model, self.engine_fn = model, engine
+        self.setWindowTitle("Calibrate to this person")
+        self.model, self.engine_fn, self.calibrate_fn = model, engine, calibrate
         self.prompts: TouchPrompts | None = None
         self.result: Personalised | None = None
+        self.job: BackgroundJob | None = None
         self.k = QSpinBox()
         self.k.setRange(1, 2)
+        self.k.setValue(2)
         self.k.setSuffix(" touch(es) per gesture")
         self.k.setToolTip("K labelled performances of every gesture: on virtual people K=1 "
-                          "already lifts a new person's accuracy clearly (docs/learning.md)")
+                          "already lifts a new person's accuracy clearly (docs/learning.md); "
+                          "K=2 also measures it, each round checked by the model of the other")
         self.start_button = QPushButton("Start")
+        self.recording_button = QPushButton("From an earlier recording…")
+        reads = model.reads_person_features and calibrate is not None
+        self.recording_button.setEnabled(reads)
+        self.recording_button.setToolTip(
+            "Instead of prompting: standardise the run's features by the participant's own "
+            "statistics from a recording of them (a session of every gesture, recorded "
+            "before; no labels used), as --adapt person met each test person" if reads else
+            "Only for an rf/knn (or fused) run trained with --adapt: it reads features "
+            "standardised by each person's statistics. Prompted touches personalise any run.")
         intro = QLabel(f"The participant performs each of the {len(model.labels)} gestures "
-                       f"of {model.name} when asked; {model.config.model} is then retrained "
-                       "with their touches.")
+                       f"of {model.name} when asked; "
+                       f"{display_name(model.config.model, model.config.overrides)} is then "
+                       "retrained with their touches.")
         intro.setWordWrap(True)
         self.prompt = QLabel("Pick K and press Start.")
         f = self.prompt.font()
@@ -56,19 +82,26 @@ class PersonaliseDialog(QDialog):
         self.prompt.setMinimumHeight(2 * self.prompt.fontMetrics().lineSpacing())
         self.state = QLabel("")
         self.state.setWordWrap(True)
+        self.state.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
+        self.state.setMinimumHeight(4 * self.state.fontMetrics().lineSpacing())
         self.progress = QProgressBar()
         self.skip_button = QPushButton("Skip")
         self.skip_button.setToolTip("leave this gesture out (it keeps the run's training)")
         self.redo_button = QPushButton("Redo last")
         self.redo_button.setToolTip("record the last answered gesture again")
+        self.retrain_button = QPushButton("Retrain")
+        self.retrain_button.setToolTip("retrain with the touches recorded (kept after a "
+                                       "cancelled or failed retraining)")
+        self.retrain_button.hide()
         self.cancel_button = QPushButton("Cancel")
         top = QHBoxLayout()
         top.addWidget(QLabel("K"))
         top.addWidget(self.k)
         top.addWidget(self.start_button)
         top.addStretch(1)
+        top.addWidget(self.recording_button)
         buttons = QHBoxLayout()
-        for b in (self.skip_button, self.redo_button):
+        for b in (self.skip_button, self.redo_button, self.retrain_button):
             buttons.addWidget(b)
         buttons.addStretch(1)
         buttons.addWidget(self.cancel_button)
@@ -82,24 +115,33 @@ class PersonaliseDialog(QDialog):
         self.timer = QTimer(self)
         self.timer.setInterval(50)
         self.timer.timeout.connect(self.poll)
-        # the retraining runs in a thread (a network's fine-tuning can take a minute on a
-        # busy CPU): the window stays responsive, this timer picks up its result
-        self.retrain_timer = QTimer(self)
-        self.retrain_timer.setInterval(100)
-        self.retrain_timer.timeout.connect(self._retrained)
-        self._retrain: dict[str, Any] = {}
         self.start_button.clicked.connect(self.start)
+        self.recording_button.clicked.connect(self._browse_recording)
         self.skip_button.clicked.connect(self.skip)
         self.redo_button.clicked.connect(self.redo)
-        self.cancel_button.clicked.connect(self.reject)
+        self.retrain_button.clicked.connect(self.retrain)
+        self.cancel_button.clicked.connect(self.cancel)
         self._buttons()
-        self.resize(520, 260)
+        self.resize(600, 300)
 
-    def done(self, result: int) -> None:  # Cancel / Close / the window closed
-        """Stops watching the stream; a retraining still running is not used."""
+    @property
+    def retraining(self) -> bool:
+        return self.job is not None and self.job.running
+
+    def cancel(self) -> None:
+        """Cancel: stops a retraining (the touches stay for Retrain), else closes."""
+        if self.retraining:
+            self.job.cancel()
+            self.state.setText("cancelling: the run's model stays in use…")
+        else:
+            self.reject()
+
+    def done(self, result: int) -> None:  # Close / the window closed
+        """Stops watching the stream; a retraining still running is cancelled, not used."""
         self.timer.stop()
-        self.retrain_timer.stop()
-        self._retrain = {}
+        if self.job is not None:
+            self.job.cancel()
+            self.job = None
         super().done(result)
 
     def _engine(self) -> Any:
@@ -107,6 +149,28 @@ class PersonaliseDialog(QDialog):
         if engine is None:
             raise UserError("no device: connect one, then personalise")
         return engine
+
+    def _browse_recording(self) -> None:
+        path = ask_open_file(self, "Recording of the participant", "live_calibration",
+                             "Session files (*.h5)")
+        if path:
+            self.from_recording(path)
+
+    def from_recording(self, path: str) -> bool:
+        """The statistics calibration on a recording of the participant (no prompts)."""
+        if self.calibrate_fn is None or self.retraining:
+            return False
+        ok, text = self.calibrate_fn(path)
+        self.prompt.setText("Calibrated" if ok else "Not calibrated")
+        self.state.setText(text)
+        if ok:
+            self.timer.stop()
+            self.prompts = None
+            self.k.setEnabled(True)
+            self.start_button.setEnabled(True)
+            self.cancel_button.setText("Close")
+            self._buttons()
+        return ok
 
     def start(self) -> bool:
         try:
@@ -119,6 +183,7 @@ class PersonaliseDialog(QDialog):
         self.progress.setRange(0, len(self.prompts.prompts))
         self.k.setEnabled(False)
         self.start_button.setEnabled(False)
+        self.cancel_button.setText("Cancel")
         self._show()
         self.timer.start()
         return True
@@ -129,7 +194,7 @@ class PersonaliseDialog(QDialog):
             self._next()
 
     def redo(self) -> None:
-        if self.prompts is not None and self.prompts.answers:
+        if self.prompts is not None and self.prompts.answers and not self.prompts.done:
             self.prompts.redo(self._engine())
             self._show()
 
@@ -168,9 +233,12 @@ class PersonaliseDialog(QDialog):
 
     def _buttons(self) -> None:
         p = self.prompts
-        running = p is not None and not p.done
-        self.skip_button.setEnabled(running)
-        self.redo_button.setEnabled(running and bool(p.answers))
+        prompting = p is not None and not p.done
+        self.skip_button.setEnabled(prompting)
+        self.redo_button.setEnabled(prompting and bool(p.answers))
+        self.recording_button.setEnabled(
+            not self.retraining and self.calibrate_fn is not None
+            and self.model.reads_person_features)
 
     def _finish(self) -> None:
         p = self.prompts
@@ -180,50 +248,103 @@ class PersonaliseDialog(QDialog):
         if not p.answers:
             self.prompt.setText("No touches recorded")
             self.state.setText("every prompt was skipped: the run's model stays in use")
+            self.cancel_button.setText("Close")
             return
-        self.prompt.setText("Retraining…")
-        self.state.setText(f"{len(p.answers)} labelled touches; {self.model.config.model} "
-                           "is retrained with them")
+        self.retrain()
+
+    def retrain(self) -> bool:
+        """Retrain the run's model with the answered prompts, off the GUI thread."""
+        p = self.prompts
+        if p is None or not p.done or not p.answers or self.retraining:
+            return False
         try:
             layout = self._engine().layout
         except UserError as exc:
             self.prompt.setText("Not personalised")
             self.state.setText(str(exc))
-            return
-        job: dict[str, Any] = {}
-        self._retrain = job
+            return False
+        self.prompt.setText("Retraining…")
+        self.state.setText(f"{len(p.answers)} labelled touches; "
+                           f"{self.model.config.model} is retrained with them")
+        self.progress.setRange(0, STEPS)
+        self.progress.setValue(0)
+        self.retrain_button.hide()
+        self.cancel_button.setText("Cancel")
+        job = BackgroundJob(lambda progress, cancel: p.personalise(
+            layout, progress=progress, cancel=cancel), self)
+        self.job = job
+        job.progressed.connect(lambda f, msg: self._progressed(job, f, msg))
+        job.finished.connect(lambda result: self._retrained(job, result))
+        job.failed.connect(lambda msg: self._stopped(job, msg))
+        job.cancelled.connect(lambda: self._stopped(
+            job, f"retraining cancelled: the run's model stays in use; the "
+            f"{len(p.answers)} touches are kept (Retrain uses them)"))
+        job.start()
+        self._buttons()
+        return True
 
-        def work() -> None:
-            try:
-                job["result"] = p.personalise(layout)
-            except UserError as exc:
-                job["error"] = str(exc)
-
-        job["thread"] = threading.Thread(target=work, name="personalise", daemon=True)
-        job["thread"].start()
-        self.retrain_timer.start()
-
-    def _retrained(self) -> None:
-        job = self._retrain
-        if not job or job["thread"].is_alive():
+    def _progressed(self, job: BackgroundJob, fraction: float, message: str) -> None:
+        if job is not self.job:
             return
-        self.retrain_timer.stop()
-        self._retrain = {}
-        if "result" not in job:
-            self.prompt.setText("Not personalised")
-            self.state.setText(job.get("error") or "the retraining failed (see the log)")
+        self.progress.setValue(round(fraction * STEPS))
+        if message:
+            self.state.setText(message)
+
+    def _stopped(self, job: BackgroundJob, message: str) -> None:
+        if job is not self.job:  # closed meanwhile
             return
-        self.result = job["result"]
-        self.prompt.setText("Personalised")
-        self.state.setText(describe(self.result))
-        self.personalised.emit(self.result)
+        self.prompt.setText("Not personalised")
+        self.state.setText(message)
+        self.retrain_button.show()
         self.cancel_button.setText("Close")
+        self._buttons()
+
+    def _retrained(self, job: BackgroundJob, result: Personalised) -> None:
+        if job is not self.job:  # closed meanwhile: not used
+            return
+        self.result = result
+        self.progress.setValue(STEPS)
+        self.prompt.setText("Personalised")
+        self.state.setText(result_text(result, self.model))
+        self.cancel_button.setText("Close")
+        self._buttons()
+        self.personalised.emit(result)
 
 
 def describe(p: Personalised) -> str:
     """"personalised to this person with 1 touch per gesture (rf refit ...)"."""
-    how = ("refit on its training windows plus theirs" if p.how == "refit" else
-           "its output layers fine-tuned on theirs")
-    return (f"personalised to this person with {p.per_gesture} touch"
+    how = {"refit": "refit on its training windows plus theirs",
+           "fine-tuned": "its output layers fine-tuned on theirs",
+           "refit and fine-tuned": "forest refit, network's output layers fine-tuned"}[p.how]
+    text = (f"personalised to this person with {p.per_gesture} touch"
             f"{'' if p.per_gesture == 1 else 'es'} per gesture ({p.windows} labelled "
             f"windows; {how})")
+    c = p.check
+    if c is not None:
+        text += ("; held-out check " + (f"{c.before:.2f} as trained → " if c.before is not None
+                                        else "") + f"{c.after:.2f} personalised")
+    return text
+
+
+def result_text(p: Personalised, model: WindowModel) -> str:
+    """What was done, and what was measured (every number shown is measured)."""
+    name = display_name(model.config.model, model.config.overrides)
+    n = f"their {p.windows} labelled windows ({p.per_gesture} per gesture at least)"
+    done = {
+        "refit": f"{name} refit on the fold's training windows plus {n}, as train --shots "
+                 "trains.",
+        "fine-tuned": f"{name}'s output layers fine-tuned on {n}, the rest as trained (live "
+                      "fine-tunes for speed; train --shots joins the touches to the "
+                      "training instead).",
+        "refit and fine-tuned": f"{name}: the forest refit on the fold's training windows "
+                                f"plus {n}, the network's output layers fine-tuned on them, "
+                                "fused again with the same weight."}[p.how]
+    c = p.check
+    if c is None:
+        return done + (" Nothing measured: a held-out check needs a second round of "
+                       "touches (K = 2) to test each round on.")
+    before = (f"as trained {c.before:.2f}, " if c.before is not None else
+              "(the run has no view as trained to compare) ")
+    return done + (f" Held-out check on their {c.touches} touches, each round predicted "
+                   f"by the model personalised with the other{'s' if c.rounds > 2 else ''}: "
+                   f"accuracy {before}personalised {c.after:.2f}.")

@@ -2,7 +2,7 @@
 
 On unseen people a network and the random forest on handcrafted trial features make
 different mistakes: averaging their probabilities beat either alone on the simulator
-(docs/learning.md, "Fused with the random forest"). ``--set rf_weight=W`` (0 < W < 1)
+(docs/learning/learners.md, "Fused with the random forest"). ``--set rf_weight=W`` (0 < W < 1)
 trains both on the same fold, the forest on the samples' trial features exactly as
 ``rf`` alone (same seed, same options at the same preset), and predicts
 ``(1 - W) * p_network + W * p_forest``. (A network that cuts a trial into several windows,

@@ -13,7 +13,7 @@ Parameters, 6x6 normal (36 input channels), 9 classes:
 8*9*4+9 = 297; total 2,585 (~2.6 k).
 
 The ``full`` preset is not the paper's network but the generalisation recipe of
-docs/learning.md (small network + linear window-statistics head, mirror training and
+docs/learning/models.md (small network + linear window-statistics head, mirror training and
 averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
@@ -42,7 +42,7 @@ OPTION_HELP = {
 }
 
 OPTIONS: dict[str, dict[str, object]] = {
-    # members 3: measured +1 point of median LOPO accuracy for 1.3x the cost (learning.md)
+    # members 3: measured +1 point of median LOPO accuracy for 1.3x the cost (learning/figures.md)
     "full": {"filters": 32, "kernel": 7, "layers": 3, "dropout": 0.3, "stats": True,
              "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75, "gesture": False,
              "members": 3},

@@ -7,7 +7,7 @@ classes. ~4.7 M parameters at the paper's size (3 channels, 9 classes: 4,710,153
 Input (B, C, 86, R, X): the whole 2 s trial resampled to 86 frames.
 
 The ``full`` preset is not the paper's network but the generalisation recipe of
-docs/learning.md (small network + linear window-statistics head, mirror training and
+docs/learning/models.md (small network + linear window-statistics head, mirror training and
 averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
@@ -48,7 +48,7 @@ OPTIONS: dict[str, dict[str, object]] = {
         "mirror": True,
         "branch_dropout": 0.75,
         "gesture": False,
-        "members": 1,  # 3 measured: no gain for 2.4x the cost (docs/learning.md)
+        "members": 1,  # 3 measured: no gain for 2.4x the cost (docs/learning/figures.md)
     },
     "tiny": {
         "filters": (8, 16, 32),

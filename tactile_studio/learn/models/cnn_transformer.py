@@ -7,7 +7,7 @@ window's embeddings get sinusoidal positions and go through a Transformer encode
 Windows are 27 frames, stride 9 in the paper (`--set view_frames=27 view_stride=9`). The
 full preset's window is the whole 2 s trial (86 frames at the sensor's ~43 Hz, not
 overlapping): the Transformer attends over the touch from start to end and the statistics
-head describes the whole trial, as the other models' heads do. Measured (docs/learning.md)
+head describes the whole trial, as the other models' heads do. Measured (docs/learning/figures.md)
 against 27-frame windows: LOPO trial accuracy 0.614 -> 0.653, adapted 0.633 -> 0.672.
 
 The paper's grid is 8x8 (-> 4x4 -> 2x2). Other grids keep the 2x2 output: the second
@@ -15,7 +15,7 @@ pooling's kernel/stride are chosen from the grid at build time (6x6: 3x3 -> 2x2 
 kernel 2 stride 1; 11x11: 6x6 -> 2x2 with kernel 3 stride 3), which exports to ONNX
 unlike adaptive pooling with non-dividing sizes.
 
-The ``full`` preset adds the generalisation recipe of docs/learning.md like the other
+The ``full`` preset adds the generalisation recipe of docs/learning/models.md like the other
 models (linear window-statistics head over the window, mirror training and averaging,
 branch dropout, cosine budget, ``members``); the paper's network is ``PAPER``.
 

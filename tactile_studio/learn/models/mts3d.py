@@ -9,11 +9,11 @@ after the 2nd stage); the globally pooled features of the scales are summed, the
 linear layer gives the classes.
 
 The ``full`` preset is not the paper's network but the generalisation recipe of
-docs/learning.md (small network + linear window-statistics head, mirror training and
+docs/learning/models.md (small network + linear window-statistics head, mirror training and
 averaging, branch dropout, cosine budget); the paper's network is ``PAPER``. It samples
 32 frames of a 2 s trial: with 16 its statistics head and temporal scales saw too little
 of the touch (LOPO trial accuracy adapted to each person 0.653 -> 0.686; uniformly
-resampled 32 frames scored the same as gradient-adaptive ones, docs/learning.md).
+resampled 32 frames scored the same as gradient-adaptive ones, docs/learning/figures.md).
 """
 
 from __future__ import annotations

@@ -12,7 +12,7 @@ logits averaged). With a single-modality channel set (1 channel = normal/pressur
 shear) there is one branch and all three variants coincide in structure.
 
 The ``full`` preset is not the paper's network but the generalisation recipe of
-docs/learning.md (small network + linear window-statistics head, mirror training and
+docs/learning/models.md (small network + linear window-statistics head, mirror training and
 averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 """
 
@@ -53,7 +53,7 @@ OPTIONS: dict[str, dict[str, object]] = {
              "d_model": 32, "heads": 4, "layers": 1, "ff": 64, "hidden": 32, "dropout": 0.3,
              "stats": True, "stats_hidden": 0, "mirror": True, "branch_dropout": 0.75,
              "gesture": False,
-             "members": 1},  # 3 measured: no gain for 3.7x the cost (docs/learning.md)
+             "members": 1},  # 3 measured: no gain for 3.7x the cost (docs/learning/figures.md)
     "tiny": {"fusion": "mid", "filters": 16, "kernel": 5, "blocks": 2, "se_reduction": 4,
              "d_model": 16, "heads": 2, "layers": 1, "ff": 32, "hidden": 16, "dropout": 0.1,
              "stats": False, "stats_hidden": 16, "mirror": False, "branch_dropout": 0.0,
