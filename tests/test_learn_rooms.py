@@ -27,3 +27,9 @@ def test_each_room_is_a_handful_of_modules_and_says_what_it_holds() -> None:
         doc = ast.get_docstring(ast.parse((LEARN / room / "__init__.py").read_text()))
         assert doc and len(doc.split()) >= 10, f"learn/{room}/__init__.py says nothing"
 
+
+
+def test_the_docs_have_a_page_per_room() -> None:
+    docs = Path(__file__).resolve().parents[1] / "docs" / "learning"
+    missing = sorted(r for r in ROOMS - {"models"} if not (docs / f"{r}.md").is_file())
+    assert missing == [], f"docs/learning/ lacks a page for {missing}"
