@@ -99,6 +99,9 @@ class _MarkerSink:
     def start(self) -> "_MarkerSink":
         return self
 
+    def event(self, kind: str, **detail: object) -> None:
+        pass
+
     def stop(self) -> None:
         rec = self.session.recorder
         self.stopped_with_file_open = rec is not None and not rec.stopped

@@ -5,8 +5,9 @@
   ``collect`` and the collection console all use it; ui's only way to acquisition, an
   import-linter contract). :class:`AcquisitionEngine`, the engine it hands out
   (``session.engine``), is re-exported for the widgets that hold one;
-- :mod:`tactile_studio.acquisition.sinks`: the :class:`Sink` protocol (the HDF5
-  recorder, outlets, LSL publishing) and the stop order;
+- :mod:`tactile_studio.acquisition.sinks`: the :class:`Sink` protocol (setup, event,
+  close; frames pulled from the engine: the HDF5 recorder, outlets, marker inlets, LSL
+  publishing) and the stop order;
 - :mod:`tactile_studio.acquisition.outcome`: how a recording ended;
 - :mod:`tactile_studio.acquisition.status`: :class:`LiveStatus` and :func:`format_malformed`;
 - :mod:`tactile_studio.acquisition.stream_health` and ``marker_recording``: a silent

@@ -11,13 +11,22 @@ from typing import Any
 
 
 class MarkerRecording:
-    """Marker inlets for one recording (an outlet-like: ``stop()``)."""
+    """Marker inlets for one recording, a sink (acquisition/sinks.py): they open (and
+    refuse a stream that is not there) when made, feed the engine, stop with the
+    recording; the session's own events are not theirs to record (the file has them)."""
 
     def __init__(self, engine: Any, names: Sequence[str]) -> None:
         from tactile_studio.streams.marker_inlet import MarkerInlets
 
         self._problems: queue.SimpleQueue[str] = queue.SimpleQueue()
         self.inlets = MarkerInlets(engine, list(names), on_problem=self._problems.put)
+
+    def start(self) -> MarkerRecording:
+        """Nothing to set up: the inlets run from when they are made."""
+        return self
+
+    def event(self, kind: str, **detail: Any) -> None:
+        """Ignored: the inlets record other programs' markers, not the session's."""
 
     def stop(self) -> None:
         self.inlets.stop()

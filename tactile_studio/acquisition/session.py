@@ -1,4 +1,4 @@
-"""One acquisition session: device + engine + optional recorder + optional LSL outlets.
+"""One acquisition session: device + engine + its sinks (the file, LSL outlets).
 
 Every place that acquires (the main window, ``record``, ``collect`` and the collection
 console) wires the stream through this class, so they all start in the same order and
@@ -41,8 +41,8 @@ from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
+from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 from tactile_studio.storage.session_compress import wait_for_compression
 
 Listener = Callable[[dict[str, Any]], None]
@@ -181,8 +181,8 @@ class AcquisitionSession:
             raise UserError("connect a device before recording")
         self.stop_recording()
         self._stop_at = self._stop_rows = None
-        self.recorder = Recorder(self.engine, path, sensor_metadata(self.engine, metadata),
-                                 row_offset=row_offset, base_counters=base_counters)
+        self.recorder = open_file_sink(self.engine, path, metadata, row_offset=row_offset,
+                                       base_counters=base_counters, start=False)
         self.recorder.background_compress = self.compress_in_background
         self.sinks.add(self.recorder, FILE)
         if start:
@@ -219,9 +219,10 @@ class AcquisitionSession:
         if rec is None:
             return None
         self._close_outlets()  # an outlet's last markers go into the file too
-        # idempotent: a collection session may have closed it already
-        self.sinks.stop(FILE)
-        book_usage(rec)  # the hours of use: booked here, never by the file writer
+        # idempotent: a collection session may have closed it already; the hours of
+        # use are booked with it (storage/file_sink.py), never by the file writer
+        self.sinks.remove(rec)
+        close_file_sink(rec)
         eng = self.engine
         self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
         if rec.write_error:
@@ -234,6 +235,14 @@ class AcquisitionSession:
     @property
     def recording(self) -> bool:
         return self.recorder is not None
+
+    def add_event(self, kind: str, **detail: Any) -> None:
+        """An application event for every sink that takes events (acquisition/sinks.py):
+        stamped once here (``time_s``, host time) so the file and the LSL markers carry
+        the same instant. Engine events (connect, tare, markers fed into the engine)
+        need not come here: every sink pulls those from the engine itself."""
+        detail.setdefault("time_s", time.time())
+        self.sinks.event(kind, **detail)
 
     # ---- polling: state changes and auto-stop ------------------------------------------------
     def poll(self) -> None:

@@ -1,9 +1,21 @@
 """Where an acquisition's stream goes: the sinks an :class:`AcquisitionSession` holds.
 
-A sink pulls the engine's frames and events by itself (from a cursor, as the recorder
-does) between ``start()`` and ``stop()``; the session only keeps them in the stop
-order and stops them: the outlets a caller added (their end reaches the file), then the
-file, then the device's shared LSL publishing (which outlives a recording).
+A sink is small (:class:`Sink`): ``start()`` sets it up, ``event(kind, **detail)``
+takes an application event, ``stop()`` closes it, once, writing its end. The HDF5
+recorder (storage/recorder.py, opened by storage/file_sink.py), the device's LSL
+publishing and the marker inlets of a recording are sinks.
+
+Frames are not handed to sinks: each pulls them (and the engine's own events) from the
+engine by cursor, at its own pace. The engine's ring already is the fan-out: pushing
+frames would copy every chunk once per sink on the acquisition thread, and a slow sink
+(a file on a busy disk) would hold the device back instead of reading behind it.
+
+Events the session itself is given (:meth:`AcquisitionSession.add_event`) are stamped
+once and handed to every sink (:meth:`SinkList.event`): the file writes them, LSL
+publishing sends them as markers, the marker inlets ignore them. The session keeps the
+sinks in stop order and stops them: the outlets a caller added (their end reaches the
+file), then the file, then the device's shared LSL publishing (which outlives a
+recording).
 """
 
 from __future__ import annotations
@@ -16,12 +28,17 @@ OUTLET, FILE, PUBLISHING = 0, 1, 2
 
 @runtime_checkable
 class Sink(Protocol):
-    """Anything fed from the engine while a session runs (the HDF5 recorder, an LSL
-    streamer, marker inlets): it starts pulling, and stops once, writing its end."""
+    """Anything fed from the engine while a session runs: set up, given events, closed
+    (frames: pulled by the sink itself from the engine, see the module doc)."""
 
-    def start(self) -> Any: ...
+    def start(self) -> Any:
+        """Set up and start pulling; returns the sink."""
 
-    def stop(self) -> None: ...
+    def event(self, kind: str, **detail: Any) -> None:
+        """An application event stamped by the session (``time_s``); may be ignored."""
+
+    def stop(self) -> None:
+        """Close, once: pull what is left and write the end."""
 
 
 class LslPublishing:
@@ -38,6 +55,12 @@ class LslPublishing:
         if self.streamer is None:
             self.streamer = acquire_streamer(self.engine)
         return self
+
+    def event(self, kind: str, **detail: Any) -> None:
+        """Published as an application marker (source ``app``) while streaming."""
+        detail.pop("time_s", None)  # the marker is stamped on arrival, as push_marker does
+        if self.streamer is not None:
+            self.streamer.push_marker(kind, **detail)
 
     def stop(self) -> None:
         streamer, self.streamer = self.streamer, None
@@ -63,6 +86,14 @@ class SinkList:
 
     def remove(self, sink: Any) -> None:
         self._sinks = [(r, s) for r, s in self._sinks if s is not sink]
+
+    def event(self, kind: str, **detail: Any) -> None:
+        """Give an event to every sink that takes events, in stop order (an outlet a
+        caller added may have no ``event``: it gets none)."""
+        for _, sink in list(self._sinks):
+            take = getattr(sink, "event", None)
+            if callable(take):
+                take(kind, **dict(detail))
 
     def stop(self, rank: int) -> None:
         """Stop (in order) and forget the sinks of ``rank``."""

@@ -21,8 +21,7 @@ from tactile_studio.errors import IncompleteError
 from tactile_studio.instruments.contract import ForcePlugin, InstrumentError, StagePlugin
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.characterise import taxel_signals
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
+from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 
 _KEEP_S = 120.0  # how much recent sensor/force history a measurement can look back on
 
@@ -52,8 +51,8 @@ class Lab:
         self.clock = stage.clock()
         self.engine = AcquisitionEngine(device)
         self.engine.start()
-        self.recorder = Recorder(self.engine, session_path, sensor_metadata(self.engine, {
-            **metadata, "characterisation_clock": self.clock.name})).start()
+        self.recorder = open_file_sink(self.engine, session_path, {
+            **metadata, "characterisation_clock": self.clock.name})
         self._cursor = self.engine.frames
         self._t = np.empty(0)
         self._raw = np.empty((0, self.layout.n_channels), dtype=self.layout.raw_dtype)
@@ -65,11 +64,10 @@ class Lab:
     # ---- journal ---------------------------------------------------------------------
     def event(self, kind: str, **detail: Any) -> None:
         """A journal event stamped with lab time (``lab_t``) and host time."""
-        self.recorder.add_event(kind, lab_t=round(self.clock.now(), 6), **detail)
+        self.recorder.event(kind, lab_t=round(self.clock.now(), 6), **detail)
 
     def close(self) -> None:
-        self.recorder.stop()
-        book_usage(self.recorder)
+        close_file_sink(self.recorder)
         self.engine.stop()
 
     # ---- streams ---------------------------------------------------------------------

@@ -31,10 +31,10 @@ from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
+from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trials_done
 
@@ -68,8 +68,7 @@ class CollectionSession:
         the session quietened goes back to what it did before)."""
         if self.runner.state not in State.DONE:
             self.runner.abort()
-        self.recorder.stop()
-        book_usage(self.recorder)  # once, whoever stops it first (the session or us)
+        close_file_sink(self.recorder)  # hours booked once, whoever stops it first
         if self.restore_gesture is not None:
             self.engine.device.set_gesture(self.restore_gesture)
             self.restore_gesture = None
@@ -162,9 +161,8 @@ def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> Recorde
 
     def plain(path: Path, metadata: dict[str, Any], *, row_offset: int = 0,
               base_counters: dict[str, Any] | None = None, start: bool = True) -> Recorder:
-        rec = Recorder(engine, path, sensor_metadata(engine, metadata), row_offset=row_offset,
-                       base_counters=base_counters)
-        return rec.start() if start else rec
+        return open_file_sink(engine, path, metadata, row_offset=row_offset,
+                              base_counters=base_counters, start=start)
 
     return plain
 

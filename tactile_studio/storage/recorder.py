@@ -60,7 +60,7 @@ class Recorder:
         metadata["sensor_id"] = metadata.get("sensor_id") or engine.sensor_id()
         self.sensor_id: str | None = metadata["sensor_id"]
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
-        self.usage_booked = False  # set by storage/sensor_book.book_usage
+        self.usage_booked = False  # set by storage/sensor_book.book_usage (once)
         self.background_compress = False  # stop() compresses on a worker thread
         self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
                                     flush_interval=flush_interval)
@@ -88,6 +88,10 @@ class Recorder:
         # (engine frame, kind, time, detail) of events at frames not pulled yet
         self._pending: list[tuple[int, str, float, dict[str, Any]]] = []
         self._end: int | None = None  # engine frame the file ends before (end_at)
+        # called once, after the file is closed, however it stops (its owner, the exit
+        # hook): the file sink books the hours of use there (storage/file_sink.py)
+        self._on_stop: list[Callable[[Recorder], None]] = []
+        self._closed = False
         _OPEN.add(self)
 
     @property
@@ -164,9 +168,22 @@ class Recorder:
     # ---- what else goes into the file ----------------------------------------------------
     def add_event(self, kind: str, **detail: Any) -> None:
         """An event at the next row (runner and lab events; engine events come by
-        themselves)."""
+        themselves). ``time_s`` stamps it (default: now)."""
         with self._unless_failed():
             self.writer.add_event(kind, **detail)
+
+    def event(self, kind: str, **detail: Any) -> None:
+        """The sink verb (acquisition/sinks.py): an event a session gives its sinks is
+        written at the next row, as :meth:`add_event`."""
+        self.add_event(kind, **detail)
+
+    def on_stop(self, fn: Callable[[Recorder], None]) -> None:
+        """Call ``fn(self)`` once the file is closed, whoever stops it (the exit hook
+        too); at once if it is stopped already."""
+        if self._closed:
+            fn(self)
+        else:
+            self._on_stop.append(fn)
 
     def end_at(self, engine_frame: int) -> None:
         """The file ends before engine frame ``engine_frame`` (a collection's end): later
@@ -275,6 +292,10 @@ class Recorder:
         if self.write_error is None and self.writer.failed:  # the closing touches failed
             self.write_error = self.writer.failed
         _OPEN.discard(self)
+        self._closed = True
+        callbacks, self._on_stop = self._on_stop, []
+        for fn in callbacks:
+            fn(self)
 
     @property
     def stopped(self) -> bool:
@@ -402,7 +423,8 @@ def running_recorders() -> list[Recorder]:
 @atexit.register
 def _stop_open_recorders() -> None:
     """Exiting with a recording running: write what is left and close the file, so
-    nothing recorded is lost and no recorder thread outlives the interpreter."""
+    nothing recorded is lost and no recorder thread outlives the interpreter. Its
+    on-stop callbacks run as for any stop (a file sink books its hours of use)."""
     for recorder in list(_OPEN):
         try:
             recorder.stop()

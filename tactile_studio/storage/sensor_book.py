@@ -1,9 +1,9 @@
 """What a recording books in the sensor logbook, kept outside the file writer.
 
-The recorder writes a file and nothing else; whoever runs a recording (the acquisition
-session, a collection without one, the characterisation lab) looks the sensor up before
-it starts (:func:`sensor_metadata`) and books its hours of use after it stops
-(:func:`book_usage`). A damaged or unwritable logbook never stops a recording: it is
+The recorder writes a file and nothing else; every recording (the acquisition session,
+a collection without one, the characterisation lab) is opened through
+storage/file_sink.py, which looks the sensor up before it starts (:func:`sensor_metadata`)
+and books its hours of use when it stops, however it stops (:func:`book_usage`). A damaged or unwritable logbook never stops a recording: it is
 said once and the file is recorded anyway.
 """
 

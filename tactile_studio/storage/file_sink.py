@@ -1,0 +1,41 @@
+"""The HDF5 file as a sink: the one way anything opens and closes a recording's file.
+
+The acquisition session, a collection run without one (protocol/collect.py) and the
+characterisation lab all record through :func:`open_file_sink` and
+:func:`close_file_sink`, so every recording is told about its sensor the same way
+(:func:`~tactile_studio.storage.sensor_book.sensor_metadata`, before the first row) and
+books its hours of use exactly once however it ends: its owner's stop, or the exit hook
+closing a file left open (the recorder's on-stop callback;
+:func:`~tactile_studio.storage.sensor_book.book_usage` guards "once").
+
+It lives in storage, below acquisition, protocol and characterise, because those three
+may not import each other (the layers in pyproject.toml).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from tactile_studio.devices.frame_stream import RecordableStream
+from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
+
+
+def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
+                   metadata: dict[str, Any] | None = None, *, row_offset: int = 0,
+                   base_counters: dict[str, Any] | None = None,
+                   start: bool = True) -> Recorder:
+    """A recorder of ``engine`` into a new file at ``path`` (SessionFileError), told its
+    sensor from the logbook and booking its hours when it stops. ``start=False`` leaves
+    its thread to the caller (a resume copies the earlier file in first)."""
+    rec = Recorder(engine, path, sensor_metadata(engine, metadata), row_offset=row_offset,
+                   base_counters=base_counters)
+    rec.on_stop(book_usage)
+    return rec.start() if start else rec
+
+
+def close_file_sink(rec: Recorder) -> None:
+    """Finish the file and book its hours of use (both once: later calls do nothing)."""
+    rec.stop()
+    book_usage(rec)  # already booked by the on-stop callback; kept for a plain Recorder

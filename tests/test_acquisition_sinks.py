@@ -1,0 +1,149 @@
+"""The sink protocol (setup, event, close; frames pulled from the engine) and the file
+sink's hours of use: booked exactly once however a recording ends, the exit hook too.
+Real simulator, real HDF5 files, a real logbook in a tmp folder, real LSL on the loopback.
+
+Budget: ~6 s (a subprocess recording, two short recordings, one LSL stream lookup)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+import uuid
+
+import pylsl
+import pytest
+from lsl_fixtures import Collector, unique
+from waiting import wait_until
+
+from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition.marker_recording import MarkerRecording
+from tactile_studio.acquisition.sinks import LslPublishing, Sink
+from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
+from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.recorder import Recorder
+from tactile_studio.storage.session import Session
+
+
+@pytest.fixture
+def data_dir(tmp_path, monkeypatch):
+    folder = tmp_path / "data"
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(folder))
+    return folder
+
+
+def _usage_rows(sensor: str) -> int:
+    with Logbook() as book:
+        return book._db.execute("SELECT COUNT(*) FROM usage WHERE sensor_id=?",
+                                (sensor,)).fetchone()[0]
+
+
+def test_the_file_lsl_publishing_and_marker_inlets_are_sinks(tmp_path, data_dir) -> None:
+    s = AcquisitionSession()
+    engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle"})
+    name = unique("stim")
+    outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "Markers", 1, pylsl.IRREGULAR_RATE,
+                                                 pylsl.cf_string, f"{name}-src"))
+    rec = s.start_recording(tmp_path / "s.h5")
+    markers = MarkerRecording(engine, [name])
+    try:
+        assert isinstance(rec, Recorder) and isinstance(rec, Sink)
+        assert isinstance(LslPublishing(engine), Sink)
+        assert isinstance(markers, Sink)
+    finally:
+        markers.stop()
+        s.close()
+        del outlet
+
+
+def test_a_session_event_reaches_the_file_and_the_lsl_markers(tmp_path, data_dir) -> None:
+    s = AcquisitionSession()
+    seed = str(uuid.uuid4().int % 100000)  # its own LSL source ID among parallel tests
+    engine = s.open("simulated", {"rate": "100", "speed": "4", "seed": seed})
+    s.set_lsl(True)
+    got = Collector(f"source_id='{s.lsl.source_id}:markers'")
+    got.wait_connected()
+    s.start_recording(tmp_path / "s.h5")
+    s.start()
+    try:
+        wait_until(lambda: s.recorder.rows_written > 20, what="20 rows")
+        s.add_event("condition", name="gloved", time_s=1234.5)
+        wait_until(lambda: any(json.loads(m[0])["kind"] == "condition"
+                               for m in list(got.samples)), what="the condition marker")
+    finally:
+        s.close()
+        got.stop()
+    with Session(tmp_path / "s.h5") as f:
+        ev = [e for e in f.events if e["kind"] == "condition"]
+    assert len(ev) == 1 and ev[0]["name"] == "gloved" and ev[0]["time"] == 1234.5
+    marker = [json.loads(m[0]) for m in got.samples if json.loads(m[0])["kind"] == "condition"]
+    assert marker == [{"kind": "condition", "source": "app", "name": "gloved"}]
+    assert engine.state == "stopped"
+
+
+def test_a_session_stop_books_the_hours_of_use_exactly_once(tmp_path, data_dir) -> None:
+    s = AcquisitionSession()
+    engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
+                                  "seed": "31"})
+    rec = s.start_recording(tmp_path / "s.h5")
+    s.start()
+    assert engine.wait_frames(150, timeout=20)
+    s.stop_recording()
+    close_file_sink(rec)  # a second close (a collection's close()) books nothing more
+    rec.stop()
+    s.close()
+    with Session(tmp_path / "s.h5") as f:
+        rows = f.n_frames
+    assert rows == rec.recorded > 0
+    with Logbook() as book:
+        assert book.hours("sim-31") * 3600 == pytest.approx(rows / 100.0)
+    assert _usage_rows("sim-31") == 1
+
+
+def test_a_file_sink_closed_by_its_owner_books_once(tmp_path, data_dir) -> None:
+    """The way in for collect's plain recorder and the characterisation lab."""
+    s = AcquisitionSession()
+    engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
+                                  "seed": "32"})
+    s.start()
+    rec = open_file_sink(engine, tmp_path / "f.h5", {"source": "test"})
+    wait_until(lambda: rec.rows_written >= 50, what="50 rows")
+    close_file_sink(rec)
+    close_file_sink(rec)
+    s.close()
+    with Session(tmp_path / "f.h5") as f:
+        assert f.metadata["sensor_id"] == "sim-32"
+        rows = f.n_frames
+    with Logbook() as book:
+        assert book.hours("sim-32") * 3600 == pytest.approx(rows / 100.0)
+    assert _usage_rows("sim-32") == 1
+
+
+LEFT_OPEN = textwrap.dedent("""
+    import sys
+    from tactile_studio.acquisition import AcquisitionSession
+    s = AcquisitionSession()
+    engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
+                                  "seed": "33"})
+    rec = s.start_recording(sys.argv[1])
+    s.start()
+    assert engine.wait_frames(200, timeout=20)
+    sys.exit(0)  # never stopped: the exit hook closes the file
+""")
+
+
+def test_a_recording_closed_by_the_exit_hook_books_its_hours(tmp_path, data_dir) -> None:
+    out = tmp_path / "left.h5"
+    env = {**os.environ, "TACTILE_STUDIO_DATA_DIR": str(data_dir)}
+    done = subprocess.run([sys.executable, "-c", LEFT_OPEN, str(out)], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    with Session(out) as f:
+        assert f.closed_cleanly
+        rows = f.n_frames
+    assert rows >= 200
+    with Logbook() as book:
+        assert book.hours("sim-33") * 3600 == pytest.approx(rows / 100.0)
+    assert _usage_rows("sim-33") == 1
