@@ -112,3 +112,22 @@ def ran_out_of_room(exc: BaseException, kept: int, noun: str, verb: str) -> User
         return IncompleteError(f"{line}; that {noun} was removed, the {kept} {noun}(s) "
                                f"{verb} before it are kept")
     return WriteFault(f"{line}; that {noun} was removed, nothing was {verb}")
+
+
+def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:
+    """Refuse before any work when ``folder`` cannot be written: a real probe (a temporary
+    file made and removed there), since permission bits say nothing of a read-only mount,
+    a full disk or root. ``purpose`` says why the folder is written (``"where evaluate
+    saves rescore.json"``). An error that is not the place's fault keeps its traceback."""
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".write-probe-", dir=folder)
+    except OSError as exc:
+        if fault_line(exc) is None:
+            raise
+        cause = exc.strerror or os.strerror(exc.errno)
+        raise WriteFault(f"{os.fsdecode(folder)}: cannot write in this folder, "
+                         f"{purpose} ({cause})") from None
+    os.close(fd)
+    os.unlink(probe)

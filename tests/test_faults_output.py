@@ -156,7 +156,7 @@ def readonly(data):
     (["export", "data/P01.h5", "--format", "npz", "--out", "readonly"], "readonly/P01_t0000"),
     (["export", "data/P01.h5", "--format", "csv-trials", "--out", "readonly"],
      "readonly/P01_trials.csv"),
-    (["evaluate", "run-readonly"], "run-readonly/rescore.json"),
+    (["evaluate", "run-readonly"], "run-readonly: cannot write in this folder"),
     (["train", "--data", "data", "--model", "rf", "--preset", "tiny", "--eval", "lopo",
       "--cache-dir", "cache-nobody", "--out", "readonly/run"], "readonly/run"),
     (["snapshot", "--seconds", "0.1", "--out", "readonly/x.png"], "readonly/x.png"),
@@ -182,6 +182,19 @@ def test_a_read_only_folder_is_one_line_naming_the_file(argv, target, readonly):
     assert proc.returncode == 1, proc.stderr
     assert line.startswith(target) and "cannot write" in line, line
     assert line.endswith("(Permission denied)"), line
+
+
+@pytest.mark.slow  # as another user
+def test_evaluate_refuses_a_run_folder_it_cannot_write_before_any_work(readonly):
+    """It scored every fold and then failed writing rescore.json; now it probes the folder
+    first: ``--data`` names no data at all, and the folder is what it is told about."""
+    proc = run_unprivileged(["evaluate", "run-readonly", "--data", "no-such-data"], readonly)
+    assert proc.returncode == 1, proc.stderr
+    assert one_error_line(proc.stderr) == ("run-readonly: cannot write in this folder, where "
+                                           "evaluate saves rescore.json (Permission denied)")
+    assert "fold P0" not in proc.stdout + proc.stderr  # no fold was scored
+    assert sorted(p.name for p in (readonly / "run-readonly").iterdir()) == sorted(
+        p.name for p in (readonly / "run").iterdir())  # the probe left nothing behind
 
 
 # ---- what counts as the environment's fault ------------------------------------------------

@@ -36,6 +36,7 @@ from tactile_studio.learn.experiments.experiment import (
 from tactile_studio.learn.experiments.runfolder import model_file, read_run, write_json
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.generalise import ADAPT
+from tactile_studio.output_faults import require_writable_folder
 
 
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
@@ -72,7 +73,9 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     ``RUN/rescore.json``. ``adapt`` (generalise.ADAPT) overrides the run's adaptation
     to each test person: any network can adapt its batch norm after the fact, while
     rf/knn (and fused forests) were trained on features standardised or not, so theirs
-    cannot change."""
+    cannot change. A run folder that cannot be written is refused before any scoring."""
+    if Path(run).is_dir():  # else load_run_data says what is wrong with it
+        require_writable_folder(run, "where evaluate saves rescore.json")
     config, resolved, records, ds, learner, info = load_run_data(
         run, data, cache_dir, progress=lambda f, m: progress(0.3 * f, m), cancel=cancel)
     if adapt is not None and adapt != config.adapt:
