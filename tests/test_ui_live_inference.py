@@ -101,15 +101,23 @@ def test_an_adapted_rf_predicts_as_trained_until_calibrated_to_the_person(run, q
         assert "from their own last touches" in panel.calibration_label.text()
         panel.running_box.setChecked(False)
         assert "pooled feature statistics" in panel.calibration_label.text()
-        assert "calibrate on a recording" in panel.calibration_label.text()
+        assert "a recording of them" in panel.calibration_label.text()
         panel.refresh()  # as trained: features standardised with the training people's
         assert panel.inference is not None and panel.model.reference is None
         qtbot.waitUntil(lambda: panel.top() in GESTURES, timeout=40_000)
         w.grab().save(str(SHOTS / "research_live_rf_as_trained.png"))
-        assert not panel.calibrate(str(tmp_path / "nope.h5"))
-        assert "nope.h5" in panel.message.text() and "\n" not in panel.message.text()
-        assert panel.calibrate(str(root / "data" / "P02.h5"))
+        # Calibrate to person… > From an earlier recording… (an rf trained with --adapt)
+        panel.calibrate_button.click()
+        dialog = panel.dialog
+        qtbot.addWidget(dialog)
+        assert dialog.recording_button.isEnabled()
+        assert not dialog.from_recording(str(tmp_path / "nope.h5"))
+        assert "nope.h5" in dialog.state.text() and "\n" not in dialog.state.text()
+        assert dialog.prompt.text() == "Not calibrated"
+        assert dialog.from_recording(str(root / "data" / "P02.h5"))
         assert "calibrated to the person in P02.h5" in panel.calibration_label.text()
+        assert "calibrated to the person in P02.h5" in dialog.state.text()
+        dialog.close()
         qtbot.waitUntil(lambda: panel.inference is not None and panel.top() in GESTURES,
                         timeout=40_000)
         assert panel.inference.error is None
@@ -121,8 +129,9 @@ def test_an_adapted_rf_predicts_as_trained_until_calibrated_to_the_person(run, q
                         and panel.top() in GESTURES, timeout=40_000)
         assert panel.inference.error is None and panel.inference.adapting.count >= 3
         w.grab().save(str(SHOTS / "research_live_adapting.png"))
-        assert panel.load_run(str(run))  # knn as trained: nothing to calibrate
-        assert not panel.calibrate_button.isEnabled() and not panel.running_box.isEnabled()
+        assert panel.load_run(str(run))  # knn as trained: no statistics to take, touches only
+        assert panel.calibrate_button.isEnabled() and not panel.running_box.isEnabled()
+        assert not panel.open_personalise().recording_button.isEnabled()
         assert "as trained" in panel.calibration_label.text()
     finally:
         panel.stop()

@@ -1,7 +1,9 @@
-"""Live inference's "Personalise with touches…" on the simulated sensor: the dialog prompts
+"""Live inference's "Calibrate to person…" on the simulated sensor: the dialog prompts
 each gesture of an rf run K times, the simulated person performs the named gesture, each
 prompt records a labelled window (Skip and Redo too), the run's model is refit with them
-and predicts on; "Forget personalisation" returns to the run's model."""
+off the GUI thread (progress, Cancel keeps the touches for Retrain) and predicts on; the
+result line says what was done and the held-out check measured on their touches;
+"Forget personalisation" returns to the run's model."""
 
 from __future__ import annotations
 
@@ -43,12 +45,16 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
     w.show()
     try:
         panel = live_inference_dock(w).widget()
-        assert not panel.personalise_button.isEnabled()  # no run yet
+        assert not panel.calibrate_button.isEnabled()  # no run yet
         assert panel.load_run(str(run))
-        assert panel.personalise_button.isEnabled() and not panel.forget_button.isEnabled()
+        assert panel.calibrate_button.isEnabled() and not panel.forget_button.isEnabled()
+        assert not hasattr(panel, "personalise_button")  # one way: Calibrate to person…
         run_model = panel.model.trained
-        dialog = panel.open_personalise()
+        panel.calibrate_button.click()
+        dialog = panel.dialog
         qtbot.addWidget(dialog)
+        # an rf trained without --adapt has no statistics to take from a recording
+        assert not dialog.recording_button.isEnabled()
         dialog.k.setValue(2)
         engine = w.controller.engine
         qtbot.waitUntil(lambda: engine.baseline is not None, timeout=20_000)
@@ -77,16 +83,49 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
         while not p.done:
             perform_prompt()
             qtbot.waitUntil(lambda: engine.device.current_gesture == "idle", timeout=10_000)
+        # the retraining started by itself, off the GUI thread: the dialog answers meanwhile
+        assert dialog.retraining or dialog.result is not None
         qtbot.waitUntil(lambda: dialog.result is not None, timeout=60_000)
+        first = dialog.result
         windows, gestures, _ = p.labelled()
         assert gestures == [p.prompts[i] for i in (0, 2, 3, 4, 5)]
         assert all(x.shape[1] == panel.model.window_for(43.0) for x in windows)
-        assert dialog.result.how == "refit" and dialog.result.per_gesture == 1
+        assert first.how == "refit" and first.per_gesture == 1
+        # K = 2: each round's touches checked by the model personalised with the other
+        assert first.check is not None and first.check.touches == 5
+        state = dialog.state.text()
+        assert "refit on the fold's training windows plus their 5 labelled windows" in state
+        assert (f"Held-out check on their 5 touches, each round predicted by the model "
+                f"personalised with the other: accuracy as trained {first.check.before:.2f}, "
+                f"personalised {first.check.after:.2f}.") in state, state
         text = panel.calibration_label.text()
         assert "personalised to this person with 1 touch per gesture" in text, text
-        assert panel.model.personalised is dialog.result
+        assert f"held-out check {first.check.before:.2f} as trained" in text, text
+        assert panel.model.personalised is first
         assert panel.model.trained is not run_model and panel.forget_button.isEnabled()
+        # retrain with the same touches, cancelled: nothing changes, the touches stay
+        assert dialog.retrain() and dialog.retraining and dialog.result is first
+        assert dialog.prompt.text() == "Retraining…" and not dialog.recording_button.isEnabled()
+        dialog.grab().save(str(SHOTS / "research_live_personalise_progress.png"))
+        dialog.cancel_button.click()
+        qtbot.waitUntil(lambda: not dialog.retraining, timeout=60_000)
+        assert dialog.isVisible() and dialog.prompt.text() == "Not personalised"
+        assert "retraining cancelled" in dialog.state.text()
+        assert "the 5 touches are kept" in dialog.state.text()
+        assert dialog.retrain_button.isVisible() and panel.model.personalised is first
+        dialog.retrain_button.click()
+        qtbot.waitUntil(lambda: dialog.result is not first, timeout=60_000)
+        assert panel.model.personalised is dialog.result and not dialog.retrain_button.isVisible()
+        assert dialog.result.check.after == first.check.after  # same touches, same seed
+        dialog.grab().save(str(SHOTS / "research_live_personalise_result.png"))
+        assert dialog.start_button.isEnabled() and dialog.start_button.text() == "Start again"
+        # closed while retraining: the retraining is cancelled and not used
+        second_result = dialog.result
+        assert dialog.retrain() and not dialog.start_button.isEnabled()
+        job = dialog.job
         dialog.close()
+        assert job.wait(60) and job.token.cancelled
+        assert panel.model.personalised is second_result and dialog.result is second_result
         # the personalised model predicts on the live stream
         engine.device.set_gesture("Heavy Pat")
         qtbot.waitUntil(lambda: panel.inference is not None and panel.inference.count >= 14,

@@ -1,13 +1,14 @@
 """Live inference overlay for the main window: load a finished run; the top-3 gestures
 with probabilities, the smoothing window and the measured latency update as the live
-engine streams (the model runs in learn/deploy/live_inference.py's worker thread). "Calibrate
-to person…" meets the participant as ``--adapt person`` met each test person, from a
-recording of them (playback/predictions.py ``calibrate_to_session``); "Adapt as they
-touch" does it from their own last touches instead (learn/deploy/live_inference.py
-``RunningCalibration``). "Personalise with touches…" is few-shot personalisation
-(``train --shots``) live: the experimenter prompts each gesture K times and the run's
-model is retrained with those labelled touches (personalise_dialog.py,
-learn/deploy/personalise.py); "Forget personalisation" returns to the run's model."""
+engine streams (the model runs in learn/deploy/live_inference.py's worker thread).
+"Calibrate to person…" is few-shot personalisation (``train --shots``) live: the
+experimenter prompts each gesture K times and the run's model is retrained with those
+labelled touches (personalise_dialog.py, learn/deploy/personalise.py); from the same
+dialog, "From an earlier recording…" meets the participant as ``--adapt person`` met
+each test person, from a recording of them (playback/predictions.py
+``calibrate_to_session``; rf/knn or fused runs trained with ``--adapt``). "Adapt as they
+touch" does that from their own last touches instead (learn/deploy/live_inference.py
+``RunningCalibration``). "Forget personalisation" returns to the run's model."""
 
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.playback.predictions import calibrate_to_session
-from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
+from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.personalise_dialog import PersonaliseDialog, describe
 from tactile_studio.ui.settings import app_settings
 
@@ -50,17 +51,14 @@ class LiveInferencePanel(QWidget):
         self.load_button = QPushButton("Load run…")
         self.calibrate_button = QPushButton("Calibrate to person…")
         self.calibrate_button.setToolTip(
-            "An rf/knn run trained with --adapt reads features standardised by the "
-            "person's own statistics: take them from a recording of the participant "
-            "(a session of every gesture, recorded just before)")
-        self.calibrate_button.setEnabled(False)
-        self.personalise_button = QPushButton("Personalise with touches…")
-        self.personalise_button.setToolTip(
             "Few-shot personalisation (train --shots K, live): prompt the participant for "
             "each gesture K times; the run's model is retrained with their labelled "
             "touches (rf/knn refit with its training windows, a network's output layers "
-            "fine-tuned) and predicts for them from then on")
-        self.personalise_button.setEnabled(False)
+            "fine-tuned, a fused model both) and predicts for them from then on; with K=2 "
+            "the dialog measures it on their own touches. An rf/knn run trained with "
+            "--adapt can instead take the person's statistics from an earlier recording "
+            "of them (in the same dialog).")
+        self.calibrate_button.setEnabled(False)
         self.forget_button = QPushButton("Forget personalisation")
         self.forget_button.setEnabled(False)
         self.dialog: PersonaliseDialog | None = None
@@ -113,7 +111,6 @@ class LiveInferencePanel(QWidget):
         top.addWidget(self.calibrate_button)
         top.addStretch(1)
         personal = QHBoxLayout()
-        personal.addWidget(self.personalise_button)
         personal.addWidget(self.forget_button)
         personal.addStretch(1)
         smoothing = QHBoxLayout()
@@ -135,8 +132,7 @@ class LiveInferencePanel(QWidget):
         self.timer.setInterval(100)
         self.timer.timeout.connect(self.refresh)
         self.load_button.clicked.connect(self._browse)
-        self.calibrate_button.clicked.connect(self._browse_calibration)
-        self.personalise_button.clicked.connect(self.open_personalise)
+        self.calibrate_button.clicked.connect(self.open_personalise)
         self.forget_button.clicked.connect(self.forget_personalisation)
         self.running_box.toggled.connect(self._running_toggled)
         self.smoothing.valueChanged.connect(
@@ -146,12 +142,6 @@ class LiveInferencePanel(QWidget):
         folder = ask_folder(self, "Run folder", "live_run")
         if folder:
             self.load_run(folder)
-
-    def _browse_calibration(self) -> None:
-        path = ask_open_file(self, "Recording of the participant", "live_calibration",
-                             "Session files (*.h5)")
-        if path:
-            self.calibrate(path)
 
     def _running_toggled(self, on: bool) -> None:
         self.settings.setValue(RUNNING_KEY, on)
@@ -170,6 +160,9 @@ class LiveInferencePanel(QWidget):
         if self.model is None:
             return False
         self.stop()  # restarts with the calibrated model on the next refresh
+        if self.model.personalised is not None:  # the recording's statistics replace it
+            self.model.forget_personalisation()
+            self.forget_button.setEnabled(False)
         try:
             # features only: a network's batch norm re-estimated on a short earlier
             # recording lost points on virtual people (benchmarks/bench_calibration.py)
@@ -185,14 +178,21 @@ class LiveInferencePanel(QWidget):
                                        f"({samples} windows)")
         return True
 
+    def _calibrate_line(self, path: str) -> tuple[bool, str]:
+        """The dialog's "From an earlier recording…": (calibrated, one line)."""
+        ok = self.calibrate(path)
+        return ok, self.calibration_label.text() if ok else self.message.text()
+
     def open_personalise(self) -> PersonaliseDialog | None:
-        """The prompts dialog for the loaded run (non-modal: the predictions stay in view)."""
+        """Calibrate to person…: the prompts dialog for the loaded run (non-modal: the
+        predictions stay in view)."""
         if self.model is None:
             return None
         if self.dialog is not None:
             self.dialog.close()
         model = self.model
-        self.dialog = PersonaliseDialog(model, self.engine_fn, self)
+        self.dialog = PersonaliseDialog(model, self.engine_fn, self,
+                                        calibrate=self._calibrate_line)
         # a run loaded meanwhile is not given another run's personalisation
         self.dialog.personalised.connect(
             lambda personal: self.use_personalised(personal) if self.model is model else None)
@@ -234,8 +234,7 @@ class LiveInferencePanel(QWidget):
                                f"{d['fold']}, window {d['window']} frames, "
                                f"{len(d['labels'])} gestures")
         self.message.setText("")
-        self.calibrate_button.setEnabled(model.reads_person_features)
-        self.personalise_button.setEnabled(True)
+        self.calibrate_button.setEnabled(True)
         self.forget_button.setEnabled(False)
         self.running_box.setEnabled(model.adapts_as_they_touch)
         self._describe_calibration()
@@ -251,15 +250,16 @@ class LiveInferencePanel(QWidget):
                                    "enough touches)") + "; they must vary their gestures"
             if self.adapts_as_they_touch else
             f"trained --adapt {adapt}: {name} needs the participant's own statistics; "
-            "calibrate on a recording of them (Calibrate to person…) or tick Adapt as they "
-            "touch" if m.needs_calibration else
+            "Calibrate to person… (their touches, or a recording of them) or tick Adapt as "
+            "they touch" if m.needs_calibration else
             f"calibrated to the participant: {m.calibrated_on}" if m.reference is not None else
             "as trained, with the training people's statistics" if adapt == "none" else
             "as trained, with the training people's pooled feature statistics"
             + (" for its forest (about 2 points under a plain forest on virtual people)"
                if m.learner.kind == "fused" else
                " (about 5 points under a plain forest on virtual people)")
-            + ": calibrate on a recording of the participant or tick Adapt as they touch"
+            + ": Calibrate to person… (their touches, or a recording of them) or tick Adapt "
+            "as they touch"
             if m.reads_person_features else
             "as trained, with the training people's batch-norm statistics (re-estimated on "
             "a short earlier recording they cost points on virtual people)")

@@ -166,8 +166,7 @@ class PersonaliseDialog(QDialog):
         if ok:
             self.timer.stop()
             self.prompts = None
-            self.k.setEnabled(True)
-            self.start_button.setEnabled(True)
+            self.retrain_button.hide()
             self.cancel_button.setText("Close")
             self._buttons()
         return ok
@@ -181,8 +180,7 @@ class PersonaliseDialog(QDialog):
         self.prompts = TouchPrompts(self.model, self.k.value())
         self.prompts.begin(engine)
         self.progress.setRange(0, len(self.prompts.prompts))
-        self.k.setEnabled(False)
-        self.start_button.setEnabled(False)
+        self.retrain_button.hide()
         self.cancel_button.setText("Cancel")
         self._show()
         self.timer.start()
@@ -234,6 +232,11 @@ class PersonaliseDialog(QDialog):
     def _buttons(self) -> None:
         p = self.prompts
         prompting = p is not None and not p.done
+        # once the prompts are over (and not retraining) the experimenter may start again
+        idle = not prompting and not self.retraining
+        self.k.setEnabled(idle)
+        self.start_button.setEnabled(idle)
+        self.start_button.setText("Start again" if p is not None and idle else "Start")
         self.skip_button.setEnabled(prompting)
         self.redo_button.setEnabled(prompting and bool(p.answers))
         self.recording_button.setEnabled(
