@@ -2,7 +2,7 @@
 sink's hours of use: booked exactly once however a recording ends, the exit hook too.
 Real simulator, real HDF5 files, a real logbook in a tmp folder, real LSL on the loopback.
 
-Budget: ~6 s (a subprocess recording, two short recordings, one LSL stream lookup)."""
+Budget: ~8 s (a subprocess recording, short recordings, one LSL stream lookup)."""
 
 from __future__ import annotations
 
@@ -15,12 +15,18 @@ import uuid
 
 import pylsl
 import pytest
+from collect_fixtures import make_rig, mini_protocol, start
 from lsl_fixtures import Collector, unique
 from waiting import wait_until
 
 from tactile_studio.acquisition import AcquisitionSession
 from tactile_studio.acquisition.marker_recording import MarkerRecording
 from tactile_studio.acquisition.sinks import LslPublishing, Sink
+from tactile_studio.characterise.lab import Lab
+from tactile_studio.devices.registry import create_device
+from tactile_studio.jobs import CancelToken
+from tactile_studio.plugins.sim_force import SimulatedForce
+from tactile_studio.plugins.sim_stage import SimulatedStage
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.recorder import Recorder
@@ -147,3 +153,39 @@ def test_a_recording_closed_by_the_exit_hook_books_its_hours(tmp_path, data_dir)
     with Logbook() as book:
         assert book.hours("sim-33") * 3600 == pytest.approx(rows / 100.0)
     assert _usage_rows("sim-33") == 1
+
+
+def test_a_collection_without_a_session_books_its_hours_once(tmp_path, data_dir) -> None:
+    """collect's plain recorder (no AcquisitionSession) is a file sink too."""
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=3, blocks=1), "P01", speed=0.0,
+                   seed=35)
+    try:
+        start(rig)
+    finally:
+        rig.close()
+    rig.session.close()  # closed twice: booked once
+    with Session(rig.session.path) as f:
+        rows = f.n_frames
+    assert rows > 0
+    with Logbook() as book:
+        assert book.hours("sim-35") * 3600 == pytest.approx(rows / rig.engine.nominal_rate_hz)
+    assert _usage_rows("sim-35") == 1
+
+
+def test_the_characterisation_lab_books_its_hours_once(tmp_path, data_dir) -> None:
+    device = create_device("simulated", {"speed": 0, "gesture": "idle", "seed": 36})
+    stage, force, cancel = SimulatedStage(), SimulatedForce(), CancelToken()
+    stage.couple(device)  # as run_characterisation does
+    force.couple(device, stage)
+    lab = Lab(device, stage, force, tmp_path / "lab.h5", 50.0, cancel, {"source": "test"})
+    try:
+        lab.clock.sleep(0.5, cancel)  # the bench's clock: the sensor streams with it
+        wait_until(lambda: lab.recorder.rows_written >= 20, what="20 rows")
+    finally:
+        lab.close()
+        stage.close()
+    with Session(tmp_path / "lab.h5") as f:
+        rows = f.n_frames
+    with Logbook() as book:
+        assert book.hours("sim-36") * 3600 == pytest.approx(rows / device.nominal_rate_hz)
+    assert _usage_rows("sim-36") == 1

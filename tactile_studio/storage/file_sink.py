@@ -36,6 +36,8 @@ def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
 
 
 def close_file_sink(rec: Recorder) -> None:
-    """Finish the file and book its hours of use (both once: later calls do nothing)."""
+    """Finish the file and book its hours of use (both once: later calls do nothing).
+    The booking waits for the file to be closed, even when another caller is closing it
+    now: it counts every frame the close pulled."""
+    rec.on_stop(book_usage)  # a second registration books nothing more (book_usage: once)
     rec.stop()
-    book_usage(rec)  # already booked by the on-stop callback; kept for a plain Recorder

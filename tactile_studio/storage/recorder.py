@@ -180,10 +180,11 @@ class Recorder:
     def on_stop(self, fn: Callable[[Recorder], None]) -> None:
         """Call ``fn(self)`` once the file is closed, whoever stops it (the exit hook
         too); at once if it is stopped already."""
-        if self._closed:
-            fn(self)
-        else:
-            self._on_stop.append(fn)
+        with self._lock:
+            if not self._closed:
+                self._on_stop.append(fn)
+                return
+        fn(self)
 
     def end_at(self, engine_frame: int) -> None:
         """The file ends before engine frame ``engine_frame`` (a collection's end): later
@@ -292,8 +293,9 @@ class Recorder:
         if self.write_error is None and self.writer.failed:  # the closing touches failed
             self.write_error = self.writer.failed
         _OPEN.discard(self)
-        self._closed = True
-        callbacks, self._on_stop = self._on_stop, []
+        with self._lock:
+            self._closed = True
+            callbacks, self._on_stop = self._on_stop, []
         for fn in callbacks:
             fn(self)
 
