@@ -45,7 +45,8 @@ screenshots: $(STAMP)
 	  echo "$$f"; QT_QPA_PLATFORM=offscreen $(BIN)/python "$$f" || exit 1; done
 	TACTILE_STUDIO_SCREENSHOTS=docs/screenshots QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q \
 	  tests/test_ui_research.py tests/test_ui_research_train.py tests/test_ui_research_recipe.py \
-	  tests/test_ui_live_inference.py tests/test_ui_xdf.py tests/test_ui_check_flags.py
+	  tests/test_ui_live_inference.py tests/test_ui_personalise.py tests/test_ui_xdf.py \
+	  tests/test_ui_check_flags.py
 
 bench: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m benchmarks
