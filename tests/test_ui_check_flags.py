@@ -15,7 +15,7 @@ from tactile_studio.cli import main
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.storage.session_compress import wait_for_compression
 from tactile_studio.storage.session_writer import SessionWriter
-from tactile_studio.ui.research.sessions_view import COLUMNS
+from tactile_studio.ui.research.sessions_view import CHECKING, COLUMNS
 from tactile_studio.ui.research.window import ResearchWindow
 
 SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
@@ -99,7 +99,10 @@ def test_player_says_whether_the_file_is_valid(window, tmp_path, capsys):
 
 
 @pytest.mark.damaged_files
-def test_sessions_tab_flags_the_file_that_fails_check(window, tmp_path, capsys):
+def test_sessions_tab_flags_the_file_that_fails_check(window, tmp_path, capsys, qtbot):
+    """The tab lists the files at once and checks them on a background job: the rows are
+    there saying "checking…" before any result (results reach the table only through the
+    event loop, which has not run yet), then each result fills its cell."""
     folder = tmp_path / "study"
     folder.mkdir()
     _recording(folder / "good.h5", capsys)
@@ -110,6 +113,10 @@ def test_sessions_tab_flags_the_file_that_fails_check(window, tmp_path, capsys):
     assert not s.table.isColumnHidden(problem)
     by_name = {s.table.item(r, 0).text(): r for r in range(s.table.rowCount())}
     assert set(by_name) == {"good.h5", "bad.h5"}
+    assert s.checking  # listed before checked: the tab never waits for check
+    assert [s.table.item(r, problem).text() for r in by_name.values()] == [CHECKING] * 2
+    assert s.table.item(by_name["good.h5"], COLUMNS.index("ok trials")).text() == "0"
+    qtbot.waitUntil(lambda: not s.checking, timeout=30_000)
     bad_cell = s.table.item(by_name["bad.h5"], problem)
     assert bad_cell.text().startswith("fails check: 3 problems: " + BAD_VIOLATIONS[0])
     for expected in BAD_VIOLATIONS:  # every violation in the tooltip
@@ -120,7 +127,8 @@ def test_sessions_tab_flags_the_file_that_fails_check(window, tmp_path, capsys):
     assert "1 fails check" in s.summary.text()
     window.tabs.setCurrentWidget(s)
     window.grab().save(str(SHOTS / "research_sessions_check.png"))
-    # a study that holds its invariants: no problem column, nothing said
+    # a study that holds its invariants: no problem column once checked, nothing said
     (folder / "bad.h5").unlink()
     s.set_folders([str(folder)])
+    qtbot.waitUntil(lambda: not s.checking, timeout=30_000)
     assert s.table.isColumnHidden(problem) and "fails check" not in s.summary.text()

@@ -58,7 +58,7 @@ def shot(widget, name: str) -> None:
     widget.grab().save(str(SHOTS / f"research_{name}.png"))
 
 
-def test_sessions_browser(window, workspace, tmp_path):
+def test_sessions_browser(window, workspace, tmp_path, qtbot):
     s = window.sessions
     s.set_folders([str(workspace / "data")])
     assert s.table.rowCount() == 4
@@ -68,6 +68,7 @@ def test_sessions_browser(window, workspace, tmp_path):
     assert row.participant == "P01" and row.condition == "FLAT" and row.sensor
     assert sum(row.per_gesture.values()) == row.ok == 18
     problem = COLUMNS.index("problem")
+    qtbot.waitUntil(lambda: not s.checking, timeout=30_000)  # check runs in the background
     assert s.table.isColumnHidden(problem)  # nothing wrong: no empty column
     shot(window, "sessions")
     s.filter.setText("P02")

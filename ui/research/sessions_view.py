@@ -1,7 +1,12 @@
-"""Session browser: pick folders, filter, select; the selection is a run's dataset."""
+"""Session browser: pick folders, filter, select; the selection is a run's dataset.
+
+A folder is listed at once from the files' journals; ``check`` (which reads every file's
+clocks) runs on a background job and its column fills in as each file's result arrives
+("checking…" until then), so a folder of long sessions does not freeze the tab."""
 
 from __future__ import annotations
 
+import queue
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
@@ -15,8 +20,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.learn.experiments.workspace_index import SessionRow, scan_sessions
+from tactile_studio.learn.experiments.workspace_index import (
+    SessionRow,
+    check_sessions,
+    scan_sessions,
+)
 from tactile_studio.storage.study_summary import study_counts
+from tactile_studio.ui.background_job import BackgroundJob
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import app_settings, get_json, set_json
@@ -25,6 +35,7 @@ FOLDERS_KEY = "research/session_folders"
 
 COLUMNS = ["session", "participant", "condition", "protocol", "sensor", "date", "ok trials",
            "flagged", "discarded", "per gesture", "problem"]
+CHECKING = "checking…"
 
 
 def per_gesture_text(per: dict[str, int]) -> str:
@@ -43,6 +54,7 @@ class SessionsView(QWidget):
         super().__init__(parent)
         self.folders: list[str] = []
         self.rows: list[SessionRow] = []
+        self.check_job: BackgroundJob | None = None  # checks the rows of this listing
         add, clear = QPushButton("Add folder…"), QPushButton("Clear")
         import_csv = QPushButton("Import old CSVs…")
         import_csv.setToolTip("the old collection software's ShearSense CSVs, as sessions")
@@ -80,29 +92,102 @@ class SessionsView(QWidget):
     def set_folders(self, folders: list[str]) -> None:
         self.folders = [str(f) for f in folders]
         set_json(self.settings, FOLDERS_KEY, self.folders)
-        self.rows = scan_sessions(self.folders)
+        if self.check_job is not None:  # the last listing's checks: no longer wanted
+            self.check_job.cancel()
+            self.check_job = None
+        self.rows = scan_sessions(self.folders, check=False)
         self.table.setSortingEnabled(False)
         self.table.setRowCount(0)  # no selected row may point at a row of the last scan
         self.table.setRowCount(len(self.rows))
         for r, row in enumerate(self.rows):
             values = [row.path.rsplit("/", 1)[-1], row.participant, row.condition, row.protocol,
                       row.sensor, row.date, row.ok, row.flagged, row.discarded,
-                      per_gesture_text(row.per_gesture), row.problem]
+                      per_gesture_text(row.per_gesture), row.problem or CHECKING]
             fill_row(self.table, r, values, [None] * len(values), row.error)
             self.table.item(r, 0).setToolTip(row.path)
             self.table.item(r, 9).setToolTip("\n".join(
                 f"{g}: {n}" for g, n in sorted(row.per_gesture.items())))
-            if row.violations and not row.error:  # readable, but its facts disagree
-                self._flag_failed_check(r, row.violations)
         self.table.setSortingEnabled(True)
         self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
-        # the column only when a file could not be read or fails the check: otherwise it
-        # is empty and wide
-        self.table.setColumnHidden(COLUMNS.index("problem"),
-                                   not any(r.problem for r in self.rows))
+        self._show_problem_column()
         self._apply_filter()
         self.table.selectAll()
         self._selection_changed()
+        self._start_checks()
+
+    @property
+    def checking(self) -> bool:
+        """Some rows' check results are still to come."""
+        return self.check_job is not None
+
+    def _start_checks(self) -> None:
+        todo = [i for i, row in enumerate(self.rows) if not row.error]
+        if not todo:
+            return
+        paths = [self.rows[i].path for i in todo]
+        results: queue.SimpleQueue[tuple[int, list[str], str]] = queue.SimpleQueue()
+
+        def run(progress, cancel) -> int:  # on the worker: only the queue is touched
+            return check_sessions(paths, lambda k, v, e: results.put((todo[k], v, e)),
+                                  progress, cancel)
+
+        job = BackgroundJob(run, self)
+        job.progressed.connect(lambda *_: self._take_results(job, results))
+        job.finished.connect(lambda _: self._checks_ended(job, results))
+        job.failed.connect(lambda line: self._checks_ended(job, results, line))
+        self.check_job = job
+        job.start()
+
+    def _take_results(self, job: BackgroundJob, results: queue.SimpleQueue) -> None:
+        """Show the check results that have arrived (the GUI thread, the job's timer)."""
+        if job is not self.check_job:
+            return  # a listing since replaced
+        by_index = {self.table.item(r, 0).data(Qt.ItemDataRole.UserRole): r
+                    for r in range(self.table.rowCount())}
+        self.table.setSortingEnabled(False)  # no re-sort under our feet while rows change
+        while True:
+            try:
+                i, violations, error = results.get_nowait()
+            except queue.Empty:
+                break
+            row = self.rows[i]
+            row.violations, row.error, row.checked = violations, error, True
+            self._show_check(by_index[i], row)
+        self.table.setSortingEnabled(True)
+        self._selection_changed()
+
+    def _checks_ended(self, job: BackgroundJob, results: queue.SimpleQueue,
+                      failure: str = "") -> None:
+        self._take_results(job, results)
+        if job is not self.check_job:
+            return
+        self.check_job = None
+        for r in range(self.table.rowCount()):  # a check that failed: say so, not "checking"
+            row = self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)]
+            if not row.checked and not row.error:
+                self.table.item(r, COLUMNS.index("problem")).setText(
+                    f"not checked: {failure}" if failure else "")
+        self._show_problem_column()
+        self._selection_changed()
+
+    def _show_check(self, r: int, row: SessionRow) -> None:
+        """One file's check result in table row ``r``."""
+        cell = self.table.item(r, COLUMNS.index("problem"))
+        cell.setText(row.problem)
+        cell.value = row.problem
+        if row.error:  # it could not be read after all: red, and not trained on
+            for c in range(self.table.columnCount()):
+                self.table.item(r, c).setForeground(QColor(170, 0, 0))
+                self.table.item(r, c).setToolTip(row.error)
+        elif row.violations:  # readable, but its facts disagree
+            self._flag_failed_check(r, row.violations)
+
+    def _show_problem_column(self) -> None:
+        """The column only while checking or when a file could not be read or fails the
+        check: otherwise it is empty and wide."""
+        self.table.setColumnHidden(COLUMNS.index("problem"), not (
+            self.checking or any(r.problem for r in self.rows)
+            or any(not r.checked and not r.error for r in self.rows)))
 
     def _flag_failed_check(self, r: int, violations: list[str]) -> None:
         """Amber name and problem cell, every violation in their tooltip (``check``'s list)."""

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import os
 from collections import Counter
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluation.summary import shots_curve
 from tactile_studio.learn.experiments.runfolder import CONFIG, METRICS, read_json, run_problems
 
@@ -32,6 +34,7 @@ class SessionRow:
     discarded: int = 0
     error: str = ""  # the file cannot be read: not listed for training
     violations: list[str] = field(default_factory=list)  # what ``check`` finds wrong
+    checked: bool = False  # ``violations`` is known (a scan may leave the check for later)
 
     @property
     def problem(self) -> str:
@@ -47,9 +50,11 @@ class SessionRow:
         return all(word in hay for word in text.lower().split())
 
 
-def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
+def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[SessionRow]:
     """One row per ``*.h5`` under the folders (or the files given), each checked
-    (``session_check``: it reads the journal and the two time columns, not the frames)."""
+    (``session_check``: it reads the journal and the two time columns, not the frames)
+    unless ``check`` is False: then :func:`check_sessions` checks them later, so a window
+    can list a folder of long sessions at once."""
     from tactile_studio.storage.session import Session
     from tactile_studio.storage.session_check import check_session
     from tactile_studio.storage.session_set import session_files_under
@@ -77,11 +82,32 @@ def scan_sessions(folders: list[str | os.PathLike]) -> list[SessionRow]:
                     row.discarded += status == "discarded"
                     row.flagged += bool(t.get("flags"))
                 row.per_gesture = dict(counts)
-                row.violations = check_session(s)
+                if check:
+                    row.violations, row.checked = check_session(s), True
         except (UserError, OSError, KeyError, ValueError) as exc:
             row.error = str(exc).splitlines()[0]
         rows.append(row)
     return rows
+
+
+def check_sessions(paths: Sequence[str], on_result: Callable[[int, list[str], str], None],
+                   progress: ProgressFn = no_progress,
+                   cancel: CancelToken | None = None) -> int:
+    """``check`` each file in turn, telling ``on_result(k, violations, error)`` of the
+    ``k``-th as soon as it is known (``error``: the file could not be read); the slow
+    half of :func:`scan_sessions`, for a background thread. Returns the files checked."""
+    from tactile_studio.storage.session_check import check_file
+
+    for k, path in enumerate(paths):
+        if cancel is not None:
+            cancel.check()
+        try:
+            violations, error = check_file(path).violations, ""
+        except (UserError, OSError, KeyError, ValueError) as exc:
+            violations, error = [], str(exc).splitlines()[0]
+        on_result(k, violations, error)
+        progress((k + 1) / max(len(paths), 1), Path(path).name)
+    return len(paths)
 
 
 @dataclass
