@@ -52,13 +52,32 @@ def one_line(err: str) -> str:
 
 
 def usage_error(capsys, *argv) -> str:
-    """argparse refuses ``argv`` (exit 2, no traceback): its error line. Only the parser
-    runs, so an option that slipped through fails here instead of hanging a recording."""
+    """argparse refuses ``argv`` (exit 2, no traceback): its error line, the first of the
+    two it prints (the second says where to look). Only the parser runs, so an option
+    that slipped through fails here instead of hanging a recording."""
     with pytest.raises(SystemExit) as exc:
         build_parser().parse_args([str(a) for a in argv])
     err = capsys.readouterr().err
     assert exc.value.code == EXIT_USAGE and "Traceback" not in err, err
-    return err.strip().splitlines()[-1]
+    return err.strip().splitlines()[0]
+
+
+@pytest.mark.parametrize("argv, command, message", [
+    (["record", "--seconds", "nan"], "tactile-studio record",
+     "argument --seconds: 'nan' is not a finite number"),
+    (["import", "xdf"], "tactile-studio import xdf",
+     "the following arguments are required: files"),
+    (["frob"], "tactile-studio", "argument COMMAND: invalid choice: 'frob'"),
+])
+def test_a_usage_error_is_its_line_and_where_to_look_not_the_usage_block(capsys, argv,
+                                                                         command, message):
+    """argparse printed the command's whole usage block above the line; now two lines."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == EXIT_USAGE
+    error, hint = capsys.readouterr().err.strip().splitlines()
+    assert error.startswith(f"{command}: error: {message}"), error
+    assert hint == f"try '{command} --help'"
 
 
 # ---- plugin settings: one validation point, every plugin kind ---------------------------

@@ -13,6 +13,7 @@ import io
 import os
 import pkgutil
 import sys
+from typing import NoReturn
 
 from tactile_studio import __version__
 from tactile_studio.errors import (
@@ -20,6 +21,7 @@ from tactile_studio.errors import (
     EXIT_CANCELLED,
     EXIT_ERROR,
     EXIT_TERMINATED,
+    EXIT_USAGE,
     Cancelled,
     UserError,
 )
@@ -27,8 +29,18 @@ from tactile_studio.jobs import Terminated, terminate_unwinds
 from tactile_studio.output_faults import fault_line
 
 
+class Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is two lines instead of the whole usage block above
+    it: ``tactile-studio <cmd>: error: <message>`` and where to look
+    (``try 'tactile-studio <cmd> --help'``); the exit status stays 2 (EXIT_USAGE). Every
+    command's parser is one of these (``add_subparsers`` makes its parent's class)."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\ntry '{self.prog} --help'\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog="tactile-studio",
         description="Tactile Studio: record, view, collect and learn from tactile arrays.")
     parser.add_argument("--version", action="version", version=f"tactile-studio {__version__}")
