@@ -205,6 +205,19 @@ def test_a_foreign_xdf_imports_with_clocks_markers_aux_and_bids_names(tmp_path, 
         np.testing.assert_allclose(aux.values, eda)
 
 
+def test_info_lists_the_auxiliary_signals_with_their_rates(tmp_path, capsys):
+    """``info`` (text) names each /aux signal, its channels, samples and rate measured from
+    its own timestamps beside the nominal one; JSON had them, the text did not."""
+    src, _, _ = gap_session(tmp_path / "s.h5")
+    assert main(["info", str(src)]) == 0
+    aux = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("aux:")]
+    assert aux == ["aux:        EDA-1 (EDA): 1 channel eda [uS], 120 samples at 4.00 Hz "
+                   "(nominal 4 Hz)"]
+    plain, _, _ = gap_session(tmp_path / "plain.h5", aux=False)
+    assert main(["info", str(plain)]) == 0
+    assert "aux:" not in capsys.readouterr().out
+
+
 def test_our_own_xdf_imports_back_with_trials_events_and_aux(tmp_path, capsys):
     src, raw, host = gap_session(tmp_path / "s.h5")
     xdf = export_xdf(src, tmp_path)

@@ -19,7 +19,8 @@ from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.aux_signals import AuxSignal
+from tactile_studio.storage.session import Session, measured_rate_hz
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
 
@@ -197,6 +198,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     with Session(args.file[0]) as s:
         summary = s.summary()
         table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
+        aux = [_aux_line(a) for a in s.aux_signals()]
     if args.json:
         print_json(summary)
         return 0
@@ -231,8 +233,22 @@ def cmd_info(args: argparse.Namespace) -> int:
     if summary["unmapped_keys"]:
         lines.append(f"unmapped keys: {', '.join(summary['unmapped_keys'])} "
                      "(no gesture name; trials keep the key)")
+    lines.extend(f"aux:        {line}" for line in aux)
     if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
         lines.append(table)
     tables.fields(lines)
     return 0
+
+
+def _aux_line(a: AuxSignal) -> str:
+    """An auxiliary signal (``/aux``: an imported EDA, ECG...) in one line: name, type,
+    channels and unit, samples, the rate measured from its timestamps and the nominal one."""
+    labels = ", ".join(a.labels[:4]) + (f", … {len(a.labels)}" if len(a.labels) > 4 else "")
+    unit = f" [{a.unit}]" if a.unit else ""
+    measured = measured_rate_hz(a.time)
+    rate = f"{measured:.2f} Hz" if measured > 0 else "rate not measurable"
+    nominal = f"nominal {a.rate_hz:g} Hz" if a.rate_hz > 0 else "irregular"
+    kind = f" ({a.type})" if a.type else ""
+    return (f"{a.name}{kind}: {a.n_channels} channel{'s' if a.n_channels != 1 else ''} "
+            f"{labels}{unit}, {len(a.time)} samples at {rate} ({nominal})")
