@@ -221,6 +221,9 @@ def test_finite_float_is_what_the_options_use():
     ("--overlap", "nan", ["train", "--data", "d", "--overlap", "nan"]),
     ("--force", "nan", ["emulate-loadcell", "--force", "0", "nan", "0"]),
     ("--rate", "1e999", ["emulate-loadcell", "--rate", "1e999"]),
+    ("--silence-warning", "nan", ["record", "--seconds", "1", "--out", "x.h5",
+                                  "--silence-warning", "nan"]),
+    ("--silence-warning", "inf", ["gui", "--silence-warning", "inf"]),
 ])
 def test_float_options_refuse_non_finite_numbers(capsys, option, value, argv):
     line = usage_error(capsys, *argv)

@@ -60,3 +60,48 @@ def test_a_device_gone_silent_while_recording_is_said_once_and_recorded(tmp_path
         back = [e for e in s.events if e["kind"] == "stream_resumed"]
         assert len(silent) == 1 and silent[0]["frame"] == 30 and silent[0]["device"] == "serial"
         assert len(back) == 1 and back[0]["silent_s"] == 2.5 and s.n_frames == 50
+
+
+def test_record_takes_the_silence_threshold_from_its_option(tmp_path, capsys):
+    """``record --silence-warning 0.3``: a serial device that sends 30 frames and then
+    nothing for the rest of a 3 s recording is said once, and the file's event carries
+    the threshold given (not the default 2 s)."""
+    import threading
+
+    from tactile_studio.cli import main
+
+    raw = np.random.default_rng(2).integers(30000, 31000, (60, 180)).astype(np.uint16)
+    emu = SerialEmulator(array_source(raw), rate_hz=500, link=tmp_path / "port",
+                         reader_grace=0.05)
+    emu.open()
+    feeder = threading.Thread(target=emu.send_lines, args=(30, 60.0), daemon=True)
+    feeder.start()  # waits for record to open the port, sends 30 lines, then stays quiet
+    try:
+        assert main(["record", "--device", "serial", "--set", f"port={emu.port}",
+                     "--seconds", "3", "--silence-warning", "0.3",
+                     "--out", str(tmp_path / "s.h5")]) == 0
+    finally:
+        feeder.join(10)
+        emu.close()
+    err = capsys.readouterr().err
+    assert err.count("sent no frames for 0.3 s") == 1, err
+    with Session(tmp_path / "s.h5") as s:
+        silent = [e for e in s.events if e["kind"] == "stream_silent"]
+        assert len(silent) == 1 and silent[0]["seconds"] == 0.3 and silent[0]["frame"] == 30
+
+
+def test_the_consoles_and_the_main_window_take_the_option_too(qtbot, tmp_path):
+    """``collect`` (its console) and ``gui`` hand ``--silence-warning`` to their
+    acquisition session; without it the default stays."""
+    from tactile_studio.acquisition.stream_health import DEFAULT_SILENCE_S
+    from tactile_studio.cli import build_parser
+    from tactile_studio.cli.collect import console_options
+    from tactile_studio.ui.collect.app import build_console
+
+    base = ["collect", "--protocol", "shear9", "--participant", "P01", "--out", str(tmp_path)]
+    for extra, expected in (([], DEFAULT_SILENCE_S), (["--silence-warning", "7.5"], 7.5)):
+        console = build_console(**console_options(build_parser().parse_args(base + extra)))
+        qtbot.addWidget(console)
+        assert console.acquisition.silence_warning_s == expected
+    args = build_parser().parse_args(["gui", "--silence-warning", "4"])
+    assert args.silence_warning == 4.0  # run_gui sets it on the main window's session

@@ -22,13 +22,17 @@ from tactile_studio.ui.write_faults import write_image
 
 
 def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
-            lsl: bool = False, markers: list[str] | None = None) -> int:
+            lsl: bool = False, markers: list[str] | None = None,
+            silence_warning_s: float | None = None) -> int:
     """Show the main window connected to ``device`` and run until it is closed;
     ``lsl`` switches "Stream to LSL" on; ``markers``: LSL marker streams every recording
-    takes in (acquisition/marker_recording.py)."""
+    takes in (acquisition/marker_recording.py); ``silence_warning_s``: how long a device
+    may be silent while recording before it is said (acquisition/stream_health.py)."""
     app = ensure_app()
     window = MainWindow(device=device, settings=settings, connect=connect)
     window.controller.marker_streams = tuple(markers or ())
+    if silence_warning_s is not None:
+        window.controller.silence_warning_s = silence_warning_s
     if lsl and not window.panel.set_lsl(True):
         window.shutdown()
         raise UserError(window.panel.error_text() or "cannot stream to LSL")

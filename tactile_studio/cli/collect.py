@@ -18,6 +18,7 @@ from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
+from tactile_studio.cli.recording_warnings import add_silence_option, apply_silence_option
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
@@ -69,6 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "note, why, is stored in the session)")
     add_lsl_option(p)
     add_markers_option(p)
+    add_silence_option(p)
     p.add_argument("--wellness-override", metavar="NOTE",
                    help="start although the protocol's required wellness check failed, is "
                         "stale or missing (the note is stored in the session)")
@@ -154,6 +156,8 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     options.update(device=name, device_settings=settings)
     if getattr(args, "markers", None):
         options["markers"] = list(args.markers)  # the console's recording takes them in
+    if getattr(args, "silence_warning", None) is not None:
+        options["silence_warning_s"] = args.silence_warning
     if getattr(args, "lsl", False):
         from tactile_studio.streams import load_pylsl
 
@@ -187,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
     acq = AcquisitionSession()
+    apply_silence_option(acq, args)
     engine = acq.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:

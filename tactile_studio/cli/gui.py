@@ -12,6 +12,7 @@ import sys
 from typing import Any
 
 from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.recording_warnings import add_silence_option
 from tactile_studio.devices.registry import DEFAULT_DEVICE, parse_set_options, plugin_class
 from tactile_studio.errors import UserError
 
@@ -42,7 +43,7 @@ def cmd_gui(args: argparse.Namespace) -> int:
     from tactile_studio.ui.app import run_gui
 
     return run_gui(device, settings, connect=not args.no_connect, lsl=args.lsl,
-                   markers=args.markers)
+                   markers=args.markers, silence_warning_s=args.silence_warning)
 
 
 def cmd_snapshot(args: argparse.Namespace) -> int:
@@ -86,6 +87,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--markers", action="append", metavar="NAME", default=None,
                    help="record this LSL marker stream's markers (by name; repeatable) with "
                         "every recording, each as an event at its frame")
+    add_silence_option(p)
     p.set_defaults(func=cmd_gui)
 
     s = subparsers.add_parser(

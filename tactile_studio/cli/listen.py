@@ -9,7 +9,11 @@ import time
 
 from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
-from tactile_studio.cli.recording_warnings import watch_health
+from tactile_studio.cli.recording_warnings import (
+    add_silence_option,
+    apply_silence_option,
+    watch_health,
+)
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
@@ -38,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="also publish the device on LSL (recordings then carry its clock)")
     p.add_argument("--seconds", type=finite_float, default=None,
                    help="stop listening after this long (default: until Ctrl-C)")
+    add_silence_option(p)
     p.set_defaults(func=cmd_listen)
 
 
@@ -45,6 +50,7 @@ def cmd_listen(args: argparse.Namespace) -> int:
     out = make_out_dir(args.out)
     device = create_device(args.device, parse_set_options(args.set))
     session = AcquisitionSession()
+    apply_silence_option(session, args)
     session.use_device(device, args.device)
     if args.lsl:
         session.set_lsl(True)

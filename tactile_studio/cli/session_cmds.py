@@ -14,7 +14,11 @@ from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
-from tactile_studio.cli.recording_warnings import watch_health
+from tactile_studio.cli.recording_warnings import (
+    add_silence_option,
+    apply_silence_option,
+    watch_health,
+)
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
@@ -38,6 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     add_lsl_option(p)
     add_markers_option(p)
+    add_silence_option(p)
     p.set_defaults(func=cmd_record)
 
     p = sub.add_parser("info", help="summarise a session file, or a folder of them")
@@ -67,6 +72,7 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
     session = AcquisitionSession()
+    apply_silence_option(session, args)
     watch_health(session)  # a device gone silent while recording: a warning line
     engine = session.use_device(device, args.device)
     # The recorder exists before the engine starts so the connect and tare events are kept.

@@ -67,15 +67,19 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
                   out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                   seed: int | None = None, condition: str = "",
                   resume: str | os.PathLike | None = None, lsl: bool = False,
-                  markers: list[str] | None = None) -> CollectConsole:
+                  markers: list[str] | None = None,
+                  silence_warning_s: float | None = None) -> CollectConsole:
     """A shown console with its setup form pre-filled (or resuming ``resume``);
-    ``markers``: LSL marker streams its recording takes in (acquisition/marker_recording.py).
+    ``markers``: LSL marker streams its recording takes in (acquisition/marker_recording.py);
+    ``silence_warning_s``: how long the device may be silent before it is said.
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
     acquisition = AcquisitionSession()
     acquisition.marker_streams = tuple(markers or ())
+    if silence_warning_s is not None:
+        acquisition.silence_warning_s = silence_warning_s
     console = CollectConsole(acquisition=acquisition)
     try:
         console.setup.prefill(
@@ -99,13 +103,15 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
                 out_dir: str | os.PathLike | None = None, blocks: int | None = None,
                 seed: int | None = None, condition: str = "",
                 resume: str | os.PathLike | None = None, lsl: bool = False,
-                markers: list[str] | None = None) -> int:
+                markers: list[str] | None = None,
+                silence_warning_s: float | None = None) -> int:
     """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
     from tactile_studio.ui.application import ensure_app
 
     app = ensure_app()
     console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
-                            seed, condition, resume, lsl=lsl, markers=markers)
+                            seed, condition, resume, lsl=lsl, markers=markers,
+                            silence_warning_s=silence_warning_s)
     # held until the window is closed (and deleted), also if the loop ends first
     _RUNNING.append(console)
     console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))
