@@ -107,7 +107,9 @@ def test_export_xdf_without_lsl_is_on_host_time_and_the_cli_writes_it(tmp_path, 
     out = tmp_path / "out"
     out.mkdir()
     assert main(["export", str(src), "--format", "xdf", "--out", str(out)]) == 0
-    assert "wrote" in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert "wrote" in said.out
+    assert ".part" not in said.err and "plain.xdf: " in said.err  # the file, not its temporary
     streams, _ = load(out / "plain.xdf", dejitter_timestamps=False)
     np.testing.assert_allclose(streams["TactileStudio-simulated"]["time_stamps"], host, atol=1e-6)
     assert set(streams) == {"TactileStudio-simulated", "TactileStudio-simulated-markers"}

@@ -257,6 +257,8 @@ def export_xdf(path: str | os.PathLike, out_dir: str | os.PathLike,
         out = Path(out_dir) / f"{s.path.stem}.xdf"
         check_outputs([out], force)
         streams = session_streams(s)
-    write_through_part(out, lambda tmp: write_xdf(tmp, streams, progress, cancel))
+    def shown(fraction: float, message: str = "") -> None:  # the file, not its .part
+        progress(fraction, message.replace(f".{out.name}.part", out.name))
+    write_through_part(out, lambda tmp: write_xdf(tmp, streams, shown, cancel))
     progress(1.0, f"{out.name}: {len(streams)} streams, {len(streams[0].stamps)} frames")
     return out
