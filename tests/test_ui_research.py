@@ -81,6 +81,7 @@ def test_sessions_browser(window, workspace, tmp_path, qtbot):
     assert not s.table.isColumnHidden(problem)
     bad = next(r for r in range(s.table.rowCount()) if s.table.item(r, 0).text() == "junk.h5")
     assert s.table.item(bad, problem).text() and len(s.selected_paths()) == 4
+    assert "5 of 5 sessions selected: 4 participants, 72 ok trials" in s.summary.text()
 
 
 def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path):

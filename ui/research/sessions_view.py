@@ -216,7 +216,7 @@ class SessionsView(QWidget):
     def _selection_changed(self) -> None:
         sel = self.selected()
         ok = sum(r.ok for r in sel)
-        people = len({r.participant for r in sel})
+        people = len({r.participant for r in sel if not r.error})  # a junk file is nobody
         gaps = study_counts((r.participant, r.condition, r.per_gesture)
                             for r in sel if not r.error).missing_text()
         failing = sum(1 for r in sel if r.violations and not r.error)
