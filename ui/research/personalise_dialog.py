@@ -80,7 +80,9 @@ class PersonaliseDialog(QDialog):
         self.prompt.setFont(f)
         self.prompt.setAlignment(Qt.AlignmentFlag.AlignCenter)
         self.prompt.setMinimumHeight(2 * self.prompt.fontMetrics().lineSpacing())
-        self.state = QLabel("")
+        self.state = QLabel("Start prompts each gesture K times; with K = 2 the result is "
+                            "checked on their own touches, each round by the model of the "
+                            "other.")
         self.state.setWordWrap(True)
         self.state.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
         self.state.setMinimumHeight(4 * self.state.fontMetrics().lineSpacing())

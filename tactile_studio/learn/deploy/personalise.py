@@ -101,8 +101,9 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
     folds = sorted(set(rounds)) if rounds is not None and len(set(rounds)) >= 2 else []
     fits = 1 + len(folds)
 
-    def part(i: int) -> ProgressFn:
-        return lambda f, msg="": progress((i + f) / fits, msg)
+    def part(i: int) -> ProgressFn:  # fit i of ``fits``, its messages saying which
+        what = "personalising" if i == 0 else f"held-out check {i} of {len(folds)}"
+        return lambda f, msg="": progress((i + f) / fits, f"{what}: {msg}" if msg else what)
 
     fitted, norm, reference, how = _fit(model, x_p, y_win[owner], training, seed,
                                         part(0), cancel)
@@ -185,7 +186,7 @@ def _held_out_check(model: WindowModel, x_p: np.ndarray, owner: np.ndarray,
         if not learn.any():
             continue
         step = part(i)
-        step(0.0, f"held-out check: round {r + 1} predicted by the model of the others…")
+        step(0.0, f"round {r + 1}'s touches left out")
         fitted, norm, reference, _ = _fit(model, x_p[learn], y_win[owner[learn]], training,
                                           seed, step, cancel)
         sel = np.isin(owner, test_win)
