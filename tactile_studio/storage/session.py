@@ -251,10 +251,15 @@ class Session:
         # a resume starts a new segment: measured within segments, the time between two
         # runs of the device is no frame time (docs/session-format.md, "Segments")
         resumes = [e["frame"] for e in segment_starts(self.events, n)]
+        # so is the time a device was gone before it reconnected (the frames after the
+        # outage start at the reconnect's frame): 32 Hz for a 43 Hz sensor otherwise
+        outages = [e["frame"] for e in self.events if isinstance(e.get("frame"), int)
+                   and (e.get("kind") == "reconnect"
+                        or (e.get("kind") == "gap" and e.get("cause") == "reconnect"))]
         if n >= 2:
-            rate = segmented_rate_hz(self.column("device_time", 0, n), resumes)
+            rate = segmented_rate_hz(self.column("device_time", 0, n), resumes + outages)
             if rate <= 0:
-                rate = segmented_rate_hz(self.column("host_time", 0, n), resumes)
+                rate = segmented_rate_hz(self.column("host_time", 0, n), resumes + outages)
             if rate > 0:
                 duration = n / rate
         counters = self.journal.counters

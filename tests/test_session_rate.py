@@ -1,0 +1,37 @@
+"""A session's measured rate is the device's, whatever happened between its frames: the
+time a device was gone before it reconnected is no frame time (as a resume's is not)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.session_writer import SessionWriter
+
+RATE = 43.0
+
+
+def _session(path, outage_s: float, *, reconnect_event: bool):
+    raw = np.full((400, 180), 30000, dtype=np.uint16)
+    t = np.arange(400) / RATE
+    t[200:] += outage_s
+    with SessionWriter(path, SHEARSENSE_6X6, {"plugin": "serial", "nominal_rate_hz": RATE},
+                       {"participant": "P01"}) as w:
+        w.append_frames(raw[:200], t[:200], 1e9 + t[:200])
+        w.add_event("gap", 200, 1e9 + t[200], seconds=outage_s, cause="reconnect")
+        if reconnect_event:
+            w.add_event("reconnect", 200, 1e9 + t[200], gap_s=outage_s, attempts=3)
+        w.append_frames(raw[200:], t[200:], 1e9 + t[200:])
+    return path
+
+
+@pytest.mark.parametrize("reconnect_event", [True, False])
+def test_a_reconnect_outage_is_not_frame_time(tmp_path, reconnect_event):
+    path = _session(tmp_path / "s.h5", 3.0, reconnect_event=reconnect_event)
+    with Session(path) as s:
+        summary = s.summary()
+    assert summary["rate_hz"] == pytest.approx(RATE, rel=1e-3)  # was 32.5 over the outage
+    assert summary["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
+    assert summary["segments"] == 1  # an outage is no resume
