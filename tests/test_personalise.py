@@ -12,7 +12,7 @@ from learn_fixtures import make_dataset_folder, write_participant
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.learn.deploy.personalise import personalise
+from tactile_studio.learn.deploy.personalise import held_out_check, personalise
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.playback import SessionPlayback
@@ -146,6 +146,8 @@ def test_two_rounds_of_touches_carry_a_measured_held_out_check(root):
         model.forget_personalisation()
     assert check.after == pytest.approx(np.mean(hits))
     assert check.before == pytest.approx(_accuracy(model, layout, rate, w, g))
+    # measured apart (the dialog's second job, once the personalised model is in use)
+    assert held_out_check(model, layout, w, g, rounds, rate) == check
     # one round: nothing left to check on
     first = [i for i, b in enumerate(rounds) if b == 0]
     assert personalise(model, layout, [w[i] for i in first], [g[i] for i in first], rate,

@@ -87,6 +87,10 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
         assert dialog.retraining or dialog.result is not None
         qtbot.waitUntil(lambda: dialog.result is not None, timeout=60_000)
         first = dialog.result
+        # in use at once; its held-out check is measured next, off the GUI thread too
+        assert panel.model.personalised is first
+        assert dialog.checking or first.check is not None
+        qtbot.waitUntil(lambda: not dialog.retraining, timeout=60_000)
         windows, gestures, _ = p.labelled()
         assert gestures == [p.prompts[i] for i in (0, 2, 3, 4, 5)]
         assert all(x.shape[1] == panel.model.window_for(43.0) for x in windows)
@@ -113,10 +117,23 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
         assert "retraining cancelled" in dialog.state.text()
         assert "the 5 touches are kept" in dialog.state.text()
         assert dialog.retrain_button.isVisible() and panel.model.personalised is first
+        # retrained, and its check cancelled as soon as the model is in use: the model stays
+        cancel_check = dialog.cancel_button.click
+        dialog.personalised.connect(cancel_check)
         dialog.retrain_button.click()
-        qtbot.waitUntil(lambda: dialog.result is not first, timeout=60_000)
+        qtbot.waitUntil(lambda: dialog.result is not first and not dialog.retraining,
+                        timeout=60_000)
+        dialog.personalised.disconnect(cancel_check)
         assert panel.model.personalised is dialog.result and not dialog.retrain_button.isVisible()
-        assert dialog.result.check.after == first.check.after  # same touches, same seed
+        assert dialog.result.check is None and dialog.isVisible()
+        assert dialog.state.text().endswith("Held-out check cancelled: nothing measured.")
+        assert "held-out" not in panel.calibration_label.text()
+        # and once more to the end: the same touches measure the same
+        assert dialog.retrain()
+        qtbot.waitUntil(lambda: dialog.result.check is not None and not dialog.retraining,
+                        timeout=60_000)
+        assert dialog.result.check == first.check  # same touches, same seed
+        assert f"held-out check {first.check.before:.2f}" in panel.calibration_label.text()
         dialog.grab().save(str(SHOTS / "research_live_personalise_result.png"))
         assert dialog.start_button.isEnabled() and dialog.start_button.text() == "Start again"
         # closed while retraining: the retraining is cancelled and not used

@@ -196,6 +196,9 @@ class LiveInferencePanel(QWidget):
         # a run loaded meanwhile is not given another run's personalisation
         self.dialog.personalised.connect(
             lambda personal: self.use_personalised(personal) if self.model is model else None)
+        self.dialog.measured.connect(  # its held-out check, measured while in use
+            lambda personal: self.calibration_label.setText(describe(personal))
+            if self.model is model and model.personalised is personal else None)
         self.dialog.show()
         return self.dialog
 

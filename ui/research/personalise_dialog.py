@@ -28,7 +28,8 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.deploy.personalise import Personalised, TouchPrompts
+from tactile_studio.learn.deploy.personalise import HeldOutCheck, Personalised
+from tactile_studio.learn.deploy.touch_prompts import TouchPrompts
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.learners.fused import display_name
 from tactile_studio.ui.background_job import BackgroundJob
@@ -39,6 +40,7 @@ STEPS = 1000  # the progress bar's resolution while retraining
 
 class PersonaliseDialog(QDialog):
     personalised = Signal(object)  # learn.deploy.personalise.Personalised
+    measured = Signal(object)  # the same Personalised, its held-out check now measured
 
     def __init__(self, model: WindowModel, engine: Callable[[], Any],
                  parent: QWidget | None = None,
@@ -51,6 +53,8 @@ class PersonaliseDialog(QDialog):
         self.prompts: TouchPrompts | None = None
         self.result: Personalised | None = None
         self.job: BackgroundJob | None = None
+        self.job_kind = ""  # "retrain" or "check"
+        self._layout: Any = None
         self.k = QSpinBox()
         self.k.setRange(1, 2)
         self.k.setValue(2)
@@ -128,11 +132,19 @@ class PersonaliseDialog(QDialog):
 
     @property
     def retraining(self) -> bool:
+        """A job is running: the retraining, or the held-out check after it."""
         return self.job is not None and self.job.running
 
+    @property
+    def checking(self) -> bool:
+        return self.retraining and self.job_kind == "check"
+
     def cancel(self) -> None:
-        """Cancel: stops a retraining (the touches stay for Retrain), else closes."""
-        if self.retraining:
+        """Cancel: stops a retraining (the touches stay for Retrain) or the held-out check
+        (the personalised model stays), else closes."""
+        if self.checking:
+            self.job.cancel()
+        elif self.retraining:
             self.job.cancel()
             self.state.setText("cancelling: the run's model stays in use…")
         else:
@@ -258,12 +270,13 @@ class PersonaliseDialog(QDialog):
         self.retrain()
 
     def retrain(self) -> bool:
-        """Retrain the run's model with the answered prompts, off the GUI thread."""
+        """Retrain the run's model with the answered prompts, off the GUI thread; once it
+        is in use, the held-out check (K >= 2) is measured the same way."""
         p = self.prompts
         if p is None or not p.done or not p.answers or self.retraining:
             return False
         try:
-            layout = self._engine().layout
+            self._layout = self._engine().layout
         except UserError as exc:
             self.prompt.setText("Not personalised")
             self.state.setText(str(exc))
@@ -271,29 +284,43 @@ class PersonaliseDialog(QDialog):
         self.prompt.setText("Retraining…")
         self.state.setText(f"{len(p.answers)} labelled touches; "
                            f"{self.model.config.model} is retrained with them")
+        self.retrain_button.hide()
+        layout = self._layout
+        self._launch("retrain", lambda progress, cancel: p.personalise(
+            layout, progress=progress, cancel=cancel))
+        return True
+
+    def _launch(self, kind: str, fn: Callable[[Any, Any], Any]) -> None:
+        """Run ``fn(progress, cancel)`` as the dialog's one job ("retrain" or "check")."""
+        job = BackgroundJob(fn, self)
+        self.job, self.job_kind = job, kind
         self.progress.setRange(0, STEPS)
         self.progress.setValue(0)
-        self.retrain_button.hide()
-        self.cancel_button.setText("Cancel")
-        job = BackgroundJob(lambda progress, cancel: p.personalise(
-            layout, progress=progress, cancel=cancel), self)
-        self.job = job
+        self.cancel_button.setText("Cancel" if kind == "retrain" else "Cancel check")
         job.progressed.connect(lambda f, msg: self._progressed(job, f, msg))
-        job.finished.connect(lambda result: self._retrained(job, result))
-        job.failed.connect(lambda msg: self._stopped(job, msg))
-        job.cancelled.connect(lambda: self._stopped(
-            job, f"retraining cancelled: the run's model stays in use; the "
-            f"{len(p.answers)} touches are kept (Retrain uses them)"))
+        if kind == "retrain":
+            job.finished.connect(lambda result: self._retrained(job, result))
+            job.failed.connect(lambda msg: self._stopped(job, msg))
+            job.cancelled.connect(lambda: self._stopped(
+                job, f"retraining cancelled: the run's model stays in use; the "
+                f"{len(self.prompts.answers)} touches are kept (Retrain uses them)"))
+        else:
+            job.finished.connect(lambda check: self._measured(job, check))
+            job.failed.connect(lambda msg: self._measured(
+                job, None, f" The held-out check failed: {msg}"))
+            job.cancelled.connect(lambda: self._measured(
+                job, None, " Held-out check cancelled: nothing measured."))
         job.start()
         self._buttons()
-        return True
 
     def _progressed(self, job: BackgroundJob, fraction: float, message: str) -> None:
         if job is not self.job:
             return
         self.progress.setValue(round(fraction * STEPS))
-        if message:
+        if message and self.job_kind == "retrain":
             self.state.setText(message)
+        elif message:  # the state line holds the result meanwhile
+            self.progress.setFormat(f"{message} · %p%")
 
     def _stopped(self, job: BackgroundJob, message: str) -> None:
         if job is not self.job:  # closed meanwhile
@@ -310,10 +337,30 @@ class PersonaliseDialog(QDialog):
         self.result = result
         self.progress.setValue(STEPS)
         self.prompt.setText("Personalised")
-        self.state.setText(result_text(result, self.model))
+        p = self.prompts
+        measuring = len(set(p.rounds())) >= 2
+        self.state.setText(result_text(result, self.model, " Measuring the held-out check "
+                                       "on their own touches…" if measuring else None))
         self.cancel_button.setText("Close")
+        if measuring:  # the personalised model is used meanwhile
+            layout = self._layout
+            self._launch("check", lambda progress, cancel: p.held_out_check(
+                layout, progress=progress, cancel=cancel))
         self._buttons()
         self.personalised.emit(result)
+
+    def _measured(self, job: BackgroundJob, check: HeldOutCheck | None,
+                  note: str | None = None) -> None:
+        if job is not self.job or self.result is None:  # closed meanwhile
+            return
+        self.progress.setFormat("%p%")
+        self.progress.setValue(STEPS)
+        self.result.check = check
+        self.state.setText(result_text(self.result, self.model, note))
+        self.cancel_button.setText("Close")
+        self._buttons()
+        if check is not None:
+            self.measured.emit(self.result)
 
 
 def describe(p: Personalised) -> str:
@@ -331,8 +378,9 @@ def describe(p: Personalised) -> str:
     return text
 
 
-def result_text(p: Personalised, model: WindowModel) -> str:
-    """What was done, and what was measured (every number shown is measured)."""
+def result_text(p: Personalised, model: WindowModel, note: str | None = None) -> str:
+    """What was done, and what was measured (every number shown is measured); ``note``
+    in place of the check while it has none."""
     name = display_name(model.config.model, model.config.overrides)
     n = f"their {p.windows} labelled windows ({p.per_gesture} per gesture at least)"
     done = {
@@ -346,8 +394,8 @@ def result_text(p: Personalised, model: WindowModel) -> str:
                                 "fused again with the same weight."}[p.how]
     c = p.check
     if c is None:
-        return done + (" Nothing measured: a held-out check needs a second round of "
-                       "touches (K = 2) to test each round on.")
+        return done + (note or " Nothing measured: a held-out check needs a second round "
+                       "of touches (K = 2) to test each round on.")
     before = (f"as trained {c.before:.2f}, " if c.before is not None else
               "(the run has no view as trained to compare) ")
     return done + (f" Held-out check on their {c.touches} touches, each round predicted "

@@ -3,7 +3,7 @@ touches: live inference's form of ``train --shots K`` (splits.with_shots).
 
 Offline, K labelled performances per gesture of the held-out person join the fold's
 training. Live, the experimenter prompts the person for each gesture K times and each
-prompt gives one labelled window of the model's window length; :func:`personalise` then
+prompt gives one labelled window of the model's window length (touch_prompts.py); :func:`personalise` then
 
 * rf / knn: refits the fold's model on its training windows (the run's data, read
   again through the dataset cache, exactly the fold's ``train`` trials) plus the
@@ -41,7 +41,6 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.learners.fused import FusedFitted, person_columns
-from tactile_studio.sensor.decode import contact_taxels
 from tactile_studio.sensor.layout import Layout
 
 FINE_TUNE_STEPS = 150
@@ -82,23 +81,14 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
     person, labelled ``gestures`` (names of the run's gestures). ``dataset``: the run's
     TrialDataset when the caller has it (else read from the run's data paths).
     ``rounds``: the prompt round of each window; with two or more, the result carries a
-    :class:`HeldOutCheck` (one more fit per round). Always starts from the run's own fold
-    model (a second personalisation replaces the first)."""
+    :class:`HeldOutCheck` (one more fit per round; :func:`held_out_check` measures it
+    apart). Always starts from the run's own fold model (a second personalisation
+    replaces the first)."""
     cancel = cancel or CancelToken()
-    if len(windows) != len(gestures) or not len(windows):
-        raise UserError("personalisation needs labelled windows: none were recorded")
-    unknown = sorted(set(gestures) - set(model.labels))
-    if unknown:
-        raise UserError(f"{model.run}: the run has no gesture {', '.join(unknown)}")
-    y_win = np.array([model.labels.index(g) for g in gestures], dtype=np.int64)
+    x_p, owner, y_win, training = _inputs(model, layout, windows, gestures, rate, dataset,
+                                          progress, cancel)
     per_gesture = int(min(np.bincount(y_win, minlength=len(model.labels))[np.unique(y_win)]))
-    x_p, owner = model._samples(layout, list(windows), rate)
-    training = None
-    if model.learner.kind != "torch":  # the forest is refit with the fold's training
-        progress(0.0, "reading the run's training windows…")
-        training = fold_training_samples(model, dataset)
-        cancel.check()
-    folds = sorted(set(rounds)) if rounds is not None and len(set(rounds)) >= 2 else []
+    folds = _folds(rounds)
     fits = 1 + len(folds)
 
     def part(i: int) -> ProgressFn:  # fit i of ``fits``, its messages saying which
@@ -114,6 +104,57 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
     cancel.check()  # cancelled while the last step ran: nothing changes
     progress(1.0, "personalised")
     return Personalised(fitted, norm, reference, how, len(windows), per_gesture, check)
+
+
+def held_out_check(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
+                   gestures: Sequence[str], rounds: Sequence[int], rate: float,
+                   seed: int = 0, dataset: Any = None, progress: ProgressFn = no_progress,
+                   cancel: CancelToken | None = None) -> HeldOutCheck | None:
+    """The :class:`HeldOutCheck` of personalising with these windows (None with fewer
+    than two rounds: nothing to test on), measured apart from :func:`personalise` so a
+    caller can use the personalised model while it runs."""
+    cancel = cancel or CancelToken()
+    folds = _folds(rounds)
+    if not folds:
+        return None
+    x_p, owner, y_win, training = _inputs(model, layout, windows, gestures, rate, dataset,
+                                          progress, cancel)
+
+    def part(i: int) -> ProgressFn:
+        what = f"held-out check {i} of {len(folds)}"
+        return lambda f, msg="": progress((i - 1 + f) / len(folds),
+                                          f"{what}: {msg}" if msg else what)
+
+    check = _held_out_check(model, x_p, owner, y_win, np.asarray(rounds), folds, training,
+                            seed, part, cancel)
+    cancel.check()
+    progress(1.0, "measured")
+    return check
+
+
+def _folds(rounds: Sequence[int] | None) -> list[int]:
+    """The rounds to leave out in turn: none unless there are two or more."""
+    return sorted(set(rounds)) if rounds is not None and len(set(rounds)) >= 2 else []
+
+
+def _inputs(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
+            gestures: Sequence[str], rate: float, dataset: Any, progress: ProgressFn,
+            cancel: CancelToken) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """(the person's samples, their window per sample, each window's class, the fold's
+    training samples and labels for a forest to refit, else None); one-line refusals."""
+    if len(windows) != len(gestures) or not len(windows):
+        raise UserError("personalisation needs labelled windows: none were recorded")
+    unknown = sorted(set(gestures) - set(model.labels))
+    if unknown:
+        raise UserError(f"{model.run}: the run has no gesture {', '.join(unknown)}")
+    y_win = np.array([model.labels.index(g) for g in gestures], dtype=np.int64)
+    x_p, owner = model._samples(layout, list(windows), rate)
+    training = None
+    if model.learner.kind != "torch":  # the forest is refit with the fold's training
+        progress(0.0, "reading the run's training windows…")
+        training = fold_training_samples(model, dataset)
+        cancel.check()
+    return x_p, owner, y_win, training
 
 
 def _fit(model: WindowModel, x_p: np.ndarray, y_p: np.ndarray,
@@ -278,113 +319,3 @@ def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
     for p in net.parameters():
         p.requires_grad_(False)
     return TorchFitted(net, "cpu")
-
-
-class TouchPrompts:
-    """The prompts of a live personalisation: "Perform <gesture> now" for every gesture
-    of the run, K rounds, each answered by one labelled window of the model's window
-    length taken from the live stream once the touch is there.
-
-    :meth:`poll` watches the engine from the prompt on: the first frame in contact
-    (``contact_taxels``) is the touch's onset; the window starts a quarter window before
-    it (the approach, as a trial's window holds it) and is taken once complete, if the
-    sensor was touched in ``contact_share`` of it. Skip leaves a prompt unanswered; Redo
-    takes the last answered prompt again. Qt-free: the live panel's dialog drives it."""
-
-    def __init__(self, model: WindowModel, k: int, contact_share: float = 0.05) -> None:
-        if k < 1:
-            raise UserError("personalisation needs at least one touch per gesture")
-        self.model, self.k, self.contact_share = model, int(k), contact_share
-        self.prompts = [g for _ in range(self.k) for g in model.labels]
-        self.answers: dict[int, tuple[np.ndarray, float]] = {}  # prompt -> (window, rate)
-        self.pos = 0
-        self._cursor: int | None = None  # first frame not yet looked at
-        self._onset: int | None = None
-        self._order: list[int] = []  # answered prompts, oldest first
-
-    @property
-    def done(self) -> bool:
-        return self.pos >= len(self.prompts)
-
-    @property
-    def gesture(self) -> str | None:
-        """The gesture the person is asked for now (None when every prompt is past)."""
-        return None if self.done else self.prompts[self.pos]
-
-    @property
-    def round(self) -> int:
-        """1-based: which of the K performances of the gesture is asked for."""
-        return min(self.pos, len(self.prompts) - 1) // len(self.model.labels) + 1
-
-    @property
-    def touching(self) -> bool:
-        """A touch has begun since the prompt (its window is not complete yet)."""
-        return self._onset is not None
-
-    def begin(self, engine) -> None:
-        """The current prompt is shown now: only frames from now on answer it."""
-        self._cursor, self._onset = engine.frames, None
-
-    def skip(self, engine) -> None:
-        self.pos += 1
-        self.begin(engine)
-
-    def redo(self, engine) -> None:
-        """Ask again for the last answered prompt (its window is dropped)."""
-        if self._order:
-            self.pos = self._order.pop()
-            self.answers.pop(self.pos, None)
-        self.begin(engine)
-
-    def poll(self, engine) -> bool:
-        """Looks at the frames since the last call; True when the current prompt was
-        answered (then the next prompt begins)."""
-        base = engine.baseline
-        if self.done or base is None:
-            return False
-        if self._cursor is None:
-            self.begin(engine)
-        rate = engine.device_rate_hz() or engine.nominal_rate_hz
-        w = self.model.window_for(rate)
-        if self._onset is None:
-            chunk = engine.read_since(self._cursor)
-            if not len(chunk):
-                return False
-            touching = contact_taxels(engine.layout, chunk.raw, base).any(axis=(1, 2))
-            self._cursor = chunk.stop
-            if not touching.any():
-                return False
-            self._onset = max(chunk.start + int(np.argmax(touching)) - w // 4, chunk.start)
-        if engine.frames < self._onset + w:
-            return False
-        chunk = engine.read_since(self._onset, w)
-        if len(chunk) < w:  # overwritten in the ring meanwhile: wait for another touch
-            self._cursor, self._onset = engine.frames, None
-            return False
-        touching = contact_taxels(engine.layout, chunk.raw, base).any(axis=(1, 2))
-        if touching.mean() < self.contact_share:  # a brush, not the gesture
-            self._cursor, self._onset = chunk.stop, None
-            return False
-        span = float(chunk.device_time[-1] - chunk.device_time[0])
-        self.answers[self.pos] = (self.model.decode(engine.layout, chunk.raw, base),
-                                  (w - 1) / span if span > 0 else rate)
-        self._order.append(self.pos)
-        self.pos += 1
-        self.begin(engine)
-        return True
-
-    def labelled(self) -> tuple[list[np.ndarray], list[str], float]:
-        """(windows, their gestures, rate) of the answered prompts."""
-        keys = sorted(self.answers)
-        rates = [self.answers[i][1] for i in keys]
-        return ([self.answers[i][0] for i in keys], [self.prompts[i] for i in keys],
-                float(np.median(rates)) if rates else 0.0)
-
-    def personalise(self, layout: Layout, seed: int = 0, progress: ProgressFn = no_progress,
-                    cancel: CancelToken | None = None) -> Personalised:
-        """The run's model personalised with the answered prompts, with the held-out
-        check when two or more rounds were answered."""
-        windows, gestures, rate = self.labelled()
-        rounds = [i // len(self.model.labels) for i in sorted(self.answers)]
-        return personalise(self.model, layout, windows, gestures, rate, seed, rounds=rounds,
-                           progress=progress, cancel=cancel)
