@@ -9,6 +9,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.models.attention import transformer_encoder  # noqa: F401 (models use it)
 from tactile_studio.learn.models.gesture_features import GestureFeatures, fourier_basis
 
 
@@ -113,17 +114,6 @@ class PositionalEncoding(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return x + self.pe[: x.shape[1]].unsqueeze(0)
-
-
-def transformer_encoder(
-    d_model: int, heads: int, layers: int, ff: int, dropout: float
-) -> nn.TransformerEncoder:
-    if d_model % heads:
-        raise UserError(f"d_model={d_model} must be divisible by heads={heads}")
-    layer = nn.TransformerEncoderLayer(
-        d_model, heads, dim_feedforward=ff, dropout=dropout, batch_first=True
-    )
-    return nn.TransformerEncoder(layer, layers, enable_nested_tensor=False)
 
 
 def count_parameters(model: nn.Module) -> int:
