@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 import os
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -94,15 +95,10 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
         raise UserError(f"model '{config.model}' has no int8 export (quantizable: {small})")
     quant_format = export.int8_format(config.model)
-    ds, x, owner, *_ = prepare_inputs(learner, ds, config)  # windows, as trained
-    index = {u: i for i, u in enumerate(ds.uids)}
+    ds, x, owner, index = _windows(learner, ds, config)
     out_dir = Path(run) / "export"
     folds, scored = [], []
-    for k, rec in enumerate(records):
-        if cancel is not None:
-            cancel.check()
-        progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
-        mask = _test_mask(rec, index, owner)
+    for k, rec, mask in _each_fold(records, index, owner, progress, cancel):
         xt = learner.apply_norm(x[mask], rec["norm"])
         example = learner.apply_norm(x[:1], rec["norm"])
         if fused_run:  # the network's views; the forest's trial features
@@ -170,15 +166,10 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
     hold that reference for these models)."""
     from tactile_studio.learn.learners.baselines import BaselineModel
 
-    ds, x, owner, *_ = prepare_inputs(learner, ds, config)  # windows, as trained
-    index = {u: i for i, u in enumerate(ds.uids)}
+    ds, x, owner, index = _windows(learner, ds, config)
     out_dir = Path(run) / "export"
     folds, scored = [], []
-    for k, rec in enumerate(records):
-        if cancel is not None:
-            cancel.check()
-        progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
-        mask = _test_mask(rec, index, owner)
+    for _, rec, mask in _each_fold(records, index, owner, progress, cancel):
         yt = ds.labels[owner[mask]]
         source = model_file(rec["_dir"])
         learner.load(source, info)  # a clear error for a damaged or pre-ONNX fold model
@@ -233,6 +224,25 @@ def _fuse_forest(fitted, rec: dict[str, Any], path: Path, meta: dict[str, str], 
     exported = BaselineModel.load(path, "rf", learner.forest.options, info.n_classes)
     return (fuse(ref, fitted.forest.predict_proba(features), learner.weight),
             fuse(got, exported.predict_proba(features), learner.weight))
+
+
+def _windows(learner, ds, config):  # noqa: ANN001, ANN202
+    """The run's samples as trained (windows of long trials), their owners, and each
+    trial's row by uid."""
+    ds, x, owner, *_ = prepare_inputs(learner, ds, config)
+    return ds, x, owner, {u: i for i, u in enumerate(ds.uids)}
+
+
+def _each_fold(records: list[dict[str, Any]], index: dict[str, int], owner: np.ndarray,
+               progress: ProgressFn, cancel: CancelToken | None,
+               ) -> Iterator[tuple[int, dict[str, Any], np.ndarray]]:
+    """Each fold with the mask of its test windows, saying which fold it is at and
+    stopping when cancelled (export's last 80%)."""
+    for k, rec in enumerate(records):
+        if cancel is not None:
+            cancel.check()
+        progress(0.2 + 0.8 * k / len(records), f"fold {rec['name']}")
+        yield k, rec, _test_mask(rec, index, owner)
 
 
 def _test_mask(rec: dict[str, Any], index: dict[str, int], owner: np.ndarray) -> np.ndarray:
