@@ -94,3 +94,32 @@ def test_transformer_models_keep_their_state_dict_keys():
             len(encoder.layers), enable_nested_tensor=False)
         assert plain.state_dict().keys() == encoder.state_dict().keys()
         encoder.load_state_dict(plain.state_dict())  # an old run's weights load
+
+
+def test_dropout_is_nn_dropout_in_eval_and_keeps_the_expectation_in_training():
+    from tactile_studio.learn.models.attention import Dropout
+
+    layer = Dropout(0.3)
+    x = torch.randn(6, 8, 5)
+    layer.eval()
+    assert torch.equal(layer(x), x)
+    layer.train()
+    torch.manual_seed(4)
+    draws = torch.stack([layer(x) for _ in range(3000)])
+    dropped = (draws == 0).float().mean()
+    assert abs(float(dropped) - 0.3) < 0.005
+    ratio = draws.mean(0) / x  # each ~ 1 +- 0.012 (3000 draws): 5 standard errors
+    torch.testing.assert_close(ratio, torch.ones_like(x), atol=0.06, rtol=0.0)
+
+
+def test_dropout_drops_the_same_cells_whatever_the_memory_layout():
+    """mts3d trains with channels-last feature maps: its dropout must not depend on them."""
+    from tactile_studio.learn.models.attention import Dropout
+
+    layer = Dropout(0.5).train()
+    x = torch.randn(2, 4, 3, 5, 5)
+    torch.manual_seed(5)
+    a = layer(x)
+    torch.manual_seed(5)
+    b = layer(x.contiguous(memory_format=torch.channels_last_3d))
+    assert torch.equal(a, b)

@@ -31,6 +31,7 @@ from tactile_studio.learn.models._common import (
     check_io,
     resolve_options,
 )
+from tactile_studio.learn.models.attention import Dropout
 
 # one line of help per option (the research workspace shows it beside the value)
 OPTION_HELP = {
@@ -82,14 +83,6 @@ class BasicBlock3D(nn.Module):
         return F.relu(h + self.shortcut(x))
 
 
-class _Dropout(nn.Dropout):
-    """Dropout drawn over the usual (contiguous) layout: with channels-last feature maps
-    (``MTS3D.train_memory_format``) the same random numbers would land on other cells."""
-
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return super().forward(x.contiguous())
-
-
 class Backbone(nn.Module):
     """ResNet3D-18-style feature extractor: (B, C, T, R, X) -> (B, widths[-1])."""
 
@@ -106,7 +99,8 @@ class Backbone(nn.Module):
             layers = [BasicBlock3D(cin, width, 1 if i == 0 else 2)]
             layers += [BasicBlock3D(width, width, 1) for _ in range(n - 1)]
             if i == 1:
-                layers.append(_Dropout(dropout))
+                # drawn over the logical shape: the same cells drop with channels-last maps
+                layers.append(Dropout(dropout))
             stages.append(nn.Sequential(*layers))
             cin = width
         self.stages = nn.Sequential(*stages)
