@@ -14,8 +14,14 @@ estimated wall time of a whole round (folds x fold CPU / workers, default 2 work
 one thread each on the 2-core machine: what a quiet machine takes, plus start-up).
 The goal (issue 37): <= 5 min per round for every network.
 
+The last column is the wall time of a round: MEASURED (a whole LOPO round run as a sweep
+on ``--workers`` local worker processes of one thread, timed from start to the last
+fold) when the machine is quiet enough (1-minute load average under ``--quiet-load``,
+default 0.5, or always with ``--measure``; never with ``--no-measure``), else the
+ESTIMATE above; the "round" column says which.
+
 Run: .venv/bin/python benchmarks/bench_training_speed.py [--models cnn1d cnn3d ...]
-       [--data DIR] [--workers 2] [--keep DIR]
+       [--data DIR] [--workers 2] [--keep DIR] [--measure | --no-measure]
 (--data: a folder of the set's sessions, made there when it holds none; default a
 temporary folder; --keep DIR: make the data there and keep it.)
 """
@@ -23,6 +29,7 @@ temporary folder; --keep DIR: make the data there and keep it.)
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import tempfile
 import time
@@ -99,12 +106,33 @@ def inference_ms(model: str, ds, batch: int = 64, repeat: int = 5) -> float:
         torch.set_num_threads(previous)
 
 
+def measured_round_min(model: str, data: Path, workers: int) -> float:
+    """Wall minutes of one whole LOPO round of ``model`` as a sweep on ``workers`` local
+    processes of one torch thread each (what `tactile-studio sweep --jobs N` does)."""
+    from tactile_studio.learn.experiments.executors import make_executor
+    from tactile_studio.learn.experiments.sweep import run_sweep
+
+    cfg = experiment.ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
+                                      threads=1, adapt="auto")
+    t0 = time.perf_counter()
+    with make_executor("local", jobs=workers) as ex:
+        result = run_sweep(cfg, [model], [None], ex)
+    if not result.complete:
+        raise RuntimeError(f"{model}: the round did not complete")
+    return (time.perf_counter() - t0) / 60
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--models", nargs="+", default=NETWORKS)
     ap.add_argument("--data", type=Path, default=None)
     ap.add_argument("--keep", type=Path, default=None)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--quiet-load", type=float, default=0.5,
+                    help="measure a whole round when the 1-min load average is below this")
+    how = ap.add_mutually_exclusive_group()
+    how.add_argument("--measure", action="store_true", help="always measure a whole round")
+    how.add_argument("--no-measure", action="store_true", help="never (the CPU estimate)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         data = make_data(args.data or args.keep or Path(tmp) / "data")
@@ -112,16 +140,23 @@ def main(argv: list[str] | None = None) -> None:
         print(f"data: {data} ({len(ds.uids)} performances, {ds.n_classes} gestures)")
         print(f"{'model':16s} {'fold cpu s':>10s} {'wall s':>7s} {'epochs':>6s} "
               f"{'train ms/win':>12s} {'infer ms/win':>12s} {'acc':>5s} "
-              f"{'round est. min':>14s}")
+              f"{'round est. min':>14s} {'round min':>18s}")
         for model in args.models:
             r = one_fold(model, data, ds)
             infer = inference_ms(model, ds)
             estimate = r["folds"] * r["cpu"] / max(1, args.workers) / 60
+            load = os.getloadavg()[0]
+            if args.measure or (not args.no_measure and load < args.quiet_load):
+                wall = f"{measured_round_min(model, data, args.workers):.1f} MEASURED"
+            else:
+                wall = f"{estimate:.1f} ESTIMATE"
             print(f"{model:16s} {r['cpu']:10.1f} {r['wall']:7.1f} {r['epochs']:6d} "
-                  f"{r['train_ms']:12.3f} {infer:12.3f} {r['acc']:5.2f} {estimate:14.1f}",
-                  flush=True)
+                  f"{r['train_ms']:12.3f} {infer:12.3f} {r['acc']:5.2f} {estimate:14.1f} "
+                  f"{wall:>18s}  (load {load:.1f})", flush=True)
         print(f"(round est.: {r['folds']} folds x fold CPU / {args.workers} workers of one "
-              "thread, on a quiet machine; goal <= 5 min)")
+              "thread, on a quiet machine; round min: a whole round measured as a sweep "
+              f"on {args.workers} workers when the load was under {args.quiet_load}, else "
+              "the estimate; goal <= 5 min)")
 
 
 if __name__ == "__main__":
