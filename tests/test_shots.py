@@ -104,3 +104,62 @@ def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
     assert r["n_matched"] == r["shots"][0]["n_matched"] == 18  # each trial once, at K = 0
     assert main(["compare", str(runs[0]), str(runs[1])]) == 0
     assert "with 1 shot(s) per gesture:" in capsys.readouterr().out
+
+
+def _ft_config(ds_path, shots_by: str, model: str = "cnn1d", **kw) -> ExperimentConfig:
+    return ExperimentConfig(data=[str(ds_path)], model=model, protocol="lopo",
+                            preset="tiny", window_s=2.0, shots=(0, 1, 2), shots_by=shots_by,
+                            epochs=2, **kw)
+
+
+def test_fine_tune_trains_each_fold_once_and_tests_what_join_tests(long_trials):
+    """--shots-by fine-tune: one training per held-out person (K = 0), each K > 0 its
+    copy fine-tuned on that K's shot performances; the same test trials as join, and no
+    window of a shot performance in the test."""
+    ds = read_sessions([long_trials / "data"]).select(None)
+    trained: list[str] = []  # the folds whose training ran epochs
+    from tactile_studio.learn.experiments.job_events import Epoch
+
+    def listen(event) -> None:
+        if isinstance(event, Epoch) and event.fold_name not in trained:
+            trained.append(event.fold_name)
+
+    fine = run_experiment(_ft_config(long_trials, "fine-tune"), dataset=ds, listener=listen)
+    assert trained == ["P01 k0", "P02 k0", "P03 k0"]  # K = 0 once per person, nothing else
+    join = run_experiment(_ft_config(long_trials, "join"), dataset=ds)
+    assert [r["name"] for r in fine.folds] == [r["name"] for r in join.folds] == [
+        f"P0{p} k{k}" for p in (1, 2, 3) for k in (0, 1, 2)]
+    for f, j in zip(fine.folds, join.folds):
+        assert f["test"] == j["test"] and f["train"] == j["train"] and f["shots"] == j["shots"]
+        assert f["predictions"]["owner"] == j["predictions"]["owner"]
+        if f["shots"]:  # fine-tuned on exactly the windows of its shot performances
+            shots = set(f["train"]) - set(fine.folds[f["fold"] - f["shots"]]["train"])
+            assert len(shots) == 3 * f["shots"]
+            owners = {ds.uids[i] for i in f["predictions"]["owner"]}
+            assert not owners & shots and owners <= set(f["test"])
+            assert f["fine_tuned_windows"] == 3 * f["shots"] * 5  # 6 s -> five 2 s windows
+            assert f["history"] == [] and f["norm"] == fine.folds[f["fold"] - f["shots"]]["norm"]
+        else:
+            assert f["history"] and "fine_tuned_windows" not in f
+    assert [s["k"] for s in fine.metrics["shots"]] == [0, 1, 2]
+    assert [s["n_trials"] for s in fine.metrics["shots"]] == [
+        s["n_trials"] for s in join.metrics["shots"]]
+    assert fine.config.shots_by == "fine-tune"
+
+
+def test_fine_tune_is_for_networks_only(long_trials, tmp_path, capsys):
+    for model, name in (("rf", "rf"), ("knn", "knn")):
+        with pytest.raises(UserError, match=f"^{name} has no fine-tuning: its shots join the "
+                                            r"training \(--shots-by join\)$"):
+            ExperimentConfig(data=["x"], model=model, shots=(0, 1),
+                             shots_by="fine-tune").validate()
+    with pytest.raises(UserError, match="no fine-tuning"):
+        ExperimentConfig(data=["x"], model="cnn1d", shots=(0, 1), shots_by="fine-tune",
+                         overrides={"rf_weight": 0.5}).validate()
+    code = main(["train", "--data", str(long_trials / "data"), "--model", "rf", "--eval",
+                 "lopo", "--shots", "0,1", "--shots-by", "fine-tune", "--out",
+                 str(tmp_path / "run")])
+    err = capsys.readouterr().err
+    assert code == 1 and err.strip().splitlines() == [
+        "tactile-studio: error: rf has no fine-tuning: its shots join the training "
+        "(--shots-by join)"]

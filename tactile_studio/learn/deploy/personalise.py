@@ -9,13 +9,9 @@ prompt gives one labelled window of the model's window length (touch_prompts.py)
   again through the dataset cache, exactly the fold's ``train`` trials) plus the
   person's windows: the offline mechanism, the same learner and options;
 * a network: fine-tunes its output layers on the person's windows (the rest
-  frozen, batch norm as trained), without the training data. A refit of a whole
-  network on its training data plus a few windows takes minutes, which a participant
-  waiting at the sensor does not have. Measured on a new virtual person (full cnn1d
-  trained on 4 people, 27 test performances, 0.41 as trained): output layers K=1 0.52,
-  K=2 0.70; every layer 0.48 / 0.67 and 1.5-3x slower; so the output layers.
-  (Offline, ``--shots`` joins the shots to a network's training instead: it has the
-  time.)
+  frozen, batch norm as trained; learn/learners/fine_tune.py, which says why), without
+  the training data. Offline, ``train --shots K --shots-by fine-tune`` uses the same
+  fine-tuning (``--shots-by join`` joins the shots to the training instead).
 * a network fused with rf (``--set rf_weight=W``): both at once, the forest refit as
   rf is, the network's output layers fine-tuned, fused again with the same W.
 
@@ -30,7 +26,6 @@ The result is used by ``WindowModel.personalise`` until ``forget_personalisation
 
 from __future__ import annotations
 
-import copy
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -40,11 +35,9 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fused import FusedFitted, person_columns
 from tactile_studio.sensor.layout import Layout
-
-FINE_TUNE_STEPS = 150
-FINE_TUNE_LR = 3e-3
 
 
 @dataclass
@@ -276,46 +269,3 @@ def fold_training_samples(model: WindowModel, dataset: Any = None
                         f"{', '.join(map(str, cfg.data))})")
     mask = np.isin(owner, idx)
     return x[mask], ds.labels[owner[mask]]
-
-
-def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
-                   seed: int = 0, steps: int = FINE_TUNE_STEPS, lr: float = FINE_TUNE_LR,
-                   progress: ProgressFn = no_progress, cancel: CancelToken | None = None
-                   ) -> Any:
-    """A copy of a network whose output layers (every linear or convolution layer with
-    ``n_classes`` outputs: the network's own, its statistics head's, each ensemble
-    member's) are trained further on normalised samples ``x`` labelled ``y``; everything
-    else frozen, in eval mode (batch norm and dropout as trained)."""
-    import torch
-
-    from tactile_studio.learn.learners.families import TorchFitted
-
-    torch.manual_seed(seed)
-    net = copy.deepcopy(fitted.model).cpu()
-    net.eval()
-    kinds = (torch.nn.Linear, torch.nn.Conv1d, torch.nn.Conv2d, torch.nn.Conv3d)
-    heads = [m for m in net.modules() if isinstance(m, kinds) and n_classes ==
-             getattr(m, "out_features", getattr(m, "out_channels", None))]
-    if not heads:
-        raise UserError(f"the network has no output layer of {n_classes} classes to "
-                        "fine-tune")
-    for p in net.parameters():
-        p.requires_grad_(False)
-    params = [p for m in heads for p in m.parameters()]
-    for p in params:
-        p.requires_grad_(True)
-    opt = torch.optim.Adam(params, lr=lr)
-    xt = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
-    yt = torch.from_numpy(np.asarray(y, dtype=np.int64))
-    for step in range(steps):
-        if cancel is not None:
-            cancel.check()
-        if step % 10 == 0:
-            progress(step / steps, f"fine-tuning its output layers: step {step} of {steps}")
-        opt.zero_grad()
-        loss = torch.nn.functional.cross_entropy(net(xt).float(), yt)
-        loss.backward()
-        opt.step()
-    for p in net.parameters():
-        p.requires_grad_(False)
-    return TorchFitted(net, "cpu")

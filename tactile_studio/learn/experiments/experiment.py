@@ -43,6 +43,7 @@ from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
+from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fused import display_name, person_columns, rf_weight
 from tactile_studio.learn.learners.generalise import (
     ADAPT_CHOICES,
@@ -63,7 +64,8 @@ from tactile_studio.learn.learners.generalise import (
 RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
-               "participant_norm", "balance", "val_by", "adapt", "shots")
+               "participant_norm", "balance", "val_by", "adapt", "shots", "shots_by")
+SHOTS_BY = ("join", "fine-tune")  # how a held-out person's shots reach the model
 
 
 @dataclass
@@ -96,6 +98,9 @@ class ExperimentConfig:
     # few-shot personalisation: each held-out fold once per K, with K labelled
     # performances per gesture of the test person in the training (() = off)
     shots: tuple[int, ...] = ()
+    # join: the shots join the training (one training per K); fine-tune: the fold is
+    # trained once without them and a copy's output layers fine-tuned per K (networks)
+    shots_by: str = "join"
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -186,6 +191,13 @@ class ExperimentConfig:
             if min(self.shots) < 0 or len(set(self.shots)) != len(self.shots):
                 raise UserError(f"--shots takes distinct counts of 0 or more, got "
                                 f"{','.join(map(str, self.shots))}")
+        if self.shots_by not in SHOTS_BY:
+            raise UserError(f"unknown --shots-by {self.shots_by!r} "
+                            f"(available: {', '.join(SHOTS_BY)})")
+        if self.shots_by == "fine-tune" and self.forest:
+            name = display_name(self.model, self.overrides)
+            raise UserError(f"{name} has no fine-tuning: its shots join the training "
+                            "(--shots-by join)")
 
 
 def result_defaults() -> dict[str, Any]:
@@ -270,6 +282,20 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         info, (learner.apply_norm(x_tr, stats), y_tr),
         (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch, norm=stats)
     cancel.check()
+    rec = _fold_record(learner, ds, x, owner, fold, round_, k, seed, fitted, stats, history,
+                       best, people, t0)
+    if moments is not None and people is not None:  # a forest's view as trained
+        rec["as_trained"] = pooled_reference(moments, np.unique(people[tr])).tolist()
+    return rec, fitted
+
+
+def _fold_record(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray, fold,
+                 round_: int, k: int, seed: int, fitted: Any, stats: dict[str, Any],
+                 history: list[dict[str, Any]], best: Any, people: np.ndarray | None,
+                 t0: float) -> dict[str, Any]:
+    """A finished fold as runfolder saves it: its trials, normalisation, training curve
+    and the test (and held-out) predictions of ``fitted``."""
+    y = ds.labels
     uid = np.array(ds.uids)
     rec = {
         "round": round_, "fold": k, "name": fold.name, "seed": seed,
@@ -281,11 +307,41 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
     }
-    if moments is not None and people is not None:  # a forest's view as trained
-        rec["as_trained"] = pooled_reference(moments, np.unique(people[tr])).tolist()
     if len(fold.heldout):
         rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y,
                                                   stats, people)
+    return rec
+
+
+def shot_trials(fold, participants: np.ndarray) -> np.ndarray:
+    """A shot fold's shot performances: its training trials of its test people (under
+    lopo and group-kfold no other trial of theirs is trained on)."""
+    return fold.train[np.isin(participants[fold.train], fold.test_participants)]
+
+
+def _without_shots(fold, participants: np.ndarray):
+    """The K = 0 fold of a shot fold: its training without the shot performances."""
+    return replace(fold, name=f"{fold.name.rsplit(' k', 1)[0]} k0", shots=0,
+                   train=np.setdiff1d(fold.train, shot_trials(fold, participants)))
+
+
+def _fine_tune_fold(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray, fold,
+                    round_: int, k: int, seed: int, base: tuple[Any, dict[str, Any]],
+                    cancel: CancelToken, people: np.ndarray | None
+                    ) -> tuple[dict[str, Any], Any]:
+    """``--shots-by fine-tune``: the fold's K = 0 model (``base``: fitted, its
+    normalisation) with its output layers fine-tuned on the windows of the fold's shot
+    performances, as live calibration does (learners/fine_tune.py); tested on the same
+    trials as K = 0. No training curve (history empty)."""
+    t0 = time.perf_counter()
+    fitted0, stats = base
+    sel = np.isin(owner, shot_trials(fold, ds.participants))
+    fitted = fine_tune_head(fitted0, learner.apply_norm(x[sel], stats),
+                            ds.labels[owner[sel]], ds.n_classes, seed, cancel=cancel)
+    cancel.check()
+    rec = _fold_record(learner, ds, x, owner, fold, round_, k, seed, fitted, stats, [],
+                       None, people, t0)
+    rec["fine_tuned_windows"] = int(sel.sum())
     return rec, fitted
 
 
@@ -411,6 +467,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     records: list[dict[str, Any]] = []
     done = 0
     title = run_title(config, ds.channels)
+    fine = config.shots_by == "fine-tune" and bool(config.shots)
+    base: dict[str, tuple[Any, dict[str, Any]]] = {}  # fine-tune: the K = 0 model, by fold
     try:
         for r in range(config.rounds):
             seed = config.seed + r
@@ -432,10 +490,25 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         progress(frac, f"{where} epoch {e['epoch']} acc {acc:.2f}")
                         listener(Epoch.of(r, k, len(folds), fold.name, e))
 
-                    progress(0.05 + 0.92 * done / total_units, f"{where} training")
-                    rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k, seed,
-                                              cancel, on_epoch, extra, config.balance,
-                                              adapt_people(config, ds, owner), moments)
+                    people = adapt_people(config, ds, owner)
+                    key = f"{r} {_without_shots(fold, ds.participants).name}"
+                    if fine and fold.shots and key not in base:  # K = 0 not trained here
+                        progress(0.05 + 0.92 * done / total_units, f"{where} training K = 0")
+                        zero, fitted0 = _train_fold(
+                            learner, info, ds, x, owner, _without_shots(fold, ds.participants),
+                            r, k, seed, cancel, on_epoch, extra, config.balance, people, moments)
+                        base = {key: (fitted0, zero["norm"])}
+                    if fine and fold.shots:
+                        progress(0.05 + 0.92 * done / total_units, f"{where} fine-tuning")
+                        rec, fitted = _fine_tune_fold(learner, ds, x, owner, fold, r, k, seed,
+                                                      base[key], cancel, people)
+                    else:
+                        progress(0.05 + 0.92 * done / total_units, f"{where} training")
+                        rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k,
+                                                  seed, cancel, on_epoch, extra,
+                                                  config.balance, people, moments)
+                        if fine:  # K = 0: the model each K of this fold fine-tunes
+                            base = {key: (fitted, rec["norm"])}
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)
