@@ -145,6 +145,17 @@ def test_fine_tune_trains_each_fold_once_and_tests_what_join_tests(long_trials):
     assert [s["n_trials"] for s in fine.metrics["shots"]] == [
         s["n_trials"] for s in join.metrics["shots"]]
     assert fine.config.shots_by == "fine-tune"
+    assert fine.metrics["shots_by"] == "fine-tune" and "shots_by" not in join.metrics
+
+
+def test_the_printed_curve_says_how_the_shots_were_used(capsys):
+    from tactile_studio.cli.learn import print_shots
+
+    curve = [{"k": 0, "accuracy": 0.5, "n_trials": 9}, {"k": 1, "accuracy": 0.6, "n_trials": 9}]
+    print_shots(curve, False, "fine-tune")
+    assert "output layers fine-tuned on them" in capsys.readouterr().out
+    print_shots(curve, False)
+    assert "person in the training" in capsys.readouterr().out
 
 
 def test_fine_tune_is_for_networks_only(long_trials, tmp_path, capsys):

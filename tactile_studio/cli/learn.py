@@ -177,7 +177,7 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
                    *(_fmt(f.get(k)) for k in keys)) for f in m["per_fold"]],
                  right=("round", *heads))
     if m.get("shots"):
-        print_shots(m["shots"], cut)
+        print_shots(m["shots"], cut, m.get("shots_by", "join"))
     if m.get("windows") is not None:
         print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
               f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "
@@ -186,9 +186,9 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
         print(f"run folder: {out}")
 
 
-def print_shots(shots: list[dict[str, Any]], cut: bool) -> None:
+def print_shots(shots: list[dict[str, Any]], cut: bool, by: str = "join") -> None:
     """The few-shot curve: accuracy for K labelled performances per gesture of the test
-    person in the training (the same test trials at every K)."""
+    person in the training, or fine-tuning it (``by``; the same test trials at every K)."""
     base = shots[0]
     key = "trial_accuracy" if cut else "accuracy"
     gain = f"points vs K={base['k']}"
@@ -200,8 +200,10 @@ def print_shots(shots: list[dict[str, Any]], cut: bool) -> None:
         diff = "" if s is base or s.get(key) is None or base.get(key) is None else \
             f"{100 * (s[key] - base[key]):+.1f}"
         rows.append((s["k"], *figures, diff))
+    how = "the K = 0 model's output layers fine-tuned on them" if by == "fine-tune" else \
+        "in the training"
     print("few-shot personalisation: K labelled performances per gesture of the test "
-          f"person in the training, {base.get('n_trials', '?')} test trials at every K")
+          f"person {how}, {base.get('n_trials', '?')} test trials at every K")
     tables.table(("K", *heads, gain), rows, right=("K", *heads, gain))
 
 

@@ -356,6 +356,8 @@ def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
         header["rf_weight"] = weight
     if config.adapt != "none":
         header["adapt"] = config.adapt
+    if config.shots and config.shots_by != "join":
+        header["shots_by"] = config.shots_by
     return header
 
 
