@@ -174,3 +174,13 @@ def test_fine_tune_is_for_networks_only(long_trials, tmp_path, capsys):
     assert code == 1 and err.strip().splitlines() == [
         "tactile-studio: error: rf has no fine-tuning: its shots join the training "
         "(--shots-by join)"]
+
+
+def test_auto_fine_tunes_a_network_and_joins_for_a_forest():
+    def by(model: str, shots=(0, 1), **kw) -> str:
+        return ExperimentConfig(data=["x"], model=model, shots=shots, **kw).resolved().shots_by
+
+    assert by("sefusion") == "fine-tune" and by("cnn1d") == "fine-tune"
+    assert by("rf") == by("knn") == by("cnn1d", overrides={"rf_weight": 0.5}) == "join"
+    assert by("cnn1d", shots=()) == "join"  # no shots: as a run from before the setting
+    assert by("cnn1d", shots_by="join") == "join"

@@ -65,12 +65,14 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                         "person once per K, with K labelled performances per gesture of "
                         "theirs in the training and the rest tested (e.g. 0,1,2: the curve "
                         "over K in metrics.json; windows of a performance never split)")
-    p.add_argument("--shots-by", dest="shots_by", choices=("join", "fine-tune"),
-                   default="join",
-                   help="how the shots reach the model: join (default; they join the "
-                        "training, one training per K) or fine-tune (networks only: the fold "
-                        "is trained once without them and its output layers fine-tuned on "
-                        "each K's shots, as live calibration does)")
+    p.add_argument("--shots-by", dest="shots_by", choices=("auto", "join", "fine-tune"),
+                   default="auto",
+                   help="how the shots reach the model: join (they join the training, one "
+                        "training per K) or fine-tune (networks only: the fold is trained "
+                        "once without them and its output layers fine-tuned on each K's "
+                        "shots, as live calibration does); default auto: fine-tune for a "
+                        "network (as good on the simulator, half the time), join for rf, "
+                        "knn and a network fused with rf")
     p.add_argument("--rounds", type=int, default=1, help="repeat with new seeds; medians reported")
     p.add_argument("--epochs", type=int, default=None, help="maximum epochs (default: the model's)")
     p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
@@ -143,7 +145,7 @@ def _config(args: argparse.Namespace, channels: str | None):
         device=args.device, threads=args.threads, cache_dir=args.cache_dir,
         use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
         aggregate=args.aggregate, shots=tuple(getattr(args, "shots", ()) or ()),
-        shots_by=getattr(args, "shots_by", "join"),
+        shots_by=getattr(args, "shots_by", "auto"),
         **generalisation_kwargs(args))
 
 

@@ -65,7 +65,10 @@ RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "prese
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
                "participant_norm", "balance", "val_by", "adapt", "shots", "shots_by")
-SHOTS_BY = ("join", "fine-tune")  # how a held-out person's shots reach the model
+SHOTS_BY = ("auto", "join", "fine-tune")  # how a held-out person's shots reach the model
+# what ``auto`` means for a network (rf, knn and fused models always join): measured on
+# the simulator, docs/learning/figures.md "Few-shot personalisation, measured"
+NETWORK_SHOTS_BY = "fine-tune"
 
 
 @dataclass
@@ -99,8 +102,9 @@ class ExperimentConfig:
     # performances per gesture of the test person in the training (() = off)
     shots: tuple[int, ...] = ()
     # join: the shots join the training (one training per K); fine-tune: the fold is
-    # trained once without them and a copy's output layers fine-tuned per K (networks)
-    shots_by: str = "join"
+    # trained once without them and a copy's output layers fine-tuned per K (networks);
+    # auto: NETWORK_SHOTS_BY for a network, join for rf / knn / fused (resolved())
+    shots_by: str = "auto"
     device: str = "auto"
     threads: int | None = None           # torch CPU threads (None: torch's default)
     cache_dir: str | None = None
@@ -134,11 +138,17 @@ class ExperimentConfig:
         return not (self.forest and self.augment)
 
     def resolved(self) -> ExperimentConfig:
-        """This config with ``adapt="auto"`` made concrete for its model and protocol
-        (generalise.resolve_adapt); what a run folder records and every fold reads."""
+        """This config with ``adapt="auto"`` (generalise.resolve_adapt) and
+        ``shots_by="auto"`` made concrete for its model and protocol; what a run folder
+        records and every fold reads."""
         adapt = resolve_adapt(self.adapt, self.protocol, self.can_adapt,
                               network=self.model not in BASELINES)
-        return self if adapt == self.adapt else replace(self, adapt=adapt)
+        shots_by = self.shots_by
+        if shots_by == "auto":  # join without shots: what a run before the setting did
+            shots_by = NETWORK_SHOTS_BY if self.shots and not self.forest else "join"
+        if (adapt, shots_by) == (self.adapt, self.shots_by):
+            return self
+        return replace(self, adapt=adapt, shots_by=shots_by)
 
     def validate(self) -> None:
         if self.protocol not in PROTOCOLS:
@@ -209,6 +219,7 @@ def result_defaults() -> dict[str, Any]:
             out[f.name] = f.default
         elif f.name in RESULT_KEYS and f.default_factory is not MISSING:
             out[f.name] = f.default_factory()
+    out["shots_by"] = "join"  # a run from before --shots-by joined its shots
     return out
 
 
