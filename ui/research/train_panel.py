@@ -107,10 +107,11 @@ class TrainPanel(JobPanel):
         self.shots.setPlaceholderText("off (e.g. 0,1,2)")
         self.shots.setToolTip(
             "Few-shot personalisation (lopo / group-kfold): each held-out person once per "
-            "K, with K labelled performances per gesture of theirs in the training and "
-            "their other performances tested (the same ones at every K): the curve over K "
-            "shows what a few labelled touches of a new person gain. Whole performances "
-            "join the training, never single windows")
+            "K, with K labelled performances per gesture of theirs and their other "
+            "performances tested (the same ones at every K): the curve over K shows what a "
+            "few labelled touches of a new person gain. rf and knn refit with them; a "
+            "network is trained once without them and its output layers fine-tuned on "
+            "them (train --shots-by). Whole performances, never single windows")
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.out.setToolTip("Named from the model and the time, under the runs folder "
