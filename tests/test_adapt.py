@@ -185,8 +185,9 @@ def test_train_adapts_every_model_to_held_out_people_by_default(runs, capsys):
     assert resolved("rf", augment="scale") == resolved("cnn1d", augment="scale",
                                                        rf_weight=0.5) == "none"
     assert resolved("cnn1d", "all-inclusive") == resolved("rf", "all-inclusive") == "none"
-    explicit = ExperimentConfig(data=[], model="cnn1d", adapt="none")
-    assert explicit.resolved() is explicit
+    explicit = ExperimentConfig(data=[], model="cnn1d", adapt="none", shots_by="join")
+    assert explicit.resolved() is explicit  # nothing left to resolve: the config itself
+    assert ExperimentConfig(data=[], model="cnn1d", adapt="none").resolved().adapt == "none"
 
 
 def test_export_and_live_say_what_an_adapted_run_needs(runs, capsys):
