@@ -242,7 +242,8 @@ def judge_spots(layout: Layout, spots: list[SpotResult],
     typical = np.median(responses, axis=0) if len(spots) else np.zeros(k)
     for s in spots:
         ref = s.reference_kpa if s.reference_kpa else s.expected_kpa
-        s.ratio = s.normal_kpa / ref if ref > 0 else None
+        # rounded as reported, so the reason's percentage and the report's ratio agree
+        s.ratio = round(s.normal_kpa / ref, 4) if ref > 0 else None
         taxel = parse_taxel(layout, s.taxel)
         sheared = s.normal_kpa > 0.5 * s.expected_kpa and s.shear_kpa > th.shear_warn * s.normal_kpa
         # under shear the outer channels move apart: a low one is then not a dead one
