@@ -127,6 +127,20 @@ def test_a_file_sink_closed_by_its_owner_books_once(tmp_path, data_dir) -> None:
     assert _usage_rows("sim-32") == 1
 
 
+def test_only_the_file_sink_makes_a_recorder() -> None:
+    """close_file_sink relies on the booking open_file_sink registered: a Recorder built
+    anywhere else in the product would record hours of use nobody books."""
+    from pathlib import Path
+
+    import tactile_studio
+
+    repo = Path(tactile_studio.__file__).parent.parent
+    sources = [p for room in ("tactile_studio", "ui", "plugins") for p in (repo / room).rglob("*.py")]
+    makers = sorted(str(p.relative_to(repo)) for p in sources
+                    if p.name != "recorder.py" and "Recorder(" in p.read_text())
+    assert makers == ["tactile_studio/storage/file_sink.py"]
+
+
 LEFT_OPEN = textwrap.dedent("""
     import sys
     from tactile_studio.acquisition import AcquisitionSession

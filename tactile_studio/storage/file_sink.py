@@ -36,8 +36,7 @@ def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
 
 
 def close_file_sink(rec: Recorder) -> None:
-    """Finish the file and book its hours of use (both once: later calls do nothing).
-    The booking waits for the file to be closed, even when another caller is closing it
-    now: it counts every frame the close pulled."""
-    rec.on_stop(book_usage)  # a second registration books nothing more (book_usage: once)
+    """Finish the file (once: later calls do nothing); its hours of use are booked by the
+    on-stop callback :func:`open_file_sink` registered, after every frame the close pulled.
+    Only :func:`open_file_sink` makes a recording's recorder, so none lacks it."""
     rec.stop()
