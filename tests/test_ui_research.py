@@ -84,6 +84,18 @@ def test_sessions_browser(window, workspace, tmp_path, qtbot):
     assert "5 of 5 sessions selected: 4 participants, 72 ok trials" in s.summary.text()
 
 
+def test_closing_the_window_stops_the_sessions_checks(window, workspace, qtbot):
+    """A listing's checks read every file on a worker: closing the workspace cancels them
+    and waits for the file being read, so no thread reads the user's files after."""
+    s = window.sessions
+    s.set_folders([str(workspace / "data")])
+    job = s.check_job  # its end is delivered by the event loop, which has not run yet
+    assert job is not None and not job.token.cancelled
+    window.close()
+    assert job.token.cancelled and not job._thread.is_alive()
+    assert s.check_job is None and not s.checking
+
+
 def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path):
     window.tabs.setCurrentWidget(window.runs)
     runs = window.runs

@@ -92,9 +92,7 @@ class SessionsView(QWidget):
     def set_folders(self, folders: list[str]) -> None:
         self.folders = [str(f) for f in folders]
         set_json(self.settings, FOLDERS_KEY, self.folders)
-        if self.check_job is not None:  # the last listing's checks: no longer wanted
-            self.check_job.cancel()
-            self.check_job = None
+        self.stop_checks()  # the last listing's checks: no longer wanted
         self.rows = scan_sessions(self.folders, check=False)
         self.table.setSortingEnabled(False)
         self.table.setRowCount(0)  # no selected row may point at a row of the last scan
@@ -114,6 +112,15 @@ class SessionsView(QWidget):
         self.table.selectAll()
         self._selection_changed()
         self._start_checks()
+
+    def stop_checks(self, wait_s: float = 0.0) -> None:
+        """Cancel the listing's checks (they stop between files; a file being read is
+        finished, up to ``wait_s``): a new listing, or the window closing."""
+        job, self.check_job = self.check_job, None
+        if job is not None:
+            job.cancel()
+            if wait_s > 0:
+                job.wait(wait_s)
 
     @property
     def checking(self) -> bool:

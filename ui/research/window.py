@@ -133,6 +133,7 @@ class ResearchWindow(QMainWindow):
         return True
 
     def closeEvent(self, event) -> None:  # noqa: ANN001, N802 - Qt name and signature
+        self.sessions.stop_checks(wait_s=5.0)  # nothing left reading the user's files
         if self.train.job is not None and self.train.job.running:
             self.train.cancel()  # the worker stops after its epoch; folds are kept
         if self.import_dialog is not None:
