@@ -14,7 +14,8 @@ from __future__ import annotations
 import errno
 import os
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sized
+from contextlib import contextmanager
 from pathlib import Path
 
 from tactile_studio.errors import IncompleteError, UserError
@@ -112,6 +113,20 @@ def ran_out_of_room(exc: BaseException, kept: int, noun: str, verb: str) -> User
         return IncompleteError(f"{line}; that {noun} was removed, the {kept} {noun}(s) "
                                f"{verb} before it are kept")
     return WriteFault(f"{line}; that {noun} was removed, nothing was {verb}")
+
+
+@contextmanager
+def kept_when_full(written: Sized, noun: str, verb: str) -> Iterator[None]:
+    """Run a command that writes several outputs in turn, ``written`` holding those
+    finished: a full disk part way ends in :func:`ran_out_of_room`'s line (exit 3 when
+    some were kept, else 1). The CLI's import/export and the GUI's import dialogs."""
+    try:
+        yield
+    except (OSError, UserError) as exc:
+        error = ran_out_of_room(exc, len(written), noun, verb)
+        if error is None:
+            raise
+        raise error from None
 
 
 def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:

@@ -124,3 +124,36 @@ def test_background_job_cancel_keeps_what_finished_and_errors_are_one_line(qtbot
         job.start()
         qtbot.waitUntil(lambda: bool(failures), timeout=10000)
         assert failures == [expected]
+
+
+def test_a_disk_filling_up_part_way_says_which_sessions_were_kept(window, qtbot, tmp_path):
+    """As ``import`` on the command line: the cut session is removed, the one finished
+    before it is kept and listed, and the status says both (the file-size limit of this
+    process stands in for a full disk: P01 fits under it, P02 does not)."""
+    import resource
+
+    src = tmp_path / "old"
+    src.mkdir()
+    csvs = [str(labelled_csv(src, "P01_FLAT.csv", 1, "rp")),
+            str(labelled_csv(src, "P02_FLAT.csv", 2, "rpz" * 15))]
+    dialog = window.open_import()
+    dialog.add_files(csvs)
+    dialog.gestures.setText("r=Rub,p=Poke,z=Zap")
+    out = tmp_path / "sessions"
+    dialog.out.setText(str(out))
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (400 * 1024, hard))
+    try:
+        assert dialog.start()
+        qtbot.waitUntil(lambda: not dialog.job.running, timeout=30000)
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+    text = dialog.status.text()
+    assert text.startswith(f"{out / 'P02_FLAT.h5'}: ") and "file too large" in text, text
+    assert text.endswith("that session was removed, the 1 session(s) imported before it "
+                         "are kept"), text
+    assert sorted(p.name for p in out.iterdir()) == ["P01_FLAT.h5"]
+    with Session(out / "P01_FLAT.h5") as s:
+        assert s.closed_cleanly
+    assert window.sessions.folders == [str(out)] and len(window.sessions.rows) == 1
+    assert dialog.import_button.isEnabled()

@@ -7,9 +7,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.errors import IncompleteError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.output_faults import ran_out_of_room
+from tactile_studio.output_faults import kept_when_full
 from tactile_studio.paths import make_out_dir
 
 
@@ -95,7 +95,7 @@ def cmd_import(args: argparse.Namespace) -> int:
     token = CancelToken()
     skipped: list[str] = []  # inputs without frames: listed, never a 0-frame session
     written: list[Path] = []
-    with _kept_when_full(written, "session", "imported"), ctrl_c_cancels(token), \
+    with kept_when_full(written, "session", "imported"), ctrl_c_cancels(token), \
             _bar(f"import {args.import_format}") as bar:
         def done(path: Path) -> None:
             bar.end_line()
@@ -140,7 +140,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 
     token = CancelToken()
     written: list[Path] = []
-    with _kept_when_full(written, "file", "exported"), ctrl_c_cancels(token):
+    with kept_when_full(written, "file", "exported"), ctrl_c_cancels(token):
         for session in args.sessions:
             with _bar(f"export {Path(session).name}") as bar:
                 paths = export_session(session, args.format, args.out, args.all_trials,
@@ -149,16 +149,3 @@ def cmd_export(args: argparse.Namespace) -> int:
             print(f"{session}: wrote {shown}", flush=True)
     print(f"exported {len(args.sessions)} session(s), {len(written)} file(s)")
     return 0
-
-
-@contextmanager
-def _kept_when_full(written: list[Path], noun: str, verb: str) -> Iterator[None]:
-    """A full disk (or the file-size limit) part way: the output being written is
-    removed and those finished stay; exit 3 when some were, else 1 (output_faults)."""
-    try:
-        yield
-    except (OSError, UserError) as exc:
-        error = ran_out_of_room(exc, len(written), noun, verb)
-        if error is None:
-            raise
-        raise error from None

@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from tactile_studio.output_faults import kept_when_full
 from tactile_studio.ui.background_job import BackgroundJob
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_files
 from tactile_studio.ui.settings import app_settings
@@ -143,8 +144,14 @@ class ImportDialogBase(QDialog):
         self.settings.setValue(self.KEY + "out", out)
         self.remember()
         self.written = []
-        fn = self.make_job(files, out, self.force.isChecked(),
-                           lambda path: self.written.append(str(path)))
+        work = self.make_job(files, out, self.force.isChecked(),
+                             lambda path: self.written.append(str(path)))
+
+        def fn(progress, cancel):  # noqa: ANN001, ANN202 - the job's two arguments
+            # a full disk part way: the cut session is removed, those before it kept
+            with kept_when_full(self.written, "session", "imported"):
+                return work(progress, cancel)
+
         self.job = BackgroundJob(fn, self)
         self.job.progressed.connect(self._progressed)
         self.job.finished.connect(lambda result: self._stopped(
