@@ -184,3 +184,52 @@ def test_auto_fine_tunes_a_network_and_joins_for_a_forest():
     assert by("rf") == by("knn") == by("cnn1d", overrides={"rf_weight": 0.5}) == "join"
     assert by("cnn1d", shots=()) == "join"  # no shots: as a run from before the setting
     assert by("cnn1d", shots_by="join") == "join"
+
+
+def test_an_adapted_runs_output_layers_are_fine_tuned_on_what_its_test_sees():
+    """With ``--adapt person`` a held-out person's windows are tested with the batch norm
+    re-estimated on them: fine-tuning first adapts the network to those windows, so the
+    output layers learn on the features the test sees (and re-adapting on the same
+    windows changes nothing); without ``adapt_to`` the batch norm stays as trained."""
+    import torch
+
+    from tactile_studio.learn.learners.families import TorchFitted
+    from tactile_studio.learn.learners.fine_tune import fine_tune_head
+    from tactile_studio.learn.models import MODELS
+
+    torch.manual_seed(0)
+    fitted = TorchFitted(MODELS["cnn1d"].build(3, 3, (6, 6), "tiny"), "cpu")
+    rng = np.random.default_rng(0)
+    person = rng.normal(0.5, 2.0, (24, 3, 50, 6, 6)).astype(np.float32)  # not as trained
+    shots, labels = person[:6], np.array([0, 1, 2] * 2)
+
+    def norms(f) -> list[torch.Tensor]:
+        return [b for n, b in f.model.named_buffers() if n.endswith("running_mean")]
+
+    tuned = fine_tune_head(fitted, shots, labels, 3, steps=5, adapt_to=person)
+    adapted = fitted.adapted(person)
+    assert norms(tuned) and all(torch.equal(a, b) for a, b in zip(norms(tuned), norms(adapted)))
+    assert not all(torch.equal(a, b) for a, b in zip(norms(tuned), norms(fitted)))
+    assert np.allclose(tuned.adapted(person).predict_proba(person),
+                       tuned.predict_proba(person), atol=1e-5)
+    plain = fine_tune_head(fitted, shots, labels, 3, steps=5)
+    assert all(torch.equal(a, b) for a, b in zip(norms(plain), norms(fitted)))
+
+
+def test_an_adapted_fine_tuned_run_saves_the_person_s_batch_norm(long_trials, tmp_path):
+    """The wiring in run_experiment: an adapted run's K = 1 fold is fine-tuned on the
+    network adapted to the held-out person (its batch-norm statistics are no longer the
+    K = 0 model's); only its output layers and batch norm differ from K = 0."""
+    from safetensors.numpy import load_file
+
+    ds = read_sessions([long_trials / "data"]).select(None)
+    cfg = _ft_config(long_trials, "fine-tune", adapt="person")
+    cfg = ExperimentConfig(**{**cfg.__dict__, "shots": (0, 1)})
+    run_experiment(cfg, tmp_path / "run", dataset=ds)
+    folds = sorted((tmp_path / "run" / "folds").iterdir())
+    k0 = load_file(str(next(f for f in folds if f.name.endswith("P01_k0")) / "model.safetensors"))
+    k1 = load_file(str(next(f for f in folds if f.name.endswith("P01_k1")) / "model.safetensors"))
+    changed = {n for n in k0 if not np.array_equal(k0[n], k1[n])}
+    assert any(n.endswith("running_mean") for n in changed)
+    frozen = [n for n in k0 if n.endswith(".weight") and k0[n].ndim > 1 and n not in changed]
+    assert frozen  # the convolutions before the head stay as trained

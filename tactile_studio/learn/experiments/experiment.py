@@ -347,8 +347,14 @@ def _fine_tune_fold(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
     t0 = time.perf_counter()
     fitted0, stats = base
     sel = np.isin(owner, shot_trials(fold, ds.participants))
+    test = np.isin(owner, fold.test)
+    # adapted runs test the held-out person's windows with the batch norm re-estimated on
+    # them (_predictions): the output layers are fine-tuned on those features too
+    adapt_to = (learner.apply_norm(x[test], stats)
+                if people is not None and len(np.unique(people[test])) == 1 else None)
     fitted = fine_tune_head(fitted0, learner.apply_norm(x[sel], stats),
-                            ds.labels[owner[sel]], ds.n_classes, seed, cancel=cancel)
+                            ds.labels[owner[sel]], ds.n_classes, seed, cancel=cancel,
+                            adapt_to=adapt_to)
     cancel.check()
     rec = _fold_record(learner, ds, x, owner, fold, round_, k, seed, fitted, stats, [],
                        None, people, t0)
