@@ -147,11 +147,12 @@ def main(argv: list[str] | None = None) -> None:
             estimate = r["folds"] * r["cpu"] / max(1, args.workers) / 60
             load = os.getloadavg()[0]
             if args.measure or (not args.no_measure and load < args.quiet_load):
-                wall = f"{measured_round_min(model, data, args.workers):.1f} MEASURED"
+                # two decimals: near the goal a rounded 5.0 could be 5.04
+                wall = f"{measured_round_min(model, data, args.workers):.2f} MEASURED"
             else:
-                wall = f"{estimate:.1f} ESTIMATE"
+                wall = f"{estimate:.2f} ESTIMATE"
             print(f"{model:16s} {r['cpu']:10.1f} {r['wall']:7.1f} {r['epochs']:6d} "
-                  f"{r['train_ms']:12.3f} {infer:12.3f} {r['acc']:5.2f} {estimate:14.1f} "
+                  f"{r['train_ms']:12.3f} {infer:12.3f} {r['acc']:5.2f} {estimate:14.2f} "
                   f"{wall:>18s}  (load {load:.1f})", flush=True)
         print(f"(round est.: {r['folds']} folds x fold CPU / {args.workers} workers of one "
               "thread, on a quiet machine; round min: a whole round measured as a sweep "
