@@ -487,7 +487,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     done = 0
     title = run_title(config, ds.channels)
     fine = config.shots_by == "fine-tune" and bool(config.shots)
-    base: dict[str, tuple[Any, dict[str, Any]]] = {}  # fine-tune: the K = 0 model, by fold
+    # fine-tune: the K = 0 model (fitted, its normalisation) of the fold named base_name
+    base_name, base = "", (None, {})
     try:
         for r in range(config.rounds):
             seed = config.seed + r
@@ -510,24 +511,25 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         listener(Epoch.of(r, k, len(folds), fold.name, e))
 
                     people = adapt_people(config, ds, owner)
-                    key = f"{r} {_without_shots(fold, ds.participants).name}"
-                    if fine and fold.shots and key not in base:  # K = 0 not trained here
+                    zero_fold = _without_shots(fold, ds.participants)
+                    name = f"{r} {zero_fold.name}"
+                    if fine and fold.shots and name != base_name:  # K = 0 not trained here
                         progress(0.05 + 0.92 * done / total_units, f"{where} training K = 0")
                         zero, fitted0 = _train_fold(
-                            learner, info, ds, x, owner, _without_shots(fold, ds.participants),
-                            r, k, seed, cancel, on_epoch, extra, config.balance, people, moments)
-                        base = {key: (fitted0, zero["norm"])}
+                            learner, info, ds, x, owner, zero_fold, r, k, seed, cancel,
+                            on_epoch, extra, config.balance, people, moments)
+                        base_name, base = name, (fitted0, zero["norm"])
                     if fine and fold.shots:
                         progress(0.05 + 0.92 * done / total_units, f"{where} fine-tuning")
                         rec, fitted = _fine_tune_fold(learner, ds, x, owner, fold, r, k, seed,
-                                                      base[key], cancel, people)
+                                                      base, cancel, people)
                     else:
                         progress(0.05 + 0.92 * done / total_units, f"{where} training")
                         rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k,
                                                   seed, cancel, on_epoch, extra,
                                                   config.balance, people, moments)
                         if fine:  # K = 0: the model each K of this fold fine-tunes
-                            base = {key: (fitted, rec["norm"])}
+                            base_name, base = name, (fitted, rec["norm"])
                     if folder is not None:
                         folder.save_fold(rec, fitted)
                 records.append(rec)
