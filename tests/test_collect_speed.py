@@ -80,6 +80,12 @@ def test_event_frames_and_trial_rows_are_the_same_at_speed_0_1_and_20(
     # ends where its last trial does (not where the stream or the recorder had got to)
     assert events[-1][2] == trials[-1][4] and events[3][2] == trials[2][4]
     assert trials[2][4] <= events[5][2] <= trials[3][3]
+    # free play and the break last their seconds in stream frames (43 Hz), whatever
+    # chunks the stream came in (a clock read from a chunk once ended free play early)
+    for speed, (evs, _) in written.items():
+        frame = {kind: f for kind, _, f in evs[:5]}
+        assert frame["block_start"] - frame["free_play"] == round(1.0 * 43), speed
+        assert frame["break_end"] - frame["break_start"] == round(1.0 * 43), speed
     assert written["0"] == written["20"] and written["1"] == written["20"]
     # and so does the file's length: it ends with the session, not a ring of idle frames
     # later (speed 0 wrote 7,461 frames against 2,881 at speed 20)

@@ -81,8 +81,7 @@ def _wait_for_touch(window: MainWindow) -> Any:
         if frame is not None and not frame.provisional_baseline \
                 and float(np.nanmax(frame.normal)) >= TOUCH_KPA:
             frame = _firmest(window, frame, time.monotonic() + TOUCH_PEAK_S)
-            window.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
-            window._shown = frame  # the picture shows this touch, not a later gap
+            window.hold_frame(frame)  # the picture shows this touch, not a later gap
             return frame
         wait_for(0.02)
     return None

@@ -72,6 +72,7 @@ class MainWindow(QMainWindow):
         self._paced.timeout.connect(self.tick)
         self._polling = False  # True while the poll timer runs (from set-up to shutdown)
         self._shown: LiveFrame | None = None
+        self._held = False  # a picture being taken: the shown frame stays (hold_frame)
         self._painted_index = -1
         self._hover = (-1, -1)
         self._tick_count = 0
@@ -248,6 +249,8 @@ class MainWindow(QMainWindow):
     def tick(self) -> None:
         """Draw the newest frame if there is one we have not drawn (poll timer)."""
         self._tick_count += 1
+        if self._held:
+            return
         now = time.monotonic()
         wait = self.pacer.delay(now)
         if wait > 0:  # too soon after the last paint: look again then, decode nothing now
@@ -273,6 +276,14 @@ class MainWindow(QMainWindow):
                 # pass rather than in one of its own
                 if now - self._strip_drawn >= STRIP_INTERVAL_S:
                     self._draw_strip(now)
+
+    def hold_frame(self, frame: LiveFrame) -> None:
+        """Paint ``frame`` and keep it shown: a snapshot pictures this touch, and any paint
+        before the grab would draw a newer frame (a gap after the touch, under load)."""
+        self._held = True
+        self._shown = frame
+        self.heatmap.set_frame(frame.normal, frame.shear_x, frame.shear_y, frame.units)
+        self._update_readout()
 
     def _poll_after(self, wait: float) -> None:
         """No polling until the pacer allows the next paint: one timer then, and polling

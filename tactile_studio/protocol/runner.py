@@ -156,7 +156,7 @@ class CollectionRunner(RunnerInputs):
                     self.hint = ""
                     self._start_session()
         elif s == State.FREE_PLAY:
-            if self.clock() >= self._phase_until:
+            if self._phase_over(self.free_play_s):
                 self._reach(self._phase_end(self.free_play_s))
                 self._after_free_play()
         elif s == State.BLOCK_START:
@@ -172,7 +172,7 @@ class CollectionRunner(RunnerInputs):
             if not self._held():
                 self._after_trial()
         elif s == State.BREAK:
-            if self.auto_continue and self.clock() >= self._phase_until:
+            if self.auto_continue and self._phase_over(self.protocol.break_min_s):
                 self._reach(self._phase_end(self.protocol.break_min_s))
                 self._end_break()
 
@@ -193,6 +193,15 @@ class CollectionRunner(RunnerInputs):
             self._set_state(State.FREE_PLAY)
         else:
             self._enter_block()
+
+    def _phase_over(self, seconds: float) -> bool:
+        """A timed phase of ``seconds`` is over. On the stream's own clock it is counted in
+        frames from its first, as trials are: the chunk a StreamClock reads can hold frames
+        this tick has not counted (or begin before the phase did), so its seconds alone
+        ended free play 34 frames early under load, and the events moved with the load."""
+        if isinstance(self.clock, StreamClock):
+            return self._newest(self._tick_frame) >= self._phase_from + round(seconds * self.rate)
+        return self.clock() >= self._phase_until
 
     def _phase_end(self, seconds: float) -> int:
         """The frame a timed phase of ``seconds`` ended, seen at this tick: its length
