@@ -47,7 +47,7 @@ def test_every_train_setting_round_trips(qtbot, tmp_path):
 
     def vary(p: TrainPanel) -> None:
         p.model.setCurrentText("rf")
-        for combo in (p.preset, p.channels, p.grid, p.protocol, p.adapt):
+        for combo in (p.preset, p.channels, p.grid, p.protocol, p.adapt, p.shots_by):
             _other(combo)
         p.rounds.setValue(3)
         p.epochs.setValue(7)
@@ -56,8 +56,8 @@ def test_every_train_setting_round_trips(qtbot, tmp_path):
         _recipe(p)
 
     names = {f"research/train/{k}" for k in ("model", "preset", "channels", "grid", "protocol",
-                                             "adapt", "rounds", "epochs", "shots", "out",
-                                             "recipe")}
+                                             "adapt", "rounds", "epochs", "shots", "shots_by",
+                                             "out", "recipe")}
     _round_trip(qtbot, lambda s: TrainPanel(lambda: [], s), vary, tmp_path, names)
 
 

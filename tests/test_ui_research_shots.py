@@ -61,11 +61,14 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     panel.model.setCurrentText("rf")
     panel.preset.setCurrentText("tiny")
     panel.protocol.setCurrentText("all-inclusive")
-    assert not panel.shots.isEnabled()  # nobody held out to personalise to
+    assert not panel.shots.isEnabled() and not panel.shots_by.isEnabled()  # nobody held out
     panel.shots.setText("0,1")
     assert panel.config().shots == ()
     panel.protocol.setCurrentText("lopo")
     assert panel.shots.isEnabled() and panel.config().shots == (0, 1)
+    assert panel.shots_by.isEnabled() and panel.config().shots_by == "auto"
+    panel.shots_by.setCurrentIndex(panel.shots_by.findData("join"))
+    assert panel.config().shots_by == "join"  # train --shots-by join
     panel.shots.setText("1,1")
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert "distinct counts" in w.message.text()  # refused before any training

@@ -112,6 +112,17 @@ class TrainPanel(JobPanel):
             "few labelled touches of a new person gain. rf and knn refit with them; a "
             "network is trained once without them and its output layers fine-tuned on "
             "them (train --shots-by). Whole performances, never single windows")
+        self.shots_by = QComboBox()  # train --shots-by
+        for text, value in (("auto: fine-tune a network, refit rf / knn", "auto"),
+                            ("join the training (one training per K)", "join"),
+                            ("fine-tune the output layers (networks)", "fine-tune")):
+            self.shots_by.addItem(text, value)
+        self.shots_by.setToolTip(
+            "How the shots reach the model. join: they join the training, one training per "
+            "K. fine-tune (networks only): the fold is trained once without them and its "
+            "output layers fine-tuned on each K's shots, as live calibration does. auto: "
+            "fine-tune for a network (as good on the simulator, half the time), join for "
+            "rf, knn and a network fused with rf")
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.out.setToolTip("Named from the model and the time, under the runs folder "
@@ -133,7 +144,8 @@ class TrainPanel(JobPanel):
                          ("Channels", self.channels), ("Grid", self.grid),
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
                          ("Epochs", self.epochs), ("Test people", self.adapt),
-                         ("Shots per gesture of\nthe held-out person", self.shots)):
+                         ("Shots per gesture of\nthe held-out person", self.shots),
+                         ("Shots reach the model", self.shots_by)):
             form.addRow(label, w)
         form.addRow("Run folder", out_row)
         self.start_button = QPushButton("Train")
@@ -208,6 +220,7 @@ class TrainPanel(JobPanel):
         b.spin("rounds", self.rounds, 1)
         b.spin("epochs", self.epochs, 0)
         b.text("shots", self.shots)
+        b.combo_data("shots_by", self.shots_by, "auto")
         b.text("out", self.out)
         b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
         return b
@@ -261,6 +274,7 @@ class TrainPanel(JobPanel):
             protocol=self.protocol.currentText(), rounds=self.rounds.value(),
             epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
             device="cpu", adapt=self.adapt.currentData(), shots=self.shot_counts(),
+            shots_by=self.shots_by.currentData(),
             **self.recipe.kwargs())
 
     def shot_counts(self) -> tuple[int, ...]:
@@ -271,7 +285,9 @@ class TrainPanel(JobPanel):
 
     def _protocol_changed(self) -> None:
         """Shots need people held out: lopo and group-kfold only."""
-        self.shots.setEnabled(self.protocol.currentText() in ("lopo", "group-kfold"))
+        held_out = self.protocol.currentText() in ("lopo", "group-kfold")
+        self.shots.setEnabled(held_out)
+        self.shots_by.setEnabled(held_out)
 
     def runs_root(self) -> Path:
         """Where new runs go: the parent of the last run folder used here, else ``runs``
