@@ -173,3 +173,28 @@ def test_info_json_has_the_documented_keys(tmp_path, capsys):
 def test_writer_refuses_a_missing_folder(tmp_path):
     with pytest.raises(SessionFileError, match="does not exist"):
         SessionWriter(tmp_path / "nope" / "s.h5", LAYOUT, {})
+
+
+def test_events_at_rows_a_truncation_cut_are_kept_at_the_last_row(tmp_path):
+    """A collection that ends before the frames its recorder had pulled cuts them
+    (SessionWriter.truncate); an event written at one of those rows (a device gone silent
+    after the session's end) stays in the file at its last row, not outside its frames."""
+    import numpy as np
+
+    from tactile_studio.sensor.layout import SHEARSENSE_6X6
+    from tactile_studio.storage import Session
+    from tactile_studio.storage.session_check import check_file
+    from tactile_studio.storage.session_writer import SessionWriter
+    path = tmp_path / "cut.h5"
+    t = np.arange(10) / 43.0
+    with SessionWriter(path, SHEARSENSE_6X6, {"plugin": "simulated", "nominal_rate_hz": 43.0},
+                       {"participant": "P01"}) as w:
+        w.append_frames(np.full((10, 180), 30000, dtype=np.uint16), t, 1e9 + t)
+        w.add_event("session_end", 5)
+        w.add_event("stream_silent", 8, seconds=2.0)
+        w.truncate(6)
+    with Session(path) as s:
+        assert s.n_frames == 6
+        assert [(e["kind"], e["frame"]) for e in s.events] == [("session_end", 5),
+                                                                ("stream_silent", 5)]
+    assert check_file(path).ok

@@ -105,3 +105,24 @@ def test_the_consoles_and_the_main_window_take_the_option_too(qtbot, tmp_path):
         assert console.acquisition.silence_warning_s == expected
     args = build_parser().parse_args(["gui", "--silence-warning", "4"])
     assert args.silence_warning == 4.0  # run_gui sets it on the main window's session
+
+
+def test_headless_collect_says_a_silent_stream_and_records_it(tmp_path, capsys):
+    """``collect --virtual-participant`` watches the stream as ``record`` does. The
+    simulator in real time sends a frame every 23 ms: a 10 ms threshold makes each gap a
+    silence, so the warning and its event must come (before, collect never looked)."""
+    from tactile_studio.cli import main
+
+    (tmp_path / "p.toml").write_text(
+        'name = "quiet"\ntrial_s = 0.3\nblocks = 1\nfree_play_s = 0.0\n'
+        '[[gestures]]\nname = "Poke"\nkey = "p"\ndefinition = "x"\n')
+    code = main(["collect", "--protocol", str(tmp_path / "p.toml"), "--participant", "P01",
+                 "--virtual-participant", "--speed", "1", "--silence-warning", "0.01",
+                 "--out", str(tmp_path)])
+    captured = capsys.readouterr()
+    assert code == 0, captured.err
+    assert "sent no frames for 0.01 s" in captured.err
+    with Session(captured.out.strip().splitlines()[-1]) as s:
+        silent = [e for e in s.events if e["kind"] == "stream_silent"]
+        assert silent and silent[0]["seconds"] == 0.01
+        assert [t["status"] for t in s.trials] == ["ok"]

@@ -245,6 +245,18 @@ class AcquisitionSession:
         self.sinks.event(kind, **detail)
 
     # ---- polling: state changes and auto-stop ------------------------------------------------
+    def check_health(self) -> None:
+        """``health`` events for a recording's device gone silent (or back) and a marker
+        stream gone: part of :meth:`poll`, and alone for an owner that stops the recording
+        itself (headless collection aborts its runner first, so the abort is in the file)."""
+        health = self._health
+        if self.recorder is None:
+            return
+        for message in health.check() if health is not None else []:
+            self._emit("health", message=message, silent=health.silent)
+        for message in self._markers.messages() if self._markers is not None else []:
+            self._emit("health", message=message, silent=True)
+
     def poll(self) -> None:
         """Notice engine state changes and stop a recording that is due: its limit is
         reached, or the stream ended (error, finished, stopped: close the file safely)."""
@@ -257,11 +269,7 @@ class AcquisitionSession:
         rec = self.recorder
         if rec is None:
             return
-        health = self._health
-        for message in health.check() if health is not None else []:
-            self._emit("health", message=message, silent=health.silent)
-        for message in self._markers.messages() if self._markers is not None else []:
-            self._emit("health", message=message, silent=True)
+        self.check_health()
         if rec.write_error:  # the file cannot be written: stop now, never "running"
             if self._stop_all:
                 self.disconnect("write_error")

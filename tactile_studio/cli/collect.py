@@ -18,7 +18,11 @@ from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
-from tactile_studio.cli.recording_warnings import add_silence_option, apply_silence_option
+from tactile_studio.cli.recording_warnings import (
+    add_silence_option,
+    apply_silence_option,
+    watch_health,
+)
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.engine import ERROR, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
@@ -192,6 +196,7 @@ def run(args: argparse.Namespace) -> int:
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
     acq = AcquisitionSession()
     apply_silence_option(acq, args)
+    watch_health(acq)  # a device gone silent is said as it happens, as record says it
     engine = acq.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:
@@ -219,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
         if args.markers:
             acq.add_outlet(start_markers(engine, args.markers))
         acq.start()
-        _drive(session, vp, engine)
+        _drive(session, vp, engine, acq)
     finally:
         acq.close_outlets()
         session.close()
@@ -232,7 +237,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _drive(session: CollectionSession, vp: VirtualParticipant, engine: AcquisitionEngine) -> None:
+def _drive(session: CollectionSession, vp: VirtualParticipant, engine: AcquisitionEngine,
+           acq: AcquisitionSession) -> None:
     runner = session.runner
     progress = TerminalProgress(f"collect {session.participant}")
     token = CancelToken()
@@ -253,6 +259,7 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
                 runner.abort()
                 raise UserError(f"device {engine.device_name}: {engine.error or 'stopped'}; "
                                 f"completed trials are kept in {session.path}")
+            acq.check_health()  # silence said, not stopped: a device may come back
             before = (runner.state, len(runner.trials))
             runner.tick()
             acted = vp.step()

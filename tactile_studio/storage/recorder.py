@@ -372,8 +372,8 @@ class Recorder:
             event = dict(event)
             kind = event.pop("kind")
             frame = self.row_of(int(event.pop("frame")))
-            if self._end is not None:  # after the file's end: at its last row
-                frame = min(frame, self.row_of(self._end))
+            if self._end is not None:  # after the file's end: at its last row (the
+                frame = min(frame, self.row_of(max(0, self._end - 1)))  # file ends before _end)
             t = event.pop("time")
             if kind == "tare" and "baseline" in event:
                 self.writer.add_baseline(event["baseline"], frame)
@@ -391,8 +391,8 @@ class Recorder:
         keep = []
         for frame, kind, t, detail in self._pending:
             if final or frame < self._cursor:
-                if self._end is not None:
-                    frame = min(frame, self._end)
+                if self._end is not None:  # the last row is the frame before _end
+                    frame = min(frame, max(0, self._end - 1))
                 self.writer.add_event(kind, frame=self.row_of(frame), time_s=t, **detail)
             else:
                 keep.append((frame, kind, t, detail))

@@ -62,5 +62,10 @@ def read_journal(f: h5py.File) -> Journal:
             j.counters = rec
         elif kind == "closed":
             j.closed = True
+        elif kind == "truncate":  # SessionWriter.truncate: rows past the end were cut
+            last = max(0, int(rec["rows"]) - 1)
+            for r in (*j.events, *j.baselines):
+                if isinstance(r.get("frame"), int) and r["frame"] > last:
+                    r["frame"] = last
     j.trials = [trials[k] for k in sorted(trials)]
     return j

@@ -198,6 +198,9 @@ class SessionWriter:
             for ds in self._cols.values():
                 ds.resize(n, axis=0)
             self._n = n
+            # events written at rows now cut (the stream ran ahead): the reader puts
+            # them at the last row, as the recorder puts events that come after the end
+            self._record({"type": "truncate", "rows": n})
             self.flush()
 
     # ---- write errors ----------------------------------------------------------------
