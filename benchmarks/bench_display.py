@@ -3,7 +3,8 @@
 Runs the real main window offscreen on the simulated sensor at 43 Hz (the real sensor's
 rate) and at 1 kHz, and reports display fps (frames actually painted per second) and
 device-to-paint latency (time.time() at paint minus the frame's host arrival time),
-median, p95 and p99, and the GUI thread's CPU time per painted frame (median, p95, mean) — each with an
+median, p95 and p99, and the GUI thread's CPU time per painted frame (median, p95, mean) — each
+with an
 empty strip chart and with 8 taxels charted. Then times decoding one frame on the
 physical 6x6 and virtual 11x11 grids, one frame at a time (what the live view does) and
 in batches (what analysis does).
@@ -171,12 +172,16 @@ def main(argv: list[str] | None = None) -> int:
           "painted frames,\nmedian, p95 and mean (total over painted frames); core: share "
           "of one core;\nrest: CPU of the app's other threads (device, engine) as a share of "
           "one core;\npolls: looks for a new frame per second.")
-    print(f"{'source':>9} {'input':>7} {'strip':>6} {'polls':>5} {'fps':>5} | {'GUI ms/frame med':>16} {'p95':>5} "
-          f"{'mean':>5} {'core':>6} {'rest':>6} | {'latency med':>11} {'p95':>5} {'p99':>5} | {'load':>4}")
+    print(f"{'source':>9} {'input':>7} {'strip':>6} {'polls':>5} {'fps':>5} | "
+          f"{'GUI ms/frame med':>16} {'p95':>5} "
+          f"{'mean':>5} {'core':>6} {'rest':>6} | {'latency med':>11} {'p95':>5} {'p99':>5} | "
+          f"{'load':>4}")
     for r in rows:
-        print(f"{r['source']:>9} {r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['polls_hz']:4.0f}/s {r['display_fps']:5.1f} | "
+        print(f"{r['source']:>9} {r['rate']:5.0f}Hz {r['taxels']:3d} tx {r['polls_hz']:4.0f}/s "
+              f"{r['display_fps']:5.1f} | "
               f"{r['cpu_ms_med']:13.2f} ms {r['cpu_ms_p95']:5.2f} {r['cpu_ms_mean']:5.2f} "
-              f"{r['gui_cpu_pct']:5.1f}% {r['other_cpu_pct']:5.1f}% | {r['latency_med_ms']:8.1f} ms "
+              f"{r['gui_cpu_pct']:5.1f}% {r['other_cpu_pct']:5.1f}% | "
+              f"{r['latency_med_ms']:8.1f} ms "
               f"{r['latency_p95_ms']:5.1f} {r['latency_p99_ms']:5.1f} | {r['load']:4.1f}")
     print("Goals (issue 12): GUI thread <= 3 ms per painted frame (<= 15 % of a core at 43 Hz), "
           ">= 58 fps at 1 kHz, p99 latency <= 20 ms; measured input rates "

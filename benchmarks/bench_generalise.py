@@ -58,7 +58,10 @@ sys.path.insert(0, str(ROOT / "tests"))
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
 from tactile_studio.learn.evaluation.compare import compare_predictions, compare_runs  # noqa: E402
-from tactile_studio.learn.evaluation.trialpreds import RunPredictions, load_predictions  # noqa: E402
+from tactile_studio.learn.evaluation.trialpreds import (  # noqa: E402
+    RunPredictions,
+    load_predictions,
+)
 from tactile_studio.learn.experiments.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiments.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.experiments.sweep import run_sweep  # noqa: E402

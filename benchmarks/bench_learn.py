@@ -29,7 +29,11 @@ from learn_fixtures import make_dataset_folder  # noqa: E402
 
 from tactile_studio.learn.data.dataset import build_dataset  # noqa: E402
 from tactile_studio.learn.data.features import trial_features  # noqa: E402
-from tactile_studio.learn.learners.families import DataInfo, available_models, make_learner  # noqa: E402
+from tactile_studio.learn.learners.families import (  # noqa: E402
+    DataInfo,
+    available_models,
+    make_learner,
+)
 from tactile_studio.learn.learners.train import fit  # noqa: E402
 
 

@@ -51,7 +51,8 @@ def timed(fn, budget_s: float = 1.5, min_runs: int = 5, max_runs: int = 300) -> 
     fn()
     times: list[float] = []
     start = time.perf_counter()
-    while len(times) < max_runs and (len(times) < min_runs or time.perf_counter() - start < budget_s):
+    while len(times) < max_runs and (len(times) < min_runs
+                                     or time.perf_counter() - start < budget_s):
         t0 = time.perf_counter()
         fn()
         times.append(time.perf_counter() - t0)
@@ -157,7 +158,8 @@ def main(argv: list[str] | None = None) -> None:
     presets = ["tiny"] if args.quick else ["tiny", "full"]
     print(f"torch {torch.__version__}, {THREADS} threads, load average "
           f"{os.getloadavg()[0]:.1f} (shared machine: compare rows, not absolutes)")
-    print("\n== batch-1 inference: params, state-dict size, latency median p95 (ms), ONNX file size ==")
+    print("\n== batch-1 inference: params, state-dict size, latency median p95 (ms), "
+          "ONNX file size ==")
     for name, configs in CONFIGS.items():
         for preset in presets:
             for channels, grid in configs:

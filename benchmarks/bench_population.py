@@ -33,7 +33,10 @@ from tactile_studio.learn.data.touch_stats import (  # noqa: E402
     population_stats,
     ratios_to_real,
 )
-from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment  # noqa: E402
+from tactile_studio.learn.experiments.experiment import (  # noqa: E402
+    ExperimentConfig,
+    run_experiment,
+)
 
 COHORTS = (("easy", "FLAT"), ("real", "FLAT"), ("real", "PILLOW"), ("hard", "FLAT"))
 

@@ -52,7 +52,8 @@ def soak(minutes: float, rate: float = 1000.0, sample_s: float = 10.0,
             while (now := time.monotonic() - t0) < minutes * 60:
                 acq.poll()
                 if not acq.recording:
-                    raise RuntimeError(f"recording stopped early: {acq.outcome and acq.outcome.line}")
+                    raise RuntimeError("recording stopped early: "
+                                       f"{acq.outcome and acq.outcome.line}")
                 if now >= next_sample:
                     samples.append((now, rss_kb()))
                     print(f"  {now:7.0f} s  {samples[-1][1] / 1024:8.1f} MB  "
@@ -84,7 +85,8 @@ def main(argv: list[str] | None = None) -> None:
     first = r["samples"][0][1] / 1024 if r["samples"] else 0.0
     last = r["samples"][-1][1] / 1024 if r["samples"] else 0.0
     verdict = "ok" if r["slope_kb_s"] <= GOAL_KB_S else "OVER GOAL"
-    print(f"soak: {r['frames']:,} frames recorded ({'complete' if r['complete'] else 'INCOMPLETE'});"
+    print(f"soak: {r['frames']:,} frames recorded "
+          f"({'complete' if r['complete'] else 'INCOMPLETE'});"
           f" RSS {first:.1f} -> {last:.1f} MB; ring full after {r['fill_s']:.0f} s; slope "
           f"after it {r['slope_kb_s']:.2f} KB/s (goal <= {GOAL_KB_S:g}: {verdict})")
 

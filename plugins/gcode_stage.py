@@ -96,7 +96,8 @@ class GcodeStage(StagePlugin):
                     out.append(text)
         except (serial.SerialException, OSError) as exc:
             self.close()
-            raise InstrumentError(f"stage gcode: {port} disconnected during {line} ({exc})") from None
+            raise InstrumentError(f"stage gcode: {port} disconnected during {line} "
+                                  f"({exc})") from None
         raise InstrumentError(f"stage gcode: no 'ok' from {port} for {line} within {timeout_s:g} s")
 
     # ---- contract ----------------------------------------------------------------------
@@ -112,7 +113,8 @@ class GcodeStage(StagePlugin):
         safe = self.settings["safe_z"]
         self.command(f"G1 {self._machine(0.0, 0.0, max(safe, self._target[2]))} "
                      f"F{self.settings['travel_speed'] * 60:.1f}")
-        self.command(f"G1 {self._machine(0.0, 0.0, safe)} F{self.settings['travel_speed'] * 60:.1f}")
+        self.command(f"G1 {self._machine(0.0, 0.0, safe)} "
+                     f"F{self.settings['travel_speed'] * 60:.1f}")
         self._target = (0.0, 0.0, safe)
         self.wait_until_still(self.settings["home_timeout_s"])
 
@@ -141,7 +143,8 @@ class GcodeStage(StagePlugin):
                 s = self.settings
                 return (float(m[1]) - s["x_offset"], float(m[2]) - s["y_offset"],
                         float(m[3]) - s["z_offset"])
-        raise InstrumentError(f"stage gcode: no position in the M114 reply from {self.settings['port']}")
+        raise InstrumentError("stage gcode: no position in the M114 reply from "
+                              f"{self.settings['port']}")
 
     def retract(self) -> None:
         """Quick-stop whatever move is under way (M410), then lift straight up."""

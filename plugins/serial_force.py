@@ -141,5 +141,6 @@ class SerialForce(ForcePlugin):
         samples = np.concatenate(got) if got else np.empty((0, 3))
         if not len(samples):
             self._take()  # raises the right error (silent, garbage, disconnected)
-            raise InstrumentError(f"force serial: no samples to tare on from {self.settings['port']}")
+            raise InstrumentError("force serial: no samples to tare on from "
+                                  f"{self.settings['port']}")
         self._offset = samples[-10:].mean(axis=0)

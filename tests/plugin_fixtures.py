@@ -69,9 +69,11 @@ class CountingDevice(DevicePlugin):
         for _ in range(n):
             if self.settings["crash_at"] == self.sent:
                 raise ZeroDivisionError("bug in plugin")
-            if self.settings["skip_every"] and self.seq and self.seq % self.settings["skip_every"] == 0:
+            if (self.settings["skip_every"] and self.seq
+                    and self.seq % self.settings["skip_every"] == 0):
                 self.seq += 1
-            if self.settings["malformed_every"] and self.sent % self.settings["malformed_every"] == 0:
+            if (self.settings["malformed_every"]
+                    and self.sent % self.settings["malformed_every"] == 0):
                 malformed += 1
             seqs.append(self.seq)
             self.seq += 1

@@ -135,7 +135,8 @@ def test_only_the_file_sink_makes_a_recorder() -> None:
     import tactile_studio
 
     repo = Path(tactile_studio.__file__).parent.parent
-    sources = [p for room in ("tactile_studio", "ui", "plugins") for p in (repo / room).rglob("*.py")]
+    sources = [p for room in ("tactile_studio", "ui", "plugins")
+               for p in (repo / room).rglob("*.py")]
     makers = sorted(str(p.relative_to(repo)) for p in sources
                     if p.name != "recorder.py" and "Recorder(" in p.read_text())
     assert makers == ["tactile_studio/storage/file_sink.py"]

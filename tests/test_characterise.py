@@ -187,7 +187,8 @@ def test_all_taxels_are_mapped(tmp_path):
                                   parse_taxels(dev.layout, "all"), tmp_path, report=False)
     assert len(result["taxels"]) == 36
     fig = maps_figure(dev.layout, result["taxels"])
-    maps = dict(zip((k for k, _ in MAPS), (ax.images[0].get_array() for ax in fig.axes[:len(MAPS)])))
+    maps = dict(zip((k for k, _ in MAPS),
+                    (ax.images[0].get_array() for ax in fig.axes[:len(MAPS)])))
     for key in ("normal_sensitivity_low", "crosstalk_max"):
         assert maps[key].shape == (6, 6) and not np.ma.getmaskarray(maps[key]).any(), key
     # shear was not run: its maps are all grey (masked), not zeros

@@ -95,8 +95,10 @@ def test_bad_arguments_are_one_line_errors_before_any_window(tmp_path: Path, cap
         assert len(err.strip().splitlines()) == 1
     base = ["--protocol", "shear9", "--participant", "P01", "--out", str(tmp_path / "x")]
     for extra, message in ((["--set", "noise=3"], "--set needs --device"),
-                           (["--device", "simulated", "--set", "bogus=1"], "unknown setting 'bogus'"),
-                           (["--device", "serial", "--speed", "2"], "--speed applies to the simulated"),
+                           (["--device", "simulated", "--set", "bogus=1"],
+                            "unknown setting 'bogus'"),
+                           (["--device", "serial", "--speed", "2"],
+                            "--speed applies to the simulated"),
                            (["--blocks", "0"], "--blocks must be at least 1")):
         code, _, err = _main(capsys, *base, *extra)
         assert code == 1 and message in err and len(err.strip().splitlines()) == 1, err

@@ -66,7 +66,8 @@ def test_re_tare_uses_the_next_frames_and_is_an_event():
     eng.stop()
     tare = [e for e in eng.events_since(0) if e["kind"] == "tare"][-1]
     assert tare["frames"] == 5 and not np.allclose(eng.baseline, first)
-    assert np.allclose(eng.baseline, np.mean(np.arange(tare["first_frame"], tare["first_frame"] + 5)))
+    assert np.allclose(eng.baseline,
+                       np.mean(np.arange(tare["first_frame"], tare["first_frame"] + 5)))
 
 
 def test_plugin_crash_is_reported_and_the_engine_stops_cleanly():

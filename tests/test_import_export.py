@@ -74,7 +74,8 @@ def haart_csvs(folder):
     train = ["Subject,Cover,Gesture," + ch_names]
     for subject, gesture, frames in [(1, "stroke", 864), (1, "notouch", 432), (2, "Constant", 500)]:
         for _ in range(frames):
-            train.append(f"{subject},none,{gesture}," + ",".join(map(str, rng.integers(0, 1024, 64))))
+            train.append(f"{subject},none,{gesture},"
+                         + ",".join(map(str, rng.integers(0, 1024, 64))))
     test = ["Subject,Cover,Gesture,Sequence," + ch_names]
     for seq, (gesture, frames) in enumerate([(3, 432), (7, 432)]):   # pat, tickle by number
         for _ in range(frames):
@@ -97,7 +98,8 @@ def mixed_session(path):
         t = 1.7e9 + np.arange(300) / 43.0
         w.append_frames(raw, t, t)
         for i, (g, k, s, status) in enumerate([("Poke", "p", 50, "ok"), ("Twist", "t", 140, "ok"),
-                                               ("Tickle", "i", 200, "ok"), ("Poke", "p", 250, "ok")]):
+                                               ("Tickle", "i", 200, "ok"),
+                                               ("Poke", "p", 250, "ok")]):
             w.add_trial({"index": i, "block": 0, "gesture": g, "key": k, "start_sample": s,
                          "end_sample": s + 43, "start_time": t[s], "end_time": t[s] + 1.0,
                          "status": status, "reason": None, "flags": []})

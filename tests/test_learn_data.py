@@ -110,11 +110,13 @@ def test_cache_hit_and_invalidation(tmp_path):
     folder = tmp_path / "data"
     files = make_dataset_folder(folder, participants=1, blocks=1, gestures=("Poke", "Twist"))
     messages = []
-    first = build_dataset([folder], cache_dir=tmp_path / "c", progress=lambda f, m: messages.append(m))
+    first = build_dataset([folder], cache_dir=tmp_path / "c",
+                          progress=lambda f, m: messages.append(m))
     assert "dataset from cache" not in messages
     assert len(list((tmp_path / "c" / "datasets").glob("*.npz"))) == 1
     messages.clear()
-    second = build_dataset([folder], cache_dir=tmp_path / "c", progress=lambda f, m: messages.append(m))
+    second = build_dataset([folder], cache_dir=tmp_path / "c",
+                           progress=lambda f, m: messages.append(m))
     assert messages == ["dataset from cache"]
     assert second.uids == first.uids and second.label_names == first.label_names
     for a, b in zip(first.trials, second.trials):
@@ -151,7 +153,8 @@ def test_views_handle_any_length(n):
 
 def test_resample_and_slices_values():
     ramp = np.arange(11, dtype=np.float32)[None, :, None, None] * np.ones((1, 11, 2, 2), np.float32)
-    np.testing.assert_allclose(views.resample(ramp, 21)[0, :, 0, 0], np.linspace(0, 10, 21), atol=1e-6)
+    np.testing.assert_allclose(views.resample(ramp, 21)[0, :, 0, 0], np.linspace(0, 10, 21),
+                               atol=1e-6)
     sl = views.moving_average_slices(ramp, 4)[0, :, 0, 0]
     assert np.all(np.diff(sl) > 0) and sl[0] < 3 and sl[-1] > 7  # overlapping span means
     const = np.full((2, 50, 3, 3), 7.0, np.float32)
@@ -258,9 +261,12 @@ def test_metrics_match_sklearn_with_absent_classes():
     y_pred = np.where(rng.random(200) < 0.6, y_true, rng.integers(0, 7, 200))
     m = classification_metrics(y_true, y_pred, [str(i) for i in range(8)])
     assert m["accuracy"] == pytest.approx(skm.accuracy_score(y_true, y_pred))
-    assert m["precision_macro"] == pytest.approx(skm.precision_score(y_true, y_pred, average="macro", zero_division=0))
-    assert m["recall_macro"] == pytest.approx(skm.recall_score(y_true, y_pred, average="macro", zero_division=0))
-    assert m["f1_macro"] == pytest.approx(skm.f1_score(y_true, y_pred, average="macro", zero_division=0))
+    assert m["precision_macro"] == pytest.approx(
+        skm.precision_score(y_true, y_pred, average="macro", zero_division=0))
+    assert m["recall_macro"] == pytest.approx(
+        skm.recall_score(y_true, y_pred, average="macro", zero_division=0))
+    assert m["f1_macro"] == pytest.approx(
+        skm.f1_score(y_true, y_pred, average="macro", zero_division=0))
     assert m["balanced_accuracy"] == pytest.approx(skm.balanced_accuracy_score(y_true, y_pred))
     assert m["kappa"] == pytest.approx(skm.cohen_kappa_score(y_true, y_pred))
     assert m["per_class_accuracy"]["7"] is None

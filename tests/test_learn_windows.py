@@ -175,5 +175,6 @@ def test_the_cli_names_accuracy_per_trial_and_per_window_when_trials_were_cut(tm
     assert "trial accuracy" in header and header.rstrip().endswith("per window")
     fold = m["per_fold"][0]
     row = next(line for line in printed.out.splitlines()
-               if line.split()[1:2] == [fold["name"]] and line.split()[0] == "1")  # rounds counted from 1
+               if line.split()[1:2] == [fold["name"]]
+                  and line.split()[0] == "1")  # rounds counted from 1
     assert row.split()[-2:] == [f"{fold['trial_accuracy']:.3f}", f"{fold['accuracy']:.3f}"]

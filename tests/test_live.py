@@ -1,4 +1,5 @@
-"""LiveView / the main window's AcquisitionSession: what the live screen shows, checked without any widget.
+"""LiveView / the main window's AcquisitionSession: what the live screen shows, checked
+without any widget.
 
 Real engine and real simulated sensor; waits poll the engine, never sleep-and-assert.
 """

@@ -3,7 +3,8 @@ is registered with register_model as the doc's script does and trains from the C
 package's entry point (installed as a dist-info on the path) makes `tactile-studio train
 --model frame_mlp` work in a fresh process, and the package's own test (check_model) passes.
 
-Budget: ~30 s in-process (training 3 tiny folds, int8 export), ~40 s for the two subprocess routes (slow).
+Budget: ~30 s in-process (training 3 tiny folds, int8 export), ~40 s for the two subprocess
+routes (slow).
 """
 
 from __future__ import annotations

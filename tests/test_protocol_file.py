@@ -75,29 +75,48 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("edit, message", [
-    (lambda t: t.replace('key = "r"', 'key = "p"'), "mini.toml: gestures[1].key: duplicate key 'p'"),
-    (lambda t: t.replace('name = "Rub"', 'name = "poke"'), "mini.toml: gestures[1].name: duplicate"),
-    (lambda t: t.replace('key = "r"', 'key = "rr"'), "mini.toml: gestures[1].key: must be one printable"),
-    (lambda t: t.replace('definition = "Rub it."', ''), "mini.toml: gestures[1].definition: missing"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = " "'), "gestures[1].definition: must not be empty"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "nope.png"'), "gestures[1].image: no such file 'nope.png'"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "notes.txt"'), "gestures[1].image: 'notes.txt' is not an image"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = ""'), "gestures[1].image: must not be empty"),
-    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'), "gestures[1].colour: unknown field"),
+    (lambda t: t.replace('key = "r"', 'key = "p"'),
+     "mini.toml: gestures[1].key: duplicate key 'p'"),
+    (lambda t: t.replace('name = "Rub"', 'name = "poke"'),
+     "mini.toml: gestures[1].name: duplicate"),
+    (lambda t: t.replace('key = "r"', 'key = "rr"'),
+     "mini.toml: gestures[1].key: must be one printable"),
+    (lambda t: t.replace('definition = "Rub it."', ''),
+     "mini.toml: gestures[1].definition: missing"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = " "'),
+     "gestures[1].definition: must not be empty"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "nope.png"'),
+     "gestures[1].image: no such file 'nope.png'"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "notes.txt"'),
+     "gestures[1].image: 'notes.txt' is not an image"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = ""'),
+     "gestures[1].image: must not be empty"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'),
+     "gestures[1].colour: unknown field"),
     (lambda t: t.replace("blocks = 3", "blocks = 0"), "mini.toml: blocks: 0 is out of range"),
-    (lambda t: t.replace("blocks = 3", 'blocks = "many"'), "mini.toml: blocks: expected a whole number"),
+    (lambda t: t.replace("blocks = 3", 'blocks = "many"'),
+     "mini.toml: blocks: expected a whole number"),
     (lambda t: t.replace("blocks = 3", ""), "mini.toml: blocks: missing"),
-    (lambda t: t.replace("trial_s = 2.0", "trial_s = -1"), "mini.toml: trial_s: -1 is out of range"),
-    (lambda t: t.replace("trial_s = 2.0", "trial_s = true"), "mini.toml: trial_s: expected a number"),
+    (lambda t: t.replace("trial_s = 2.0", "trial_s = -1"),
+     "mini.toml: trial_s: -1 is out of range"),
+    (lambda t: t.replace("trial_s = 2.0", "trial_s = true"),
+     "mini.toml: trial_s: expected a number"),
     (lambda t: t.replace("min_s = 5", "min_s = -5"), "mini.toml: breaks.min_s: -5 is out of range"),
-    (lambda t: t.replace("every_blocks = 1", "every = 1"), "mini.toml: breaks.every: unknown field"),
-    (lambda t: t + '\n[beep]\nfrequency_hz = 5\n', "mini.toml: beep.frequency_hz: 5 is out of range"),
-    (lambda t: t + '\n[randomisation]\nmode = "latin"\n', "mini.toml: randomisation.mode: unknown mode 'latin'"),
-    (lambda t: t.replace('name = "mini"', 'name = "mini"\ntrials = 4'), "mini.toml: trials: unknown field"),
-    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = "random"'), "mini.toml: order: unknown order 'random' (use prompted or free)"),
-    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = 1'), "mini.toml: order: expected text"),
+    (lambda t: t.replace("every_blocks = 1", "every = 1"),
+     "mini.toml: breaks.every: unknown field"),
+    (lambda t: t + '\n[beep]\nfrequency_hz = 5\n',
+     "mini.toml: beep.frequency_hz: 5 is out of range"),
+    (lambda t: t + '\n[randomisation]\nmode = "latin"\n',
+     "mini.toml: randomisation.mode: unknown mode 'latin'"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\ntrials = 4'),
+     "mini.toml: trials: unknown field"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = "random"'),
+     "mini.toml: order: unknown order 'random' (use prompted or free)"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini"\norder = 1'),
+     "mini.toml: order: expected text"),
     (lambda t: t.split("[[gestures]]")[0], "mini.toml: gestures: missing"),
-    (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"), "mini.toml: breaks: must be a table"),
+    (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"),
+     "mini.toml: breaks: must be a table"),
     (lambda t: t + "\nblocks = [", "mini.toml: not valid TOML"),
 ])
 def test_validation_names_the_field(tmp_path: Path, edit, message: str) -> None:
@@ -135,7 +154,8 @@ def test_image_paths_are_relative_to_the_protocol_file(tmp_path: Path, monkeypat
     (folder / "pics").mkdir(parents=True)
     (folder / "pics" / "rub.png").write_bytes(PNG_MAGIC)
     (folder / "mini.toml").write_text(GOOD.replace('definition = "Rub it."',
-                                                   'definition = "Rub it."\nimage = "pics/rub.png"'))
+                                                   'definition = "Rub it."\n'
+                                                   'image = "pics/rub.png"'))
     monkeypatch.chdir(tmp_path)
     p = load_protocol("lab/mini.toml")
     rub = p.gesture_by_name("Rub")

@@ -50,7 +50,8 @@ def test_record_refuses_to_overwrite_and_reports_bad_settings(tmp_path, capsys):
     assert main(["record", "--set", "rate=fast", "--seconds", "1",
                  "--out", str(tmp_path / "x.h5")]) == 1
     err = capsys.readouterr().err.strip()
-    assert err == "tactile-studio: error: device simulated: setting rate: 'fast' is not a valid float"
+    assert err == ("tactile-studio: error: device simulated: setting rate: "
+                   "'fast' is not a valid float")
     assert main(["record", "--device", "warp-drive", "--seconds", "1",
                  "--out", str(tmp_path / "y.h5")]) == 1
     assert "unknown device 'warp-drive'" in capsys.readouterr().err

@@ -47,7 +47,8 @@ def test_maps_scale_sensitivity_against_the_nominal_and_r2_reads_plainly():
     taxels = {n: {"normal_sensitivity_low": 0.01 * (1 + 0.01 * i), "shear_sensitivity_x": 0.08,
                   "r2_shear": 0.99985 + 1e-5 * i, "crosstalk_max": -1e-5}
               for i, n in enumerate(("A1", "B2", "C3", "D4"))}
-    grid = np.array([[taxels["A1"]["normal_sensitivity_low"], taxels["D4"]["normal_sensitivity_low"]]])
+    grid = np.array([[taxels["A1"]["normal_sensitivity_low"],
+                      taxels["D4"]["normal_sensitivity_low"]]])
     shown, _, lo, hi, label, _ = _map_scale("normal_sensitivity_low", grid)
     assert (lo, hi) == (-20.0, 20.0) and np.nanmax(np.abs(shown)) < 3  # a 3% spread is pale
     assert "tolerance" in label

@@ -126,7 +126,8 @@ def test_refused_keys_leave_a_visible_hint(tmp_path: Path, order: str) -> None:
             assert all(g in hint for g in r.snapshot().remaining)
         else:  # the refusal names the prompted gesture and its key
             nkey = r.protocol.gesture_by_name(nxt).key.upper()
-            assert hint == f"{first} is already done in this block. Next is {nxt} \u2013 press {nkey}"
+            assert hint == (f"{first} is already done in this block. "
+                            f"Next is {nxt} \u2013 press {nkey}")
         assert r.state == "waiting_for_key" and len(r.trials) == 1
         assert not r.key("z") and "'z' is not a gesture key" in r.snapshot().hint
         assert ("Next is" in r.snapshot().hint) == (order == "prompted")

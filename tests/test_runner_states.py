@@ -48,7 +48,8 @@ def test_break_after_every_k_blocks_with_minimum(tmp_path: Path) -> None:
                 assert not r.proceed() and "10 s" in r.snapshot().hint
                 clock.advance(10.0)
                 r.tick()
-                assert r.state == "break" and r.snapshot().can_continue  # waits for the experimenter
+                # waits for the experimenter
+                assert r.state == "break" and r.snapshot().can_continue
                 assert r.proceed()
                 drive(rig, lambda: r.state == "waiting_for_key")
         assert seen_breaks == [2]  # after block 2; none after the last block

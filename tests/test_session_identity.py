@@ -139,7 +139,8 @@ def test_the_same_csv_imported_twice_is_one_session(tmp_path):
     labels[180:260] = ord("h")
     csv = write_shearsense_csv(tmp_path / "P01_x_FLAT.csv", raw, 1.7e9 + np.arange(300) / 43,
                                labels, raw[:10].mean(axis=0))
-    other = write_shearsense_csv(tmp_path / "P02_x_FLAT.csv", raw[::-1], 1.7e9 + np.arange(300) / 43,
+    other = write_shearsense_csv(tmp_path / "P02_x_FLAT.csv", raw[::-1],
+                                 1.7e9 + np.arange(300) / 43,
                                  labels, raw[:10].mean(axis=0))
     (tmp_path / "one").mkdir()
     (tmp_path / "two").mkdir()

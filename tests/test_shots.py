@@ -59,7 +59,8 @@ def test_run_curve_and_no_window_leaks(long_trials):
     result = run_experiment(cfg, dataset=ds)
     m = result.metrics
     assert [s["k"] for s in m["shots"]] == [0, 1]
-    assert m["shots"][0]["n_trials"] == m["shots"][1]["n_trials"] == 3 * 3 * 2  # per person 2 of 3 per gesture
+    # per person 2 of 3 per gesture
+    assert m["shots"][0]["n_trials"] == m["shots"][1]["n_trials"] == 3 * 3 * 2
     assert m["trial_accuracy"] == m["shots"][0]["trial_accuracy"]
     assert m["shots"][0]["n"] > m["shots"][0]["n_trials"]  # windows, several per trial
     assert len(m["per_fold"]) == 6 and {f["shots"] for f in m["per_fold"]} == {0, 1}

@@ -39,7 +39,8 @@ def test_cnn_transformer_stream_equals_full_forward_and_runs_the_cnn_once_per_fr
     model = _model("cnn_transformer")
     view = MODELS["cnn_transformer"].view("tiny")
     calls = []
-    hook = model.frame_cnn.register_forward_hook(lambda mod, inp, out: calls.append(inp[0].shape[0]))
+    hook = model.frame_cnn.register_forward_hook(
+        lambda mod, inp, out: calls.append(inp[0].shape[0]))
     rng = np.random.default_rng(3)
     stream = rng.normal(size=(40, 3, 6, 6)).astype(np.float32)
     mean, std = np.array([0.5, -0.2, 0.1]), np.array([2.0, 1.0, 0.5])
@@ -95,7 +96,8 @@ def test_frames_from_raw_decodes_in_dataset_channel_order():
     raw = baseline * rng.uniform(0.9, 1.0, size=(4, layout.n_channels))
     both = frames_from_raw(layout, raw, baseline)
     assert both.shape == (4, 3, 6, 6)
-    np.testing.assert_allclose(frames_from_raw(layout, raw, baseline, channels="shear"), both[:, 1:])
+    np.testing.assert_allclose(frames_from_raw(layout, raw, baseline, channels="shear"),
+                               both[:, 1:])
     assert frames_from_raw(layout, raw, baseline, virtual=True).shape == (4, 3, 11, 11)
     with pytest.raises(UserError):
         frames_from_raw(layout, raw, baseline, channels="everything")

@@ -98,7 +98,8 @@ def test_a_bad_value_is_named_highlighted_and_nothing_starts(qtbot, settings, tm
     fault = setup.device_form.fields["fault"].editor  # a choice is a drop-down of its choices
     assert isinstance(fault, QComboBox)
     assert [fault.itemText(i) for i in range(fault.count())] == \
-        list(next(s for s in plugin_class("simulated").settings_schema if s.name == "fault").choices)
+        list(next(s for s in plugin_class("simulated").settings_schema
+                  if s.name == "fault").choices)
     fault.setCurrentText("stuck_channel")
     assert setup.device_choice() == ("simulated", {"rate": "100", "fault": "stuck_channel"})
     qtbot.mouseClick(setup.start_button, Qt.MouseButton.LeftButton)

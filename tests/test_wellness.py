@@ -88,7 +88,8 @@ def test_worn_taxel_is_named(taxel):
     assert taxel in flagged(result) and flagged(result) <= worn
     spot = next(s for s in result["spots"] if s["taxel"] == taxel)
     assert spot["verdict"] == "fail" and 0.35 < spot["ratio"] < 0.55
-    assert f"{taxel}: {spot['ratio'] * 100:.0f}% of reference sensitivity — worn?" in result["reasons"]
+    assert (f"{taxel}: {spot['ratio'] * 100:.0f}% of reference sensitivity — worn?"
+            in result["reasons"])
 
 
 @pytest.mark.parametrize("taxel", ["E2", "C3", "A6"])
@@ -122,7 +123,8 @@ def test_weight_on_the_wrong_taxel_stores_nothing():
     events = []
     with pytest.raises(Exception, match="the weight is on C4, not on B2; nothing was stored"):
         check(placer_cls=_WrongPlacer, seed=1, on_event=lambda k, i: events.append((k, i)))
-    assert ("misplaced", {"at": "C4", "prompt": "The weight is on C4, not on B2: move it"}) in events
+    assert ("misplaced",
+            {"at": "C4", "prompt": "The weight is on C4, not on B2: move it"}) in events
     with Logbook() as book:
         assert book.checks("sim-1") == []
 

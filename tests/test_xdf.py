@@ -74,7 +74,8 @@ def test_export_xdf_round_trips_through_pyxdf_with_clock_offsets_and_a_gap(tmp_p
     offset = np.where(np.arange(400) < 300, -1.6e9 + 0.25, -1.6e9 + 0.75)
     np.testing.assert_allclose(frames["time_stamps"], host + offset, rtol=0, atol=1e-6)
     chans = frames["info"]["desc"][0]["channels"][0]["channel"]
-    assert [c["label"][0] for c in chans] == [c["label"] for c in frame_channels(SHEARSENSE_6X6, RAW)]
+    assert [c["label"][0] for c in chans] == [c["label"]
+                                              for c in frame_channels(SHEARSENSE_6X6, RAW)]
     ts = frames["info"]["desc"][0]["tactile_studio"][0]
     assert ts["layout"][0]["name"] == ["shearsense-6x6"] and ts["participant"] == ["P03"]
 
@@ -174,7 +175,8 @@ def foreign_xdf(path):
     for k in range(3):  # interleaved as a recorder writes them
         a, b = k * 200, (k + 1) * 200
         parts.append(chunk(3, numeric_samples(mat_t[a:b], mat[a:b], "f"), 1))
-        parts.append(chunk(3, numeric_samples(eda_t[k * 64:(k + 1) * 64], eda[k * 64:(k + 1) * 64], "d"), 2))
+        parts.append(chunk(3, numeric_samples(eda_t[k * 64:(k + 1) * 64],
+                                              eda[k * 64:(k + 1) * 64], "d"), 2))
         parts.append(chunk(4, struct.pack("<dd", 1000.5 + 2 * k, 0.5), 1))
         parts.append(chunk(4, struct.pack("<dd", 1000.5 + 2 * k, -998.75), 2))
     parts.append(chunk(3, string_samples([1001.0, 1004.0], ["start", "stop"]), 3))
@@ -191,7 +193,8 @@ def test_a_foreign_xdf_imports_with_clocks_markers_aux_and_bids_names(tmp_path, 
     assert rc == 0, capsys.readouterr().err
     with Session(out / "sub-P07_ses-S2_task-touch_run-1.h5") as s:
         m = s.metadata
-        assert (m["participant"], m["session_label"], m["task"], m["run"]) == ("P07", "S2", "touch", "1")
+        assert (m["participant"], m["session_label"], m["task"], m["run"]) == (
+            "P07", "S2", "touch", "1")
         assert s.layout.name == "grid-8x8" and s.n_frames == 600
         np.testing.assert_array_equal(s.raw(), mat.astype(s.layout.raw_dtype))
         times = s.column("host_time")

@@ -358,7 +358,8 @@ IMAGES: dict[str, Callable[[Canvas], None]] = {
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    out = Path(argv[0]) if argv else (Path(__file__).resolve().parents[1] / "resources" / "protocols" / "images")
+    out = Path(argv[0]) if argv else (Path(__file__).resolve().parents[1] / "resources"
+                                      / "protocols" / "images")
     out.mkdir(parents=True, exist_ok=True)
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     app = QtGui.QGuiApplication.instance() or QtGui.QGuiApplication([])  # noqa: F841 (painting)

@@ -117,7 +117,8 @@ class StripChart(QWidget):
             ax.enableAutoSIPrefix(False)
         self.plot.setLabel("bottom", "time (s)", color=FOREGROUND)
         self.legend = self.plot.addLegend(offset=(8, 8), labelTextColor=FOREGROUND,
-                                          brush=pg.mkBrush(255, 255, 255))  # opaque: cheaper to repaint
+                                          # opaque: cheaper to repaint
+                                          brush=pg.mkBrush(255, 255, 255))
         self.traces = _Traces()
         self.traces.set_bounds(QRectF(-seconds, -1.0, seconds, 2.0))
         self.plot.addItem(self.traces)
@@ -142,7 +143,8 @@ class StripChart(QWidget):
         """Redraw the lines; taxels that are no longer selected disappear.
 
         Pens and legend entries change only when the set of taxels does: at display rate
-        only the samples are copied, thinned to each pixel column's min and max. Lines are one pixel wide — Qt draws those on a fast
+        only the samples are copied, thinned to each pixel column's min and max. Lines are one
+        pixel wide — Qt draws those on a fast
         path; wider lines cost 4-7x more to paint.
         """
         if history.names != self._names:

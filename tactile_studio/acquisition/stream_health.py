@@ -3,7 +3,8 @@
 LabRecorder's users asked for it: a stream that stops sending while a recording runs
 should be noticed then, not when the file is opened. :class:`StreamHealth` is checked
 from the owner's poll (``AcquisitionSession.poll``): when no frame has arrived for
-``threshold_s`` (once frames have flowed) it writes an engine event ``stream_silent`` (device, seconds, state;
+``threshold_s`` (once frames have flowed) it writes an engine event ``stream_silent``
+(device, seconds, state;
 so the file has it at the row where frames stopped) and returns a warning; when frames
 come back, an event ``stream_resumed`` (silent_s) and a line saying so. The CLI prints
 these lines, the main window shows them in its status bar.

@@ -107,7 +107,8 @@ def analyse_shear(data: dict[str, Any], tau: float | None) -> dict[str, Any]:
         return float(np.mean(v)) if v else float("nan")
 
     r2 = [e["r2"] for e in by_dir.values()]
-    return {"shear_sensitivity_x": mean_of(("+x", "-x")), "shear_sensitivity_y": mean_of(("+y", "-y")),
+    return {"shear_sensitivity_x": mean_of(("+x", "-x")),
+            "shear_sensitivity_y": mean_of(("+y", "-y")),
             "r2_shear": float(min(r2)) if r2 else float("nan"),
             "shear_offset": float(np.mean(offsets)) if offsets else float("nan"),
             "shear_by_direction": by_dir, "crosstalk_shear": cross_shear,

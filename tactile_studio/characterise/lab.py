@@ -91,7 +91,8 @@ class Lab:
             keep = self._ft >= self._ft[-1] - _KEEP_S
             self._ft, self._ff = self._ft[keep], self._ff[keep]
 
-    def frames_between(self, t0: float, t1: float, timeout_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
+    def frames_between(self, t0: float, t1: float,
+                       timeout_s: float = 10.0) -> tuple[np.ndarray, np.ndarray]:
         """Sensor frames with lab time in [t0, t1), waiting (bounded) for them to arrive."""
         deadline = time.monotonic() + timeout_s
         period = 1.0 / max(self.device.nominal_rate_hz, 1.0)

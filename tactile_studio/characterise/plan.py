@@ -73,7 +73,8 @@ class Plan:
             raise SettingsError(f"unknown sequence {bad[0]!r} (known: {', '.join(SEQUENCES)}, all)")
         bad = [d for d in self.directions if d not in DIRECTIONS]
         if bad:
-            raise SettingsError(f"unknown shear direction {bad[0]!r} (known: {', '.join(DIRECTIONS)})")
+            raise SettingsError(f"unknown shear direction {bad[0]!r} "
+                                f"(known: {', '.join(DIRECTIONS)})")
         for name in ("speed_mm_s", "dwell_s", "normal_depth_mm", "shear_max_mm",
                      "shear_step_mm", "search_step_mm", "window_s"):
             if getattr(self, name) <= 0:

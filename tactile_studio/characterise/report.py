@@ -121,7 +121,8 @@ def fits_figure(name: str, raw: dict[str, Any], metrics: dict[str, Any],
             a1.plot([p["pz"] for p in sel], [p["normal"] for p in sel], style, mfc="none",
                     label=phase)
         both = [p for p in pts if p["phase"] in ("load", "unload")]
-        fit = two_range_fit(np.array([p["pz"] for p in both]), np.array([p["normal"] for p in both]))
+        fit = two_range_fit(np.array([p["pz"] for p in both]),
+                            np.array([p["normal"] for p in both]))
         x = np.linspace(0, max(p["pz"] for p in pts), 100)
         a1.plot(x, fit.predict(x), "k-", lw=1,
                 label=f"{fit.low:.4f} | {fit.high:.4f} /kPa, break {fit.breakpoint:.1f} kPa")
@@ -130,7 +131,8 @@ def fits_figure(name: str, raw: dict[str, Any], metrics: dict[str, Any],
         if len(t) > 10:
             tau, a, b = exp_settle_fit(t, y)
             a3.plot(t, y, ".", ms=2, label="sensor")
-            a3.plot(t, a + b * np.exp(-(t - t.min()) / tau), "k-", lw=1, label=f"fit τ = {tau:.2f} s")
+            a3.plot(t, a + b * np.exp(-(t - t.min()) / tau), "k-", lw=1,
+                    label=f"fit τ = {tau:.2f} s")
     a1.set(xlabel="load cell normal stress (kPa)", ylabel="ΔC/C0 (centre)", title=f"{name}: normal")
     _legend(a1)
     for dname, d in raw.get("shear", {}).get("directions", {}).items():
@@ -233,7 +235,8 @@ def maps_figure(layout: Layout, taxels: dict[str, dict[str, Any]]):  # noqa: ANN
     return fig
 
 
-def taxel_figure(layout: Layout, name: str, raw: dict[str, Any], metrics: dict[str, Any]):  # noqa: ANN201
+def taxel_figure(layout: Layout, name: str, raw: dict[str, Any],  # noqa: ANN201
+                 metrics: dict[str, Any]):
     """One page per taxel: timeline, fits, neighbour responses (one render: fast)."""
     from matplotlib.figure import Figure
 
@@ -292,8 +295,10 @@ def write_report(out_dir: Path, result: dict[str, Any], layout: Layout,
     page = f"""<!doctype html><html><head><meta charset="utf-8">
 <title>Characterisation {html.escape(str(result.get('sensor') or ''))}</title>
 <style>body{{font-family:sans-serif;margin:2em}} table{{border-collapse:collapse;font-size:12px}}
-td,th{{border:1px solid #ccc;padding:3px 6px}} img{{max-width:100%;display:block;margin:1em 0}}</style>
-</head><body><h1>Characterisation of {html.escape(str(result.get('sensor') or result.get('layout')))}</h1>
+td,th{{border:1px solid #ccc;padding:3px 6px}} \
+img{{max-width:100%;display:block;margin:1em 0}}</style>
+</head><body>\
+<h1>Characterisation of {html.escape(str(result.get('sensor') or result.get('layout')))}</h1>
 <p>Run {status}: started {_when(result.get('started'))}, finished
 {_when(result.get('finished'))}. Stage: {_plugin(result['stage'])}; load cell:
 {_plugin(result['force'])}.</p>

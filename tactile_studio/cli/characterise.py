@@ -31,14 +31,16 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description=__doc__)
     p.add_argument("--device", default="simulated", help="sensor device plugin (default simulated)")
     p.add_argument("--stage", default="simulated", help="stage plugin (simulated, gcode, ...)")
-    p.add_argument("--force", default="simulated", help="force-reference plugin (simulated, serial, ...)")
+    p.add_argument("--force", default="simulated",
+                   help="force-reference plugin (simulated, serial, ...)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
     p.add_argument("--stage-set", action="append", metavar="KEY=VALUE", help="stage setting")
     p.add_argument("--force-set", action="append", metavar="KEY=VALUE", help="force setting")
     p.add_argument("--param", action="append", metavar="KEY=VALUE",
                    help="characterisation parameter, e.g. dwell_s=1 (see docs/characterisation.md)")
     p.add_argument("--taxels", default=PAPER_TAXELS,
-                   help=f"comma-separated taxel names or 'all' (default: the paper's {PAPER_TAXELS})")
+                   help="comma-separated taxel names or 'all' "
+                        f"(default: the paper's {PAPER_TAXELS})")
     p.add_argument("--sequence", default="all", choices=[*SEQUENCES, "all"],
                    help="which sequence(s) to run (default all)")
     p.add_argument("--cycles", type=int, default=None,

@@ -266,7 +266,8 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
             if time.monotonic() - shown >= 0.1:
                 shown = time.monotonic()
                 snap = runner.snapshot()
-                where = "practice" if snap.practice else f"block {snap.block_number}/{snap.blocks_total}"
+                where = ("practice" if snap.practice
+                         else f"block {snap.block_number}/{snap.blocks_total}")
                 progress(snap.progress, f"{where} {snap.trials_done}/{snap.trials_total} trials "
                                         f"{snap.state}")
             if not acted and (runner.state, len(runner.trials)) == before:

@@ -29,11 +29,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=cmd_printer)
     q = sub.add_parser("emulate-loadcell", help="a serial load cell on a pseudo-terminal")
     q.add_argument("--link", default=None, metavar="PATH", help="stable symlink to the pty")
-    q.add_argument("--rate", type=positive_float, default=100.0, help="lines per second (default 100)")
+    q.add_argument("--rate", type=positive_float, default=100.0,
+                   help="lines per second (default 100)")
     q.add_argument("--axes", choices=("z", "xyz"), default="xyz", help="values per line")
-    q.add_argument("--force", type=finite_float, nargs=3, default=(0.0, 0.0, 0.0), metavar=("FX", "FY", "FZ"),
+    q.add_argument("--force", type=finite_float, nargs=3, default=(0.0, 0.0, 0.0),
+                   metavar=("FX", "FY", "FZ"),
                    help="constant force to report (raw units)")
-    q.add_argument("--noise", type=non_negative_float, default=0.001, help="Gaussian noise (raw units)")
+    q.add_argument("--noise", type=non_negative_float, default=0.001,
+                   help="Gaussian noise (raw units)")
     q.add_argument("--mode", choices=MODES, default="ok", help="ok, garbage or silent")
     q.add_argument("--seconds", type=finite_float, default=None, help="stop after this long")
     q.set_defaults(func=cmd_loadcell)
@@ -56,7 +59,8 @@ def _serve(emu, label: str, seconds: float | None) -> int:  # noqa: ANN001
 
 
 def cmd_printer(args: argparse.Namespace) -> int:
-    return _serve(PrinterEmulator(link=args.link, fail_home=args.fail_home), "printer", args.seconds)
+    return _serve(PrinterEmulator(link=args.link, fail_home=args.fail_home), "printer",
+                  args.seconds)
 
 
 def cmd_loadcell(args: argparse.Namespace) -> int:

@@ -94,9 +94,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "snapshot", help="render the live view offscreen to a PNG",
         description="Connect, show S seconds of live data, and save the main window as a PNG "
                     "(works without a display).")
-    s.add_argument("--device", default=DEFAULT_DEVICE, help=f"device plugin (default {DEFAULT_DEVICE})")
+    s.add_argument("--device", default=DEFAULT_DEVICE,
+                   help=f"device plugin (default {DEFAULT_DEVICE})")
     s.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting, repeatable")
-    s.add_argument("--seconds", type=finite_float, default=3.0, help="seconds of live data first (3)")
+    s.add_argument("--seconds", type=finite_float, default=3.0,
+                   help="seconds of live data first (3)")
     s.add_argument("--out", required=True, help="PNG file to write")
     s.add_argument("--virtual", action="store_true", help="show the virtual 11x11 grid")
     s.add_argument("--hover", metavar="TAXEL", help="show this taxel's readout, e.g. C3")

@@ -48,7 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     e = sub.add_parser("export", help="export sessions as ShearSense CSV, NPZ, a trial table "
                                       "or XDF")
     e.add_argument("sessions", nargs="+", help="session files (.h5)")
-    e.add_argument("--format", required=True, choices=["shearsense-csv", "npz", "csv-trials", "xdf"],
+    e.add_argument("--format", required=True,
+                   choices=["shearsense-csv", "npz", "csv-trials", "xdf"],
                    help="xdf: frames, events and trials as markers, auxiliary signals "
                         "(the file LabRecorder writes)")
     e.add_argument("--out", default=".", help="output folder (default: .)")

@@ -290,9 +290,11 @@ def cmd_export(args: argparse.Namespace) -> int:
           + (f", {report['quant_format']} quantisation" if "quant_format" in report else ""))
     for f in report["folds"]:
         extra = f"  max |logit diff| {f['max_abs_diff']:.2e}" if "max_abs_diff" in f else ""
-        size = (f"  size {f['size_bytes'] / 1024:.1f} KiB (float {f['float_size_bytes'] / 1024:.1f} KiB)"
+        size = (f"  size {f['size_bytes'] / 1024:.1f} KiB "
+                f"(float {f['float_size_bytes'] / 1024:.1f} KiB)"
                 if "size_bytes" in f else "")
-        print(f"  {f['name']:>10s}: accuracy {f['accuracy_torch']:.3f} -> {f['accuracy_export']:.3f}"
+        print(f"  {f['name']:>10s}: accuracy {f['accuracy_torch']:.3f} "
+              f"-> {f['accuracy_export']:.3f}"
               f"{extra}{size}" + (f"  -> {f['path']}" if f.get("path") else ""))
     print(f"test accuracy {report['accuracy_torch']:.4f} -> {report['accuracy_export']:.4f} "
           f"(change {report['accuracy_change']:+.4f}, {report['changed_predictions']} of "

@@ -123,7 +123,8 @@ def device_label(device: Any) -> str:
     info = device.info()
     settings = info.get("settings", {})
     where = info.get("port") or info.get("address") or settings.get("path") or ""
-    return f"device {info.get('plugin', '?')} on {where}" if where else f"device {info.get('plugin', '?')}"
+    return (f"device {info.get('plugin', '?')} on {where}" if where
+            else f"device {info.get('plugin', '?')}")
 
 
 def _info_files(paths: list[str], as_json: bool) -> int:

@@ -17,7 +17,8 @@ from tactile_studio.devices.ring import FrameChunk, RingBuffer
 
 __all__ = [
     "DEFAULT_DEVICE", "OPTIONAL_HOOKS", "AcquisitionEngine", "DevicePlugin", "FrameBatch",
-    "FrameChunk", "FrameStream", "PluginCheckError", "RecordableStream", "RingBuffer", "Setting", "available_plugins",
+    "FrameChunk", "FrameStream", "PluginCheckError", "RecordableStream", "RingBuffer", "Setting",
+    "available_plugins",
     "check_plugin", "create_device", "parse_set_options", "plugin_class", "register_device",
     "unregister_device",
 ]

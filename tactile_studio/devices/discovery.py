@@ -69,7 +69,8 @@ def bluetooth_unavailable(exc: BaseException) -> DeviceNotFound:
         msg = str(exc.args[0]) if exc.args else "unknown reason"
         return DeviceNotFound(f"Bluetooth is not available: {msg}")
     detail = str(exc).strip() or type(exc).__name__
-    return DeviceNotFound(f"Bluetooth is not available (no adapter or no Bluetooth service: {detail})")
+    return DeviceNotFound("Bluetooth is not available "
+                          f"(no adapter or no Bluetooth service: {detail})")
 
 
 async def find_ble(timeout: float, name: str = "", service_uuid: str = "",

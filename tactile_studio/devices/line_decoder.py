@@ -14,7 +14,8 @@ malformed line of exactly one kind (:data:`KINDS`):
 ``short``           fewer fields than channels otherwise (a cut line)
 ``out_of_range``    the right number of fields but a value below 0 or above the maximum
 
-The checks run in that order (the length limit first), so the kind of a line is unique. A line only affects its
+The checks run in that order (the length limit first), so the kind of a line is unique. A line
+only affects its
 own classification: decoding resynchronises on the next newline, and a partial line at
 the end of a read is kept for the next one.
 

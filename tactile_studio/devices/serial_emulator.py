@@ -116,7 +116,8 @@ class SerialEmulator:
         self.kinds = tuple(kinds)
         unknown = set(self.kinds) - set(KINDS)
         if unknown or not self.kinds:
-            raise UserError(f"unknown malformed kinds {sorted(unknown)} (known: {', '.join(KINDS)})")
+            raise UserError(f"unknown malformed kinds {sorted(unknown)} "
+                            f"(known: {', '.join(KINDS)})")
         self.source, self.rate_hz, self.corrupt = source, float(rate_hz), float(corrupt)
         self.pty = PtyPort(link)
         self.trailing_comma, self.keep_sent, self.max_value = trailing_comma, keep_sent, max_value

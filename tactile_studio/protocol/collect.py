@@ -180,7 +180,8 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
                 "sensor_id": meta.get("sensor_id"),
                 "other_sensor": meta.get("other_sensor") or [],
-                "layout": old.layout.name, "trials_done": trials_done(old.trials), "trials_total": total,
+                "layout": old.layout.name, "trials_done": trials_done(old.trials),
+                "trials_total": total,
                 "frames": old.n_frames}
 
 

@@ -52,7 +52,8 @@ class RunnerInputs:
                                     f"{self.next_prompt()}")
             return self._refuse(self.next_prompt())
         if gesture.name not in self._plan.gestures:
-            return self._refuse(f"{gesture.name} ({gesture.key}) is not part of this practice round")
+            return self._refuse(f"{gesture.name} ({gesture.key}) "
+                                "is not part of this practice round")
         if self._plan.is_done(gesture.name):
             left = ", ".join(f"{g} ({self.protocol.gesture_by_name(g).key})"
                              for g in self._plan.remaining())

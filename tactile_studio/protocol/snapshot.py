@@ -88,7 +88,8 @@ def participant_message(state: str, snap: dict[str, Any]) -> str:
     if state == State.FREE_PLAY:
         return "Free play: touch the sensor any way you like."
     if state in (State.BLOCK_START, State.WAITING, State.REVIEW):
-        what = "Practice" if snap["practice"] else f"Block {snap['block_number']} of {snap['blocks_total']}"
+        what = ("Practice" if snap["practice"]
+                else f"Block {snap['block_number']} of {snap['blocks_total']}")
         if snap.get("prompted"):
             return (f"{what}: next is {snap['prompted']} \u2013 press "
                     f"{snap['prompted_key'].upper()} as you start it.")

@@ -39,7 +39,8 @@ def check_loads(loads: list[float]) -> list[float]:
     if len(loads) < 3:
         raise CalibrationError(f"calibration needs at least 3 loads, got {len(loads)}")
     if any(not math.isfinite(v) for v in loads):  # nan passes every comparison below
-        raise CalibrationError(f"loads must be finite numbers: {', '.join(f'{v:g}' for v in loads)}")
+        raise CalibrationError("loads must be finite numbers: "
+                               f"{', '.join(f'{v:g}' for v in loads)}")
     if any(v <= 0 for v in loads):
         raise CalibrationError(f"loads must be positive: {', '.join(f'{v:g}' for v in loads)}")
     for a, b in zip(loads, loads[1:]):

@@ -84,7 +84,8 @@ def _shear(layout: Layout, raw: np.ndarray, base: np.ndarray) -> tuple[np.ndarra
     c3b, c3 = grid(CENTRE, base), grid(CENTRE, raw)
     c3 = np.where(np.abs(c3) < 1e-9, 1e-9, c3)
     out = []
-    for neg, pos, sign in ((X_NEG, X_POS, layout.shear_sign_x), (Y_NEG, Y_POS, layout.shear_sign_y)):
+    for neg, pos, sign in ((X_NEG, X_POS, layout.shear_sign_x),
+                           (Y_NEG, Y_POS, layout.shear_sign_y)):
         d = (grid(neg, base) * grid(pos, raw) - grid(pos, base) * grid(neg, raw)) / (c3 * c3b)
         d = sign * d
         out.append(layout.calibration.shear_kpa(d) if layout.calibration else d)

@@ -188,7 +188,8 @@ def grid_layout(rows: int, cols: int, name: str | None = None, **kw: object) -> 
     """A single-channel pressure grid of any size (row-major, values rise under load)."""
     if rows < 1 or cols < 1:
         raise UserError(f"grid layout needs positive rows and columns, got {rows}x{cols}")
-    return Layout(name=name or f"grid-{rows}x{cols}", rows=rows, cols=cols, **kw)  # type: ignore[arg-type]
+    return Layout(name=name or f"grid-{rows}x{cols}", rows=rows, cols=cols,
+                  **kw)  # type: ignore[arg-type]
 
 
 COST_8X8 = grid_layout(8, 8, "cost-8x8", pitch_mm=10.0, raw_max=1023.0,

@@ -91,8 +91,10 @@ class TrialParams:
     def wobble(self, t: np.ndarray, k: int = 0) -> tuple[np.ndarray, np.ndarray]:
         """Slow smooth hand wander in mm (tremor plus drift), different per trial."""
         ph = self.phases
-        wx = np.sin(_TWO_PI * 0.7 * t + ph[k % 8]) + 0.5 * np.sin(_TWO_PI * 2.3 * t + ph[(k + 1) % 8])
-        wy = np.sin(_TWO_PI * 0.9 * t + ph[(k + 2) % 8]) + 0.5 * np.sin(_TWO_PI * 1.9 * t + ph[(k + 3) % 8])
+        wx = (np.sin(_TWO_PI * 0.7 * t + ph[k % 8])
+              + 0.5 * np.sin(_TWO_PI * 2.3 * t + ph[(k + 1) % 8]))
+        wy = (np.sin(_TWO_PI * 0.9 * t + ph[(k + 2) % 8])
+              + 0.5 * np.sin(_TWO_PI * 1.9 * t + ph[(k + 3) % 8]))
         return self.jitter * wx / 1.5, self.jitter * wy / 1.5
 
 
@@ -286,7 +288,8 @@ _LOOKUP = {name.lower(): name for name in (*GESTURE_NAMES, IDLE)}
 
 
 def canonical_gesture(name: str) -> str:
-    """The registry spelling of ``name`` (case-insensitive; 'idle' allowed); ValueError if unknown."""
+    """The registry spelling of ``name`` (case-insensitive; 'idle' allowed); ValueError if
+    unknown."""
     key = " ".join(str(name).split()).lower()
     if key not in _LOOKUP:
         raise ValueError(f"unknown gesture {name!r} (known: {', '.join(GESTURE_NAMES)}, idle)")

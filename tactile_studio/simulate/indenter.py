@@ -135,7 +135,8 @@ class Bench:
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise UserError(f"simulated bench: the sensor stopped producing frames "
-                                    f"(at {self.sim.frame / self.rate:.2f} s, waiting for {t:.2f} s)")
+                                    f"(at {self.sim.frame / self.rate:.2f} s, "
+                                    f"waiting for {t:.2f} s)")
                 self._cond.wait(min(left, 0.02))
 
     def lockstep(self, on: bool) -> None:

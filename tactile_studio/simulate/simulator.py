@@ -77,13 +77,16 @@ class SensorSimulator:
     def __init__(self, config: SimConfig | None = None, **overrides: object) -> None:
         cfg = replace(config or SimConfig(), **overrides)  # type: ignore[arg-type]
         if not cfg.layout.has_shear or cfg.layout.calibration is None:
-            raise UserError(f"the simulator needs a calibrated 5-channel layout, not {cfg.layout.name}")
+            raise UserError("the simulator needs a calibrated 5-channel layout, "
+                            f"not {cfg.layout.name}")
         if cfg.fault not in FAULTS:
             raise UserError(f"unknown fault {cfg.fault!r} (known: {', '.join(FAULTS)})")
         if not 0 <= cfg.fault_taxel < cfg.layout.n_taxels:
-            raise UserError(f"fault_taxel {cfg.fault_taxel} is not a taxel (0..{cfg.layout.n_taxels - 1})")
+            raise UserError(f"fault_taxel {cfg.fault_taxel} is not a taxel "
+                            f"(0..{cfg.layout.n_taxels - 1})")
         if cfg.difficulty not in DIFFICULTIES:
-            raise UserError(f"unknown difficulty {cfg.difficulty!r} (known: {', '.join(DIFFICULTIES)})")
+            raise UserError(f"unknown difficulty {cfg.difficulty!r} "
+                            f"(known: {', '.join(DIFFICULTIES)})")
         if cfg.surface not in SURFACES:
             raise UserError(f"unknown surface {cfg.surface!r} (known: {', '.join(SURFACES)})")
         self.config = cfg

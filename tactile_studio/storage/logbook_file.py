@@ -7,7 +7,8 @@ recorders), or moved aside under a timestamped name and replaced by its backup o
 logbook (writers that must store something: ``on_damage="replace"``). A rolling backup
 (``logbook.sqlite.bak``: SQLite's backup API into a temporary file, checked, then
 renamed) is refreshed whenever a Logbook that wrote is closed (logbook writes are few: a
-recording's hours, a check, a calibration), so one bad block costs no history. ``docs/sensor-health.md`` says how to restore it by hand.
+recording's hours, a check, a calibration), so one bad block costs no history.
+``docs/sensor-health.md`` says how to restore it by hand.
 
 Errors SQLite reports while the logbook is in use are told apart here too
 (:func:`translated`): a damaged file or a place that cannot be written is a

@@ -230,7 +230,8 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
             gv.fail("key", f"must be one printable character, got {key!r}")
         key = key.lower()
         if name.lower() in names:
-            gv.fail("name", f"duplicate gesture name {name!r} (also gestures[{names[name.lower()]}])")
+            gv.fail("name", f"duplicate gesture name {name!r} "
+                            f"(also gestures[{names[name.lower()]}])")
         if key in keys:
             gv.fail("key", f"duplicate key {key!r} (also gestures[{keys[key]}])")
         names[name.lower()], keys[key] = i, i

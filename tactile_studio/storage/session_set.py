@@ -6,7 +6,8 @@ would put copies of a participant's trials into a dataset, possibly on both side
 train/test split. So a folder scan skips resume backups, and files sharing a
 ``session_id`` (see :attr:`Session.session_id`) are reduced to one: a non-backup before
 a backup, then a cleanly closed file, then the one with more trials, more frames, the
-newest modification time and finally the first path in sort order. What was skipped is returned so it can be reported.
+newest modification time and finally the first path in sort order. What was skipped is
+returned so it can be reported.
 """
 
 from __future__ import annotations

@@ -52,7 +52,8 @@ def main() -> int:
         settle()
         w.grab().save(str(HERE / "characterise-report.png"))
         for name in ("maps.png", "B2.png"):
-            (HERE / f"characterise-{name}").write_bytes((Path(tmp) / "run" / "figures" / name).read_bytes())
+            (HERE / f"characterise-{name}").write_bytes(
+                (Path(tmp) / "run" / "figures" / name).read_bytes())
     return 0
 
 

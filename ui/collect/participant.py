@@ -245,7 +245,8 @@ class ParticipantScreen(CardPainting, QWidget):
         if v.countdown_s is not None:
             side = min(inner.height() * (0.66 if big else 1.0), inner.width() * 0.35)
             if big:
-                dial = QRectF(inner.center().x() - side / 2, inner.bottom() - side - 12 * u, side, side)
+                dial = QRectF(inner.center().x() - side / 2, inner.bottom() - side - 12 * u,
+                              side, side)
                 text_r = QRectF(inner.left(), inner.top(), inner.width(),
                                 inner.height() - side - 16 * u)
             else:

@@ -60,7 +60,8 @@ def participant_view(snap: Any, protocol: Any) -> ParticipantView:
     elif state == "free_play":
         title = "Free play"
         sub = "Touch the sensor any way you like to get to know it."
-        v.countdown_s, v.countdown_total_s = _steps(snap.free_play_remaining_s, 10), protocol.free_play_s
+        v.countdown_s, v.countdown_total_s = (_steps(snap.free_play_remaining_s, 10),
+                                              protocol.free_play_s)
     elif state == "block_start":
         title = "Practice" if snap.practice else f"Block {snap.block_number}"
         sub = "Get ready"

@@ -69,8 +69,8 @@ class PairedBars(QWidget):
                                f"{100 * acc:.0f}")
             p.setPen(QColor("black"))
             p.drawText(QRect(int(x - slot / 2), bottom + 2, int(slot), fm.height()),
-                       Qt.AlignmentFlag.AlignCenter, fm.elidedText(name, Qt.TextElideMode.ElideRight,
-                                                                   int(slot)))
+                       Qt.AlignmentFlag.AlignCenter,
+                       fm.elidedText(name, Qt.TextElideMode.ElideRight, int(slot)))
         y = self.height() - fm.height() - 2
         x = left
         for name, colour in ((r["name_a"], A_COLOUR), (r["name_b"], B_COLOUR)):

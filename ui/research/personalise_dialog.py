@@ -60,7 +60,8 @@ class PersonaliseDialog(QDialog):
         self.k.setValue(2)
         self.k.setSuffix(" touch(es) per gesture")
         self.k.setToolTip("K labelled performances of every gesture: on virtual people K=1 "
-                          "already lifts a new person's accuracy clearly (docs/learning/figures.md); "
+                          "already lifts a new person's accuracy clearly "
+                          "(docs/learning/figures.md); "
                           "K=2 also measures it, each round checked by the model of the other")
         self.start_button = QPushButton("Start")
         self.recording_button = QPushButton("From an earlier recording…")

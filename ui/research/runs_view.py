@@ -24,7 +24,8 @@ from tactile_studio.ui.settings import app_settings
 ROOT_KEY = "research/runs_root"
 
 COLUMNS = ["run", "model", "channels", "protocol", "preset", "accuracy", "trial acc.",
-           "F1 macro", "bal. acc.", "few-shot (trial acc. per K)", "folds", "complete", "created", "problem"]
+           "F1 macro", "bal. acc.", "few-shot (trial acc. per K)", "folds", "complete", "created",
+           "problem"]
 
 
 def _pct(v: float | None) -> str | None:

@@ -87,7 +87,8 @@ def load(key: str, cache_dir: str | os.PathLike | None = None,
             if meta.get("format") != CACHE_FORMAT:
                 return None
             frames, offsets = z["frames"], z["offsets"]
-            trials = [np.ascontiguousarray(frames[:, a:b]) for a, b in zip(offsets[:-1], offsets[1:])]
+            trials = [np.ascontiguousarray(frames[:, a:b])
+                      for a, b in zip(offsets[:-1], offsets[1:])]
             return factory(
                 trials=trials, labels=z["labels"].astype(np.int64),
                 participants=z["participants"].astype(str), uids=z["uids"].astype(str).tolist(),

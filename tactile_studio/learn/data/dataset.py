@@ -94,7 +94,8 @@ class TrialDataset:
         if channels is None:
             return "both" if self.has_shear else "normal"
         if channels not in CHANNEL_SETS:
-            raise UserError(f"unknown channel set {channels!r} (available: {', '.join(CHANNEL_SETS)})")
+            raise UserError(f"unknown channel set {channels!r} "
+                            f"(available: {', '.join(CHANNEL_SETS)})")
         if not self.has_shear and channels != "normal":
             raise UserError(f"layout {self.layout} has pressure only, no shear: "
                             f"--channels {channels} is not possible (use normal)")

@@ -134,7 +134,8 @@ class OnnxPredictor:
         return self.session.run(None, {self.input_name: x})[0]
 
 
-def load_onnx_predictor(path: str | os.PathLike, threads: int = 0) -> Callable[[np.ndarray], np.ndarray]:
+def load_onnx_predictor(path: str | os.PathLike,
+                        threads: int = 0) -> Callable[[np.ndarray], np.ndarray]:
     """A callable numpy (B, C, T, R, X) -> logits (B, K) backed by onnxruntime (CPU)."""
     return OnnxPredictor(path, threads)
 

@@ -11,7 +11,8 @@ computed once and cached) and predict on its newest window.
 The smoothed probabilities are the mean of the last ``smoothing`` predictions. Latency is
 measured per prediction: from the newest frame's arrival on the host to the probabilities
 being ready. A run trained with ``--adapt`` can adapt to the participant as they go
-(``RunningCalibration``). When ``recording()`` is true, a change of the smoothed top gesture is added
+(``RunningCalibration``). When ``recording()`` is true, a change of the smoothed top gesture is
+added
 to the engine's events (kind ``prediction``), which the recorder writes to the session.
 """
 

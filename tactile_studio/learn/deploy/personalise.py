@@ -3,7 +3,8 @@ touches: live inference's form of ``train --shots K`` (splits.with_shots).
 
 Offline, K labelled performances per gesture of the held-out person join the fold's
 training. Live, the experimenter prompts the person for each gesture K times and each
-prompt gives one labelled window of the model's window length (touch_prompts.py); :func:`personalise` then
+prompt gives one labelled window of the model's window length (touch_prompts.py);
+:func:`personalise` then
 
 * rf / knn: refits the fold's model on its training windows (the run's data, read
   again through the dataset cache, exactly the fold's ``train`` trials) plus the

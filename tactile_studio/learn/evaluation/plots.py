@@ -66,7 +66,8 @@ def confusion_figure(labels: list[str], counts: list[list[int]], title: str = ""
 def confusion_png(path: Path, labels: list[str], counts: list[list[int]], title: str = "",
                   unit: str = "samples") -> None:
     """Save :func:`confusion_figure` as a PNG."""
-    confusion_figure(labels, counts, title, unit).savefig(path, bbox_inches="tight", pad_inches=0.15)
+    confusion_figure(labels, counts, title, unit).savefig(path, bbox_inches="tight",
+                                                          pad_inches=0.15)
 
 
 def _padded(histories: list[list[dict[str, Any]]], key: str) -> np.ndarray:
@@ -129,7 +130,8 @@ def curves_figure(records: list[dict[str, Any]], title: str = ""):
         for ax, key in ((ax_loss, "loss"), (ax_acc, "acc")):
             _band(ax, _padded(hs, f"train_{key}"), "tab:orange", "train", "--")
             _band(ax, _padded(hs, f"val_{key}"), "tab:blue", "validation", "-")
-            ax.plot([], [], "-", color="0.55", lw=0.6, label=f"one fold's validation (x{len(shown)})")
+            ax.plot([], [], "-", color="0.55", lw=0.6,
+                    label=f"one fold's validation (x{len(shown)})")
         what = (f"{len(shown)} folds: median and min-max band while at least half still "
                 "train; thin lines: each fold")
     else:

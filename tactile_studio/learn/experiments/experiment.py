@@ -5,7 +5,8 @@ It is the single entry point the CLI and (later) the GUI call: it takes a
 :class:`~tactile_studio.jobs.CancelToken` and an optional ``listener`` that receives
 the typed job events :class:`~tactile_studio.learn.experiments.job_events.Epoch` /
 :class:`~tactile_studio.learn.experiments.job_events.Fold` (per-epoch curves, finished
-folds' accuracy): the same objects the GUI's training process sends on its queue. Cancelling keeps finished folds on disk (and writes the
+folds' accuracy): the same objects the GUI's training process sends on its queue. Cancelling
+keeps finished folds on disk (and writes the
 metrics of those) before ``Cancelled`` propagates; running again with the same ``out``
 resumes with the unfinished folds.
 

@@ -84,7 +84,8 @@ def glm_effects(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
         d = df[np.isfinite(df[metric])]
         if len(d) < 3 or d[metric].std() == 0 or not factors:
             continue
-        formula = lambda fs: f"{metric} ~ " + (" + ".join(f"C({f})" for f in fs) or "1")  # noqa: E731
+        formula = lambda fs: f"{metric} ~ " + (" + ".join(f"C({f})" for f in fs)  # noqa: E731
+                                               or "1")
         full = smf.glm(formula(factors), d, family=sm.families.Gaussian()).fit()
         for f in factors:
             reduced = smf.glm(formula([g for g in factors if g != f]), d,

@@ -114,7 +114,8 @@ class RunFolder:
                                 "choose another --out")
             return True
         if self.path.is_dir() and any(self.path.iterdir()):
-            raise UserError(f"{self.path}: folder is not empty and holds no run; choose another --out")
+            raise UserError(f"{self.path}: folder is not empty and holds no run; "
+                            "choose another --out")
         self.folds_dir.mkdir(parents=True, exist_ok=True)
         write_json(cfg_path, {"config": config, "resolved": resolved})
         return False

@@ -124,7 +124,8 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     """Run ``models`` x ``channel_sets`` x ``base.rounds`` x folds on ``executor`` (an
     entered :mod:`~tactile_studio.learn.experiments.executors` executor); see the module doc.
 
-    ``listener`` receives a :class:`~tactile_studio.learn.experiments.job_events.Plan` once the tasks
+    ``listener`` receives a :class:`~tactile_studio.learn.experiments.job_events.Plan` once the
+    tasks
     are known and a :class:`~tactile_studio.learn.experiments.job_events.Task` as each one finishes
     (the GUI's per-task progress)."""
     cancel = cancel or CancelToken()

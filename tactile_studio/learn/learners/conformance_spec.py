@@ -52,7 +52,8 @@ def check_declaration(spec: ModelSpec, problems: list[str]) -> None:
     for preset in PRESETS:
         view = spec.views[preset]
         if view.kind not in VIEW_KINDS:
-            problems.append(f"views[{preset!r}].kind {view.kind!r} is not a view of learn/data/views.py")
+            problems.append(f"views[{preset!r}].kind {view.kind!r} "
+                            "is not a view of learn/data/views.py")
         if view.frames < 1 or (view.kind == "windows" and view.stride < 1):
             problems.append(f"views[{preset!r}]: frames (and a windows view's stride) must be >= 1")
         train = spec.train[preset]
@@ -72,9 +73,11 @@ def check_declaration(spec: ModelSpec, problems: list[str]) -> None:
         problems.append(f"option_help: add one line of help for {', '.join(undocumented)}")
     stray = sorted(set(spec.option_help) - set().union(*keys))
     if stray:
-        problems.append(f"option_help documents options the model does not have: {', '.join(stray)}")
+        problems.append("option_help documents options the model does not have: "
+                        f"{', '.join(stray)}")
     if not spec.export or any(f not in EXPORT_FORMATS for f in spec.export):
-        problems.append(f"export {spec.export!r}: declare one or more of {', '.join(EXPORT_FORMATS)}")
+        problems.append(f"export {spec.export!r}: declare one or more of "
+                        f"{', '.join(EXPORT_FORMATS)}")
     if spec.quantizable and "onnx" not in spec.export:
         problems.append("quantizable needs export to onnx (int8 is an onnxruntime quantisation)")
     if spec.int8_format not in INT8_FORMATS:

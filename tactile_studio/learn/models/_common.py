@@ -106,7 +106,8 @@ class PositionalEncoding(nn.Module):
     def __init__(self, d_model: int, max_len: int = 1024) -> None:
         super().__init__()
         position = torch.arange(max_len, dtype=torch.float32).unsqueeze(1)
-        div = torch.exp(torch.arange(0, d_model, 2, dtype=torch.float32) * (-math.log(10000.0) / d_model))
+        div = torch.exp(torch.arange(0, d_model, 2, dtype=torch.float32)
+                        * (-math.log(10000.0) / d_model))
         pe = torch.zeros(max_len, d_model)
         pe[:, 0::2] = torch.sin(position * div)
         pe[:, 1::2] = torch.cos(position * div[: d_model // 2])
@@ -129,7 +130,8 @@ class WindowStatistics(nn.Module):
     centroid's speed; when shear channels are present (the last two), the mean and max
     shear magnitude and the mean divergence and curl of the shear field; each of
     these signals is then described over time by mean, std, min, max, the 10/25/50/75/90th
-    percentiles, skewness, kurtosis, energy, trend (last third minus first third) and the share of its spectral energy in ``bands``
+    percentiles, skewness, kurtosis, energy, trend (last third minus first third) and the share
+    of its spectral energy in ``bands``
     frequency bands (a fixed DFT basis: exports to ONNX). The features are compressed
     (sign-log) and batch-normalised. Statistics of a whole window are invariant to where
     on the grid and when in the window a touch happens, which is what carries over from

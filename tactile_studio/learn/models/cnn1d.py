@@ -111,7 +111,8 @@ def build(
     return model
 
 
-# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+# the declaration the registry finds
+# (pyproject.toml: [project.entry-points."tactile_studio.models"])
 MODEL = ModelSpec(
     name="cnn1d",
     description="tiny 1-D CNN over moving-average slices, taxels as channels",

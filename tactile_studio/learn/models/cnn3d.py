@@ -142,7 +142,8 @@ def build(
     return model
 
 
-# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+# the declaration the registry finds
+# (pyproject.toml: [project.entry-points."tactile_studio.models"])
 MODEL = ModelSpec(
     name="cnn3d",
     description="3D CNN over (time, rows, cols) from the shear+normal paper",

@@ -222,7 +222,8 @@ def build(
     frames = frames or VIEWS[preset].frames
     opts = resolve_options("cnn_transformer", preset, OPTIONS, overrides)
     if len(opts["filters"]) != 4:  # type: ignore[arg-type]
-        raise UserError("model 'cnn_transformer': filters needs 4 values, e.g. filters=64,128,256,512")
+        raise UserError("model 'cnn_transformer': filters needs 4 values, "
+                        "e.g. filters=64,128,256,512")
     model = build_members(CNNTransformer, opts.pop("members"),  # type: ignore[arg-type]
                           n_classes=n_classes, in_channels=in_channels, grid=tuple(grid),
                           frames=frames, **opts)
@@ -231,7 +232,8 @@ def build(
     return model
 
 
-# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+# the declaration the registry finds
+# (pyproject.toml: [project.entry-points."tactile_studio.models"])
 MODEL = ModelSpec(
     name="cnn_transformer",
     description="per-frame 2D CNN + Transformer encoder over sliding windows (HAART/CoST paper)",

@@ -156,7 +156,8 @@ def build(
     return model
 
 
-# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+# the declaration the registry finds
+# (pyproject.toml: [project.entry-points."tactile_studio.models"])
 MODEL = ModelSpec(
     name="mts3d",
     description="gradient-adaptive sampling + multi-temporal-scale ResNet3D-18-style CNN",

@@ -174,14 +174,16 @@ def build(
     check_io("sefusion", n_classes, in_channels, grid)
     frames = frames or VIEWS[preset].frames
     opts = resolve_options("sefusion", preset, OPTIONS, overrides, CHOICES)
-    model = build_members(SEFusion, opts.pop("members"), n_classes=n_classes,  # type: ignore[arg-type]
+    model = build_members(SEFusion, opts.pop("members"),  # type: ignore[arg-type]
+                          n_classes=n_classes,
                           in_channels=in_channels, grid=tuple(grid), frames=frames, **opts)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model
 
 
-# the declaration the registry finds (pyproject.toml: [project.entry-points."tactile_studio.models"])
+# the declaration the registry finds
+# (pyproject.toml: [project.entry-points."tactile_studio.models"])
 MODEL = ModelSpec(
     name="sefusion",
     description="depthwise-separable 1-D branches per modality + SE + Transformer "

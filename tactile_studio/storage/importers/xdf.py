@@ -93,9 +93,10 @@ def tactile_layout(s: dict[str, Any], stream: str | None, layout: str | None) ->
             return None
         lay = get_layout(layout) if layout else layout_for_channels(n)
         if lay is None or lay.n_channels != n:
-            raise ImportFormatError(f"stream '{name}' has {n} channels, which "
-                                    f"{'layout ' + lay.name + ' does not take' if lay else 'match no layout'}"
-                                    " (name one with --layout L)")
+            raise ImportFormatError(
+                f"stream '{name}' has {n} channels, which "
+                f"{'layout ' + lay.name + ' does not take' if lay else 'match no layout'}"
+                " (name one with --layout L)")
         return lay
     if fmt == "string" or float(_first(info, "nominal_srate") or 0) <= 0:
         return None
@@ -273,7 +274,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
         tactile = [(s, lay) for s in streams
                    if (lay := tactile_layout(s, stream, layout)) is not None]
         if not tactile:
-            names = ", ".join(f"{_stream_name(s)} ({int(_first(s['info'], 'channel_count') or 0)} ch)"
+            names = ", ".join(f"{_stream_name(s)} "
+                              f"({int(_first(s['info'], 'channel_count') or 0)} ch)"
                               for s in streams) or "none"
             what = f"no stream named '{stream}'" if stream else "no tactile stream"
             raise ImportFormatError(f"{path}: {what} (streams: {names}); name one with "
@@ -288,7 +290,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
             meta["participant"] = participant
         sha = file_sha256(path)
         outs = [Path(out_dir) / (f"{path.stem}.h5" if len(tactile) == 1 else
-                                 f"{path.stem}_{re.sub(r'[^A-Za-z0-9.-]+', '-', _stream_name(s))}.h5")
+                                 f"{path.stem}_"
+                                 f"{re.sub(r'[^A-Za-z0-9.-]+', '-', _stream_name(s))}.h5")
                 for s, _ in tactile]
         check_outputs(outs, force)
         for (s, lay), out in zip(tactile, outs):
