@@ -5,6 +5,9 @@ so nothing waits for the threshold."""
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 from serial_helpers import received_all
 from waiting import wait_until
@@ -126,3 +129,45 @@ def test_headless_collect_says_a_silent_stream_and_records_it(tmp_path, capsys):
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
         assert silent and silent[0]["seconds"] == 0.01
         assert [t["status"] for t in s.trials] == ["ok"]
+
+
+def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatch):
+    """The console watches its recording's stream too: with a 10 ms threshold each gap
+    between the real-time simulator's frames (23 ms) is a silence, so its banner must
+    come up with the warning (before, the console took the option and never looked)."""
+    from PySide6.QtCore import Qt
+
+    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.ui.collect.console import CollectConsole
+    from tactile_studio.ui.settings import SETTINGS_ENV
+
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    acq = AcquisitionSession()
+    acq.silence_warning_s = 0.01
+    console = CollectConsole(acquisition=acq)
+    qtbot.addWidget(console)
+    console.show()
+    s = console.setup
+    s.protocol.setCurrentIndex(0)
+    qtbot.keyClicks(s.participant, "P09")
+    s.out_dir.clear()
+    (tmp_path / "data").mkdir()
+    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
+    s.device.setCurrentIndex(s.device.findData("simulated"))
+    editor = s.device_form.fields["gesture"].editor
+    editor.clear()
+    qtbot.keyClicks(editor, "idle")
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = Path(console.session.path)
+    try:
+        qtbot.waitUntil(lambda: console.health_banner.isVisible(), timeout=15_000)
+        assert "sent no frames for 0.01 s" in console.health_banner.text() \
+            or "sending frames again" in console.health_banner.text()
+        shots = os.environ.get("TACTILE_STUDIO_SCREENSHOTS")
+        if shots:
+            console.grab().save(str(Path(shots) / "collect_console_stream_health.png"))
+    finally:
+        console.close_session()
+    with Session(path) as f:
+        assert [e for e in f.events if e["kind"] == "stream_silent"]

@@ -145,6 +145,14 @@ class CollectConsole(ConsoleActions):
             "background: #c62828; color: white; border-radius: 6px; padding: 8px;"
             "font-weight: 600;")
         self.fault_banner.hide()
+        # the device went silent while recording (or came back): the recording goes on
+        self.health_banner = QLabel()
+        self.health_banner.setObjectName("streamHealth")
+        self.health_banner.setWordWrap(True)
+        self.health_banner.setStyleSheet(
+            "background: #ffe082; color: #4e3b00; border-radius: 6px; padding: 8px;"
+            "font-weight: 600;")
+        self.health_banner.hide()
         self.sound_notice = QLabel()  # said once: no speaker, the screen flashes instead
         self.sound_notice.setWordWrap(True)
         self.sound_notice.setStyleSheet(
@@ -193,6 +201,7 @@ class CollectConsole(ConsoleActions):
         lv.addWidget(self.file_label)
         lv.addWidget(self.touches_label)
         lv.addWidget(self.fault_banner)
+        lv.addWidget(self.health_banner)
         lv.addWidget(self.redo_banner)
         lv.addWidget(self.sound_notice)
         lv.addWidget(self.hint_label)
@@ -416,9 +425,15 @@ class CollectConsole(ConsoleActions):
 
     # ---- the timer ----------------------------------------------------------------------
     def _on_acquisition_event(self, event: dict[str, Any]) -> None:
-        """How the recording ended (acquisition/outcome.py): a banner when it is incomplete."""
+        """How the recording ended (acquisition/outcome.py): a banner when it is incomplete;
+        a device silent while recording, or back (acquisition/stream_health.py): another."""
         if event["kind"] == "recording_started":
             self.fault_banner.hide()
+            self.health_banner.hide()
+        elif event["kind"] == "health":  # the all-clear stays: the file has a gap there
+            self.health_banner.setText(("\u26a0 " if event.get("silent") else "")
+                                       + event["message"])
+            self.health_banner.show()
         elif event["kind"] == "recording_stopped" and event.get("message"):
             self.fault_banner.setText(f"\u26a0 {event['message']}")
             self.fault_banner.show()
@@ -431,6 +446,7 @@ class CollectConsole(ConsoleActions):
         if rec is not None and rec.write_error and self.runner.state not in ("finished",
                                                                               "aborted"):
             self.runner.abort()  # the file cannot be written: end here (the banner says so)
+        self.acquisition.check_health()  # a silent device is said (health_banner)
         self.runner.tick()
         snap = self.runner.snapshot()
         self._ticks += 1
