@@ -237,3 +237,23 @@ def test_device_differences_names_what_is_not_the_file_s() -> None:
     # not to be told before the device opens: the live device, a value the form refuses
     assert device_differences(info, None, {}) is None
     assert device_differences(info, "simulated", {"seed": "x"}) is None
+
+
+def test_a_resume_at_another_frame_rate_is_refused_unless_told_why(
+        tmp_path: Path, capsys) -> None:
+    """One file, one frame rate: a resume whose device runs at another rate (the same
+    sensor ID) would have mixed 43 Hz and 100 Hz frames under metadata saying 100 Hz,
+    and ``info`` would have read 79 Hz, a rate no frame was recorded at."""
+    path = _killed_session(tmp_path, trials=1)
+    code, err = _resume(capsys, path, "--set", "rate=100")
+    assert code == 1 and err.count("\n") == 1, err
+    assert "recorded at 43 Hz, but the device runs at 100 Hz" in err
+    assert not list(tmp_path.glob("*.bak-*.h5"))  # the file untouched
+
+    code, err = _resume(capsys, path, "--set", "rate=100", "--allow-other-sensor",
+                        "firmware update: the receiver now sends 100 frames/s")
+    assert code == 0, err
+    with Session(path) as s:
+        other = s.metadata["other_sensor"]
+    assert "recorded at 43 Hz" in other[0]["why"] and "firmware" in other[0]["note"]
+    assert check_file(path).ok

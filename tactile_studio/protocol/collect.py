@@ -214,19 +214,33 @@ class OtherSensorRefused(UserError):
 
 def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
     """Why ``engine`` is not the device and sensor the file was recorded with (another
-    plugin, another sensor ID such as the simulator's seed), or None when it is. A sensor
-    an earlier resume went on to with a note is the file's too: the file's device is
-    then that one, and resuming it again needs no second note."""
+    plugin, another frame rate, another sensor ID such as the simulator's seed), or None
+    when it is. A sensor an earlier resume went on to with a note is the file's too: the
+    file's device is then that one, and resuming it again needs no second note."""
     old_plugin = (info.get("device") or {}).get("plugin")
     new_plugin = engine.device_info().get("plugin")
     if old_plugin and new_plugin and old_plugin != new_plugin:
         return f"recorded with device {old_plugin}, not {new_plugin}"
+    # one file, one frame rate: trials, durations and info's rate count on it
+    old_rate = _rate((info.get("device") or {}).get("nominal_rate_hz"))
+    new_rate = _rate(engine.nominal_rate_hz)
+    if old_rate and new_rate and abs(old_rate - new_rate) > 1e-6 * old_rate:
+        return f"recorded at {old_rate:g} Hz, but the device runs at {new_rate:g} Hz"
     old_sensor, new_sensor = info.get("sensor_id"), engine.sensor_id()
     approved = {str(e.get("sensor_id")) for e in info.get("other_sensor") or []
                 if isinstance(e, dict) and e.get("sensor_id")}
     if old_sensor and new_sensor and str(new_sensor) not in {str(old_sensor), *approved}:
         return f"recorded on sensor {old_sensor}, but the device is sensor {new_sensor}"
     return None
+
+
+def _rate(value: Any) -> float | None:
+    """A nominal rate in Hz, None when unknown (missing, not a number, not positive)."""
+    try:
+        rate = float(value)
+    except (TypeError, ValueError):
+        return None
+    return rate if np.isfinite(rate) and rate > 0 else None
 
 
 def resume_device(info: dict[str, Any]) -> tuple[str | None, dict[str, Any]]:
