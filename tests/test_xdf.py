@@ -280,3 +280,37 @@ def test_a_session_recorded_while_streaming_exports_the_stamps_the_outlet_sent(t
         assert len(frames["time_stamps"]) == s.n_frames == len(got.stamps)
         np.testing.assert_array_equal(frames["time_series"], np.asarray(got.samples))
     np.testing.assert_allclose(frames["time_stamps"], got.stamps, rtol=0, atol=1e-9)
+
+
+def test_our_own_xdf_imports_back_with_each_break_counted_once(tmp_path, capsys):
+    """A reconnect and a resume are breaks in the timestamps that the file's own markers
+    already name (``gap``, ``reconnect``, ``resume``). Imported back, pyxdf also sees them
+    as jitter segments; each was then counted twice (``info``: gaps 4 instead of 2)."""
+    rng = np.random.default_rng(3)
+    raw = rng.integers(30000, 30200, size=(300, 180)).astype(np.uint16)
+    host = T0 + np.arange(300) / RATE
+    host[100:] += 3.0   # a reconnect gap
+    host[200:] += 5.0   # the collection was resumed 5 s later
+    dev = np.arange(300) / RATE
+    src = tmp_path / "breaks.h5"
+    with SessionWriter(src, SHEARSENSE_6X6, {"plugin": "simulated", "nominal_rate_hz": RATE},
+                       {"participant": "P03"}) as w:
+        w.append_frames(raw[:100], dev[:100], host[:100])
+        w.add_event("gap", 100, host[100], seconds=3.0, cause="reconnect")
+        w.add_event("reconnect", 100, host[100], gap_s=3.0, attempts=2)
+        w.append_frames(raw[100:200], dev[100:200], host[100:200])
+        w.add_event("resume", 200, host[200], segment=True, device_time_offset=dev[200])
+        w.append_frames(raw[200:], dev[200:], host[200:])
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["export", str(src), "--format", "xdf", "--out", str(out)]) == 0
+    assert main(["import", "xdf", str(out / "breaks.xdf"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    summaries = []
+    for path in (src, out / "breaks.h5"):
+        assert main(["info", "--json", str(path)]) == 0
+        summaries.append(json.loads(capsys.readouterr().out))
+    before, after = summaries
+    assert (after["gaps"], after["reconnects"], after["segments"]) == (2, 1, 2)
+    assert (before["gaps"], before["reconnects"], before["segments"]) == (2, 1, 2)
+    assert abs(after["rate_hz"] - RATE) < 0.05

@@ -44,6 +44,7 @@ from tactile_studio.storage.importers._common import (
     run_jobs,
 )
 from tactile_studio.storage.input_files import check_input_file, file_sha256
+from tactile_studio.storage.segments import is_segment_start
 from tactile_studio.storage.session_writer import SessionWriter
 
 # jitter removal fits a line per segment: a pause longer than max(BREAK_S, BREAK_SAMPLES
@@ -186,6 +187,17 @@ class _Markers:
             self.events.append((kind, row, t, {**m, "stream": stream}))
 
 
+def _unnamed_breaks(segments: list[Any], events: list[tuple[str, int, float, dict[str, Any]]]
+                    ) -> list[int]:
+    """The rows where pyxdf's jitter segments start that no marker already names as a
+    break (a ``gap`` or a resume's segment start, within a row): our own export's
+    reconnects and resumes are gaps already, counted once (``info``'s gaps)."""
+    named = {row for kind, row, _t, detail in events
+             if kind == "gap" or is_segment_start({"kind": kind, **detail})}
+    return [int(a) for a, _b in segments[1:]
+            if not named & {int(a) - 1, int(a), int(a) + 1}]
+
+
 def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
                  others: list[dict[str, Any]], aux: list[AuxSignal], meta: dict[str, Any],
                  cancel: CancelToken | None) -> Callable[[ProgressFn], Path]:
@@ -222,8 +234,8 @@ def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout
                 if len(values) == lay.n_channels:
                     writer.add_baseline(np.asarray(values), row)
             append_in_chunks(writer, raw, times, out.name, progress, cancel)
-            for a, _b in segments[1:]:
-                writer.add_event("gap", int(a), float(times[a]), cause="xdf",
+            for a in _unnamed_breaks(segments, markers.events):
+                writer.add_event("gap", a, float(times[a]), cause="xdf",
                                  seconds=round(float(times[a] - times[a - 1]), 6))
             for kind, row, t, detail in markers.events:
                 writer.add_event(kind, row, t, **detail)
