@@ -74,10 +74,15 @@ def test_resume_continues_the_device_clock_and_refuses_another_sensor(
         resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
         starts = [t["start_time"] for t in s.trials]
         rate = 1.0 / s.metadata["device"]["nominal_rate_hz"]
+        tares = [e for e in s.events if e["kind"] == "tare"]
     # the resumed run's clock goes on one frame period after the old file's last frame
     assert resume["frame"] == n_old and resume["device_time_offset"] == last_old + rate
     assert dev[n_old] == last_old + rate and np.all(np.diff(dev) >= 0)
     assert len(starts) == 9 and starts == sorted(starts)
+    # each run's auto-tare names the rows it averaged (file rows: the resumed run's
+    # first 100 frames, not the engine's frames 0..99, which are the old run's rows)
+    assert len(tares) == 2 and tares[1]["first_frame"] == n_old
+    assert all(e["first_frame"] + e["frames"] <= e["frame"] for e in tares)
 
     assert main(["info", "--json", str(path)]) == 0
     info = json.loads(capsys.readouterr().out)

@@ -378,6 +378,10 @@ class Recorder:
             if kind == "tare" and "baseline" in event:
                 self.writer.add_baseline(event["baseline"], frame)
                 event = {k: v for k, v in event.items() if k != "baseline"}
+            if kind == "tare" and isinstance(event.get("first_frame"), int):
+                # the rows it averaged, as its frame is a row (a resumed run's engine
+                # counts from 0 again, where the file holds the earlier runs' rows)
+                event["first_frame"] = self.row_of(event["first_frame"])
             self.writer.add_event(kind, frame=frame, time_s=t, **event)
         self._write_pending(final=False)
         counters = self._counters_since_start()
