@@ -262,3 +262,49 @@ def test_a_resume_at_another_frame_rate_is_refused_unless_told_why(
         other = s.metadata["other_sensor"]
     assert "recorded at 43 Hz" in other[0]["why"] and "firmware" in other[0]["note"]
     assert check_file(path).ok
+
+
+def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path) -> None:
+    """A serial receiver sends no clock: its frames carry host times, which run on
+    between two runs by themselves. A resume shifted them by the file's last time all
+    the same (3.6e9 s after it, the year 2083: in device times, trial times and a CSV
+    export's time column). A clock that starts again (the simulator's) is still
+    continued one frame after the file's last (the first test)."""
+    from collect_fixtures import mini_protocol
+    from waiting import wait_until
+
+    from tactile_studio.devices import AcquisitionEngine, create_device
+    from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
+    from tactile_studio.protocol.collect import open_session, resume_session
+    from tactile_studio.protocol.runner import StreamClock
+
+    emu = SerialEmulator(array_source(np.full((997, 180), 30000, dtype=np.uint16)),
+                         rate_hz=200, link=tmp_path / "port", reader_grace=0.05)
+    emu.open()
+    emu.start()
+
+    def run(resume: Path | None = None) -> Path:
+        engine = AcquisitionEngine(create_device("serial", {"port": emu.port}))
+        session = (resume_session(resume, engine, clock=StreamClock(engine)) if resume
+                   else open_session(mini_protocol(), "P01", engine, tmp_path,
+                                     clock=StreamClock(engine)))
+        first = session.recorder.row_offset
+        try:
+            engine.start()
+            wait_until(lambda: session.recorder.rows_written >= first + 30,
+                       what="30 frames in the file")
+        finally:
+            session.close()
+            engine.stop()
+        return session.path
+
+    try:
+        path = run(run())
+    finally:
+        emu.close()
+    assert check_file(path).ok
+    with Session(path) as s:
+        dev, host = s.column("device_time"), s.column("host_time")
+        resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
+    assert resume["device_time_offset"] == 0.0
+    np.testing.assert_array_equal(dev, host)  # the frames' own times, on both sides

@@ -291,16 +291,14 @@ def device_differences(info: dict[str, Any], name: str | None,
             if diffs else None)
 
 
-def resume_offset(old: Session, rate_hz: float) -> float:
-    """Seconds to add to a resumed device's clock so the file keeps one clock: the old
-    file's last device time plus one nominal frame period (a device starts its clock
-    again at 0 when it restarts)."""
+def last_device_time(old: Session) -> float | None:
+    """The old file's last device time, which a resumed run's clock must follow (None
+    for a file without frames or with no finite time there)."""
     n = old.n_frames
     if n == 0:
-        return 0.0
+        return None
     last = float(old.column("device_time", n - 1, n)[0])
-    period = 1.0 / rate_hz if rate_hz and rate_hz > 0 else 0.0
-    return last + period if np.isfinite(last) else 0.0
+    return last if np.isfinite(last) else None
 
 
 def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
@@ -337,18 +335,20 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                                      "sensor_id": engine.sensor_id(),
                                      "device": engine.device_info()}]
         n = old.n_frames
-        offset = resume_offset(old, float(engine.nominal_rate_hz or 0.0))
+        after = last_device_time(old)
         if tmp.exists():
             tmp.unlink()
         rec = _factory(engine, recorder)(tmp, meta, row_offset=n,
                                          base_counters=old.journal.counters, start=False)
         trials = rec.copy_earlier(old, COPY_CHUNK)
-    rec.continue_device_clock(offset)
     if engine.baseline is not None:
         rec.add_baseline(engine.baseline, n)
-    # a new recording segment: the device clock continues, shifted by the offset
-    rec.add_event("resume", frame=n, from_file=path.name, backup=backup.name,
-                  trials=len(trials), segment=True, device_time_offset=offset)
+    # a new recording segment: a device clock that starts again continues the file's
+    # (shifted one nominal frame after its last time); the recorder writes the resume
+    # event with the offset once the first frame shows which clock the device has
+    rate = float(engine.nominal_rate_hz or 0.0)
+    rec.begin_segment(after, 1.0 / rate if rate > 0 else 0.0, from_file=path.name,
+                      backup=backup.name, trials=len(trials))
     if other:
         rec.add_note(f"resumed on another sensor ({other}): {note}", frame=n)
     rec.flush()

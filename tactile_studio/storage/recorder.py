@@ -88,6 +88,9 @@ class Recorder:
         # (engine frame, kind, time, detail) of events at frames not pulled yet
         self._pending: list[tuple[int, str, float, dict[str, Any]]] = []
         self._end: int | None = None  # engine frame the file ends before (end_at)
+        # a resume's (file's last device time, frame period, resume event detail),
+        # written with the first frame (begin_segment)
+        self._segment: tuple[float | None, float, dict[str, Any]] | None = None
         # called once, after the file is closed, however it stops (its owner, the exit
         # hook): the file sink books the hours of use there (storage/file_sink.py)
         self._on_stop: list[Callable[[Recorder], None]] = []
@@ -153,13 +156,31 @@ class Recorder:
                 w.set_counters(old.journal.counters)
         return trials
 
-    def continue_device_clock(self, offset: float) -> None:
-        """Shift this run's device times (frames and trial times) by ``offset`` seconds:
-        a resumed device starts its clock again, and the file keeps one clock. Before
-        any frame is recorded; the caller states the offset in the journal."""
+    def begin_segment(self, after: float | None, period: float, **detail: Any) -> None:
+        """A resume: this run is a new segment of the file from row ``row_offset``, and
+        its ``resume`` event (``detail``, ``segment``, ``device_time_offset``) is written
+        with the first frame, once the device's clock is known. A clock that started
+        again (the simulator's, a replay's: at or before ``after``, the file's last
+        device time) is shifted to go on one ``period`` after it, so the file keeps one
+        clock; one that runs on by itself (host-stamped serial or BLE frames, LSL's
+        timestamps) is kept, with the real time between the runs. Before any frame."""
         if self.recorded:
-            raise ValueError("continue_device_clock: frames were already recorded")
-        self.device_time_offset = float(offset)
+            raise ValueError("begin_segment: frames were already recorded")
+        with self._lock:
+            self._segment = (after, float(period), {"time_s": time.time(), **detail})
+
+    def _start_segment(self, first_device_time: float | None) -> None:
+        """Write the pending ``resume`` event, its offset chosen by this run's first
+        device time (None: no frame came, nothing to shift)."""
+        if self._segment is None:
+            return
+        after, period, detail = self._segment
+        self._segment = None
+        if after is not None and first_device_time is not None \
+                and first_device_time <= after:
+            self.device_time_offset = after + period - first_device_time
+        self.writer.add_event("resume", frame=self.row_offset, segment=True,
+                              device_time_offset=self.device_time_offset, **detail)
 
     def follow_rename(self, path: str | os.PathLike) -> None:
         """The open file was moved to ``path`` (resume); closing reopens it there."""
@@ -283,6 +304,7 @@ class Recorder:
         with self._lock:
             if self.write_error is None:
                 try:
+                    self._start_segment(None)  # a resume that recorded no frame
                     self._write_pending(final=True)
                     if self._end is not None:  # pulled past the end before it was known
                         self.writer.truncate(self.row_of(self._end))
@@ -357,6 +379,8 @@ class Recorder:
             self.dropped += chunk.lost
             self.writer.add_event("overrun", lost=chunk.lost)
         if len(chunk):
+            if self._segment is not None:
+                self._start_segment(float(chunk.device_time[0]))
             device_time = chunk.device_time
             if self.device_time_offset:
                 device_time = device_time + self.device_time_offset
