@@ -35,3 +35,30 @@ def test_a_reconnect_outage_is_not_frame_time(tmp_path, reconnect_event):
     assert summary["rate_hz"] == pytest.approx(RATE, rel=1e-3)  # was 32.5 over the outage
     assert summary["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
     assert summary["segments"] == 1  # an outage is no resume
+
+
+def test_a_break_an_xdf_import_found_is_no_frame_time(tmp_path, capsys):
+    """A LabRecorder file whose tactile stream paused 5 s (no marker of ours says why):
+    the import finds the break and records it as a gap (``cause: xdf``), yet ``info``
+    measured 27.9 Hz over 14.3 s for a 43 Hz stream of 9.3 s."""
+    import json
+
+    from tactile_studio.cli import main
+
+    raw = np.full((400, 180), 30000, dtype=np.uint16)
+    host = 1.7e9 + np.arange(400) / RATE
+    host[200:] += 5.0
+    src = tmp_path / "paused.h5"
+    with SessionWriter(src, SHEARSENSE_6X6, {"plugin": "serial", "nominal_rate_hz": RATE},
+                       {"participant": "P01"}) as w:
+        w.append_frames(raw, host, host)
+    out = tmp_path / "out"
+    out.mkdir()
+    assert main(["export", str(src), "--format", "xdf", "--out", str(out)]) == 0
+    assert main(["import", "xdf", str(out / "paused.xdf"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["info", "--json", str(out / "paused.h5")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert [e["cause"] for e in info["events"] if e["kind"] == "gap"] == ["xdf"]
+    assert info["rate_hz"] == pytest.approx(RATE, rel=1e-3)
+    assert info["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)

@@ -41,6 +41,12 @@ def user_block(block: Any) -> int:
     return b + 1 if b >= 0 else 0
 
 
+# gap causes that are a break in the frames' time, left out of the measured rate: a
+# reconnect's outage and a pause an XDF import found (a sequence jump, frames lost in
+# transit, is placed at its batch, not at the jump, and stays in)
+TIME_BREAKS = ("reconnect", "xdf")
+
+
 def _user_blocks(record: dict[str, Any]) -> dict[str, Any]:
     out = dict(record)
     for key in ("block", "after_block"):
@@ -252,10 +258,11 @@ class Session:
         # runs of the device is no frame time (docs/session-format.md, "Segments")
         resumes = [e["frame"] for e in segment_starts(self.events, n)]
         # so is the time a device was gone before it reconnected (the frames after the
-        # outage start at the reconnect's frame): 32 Hz for a 43 Hz sensor otherwise
+        # outage start at the reconnect's frame): 32 Hz for a 43 Hz sensor otherwise;
+        # and a break an XDF import found in the timestamps (a gap with cause xdf)
         outages = [e["frame"] for e in self.events if isinstance(e.get("frame"), int)
                    and (e.get("kind") == "reconnect"
-                        or (e.get("kind") == "gap" and e.get("cause") == "reconnect"))]
+                        or (e.get("kind") == "gap" and e.get("cause") in TIME_BREAKS))]
         if n >= 2:
             rate = segmented_rate_hz(self.column("device_time", 0, n), resumes + outages)
             if rate <= 0:
