@@ -93,3 +93,18 @@ def test_an_unreadable_file_is_one_line_and_exit_1(tmp_path: Path, capsys) -> No
     assert main(["check", str(junk)]) == EXIT_ERROR
     out, err = capsys.readouterr()
     assert out == "" and err.count("\n") == 1 and str(junk) in err and "Traceback" not in err
+
+
+@pytest.mark.damaged_files
+def test_a_clock_going_back_is_named_with_times_one_can_tell_apart(tmp_path: Path) -> None:
+    """Two Unix times 23 ms apart (an old CSV's swapped rows) were both shown as
+    '1.7957e+09': the line now gives them to the microsecond and by how much."""
+    layout = get_layout("shearsense-6x6")
+    t = 1795704932.0 + np.arange(10) / 43.0
+    t[[4, 5]] = t[[5, 4]]
+    path = tmp_path / "swapped.h5"
+    with SessionWriter(path, layout, {"plugin": "import"}, {}) as w:
+        w.append_frames(np.zeros((10, layout.n_channels), np.uint16), t, t)
+    v = check_file(path).violations
+    assert v[0] == ("device_time goes back at row 5: 1795704932.116279 -> "
+                    "1795704932.093023 s (0.023256 s back)"), v

@@ -69,6 +69,12 @@ def _first_backwards(t: np.ndarray, a: int, b: int) -> tuple[int, int]:
     return (int(back[0]) + a + 1, len(back)) if len(back) else (-1, 0)
 
 
+def _s(seconds: float) -> str:
+    """A time to the microsecond, trailing zeros dropped: two Unix times 23 ms apart
+    must read apart (``.6g`` showed both as 1.7957e+09)."""
+    return f"{float(seconds):.6f}".rstrip("0").rstrip(".")
+
+
 def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None:
     n = s.n_frames
     if n < 2:
@@ -85,16 +91,16 @@ def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None
             row, count = _first_backwards(t, a, b)
             if row >= 0:
                 more = f" ({count} times in rows {a}-{b - 1})" if count > 1 else ""
-                out.append(f"{name} goes back at row {row}: {t[row - 1]:.6g} -> "
-                           f"{t[row]:.6g} s{more}")
+                out.append(f"{name} goes back at row {row}: {_s(t[row - 1])} -> "
+                           f"{_s(t[row])} s ({_s(t[row - 1] - t[row])} s back){more}")
     dev = s.column("device_time")
     for e in segs:
         r = e["frame"]
         if dev[r] < dev[r - 1]:
             how = ("despite its device_time_offset" if "device_time_offset" in e
                    else "and the resume records no device_time_offset")
-            out.append(f"device clock restarts at row {r} after a resume ({dev[r - 1]:.6g} -> "
-                       f"{dev[r]:.6g} s) {how}")
+            out.append(f"device clock restarts at row {r} after a resume ({_s(dev[r - 1])} -> "
+                       f"{_s(dev[r])} s) {how}")
 
 
 def _check_metadata(s: Session, out: list[str]) -> None:
@@ -164,7 +170,7 @@ def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
             out.append(f"{name}: rows {a}..{b} end past the {n} frames")
         st, et = t.get("start_time"), t.get("end_time")
         if isinstance(st, (int, float)) and isinstance(et, (int, float)) and et < st:
-            out.append(f"{name}: ends ({et:.6g} s) before it starts ({st:.6g} s)")
+            out.append(f"{name}: ends ({_s(et)} s) before it starts ({_s(st)} s)")
         good.append(t)
     by_index = sorted(good, key=lambda t: int(t["index"]))
     # in order along the frames: no two trials share a row, and their times follow
@@ -176,8 +182,8 @@ def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
                        f"starts before trial {prev['index']} ends (row {prev['end_sample']})")
         st, pt = t.get("start_time"), prev.get("start_time")
         if isinstance(st, (int, float)) and isinstance(pt, (int, float)) and st < pt:
-            out.append(f"trial {t['index']} starts at {st:.6g} s, before trial "
-                       f"{prev['index']} ({pt:.6g} s): its time jumps back")
+            out.append(f"trial {t['index']} starts at {_s(st)} s, before trial "
+                       f"{prev['index']} ({_s(pt)} s): its time jumps back")
     return by_index
 
 
