@@ -62,3 +62,31 @@ def test_a_break_an_xdf_import_found_is_no_frame_time(tmp_path, capsys):
     assert [e["cause"] for e in info["events"] if e["kind"] == "gap"] == ["xdf"]
     assert info["rate_hz"] == pytest.approx(RATE, rel=1e-3)
     assert info["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
+
+
+def test_a_pause_in_an_old_shearsense_csv_is_a_gap_and_no_frame_time(tmp_path, capsys):
+    """The old software's CSV has times only: a 5 s pause in them (its serial link
+    stalled) made ``info`` say 27.9 Hz over 14.3 s for 43 Hz over 9.3 s, with no gap.
+    The import now records the pause as a gap (``cause: import``), left out of the rate."""
+    import json
+
+    from tactile_studio.cli import main
+    from tactile_studio.storage.shearsense import write_shearsense_csv
+
+    raw = np.full((400, 180), 30000, dtype=np.uint16)
+    times = 1.69e9 + np.arange(400) / RATE
+    times[200:] += 5.0
+    labels = np.zeros(400, dtype=np.int64)
+    labels[50:80] = ord("p")
+    csv = tmp_path / "P04_paused_FLAT.csv"
+    write_shearsense_csv(csv, raw, times, labels, np.full(180, 30000.0))
+    assert main(["import", "shearsense", str(csv), "--out", str(tmp_path)]) == 0
+    capsys.readouterr()
+    assert main(["info", "--json", str(tmp_path / "P04_paused_FLAT.h5")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    gaps = [e for e in info["events"] if e["kind"] == "gap"]
+    assert [(g["frame"], g["cause"], g["seconds"]) for g in gaps] == [(200, "import", 5.023256)]
+    assert info["gaps"] == 1
+    assert info["rate_hz"] == pytest.approx(RATE, rel=1e-3)
+    assert info["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
+    assert info["metadata"]["device"]["rate_hz"] == pytest.approx(RATE, rel=1e-3)

@@ -42,9 +42,9 @@ def user_block(block: Any) -> int:
 
 
 # gap causes that are a break in the frames' time, left out of the measured rate: a
-# reconnect's outage and a pause an XDF import found (a sequence jump, frames lost in
-# transit, is placed at its batch, not at the jump, and stays in)
-TIME_BREAKS = ("reconnect", "xdf")
+# reconnect's outage and a pause an import found (XDF, old CSV); a sequence jump,
+# frames lost in transit, is placed at its batch, not at the jump, and stays in
+TIME_BREAKS = ("reconnect", "xdf", "import")
 
 
 def _user_blocks(record: dict[str, Any]) -> dict[str, Any]:
@@ -259,7 +259,7 @@ class Session:
         resumes = [e["frame"] for e in segment_starts(self.events, n)]
         # so is the time a device was gone before it reconnected (the frames after the
         # outage start at the reconnect's frame): 32 Hz for a 43 Hz sensor otherwise;
-        # and a break an XDF import found in the timestamps (a gap with cause xdf)
+        # and a pause an import found in the timestamps (a gap with cause xdf, import)
         outages = [e["frame"] for e in self.events if isinstance(e.get("frame"), int)
                    and (e.get("kind") == "reconnect"
                         or (e.get("kind") == "gap" and e.get("cause") in TIME_BREAKS))]

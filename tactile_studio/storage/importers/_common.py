@@ -18,6 +18,9 @@ from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 
 WRITE_CHUNK = 8192
+# a pause in a file's frame times: a step longer than this, and than this many typical
+# frame intervals (the rule the XDF import gives pyxdf for its jitter segments)
+PAUSE_S, PAUSE_FRAMES = 0.2, 5
 
 
 class ImportFormatError(UserError):
@@ -96,14 +99,32 @@ def participant_id(subject: str) -> str:
     return f"P{int(value):02d}" if value == int(value) else f"P{s}"
 
 
+def pauses(times: np.ndarray) -> list[int]:
+    """The rows that follow a pause in ``times`` (a step over max(PAUSE_S, PAUSE_FRAMES
+    median steps)): frames that never came, which are no frame time."""
+    if len(times) < 3:
+        return []
+    steps = np.diff(np.asarray(times, dtype=np.float64))
+    limit = max(PAUSE_S, PAUSE_FRAMES * float(np.median(steps)))
+    return [int(i) + 1 for i in np.flatnonzero(steps > limit)]
+
+
+def pause_gaps(times: np.ndarray, cause: str) -> list[tuple[str, int, float, dict[str, Any]]]:
+    """A ``gap`` event (``cause``, ``seconds``) at each of :func:`pauses`' rows."""
+    return [("gap", a, float(times[a]),
+             {"cause": cause, "seconds": round(float(times[a] - times[a - 1]), 6)})
+            for a in pauses(times)]
+
+
 def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
                   metadata: dict[str, Any], raw: np.ndarray, times: np.ndarray,
                   baseline: np.ndarray | None, trials: list[dict[str, Any]],
                   counters: dict[str, Any] | None = None,
                   progress: ProgressFn | None = None,
-                  cancel: CancelToken | None = None) -> Path:
-    """Write one complete session; a cancelled or failed write leaves no file behind, and
-    no frames write no file (``NoFramesError``)."""
+                  cancel: CancelToken | None = None,
+                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = ()) -> Path:
+    """Write one complete session (``events``: (kind, row, time, detail)); a cancelled or
+    failed write leaves no file behind, and no frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
     n = int(raw.shape[0])
     if n == 0:
@@ -115,6 +136,8 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
         if counters:
             writer.set_counters(counters)
         append_in_chunks(writer, raw, times, path.name, progress, cancel)
+        for kind, row, t_s, detail in events:
+            writer.add_event(kind, row, t_s, **detail)
         for t in trials:
             writer.add_trial(t)
         close_complete(writer)

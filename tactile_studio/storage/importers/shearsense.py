@@ -19,6 +19,7 @@ from tactile_studio.storage.importers._common import (
     import_session_id,
     labelled_runs,
     load_protocol_or_none,
+    pause_gaps,
     run_jobs,
     slice_progress,
     write_session,
@@ -30,7 +31,7 @@ from tactile_studio.storage.importers.maps import (
     participant_map,
 )
 from tactile_studio.storage.protocol_file import list_protocols
-from tactile_studio.storage.session import measured_rate_hz
+from tactile_studio.storage.segments import segmented_rate_hz
 from tactile_studio.storage.shearsense import (
     ShearSenseData,
     ShearSenseError,
@@ -174,12 +175,15 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
         "source": "import:shearsense", "original_file": csv.name,
         "malformed_rows": data.n_malformed, "baseline_from_row": data.baseline_from_row,
     }
+    # a pause in the times (the old software's link stalled) is a gap, no frame time;
     # the same measured figure `info` shows in its header: frames over the time spanned
+    gaps = pause_gaps(data.times, "import")
     device = {"plugin": "import", "format": "shearsense-csv", "file": str(csv),
-              "rate_hz": round(measured_rate_hz(data.times) or RATE_HZ, 3)}
+              "rate_hz": round(segmented_rate_hz(data.times, [g[1] for g in gaps])
+                               or RATE_HZ, 3)}
     write_session(out, SHEARSENSE_6X6, device, metadata, data.raw, data.times, data.baseline,
                   trials, counters={"malformed_by_kind": dict(data.malformed_by_kind)},
-                  progress=slice_progress(progress, 0.7, 1.0), cancel=cancel)
+                  progress=slice_progress(progress, 0.7, 1.0), cancel=cancel, events=gaps)
     if report is not None:
         report.key_names, report.custom_keys = names, custom
         report.participants[spelled] = participant
