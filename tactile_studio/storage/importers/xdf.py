@@ -147,6 +147,15 @@ class _Markers:
             i -= 1
         return min(i, len(self.times) - 1)
 
+    def _after(self, row: int) -> float:
+        """The time just after frame ``row`` (a trial's ``end_time``, as the runner
+        writes it): the next frame's, or one frame step after the last."""
+        times = self.times
+        if row + 1 < len(times):
+            return float(times[row + 1])
+        step = float(times[-1] - times[-2]) if len(times) > 1 else 0.0
+        return float(times[row]) + step
+
     def add(self, stream: str, text: str, t: float) -> None:
         row = self.row(t)
         try:
@@ -175,7 +184,7 @@ class _Markers:
             self.trials[int(index)] = {**keep, "index": int(index),
                                        "start_sample": max(start, 0), "end_sample": row + 1,
                                        "start_time": float(self.times[max(start, 0)]),
-                                       "end_time": float(t),
+                                       "end_time": self._after(row),
                                        "status": m.get("status") or "ok"}
         elif kind in ("redo", "discard") and index is not None and int(index) in self.trials:
             self.trials[int(index)].update(status=m.get("status") or
