@@ -63,6 +63,9 @@ def test_a_device_gone_silent_while_recording_is_said_once_and_recorded(tmp_path
         back = [e for e in s.events if e["kind"] == "stream_resumed"]
         assert len(silent) == 1 and silent[0]["frame"] == 30 and silent[0]["device"] == "serial"
         assert len(back) == 1 and back[0]["silent_s"] == 2.5 and s.n_frames == 50
+        # at the row frames came back (the 20 that came in one batch follow it), not
+        # where the poll that noticed them had got to
+        assert back[0]["frame"] == 30
 
 
 def test_record_takes_the_silence_threshold_from_its_option(tmp_path, capsys):

@@ -6,7 +6,8 @@ from the owner's poll (``AcquisitionSession.poll``): when no frame has arrived f
 ``threshold_s`` (once frames have flowed) it writes an engine event ``stream_silent``
 (device, seconds, state;
 so the file has it at the row where frames stopped) and returns a warning; when frames
-come back, an event ``stream_resumed`` (silent_s) and a line saying so. The CLI prints
+come back, an event ``stream_resumed`` (silent_s, at the first frame back) and a line
+saying so. The CLI prints
 these lines, the main window shows them in its status bar.
 """
 
@@ -38,11 +39,13 @@ class StreamHealth:
         """New warnings (and the all-clear after one) since the last check."""
         now, frames = self.clock(), self.engine.frames
         if frames != self._frames:
-            self._frames, self._armed = frames, True
+            first_new, self._frames, self._armed = self._frames, frames, True
             out = []
             if self.silent:
                 gap = now - self._since
-                self.engine.add_event("stream_resumed", device=self.name,
+                # at the first frame that came back, not at the newest: a batch (an LSL
+                # chunk, a backlog) may have brought many since
+                self.engine.add_event("stream_resumed", frame=first_new, device=self.name,
                                       silent_s=round(gap, 3))
                 out.append(f"{self.name} is sending frames again after {gap:.1f} s of silence")
                 self.silent = False
