@@ -44,7 +44,8 @@ def runs(tmp_path_factory):
     return {"root": root, "net": run("cnn1d", "net", "none"),
             "net_adapted": run("cnn1d", "net_adapted", "person"),
             "rf": run("rf", "rf", "none"), "rf_adapted": run("rf", "rf_adapted", "person"),
-            "fused_adapted": run("cnn1d", "fused_adapted", "person", rf_weight=0.5)}
+            "fused_adapted": run("cnn1d", "fused_adapted", "person", rf_weight=0.5),
+            "fused_auto": run("cnn1d", "fused_auto", "auto", rf_weight=0.5)}
 
 
 def _batchnorm_means(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
@@ -134,6 +135,41 @@ def test_a_fused_model_adapts_both_parts_and_evaluates_the_same(runs):
     metrics = runs["fused_adapted"].metrics
     assert rescored["confusion_counts"] == metrics["confusion_counts"]
     assert metrics["adapt"] == "person" and metrics["rf_weight"] == 0.5
+
+
+def test_auto_adapts_a_fused_network_and_keeps_its_forest_as_trained(runs):
+    """On real people standardising a forest's features per person cost rf 1.7 points,
+    so ``--adapt auto`` keeps a fused model's forest as rf alone is kept (``rf_adapt=0``,
+    recorded in the run) while its network adapts; ``--adapt person`` adapts both, as
+    every fused run before the option did."""
+    from dataclasses import replace
+
+    from tactile_studio.learn.learners.families import make_learner
+
+    def overrides(adapt: str, **given) -> dict:
+        cfg = ExperimentConfig(data=[], model="cnn1d", adapt=adapt,
+                               overrides={"rf_weight": 0.5, **given})
+        return cfg.resolved().overrides
+
+    assert overrides("auto") == {"rf_weight": 0.5, "rf_adapt": 0}
+    assert overrides("person") == {"rf_weight": 0.5}  # as before: both parts adapt
+    assert overrides("auto", rf_adapt=1)["rf_adapt"] == 1  # asked for: kept
+    with pytest.raises(UserError, match="rf_adapt"):
+        make_learner("cnn1d", "tiny", {"rf_weight": 0.5, "rf_adapt": "2"})
+    root = runs["root"]
+    config, _, _, ds, learner, _ = load_run_data(root / "fused_auto", device="cpu")
+    assert config.adapt == "person" and config.overrides["rf_adapt"] == 0
+    _, kept, _, _, _, _, moments = prepare_inputs(learner, ds, config)
+    _, plain, *_ = prepare_inputs(learner, ds, replace(config, adapt="none"))
+    assert moments is None and np.array_equal(kept, plain)  # the forest's features as trained
+    both = make_learner("cnn1d", "tiny", {"rf_weight": 0.5}, 2, "cpu")
+    _, standardised, _, _, _, _, moments = prepare_inputs(both, ds, config)
+    assert moments is not None and not np.array_equal(standardised, plain)
+    live = WindowModel(root / "fused_auto", ds.participants[0])
+    assert not live.reads_person_features and live.has_view_as_trained
+    assert WindowModel(root / "fused_adapted", ds.participants[0]).reads_person_features
+    rescored = rescore_run(root / "fused_auto")
+    assert rescored["confusion_counts"] == runs["fused_auto"].metrics["confusion_counts"]
 
 
 def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):

@@ -48,7 +48,12 @@ from tactile_studio.learn.evaluation.evaluate import load_run_data
 from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import prepare_inputs
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
-from tactile_studio.learn.learners.fused import RF_FILE, display_name, fuse
+from tactile_studio.learn.learners.fused import (
+    RF_FILE,
+    display_name,
+    fuse,
+    standardises_person_features,
+)
 from tactile_studio.learn.learners.generalise import ADAPT_PHRASE
 
 ONNX_TOLERANCE = 1e-3
@@ -148,7 +153,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         folds.append(entry)
     report = _report(display_name(config.model, config.overrides), fmt, folds, scored,
                      ds.label_names, learner.windowed, how)
-    report.update(_adapt_note(config, learner.kind))
+    report.update(_adapt_note(config, learner))
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
@@ -193,7 +198,7 @@ def _export_baseline(run, config, resolved, records, ds, learner, info, progress
         folds.append({"name": name, "n": int(len(yt)), "path": str(path), "max_abs_diff": diff})
         scored.append(_scored(rec, owner[mask], yt, ref, got))
     report = _report(config.model, "onnx", folds, scored, ds.label_names, learner.windowed, how)
-    report.update(_adapt_note(config, learner.kind))
+    report.update(_adapt_note(config, learner))
     write_json(out_dir / "onnx.json", report)
     progress(1.0, "exported")
     return report
@@ -271,14 +276,14 @@ def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarr
     return one(ref), one(got)
 
 
-def _adapt_note(config, kind: str) -> dict[str, str]:  # noqa: ANN001 - ExperimentConfig
+def _adapt_note(config, learner) -> dict[str, str]:  # noqa: ANN001 - config, learner
     """What a file exported from a run adapted to each person (``--adapt person`` or
     ``person-condition``) lacks: the person's statistics, which only that person's own
     session can give."""
     if config.adapt == "none":
         return {}
     what = ("it carries the training people's batch-norm statistics, so the accuracies "
-            "here are without adaptation" if kind == "torch" else
+            "here are without adaptation" if not standardises_person_features(learner) else
             "it expects features standardised by each person's own mean and spread "
             "(learn/learners/generalise.py person_standardised), as scored here")
     return {"adapt": config.adapt,

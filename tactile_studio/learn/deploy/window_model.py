@@ -20,7 +20,11 @@ from tactile_studio.learn.data.windowing import cut, window_spec
 from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.learn.experiments.runfolder import model_file, read_run
 from tactile_studio.learn.learners.families import DataInfo, make_learner
-from tactile_studio.learn.learners.fused import display_name, person_columns
+from tactile_studio.learn.learners.fused import (
+    display_name,
+    person_columns,
+    standardises_person_features,
+)
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import Layout
 
@@ -91,7 +95,7 @@ class WindowModel:
         """An rf/knn (or fused forest) run trained with ``--adapt`` reads features
         standardised by the person's own statistics, from a recording of them or their
         touches (until then they read them with the training people's pooled ones)."""
-        return self.config.adapt != "none" and self.learner.kind != "torch"
+        return self.config.adapt != "none" and standardises_person_features(self.learner)
 
     @property
     def has_view_as_trained(self) -> bool:

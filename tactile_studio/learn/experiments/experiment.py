@@ -45,8 +45,15 @@ from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
-from tactile_studio.learn.learners.fused import display_name, person_columns, rf_weight
+from tactile_studio.learn.learners.fused import (
+    ADAPT_OPTION,
+    display_name,
+    person_columns,
+    rf_weight,
+    standardises_person_features,
+)
 from tactile_studio.learn.learners.generalise import (
+    ADAPT_AUTO,
     ADAPT_CHOICES,
     ADAPT_PHRASE,
     VAL_BY,
@@ -147,9 +154,15 @@ class ExperimentConfig:
         shots_by = self.shots_by
         if shots_by == "auto":  # join without shots: what a run before the setting did
             shots_by = NETWORK_SHOTS_BY if self.shots and not self.forest else "join"
-        if (adapt, shots_by) == (self.adapt, self.shots_by):
+        overrides = self.overrides
+        if (self.adapt == ADAPT_AUTO and adapt != "none" and self.model not in BASELINES
+                and self.forest and ADAPT_OPTION not in overrides):
+            # auto adapts the network, and keeps the fused forest as rf alone is kept
+            # (recorded, so the run reads the same when it is resumed or deployed)
+            overrides = {**overrides, ADAPT_OPTION: 0}
+        if (adapt, shots_by, overrides) == (self.adapt, self.shots_by, self.overrides):
             return self
-        return replace(self, adapt=adapt, shots_by=shots_by)
+        return replace(self, adapt=adapt, shots_by=shots_by, overrides=overrides)
 
     def validate(self) -> None:
         if self.protocol not in PROTOCOLS:
@@ -398,7 +411,7 @@ def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
     x, sample_piece = learner.samples(pieces)
     groups, moments = adapt_groups(config.adapt, ds), None
     if groups is not None:  # features standardised by each person's own statistics
-        if learner.kind != "torch":  # a forest's view as trained: pooled statistics
+        if standardises_person_features(learner):  # a forest's view as trained: pooled
             moments = group_moments(person_columns(learner, x), groups[piece_owner[sample_piece]])
         x = learner.adapt_inputs(x, groups[piece_owner[sample_piece]])
     extra = augmenter(learner, pieces, piece_owner, config.augment, config.augment_copies)

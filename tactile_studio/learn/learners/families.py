@@ -64,10 +64,13 @@ def make_learner(name: str, preset: str = "full", overrides: dict[str, Any] | No
                             f"{', '.join(available_models())})")
         spec = get_model_spec(name)
     weight = fused.rf_weight(overrides)
+    forest_adapts = fused.forest_adapts(overrides)
     overrides.pop(fused.OPTION, None)
+    overrides.pop(fused.ADAPT_OPTION, None)
     network = TorchLearner(spec, preset, overrides, epochs, device)
     if weight > 0:
-        return fused.FusedLearner(network, BaselineLearner("rf", preset, {}), weight)
+        return fused.FusedLearner(network, BaselineLearner("rf", preset, {}), weight,
+                                  forest_adapts)
     return network
 
 
@@ -93,7 +96,8 @@ class TorchLearner:
             view=self.view.kind, export=tuple(spec.export), quantizable=spec.quantizable,
             sliding=sliding, cached=spec.streaming.cached,
             window=self.view.frames if sliding else None, gpus=spec.gpus,
-            option_help={**spec.option_help, fused.OPTION: fused.OPTION_HELP})
+            option_help={**spec.option_help, fused.OPTION: fused.OPTION_HELP,
+                         fused.ADAPT_OPTION: fused.ADAPT_OPTION_HELP})
 
     @property
     def windowed(self) -> bool:

@@ -125,7 +125,8 @@ def resolve_adapt(adapt: str, protocol: str, can_adapt: bool = True,
     """``adapt`` made concrete: ``auto`` is ``person`` for a network (``network``: any
     model with a learned network, fused with rf or not) when the test people were never
     seen (lopo, group-kfold), else ``none``; ``none`` for rf and knn, and when the model
-    cannot adapt (``can_adapt`` False: a forest on augmented windows).
+    cannot adapt (``can_adapt`` False: a forest on augmented windows). A fused model's
+    forest then stays as trained (``ExperimentConfig.resolved`` records ``rf_adapt=0``).
 
     Decided on people (issue 37, the real recordings, LOPO, per performance): adapting
     gained cnn3d 3.3 points (batch-norm re-estimation) and cost rf 1.7 (standardising a
