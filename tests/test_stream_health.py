@@ -115,29 +115,32 @@ def test_the_consoles_and_the_main_window_take_the_option_too(qtbot, tmp_path):
 
 def test_headless_collect_says_a_silent_stream_and_records_it(tmp_path, capsys):
     """``collect --virtual-participant`` watches the stream as ``record`` does. The
-    simulator in real time sends a frame every 23 ms: a 10 ms threshold makes each gap a
-    silence, so the warning and its event must come (before, collect never looked)."""
+    simulator at 10 Hz in real time sends a frame every 100 ms: a 30 ms threshold makes
+    each gap a silence (a loop slowed by load still looks inside most of them), so the
+    warning and its event must come (before, collect never looked)."""
     from tactile_studio.cli import main
 
     (tmp_path / "p.toml").write_text(
-        'name = "quiet"\ntrial_s = 0.3\nblocks = 1\nfree_play_s = 0.0\n'
+        'name = "quiet"\ntrial_s = 1.0\nblocks = 1\nfree_play_s = 0.0\n'
         '[[gestures]]\nname = "Poke"\nkey = "p"\ndefinition = "x"\n')
     code = main(["collect", "--protocol", str(tmp_path / "p.toml"), "--participant", "P01",
-                 "--virtual-participant", "--speed", "1", "--silence-warning", "0.01",
+                 "--virtual-participant", "--speed", "1", "--set", "rate=10",
+                 "--silence-warning", "0.03",
                  "--out", str(tmp_path)])
     captured = capsys.readouterr()
     assert code == 0, captured.err
-    assert "sent no frames for 0.01 s" in captured.err
+    assert "sent no frames for 0.03 s" in captured.err
     with Session(captured.out.strip().splitlines()[-1]) as s:
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
-        assert silent and silent[0]["seconds"] == 0.01
+        assert silent and silent[0]["seconds"] == 0.03
         assert [t["status"] for t in s.trials] == ["ok"]
 
 
 def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatch):
-    """The console watches its recording's stream too: with a 10 ms threshold each gap
-    between the real-time simulator's frames (23 ms) is a silence, so its banner must
-    come up with the warning (before, the console took the option and never looked)."""
+    """The console watches its recording's stream too: with a 30 ms threshold each gap
+    between the frames of a 10 Hz simulator in real time (100 ms) is a silence, so its
+    banner must come up with the warning (before, the console took the option and never
+    looked)."""
     from PySide6.QtCore import Qt
 
     from tactile_studio.acquisition.session import AcquisitionSession
@@ -146,7 +149,7 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
 
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
     acq = AcquisitionSession()
-    acq.silence_warning_s = 0.01
+    acq.silence_warning_s = 0.03
     console = CollectConsole(acquisition=acq)
     qtbot.addWidget(console)
     console.show()
@@ -157,15 +160,16 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
     (tmp_path / "data").mkdir()
     qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
     s.device.setCurrentIndex(s.device.findData("simulated"))
-    editor = s.device_form.fields["gesture"].editor
-    editor.clear()
-    qtbot.keyClicks(editor, "idle")
+    for name, value in {"rate": "10", "gesture": "idle"}.items():
+        editor = s.device_form.fields[name].editor
+        editor.clear()
+        qtbot.keyClicks(editor, value)
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert s.error.text() == "" and console.stack.currentIndex() == 1
     path = Path(console.session.path)
     try:
         qtbot.waitUntil(lambda: console.health_banner.isVisible(), timeout=15_000)
-        assert "sent no frames for 0.01 s" in console.health_banner.text() \
+        assert "sent no frames for 0.03 s" in console.health_banner.text() \
             or "sending frames again" in console.health_banner.text()
         shots = os.environ.get("TACTILE_STUDIO_SCREENSHOTS")
         if shots:
