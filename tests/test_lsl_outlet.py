@@ -174,6 +174,35 @@ def test_a_recording_started_later_carries_the_offset_in_force(tmp_path: Path) -
     assert clock[-1]["streaming"] is False
 
 
+def test_a_resumed_recording_carries_the_offset_at_its_first_row(tmp_path: Path) -> None:
+    """A resume on a device already streaming to LSL (the console on the live engine):
+    the offset in force is the new run's, from the first new row. At row 0 it was said
+    to hold for the earlier run's frames too, which were never on that stream."""
+    from tactile_studio.storage.recorder import Recorder
+    from tactile_studio.storage.session_writer import SessionWriter
+
+    old = tmp_path / "old.h5"
+    with SessionWriter(old, SHEARSENSE_6X6, {"plugin": "simulated", "nominal_rate_hz": 400.0},
+                       {"participant": "P01"}) as w:
+        t = np.arange(40) / 400.0
+        w.append_frames(np.full((40, 180), 30000, dtype=np.uint16), t, 1.7e9 + t)
+    engine = _engine(seed=5)
+    streamer = LslStreamer(engine, name=unique("resumed")).start()
+    engine.start()
+    assert engine.wait_frames(50, timeout=20)
+    with Session(old) as earlier:
+        rec = Recorder(engine, tmp_path / "resumed.h5", row_offset=40)
+        rec.copy_earlier(earlier)
+    rec.start()
+    assert engine.wait_frames(engine.frames + 50, timeout=20)
+    engine.stop()
+    streamer.stop()
+    rec.stop()
+    with Session(tmp_path / "resumed.h5") as s:
+        clock = [e for e in s.events if e["kind"] == "lsl_clock"]
+    assert clock[0]["frame"] == 40 and clock[0]["carried"] is True
+
+
 def test_clock_offset_is_the_tightest_bracket() -> None:
     host = iter([10.0, 10.4, 20.0, 20.1, 30.0, 30.3])
     lsl = iter([105.0, 115.0, 125.0])

@@ -21,7 +21,8 @@ from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 from tactile_studio.storage.trials import TrialRecord
 
 # Events that state something in force until the next one (the host->LSL clock offset of a
-# running LSL outlet): a recording started later begins with the latest one, at row 0.
+# running LSL outlet): a recording started later begins with the latest one, at its first
+# row (row 0, or a resumed file's first new row).
 CARRIED_EVENTS = ("lsl_clock",)
 
 # Recorders whose file is open: closed cleanly if the interpreter exits while they run
@@ -358,7 +359,10 @@ class Recorder:
         for kind, event in latest.items():
             if event.get("streaming", True):
                 detail = {k: v for k, v in event.items() if k not in ("kind", "frame", "time")}
-                self.writer.add_event(kind, frame=0, time_s=event["time"], carried=True, **detail)
+                # at this recording's first row (a resumed file's earlier rows were not
+                # on that stream)
+                self.writer.add_event(kind, frame=self.row_offset, time_s=event["time"],
+                                      carried=True, **detail)
 
     def _drain(self) -> None:
         """Pull and write; the first write error is kept in ``write_error`` (not raised:
