@@ -118,3 +118,35 @@ def test_main_window_says_the_device_was_lost_when_the_recording_ends(qtbot, tmp
     finally:
         w.shutdown()
         emu.close()
+
+
+def test_collection_console_ends_the_session_when_its_device_ends(qtbot, tmp_path):
+    """A device that ended for good (stopped here; failed alike) ends the collection as
+    ``collect`` ends it: the runner aborted (the abort in the file), the file closed, and
+    a banner naming the device and where the completed trials are. Before, the console
+    waited for a device that could not come back, saying nothing."""
+    console = CollectConsole()
+    qtbot.addWidget(console)
+    console.show()
+    s = console.setup
+    s.protocol.setCurrentIndex(0)
+    qtbot.keyClicks(s.participant, "P10")
+    s.out_dir.clear()
+    (tmp_path / "data").mkdir()
+    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
+    s.device.setCurrentIndex(s.device.findData("simulated"))
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = Path(console.session.path)
+    try:
+        qtbot.waitUntil(lambda: console.engine.frames > 0, timeout=WAIT_MS)
+        console.engine.stop()
+        qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+        assert console.fault_banner.isVisible()
+        text = console.fault_banner.text()
+        assert "device simulated: stopped" in text and str(path) in text
+        assert console.runner.snapshot().state == "aborted"
+    finally:
+        console.close_session()
+    with Session(path) as f:
+        assert [e["kind"] for e in f.events].count("abort") == 1

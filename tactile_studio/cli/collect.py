@@ -252,13 +252,11 @@ def _drive(session: CollectionSession, vp: VirtualParticipant, engine: Acquisiti
                       f"tactile-studio collect --virtual-participant --resume {session.path}",
                       file=sys.stderr)
                 raise Cancelled("collection stopped")
-            if session.recorder.write_error or engine.state == ERROR:
-                runner.abort()  # the file cannot be written or the device failed: the
-                return          # outcome says which, and what was kept (exit 3)
-            if not engine.running and runner.state != State.SETUP:
-                runner.abort()
-                raise UserError(f"device {engine.device_name}: {engine.error or 'stopped'}; "
-                                f"completed trials are kept in {session.path}")
+            cut_off = session.end_if_cut_off()
+            if cut_off is not None:
+                if session.recorder.write_error or engine.state == ERROR:
+                    return  # the outcome says which, and what was kept (exit 3)
+                raise UserError(f"{cut_off}; completed trials are kept in {session.path}")
             acq.check_health()  # silence said, not stopped: a device may come back
             before = (runner.state, len(runner.trials))
             runner.tick()

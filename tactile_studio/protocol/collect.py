@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.engine import AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.plugin_settings import validate_settings
@@ -61,6 +61,23 @@ class CollectionSession:
     backup: Path | None = None
     touches: str = ""                  # who makes the touches, in words (touch_source)
     restore_gesture: str | None = None  # a simulator's own mode before the session
+
+    def end_if_cut_off(self) -> str | None:
+        """End the session when it cannot go on, and say why in one line (None: it goes
+        on): its file cannot be written, or its device ended for good (failed, or stopped;
+        a device that is reconnecting may come back, and the session waits for it). The
+        runner is aborted first, so the abort is in the file after the completed trials.
+        Headless collection and the console both ask this at every tick."""
+        if self.runner.state in State.DONE:
+            return None
+        if self.recorder.write_error:
+            why = f"{self.path}: {self.recorder.write_error}"
+        elif EngineState(self.engine.state).is_over:
+            why = f"device {self.engine.device_name}: {self.engine.error or self.engine.state}"
+        else:
+            return None
+        self.runner.abort()
+        return why
 
     def close(self) -> None:
         """Stop (aborting an unfinished runner; its finished trials stay) and close the

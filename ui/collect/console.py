@@ -442,10 +442,12 @@ class CollectConsole(ConsoleActions):
         """Advance the runner and present its snapshot (called every TICK_MS)."""
         if self.runner is None:
             return
-        rec = self.session.recorder if self.session is not None else None
-        if rec is not None and rec.write_error and self.runner.state not in ("finished",
-                                                                              "aborted"):
-            self.runner.abort()  # the file cannot be written: end here (the banner says so)
+        cut_off = self.session.end_if_cut_off() if self.session is not None else None
+        if cut_off is not None:  # the file cannot be written, or the device ended: the
+            # session ends here, and closing it says how the recording ended (outcome)
+            self.fault_banner.setText(f"\u26a0 {cut_off}; the session ended, its completed "
+                                      f"trials are kept in {self.session.path}")
+            self.fault_banner.show()
         self.acquisition.check_health()  # a silent device is said (health_banner)
         self.runner.tick()
         snap = self.runner.snapshot()
