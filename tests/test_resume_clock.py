@@ -308,3 +308,36 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
         resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
     assert resume["device_time_offset"] == 0.0
     np.testing.assert_array_equal(dev, host)  # the frames' own times, on both sides
+
+
+def test_a_resume_on_a_running_engine_keeps_the_earlier_rows_baselines(tmp_path: Path) -> None:
+    """The console may resume on an engine that is already running and tared: its
+    baseline went into the file at row 0, so the earlier run's first rows (before that
+    run's own tare) decoded against the new run's baseline."""
+    from waiting import wait_until
+
+    from tactile_studio.devices import AcquisitionEngine, create_device
+    from tactile_studio.protocol.collect import resume_session
+    from tactile_studio.protocol.runner import StreamClock
+
+    path = _killed_session(tmp_path, trials=1)
+    with Session(path) as s:
+        n_old = s.n_frames
+        before = [s.baseline(row) for row in (0, 50, n_old - 1)]
+    engine = AcquisitionEngine(create_device("simulated", {"seed": 5, "speed": 20,
+                                                          "drift": 0.05}))
+    engine.start()
+    try:
+        wait_until(lambda: engine.baseline is not None and engine.frames > 300,
+                   what="a tared engine")
+        session = resume_session(path, engine, clock=StreamClock(engine))
+        wait_until(lambda: session.recorder.rows_written >= n_old + 20, what="new rows")
+        session.close()
+        new_baseline = np.asarray(engine.baseline, dtype=np.float64)
+    finally:
+        engine.stop()
+    with Session(path) as s:
+        after = [s.baseline(row) for row in (0, 50, n_old - 1)]
+        assert np.array_equal(s.baseline(n_old), new_baseline)
+    for a, b in zip(before, after):
+        np.testing.assert_array_equal(a, b)

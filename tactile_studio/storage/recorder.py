@@ -81,8 +81,8 @@ class Recorder:
         self.stopped_at: float | None = None
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._release: Callable[[], None] = lambda: None
-        if engine.baseline is not None:
-            self.writer.add_baseline(engine.baseline, 0)
+        if engine.baseline is not None:  # in force from this recording's first row
+            self.writer.add_baseline(engine.baseline, self.row_offset)
         self._carry_over()
         self._notes = [line for line in str(self.writer.metadata.get("notes", "")).split("\n")
                        if line]

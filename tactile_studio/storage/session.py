@@ -237,12 +237,15 @@ class Session:
                                    f"the file is damaged ({first[:100]})") from None
 
     def baseline(self, row: int = 0) -> np.ndarray:
-        """The newest recorded baseline at or before ``row`` (else the first recorded
-        one, else the mean of the first 100 frames)."""
-        chosen = None
-        for b in self.journal.baselines:
-            if b["frame"] <= row or chosen is None:
-                chosen = b
+        """The baseline in force at ``row``: the one recorded at the latest row at or
+        before it (the later one of two at a row), else the one at the earliest row, else
+        the mean of the first 100 frames. By rows, not by when it was written: a resume
+        writes the new run's baseline before it copies the earlier run's."""
+        numbered = list(enumerate(self.journal.baselines))  # (write order, record)
+        before = [(b["frame"], i, b) for i, b in numbered if b["frame"] <= row]
+        chosen = (max(before, key=lambda x: x[:2])[2] if before else
+                  min(((b["frame"], i, b) for i, b in numbered), key=lambda x: x[:2],
+                      default=(0, 0, None))[2])
         if chosen is not None:
             return np.asarray(chosen["values"], dtype=np.float64)
         if self.n_frames == 0:
