@@ -212,3 +212,26 @@ def test_the_outcome_of_a_complete_recording_is_the_usual_line():
     assert lost.exit_code == EXIT_INCOMPLETE
     assert ("device lost 2.0 s into the recording (gone); tried to reconnect for 8.0 s, "
             "7 attempts") in lost.line
+
+
+def test_info_says_how_many_frames_a_file_lost(tmp_path, capsys):
+    """The recording's last line said 1786 frames lost; ``info`` on the file said only
+    'gaps 0' and its 0.26 s, as if the file were whole. It now says what was lost, and
+    ``info --json`` has ``frames_lost`` (recorder overruns, device sequence gaps)."""
+    from tactile_studio.cli import main
+
+    acq = AcquisitionSession(capacity=256)
+    acq.open("simulated", {"rate": 1000, "speed": 4})
+    out = tmp_path / "overrun.h5"
+    rec = acq.start_recording(out, start=False)  # nobody pulls: the ring overruns
+    acq.start()
+    wait_until(lambda: acq.engine.frames > 2000, timeout=60, what="2000 frames")
+    acq.close()
+    assert rec.dropped > 0
+    capsys.readouterr()
+    assert main(["info", "--json", str(out)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames_lost"] == {"overrun": rec.dropped, "missing": 0}
+    assert main(["info", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"lost:       {rec.dropped} frames (the recorder fell behind: {rec.dropped}" in text

@@ -222,6 +222,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         f"({summary['rate_hz']:.2f} Hz)",
         f"malformed:  {summary['malformed']} {summary['malformed_by_kind'] or ''}",
         f"gaps:       {summary['gaps']}   reconnects {summary['reconnects']}",
+        *_lost_line(summary["frames_lost"]),
         f"events:     {len(summary['events'])}"
         + (f" ({', '.join(sorted({e['kind'] for e in summary['events']}))})"
            if summary["events"] else ""),
@@ -246,6 +247,15 @@ def cmd_info(args: argparse.Namespace) -> int:
         lines.append(table)
     tables.fields(lines)
     return 0
+
+
+def _lost_line(lost: dict[str, int]) -> list[str]:
+    """``lost: N frames (...)`` when frames never reached the file, else nothing."""
+    total = lost["overrun"] + lost["missing"]
+    if not total:
+        return []
+    return [f"lost:       {total} frames (the recorder fell behind: {lost['overrun']}; "
+            f"the device skipped sequence numbers: {lost['missing']})"]
 
 
 def _aux_line(a: AuxSignal) -> str:

@@ -287,6 +287,7 @@ class Session:
             "gaps": sum(1 for e in self.events if e.get("kind") == "gap") + len(resumes),
             "segments": len(resumes) + 1,
             "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
+            "frames_lost": self.frames_lost(),
             "closed_cleanly": self.closed_cleanly,
             "cut_short": self.cut_short,
             "layout": self.layout.name,
@@ -302,6 +303,21 @@ class Session:
                     for a in self.aux_signals()],
         }
         return out
+
+    def frames_lost(self) -> dict[str, int]:
+        """Frames that never reached the file: ``overrun`` (the recorder fell a whole
+        ring behind) and ``missing`` (device sequence numbers skipped); from the
+        counters, else from the ``overrun`` and ``gap`` events."""
+        counters = self.journal.counters or {}
+        overrun = counters.get("dropped")
+        if overrun is None:
+            overrun = sum(int(e.get("lost") or 0) for e in self.events
+                          if e.get("kind") == "overrun")
+        missing = counters.get("missing_frames")
+        if missing is None:
+            missing = sum(int(e.get("missing") or 0) for e in self.events
+                          if e.get("kind") == "gap")
+        return {"overrun": int(overrun), "missing": int(missing)}
 
     def gesture_order(self) -> list[str]:
         """The session's label order: the protocol's (metadata ``gestures``), then any
