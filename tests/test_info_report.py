@@ -134,3 +134,15 @@ def test_info_on_a_folder_adds_up_the_study_and_names_who_lacks_a_gesture(tmp_pa
     assert counts.conditions == {} and counts.ok_trials == 5
     assert counts.missing_text(people=2) == "P02 has no Twist; P03 has no Twist; 1 more"
     assert study_counts([]).lines() == []
+
+
+def test_info_on_recordings_without_participants_or_trials_adds_nothing_up(tmp_path, capsys):
+    """``info a.h5 b.h5`` on two plain recordings (no participant, no trials) ended in a
+    traceback (IndexError in the study lines); it lists them and says no study."""
+    for name in ("a.h5", "b.h5"):
+        assert main(["record", "--seconds", "0.3", "--set", "speed=10",
+                     "--out", str(tmp_path / name)]) == 0
+    capsys.readouterr()
+    assert main(["info", str(tmp_path / "a.h5"), str(tmp_path / "b.h5")]) == 0
+    out = capsys.readouterr().out
+    assert "2 session file(s)" in out and "participants:" not in out

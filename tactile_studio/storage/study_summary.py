@@ -36,6 +36,9 @@ class StudyCounts:
             out.append("conditions: " + ", ".join(
                 f"{c or '(none)'} {n} session(s)" for c, n in sorted(self.conditions.items())))
         counts = sorted(set(self.per_gesture.values()))
+        if not counts:  # sessions, but no ok trial in any (all aborted early)
+            out.append("ok trials: 0")
+            return out
         spread = (f"{counts[0]} each" if len(counts) == 1
                   else f"{counts[0]}-{counts[-1]}; fewer than {counts[-1]}: " + ", ".join(
                       f"{g} {n}" for g, n in self.per_gesture.items() if n < counts[-1]))
@@ -52,12 +55,15 @@ class StudyCounts:
 
 
 def study_counts(sessions: Iterable[tuple[str, str, dict[str, int]]]) -> StudyCounts:
-    """``sessions``: (participant, condition, ok trials per gesture) per session file."""
+    """``sessions``: (participant, condition, ok trials per gesture) per session file;
+    one without a participant (a plain recording) is no part of a study."""
     per_person: dict[str, Counter] = {}
     conditions: Counter = Counter()
     total: Counter = Counter()
     for participant, condition, per_gesture in sessions:
-        per_person.setdefault(participant or "", Counter()).update(per_gesture)
+        if not participant:
+            continue
+        per_person.setdefault(participant, Counter()).update(per_gesture)
         conditions[condition or ""] += 1
         total.update(per_gesture)
     gestures = sorted(g for g, n in total.items() if n > 0)
