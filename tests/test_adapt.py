@@ -217,9 +217,11 @@ def test_train_adapts_every_model_to_held_out_people_by_default(runs, capsys):
     # on the real recordings adapting cost rf 1.7 points: forests stay as trained
     assert resolved("rf") == resolved("knn") == resolved("rf", "group-kfold") == "none"
     assert resolved("cnn1d", augment="scale") == "person"
-    # augmented windows have no person's statistics for a forest's features
+    # augmented windows have no person's statistics for a forest's features; a fused
+    # model's network adapts all the same, its forest kept as trained (rf_adapt=0)
     assert resolved("rf", augment="scale") == resolved("cnn1d", augment="scale",
-                                                       rf_weight=0.5) == "none"
+                                                       rf_weight=0.5, rf_adapt=1) == "none"
+    assert resolved("cnn1d", augment="scale", rf_weight=0.5) == "person"
     assert resolved("cnn1d", "all-inclusive") == resolved("rf", "all-inclusive") == "none"
     explicit = ExperimentConfig(data=[], model="cnn1d", adapt="none", shots_by="join")
     assert explicit.resolved() is explicit  # nothing left to resolve: the config itself

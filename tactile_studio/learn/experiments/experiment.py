@@ -48,6 +48,7 @@ from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fused import (
     ADAPT_OPTION,
     display_name,
+    forest_adapts,
     person_columns,
     rf_weight,
     standardises_person_features,
@@ -142,24 +143,29 @@ class ExperimentConfig:
     @property
     def can_adapt(self) -> bool:
         """False for a forest trained on augmented windows: they carry no person's
-        statistics to standardise its features by."""
-        return not (self.forest and self.augment)
+        statistics to standardise its features by. A network fused with rf can, when
+        its forest stays as trained (``rf_adapt=0``): only the network adapts then."""
+        if not (self.forest and self.augment):
+            return True
+        return self.model not in BASELINES and not forest_adapts(self.overrides)
 
     def resolved(self) -> ExperimentConfig:
         """This config with ``adapt="auto"`` (generalise.resolve_adapt) and
         ``shots_by="auto"`` made concrete for its model and protocol; what a run folder
         records and every fold reads."""
-        adapt = resolve_adapt(self.adapt, self.protocol, self.can_adapt,
+        overrides = self.overrides
+        if (self.adapt == ADAPT_AUTO and self.protocol != "all-inclusive"
+                and self.model not in BASELINES and self.forest
+                and ADAPT_OPTION not in overrides):
+            # auto adapts the network, and keeps the fused forest as rf alone is kept
+            # (recorded, so the run reads the same when it is resumed or deployed)
+            overrides = {**overrides, ADAPT_OPTION: 0}
+        adapt = resolve_adapt(self.adapt, self.protocol,
+                              replace(self, overrides=overrides).can_adapt,
                               network=self.model not in BASELINES)
         shots_by = self.shots_by
         if shots_by == "auto":  # join without shots: what a run before the setting did
             shots_by = NETWORK_SHOTS_BY if self.shots and not self.forest else "join"
-        overrides = self.overrides
-        if (self.adapt == ADAPT_AUTO and adapt != "none" and self.model not in BASELINES
-                and self.forest and ADAPT_OPTION not in overrides):
-            # auto adapts the network, and keeps the fused forest as rf alone is kept
-            # (recorded, so the run reads the same when it is resumed or deployed)
-            overrides = {**overrides, ADAPT_OPTION: 0}
         if (adapt, shots_by, overrides) == (self.adapt, self.shots_by, self.overrides):
             return self
         return replace(self, adapt=adapt, shots_by=shots_by, overrides=overrides)
@@ -194,17 +200,20 @@ class ExperimentConfig:
         if self.adapt not in ADAPT_CHOICES:
             raise UserError(f"unknown adaptation {self.adapt!r} "
                             f"(available: {', '.join(ADAPT_CHOICES)})")
-        adapt = self.resolved().adapt
+        resolved = self.resolved()
+        adapt = resolved.adapt
         if adapt != "none" and self.protocol == "all-inclusive":
             raise UserError(f"--adapt {adapt} meets each test person with their own "
                             "session; "
                             "use it with a protocol that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
-        if adapt != "none" and not self.can_adapt:
+        if adapt != "none" and not resolved.can_adapt:
             raise UserError(f"--adapt {adapt} standardises {self.model}'s features per "
                             "person; "
                             "it does not combine with --augment (augmented windows have no "
-                            "person's statistics of their own)")
+                            "person's statistics of their own)"
+                            + ("; --set rf_adapt=0 adapts its network alone"
+                               if self.model not in BASELINES else ""))
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
         if self.shots:
