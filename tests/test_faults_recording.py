@@ -235,3 +235,5 @@ def test_info_says_how_many_frames_a_file_lost(tmp_path, capsys):
     assert main(["info", str(out)]) == 0
     text = capsys.readouterr().out
     assert f"lost:       {rec.dropped} frames (the recorder fell behind: {rec.dropped}" in text
+    assert main(["info", str(tmp_path)]) == 0  # a folder's table notes it too
+    assert f"{rec.dropped} frames lost" in capsys.readouterr().out

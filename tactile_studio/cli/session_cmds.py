@@ -168,6 +168,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
             else "not closed cleanly (recovered)"]
         if f in backups:
             notes.append("resume backup")
+        lost = sum(summary["frames_lost"].values())
+        if lost:
+            notes.append(f"{lost} frames lost")
         rows.append((name, meta.get("participant") or "", meta.get("condition") or "",
                      summary["frames"], f"{summary['rate_hz']:.2f}", f"{ok}/{len(trials)}",
                      summary["malformed"], ", ".join(summary["unmapped_keys"]),
