@@ -146,3 +146,17 @@ def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:
                          f"{purpose} ({cause})") from None
     os.close(fd)
     os.unlink(probe)
+
+
+def require_writable_file(path: str | os.PathLike, purpose: str) -> None:
+    """Refuse before any work when the file ``path`` could not be written at the end: a
+    folder stands in its place, its folder does not exist, or that folder cannot be
+    written (:func:`require_writable_folder`'s real probe). A check or calibration that
+    ran for minutes, and was stored, must not end in "cannot open" for its output."""
+    name = os.fsdecode(path)
+    target = Path(path).absolute()
+    if _probe(os.path.isdir, target):
+        raise WriteFault(f"{name}: is a folder; {purpose} needs a file name")
+    if not _probe(os.path.isdir, target.parent):
+        raise WriteFault(f"{name}: folder {target.parent} does not exist")
+    require_writable_folder(target.parent, purpose)

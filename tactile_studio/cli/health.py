@@ -25,6 +25,7 @@ from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.output_faults import require_writable_file
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
@@ -95,9 +96,21 @@ def _prompter(quiet: bool):
     return on_event
 
 
-def _check_report_path(path: str | None) -> None:
-    if path and not Path(path).resolve().parent.is_dir():
-        raise UserError(f"{path}: the report's folder does not exist")
+def _check_report_path(path: str | None, purpose: str = "the report") -> None:
+    """Before the device is touched: an output that cannot be written is refused now,
+    not after the check or calibration was measured and stored."""
+    if path:
+        require_writable_file(path, purpose)
+
+
+def _calibration_report(out: str) -> Path:
+    """The residual report beside CAL.json; refused when it would be CAL.json itself."""
+    report = Path(out).with_suffix(".html")
+    if report == Path(out):
+        raise UserError(f"--out {out}: the calibration's HTML report is written beside it "
+                        f"as {report.name} and would replace it; name the calibration "
+                        f"{Path(out).with_suffix('.json').name}")
+    return report
 
 
 def cmd_wellness(args: argparse.Namespace) -> int:
@@ -159,7 +172,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                            replace=args.replace)
     from tactile_studio.sensor.calibration import check_loads
     check_loads(list(spec.loads_g))  # before connecting: bad input fails at once
-    _check_report_path(args.out)
+    report = _calibration_report(args.out)
+    _check_report_path(args.out, "the calibration")
+    _check_report_path(str(report), "the calibration's report")
     engine, placer = _start(args)
     token = CancelToken()
     try:
@@ -172,7 +187,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise
     finally:
         engine.stop()
-    report = Path(args.out).with_suffix(".html")  # residual plots beside the file
     write_report(report, f"Calibration #{cal['calibration_id']} of {cal['sensor']}", cal,
                  kind="calibration")
     summary = {"sensor": cal["sensor"], "calibration_id": cal["calibration_id"],

@@ -21,6 +21,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.output_faults import require_writable_file
 from tactile_studio.sensor.calibration import (
     CalibrationError,
     calibration_data,
@@ -61,8 +62,8 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
         raise UserError(f"calibration needs a calibrated shear+normal sensor, not {lay.name}")
     taxels = (list(range(lay.n_taxels)) if not spec.taxels
               else [parse_taxel(lay, name) for name in spec.taxels])
-    if out is not None and not Path(out).resolve().parent.is_dir():
-        raise UserError(f"{out}: the output folder does not exist")
+    if out is not None:  # before measuring: the file is written after the logbook's store
+        require_writable_file(out, "the calibration")
     side = spec.plate_mm or lay.pitch_mm * max(lay.rows, lay.cols)
     kpa = np.array([stress_kpa(m, side if spec.plate else spec.contact_mm) for m in loads])
     # a calibration must be stored: a damaged logbook is moved aside (backup or new)
