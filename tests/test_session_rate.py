@@ -90,3 +90,31 @@ def test_a_pause_in_an_old_shearsense_csv_is_a_gap_and_no_frame_time(tmp_path, c
     assert info["rate_hz"] == pytest.approx(RATE, rel=1e-3)
     assert info["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
     assert info["metadata"]["device"]["rate_hz"] == pytest.approx(RATE, rel=1e-3)
+
+
+def test_frames_a_device_skipped_are_at_their_row_and_no_frame_time(tmp_path):
+    """A device that numbers its frames and skips some (a BLE link dropping packets):
+    each ``gap`` event was put at the first row of the batch it came in, not at the
+    jump, and the rate counted the missing frames' time as frame time (980 Hz for a
+    1000 Hz device missing 2%)."""
+    from plugin_fixtures import CountingDevice
+    from waiting import wait_until
+
+    from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
+    from tactile_studio.storage.recorder import Recorder
+
+    engine = AcquisitionEngine(CountingDevice(frames=300, skip_every=50), capacity=1024)
+    rec = Recorder(engine, tmp_path / "skips.h5")
+    engine.start()
+    wait_until(lambda: engine.state == FINISHED, what="the device to finish")
+    rec.stop()
+    engine.stop()
+    with Session(tmp_path / "skips.h5") as s:
+        seq = s.column("seq")
+        gaps = [e for e in s.events if e["kind"] == "gap"]
+        summary = s.summary()
+    assert len(gaps) == 6
+    for g in gaps:  # the row of the first frame after the jump
+        assert seq[g["frame"]] == g["after_seq"] + g["missing"] + 1
+    assert summary["rate_hz"] == pytest.approx(1000.0, rel=1e-3)
+    assert summary["frames_lost"] == {"overrun": 0, "missing": 6}

@@ -293,11 +293,15 @@ class AcquisitionEngine:
         prev = self._last_seq
         full = np.concatenate([[prev], seq]) if prev is not None else seq
         jumps = np.diff(full)
+        first = 0 if prev is not None else 1  # batch index of full[1]
         for pos in np.nonzero(jumps > 1)[0]:
             missing = int(jumps[pos] - 1)
             self.gaps += 1
             self.missing_frames += missing
-            self.add_event("gap", missing=missing, after_seq=int(full[pos]))
+            # at the frame after the jump (not the batch's first): the time between the
+            # two is the missing frames', which a measured rate leaves out
+            self.add_event("gap", frame=self.ring.written + int(pos) + first,
+                           missing=missing, after_seq=int(full[pos]))
         self._last_seq = int(seq[-1])
 
     def _reconnect(self, exc: Exception) -> bool:

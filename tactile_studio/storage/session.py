@@ -41,12 +41,6 @@ def user_block(block: Any) -> int:
     return b + 1 if b >= 0 else 0
 
 
-# gap causes that are a break in the frames' time, left out of the measured rate: a
-# reconnect's outage and a pause an import found (XDF, old CSV); a sequence jump,
-# frames lost in transit, is placed at its batch, not at the jump, and stays in
-TIME_BREAKS = ("reconnect", "xdf", "import")
-
-
 def _user_blocks(record: dict[str, Any]) -> dict[str, Any]:
     out = dict(record)
     for key in ("block", "after_block"):
@@ -262,10 +256,10 @@ class Session:
         resumes = [e["frame"] for e in segment_starts(self.events, n)]
         # so is the time a device was gone before it reconnected (the frames after the
         # outage start at the reconnect's frame): 32 Hz for a 43 Hz sensor otherwise;
-        # and a pause an import found in the timestamps (a gap with cause xdf, import)
+        # and every other gap, at the frame after it: frames a device skipped (sequence
+        # numbers), a pause an import found in the timestamps (cause xdf, import)
         outages = [e["frame"] for e in self.events if isinstance(e.get("frame"), int)
-                   and (e.get("kind") == "reconnect"
-                        or (e.get("kind") == "gap" and e.get("cause") in TIME_BREAKS))]
+                   and e.get("kind") in ("reconnect", "gap")]
         if n >= 2:
             rate = segmented_rate_hz(self.column("device_time", 0, n), resumes + outages)
             if rate <= 0:
