@@ -78,8 +78,13 @@ def main(argv: list[str] | None = None) -> int:
             raise
         print(f"tactile-studio: error: {line}", file=sys.stderr)
         return EXIT_ERROR
-    except Cancelled:
-        print("tactile-studio: cancelled; finished work was kept", file=sys.stderr)
+    except Cancelled as exc:
+        # a job that knows what it kept says so ("sweep cancelled: 3 of 8 tasks finished,
+        # kept in runs/x"); a bare one gets the general line
+        said = str(exc)
+        if said in ("", "cancelled"):
+            said = "cancelled; finished work was kept"
+        print(f"tactile-studio: {said}", file=sys.stderr)
         return EXIT_CANCELLED
     except Terminated:
         print("tactile-studio: terminated", file=sys.stderr)

@@ -16,7 +16,7 @@ from tactile_studio.characterise.plan import SEQUENCES
 from tactile_studio.characterise.run import save_calibration
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import UserError
+from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.history import covers_text
 from tactile_studio.instruments import create_force, create_stage
 from tactile_studio.jobs import TerminalProgress, ctrl_c_cancels
@@ -74,6 +74,17 @@ def run_wizard(out: str | None, sensor: str | None = None) -> int:
     return 0 if app.exec() == 0 else 1
 
 
+def _finished(out: Path) -> str:
+    """'1 of 6 taxel(s) finished, kept in DIR (report.html)': what an aborted run left."""
+    try:
+        done = json.loads((out / "characterisation.json").read_text(encoding="utf-8"))
+        n, of = len(done["taxels"]), len(done["taxels_requested"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"data so far kept in {out}"
+    report = " (report.html)" if n and (out / "report.html").exists() else ""
+    return f"{n} of {of} taxel(s) finished, kept in {out}{report}"
+
+
 def run(args: argparse.Namespace) -> int:
     if args.wizard:
         return run_wizard(args.out, args.sensor)
@@ -103,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
             result = run_characterisation(device, stage, force, plan, taxels, out,
                                           sensor_id=args.sensor, progress=progress,
                                           control=control, overwrite=args.overwrite)
+    except Cancelled:
+        raise Cancelled(f"characterisation cancelled: {_finished(out)}") from None
     except UserError as exc:
         stopped = UserError(f"{exc} (data so far kept in {out})")
         stopped.exit_code = exc.exit_code  # a full disk stays "incomplete" (3), not 1

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +17,7 @@ from tactile_studio.errors import (
     EXIT_CHECK_FAIL,
     EXIT_CHECK_WARN,
     EXIT_OK,
+    Cancelled,
     CheckFailed,
     IncompleteError,
     UserError,
@@ -119,7 +122,7 @@ def cmd_wellness(args: argparse.Namespace) -> int:
     engine, placer = _start(args)
     token = CancelToken()
     try:
-        with ctrl_c_cancels(token):
+        with ctrl_c_cancels(token), _nothing_stored(f"wellness check of {args.sensor}"):
             result = run_wellness(engine, spec, placer, progress=TerminalProgress("wellness"),
                                   cancel=token, on_event=_prompter(args.auto))
     except BaseException:
@@ -144,6 +147,16 @@ def cmd_wellness(args: argparse.Namespace) -> int:
         for reason in result["reasons"]:
             print(f"  - {reason}")
     return _wellness_status(result)
+
+
+@contextmanager
+def _nothing_stored(what: str, more: str = "") -> Iterator[None]:
+    """Ctrl-C part way: only a complete check or calibration is stored, so the line says
+    that nothing was (not the general 'finished work was kept')."""
+    try:
+        yield
+    except Cancelled:
+        raise Cancelled(f"{what} cancelled: nothing was stored{more}") from None
 
 
 def _wellness_status(result: dict[str, Any]) -> int:
@@ -178,7 +191,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     engine, placer = _start(args)
     token = CancelToken()
     try:
-        with ctrl_c_cancels(token):
+        with ctrl_c_cancels(token), _nothing_stored(
+                f"calibration of {args.sensor}", "; its active calibration is unchanged"):
             cal = run_calibration(engine, spec, args.out, placer, cancel=token,
                                   progress=TerminalProgress("calibrate"),
                                   on_event=_prompter(args.auto))
