@@ -418,3 +418,18 @@ def test_a_virtual_participants_session_exported_as_shearsense_csv_imports_with_
             assert sorted(t["gesture"] for t in back.trials) == sorted(gestures)
             assert back.metadata.get("unmapped_keys") in (None, [])
     capsys.readouterr()
+
+
+def test_shearsense_csv_with_all_trials_says_the_statuses_it_cannot_keep(tmp_path, capsys):
+    """The old CSV labels rows by key and has no status: ``--all-trials`` wrote the redone
+    and the discarded trial like ok ones, and importing the CSV back made them ok, with
+    nothing said. The export now says which statuses the file does not keep."""
+    session, _ = mixed_session(tmp_path / "P09_s_FLAT.h5")
+    rc, out, _ = run_cli(capsys, "export", str(session), "--format", "shearsense-csv",
+                         "--all-trials", "--out", str(tmp_path))
+    assert rc == 0
+    assert ("P09_s_FLAT.h5: 2 of 4 trials exported are not ok (1 discarded, 1 redone); the "
+            "ShearSense CSV has no status, so they read back as ok") in out
+    rc, out, _ = run_cli(capsys, "export", str(session), "--format", "shearsense-csv",
+                         "--out", str(tmp_path / "ok"), "--force")
+    assert rc == 0 and "read back as ok" not in out  # ok trials only: nothing to say

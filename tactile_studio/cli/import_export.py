@@ -137,7 +137,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     make_out_dir(args.out)
-    from tactile_studio.storage.exporters import export_session
+    from tactile_studio.storage.exporters import export_session, shearsense_status_note
 
     token = CancelToken()
     written: list[Path] = []
@@ -148,5 +148,9 @@ def cmd_export(args: argparse.Namespace) -> int:
                                        args.grid, bar, token, args.force, written.append)
             shown = paths[0] if len(paths) == 1 else f"{len(paths)} files in {args.out}"
             print(f"{session}: wrote {shown}", flush=True)
+            note = (shearsense_status_note(session, args.all_trials)
+                    if args.format == "shearsense-csv" else None)
+            if note:
+                print(f"{session}: {note}", flush=True)
     print(f"exported {len(args.sessions)} session(s), {len(written)} file(s)")
     return 0

@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import os
 import re
+from collections import Counter
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -106,6 +107,22 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
         progress(fraction, message.replace(f".{out.name}.part", out.name))
     return write_through_part(out, lambda tmp: write_shearsense_csv(
         tmp, raw, times, labels, baseline, progress=shown, cancel=cancel))
+
+
+def shearsense_status_note(path: str | os.PathLike, all_trials: bool) -> str | None:
+    """What a ShearSense CSV export with ``all_trials`` cannot keep, in one line (None when
+    nothing): its rows are labelled by key, with no status, so redone and discarded
+    trials (practice too) read back as ok ones."""
+    if not all_trials:
+        return None
+    with Session(path) as s:
+        trials = selected_trials(s, all_trials=True)
+    other = Counter(str(t.get("status")) for t in trials if t.get("status") != TrialStatus.OK)
+    if not other:
+        return None
+    kinds = ", ".join(f"{n} {status}" for status, n in sorted(other.items()))
+    return (f"{sum(other.values())} of {len(trials)} trials exported are not ok ({kinds}); "
+            "the ShearSense CSV has no status, so they read back as ok")
 
 
 # ---- NPZ per trial -------------------------------------------------------------------
