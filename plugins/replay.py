@@ -8,6 +8,11 @@ Malformed rows of a ShearSense CSV (skipped by the reader, counted by kind exact
 ``import`` counts them) are reported through ``FrameBatch.malformed`` with the first
 batch of every pass, so the device panel and ``record`` show them like a serial
 device's bad lines.
+
+A break in the file's time (a reconnect's outage, a pause in an old CSV) is replayed as
+it was, and the frames are numbered across it as the device would have numbered them:
+the engine records the frames it cost as a sequence gap, so a copy reads the file's own
+rate (its nominal rate too), not a rate over the outage.
 """
 
 from __future__ import annotations
@@ -20,11 +25,13 @@ import numpy as np
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
 from tactile_studio.errors import DeviceNotFound, UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
+from tactile_studio.storage.segments import pauses, segmented_rate_hz
 
 
-def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int]]:
-    """(layout, raw, times, malformed rows by kind) from a session (.h5) or a
-    ShearSense CSV."""
+def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int], list[int]]:
+    """(layout, raw, times, malformed rows by kind, rows after a break in time) from a
+    session (.h5: its reconnect outages and other timed gaps) or a ShearSense CSV (the
+    pauses its import would find)."""
     if not path.exists():
         raise DeviceNotFound(f"replay: {path}: no such file")
     from tactile_studio.storage.file_guards import not_regular
@@ -35,15 +42,29 @@ def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int]]:
         from tactile_studio.storage.shearsense import read_shearsense_csv
 
         data = read_shearsense_csv(path)
-        return (SHEARSENSE_6X6, data.raw, np.asarray(data.times, dtype=np.float64),
-                dict(data.malformed_by_kind))
+        times = np.asarray(data.times, dtype=np.float64)
+        return SHEARSENSE_6X6, data.raw, times, dict(data.malformed_by_kind), pauses(times)
     from tactile_studio.storage.session import Session
 
     with Session(path) as s:
         times = s.column("device_time")
         if len(times) >= 2 and not np.all(np.diff(times) >= 0):
             times = s.column("host_time")
-        return s.layout, s.raw(), times, {}
+        breaks = sorted({int(e["frame"]) for e in s.events
+                         if isinstance(e.get("frame"), int) and 0 < e["frame"] < len(times)
+                         and (e.get("kind") == "reconnect"
+                              or (e.get("kind") == "gap" and "seconds" in e))})
+        return s.layout, s.raw(), times, {}, breaks
+
+
+def _numbered(rel_t: np.ndarray, breaks: list[int], rate: float) -> np.ndarray:
+    """Sequence numbers as the device would have sent them: one per frame, skipping at
+    each break the frames its time would have held (a reconnect's outage), so the engine
+    records them as a gap and a measured rate leaves that time out."""
+    skip = np.zeros(len(rel_t), dtype=np.int64)
+    for b in breaks:
+        skip[b] = max(0, int(round(float(rel_t[b] - rel_t[b - 1]) * rate)) - 1)
+    return np.arange(len(rel_t), dtype=np.int64) + np.cumsum(skip)
 
 
 class ReplayDevice(DevicePlugin):
@@ -61,13 +82,15 @@ class ReplayDevice(DevicePlugin):
         if not self.settings["path"]:
             raise UserError("device replay: setting path is required (--set path=FILE)")
         self._path = Path(self.settings["path"]).expanduser()
-        self._layout, self._raw, times, self._malformed = _load(self._path)
+        self._layout, self._raw, times, self._malformed, breaks = _load(self._path)
         if len(self._raw) == 0:
             raise UserError(f"replay: {self._path}: has no frames")
         self._rel_t = times - times[0]
         span = float(self._rel_t[-1]) if len(times) > 1 else 0.0
         self._period = span * len(times) / (len(times) - 1) if len(times) > 1 else 1.0
-        self._rate = (len(times) - 1) / span if span > 0 else 43.0
+        # the file's rate without its outages (as info measures it), not over them
+        self._rate = segmented_rate_hz(self._rel_t, breaks) or 43.0
+        self._seq = _numbered(self._rel_t, breaks, self._rate)
         self._pos = 0
         self._loops = 0
         self._t0 = 0.0
@@ -113,7 +136,7 @@ class ReplayDevice(DevicePlugin):
             time.sleep(0.002)
         start, stop = self._pos, max(self._pos, due)
         n_total = len(self._raw)
-        seq = self._loops * n_total + np.arange(start, stop)
+        seq = self._loops * (int(self._seq[-1]) + 1) + self._seq[start:stop]
         first_of_pass = start == 0 and stop > 0
         batch = FrameBatch(raw=self._raw[start:stop],
                            device_time=self._rel_t[start:stop] + self._loops * self._period,

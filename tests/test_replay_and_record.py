@@ -13,7 +13,8 @@ from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import DeviceNotFound, UserError
-from tactile_studio.storage import Recorder, Session
+from tactile_studio.sensor.layout import SHEARSENSE_6X6
+from tactile_studio.storage import Recorder, Session, SessionWriter
 from tactile_studio.storage.shearsense import write_shearsense_csv
 
 
@@ -158,3 +159,34 @@ def test_replay_errors_are_one_line(tmp_path):
         create_device("replay", {"path": str(tmp_path / "nothing.h5")})
     with pytest.raises(UserError, match="path is required"):
         create_device("replay", {})
+
+
+def test_a_replayed_outage_is_a_gap_and_no_frame_time(tmp_path, capsys):
+    """A file whose serial device was gone 3 s (a reconnect), recorded from the replay:
+    the outage came back as a 3 s jump in time that nothing named, so the copy read
+    24 Hz instead of 43 Hz (the replay's nominal rate too). The replay now numbers its
+    frames across the outage as the device would have, so the engine records the frames
+    the outage cost as a sequence gap, left out of the rate."""
+    rate = 43.0
+    t = 1.7e9 + np.arange(400) / rate
+    t[200:] += 3.0
+    src = tmp_path / "outage.h5"
+    with SessionWriter(src, SHEARSENSE_6X6, {"plugin": "serial", "nominal_rate_hz": rate},
+                       {}) as w:
+        w.append_frames(np.full((200, 180), 30000, dtype=np.uint16), t[:200], t[:200])
+        w.add_event("gap", 200, t[200], seconds=3.0, cause="reconnect")
+        w.add_event("reconnect", 200, t[200], gap_s=3.0, attempts=2)
+        w.append_frames(np.full((200, 180), 30000, dtype=np.uint16), t[200:], t[200:])
+    assert create_device("replay", {"path": str(src)}).nominal_rate_hz == pytest.approx(rate)
+    csv = write_shearsense_csv(tmp_path / "P01_outage.csv", np.full((400, 180), 30000),
+                               t, np.zeros(400, dtype=np.int64), np.full(180, 30000.0))
+    assert create_device("replay", {"path": str(csv)}).nominal_rate_hz == pytest.approx(rate)
+    copy = tmp_path / "copy.h5"
+    assert main(["record", "--device", "replay", "--set", f"path={src}", "--set", "speed=0",
+                 "--seconds", "30", "--out", str(copy)]) == 0
+    capsys.readouterr()
+    assert main(["info", "--json", str(copy)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames"] == 400 and info["rate_hz"] == pytest.approx(rate, rel=1e-3)
+    gaps = [(e["frame"], e["missing"]) for e in info["events"] if e["kind"] == "gap"]
+    assert gaps == [(200, 129)]  # 3.023 s at 43 Hz: 130 frame steps, 129 frames

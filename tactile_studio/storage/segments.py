@@ -35,3 +35,19 @@ def segmented_rate_hz(times: np.ndarray, starts: list[int]) -> float:
             steps += b - a - 1
             span += float(times[b - 1] - times[a])
     return steps / span if span > 0 and np.isfinite(span) else 0.0
+
+
+# a pause in a file's frame times: a step longer than this, and than this many typical
+# frame intervals (the rule the XDF import gives pyxdf for its jitter segments)
+PAUSE_S, PAUSE_FRAMES = 0.2, 5
+
+
+def pauses(times: np.ndarray) -> list[int]:
+    """The rows that follow a pause in ``times`` (a step over max(PAUSE_S, PAUSE_FRAMES
+    median steps)): frames that never came, which are no frame time (an old CSV's import,
+    its replay)."""
+    if len(times) < 3:
+        return []
+    steps = np.diff(np.asarray(times, dtype=np.float64))
+    limit = max(PAUSE_S, PAUSE_FRAMES * float(np.median(steps)))
+    return [int(i) + 1 for i in np.flatnonzero(steps > limit)]

@@ -15,12 +15,10 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.protocol_file import load_protocol
+from tactile_studio.storage.segments import pauses
 from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
 
 WRITE_CHUNK = 8192
-# a pause in a file's frame times: a step longer than this, and than this many typical
-# frame intervals (the rule the XDF import gives pyxdf for its jitter segments)
-PAUSE_S, PAUSE_FRAMES = 0.2, 5
 
 
 class ImportFormatError(UserError):
@@ -97,16 +95,6 @@ def participant_id(subject: str) -> str:
     except ValueError:
         return s if s.upper().startswith("P") else f"P{s}"
     return f"P{int(value):02d}" if value == int(value) else f"P{s}"
-
-
-def pauses(times: np.ndarray) -> list[int]:
-    """The rows that follow a pause in ``times`` (a step over max(PAUSE_S, PAUSE_FRAMES
-    median steps)): frames that never came, which are no frame time."""
-    if len(times) < 3:
-        return []
-    steps = np.diff(np.asarray(times, dtype=np.float64))
-    limit = max(PAUSE_S, PAUSE_FRAMES * float(np.median(steps)))
-    return [int(i) + 1 for i in np.flatnonzero(steps > limit)]
 
 
 def pause_gaps(times: np.ndarray, cause: str) -> list[tuple[str, int, float, dict[str, Any]]]:
