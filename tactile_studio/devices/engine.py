@@ -175,6 +175,15 @@ class AcquisitionEngine:
     def event_count(self) -> int:
         return len(self._events)
 
+    def lost_reason(self) -> str | None:
+        """While reconnecting: why the device was lost ('serial port X lost: ...'), so a
+        job that waited in vain for frames can name the device and the cause."""
+        if self.state != RECONNECTING:
+            return None
+        with self._lock:
+            lost = [e for e in self._events if e["kind"] == "disconnect" and "reason" in e]
+        return str(lost[-1]["reason"]) if lost else "disconnected"
+
     def tare(self, n: int | None = None) -> None:
         """Take a new baseline from the next ``n`` frames (default: baseline_frames)."""
         with self._lock:

@@ -198,6 +198,10 @@ class Bench:
                 raise DeviceStopped(f"device {self.engine.device_name} stopped during the "
                                     f"check ({why}); nothing was stored")
             if time.monotonic() - waited > self.timing.stall_s:
+                lost = self.engine.lost_reason()
+                if lost is not None:
+                    raise DeviceStopped(f"device {self.engine.device_name}: {lost}; not back "
+                                        f"within {self.timing.stall_s:g} s, nothing was stored")
                 raise DeviceStopped(f"device {self.engine.device_name} sent no frames for "
                                     f"{self.timing.stall_s:g} s; nothing was stored")
             if self.cancel.wait(0.01):
