@@ -20,7 +20,7 @@ import os
 import platform
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import MISSING, asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -455,7 +455,9 @@ def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = Non
     listener = listener or (lambda event: None)
     config = config.resolved()
     config.validate()
-    with _torch_threads(config.threads):
+    # a run folder that cannot be written part way: one line, the finished folds kept
+    faults = RunFolder(out).kept_on_fault() if out is not None else nullcontext()
+    with _torch_threads(config.threads), faults:
         return _run(config, out, progress, cancel, listener, model_spec, dataset)
 
 

@@ -23,10 +23,13 @@ import json
 import math
 import os
 import re
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import UserError
+from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.output_faults import WriteFault, fault_line
 from tactile_studio.storage.input_files import file_sha256
 
 CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
@@ -67,9 +70,31 @@ def clean_json(value: Any) -> Any:
     return value
 
 
+@contextmanager
+def naming(path: str | os.PathLike) -> Iterator[None]:
+    """Writing ``path``: an OS fault that names no file (a write or close failing part
+    way, as on a full disk, in PIL, safetensors or our own ``write_text``) is raised
+    again as an ``OSError`` naming ``path``, so it reads as one line like any other."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is not None or exc.errno is None:
+            raise
+        raise OSError(exc.errno, exc.strerror or os.strerror(exc.errno),
+                      os.fspath(path)) from exc
+    except Exception as exc:
+        # safetensors' writer reports the OS's error in its message only
+        match = re.search(r"\(os error (\d+)\)", str(exc))
+        if type(exc).__name__ != "SafetensorError" or match is None:
+            raise
+        code = int(match[1])
+        raise OSError(code, os.strerror(code), os.fspath(path)) from exc
+
+
 def write_json(path: Path, data: Any) -> None:
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(clean_json(data), indent=1, allow_nan=False))
+    with naming(tmp):
+        tmp.write_text(json.dumps(clean_json(data), indent=1, allow_nan=False))
     os.replace(tmp, path)
 
 
@@ -89,6 +114,23 @@ class RunFolder:
     @property
     def folds_dir(self) -> Path:
         return self.path / "folds"
+
+    @contextmanager
+    def kept_on_fault(self) -> Iterator[None]:
+        """Writing the run: a place that cannot be written (full, read-only...) ends in
+        one line naming the file, and says which finished folds are kept to resume from
+        (exit 3 when there are some: the run ended short; else 1)."""
+        try:
+            yield
+        except OSError as exc:
+            line = fault_line(exc)
+            if line is None:
+                raise
+            kept = len(list(self.folds_dir.glob(f"*/{FOLD}")))
+            if not kept:
+                raise WriteFault(line) from None
+            raise IncompleteError(f"{line}; the {kept} finished fold(s) are kept: train "
+                                  "again with the same --out to resume") from None
 
     def start(self, config: dict[str, Any], resolved: dict[str, Any],
               compare_keys: tuple[str, ...], defaults: dict[str, Any] | None = None) -> bool:
@@ -133,7 +175,8 @@ class RunFolder:
     def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
         d = self.fold_dir(record["round"], record["name"])
         d.mkdir(parents=True, exist_ok=True)
-        fitted.save(d / fitted.file_name)
+        with naming(d / fitted.file_name):
+            fitted.save(d / fitted.file_name)
         # what was saved, so a model file copied in from another fold is told apart
         record["model_sha256"] = {f.name: file_sha256(f) for f in sorted(d.iterdir())
                                   if f.is_file() and f.name != FOLD}
@@ -148,20 +191,23 @@ class RunFolder:
                             metrics["confusion_matrix"])
         windows, trials = metrics.get("windows"), metrics.get("n_trials")
         unit = "windows" if windows is not None and windows != trials else "trials"
-        plots.confusion_png(self.path / "confusion_matrix.png", metrics["labels"],
-                            metrics["confusion_counts"], title, unit)
+        with naming(self.path / "confusion_matrix.png"):
+            plots.confusion_png(self.path / "confusion_matrix.png", metrics["labels"],
+                                metrics["confusion_counts"], title, unit)
         if "trial_confusion_matrix" in metrics:
             write_confusion_csv(self.path / "trial_confusion_matrix.csv", metrics["labels"],
                                 metrics["trial_confusion_matrix"])
-            plots.confusion_png(self.path / "trial_confusion_matrix.png", metrics["labels"],
-                                metrics["trial_confusion_counts"], title + " · per trial",
-                                "trials")
+            with naming(self.path / "trial_confusion_matrix.png"):
+                plots.confusion_png(self.path / "trial_confusion_matrix.png",
+                                    metrics["labels"], metrics["trial_confusion_counts"],
+                                    title + " · per trial", "trials")
         if any(r.get("history") for r in records):
-            plots.curves_png(self.path / "training_curves.png", records, title)
+            with naming(self.path / "training_curves.png"):
+                plots.curves_png(self.path / "training_curves.png", records, title)
 
 
 def write_confusion_csv(path: Path, labels: list[str], matrix: list[list[float]]) -> None:
-    with open(path, "w", newline="") as fh:
+    with naming(path), open(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(["true \\ predicted", *labels])
         for name, row in zip(labels, matrix):

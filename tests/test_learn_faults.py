@@ -1,0 +1,89 @@
+"""A run folder that cannot be written part way (a full disk, a file-size limit) ends
+train in one line naming the file, keeps the finished folds and resumes.
+
+The fault is real: a file-size limit (``RLIMIT_FSIZE``) makes writes past it fail with
+EFBIG, as a full disk fails with ENOSPC, inside PIL, safetensors and skl2onnx's writes,
+which name no file themselves. Real tiny torch training and rf.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+from contextlib import contextmanager
+
+import pytest
+from learn_fixtures import make_dataset_folder
+
+from tactile_studio.cli import main
+
+GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    root = tmp_path_factory.mktemp("faults")
+    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES3)
+    return root
+
+
+@contextmanager
+def file_size_limit(limit: int):
+    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
+
+
+def _train(capsys, data, out, model: str, *extra: str) -> tuple[int, str, str]:
+    argv = ["train", "--data", data / "data", "--model", model, "--preset", "tiny",
+            "--eval", "lopo", "--out", out, "--no-cache", "--threads", "1", *extra]
+    code = main([str(a) for a in argv])
+    stdout, err = capsys.readouterr()
+    return code, stdout, err
+
+
+def _error_line(err: str) -> str:
+    assert "Traceback" not in err
+    lines = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()]
+    assert lines[-1].startswith("tactile-studio: error: ")
+    return lines[-1]
+
+
+def test_a_plot_that_cannot_be_written_keeps_the_folds_and_resumes(data, capsys, tmp_path):
+    out = tmp_path / "run"
+    # the folds' files (~10 KB) and metrics.json fit, the training-curves PNG does not
+    with file_size_limit(60_000):
+        code, _, err = _train(capsys, data, out, "cnn1d", "--epochs", "2")
+    line = _error_line(err)
+    assert code == 3, err
+    assert f"{out}{os.sep}" in line and ".png: cannot write (File too large)" in line
+    assert "3 finished fold(s)" in line and "same --out" in line
+    assert len(list((out / "folds").glob("*/fold.json"))) == 3
+    before = {p: p.stat().st_mtime_ns for p in (out / "folds").glob("*/fold.json")}
+    code, stdout, err = _train(capsys, data, out, "cnn1d", "--epochs", "2")
+    assert code == 0, err
+    assert {p: p.stat().st_mtime_ns for p in before} == before  # resumed, not retrained
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["complete"] and len(metrics["per_fold"]) == 3
+    assert f"{metrics['accuracy']:.3f}" in stdout
+    assert max(p.stat().st_size for p in out.glob("*.png")) > 60_000
+
+
+@pytest.mark.parametrize("model, limit, name", [("rf", 15_000, "model.onnx"),
+                                                 ("cnn1d", 6_000, "model.safetensors")])
+def test_a_fold_model_that_cannot_be_written_is_one_line(data, capsys, tmp_path, model,
+                                                         limit, name):
+    out = tmp_path / model
+    # the first fold's model (rf's ONNX forest ~25 KB, the tiny network's ~8 KB) is the
+    # first file past the limit
+    with file_size_limit(limit):
+        code, _, err = _train(capsys, data, out, model, "--epochs", "1")
+    line = _error_line(err)
+    assert code == 1, err
+    assert line == (f"tactile-studio: error: {out / 'folds' / 'r0-P01' / name}: "
+                    "cannot write (File too large)")
+    assert not list((out / "folds").glob("*/fold.json"))
