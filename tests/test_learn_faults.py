@@ -87,3 +87,14 @@ def test_a_fold_model_that_cannot_be_written_is_one_line(data, capsys, tmp_path,
     assert line == (f"tactile-studio: error: {out / 'folds' / 'r0-P01' / name}: "
                     "cannot write (File too large)")
     assert not list((out / "folds").glob("*/fold.json"))
+
+
+def test_more_shots_than_anyone_can_give_is_refused(data, capsys, tmp_path):
+    """Two performances of each gesture per person: one can be given (one stays to test).
+    K = 2 trained the K = 1 folds again and reported them as K = 2 (+0.0 points)."""
+    out = tmp_path / "shots"
+    code, _, err = _train(capsys, data, out, "rf", "--shots", "0,1,2")
+    line = _error_line(err)
+    assert code == 1, err
+    assert "K = 2" in line and "at most 2 performances" in line and "up to 1" in line
+    assert not out.exists()

@@ -46,8 +46,11 @@ def with_shots(folds: list[Fold], labels: np.ndarray, shots: tuple[int, ...],
     The shot trials are drawn once per fold and person: the first K of the same random
     order, so K = 2 adds one trial to K = 1's. Every K of a fold tests on the same trials
     (those never drawn for the largest K), so the curve over K compares like with like.
-    A gesture with n trials gives at most n - 1 shots (one trial stays to test)."""
+    A gesture with n trials gives at most n - 1 shots (one trial stays to test). A K
+    larger than any test person can give for any gesture is refused: its folds would be
+    a smaller K's again, reported as K."""
     top = max(shots)
+    _check_shots_can_be_given(folds, labels, top)
     out = []
     for i, fold in enumerate(folds):
         rng = np.random.default_rng([seed, 0x5407, i])
@@ -63,6 +66,24 @@ def with_shots(folds: list[Fold], labels: np.ndarray, shots: tuple[int, ...],
                             fold.val, test.astype(np.int64), list(fold.test_participants),
                             fold.heldout, k))
     return out
+
+
+def _check_shots_can_be_given(folds: list[Fold], labels: np.ndarray, top: int) -> None:
+    """Refuse a K that no test person can give for any gesture (one performance stays to
+    test): every fold of it would train on fewer shots than the figure it is shown as."""
+    most = 0  # the most performances of one gesture one fold's test people have
+    for fold in folds:
+        if len(fold.test):
+            most = max(most, int(np.bincount(labels[fold.test]).max()))
+    if top <= max(most - 1, 0):
+        return
+    if most < 2:
+        raise UserError(f"--shots: K = {top} asks for labelled performances of the test "
+                        f"people, but none has more than {most} performance of a gesture "
+                        "(one must stay to test); few-shot needs 2 or more")
+    raise UserError(f"--shots: K = {top} asks for {top} labelled performances per gesture of "
+                    f"each test person, but they have at most {most} performances of a "
+                    f"gesture and one stays to test; use K up to {most - 1}")
 
 
 def parse_shot_counts(text: str) -> tuple[int, ...]:
