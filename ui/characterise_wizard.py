@@ -41,7 +41,7 @@ from tactile_studio.characterise.prepare import (
     settings_from_text,
 )
 from tactile_studio.characterise.report import TABLE_KEYS, column_title, format_value
-from tactile_studio.characterise.run import save_calibration
+from tactile_studio.characterise.run import check_sensor_request, save_calibration
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.paths import data_dir
@@ -191,6 +191,8 @@ class PlanPage(QWizardPage):
             return False
         try:
             wiz.prepared = wiz.prepare_run()
+            check_sensor_request(wiz.setup.sensor_id(), wiz.prepared.plan,
+                                 self.save_calibration.isChecked())
         except UserError as exc:
             self.error.setText(str(exc))
             return False

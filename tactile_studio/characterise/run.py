@@ -34,7 +34,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.sensor.wellness import parse_taxel
 from tactile_studio.storage.calibration_store import store_calibration
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.logbook import Logbook, check_sensor_id
 
 RESULT_FORMAT = "tactile-studio-characterisation"
 CALIBRATION_FORMAT = "tactile-studio-calibration"
@@ -102,6 +102,20 @@ def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
             "gains": {t: round(median / v, 5) for t, v in sens.items()},
             "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms)),
             "taxels": taxels}
+
+
+def check_sensor_request(sensor_id: str | None, plan: Plan, save: bool) -> str | None:
+    """Before the stage moves: the sensor ID is one the logbook takes, and a calibration
+    to save can come from the plan (only the normal sequence gives one: otherwise the run
+    went through, hours for ``repeat``, and was refused at the end). Returns the ID."""
+    if sensor_id is None:
+        return None
+    sensor = check_sensor_id(sensor_id)
+    if save and "normal" not in plan.sequences:
+        raise UserError(f"a calibration to save comes from the normal sequence, and this "
+                        f"run has only {','.join(plan.sequences)}: add normal, or do not "
+                        "save the calibration")
+    return sensor
 
 
 def save_calibration(sensor_id: str, calibration: dict[str, Any],

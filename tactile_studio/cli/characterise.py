@@ -13,7 +13,7 @@ from pathlib import Path
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
 from tactile_studio.characterise.folder import check_out_dir
 from tactile_studio.characterise.plan import SEQUENCES
-from tactile_studio.characterise.run import save_calibration
+from tactile_studio.characterise.run import check_sensor_request, save_calibration
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     check_out_dir(out, args.overwrite)
     if args.save_calibration and not args.sensor:
         raise UserError("--save-calibration needs --sensor ID (the logbook files it there)")
+    args.sensor = check_sensor_request(args.sensor, plan, args.save_calibration)
     control = RunControl()
     progress = TerminalProgress("characterise")
     try:
