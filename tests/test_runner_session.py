@@ -90,6 +90,25 @@ def test_a_closed_session_lets_go_of_a_stream_that_waits_for_it(tmp_path: Path) 
         rig.close()
 
 
+def test_an_aborted_session_ends_its_file_where_it_was_aborted(tmp_path: Path) -> None:
+    """An interrupted session's file ends at the frame of its abort, as a finished one
+    ends with it: at speed 0 the simulator, let go once the session is over, runs on as
+    fast as it can, and those frames were written until the file closed (ten minutes of
+    idle after an interrupted collection's last trial, kept by a resume)."""
+    protocol = mini_protocol(n_gestures=3, blocks=1, free_play_s=0.0)
+    rig = make_rig(tmp_path, protocol, "P08", speed=0.0, capacity=128)
+    try:
+        start(rig)
+        assert rig.runner.abort()
+        at_abort = rig.engine.frames
+        drive(rig, lambda: rig.engine.frames > at_abort + 10 * 128)  # the stream runs on
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        abort = [e for e in s.events if e["kind"] == "abort"]
+        assert len(abort) == 1 and s.n_frames == abort[0]["frame"] + 1 <= at_abort
+
+
 def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> None:
     protocol = mini_protocol(n_gestures=4, blocks=2, order="free")
     rig = make_rig(tmp_path, protocol, "P03", speed=60.0)

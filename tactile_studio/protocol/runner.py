@@ -368,11 +368,18 @@ class CollectionRunner(RunnerInputs):
 
     def _finish(self) -> None:
         self._log("session_end", trials=len(self.records))
-        end_at = getattr(self.recorder, "end_at", None)
-        if end_at is not None:  # the file ends with the session, whatever the stream's pace
-            end_at(max(self._at, self._min_start) + 1)
+        self._end_file_here()
         self.recorder.flush()
         self._set_state(State.FINISHED)
+
+    def _end_file_here(self) -> None:
+        """The file ends with the session (finished or aborted) at the frame the runner
+        is at, whatever the stream's pace: a simulator at speed 0, let go once the session
+        is over, had written ten minutes of idle after an interrupted session's last
+        trial before the file closed (and a resume kept them)."""
+        end_at = getattr(self.recorder, "end_at", None)
+        if end_at is not None:
+            end_at(max(self._at, self._min_start) + 1)
 
     def _beep(self) -> None:
         hz, length = self.protocol.beep_hz, self.protocol.beep_s

@@ -212,6 +212,7 @@ class RunnerInputs:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
             self._drop_current()
         self._log("abort", trials=len(self.records))
+        self._end_file_here()
         self.recorder.flush()
         self._set_state(State.ABORTED)
         return True
