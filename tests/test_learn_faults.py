@@ -98,3 +98,18 @@ def test_more_shots_than_anyone_can_give_is_refused(data, capsys, tmp_path):
     assert code == 1, err
     assert "K = 2" in line and "at most 2 performances" in line and "up to 1" in line
     assert not out.exists()
+
+
+def test_an_export_that_cannot_be_written_leaves_no_cut_model(data, capsys, tmp_path):
+    out = tmp_path / "run"
+    code, _, err = _train(capsys, data, out, "cnn1d", "--epochs", "1")
+    assert code == 0, err
+    with file_size_limit(4_000):  # the fold's ONNX model (~10 KB) does not fit
+        code = main(["export-model", str(out), "--format", "onnx", "--threads", "1",
+                     "--cache-dir", str(tmp_path / "cache")])
+    line = _error_line(capsys.readouterr().err)
+    assert code == 1
+    assert line == (f"tactile-studio: error: {out / 'export' / 'r0-P01.onnx'}: cannot "
+                    "write the ONNX model (File too large)")
+    # a cut file would load as a model (or fail later, far from here): none is left
+    assert not [p.name for p in (out / "export").iterdir()]

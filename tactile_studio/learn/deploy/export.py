@@ -18,7 +18,7 @@ import os
 import tempfile
 import warnings
 from collections.abc import Callable
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from pathlib import Path
 from typing import Any
 
@@ -101,10 +101,16 @@ def _save_onnx(proto: Any, metadata: dict[str, str], path: Path, what: str) -> P
     for key, value in metadata.items():
         entry = proto.metadata_props.add()
         entry.key, entry.value = str(key), str(value)
+    # written beside it and renamed: a disk filling up part way leaves no cut model that
+    # would pass for one (and an earlier export of it stays as it was)
+    part = path.with_name(f".{path.name}.part")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        onnx.save_model(proto, str(path))
+        onnx.save_model(proto, str(part))
+        os.replace(part, path)
     except OSError as exc:
+        with suppress(OSError):  # a read-only place may refuse even this
+            part.unlink(missing_ok=True)
         raise UserError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
     return path
 
