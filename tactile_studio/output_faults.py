@@ -160,3 +160,17 @@ def require_writable_file(path: str | os.PathLike, purpose: str) -> None:
     if not _probe(os.path.isdir, target.parent):
         raise WriteFault(f"{name}: folder {target.parent} does not exist")
     require_writable_folder(target.parent, purpose)
+
+
+@contextmanager
+def stored_already(what: str) -> Iterator[None]:
+    """Write an output after the result itself was stored (a check or calibration in the
+    logbook): a place that fails then still ends in one line naming the file, which
+    also says what is kept (``what``), so the user does not measure it all again."""
+    try:
+        yield
+    except OSError as exc:
+        line = fault_line(exc)
+        if line is None:
+            raise
+        raise WriteFault(f"{line}; {what}") from None

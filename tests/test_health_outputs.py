@@ -75,3 +75,15 @@ def test_wellness_report_that_cannot_be_written_is_refused_before_the_check(tmp_
     assert code == 1
     (line,) = errors(capsys)
     assert "afile" in line and "does not exist" in line and stored("checks") == 0
+
+
+def test_a_calibration_file_that_fails_after_the_store_says_what_is_kept(tmp_path, capsys):
+    """The place passed the check before measuring, then failed at the end (here its
+    temporary copy's name is taken by a folder; a disk filling up does the same): the line
+    names the file and says the calibration is in the logbook, active."""
+    (tmp_path / "cal.json.tmp").mkdir()
+    assert calibrate(tmp_path / "cal.json") == 1
+    (line,) = errors(capsys)
+    assert str(tmp_path / "cal.json") in line
+    assert "calibration #1 of sim-0 is stored in the logbook (active)" in line
+    assert stored("calibrations") == 1 and not (tmp_path / "cal.json").exists()

@@ -28,7 +28,7 @@ from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.output_faults import require_writable_file
+from tactile_studio.output_faults import require_writable_file, stored_already
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
@@ -131,8 +131,10 @@ def cmd_wellness(args: argparse.Namespace) -> int:
     finally:
         engine.stop()
     if args.report:
-        write_report(args.report, f"Wellness check #{result['check_id']} of {result['sensor']}",
-                     result)
+        with stored_already(f"check #{result['check_id']} of {result['sensor']} is stored "
+                            f"in the logbook ({result['verdict'].upper()})"):
+            write_report(args.report,
+                         f"Wellness check #{result['check_id']} of {result['sensor']}", result)
     if args.json:
         _dump({k: v for k, v in result.items() if k not in ("baseline", "noise")})
     else:
@@ -201,8 +203,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise
     finally:
         engine.stop()
-    write_report(report, f"Calibration #{cal['calibration_id']} of {cal['sensor']}", cal,
-                 kind="calibration")
+    with stored_already(f"calibration #{cal['calibration_id']} of {cal['sensor']} is stored "
+                        f"in the logbook (active) and in {args.out}"):
+        write_report(report, f"Calibration #{cal['calibration_id']} of {cal['sensor']}", cal,
+                     kind="calibration")
     summary = {"sensor": cal["sensor"], "calibration_id": cal["calibration_id"],
                "report": str(report),
                "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,

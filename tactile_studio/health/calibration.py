@@ -21,7 +21,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.output_faults import require_writable_file
+from tactile_studio.output_faults import require_writable_file, stored_already
 from tactile_studio.sensor.calibration import (
     CalibrationError,
     calibration_data,
@@ -105,7 +105,9 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
     with Logbook() as book:
         data = store_calibration(book, sensor, kind, data, lay.n_taxels, spec.replace)
     if out is not None:
-        _write_atomic(Path(out), data)
+        with stored_already(f"calibration #{data['calibration_id']} of {sensor} is stored "
+                            "in the logbook (active)"):
+            _write_atomic(Path(out), data)
     progress(1.0, f"rms {data['rms_pct_max']:.2f}% of range")
     bench.emit("done", calibration_id=data["calibration_id"])
     return data
@@ -146,8 +148,13 @@ def coverage_line(cal: dict[str, Any], replace_hint: str = "--replace drops them
 def _write_atomic(path: Path, data: dict[str, Any]) -> None:
     """Write via a temporary file and rename: the file is whole or absent."""
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=str), encoding="utf-8")
-    os.replace(tmp, path)
+    try:
+        tmp.write_text(json.dumps(data, indent=1, default=str), encoding="utf-8")
+        os.replace(tmp, path)
+    except OSError:
+        if tmp.is_file():  # a full disk's half-written copy goes, the fault is raised
+            tmp.unlink()
+        raise
 
 
 def decode_session(path: str | os.PathLike, calibration_id: int | None = None,
