@@ -113,3 +113,28 @@ def test_an_export_that_cannot_be_written_leaves_no_cut_model(data, capsys, tmp_
                     "write the ONNX model (File too large)")
     # a cut file would load as a model (or fail later, far from here): none is left
     assert not [p.name for p in (out / "export").iterdir()]
+
+
+def test_runs_on_other_recordings_with_the_same_file_names_are_not_paired(data, capsys,
+                                                                            tmp_path):
+    """Another study's P01.h5..P03.h5 (other people, other gesture orders): trial P01.h5#0
+    is another performance there, so no trial pairs with its namesake (compare had run
+    McNemar on "54 matched test trials" pairing a Poke with a Heavy Pat)."""
+    other = tmp_path / "other"
+    make_dataset_folder(other / "data", participants=3, blocks=2, gestures=GESTURES3,
+                        first_style=201)
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert _train(capsys, data, a, "rf")[0] == 0
+    assert _train(capsys, other, b, "rf")[0] == 0
+    code = main(["compare", str(a), str(b)])
+    out, err = capsys.readouterr()
+    line = _error_line(err)
+    assert code == 1 and "McNemar" not in out
+    assert "not tested on the same recordings" in line and "P01.h5#" in line
+    # the same recordings in another folder still pair trial by trial
+    moved = tmp_path / "moved"
+    make_dataset_folder(moved / "data", participants=3, blocks=2, gestures=GESTURES3)
+    c = tmp_path / "c"
+    assert _train(capsys, moved, c, "knn")[0] == 0
+    assert main(["compare", str(a), str(c)]) == 0
+    assert "McNemar on 18 matched test trials" in capsys.readouterr().out

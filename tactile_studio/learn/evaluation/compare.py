@@ -108,6 +108,7 @@ def compare_predictions(a: RunPredictions, b: RunPredictions) -> dict[str, Any]:
     if not keys:
         raise UserError(f"{a.path} and {b.path} share no test trials (different data or "
                         "protocol); they cannot be compared")
+    _same_recordings(a, b, [(ia[k], ib[k]) for k in keys])
     ca = np.array([ia[k].correct for k in keys])
     cb = np.array([ib[k].correct for k in keys])
     parts = sorted({ia[k].participant for k in keys})
@@ -142,6 +143,21 @@ def compare_predictions(a: RunPredictions, b: RunPredictions) -> dict[str, Any]:
     }
     result["sentence"] = sentence(result)
     return result
+
+
+def _same_recordings(a: RunPredictions, b: RunPredictions,
+                     pairs: list[tuple[Any, Any]]) -> None:
+    """Refuse pairs that are only namesakes: trials are matched by name (session file and
+    trial number), and another study's P01.h5 names other performances. The same
+    recordings in another folder agree in person, gesture and start in every trial."""
+    for ta, tb in pairs:
+        if (ta.participant, ta.true, ta.start_sample) != \
+                (tb.participant, tb.true, tb.start_sample):
+            raise UserError(
+                f"{a.path} and {b.path} were not tested on the same recordings: trial "
+                f"{ta.uid} is {a.labels[ta.true]} by {ta.participant} in one and "
+                f"{b.labels[tb.true]} by {tb.participant} in the other; they cannot be "
+                "compared trial by trial")
 
 
 def sentence(r: dict[str, Any]) -> str:
