@@ -33,6 +33,7 @@ from tactile_studio.sensor.calibration import (
 )
 from tactile_studio.sensor.decode import StressFrames, relative_change
 from tactile_studio.sensor.layout import CENTRE
+from tactile_studio.sensor.taxels import distinct_taxels
 from tactile_studio.sensor.wellness import parse_taxel, stress_kpa, taxel_label
 from tactile_studio.storage.calibration_store import store_calibration
 from tactile_studio.storage.logbook import Logbook
@@ -61,7 +62,7 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
     if not lay.has_shear or lay.calibration is None:
         raise UserError(f"calibration needs a calibrated shear+normal sensor, not {lay.name}")
     taxels = (list(range(lay.n_taxels)) if not spec.taxels
-              else [parse_taxel(lay, name) for name in spec.taxels])
+              else distinct_taxels(lay, [parse_taxel(lay, name) for name in spec.taxels]))
     if out is not None:  # before measuring: the file is written after the logbook's store
         require_writable_file(out, "the calibration")
     side = spec.plate_mm or lay.pitch_mm * max(lay.rows, lay.cols)

@@ -15,6 +15,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import decode, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
+from tactile_studio.sensor.taxels import distinct_taxels
 from tactile_studio.sensor.taxels import parse_taxels as _parse_taxels
 
 
@@ -52,7 +53,7 @@ def parse_taxels(layout: Layout, spec: str) -> list[int]:
     """``"B2,B5"``, ``"7,10"`` or ``"all"`` -> taxel numbers (the one parser,
     :mod:`tactile_studio.sensor.taxels`); ValueError names a bad taxel."""
     try:
-        return _parse_taxels(layout, spec)
+        return distinct_taxels(layout, _parse_taxels(layout, spec))
     except UserError as exc:
         raise ValueError(str(exc)) from None
 

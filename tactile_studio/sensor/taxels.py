@@ -65,6 +65,18 @@ def parse_taxels(layout: Layout, spec: str) -> list[int]:
     return out
 
 
+def distinct_taxels(layout: Layout, taxels: list[int]) -> list[int]:
+    """``taxels`` when none is named twice ("B2,b2", "B2,7"), else a UserError naming it:
+    a calibration then held two curves for one taxel, a characterisation measured it
+    twice and kept the second."""
+    seen: set[int] = set()
+    twice = [t for t in taxels if t in seen or seen.add(t)]
+    if twice:
+        names = ", ".join(dict.fromkeys(layout.taxel_name(*layout.taxel_rc(t)) for t in twice))
+        raise UserError(f"taxels named more than once: {names}")
+    return taxels
+
+
 def taxel_token(value: str | int) -> str | int:
     """A taxel setting checked without a layout: an index stays an int, a name is kept
     upper-case ("c3" -> "C3"); ValueError if it is neither."""
