@@ -148,18 +148,37 @@ def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:
     os.unlink(probe)
 
 
-def require_writable_file(path: str | os.PathLike, purpose: str) -> None:
+def require_writable_file(path: str | os.PathLike, purpose: str,
+                          replaces: tuple[bytes, str] | None = None) -> None:
     """Refuse before any work when the file ``path`` could not be written at the end: a
     folder stands in its place, its folder does not exist, or that folder cannot be
     written (:func:`require_writable_folder`'s real probe). A check or calibration that
-    ran for minutes, and was stored, must not end in "cannot open" for its output."""
+    ran for minutes, and was stored, must not end in "cannot open" for its output.
+
+    ``replaces`` = (signature, noun): a file already there is replaced only when its
+    first bytes hold ``signature`` (an earlier output of the same kind), so a name typed
+    wrong (a session .h5, the logbook) is refused and left as it is, not overwritten."""
     name = os.fsdecode(path)
     target = Path(path).absolute()
     if _probe(os.path.isdir, target):
         raise WriteFault(f"{name}: is a folder; {purpose} needs a file name")
+    if replaces is not None and _probe(os.path.isfile, target):
+        try:
+            with open(target, "rb") as f:
+                head = f.read(512)
+        except OSError:
+            head = b""  # unreadable: the probe below or the write says why
+        if head and replaces[0] not in head:
+            raise WriteFault(f"{name}: exists and is not {replaces[1]}; it is left as it "
+                             f"is: choose another name for {purpose}")
     if not _probe(os.path.isdir, target.parent):
         raise WriteFault(f"{name}: folder {target.parent} does not exist")
     require_writable_folder(target.parent, purpose)
+
+
+# what an earlier output of each kind begins with (``require_writable_file``'s replaces)
+HTML_REPORT = (b"<html", "an HTML report")
+CALIBRATION_FILE = (b'"tactile-studio-calibration"', "a calibration file")
 
 
 @contextmanager

@@ -87,3 +87,25 @@ def test_a_calibration_file_that_fails_after_the_store_says_what_is_kept(tmp_pat
     assert str(tmp_path / "cal.json") in line
     assert "calibration #1 of sim-0 is stored in the logbook (active)" in line
     assert stored("calibrations") == 1 and not (tmp_path / "cal.json").exists()
+
+
+def test_an_output_named_like_a_recording_is_refused_and_the_recording_kept(tmp_path,
+                                                                             capsys):
+    """A session file typed as --out or --report was replaced by the calibration JSON or
+    the HTML report, silently (exit 0 / 4): the recording was gone."""
+    session = tmp_path / "P01.h5"
+    assert main(["record", "--device", "simulated", "--set", "speed=0", "--seconds", "0.5",
+                 "--out", str(session)]) == 0
+    before = session.read_bytes()
+    capsys.readouterr()
+    assert calibrate(session) == 1
+    (line,) = errors(capsys)
+    assert str(session) in line and "is not a calibration file" in line
+    assert main(["wellness", *SIM, "--weight-g", "200", "--report", str(session)]) == 1
+    (line,) = errors(capsys)
+    assert str(session) in line and "is not an HTML report" in line
+    assert session.read_bytes() == before
+    assert stored("calibrations") == 0 and stored("checks") == 0
+    # an earlier calibration and its report are replaced, as before
+    assert calibrate(tmp_path / "cal.json") == 0 and calibrate(tmp_path / "cal.json") == 0
+    assert stored("calibrations") == 2

@@ -28,7 +28,12 @@ from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.output_faults import require_writable_file, stored_already
+from tactile_studio.output_faults import (
+    CALIBRATION_FILE,
+    HTML_REPORT,
+    require_writable_file,
+    stored_already,
+)
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
@@ -99,11 +104,13 @@ def _prompter(quiet: bool):
     return on_event
 
 
-def _check_report_path(path: str | None, purpose: str = "the report") -> None:
-    """Before the device is touched: an output that cannot be written is refused now,
-    not after the check or calibration was measured and stored."""
+def _check_report_path(path: str | None, purpose: str = "the report",
+                       replaces: tuple[bytes, str] = HTML_REPORT) -> None:
+    """Before the device is touched: an output that cannot be written, or would replace
+    a file of another kind, is refused now, not after the check or calibration was
+    measured and stored."""
     if path:
-        require_writable_file(path, purpose)
+        require_writable_file(path, purpose, replaces)
 
 
 def _calibration_report(out: str) -> Path:
@@ -188,7 +195,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from tactile_studio.sensor.calibration import check_loads
     check_loads(list(spec.loads_g))  # before connecting: bad input fails at once
     report = _calibration_report(args.out)
-    _check_report_path(args.out, "the calibration")
+    _check_report_path(args.out, "the calibration", CALIBRATION_FILE)
     _check_report_path(str(report), "the calibration's report")
     engine, placer = _start(args)
     token = CancelToken()

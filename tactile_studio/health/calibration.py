@@ -21,7 +21,11 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.output_faults import require_writable_file, stored_already
+from tactile_studio.output_faults import (
+    CALIBRATION_FILE,
+    require_writable_file,
+    stored_already,
+)
 from tactile_studio.sensor.calibration import (
     CalibrationError,
     calibration_data,
@@ -64,7 +68,7 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
     taxels = (list(range(lay.n_taxels)) if not spec.taxels
               else distinct_taxels(lay, [parse_taxel(lay, name) for name in spec.taxels]))
     if out is not None:  # before measuring: the file is written after the logbook's store
-        require_writable_file(out, "the calibration")
+        require_writable_file(out, "the calibration", CALIBRATION_FILE)
     side = spec.plate_mm or lay.pitch_mm * max(lay.rows, lay.cols)
     kpa = np.array([stress_kpa(m, side if spec.plate else spec.contact_mm) for m in loads])
     # a calibration must be stored: a damaged logbook is moved aside (backup or new)
