@@ -138,3 +138,23 @@ def test_runs_on_other_recordings_with_the_same_file_names_are_not_paired(data, 
     assert _train(capsys, moved, c, "knn")[0] == 0
     assert main(["compare", str(a), str(c)]) == 0
     assert "McNemar on 18 matched test trials" in capsys.readouterr().out
+
+
+def test_resume_trains_again_a_fold_whose_model_was_replaced(data, capsys, tmp_path):
+    """A fold whose model file is not the one trained for it (copied over from another
+    fold) was taken as finished on resume: train said exit 0 and the accuracy, and every
+    reader of the folder then refused it."""
+    out = tmp_path / "run"
+    assert _train(capsys, data, out, "rf")[0] == 0
+    folds = out / "folds"
+    (folds / "r0-P02" / "model.onnx").write_bytes((folds / "r0-P01" / "model.onnx").read_bytes())
+    assert main(["evaluate", str(out)]) == 1
+    assert "not the one trained for it" in _error_line(capsys.readouterr().err)
+    before = {p.parent.name: p.stat().st_mtime_ns for p in folds.glob("*/fold.json")}
+    code, _, err = _train(capsys, data, out, "rf")
+    assert code == 0, err
+    after = {p.parent.name: p.stat().st_mtime_ns for p in folds.glob("*/fold.json")}
+    assert after["r0-P02"] != before["r0-P02"]  # trained again
+    assert after["r0-P01"] == before["r0-P01"] and after["r0-P03"] == before["r0-P03"]
+    code = main(["evaluate", str(out)])
+    assert code == 0, capsys.readouterr().err

@@ -167,10 +167,11 @@ class RunFolder:
         return self.folds_dir / f"r{round_}-{safe}"
 
     def load_fold(self, round_: int, name: str) -> dict[str, Any] | None:
-        d = self.fold_dir(round_, name)
-        if (d / FOLD).is_file() and model_file(d).is_file():
-            return read_json(d / FOLD)
-        return None
+        """The finished fold's record to resume from; None when it is to be trained: not
+        finished, or damaged (its model file gone or not the one trained for it, its
+        fold.json unreadable), as every reader of the folder would refuse it."""
+        rec, why = _fold_record(self.fold_dir(round_, name))
+        return None if why else rec
 
     def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
         d = self.fold_dir(record["round"], record["name"])
@@ -224,7 +225,7 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
         return None, ""
     if not model_file(d).is_file():
         return None, (f"{d}: fold {d.name} is finished but its model file is missing "
-                      f"({' or '.join(MODEL_FILES)}); train the run again into a new --out")
+                      f"({' or '.join(MODEL_FILES)}); train again with the same --out to redo it")
     try:
         rec = read_json(d / FOLD)
     except UserError as exc:
@@ -237,10 +238,11 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
             f = d / str(name)
             if not f.is_file():
                 return None, (f"{f}: fold {d.name} is finished but its model file is "
-                              "missing; train the run again into a new --out")
+                              "missing; train again with the same --out to redo it")
             if _model_digest(f) != digest:
                 return None, (f"{f}: fold {d.name}'s model file is not the one trained "
-                              "for it (replaced or copied from another fold or run)")
+                              "for it (replaced or copied from another fold or run); train "
+                              "again with the same --out to redo it")
     return rec, ""
 
 
