@@ -11,6 +11,8 @@ import threading
 import tty
 from pathlib import Path
 
+from tactile_studio.errors import UserError
+
 
 class PtyPort:
     """One pluggable pty: ``open`` plugs in a new one, ``close`` pulls it out."""
@@ -24,6 +26,7 @@ class PtyPort:
 
     def open(self) -> str:
         """Plug in a new pty (raw mode); returns the slave path."""
+        self._check_link()
         self._close_master()
         master, slave = os.openpty()
         tty.setraw(slave)  # no echo, no CR/LF translation: bytes arrive as written
@@ -34,9 +37,27 @@ class PtyPort:
         if self.link is not None:
             tmp = self.link.with_name(f".{self.link.name}.{os.getpid()}.tmp")
             tmp.unlink(missing_ok=True)
-            os.symlink(self.path, tmp)
-            os.replace(tmp, self.link)  # atomic: readers never see no link at all
+            try:
+                os.symlink(self.path, tmp)
+                os.replace(tmp, self.link)  # atomic: readers never see no link at all
+            except OSError as exc:  # the pty's name is not the user's to fix: the link's
+                self._close_master()
+                raise UserError(f"{self.link}: cannot make the link to the port "
+                                f"({exc.strerror or exc})") from None
         return self.path
+
+    def _check_link(self) -> None:
+        """The link may replace only a link: a file or folder already at that name (a
+        name typed wrong) is the user's, and was deleted, then the link removed at exit."""
+        link = self.link
+        if link is None:
+            return
+        if not link.parent.is_dir():
+            raise UserError(f"{link}: folder {link.parent} does not exist")
+        if os.path.lexists(link) and not link.is_symlink():
+            kind = "folder" if link.is_dir() else "file"
+            raise UserError(f"{link}: a {kind} is there, not a link; it is left as it is "
+                            "(choose another name for the link)")
 
     @property
     def port(self) -> str:
