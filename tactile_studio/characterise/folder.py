@@ -33,7 +33,8 @@ def run_files(out_dir: Path) -> list[Path]:
 
 def describe_run(out_dir: Path) -> str | None:
     """What ``out_dir`` holds in words ('a finished run of 6 taxel(s) started ...'), or
-    None when it holds no run."""
+    None when it holds no run, or only one that ended before it recorded anything (its
+    files are then cleared by the next run without --overwrite)."""
     out_dir = Path(out_dir)
     files = run_files(out_dir)
     if not files:
@@ -46,6 +47,8 @@ def describe_run(out_dir: Path) -> str | None:
         return f"files of an earlier characterisation ({len(files)} file(s))"
     if saved.get("complete"):
         return f"a finished characterisation of {done} taxel(s){when}"
+    if not done and not (out_dir / "session.h5").exists():
+        return None  # it ended before recording anything (a setup error): nothing to keep
     return f"an aborted characterisation ({done} of {asked} taxel(s) done{when})"
 
 

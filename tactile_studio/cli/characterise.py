@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
-from tactile_studio.characterise.folder import check_out_dir
+from tactile_studio.characterise.folder import check_out_dir, describe_run
 from tactile_studio.characterise.plan import SEQUENCES
 from tactile_studio.characterise.run import check_sensor_request, save_calibration
 from tactile_studio.cli.json_output import print_json
@@ -118,7 +118,9 @@ def run(args: argparse.Namespace) -> int:
     except Cancelled:
         raise Cancelled(f"characterisation cancelled: {_finished(out)}") from None
     except UserError as exc:
-        stopped = UserError(f"{exc} (data so far kept in {out})")
+        kept = (f"data so far kept in {out}" if describe_run(out)
+                else "nothing was recorded; the same --out can be used again")
+        stopped = UserError(f"{exc} ({kept})")
         stopped.exit_code = exc.exit_code  # a full disk stays "incomplete" (3), not 1
         raise stopped from None
     if args.save_calibration:
