@@ -47,9 +47,23 @@ def describe_run(out_dir: Path) -> str | None:
         return f"files of an earlier characterisation ({len(files)} file(s))"
     if saved.get("complete"):
         return f"a finished characterisation of {done} taxel(s){when}"
-    if not done and not (out_dir / "session.h5").exists():
-        return None  # it ended before recording anything (a setup error): nothing to keep
+    if not done and not _measured(out_dir / "session.h5"):
+        return None  # it ended before measuring a taxel (a setup error): nothing to keep
     return f"an aborted characterisation ({done} of {asked} taxel(s) done{when})"
+
+
+def _measured(session: Path) -> bool:
+    """The session holds a taxel's measurement (begun at its ``char_taxel`` event): one
+    that ended at homing holds only the seconds before. Unreadable: kept, to be safe."""
+    if not session.exists():
+        return False
+    from tactile_studio.storage.session import Session
+
+    try:
+        with Session(session) as s:
+            return any(e.get("kind") == "char_taxel" for e in s.events)
+    except (OSError, UserError, ValueError, KeyError):
+        return True
 
 
 def check_out_dir(out_dir: Path, overwrite: bool) -> None:

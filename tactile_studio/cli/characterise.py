@@ -119,7 +119,7 @@ def run(args: argparse.Namespace) -> int:
         raise Cancelled(f"characterisation cancelled: {_finished(out)}") from None
     except UserError as exc:
         kept = (f"data so far kept in {out}" if describe_run(out)
-                else "nothing was recorded; the same --out can be used again")
+                else "no taxel was measured; the same --out can be used again")
         stopped = UserError(f"{exc} ({kept})")
         stopped.exit_code = exc.exit_code  # a full disk stays "incomplete" (3), not 1
         raise stopped from None
