@@ -9,8 +9,12 @@ which name no file themselves. Real tiny torch training and rf.
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import resource
+import signal
+import threading
+import time
 from contextlib import contextmanager
 
 import pytest
@@ -158,3 +162,44 @@ def test_resume_trains_again_a_fold_whose_model_was_replaced(data, capsys, tmp_p
     assert after["r0-P01"] == before["r0-P01"] and after["r0-P03"] == before["r0-P03"]
     code = main(["evaluate", str(out)])
     assert code == 0, capsys.readouterr().err
+
+
+def test_a_sweep_whose_worker_is_killed_names_the_lost_tasks_and_keeps_the_rest(
+        data, capsys, tmp_path):
+    """kill -9 of a sweep's worker process (the OOM killer, a user) mid-run: one line naming
+    the tasks that were running, the finished ones kept with their table, exit 3, and the
+    same command resumes. It had ended in a BrokenProcessPool traceback."""
+    out = tmp_path / "sweep"
+    argv = ["sweep", "--data", str(data / "data"), "--models", "cnn1d", "rf", "--channels",
+            "normal", "both", "--eval", "lopo", "--preset", "tiny", "--epochs", "2",
+            "--jobs", "2", "--no-cache", "--out", str(out)]
+    killed: list[int] = []
+
+    def kill_a_worker() -> None:  # once the first task has finished, more are running
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not list((out / "tasks").glob("*.json")):
+            time.sleep(0.05)
+        workers = multiprocessing.active_children()
+        if workers:
+            killed.append(workers[0].pid)
+            os.kill(workers[0].pid, signal.SIGKILL)
+
+    killer = threading.Thread(target=kill_a_worker)
+    killer.start()
+    code = main(argv)
+    killer.join()
+    stdout, err = capsys.readouterr()
+    assert killed
+    line = _error_line(err)
+    assert code == 3, err
+    assert "worker process ended abruptly" in line and "same command" in line
+    done = sorted(p.stem for p in (out / "tasks").glob("*.json"))
+    assert f"{len(done)} of 12 tasks finished" in line
+    lost = line.split("running: ")[1].split(";")[0].split(", ")
+    assert lost and not set(lost) & set(done) and all("-r0-P0" in t for t in lost)
+    results = json.loads((out / "results.json").read_text())
+    assert results["complete"] is False
+    # the same command trains only what was lost or never started
+    assert main(argv) == 0
+    assert len(list((out / "tasks").glob("*.json"))) == 12
+    assert json.loads((out / "results.json").read_text())["complete"] is True

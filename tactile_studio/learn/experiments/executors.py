@@ -41,6 +41,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
@@ -53,11 +54,26 @@ _POLL_S = 0.2
 _PARENT_CHECK_S = 1.0
 
 
-def _init_worker(parent: int) -> None:
+class WorkerLost(Exception):
+    """A worker process ended abruptly (killed, out of memory) while tasks ran; a local
+    pool cannot go on after that. ``running`` are the tasks that had started in a worker
+    and not finished (as the workers reported them): lost, like every task not started."""
+
+    def __init__(self, running: list[str]) -> None:
+        super().__init__("a worker process ended abruptly")
+        self.running = running
+
+
+_STARTED: Any = None  # in a worker: the queue on which it says which task it starts
+
+
+def _init_worker(parent: int, started: Any = None) -> None:
     """Ctrl-C and SIGTERM reach the parent only, even sent to the whole process group
     (it cancels, then kills its workers); and a worker whose parent died without ending
     it (killed: no handler ran) exits instead of finishing its task. ``parent`` is the
     sweep's PID as the sweep saw it: one killed while this worker started is gone."""
+    global _STARTED
+    _STARTED = started
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
@@ -69,7 +85,9 @@ def _init_worker(parent: int) -> None:
     threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
-def _call(fn: Callable[..., Any], kwargs: dict[str, Any]) -> Any:
+def _call(fn: Callable[..., Any], kwargs: dict[str, Any], task_id: str = "") -> Any:
+    if _STARTED is not None:
+        _STARTED.put(task_id)  # so a worker killed mid-task is told by its task
     return fn(**kwargs)
 
 
@@ -84,8 +102,9 @@ class LocalExecutor:
 
     def __enter__(self) -> LocalExecutor:
         ctx = multiprocessing.get_context("spawn")
+        self._task_starts = ctx.SimpleQueue()
         self._pool = cf.ProcessPoolExecutor(self.jobs, mp_context=ctx, initializer=_init_worker,
-                                          initargs=(os.getpid(),))
+                                          initargs=(os.getpid(), self._task_starts))
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -104,12 +123,21 @@ class LocalExecutor:
             cancel: CancelToken | None = None) -> Iterator[tuple[str, Any]]:
         assert self._pool is not None, "use the executor as a context manager"
         cancel = cancel or CancelToken()
-        futures = {self._pool.submit(_call, fn, kw): tid for tid, (kw, _gpus) in tasks.items()}
-        pending = set(futures)
+        futures = {self._pool.submit(_call, fn, kw, tid): tid
+                   for tid, (kw, _gpus) in tasks.items()}
+        pending, finished = set(futures), set()
         while pending:
             done, pending = cf.wait(pending, timeout=_POLL_S, return_when=cf.FIRST_COMPLETED)
+            broken = [f for f in done if isinstance(f.exception(), BrokenProcessPool)]
             for fut in done:
-                yield futures[fut], fut.result()
+                if fut not in broken:
+                    finished.add(futures[fut])
+                    yield futures[fut], fut.result()
+            if broken:
+                started = set()
+                while not self._task_starts.empty():
+                    started.add(self._task_starts.get())
+                raise WorkerLost(sorted(started - finished))
             if cancel.cancelled and pending:
                 for fut in pending:
                     fut.cancel()

@@ -30,9 +30,10 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.errors import Cancelled, IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.experiments.executors import WorkerLost
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     _torch_threads,
@@ -170,7 +171,7 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     progress(len(records) / total, f"{len(tasks)} tasks to run ({len(records)} done before)")
     listener(Plan(total=total, done=len(records)))
     t0 = time.perf_counter()
-    complete = True
+    complete, lost = True, None
     try:
         for tid, rec in executor.run(run_fold_task, tasks, cancel):
             model_file = rec.pop("_model", None)
@@ -185,7 +186,15 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
                           row=_group_row(owners[tid], records, full.label_names)[0]))
     except Cancelled:
         complete = False
-    result = _table(groups, records, full.label_names, complete, folder)
+    except WorkerLost as exc:  # the finished tasks are kept and tabled, as on Ctrl-C
+        lost = exc
+    result = _table(groups, records, full.label_names, complete and lost is None, folder)
+    if lost is not None:
+        raise IncompleteError(
+            "a worker process ended abruptly (killed, or out of memory) with task(s) "
+            f"running: {', '.join(lost.running) or 'none'}; {len(records)} of {total} tasks "
+            "finished" + (f", kept in {folder}" if folder else "")
+            + "; the same command trains the rest")
     if not complete:
         raise Cancelled(f"sweep cancelled: {len(records)} of {total} tasks finished"
                         + (f", kept in {folder}" if folder else ""))
