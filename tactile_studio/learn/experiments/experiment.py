@@ -570,7 +570,9 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
         if records and folder is not None:
             metrics = summarise(records, ds.label_names, learner.windowed, header, False)
             folder.write_results(metrics, records, title + " (partial)")
-        raise
+        kept = f", kept in {folder.path}; the same --out resumes" if folder is not None else ""
+        raise Cancelled(f"training cancelled: {len(records)} of {total_units} folds "
+                        f"finished{kept}") from None
     progress(0.98, "writing results")
     metrics = summarise(records, ds.label_names, learner.windowed, header, True)
     if folder is not None:
