@@ -134,6 +134,15 @@ def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:
     file made and removed there), since permission bits say nothing of a read-only mount,
     a full disk or root. ``purpose`` says why the folder is written (``"where evaluate
     saves rescore.json"``). An error that is not the place's fault keeps its traceback."""
+    cause = _write_refused(folder)
+    if cause is not None:
+        raise WriteFault(f"{os.fsdecode(folder)}: cannot write in this folder, "
+                         f"{purpose} ({cause})")
+
+
+def _write_refused(folder: str | os.PathLike) -> str | None:
+    """Why ``folder`` cannot be written, by a real probe (a temporary file made and
+    removed there); None when it can."""
     import tempfile
 
     try:
@@ -141,11 +150,10 @@ def require_writable_folder(folder: str | os.PathLike, purpose: str) -> None:
     except OSError as exc:
         if fault_line(exc) is None:
             raise
-        cause = exc.strerror or os.strerror(exc.errno)
-        raise WriteFault(f"{os.fsdecode(folder)}: cannot write in this folder, "
-                         f"{purpose} ({cause})") from None
+        return exc.strerror or os.strerror(exc.errno)
     os.close(fd)
     os.unlink(probe)
+    return None
 
 
 def require_writable_file(path: str | os.PathLike, purpose: str,
@@ -173,7 +181,9 @@ def require_writable_file(path: str | os.PathLike, purpose: str,
                              f"is: choose another name for {purpose}")
     if not _probe(os.path.isdir, target.parent):
         raise WriteFault(f"{name}: folder {target.parent} does not exist")
-    require_writable_folder(target.parent, purpose)
+    cause = _write_refused(target.parent)
+    if cause is not None:  # the line names the file the user typed, as a write would
+        raise WriteFault(f"{name}: cannot write ({cause})")
 
 
 # what an earlier output of each kind begins with (``require_writable_file``'s replaces)
