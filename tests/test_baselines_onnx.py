@@ -105,7 +105,7 @@ def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, nam
     shutil.copytree(out, old)
     for f in (old / "folds").glob("*/model.onnx"):
         f.rename(f.with_name("model.safetensors"))
-    with pytest.raises(UserError, match="train the run again"):
+    with pytest.raises(UserError, match="train again"):
         rescore_run(old)
     # streaming: the newest window of frames -> features -> the ONNX model
     trial = ds.trials[0]  # (C, T, R, X)
