@@ -216,6 +216,24 @@ def signals_handled(handler: Callable[[int, Any], None],
         restore()
 
 
+@contextmanager
+def signals_deferred() -> Iterator[None]:
+    """While active, Ctrl-C and SIGTERM wait: a step that must finish once begun (the
+    characterisation stage lifting its indenter off the sensor) is not cut by a second
+    Ctrl-C. A signal that came meanwhile is raised at the end (KeyboardInterrupt or
+    :class:`Terminated`), so the command still stops."""
+    came: list[int] = []
+
+    def hold(signum: int, frame: object) -> None:
+        came.append(signum)
+        sys.stderr.write("\nfinishing a step that must not be cut (it takes a moment)...\n")
+
+    with signals_handled(hold, signal.SIGINT, signal.SIGTERM):
+        yield
+    if came:
+        raise Terminated if came[0] == signal.SIGTERM else KeyboardInterrupt
+
+
 def _raise_terminated(signum: int, frame: object) -> None:
     raise Terminated
 

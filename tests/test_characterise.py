@@ -226,3 +226,37 @@ def test_save_calibration_needs_a_sensor(tmp_path, capsys):
     assert main(["characterise", "--set", "speed=0", "--taxels", "B2", "--sequence", "normal",
                  "--save-calibration", "--out", str(tmp_path / "run")]) == 1
     assert "--save-calibration needs --sensor" in capsys.readouterr().err
+
+
+def test_a_second_ctrl_c_mid_taxel_still_lifts_the_indenter_and_saves(tmp_path):
+    """Ctrl-C twice: the second interrupts at once (jobs.ctrl_c_cancels raises
+    KeyboardInterrupt wherever the run is, here mid-taxel). The indenter is lifted first
+    all the same and what was measured is saved as aborted; before, only Cancelled and
+    UserError retracted, so the indenter stayed pressed into the sensor."""
+    def progress(fraction, message):
+        if message.startswith("C3"):
+            raise KeyboardInterrupt  # where the second Ctrl-C's handler raises it
+    taxels = parse_taxels(sim_device().layout, "B2,C3")
+    stage = SimulatedStage()
+    with pytest.raises(KeyboardInterrupt):
+        run_characterisation(sim_device(), stage, SimulatedForce(), QUICK, taxels, tmp_path,
+                             progress=progress)
+    retracts = [e for e in events(tmp_path / "session.h5", "stage") if e.get("retract")]
+    assert retracts and events(tmp_path / "session.h5", "char_aborted")
+    saved = json.loads((tmp_path / "characterisation.json").read_text())
+    assert saved["aborted"] == "KeyboardInterrupt" and list(saved["taxels"]) == ["B2"]
+
+
+def test_a_step_that_must_finish_holds_ctrl_c_until_it_has():
+    """signals_deferred: a Ctrl-C during the step does not cut it; it is raised after."""
+    import os
+    import signal
+
+    from tactile_studio.jobs import signals_deferred
+
+    finished = False
+    with pytest.raises(KeyboardInterrupt):
+        with signals_deferred():
+            os.kill(os.getpid(), signal.SIGINT)
+            finished = True  # the step went on after the signal
+    assert finished

@@ -28,9 +28,9 @@ from tactile_studio.characterise.sequences import (
     shear_sequence,
 )
 from tactile_studio.devices.contract import DevicePlugin
-from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.errors import UserError
 from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
-from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.jobs import CancelToken, ProgressFn, no_progress, signals_deferred
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.sensor.wellness import parse_taxel
 from tactile_studio.storage.calibration_store import store_calibration
@@ -222,7 +222,7 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
             _write_json(json_path, result)
             progress((i + 1) / len(taxels), f"{name} done")
         result["complete"] = True
-    except (Cancelled, UserError) as exc:
+    except BaseException as exc:  # also a second Ctrl-C: the indenter is lifted first
         result["aborted"] = str(exc) or type(exc).__name__
         _retract(stage, lab, exc)
         raise
@@ -242,11 +242,16 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
 
 
 def _retract(stage: StagePlugin, lab: Lab | None, exc: BaseException) -> None:
-    """Abort path: lift the indenter first; record why; never mask the original error."""
+    """Abort path: lift the indenter first, and let no Ctrl-C cut the lifting short (an
+    indenter left pressed into the sensor can damage it); record why; never mask the
+    original error."""
     try:
-        lab.retract() if lab is not None else stage.retract()
+        with signals_deferred():
+            lab.retract() if lab is not None else stage.retract()
     except Exception as err:  # the stage may be what failed
         if lab is not None:
             lab.event("char_retract_failed", error=str(err))
+    except KeyboardInterrupt:  # Ctrl-C again while lifting: the original error stands
+        pass
     if lab is not None:
         lab.event("char_aborted", reason=str(exc) or type(exc).__name__)
