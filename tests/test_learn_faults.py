@@ -203,3 +203,24 @@ def test_a_sweep_whose_worker_is_killed_names_the_lost_tasks_and_keeps_the_rest(
     assert main(argv) == 0
     assert len(list((out / "tasks").glob("*.json"))) == 12
     assert json.loads((out / "results.json").read_text())["complete"] is True
+
+
+def test_evaluate_on_other_recordings_with_the_same_names_scores_them_as_new_data(
+        data, capsys, tmp_path):
+    """evaluate --data with another study's P01.h5..P03.h5: they are new people to every
+    fold model (external mode), not the run's held-out trials re-scored (folds mode, as
+    it had said, each fold model meeting only its namesake person)."""
+    out = tmp_path / "run"
+    assert _train(capsys, data, out, "rf")[0] == 0
+    other = tmp_path / "other"
+    make_dataset_folder(other, participants=3, blocks=2, gestures=GESTURES3, first_style=201)
+    cache = ["--cache-dir", str(tmp_path / "cache")]
+    code = main(["evaluate", str(out), "--data", str(other), *cache])
+    stdout, err = capsys.readouterr()
+    assert code == 0, err
+    assert "external mode" in stdout
+    rescore = json.loads((out / "rescore.json").read_text())
+    assert rescore["mode"] == "external" and rescore["n_trials"] == 3 * 18
+    # the run's own recordings are still its folds, re-scored
+    assert main(["evaluate", str(out), *cache]) == 0
+    assert "folds mode" in capsys.readouterr().out

@@ -24,6 +24,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.data.trialinfo import load_trial_table
 from tactile_studio.learn.evaluation.summary import headline
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
@@ -65,6 +66,26 @@ def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
     return config, resolved, records, ds, learner, info
 
 
+def _other_recordings(run: str | os.PathLike, ds: Any, index: dict[str, int],
+                      found: set[str]) -> bool:
+    """Whether the data's trials named as the run's test trials are other recordings
+    with the same file names: a trial whose person or gesture differs from the run's
+    trial table (runs without a table, or rows without a gesture, are taken as named)."""
+    try:
+        table = {str(r.get("uid")): r for r in load_trial_table(run)}
+    except (UserError, OSError):
+        return False
+    for uid in found:
+        row = table.get(uid)
+        if not row or "gesture" not in row:
+            continue
+        i = index[uid]
+        if (str(row.get("participant")), str(row["gesture"])) != \
+                (str(ds.participants[i]), ds.label_names[int(ds.labels[i])]):
+            return True
+    return False
+
+
 def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                 cache_dir: str | None = None, progress: ProgressFn = no_progress,
                 cancel: CancelToken | None = None, adapt: str | None = None
@@ -89,6 +110,8 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     index = {u: i for i, u in enumerate(ds.uids)}
     wanted = {u for rec in records for u in rec["test"]}
     found = wanted & set(index)
+    if found and _other_recordings(run, ds, index, found):
+        found = set()  # another study's P01.h5: new people to every fold model
     mode = "folds" if found else "external"
     if found and found != wanted:
         missing = sorted(wanted - found)
