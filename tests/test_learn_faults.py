@@ -224,3 +224,15 @@ def test_evaluate_on_other_recordings_with_the_same_names_scores_them_as_new_dat
     # the run's own recordings are still its folds, re-scored
     assert main(["evaluate", str(out), *cache]) == 0
     assert "folds mode" in capsys.readouterr().out
+
+
+def test_a_dataset_cache_that_cannot_be_written_leaves_no_cut_file(data, capsys, tmp_path):
+    """The cache is optional (training goes on without it), but a cut temporary file of
+    the size of the data had stayed in the cache folder at every run on a full disk."""
+    cache = tmp_path / "cache"
+    argv = ["train", "--data", str(data / "data"), "--model", "rf", "--preset", "tiny",
+            "--eval", "lopo", "--out", str(tmp_path / "run"), "--cache-dir", str(cache)]
+    with file_size_limit(100_000):  # the run's files fit; the decoded dataset does not
+        code = main(argv)
+    assert code == 0, capsys.readouterr().err
+    assert not [p.name for p in (cache / "datasets").iterdir()]

@@ -10,6 +10,7 @@ killed run never leaves half a cache entry.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import importlib
 import json
@@ -63,12 +64,19 @@ def save(ds, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
             "has_shear": ds.has_shear, "sources": ds.sources, "format": CACHE_FORMAT,
             "trial_s": ds.trial_s}
     tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
-    np.savez(tmp, frames=np.concatenate(ds.trials, axis=1),
-             offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-             labels=ds.labels, participants=ds.participants.astype(str),
-             uids=np.array(ds.uids, dtype=str), rates=ds.rates,
-             conditions=ds.trial_conditions().astype(str), meta=np.array(json.dumps(meta)))
-    os.replace(tmp, path)
+    try:
+        np.savez(tmp, frames=np.concatenate(ds.trials, axis=1),
+                 offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+                 labels=ds.labels, participants=ds.participants.astype(str),
+                 uids=np.array(ds.uids, dtype=str), rates=ds.rates,
+                 conditions=ds.trial_conditions().astype(str),
+                 meta=np.array(json.dumps(meta)))
+        os.replace(tmp, path)
+    except BaseException:
+        # a full disk: the cut file (the size of the data) must not stay, one per run
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        raise
     return path
 
 
