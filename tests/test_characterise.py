@@ -171,6 +171,9 @@ def test_plan_and_instrument_settings_are_validated():
     with pytest.raises(SettingsError, match="unknown shear direction"):
         Plan.with_overrides({"directions": "+x,up"})
     assert Plan.with_overrides({"dwell_s": "1.5"}).dwell_s == 1.5
+    # the averaged end of a hold cannot be longer than the hold
+    with pytest.raises(SettingsError, match=r"window_s \(10 s\) is longer than dwell_s"):
+        Plan.with_overrides({"window_s": "10"})
     assert Plan().cycles == 22000 and Plan().shear_step_mm == 0.2  # the paper's defaults
     assert len(parse_taxels(sim_device().layout, "all")) == 36
     assert np.isfinite(true_parameters(sim_device().simulator, SimulatedStage().skin, 0)

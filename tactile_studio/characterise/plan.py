@@ -79,6 +79,12 @@ class Plan:
                      "shear_step_mm", "search_step_mm", "window_s"):
             if getattr(self, name) <= 0:
                 raise SettingsError(f"characterisation parameter {name} must be positive")
+        for hold in ("dwell_s", "settle_s"):  # the holds whose end window_s averages
+            if self.window_s > getattr(self, hold):
+                raise SettingsError(
+                    f"characterisation parameter window_s ({self.window_s:g} s) is longer "
+                    f"than {hold} ({getattr(self, hold):g} s): it would average frames from "
+                    "before the hold began")
         if self.normal_steps < 4:
             raise SettingsError("characterisation parameter normal_steps must be at least 4")
         if self.cycles < 1:
