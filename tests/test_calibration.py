@@ -131,6 +131,14 @@ def test_cli_calibrate_json_file_and_bad_input(tmp_path, capsys):
     assert summary["calibration_id"] == saved["calibration_id"]
     assert [t["taxel"] for t in summary["taxels"]] == ["B2", "E5"]
     assert saved["format"] == "tactile-studio-calibration" and saved["rms_pct_max"] < 1.0
+    # a reading's error, cross-validated over the frames, beside the curve's through the
+    # loads' means (which a 3-parameter curve through 3 loads makes 0 by construction)
+    for fit in saved["fits"]:
+        assert fit["cv_pct"] == pytest.approx(
+            fit["cv_rms_kpa"][fit["model"]] / max(fit["loads_kpa"]) * 100, abs=1e-3)
+        assert fit["cv_pct"] > fit["rms_pct"]
+    assert summary["cv_pct_max"] == round(max(f["cv_pct"] for f in saved["fits"]), 4)
+    assert [t["cv_pct"] for t in summary["taxels"]] == [f["cv_pct"] for f in saved["fits"]]
     page = (tmp_path / "cal.html").read_text()
     assert summary["report"] == str(tmp_path / "cal.html") and "residuals" not in page[:10]
     assert page.count("data:image/png;base64") == 1 and "per-taxel" in page

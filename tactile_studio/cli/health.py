@@ -218,10 +218,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                "report": str(report),
                "kind": cal["kind"], "loads_g": cal["loads_g"], "out": args.out,
                "rms_pct_median": round(cal["rms_pct_median"], 4),
-               "rms_pct_max": round(cal["rms_pct_max"], 4), "gains": cal["gains"],
+               "rms_pct_max": round(cal["rms_pct_max"], 4),
+               "cv_pct_median": round(cal.get("cv_pct_median", float("nan")), 4),
+               "cv_pct_max": round(cal.get("cv_pct_max", float("nan")), 4),
+               "gains": cal["gains"],
                "skipped": cal["skipped"], "coverage": cal["coverage"],
                "replaced_calibration": cal["replaced_calibration"],
-               "taxels": [{k: f[k] for k in ("taxel", "model", "rms_pct", "sensitivity")}
+               "taxels": [{k: f.get(k) for k in ("taxel", "model", "rms_pct", "cv_pct",
+                                                 "sensitivity")}
                           for f in cal["fits"] if f.get("from_calibration") is None]}
     if args.json:
         _dump(summary)
@@ -229,11 +233,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return 0
     print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
     print(f"  {coverage_line(cal)}")
-    print(f"  rms error: median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
-          "of range")
+    # the curve through the loads' means, and the error of a reading (cross-validated
+    # over the frames): the first is 0 by construction for a 3-parameter curve, 3 loads
+    print(f"  rms error of the curve: median {cal['rms_pct_median']:.2f}%, worst "
+          f"{cal['rms_pct_max']:.2f}% of range")
+    print(f"  rms error of a reading (cross-validated over the frames): median "
+          f"{cal['cv_pct_median']:.2f}%, worst {cal['cv_pct_max']:.2f}% of range")
     for f in summary["taxels"]:
         print(f"  {f['taxel']:<4} {f['model']:<10} sensitivity {f['sensitivity']:.3f}  "
-              f"rms {f['rms_pct']:.2f}%")
+              f"rms {f['rms_pct']:.2f}%  cross-validated {f['cv_pct']:.2f}%")
     for skip in cal["skipped"]:
         print(f"  not calibrated: {skip['reason']}")
     _raise_if_skipped(cal)

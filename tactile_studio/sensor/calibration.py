@@ -117,16 +117,25 @@ class TaxelFit:
     model: str
     params: tuple[float, ...]
     cv_rms_kpa: dict[str, float]
-    rms_pct: float
+    rms_pct: float  # the curve through the loads' means: 0 when it has a parameter a load
     sensitivity: float
     loads_kpa: list[float]
     responses: list[float]
     residuals_kpa: list[float]
 
+    @property
+    def cv_pct(self) -> float:
+        """The chosen curve's cross-validated rms error over the recorded frames, % of the
+        range: what a reading's error is, where ``rms_pct`` (the curve through the means)
+        reads 0 for a three-parameter curve through three loads."""
+        top = max(self.loads_kpa) if self.loads_kpa else 0.0
+        return float(self.cv_rms_kpa[self.model] / top * 100.0) if top > 0 else 0.0
+
     def to_dict(self) -> dict[str, Any]:
         return {"taxel": self.name, "index": self.taxel, "model": self.model,
                 "params": list(self.params), "cv_rms_kpa": self.cv_rms_kpa,
-                "rms_pct": round(self.rms_pct, 4), "sensitivity": round(self.sensitivity, 5),
+                "rms_pct": round(self.rms_pct, 4), "cv_pct": round(self.cv_pct, 4),
+                "sensitivity": round(self.sensitivity, 5),
                 "loads_kpa": self.loads_kpa, "responses": self.responses,
                 "residuals_kpa": self.residuals_kpa}
 
@@ -168,10 +177,12 @@ def calibration_data(layout: Layout, kind: str, loads_g: list[float], fits: list
     sens = {f.taxel: f.sensitivity for f in fits}
     gains = equilibration_gains(sens)
     rms = [f.rms_pct for f in fits]
+    cv = [f.cv_pct for f in fits]
     return {"format": "tactile-studio-calibration", "version": 1, "layout": layout.name,
             "kind": kind, "loads_g": list(loads_g), "fits": [f.to_dict() for f in fits],
             "gains": {f.name: round(gains[f.taxel], 5) for f in fits},
             "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms)),
+            "cv_pct_median": float(np.median(cv)), "cv_pct_max": float(np.max(cv)),
             **(extra or {})}
 
 
@@ -260,5 +271,9 @@ def with_fits(fits: list[dict[str, Any]]) -> dict[str, Any]:
     sens = {f["taxel"]: float(f["sensitivity"]) for f in fits if f["sensitivity"] > 0}
     median = float(np.median(list(sens.values()))) if sens else 1.0
     rms = [float(f["rms_pct"]) for f in fits] or [0.0]
-    return {"fits": fits, "gains": {t: round(median / s, 5) for t, s in sens.items()},
-            "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms))}
+    out = {"fits": fits, "gains": {t: round(median / s, 5) for t, s in sens.items()},
+           "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms))}
+    cv = [float(f["cv_pct"]) for f in fits if "cv_pct" in f]  # none before it was kept
+    if cv:
+        out.update(cv_pct_median=float(np.median(cv)), cv_pct_max=float(np.max(cv)))
+    return out
