@@ -12,6 +12,7 @@ import json
 import multiprocessing
 import os
 import resource
+import shutil
 import signal
 import threading
 import time
@@ -236,3 +237,17 @@ def test_a_dataset_cache_that_cannot_be_written_leaves_no_cut_file(data, capsys,
         code = main(argv)
     assert code == 0, capsys.readouterr().err
     assert not [p.name for p in (cache / "datasets").iterdir()]
+
+
+def test_compare_says_when_a_run_has_test_trials_the_other_lacks(data, capsys, tmp_path):
+    """A run stopped after one fold against a finished one: the accuracies are over the
+    trials both have, not the finished run's own figure, and compare says so."""
+    full, part = tmp_path / "full", tmp_path / "part"
+    assert _train(capsys, data, full, "rf")[0] == 0
+    assert _train(capsys, data, part, "knn")[0] == 0
+    for fold in ("r0-P02", "r0-P03"):
+        shutil.rmtree(part / "folds" / fold)
+    (part / "metrics.json").unlink()
+    assert main(["compare", str(full), str(part)]) == 0
+    out = capsys.readouterr().out
+    assert "accuracies over the 6 test trials both runs have (rf: 18, knn: 6)" in out

@@ -20,6 +20,9 @@ def cmd_compare(args: argparse.Namespace) -> int:
                  [("A", r["name_a"], f"{100 * r['accuracy_a']:.1f}%", r["run_a"]),
                   ("B", r["name_b"], f"{100 * r['accuracy_b']:.1f}%", r["run_b"])],
                  right=("accuracy",))
+    if r["n_matched"] < max(r["n_trials_a"], r["n_trials_b"]):  # a partial run, say
+        print(f"accuracies over the {r['n_matched']} test trials both runs have "
+              f"({r['name_a']}: {r['n_trials_a']}, {r['name_b']}: {r['n_trials_b']})")
     if r["config_difference"]:
         print("differ in: " + "; ".join(r["config_difference"]))
     tables.table(("participant", "A", "B", "B-A", "trials"),

@@ -136,6 +136,7 @@ def compare_predictions(a: RunPredictions, b: RunPredictions) -> dict[str, Any]:
         "run_a": str(a.path), "run_b": str(b.path), "name_a": name_a, "name_b": name_b,
         "labels": a.labels, "accuracy_a": acc_a, "accuracy_b": acc_b,
         "difference": acc_b - acc_a, "n_matched": len(keys), "n_participants": len(parts),
+        "n_trials_a": len(ia), "n_trials_b": len(ib),  # a partial run has fewer
         "wilcoxon_p": w_p, "wilcoxon_n": w_n, "mcnemar_p": mcnemar_exact(only_a, only_b),
         "only_a_correct": only_a, "only_b_correct": only_b, "per_participant": pp,
         "difference_matrix": diff.round(6).tolist(),
