@@ -251,3 +251,12 @@ def test_compare_says_when_a_run_has_test_trials_the_other_lacks(data, capsys, t
     assert main(["compare", str(full), str(part)]) == 0
     out = capsys.readouterr().out
     assert "accuracies over the 6 test trials both runs have (rf: 18, knn: 6)" in out
+
+
+@pytest.mark.parametrize("content", ['{"trials": 3}', "[1, 2]", '{"trials": [1]}'])
+def test_a_damaged_trial_table_is_one_line(data, capsys, tmp_path, content):
+    out = tmp_path / "run"
+    assert _train(capsys, data, out, "rf")[0] == 0
+    (out / "trials.json").write_text(content)
+    assert main(["compare", str(out), str(out)]) == 1  # the research window reads it too
+    assert f"{out / 'trials.json'}: damaged" in _error_line(capsys.readouterr().err)

@@ -69,7 +69,12 @@ def load_trial_table(run: str | os.PathLike, data: Sequence[str] | None = None
     """The run's trials in dataset order (index = ``owner`` in fold predictions)."""
     run = Path(run)
     if (run / TRIALS).is_file():
-        return list(read_json(run / TRIALS)["trials"])
+        table = read_json(run / TRIALS)
+        rows = table.get("trials") if isinstance(table, dict) else None
+        if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+            raise UserError(f"{run / TRIALS}: damaged (valid JSON, but not a run's trial "
+                            "table)")
+        return rows
     cfg = read_json(run / "config.json")
     paths = data or cfg.get("config", {}).get("data") or []
     try:
