@@ -146,3 +146,16 @@ def test_info_on_recordings_without_participants_or_trials_adds_nothing_up(tmp_p
     assert main(["info", str(tmp_path / "a.h5"), str(tmp_path / "b.h5")]) == 0
     out = capsys.readouterr().out
     assert "2 session file(s)" in out and "participants:" not in out
+
+
+def test_info_on_a_run_folder_says_what_it_is_and_where_to_go(tmp_path, capsys):
+    """A researcher's first guess on a training run's folder: one line saying it is a run,
+    not a bare 'no session files', and which commands read it."""
+    run = tmp_path / "runs" / "cnn1d-1"
+    (run / "folds").mkdir(parents=True)
+    (run / "config.json").write_text("{}")
+    assert main(["info", str(run)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("tactile-studio: error: ")
+    assert f"{run}: a run folder (trained models), not sessions" in err
+    assert f"tactile-studio evaluate {run}" in err

@@ -86,6 +86,10 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
         if p.is_dir():
             found = session_files_under(p)
             if not found:
+                if (p / "config.json").is_file() and (p / "folds").is_dir():  # a train run
+                    raise UserError(f"{p}: a run folder (trained models), not sessions: "
+                                    f"'tactile-studio evaluate {p}' re-scores it, "
+                                    "'compare' sets two runs side by side")
                 raise UserError(f"{p}: no session files (*.h5) in this folder")
             for q in found:
                 (backups if is_resume_backup(q) else files).append(q)
