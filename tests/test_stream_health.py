@@ -141,7 +141,7 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
     between the frames of a 10 Hz simulator in real time (100 ms) is a silence, so its
     banner must come up with the warning (before, the console took the option and never
     looked)."""
-    from PySide6.QtCore import Qt
+    from console_helpers import open_console_session
 
     from tactile_studio.acquisition.session import AcquisitionSession
     from tactile_studio.ui.collect.console import CollectConsole
@@ -153,20 +153,8 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
     console = CollectConsole(acquisition=acq)
     qtbot.addWidget(console)
     console.show()
-    s = console.setup
-    s.protocol.setCurrentIndex(0)
-    qtbot.keyClicks(s.participant, "P09")
-    s.out_dir.clear()
-    (tmp_path / "data").mkdir()
-    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
-    s.device.setCurrentIndex(s.device.findData("simulated"))
-    for name, value in {"rate": "10", "gesture": "idle"}.items():
-        editor = s.device_form.fields[name].editor
-        editor.clear()
-        qtbot.keyClicks(editor, value)
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = Path(console.session.path)
+    path = open_console_session(qtbot, console, tmp_path / "data", "P09",
+                                {"rate": "10", "gesture": "idle"})
     try:
         qtbot.waitUntil(lambda: console.health_banner.isVisible(), timeout=15_000)
         assert "sent no frames for 0.03 s" in console.health_banner.text() \

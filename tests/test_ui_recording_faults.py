@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import resource
 from contextlib import contextmanager
-from pathlib import Path
 
 import pytest
-from PySide6.QtCore import Qt
+from console_helpers import open_console_session
 
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.storage import Session
@@ -64,20 +63,8 @@ def test_collection_console_ends_the_session_with_a_banner(qtbot, tmp_path):
     console = CollectConsole()
     qtbot.addWidget(console)
     console.show()
-    s = console.setup
-    s.protocol.setCurrentIndex(0)
-    qtbot.keyClicks(s.participant, "P09")
-    s.out_dir.clear()
-    (tmp_path / "data").mkdir()
-    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
-    s.device.setCurrentIndex(s.device.findData("simulated"))
-    for name, value in {"rate": "1000", "gesture": "idle"}.items():
-        editor = s.device_form.fields[name].editor
-        editor.clear()
-        qtbot.keyClicks(editor, value)
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = Path(console.session.path)
+    path = open_console_session(qtbot, console, tmp_path / "data", "P09",
+                                {"rate": "1000", "gesture": "idle"})
     try:
         with file_size_limit(path.stat().st_size + ROOM):
             qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
@@ -128,16 +115,7 @@ def test_collection_console_ends_the_session_when_its_device_ends(qtbot, tmp_pat
     console = CollectConsole()
     qtbot.addWidget(console)
     console.show()
-    s = console.setup
-    s.protocol.setCurrentIndex(0)
-    qtbot.keyClicks(s.participant, "P10")
-    s.out_dir.clear()
-    (tmp_path / "data").mkdir()
-    qtbot.keyClicks(s.out_dir, str(tmp_path / "data"))
-    s.device.setCurrentIndex(s.device.findData("simulated"))
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = Path(console.session.path)
+    path = open_console_session(qtbot, console, tmp_path / "data", "P10")
     try:
         qtbot.waitUntil(lambda: console.engine.frames > 0, timeout=WAIT_MS)
         console.engine.stop()
