@@ -275,3 +275,26 @@ def test_the_wellness_wizard_says_it_set_the_logbook_aside(qtbot, logbook):
     with Logbook() as book:
         assert set(SENSORS) < set(book.sensor_ids())  # the backup's history, and the check
         assert len(book.checks("sim-21")) == 1
+
+
+def test_a_logbook_from_a_newer_version_is_refused_and_left_as_it_is(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A logbook a newer Tactile Studio wrote (a schema this one does not know) is not
+    read or written: one line says so, and the file is byte for byte as it was (before,
+    it was used without a word, and written into)."""
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path))
+    with Logbook() as book:
+        book.ensure_sensor("S-1")
+        path = book.path
+    db = sqlite3.connect(path)
+    db.execute("INSERT INTO schema_version (version) VALUES (99)")
+    db.commit()
+    db.close()
+    before = path.read_bytes()
+    with pytest.raises(Exception, match="written by a newer Tactile Studio"):
+        Logbook()
+    assert main(["sensors"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(PREFIX + f"{path}: the sensor logbook was written by a newer")
+    assert len(err.splitlines()) == 1 and "schema 99" in err
+    assert path.read_bytes() == before

@@ -115,6 +115,7 @@ class Logbook:
             self._db.execute("PRAGMA synchronous=FULL")
             self._db.execute("PRAGMA foreign_keys=ON")
             self._wrote = False
+            self._refuse_if_newer()
             self._migrate()
             logbook_file.refresh_backup(self._db, self.path, only_if_missing=not self._wrote)
             self._wrote = False
@@ -158,6 +159,20 @@ class Logbook:
     def schema_version(self) -> int:
         row = self._db.execute("SELECT MAX(version) FROM schema_version").fetchone()
         return int(row[0] or 0)
+
+    def _refuse_if_newer(self) -> None:
+        """A logbook a newer Tactile Studio wrote is left as it is: this version does not
+        know its tables, and writing to it (a recording's hours, a check) could break
+        what the newer one keeps there."""
+        known = self._db.execute("SELECT name FROM sqlite_master WHERE type='table' "
+                                 "AND name='schema_version'").fetchone()
+        if known is None or self.schema_version <= len(MIGRATIONS):
+            return
+        version = self.schema_version
+        self._db.close()
+        raise UserError(f"{self.path}: the sensor logbook was written by a newer Tactile "
+                        f"Studio (schema {version}; this one knows up to {len(MIGRATIONS)}): "
+                        "update Tactile Studio; the file is left as it is")
 
     def _migrate(self) -> None:
         self._db.execute("CREATE TABLE IF NOT EXISTS schema_version (version INTEGER NOT NULL)")
