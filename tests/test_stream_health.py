@@ -166,3 +166,41 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
         console.close_session()
     with Session(path) as f:
         assert [e for e in f.events if e["kind"] == "stream_silent"]
+
+
+def test_record_names_a_serial_sensor_for_the_logbook(tmp_path, capsys, monkeypatch):
+    """``record --sensor ID``: a serial receiver reports no sensor of its own, so nothing
+    was ever booked for it and the sensor could not be registered from the command line
+    (the logbook's 'a recording adds one' held only for the simulator). With the ID the
+    logbook registers it, books the recording's hours, and the file names it; an ID that
+    contradicts the device's own is refused in one line before anything is recorded."""
+    import threading
+
+    from tactile_studio.cli import main
+    from tactile_studio.storage.logbook import Logbook
+
+    monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "appdata"))
+    raw = np.random.default_rng(3).integers(30000, 31000, (60, 180)).astype(np.uint16)
+    emu = SerialEmulator(array_source(raw), rate_hz=500, link=tmp_path / "port",
+                         reader_grace=0.05)
+    emu.open()
+    feeder = threading.Thread(target=emu.send_lines, args=(40, 60.0), daemon=True)
+    feeder.start()
+    try:
+        assert main(["record", "--device", "serial", "--set", f"port={emu.port}",
+                     "--seconds", "1", "--sensor", "S-042",
+                     "--out", str(tmp_path / "s.h5")]) == 0
+    finally:
+        feeder.join(10)
+        emu.close()
+    with Session(tmp_path / "s.h5") as s:
+        assert s.metadata["sensor_id"] == "S-042" and s.n_frames == 40
+    with Logbook() as book:
+        assert "S-042" in book.sensor_ids()
+        assert book.history("S-042")["hours"] == round(40 / 44.0 / 3600, 4) > 0  # 44 Hz
+    capsys.readouterr()
+    code = main(["record", "--seconds", "1", "--sensor", "S-042",
+                 "--out", str(tmp_path / "sim.h5")])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and "the device reports sensor sim-0" in err
+    assert len(err.splitlines()) == 1 and not (tmp_path / "sim.h5").exists()

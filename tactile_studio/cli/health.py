@@ -270,7 +270,8 @@ def cmd_sensors(args: argparse.Namespace) -> int:
         _dump(rows)
         return 0
     if not rows:
-        print("no sensors in the logbook yet (a recording or a wellness check adds one)")
+        print("no sensors in the logbook yet (a recording adds one: the simulator's own, or "
+              "record --sensor ID for a receiver that reports none)")
         return 0
     print(f"{'sensor':<20} {'hours':>8}  {'last check':<22} {'calibration':>11}")
     for r in rows:

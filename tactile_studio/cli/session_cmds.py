@@ -24,6 +24,7 @@ from tactile_studio.devices.registry import available_plugins, create_device, pa
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.storage.aux_signals import AuxSignal
+from tactile_studio.storage.logbook import check_sensor_id
 from tactile_studio.storage.session import Session, measured_rate_hz
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
@@ -39,6 +40,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seconds", type=finite_float, required=True, help="how long to record")
     p.add_argument("--out", required=True, help="session file to write (.h5)")
     p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
+    p.add_argument("--sensor", default=None, metavar="ID",
+                   help="the sensor's ID, for a device that does not report its own "
+                        "(serial, BLE): the logbook registers it, books this recording's "
+                        "hours and decodes with its calibration")
     p.add_argument("--force", action="store_true", help="overwrite an existing file")
     add_lsl_option(p)
     add_markers_option(p)
@@ -64,6 +69,16 @@ def cmd_devices(args: argparse.Namespace) -> int:
     return 0
 
 
+def _sensor_for(device: Any, given: str) -> str:
+    """``--sensor``: a usable ID, and not another than the one the device reports."""
+    sensor = check_sensor_id(given)
+    own = device.sensor_id()
+    if own and own != sensor:
+        raise UserError(f"--sensor {sensor}: the device reports sensor {own}; leave "
+                        "--sensor out, or connect that sensor")
+    return sensor
+
+
 def cmd_record(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if out.exists() and not args.force:
@@ -74,9 +89,12 @@ def cmd_record(args: argparse.Namespace) -> int:
     session = AcquisitionSession()
     apply_silence_option(session, args)
     watch_health(session)  # a device gone silent while recording: a warning line
+    metadata = {"notes": args.notes, "source": "record"}
+    if args.sensor is not None:
+        metadata["sensor_id"] = _sensor_for(device, args.sensor)
     engine = session.use_device(device, args.device)
     # The recorder exists before the engine starts so the connect and tare events are kept.
-    session.start_recording(out, metadata={"notes": args.notes, "source": "record"})
+    session.start_recording(out, metadata=metadata)
     try:
         if args.lsl:
             session.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
