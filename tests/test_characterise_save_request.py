@@ -5,6 +5,7 @@ refuse at the end: a plan without the normal sequence (the run went through, hou
 from __future__ import annotations
 
 import pytest
+from fault_helpers import one_error_line
 
 from tactile_studio.cli import main
 
@@ -17,20 +18,13 @@ def data_dir(tmp_path, monkeypatch):
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "data"))
 
 
-def _one_line(capsys) -> str:
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    (line,) = [ln for ln in err.splitlines() if ln.startswith("tactile-studio:")]
-    return line
-
-
 def test_save_calibration_without_the_normal_sequence_is_refused_before_the_run(tmp_path,
                                                                                 capsys):
     out = tmp_path / "char"
     assert main([*SIM, "--sequence", "shear", "--sensor", "sim-0", "--save-calibration",
                  "--out", str(out)]) == 1
     assert not (out / "session.h5").exists()  # nothing ran
-    line = _one_line(capsys)
+    line = one_error_line(capsys)
     assert "normal sequence" in line and "only shear" in line
 
 
@@ -39,4 +33,4 @@ def test_a_sensor_id_the_logbook_would_not_take_is_refused_before_the_run(tmp_pa
     assert main([*SIM, "--sequence", "normal", "--sensor", "x" * 65, "--save-calibration",
                  "--out", str(out)]) == 1
     assert not (out / "session.h5").exists()
-    assert "bad sensor ID" in _one_line(capsys)
+    assert "bad sensor ID" in one_error_line(capsys)

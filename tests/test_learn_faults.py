@@ -11,14 +11,13 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
-import resource
 import shutil
 import signal
 import threading
 import time
-from contextlib import contextmanager
 
 import pytest
+from fault_helpers import file_size_limit
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
@@ -31,16 +30,6 @@ def data(tmp_path_factory):
     root = tmp_path_factory.mktemp("faults")
     make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES3)
     return root
-
-
-@contextmanager
-def file_size_limit(limit: int):
-    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
-    try:
-        yield
-    finally:
-        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
 
 
 def _train(capsys, data, out, model: str, *extra: str) -> tuple[int, str, str]:

@@ -5,6 +5,7 @@ measured it twice and kept the second."""
 from __future__ import annotations
 
 import pytest
+from fault_helpers import one_error_line
 
 from tactile_studio.cli import main
 from tactile_studio.storage.logbook import Logbook
@@ -15,13 +16,6 @@ def data_dir(tmp_path, monkeypatch):
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "data"))
 
 
-def _one_line(capsys) -> str:
-    err = capsys.readouterr().err
-    assert "Traceback" not in err
-    (line,) = [ln for ln in err.splitlines() if ln.startswith("tactile-studio:")]
-    return line
-
-
 def test_calibrate_refuses_a_taxel_named_twice(tmp_path, capsys):
     code = main(["calibrate", "--device", "simulated", "--set", "speed=0", "--sensor", "sim-0",
                  "--auto", "--loads-g", "20,50,100", "--taxels", "B2,B5,b2",
@@ -29,7 +23,7 @@ def test_calibrate_refuses_a_taxel_named_twice(tmp_path, capsys):
     assert code == 1
     with Logbook() as book:
         assert "sim-0" not in book.sensor_ids() or book.calibrations("sim-0") == []
-    assert _one_line(capsys) == "tactile-studio: error: taxels named more than once: B2"
+    assert one_error_line(capsys) == "tactile-studio: error: taxels named more than once: B2"
 
 
 def test_characterise_refuses_a_taxel_named_twice_before_the_run(tmp_path, capsys):
@@ -38,4 +32,4 @@ def test_characterise_refuses_a_taxel_named_twice_before_the_run(tmp_path, capsy
                  "gesture=idle", "--taxels", "B2,7", "--sequence", "normal",
                  "--out", str(out)])  # index 7 is B2
     assert code == 1 and not (out / "session.h5").exists()
-    assert "taxels named more than once: B2" in _one_line(capsys)
+    assert "taxels named more than once: B2" in one_error_line(capsys)

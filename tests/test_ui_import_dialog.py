@@ -12,6 +12,7 @@ from pathlib import Path
 
 import pytest
 from csv_fixtures import labelled_csv
+from fault_helpers import file_size_limit
 
 from tactile_studio.errors import UserError
 from tactile_studio.storage.session import Session
@@ -130,7 +131,6 @@ def test_a_disk_filling_up_part_way_says_which_sessions_were_kept(window, qtbot,
     """As ``import`` on the command line: the cut session is removed, the one finished
     before it is kept and listed, and the status says both (the file-size limit of this
     process stands in for a full disk: P01 fits under it, P02 does not)."""
-    import resource
 
     src = tmp_path / "old"
     src.mkdir()
@@ -141,13 +141,9 @@ def test_a_disk_filling_up_part_way_says_which_sessions_were_kept(window, qtbot,
     dialog.gestures.setText("r=Rub,p=Poke,z=Zap")
     out = tmp_path / "sessions"
     dialog.out.setText(str(out))
-    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (400 * 1024, hard))
-    try:
+    with file_size_limit(400 * 1024):
         assert dialog.start()
         qtbot.waitUntil(lambda: not dialog.job.running, timeout=30000)
-    finally:
-        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
     text = dialog.status.text()
     assert text.startswith(f"{out / 'P02_FLAT.h5'}: ") and "file too large" in text, text
     assert text.endswith("that session was removed, the 1 session(s) imported before it "

@@ -5,11 +5,9 @@ console. The limit is set on this process around the recording only."""
 
 from __future__ import annotations
 
-import resource
-from contextlib import contextmanager
-
 import pytest
 from console_helpers import open_console_session
+from fault_helpers import file_size_limit
 
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.storage import Session
@@ -24,16 +22,6 @@ ROOM = 400_000  # bytes a recording may still add before its writes fail
 @pytest.fixture(autouse=True)
 def isolated_settings(tmp_path, monkeypatch):
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
-
-
-@contextmanager
-def file_size_limit(limit: int):
-    soft, hard = resource.getrlimit(resource.RLIMIT_FSIZE)
-    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, hard))
-    try:
-        yield
-    finally:
-        resource.setrlimit(resource.RLIMIT_FSIZE, (soft, hard))
 
 
 def test_main_window_stops_the_recording_and_shows_a_banner(qtbot, tmp_path):
