@@ -15,7 +15,7 @@ import errno
 import os
 import re
 from collections.abc import Callable, Iterator, Sized
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 from tactile_studio.errors import IncompleteError, UserError
@@ -192,14 +192,21 @@ CALIBRATION_FILE = (b'"tactile-studio-calibration"', "a calibration file")
 
 
 @contextmanager
-def stored_already(what: str) -> Iterator[None]:
-    """Write an output after the result itself was stored (a check or calibration in the
-    logbook): a place that fails then still ends in one line naming the file, which
-    also says what is kept (``what``), so the user does not measure it all again."""
+def said_on_fault(error: Callable[[str], UserError]) -> Iterator[None]:
+    """Run writes whose failure must say what is kept: an OSError that is the place's
+    fault (:func:`fault_line`) ends as ``error(line)``, the one line with what the caller
+    adds; any other error keeps its traceback."""
     try:
         yield
     except OSError as exc:
         line = fault_line(exc)
         if line is None:
             raise
-        raise WriteFault(f"{line}; {what}") from None
+        raise error(line) from None
+
+
+def stored_already(what: str) -> AbstractContextManager[None]:
+    """Write an output after the result itself was stored (a check or calibration in the
+    logbook): a place that fails then still ends in one line naming the file, which
+    also says what is kept (``what``), so the user does not measure it all again."""
+    return said_on_fault(lambda line: WriteFault(f"{line}; {what}"))

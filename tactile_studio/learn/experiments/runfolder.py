@@ -24,12 +24,12 @@ import math
 import os
 import re
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import IncompleteError, UserError
-from tactile_studio.output_faults import WriteFault, fault_line
+from tactile_studio.output_faults import WriteFault, said_on_fault
 from tactile_studio.storage.input_files import file_sha256
 
 CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
@@ -115,22 +115,17 @@ class RunFolder:
     def folds_dir(self) -> Path:
         return self.path / "folds"
 
-    @contextmanager
-    def kept_on_fault(self) -> Iterator[None]:
+    def kept_on_fault(self) -> AbstractContextManager[None]:
         """Writing the run: a place that cannot be written (full, read-only...) ends in
         one line naming the file, and says which finished folds are kept to resume from
         (exit 3 when there are some: the run ended short; else 1)."""
-        try:
-            yield
-        except OSError as exc:
-            line = fault_line(exc)
-            if line is None:
-                raise
+        def error(line: str) -> UserError:
             kept = len(list(self.folds_dir.glob(f"*/{FOLD}")))
             if not kept:
-                raise WriteFault(line) from None
-            raise IncompleteError(f"{line}; the {kept} finished fold(s) are kept: train "
-                                  "again with the same --out to resume") from None
+                return WriteFault(line)
+            return IncompleteError(f"{line}; the {kept} finished fold(s) are kept: train "
+                                   "again with the same --out to resume")
+        return said_on_fault(error)
 
     def start(self, config: dict[str, Any], resolved: dict[str, Any],
               compare_keys: tuple[str, ...], defaults: dict[str, Any] | None = None) -> bool:
