@@ -400,8 +400,8 @@ class Recorder:
             event = dict(event)
             kind = event.pop("kind")
             frame = self.row_of(int(event.pop("frame")))
-            if self._end is not None:  # after the file's end: at its last row (the
-                frame = min(frame, self.row_of(max(0, self._end - 1)))  # file ends before _end)
+            if self._end is not None:  # after the file's end (before _end): its last row
+                frame = min(frame, self.row_of(max(0, self._end - 1)))
             t = event.pop("time")
             if kind == "tare" and "baseline" in event:
                 self.writer.add_baseline(event["baseline"], frame)
