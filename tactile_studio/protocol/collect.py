@@ -28,11 +28,11 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
+from tactile_studio.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
-from tactile_studio.storage.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session

@@ -14,7 +14,7 @@ import tomllib
 from pathlib import Path
 
 from tactile_studio.errors import UserError
-from tactile_studio.storage.participant_id import check_participant
+from tactile_studio.participant_id import check_participant
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 
 
