@@ -16,12 +16,8 @@ from pathlib import Path
 import pytest
 
 from tactile_studio.storage import Session
-from tactile_studio.streams.remote_control import (
-    CommandError,
-    bids_path,
-    parse_filename,
-    send_commands,
-)
+from tactile_studio.streams.remote_control import send_commands
+from tactile_studio.streams.remote_names import CommandError, parse_filename, recording_path
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
 WAIT_S = 30.0  # a safety net for a hung process, never a timing assertion
@@ -29,12 +25,12 @@ WAIT_S = 30.0  # a safety net for a hung process, never a timing assertion
 
 def test_file_names_follow_bids_and_labrecorder_templates(tmp_path):
     f = parse_filename("{root:study} {participant:P01} {session:S1} {task:T} {run:1}")
-    assert bids_path(f, tmp_path) == \
+    assert recording_path(f, tmp_path) == \
         tmp_path / "study/sub-P01/ses-S1/sub-P01_ses-S1_task-T_run-001_tactile.h5"
-    f = parse_filename("{root:/data} {template:exp_%p_%b_run%n.xdf} {participant:P9} {task:X} "
-                       "{run:12} {modality:eeg}")
-    assert bids_path(f, tmp_path) == Path("/data/exp_P9_X_run012.h5")
-    assert bids_path({}, tmp_path) == tmp_path / "tactile.h5"
+    f = parse_filename("{root:data/pilot} {template:exp_%p_%b_run%n.xdf} {participant:P9} "
+                       "{task:X} {run:12} {modality:eeg}")
+    assert recording_path(f, tmp_path) == tmp_path / "data/pilot/exp_P9_X_run012.h5"
+    assert recording_path({}, tmp_path) == tmp_path / "tactile.h5"
     for bad in ("", "participant:P01", "{colour:red}", "{run:one}", "{participant:P01} junk"):
         with pytest.raises(CommandError):
             parse_filename(bad)

@@ -90,3 +90,53 @@ def test_a_silent_device_shows_a_warning_in_the_status_bar(qtbot, tmp_path):
     finally:
         w.shutdown()
         emu.close()
+
+
+def test_switching_the_remote_control_off_ends_a_connected_client(qtbot, tmp_path):
+    """Toggled off while a script was connected: its next command waited 30 s for an
+    answer nobody would give (and on again, the old connection still fed the old
+    listener). Now the connection ends at once, the window's recording goes on, and a
+    script that connects again is served by the new listener."""
+    import socket
+
+    from remote_helpers import WAIT_S, read_to_end
+
+    app_settings().setValue("remote_control/port", 0)
+    app_settings().setValue("remote_control/folder", str(tmp_path / "rec"))
+    w = MainWindow(device="simulated", settings=FAST, persist=False)
+    qtbot.addWidget(w)
+    w.show()
+    try:
+        toggle = w.remote_control
+        assert w.panel.connect_device()
+        qtbot.waitUntil(lambda: w.controller.engine.frames > 5, timeout=15000)
+        toggle.action.setChecked(True)
+        client = socket.create_connection(("127.0.0.1", toggle.control.port), timeout=WAIT_S)
+        replies: list[bytes] = []
+
+        def script() -> None:
+            client.sendall(b"filename {participant:P3}\nstart\n")
+            f = client.makefile("rb")
+            replies.extend([f.readline(), f.readline()])
+
+        thread = threading.Thread(target=script)
+        thread.start()
+        qtbot.waitUntil(lambda: not thread.is_alive(), timeout=15000)
+        assert replies == [b"OK\n", b"OK\n"] and w.controller.recording
+        toggle.action.setChecked(False)
+        assert read_to_end(client) == b""  # closed, not left waiting
+        client.close()
+        assert w.controller.recording  # the window's recording is the window's
+        toggle.action.setChecked(True)
+        again: list[str] = []
+        thread = threading.Thread(target=lambda: again.extend(
+            send_commands(["stop"], toggle.control.port)))
+        thread.start()
+        qtbot.waitUntil(lambda: not thread.is_alive(), timeout=15000)
+        assert again == ["OK"] and not w.controller.recording
+    finally:
+        w.shutdown()
+    path = tmp_path / "rec/sub-P3/sub-P3_tactile.h5"
+    wait_for_compression(path)
+    with Session(path) as s:
+        assert s.metadata["participant"] == "P3"

@@ -15,12 +15,13 @@ from tactile_studio.cli.recording_warnings import (
     watch_health,
 )
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.errors import IncompleteError, UserError, printable
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
 from tactile_studio.streams.remote_control import DEFAULT_PORT, LOOPBACK, RemoteControl
 
 POLL_S = 0.05
+ECHO_CHARS = 200
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -69,10 +70,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
         with ctrl_c_cancels(token):
             while not token.wait(POLL_S):
                 session.poll()
-                before = len(control.log)
-                control.process()
-                for line, reply in control.log[before:]:
-                    print(f"> {line}\n< {reply}", flush=True)
+                for line, reply in control.process():  # a stranger's text: escaped, cut
+                    print(f"> {_echo(line)}\n< {_echo(reply)}", flush=True)
                 if end is not None and time.monotonic() >= end:
                     break
     finally:
@@ -87,11 +86,18 @@ def cmd_listen(args: argparse.Namespace) -> int:
     return 0
 
 
+def _echo(text: str) -> str:
+    """A client's line or its reply as shown on the terminal: one line of printable
+    characters, at most ``ECHO_CHARS`` of them."""
+    cut = text if len(text) <= ECHO_CHARS else f"{text[:ECHO_CHARS]}... ({len(text)} characters)"
+    return printable(cut)
+
+
 def _report(event: dict, incomplete: list[str]) -> None:
     if event["kind"] == "recording_started":
-        print(f"recording {event['path']}", flush=True)
+        print(f"recording {printable(event['path'])}", flush=True)
     elif event["kind"] == "recording_stopped":
-        print(f"wrote {event['path']} ({event['reason']})", flush=True)
+        print(f"wrote {printable(event['path'])} ({event['reason']})", flush=True)
         if event.get("message"):
             incomplete.append(event["message"])
-            print(event["message"], file=sys.stderr, flush=True)
+            print(printable(event["message"]), file=sys.stderr, flush=True)

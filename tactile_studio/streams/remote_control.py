@@ -16,10 +16,10 @@ one command per line and answers each with one line (docs/lsl.md, "Remote contro
 =========================  ======================================================
 
 Anything else, or a command that cannot be done now, gets ``error: <why>`` and changes
-nothing. The template takes LabRecorder's placeholders: ``%p`` participant, ``%s``
-session, ``%b`` task, ``%n`` run (3 digits), ``%a`` acquisition, ``%m`` modality; an
-``.xdf`` ending becomes ``.h5``. Without a template the name is BIDS-style:
-``sub-P01/ses-S1/sub-P01_ses-S1_task-T_run-001_tactile.h5`` (absent entities left out).
+nothing. The port is an input from strangers (any local process may connect): the file
+names a client may give are checked in ``remote_names.py`` (always under the folder,
+never overwriting), the lines it may send are bounded in ``remote_socket.py``, and no
+command, however malformed, stops the listener or a recording.
 
 Commands are queued by the socket threads and carried out by :meth:`RemoteControl.process`
 on the owner's thread (the CLI's loop, the GUI's timer), which also owns the
@@ -32,168 +32,158 @@ from __future__ import annotations
 
 import json
 import queue
-import re
 import socket
-import socketserver
+import sys
 import threading
+import traceback
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import UserError
+from tactile_studio.errors import UserError, printable
+from tactile_studio.output_faults import fault_line
+from tactile_studio.streams.remote_names import (
+    CommandError,
+    free_path,
+    parse_filename,
+    recording_path,
+    shown,
+)
+from tactile_studio.streams.remote_socket import LineServer
 
 DEFAULT_PORT = 22345
 LOOPBACK = "127.0.0.1"
 REPLY_WAIT_S = 30.0
-FIELDS = ("root", "template", "participant", "session", "task", "run", "acquisition",
-          "modality")
-PLACEHOLDERS = {"%p": "participant", "%s": "session", "%b": "task", "%n": "run",
-                "%a": "acquisition", "%m": "modality"}
-_FIELD = re.compile(r"\{(\w+):([^{}]*)\}")
+KNOWN = "start, stop, update, select all|none, filename {...}, status, mark TEXT"
 
 
-class CommandError(UserError):
-    """A command that is malformed or cannot be carried out now (the reply's text)."""
+class _Pending:
+    """A queued command: carried out once by the owner, or given up by its client when
+    the owner did not get to it in time, never both."""
 
+    def __init__(self, line: str) -> None:
+        self.line = line
+        self.reply = ""
+        self.state = "queued"  # -> "running" -> "done", or "queued" -> "given up"
+        self.lock = threading.Lock()
+        self.done = threading.Event()
 
-def parse_filename(text: str) -> dict[str, str]:
-    """``{key:value} ...`` -> fields; CommandError on unknown keys or stray text."""
-    fields = {k: v.strip() for k, v in _FIELD.findall(text)}
-    if not fields or _FIELD.sub("", text).strip():
-        raise CommandError("filename takes {key:value} fields, e.g. {participant:P01} "
-                           "{task:touch} {run:1}")
-    unknown = sorted(set(fields) - set(FIELDS))
-    if unknown:
-        raise CommandError(f"filename: unknown field {unknown[0]!r} (known: {', '.join(FIELDS)})")
-    if "run" in fields and fields["run"] and not fields["run"].isdigit():
-        raise CommandError(f"filename: run must be a number, got {fields['run']!r}")
-    return fields
+    def claim(self, state: str) -> bool:
+        """Move from queued to ``state``: "running" (the owner's, to carry it out) or
+        "given up" (its client's, as it was not); False when the other came first."""
+        with self.lock:
+            if self.state != "queued":
+                return False
+            self.state = state
+            return True
 
-
-def bids_path(fields: dict[str, str], out_dir: Path) -> Path:
-    """The file ``fields`` name (see the module docstring), under ``out_dir`` unless
-    ``root`` is absolute."""
-    f = {k: v for k, v in fields.items() if v}
-    root = Path(f.get("root", ""))
-    root = root if root.is_absolute() else out_dir / root
-    run = f"{int(f['run']):03d}" if "run" in f else ""
-    values = {**f, "run": run, "modality": f.get("modality", "tactile")}
-    template = f.get("template")
-    if template:
-        name = template
-        for ph, key in PLACEHOLDERS.items():
-            name = name.replace(ph, values.get(key, ""))
-        name = re.sub(r"_+", "_", name).replace("_.", ".")
-        path = Path(name)
-        path = path.with_suffix(".h5") if path.suffix in (".xdf", ".xdfz", "") else path
-        return root / path
-    parts = [f"{tag}-{values[key]}" for tag, key in (
-        ("sub", "participant"), ("ses", "session"), ("task", "task"), ("acq", "acquisition"),
-        ("run", "run")) if values.get(key)]
-    folders = [p for p in parts[:2] if p.startswith(("sub-", "ses-"))]
-    stem = "_".join(parts + [values["modality"]])
-    return root.joinpath(*folders, f"{stem}.h5")
+    def answer(self, reply: str) -> None:
+        self.reply, self.state = reply, "done"
+        self.done.set()
 
 
 class RemoteControl:
     """The command interpreter and its TCP listener (see the module docstring)."""
 
     def __init__(self, session: Any, out_dir: str | Path, port: int = DEFAULT_PORT,
-                 host: str = LOOPBACK, metadata: dict[str, Any] | None = None) -> None:
+                 host: str = LOOPBACK, metadata: dict[str, Any] | None = None,
+                 reply_wait_s: float = REPLY_WAIT_S) -> None:
         self.session = session
         self.out_dir = Path(out_dir)
         self.metadata = dict(metadata or {})
         self.fields: dict[str, str] = {}
         self.selected = True
-        self.commands: queue.Queue[tuple[str, list[str], threading.Event]] = queue.Queue()
-        self.log: list[tuple[str, str]] = []  # (command, reply), for the CLI and tests
-        self._server: socketserver.ThreadingTCPServer | None = None
-        self._thread: threading.Thread | None = None
+        self.reply_wait_s = reply_wait_s
+        self.commands: queue.Queue[_Pending] = queue.Queue()
+        self._lock = threading.Lock()  # the queue and ``_closing`` change together
+        self._closing = False
+        self._server: LineServer | None = None
         self.host, self.port = host, port
 
     # ---- the listener ------------------------------------------------------------------
-    def listen(self) -> int:
+    def listen(self, **limits: float) -> int:
         """Open the listener; returns the port (``port=0`` picks a free one). A port in use
-        is a one-line error."""
-        control = self
-
-        class Handler(socketserver.StreamRequestHandler):
-            def handle(self) -> None:
-                for raw in self.rfile:
-                    line = raw.decode("utf-8", "replace").strip()
-                    if not line:
-                        continue
-                    reply = control.ask(line)
-                    try:
-                        self.wfile.write((reply + "\n").encode())
-                    except OSError:
-                        return
-
-        socketserver.ThreadingTCPServer.allow_reuse_address = True
-        socketserver.ThreadingTCPServer.daemon_threads = True
+        is a one-line error. ``limits``: ``line_timeout_s``, ``max_clients``
+        (streams/remote_socket.py)."""
         try:
-            self._server = socketserver.ThreadingTCPServer((self.host, self.port), Handler)
+            self._server = LineServer(self.ask, self.host, self.port, **limits)
         except OSError as exc:
             raise UserError(f"remote control: cannot listen on {self.host}:{self.port} "
                             f"({exc.strerror or exc})") from None
-        self.port = int(self._server.server_address[1])
-        self._thread = threading.Thread(target=self._server.serve_forever,
-                                        name="remote-control", daemon=True)
-        self._thread.start()
+        self.port = self._server.port
         return self.port
 
     def close(self) -> None:
+        """Stop listening, answer what is queued, end every connection."""
+        with self._lock:
+            self._closing = True
         server, self._server = self._server, None
-        if server is not None:
-            server.shutdown()
-            server.server_close()
         while not self.commands.empty():  # nobody will carry these out now
-            _, slot, done = self.commands.get_nowait()
-            slot.append("error: Tactile Studio is closing")
-            done.set()
+            pending = self.commands.get_nowait()
+            if pending.claim("running"):
+                pending.answer("error: Tactile Studio is closing")
+        if server is not None:
+            server.close()
 
     @property
     def listening(self) -> bool:
         return self._server is not None
 
     def ask(self, line: str) -> str:
-        """Queue ``line`` for the owner's thread and wait for its reply (socket threads)."""
-        slot: list[str] = []
-        done = threading.Event()
-        self.commands.put((line, slot, done))
-        if not done.wait(REPLY_WAIT_S) or not slot:
-            return "error: Tactile Studio did not answer in time"
-        return slot[0]
+        """Queue ``line`` for the owner's thread and wait for its reply (socket threads).
+        One the owner did not take up in time is not carried out later."""
+        pending = _Pending(line)
+        with self._lock:
+            if self._closing:
+                return "error: Tactile Studio is closing"
+            self.commands.put(pending)
+        if not pending.done.wait(self.reply_wait_s) and pending.claim("given up"):
+            return (f"error: Tactile Studio was busy for {self.reply_wait_s:g} s; "
+                    f"{shown(line)} was not carried out")
+        pending.done.wait()  # taken in time: its answer comes
+        return pending.reply
 
-    def process(self) -> int:
-        """Carry out the queued commands (owner's thread); returns how many."""
-        n = 0
+    def process(self) -> list[tuple[str, str]]:
+        """Carry out the queued commands (owner's thread); returns (command, reply) for
+        each one carried out."""
+        done = []
         while True:
             try:
-                line, slot, done = self.commands.get_nowait()
+                pending = self.commands.get_nowait()
             except queue.Empty:
-                return n
-            slot.append(self.handle(line))
-            done.set()
-            n += 1
+                return done
+            if pending.claim("running"):
+                pending.answer(self.handle(pending.line))
+                done.append((pending.line, pending.reply))
 
     # ---- the commands --------------------------------------------------------------------
     def handle(self, line: str) -> str:
-        """One command -> its one-line reply."""
+        """One command -> its one-line reply. A stranger's malformed command is refused
+        in that reply; one that meets a fault of ours (a traceback, printed on stderr) is
+        refused too, and the listener and any recording go on."""
         verb, _, rest = line.strip().partition(" ")
         verb, rest = verb.lower(), rest.strip()
         try:
             reply = self._do(verb, rest)
+            if reply is None:
+                raise CommandError(f"unknown command {shown(line.strip())} ({KNOWN})")
+            return reply
         except UserError as exc:  # CommandError, and a session that refuses (one line)
-            reply = f"error: {' '.join(str(exc).split())}"
-        self.log.append((line, reply))
-        return reply
+            return f"error: {printable(' '.join(str(exc).split()))}"
+        except Exception as exc:  # noqa: BLE001 - a bug must not end the recording
+            print(f"remote control: {shown(line)} failed:", file=sys.stderr)
+            traceback.print_exc()
+            return (f"error: {type(exc).__name__} in Tactile Studio while doing "
+                    f"{shown(verb)} (a bug; the recorder's log has the traceback)")
 
-    def _do(self, verb: str, rest: str) -> str:
+    def _do(self, verb: str, rest: str) -> str | None:
+        """The reply; None: no such command."""
         s = self.session
         if verb == "status" and not rest:
             return json.dumps(self.status(), separators=(",", ":"))
         if verb == "filename":
-            self.fields = parse_filename(rest)
+            fields = parse_filename(rest)
+            recording_path(fields, self.out_dir)  # a name that would leave --out: refused now
+            self.fields = fields
             return "OK"
         if verb == "select" and rest.lower() in ("all", "none"):
             self.selected = rest.lower() == "all"
@@ -207,9 +197,13 @@ class RemoteControl:
                 raise CommandError("no stream selected (send 'select all')")
             if s.engine is None or not s.running:
                 raise CommandError("no device is streaming")
-            path = self.next_path()
-            path.parent.mkdir(parents=True, exist_ok=True)
-            s.start_recording(path, self._recording_metadata())
+            path, run = free_path(self.fields, self.out_dir)
+            try:
+                path.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise CommandError(fault_line(exc) or f"{path.parent}: cannot create the "
+                                   f"folder ({exc.strerror or exc})") from None
+            s.start_recording(path, self._recording_metadata(run))
             return "OK"
         if verb == "stop" and not rest:
             if not s.recording:
@@ -227,20 +221,10 @@ class RemoteControl:
                 raise CommandError("no device is streaming")
             s.engine.add_event("marker", text=rest, source="remote")
             return "OK"
-        known = "start, stop, update, select all|none, filename {...}, status, mark TEXT"
-        raise CommandError(f"unknown command {(verb + ' ' + rest).strip()!r} ({known})")
+        return None
 
-    def next_path(self) -> Path:
-        """The next recording's file; a taken name gets the next free run number."""
-        fields = dict(self.fields)
-        path = bids_path(fields, self.out_dir)
-        while path.exists():
-            fields["run"] = str(int(fields.get("run") or 1) + 1)
-            path = bids_path(fields, self.out_dir)
-        return path
-
-    def _recording_metadata(self) -> dict[str, Any]:
-        f = self.fields
+    def _recording_metadata(self, run: str) -> dict[str, Any]:
+        f = {**self.fields, "run": run}
         meta = {**self.metadata, "source": "remote"}
         for key, name in (("participant", "participant"), ("session", "session_label"),
                           ("task", "task"), ("run", "run"), ("acquisition", "acquisition"),
