@@ -234,3 +234,18 @@ def test_clients_beyond_the_limit_are_turned_away_and_fifty_are_served(tmp_path)
         assert wait_until(lambda: send_commands(["update"], ls.port, timeout=WAIT_S)
                           == ["OK"], what="the listener serving again")
 
+
+def test_a_web_page_posting_to_the_port_starts_nothing(tmp_path):
+    """A page open in the experimenter's browser can POST to 127.0.0.1:22345; the lines
+    of its body were carried out as commands (``start``, ``filename``...). An HTTP
+    request line ends the connection before its body is read."""
+    out = tmp_path / "rec"
+    body = b"filename {template:web_%n.xdf}\nstart\n"
+    request = (b"POST / HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Type: text/plain\r\n"
+               b"Content-Length: %d\r\n\r\n" % len(body)) + body
+    with listening(tmp_path, out) as ls:
+        assert raw_exchange(ls.port, request) == \
+            b"error: this port takes LabRecorder's commands, not HTTP; disconnecting\n"
+        status = ls.status()
+        assert status["recording"] is False and status["file"] is None
+    assert not out.exists() or _session_files(out) == []

@@ -134,3 +134,10 @@ def test_a_taken_name_includes_links_and_the_search_is_bounded(tmp_path):
         free_path(fields, tmp_path, taken=lambda p: seen.append(p) or True)
     assert len(seen) == 1001
 
+
+def test_listening_beyond_this_machine_is_said():
+    """``listen --host`` another interface prints a warning (no password on the port)."""
+    from tactile_studio.streams.remote_control import this_machine_only
+
+    assert all(map(this_machine_only, ("127.0.0.1", "127.0.0.2", "::1", "localhost")))
+    assert not any(map(this_machine_only, ("0.0.0.0", "192.168.1.5", "::", "lab-pc")))

@@ -18,7 +18,12 @@ from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import IncompleteError, UserError, printable
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
-from tactile_studio.streams.remote_control import DEFAULT_PORT, LOOPBACK, RemoteControl
+from tactile_studio.streams.remote_control import (
+    DEFAULT_PORT,
+    LOOPBACK,
+    RemoteControl,
+    this_machine_only,
+)
 
 POLL_S = 0.05
 ECHO_CHARS = 200
@@ -66,6 +71,10 @@ def cmd_listen(args: argparse.Namespace) -> int:
         session.start()
         print(f"remote control: listening on {args.host}:{port} for {args.device}; "
               "Ctrl-C ends", file=sys.stderr, flush=True)
+        if not this_machine_only(args.host):
+            print(f"remote control: warning: {args.host} is not this machine only; anyone "
+                  "who reaches it may start and stop recordings (there is no password)",
+                  file=sys.stderr, flush=True)
         end = None if args.seconds is None else time.monotonic() + args.seconds
         with ctrl_c_cancels(token):
             while not token.wait(POLL_S):

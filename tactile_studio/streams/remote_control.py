@@ -30,6 +30,7 @@ session is duck-typed (``live.AcquisitionSession``: ``start_recording``,
 
 from __future__ import annotations
 
+import ipaddress
 import json
 import queue
 import socket
@@ -242,6 +243,16 @@ class RemoteControl:
     def status_text(self) -> str:
         """For a status bar: where it listens."""
         return f"remote control {self.host}:{self.port}" if self.listening else ""
+
+
+def this_machine_only(host: str) -> bool:
+    """Whether listening on ``host`` keeps other machines out (a loopback address)."""
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:  # a name: it may resolve to any interface
+        return False
 
 
 def send_commands(lines: list[str], port: int = DEFAULT_PORT, host: str = LOOPBACK,

@@ -12,12 +12,16 @@ local process may connect and send anything (docs/lsl.md, "Remote control").
   that stays connected without sending anything is fine (scripts keep one connection
   for a whole experiment). A reply the client does not read within that time ends the
   connection too.
+* A line that is an HTTP request or header ends the connection before anything else in
+  it is read: a web page the experimenter has open can make the browser post to
+  127.0.0.1, and the lines of its body would otherwise be taken as commands.
 * :meth:`LineServer.close` stops accepting and ends every connection, so a client of a
   listener switched off sees its connection closed instead of waiting for an answer.
 """
 
 from __future__ import annotations
 
+import re
 import socket
 import socketserver
 import sys
@@ -28,6 +32,8 @@ from collections.abc import Callable
 MAX_LINE_BYTES = 4096
 MAX_CLIENTS = 64
 LINE_TIMEOUT_S = 30.0
+# a web page's request (a browser posting to 127.0.0.1): its body's lines are not commands
+_HTTP = re.compile(r"(?:[A-Z]+ \S+ HTTP/\d|(?i:host|origin|user-agent|content-\w+):)")
 LINGER_S, LINGER_BYTES = 1.0, 1 << 20  # a hung-up client's bytes read after the reply
 
 
@@ -119,6 +125,10 @@ class LineServer:
                 line = buf[:end].decode("utf-8", "replace").strip()
                 del buf[:end + 1]
                 begun = time.monotonic()
+                if _HTTP.match(line):
+                    self._hang_up(sock, "error: this port takes LabRecorder's commands, not "
+                                        "HTTP; disconnecting")
+                    return
                 if line and not self._send(sock, self.answer(line)):
                     return
             if len(buf) > MAX_LINE_BYTES:
