@@ -157,3 +157,19 @@ def test_times_rates_and_baselines_that_are_not_finite_are_named(tmp_path: Path,
     assert main(["check", str(path)]) == EXIT_CHECK_FAIL
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "device_time is not a finite number at row 5" in err
+
+
+@pytest.mark.damaged_files
+def test_frame_columns_of_different_lengths_in_a_closed_file_are_named(tmp_path: Path,
+                                                                        capsys) -> None:
+    """docs/session-format.md: /frames holds one row per frame, all the same length; the
+    reader reads the shortest (after a crash they may be one flush apart), so a cleanly
+    closed file whose seq column lost rows had passed check with 40 frames shown as 30."""
+    path = _record(tmp_path / "rec.h5", capsys)
+    with h5py.File(path, "r+") as f:
+        seq = f["frames/seq"][:]
+        del f["frames/seq"]
+        f.create_dataset("frames/seq", data=seq[:30], maxshape=(None,))
+    v = check_file(path).violations
+    assert any(line.startswith("frame columns differ in length: raw ") and "seq 30" in line
+               for line in v), v

@@ -32,6 +32,7 @@ COUNTED_EVENTS = (("gaps", "gap"), ("reconnects", "reconnect"))
 EVENT_TIMES = ("time", "t", "lab_t", "lsl_time", "time_correction", "offset_s",
                "device_time_offset", "gap_s", "seconds", "silent_s")
 TRIAL_TIMES = ("start_time", "end_time")
+FRAME_COLUMNS = ("raw", "device_time", "host_time", "seq", "index")
 METADATA_RATES = (("device", "nominal_rate_hz"), (None, "rate_hz"))
 
 
@@ -193,6 +194,11 @@ def _check_metadata(s: Session, out: list[str]) -> None:
     if width != s.layout.n_channels:
         out.append(f"frames/raw has {width} channels but layout {s.layout.name} has "
                    f"{s.layout.n_channels}")
+    if s.closed_cleanly and not s.cut_short:  # a crash may leave them one flush apart
+        rows = {name: int(s._f[f"frames/{name}"].shape[0]) for name in FRAME_COLUMNS}
+        if len(set(rows.values())) > 1:
+            out.append("frame columns differ in length: " + ", ".join(
+                f"{name} {k}" for name, k in rows.items()))
     lay = meta.get("layout")
     if isinstance(lay, dict):
         try:
