@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import tomllib
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from tactile_studio.storage.protocol_file import (
     list_protocols,
     load_protocol,
     protocol_from_dict,
+    restored_protocol,
 )
 
 SHEAR9 = ["Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
@@ -91,6 +93,15 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
      "gestures[1].image: 'notes.txt' is not an image"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = ""'),
      "gestures[1].image: must not be empty"),
+    # a stranger's protocol cannot point the participant screen (and the session's
+    # metadata) at a file elsewhere on the machine
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "/etc/x.png"'),
+     "gestures[1].image: '/etc/x.png' is outside the protocol's folder"),
+    (lambda t: t.replace('definition = "Rub it."',
+                         'definition = "x"\nimage = "pics/../../x.png"'),
+     "gestures[1].image: 'pics/../../x.png' is outside the protocol's folder"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "C:\\\\x.png"'),
+     "is outside the protocol's folder"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'),
      "gestures[1].colour: unknown field"),
     (lambda t: t.replace("blocks = 3", "blocks = 0"), "mini.toml: blocks: 0 is out of range"),
@@ -134,7 +145,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_shear9_ships_a_pictogram_per_gesture_as_package_data() -> None:
-    images = [Path(g.image) for g in load_protocol("shear9").gestures]
+    shear9 = load_protocol("shear9")
+    images = [Path(shear9.image_file(g)) for g in shear9.gestures]
     assert len(images) == 9 and len(set(images)) == 9
     for image in images:
         assert image.is_absolute() and image.read_bytes()[:8] == PNG_MAGIC
@@ -159,13 +171,21 @@ def test_image_paths_are_relative_to_the_protocol_file(tmp_path: Path, monkeypat
     monkeypatch.chdir(tmp_path)
     p = load_protocol("lab/mini.toml")
     rub = p.gesture_by_name("Rub")
-    assert Path(rub.image) == folder / "pics" / "rub.png" and Path(rub.image).is_absolute()
+    assert rub.image == "pics/rub.png"  # the name sessions store, no folder of this machine
+    assert p.image_file(rub) == str(folder / "pics" / "rub.png")
     assert p.gesture_by_name("Poke").image is None
-    monkeypatch.chdir(folder / "pics")  # a session stores the path; it still resolves
+    assert p.image_file(p.gesture_by_name("Poke")) is None
+    assert "lab" not in json.dumps(p.to_dict())
+    monkeypatch.chdir(folder / "pics")  # found from any working folder
     assert protocol_from_dict(p.to_dict(), "again").gestures == p.gestures
-    assert p.with_overrides(blocks=1).gestures == p.gestures
+    assert p.with_overrides(blocks=1).image_file(rub) == p.image_file(rub)
+    # a session's copy finds the images through the protocol file at hand, if it is the same
+    restored = restored_protocol(p.to_dict(), "session", at_hand=p)
+    assert restored.image_file(restored.gesture_by_name("Rub")) == p.image_file(rub)
+    other = restored_protocol(p.to_dict(), "session", at_hand=load_protocol("shear9"))
+    assert other.image_file(other.gesture_by_name("Rub")) is None  # shows the text alone
     (folder / "pics" / "rub.png").unlink()  # resuming elsewhere: not checked, not refused
-    restored = protocol_from_dict(p.to_dict(), "session", check_images=False)
+    restored = restored_protocol(p.to_dict(), "session")
     assert restored.gesture_by_name("Rub").image == rub.image
     with pytest.raises(ProtocolError, match=r"mini.toml: gestures\[1\].image: no such file"):
         load_protocol(folder / "mini.toml")

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import posixpath
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 from typing import Any
 
 from tactile_studio.errors import UserError
@@ -37,7 +38,10 @@ class Gesture:
     name: str
     key: str
     definition: str
-    image: str | None = None  # path, resolved against the protocol file's folder
+    # the image's name relative to the protocol file's folder ("images/poke.png"), as
+    # sessions store it: never the experimenter's own folders (older sessions stored an
+    # absolute path, which still loads); ``Protocol.image_file`` finds the file
+    image: str | None = None
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,8 @@ class Protocol:
     wellness_required: bool = False   # [wellness] required: a check before each participant
     wellness_max_age_h: float = 24.0  # [wellness] max_age_h: older checks are stale
     source: str = ""
+    # the protocol file's folder on this machine, where its images are; never stored
+    folder: Path | None = dataclasses.field(default=None, compare=False)
 
     @property
     def gesture_names(self) -> list[str]:
@@ -74,19 +80,32 @@ class Protocol:
     def gesture_by_name(self, name: str) -> Gesture:
         return next(g for g in self.gestures if g.name == name)
 
+    def image_file(self, gesture: Gesture) -> str | None:
+        """The file to show for ``gesture``'s image on this machine, None without one (or
+        when the protocol's folder is unknown: a resume of another protocol than a
+        shipped one shows the definitions alone)."""
+        if not gesture.image:
+            return None
+        if Path(gesture.image).is_absolute():  # a session written before names were stored
+            return gesture.image
+        name = _inside_name(gesture.image)
+        return str(self.folder / name) if self.folder is not None and name else None
+
     def with_overrides(self, **changes: Any) -> Protocol:
         """A copy with some fields changed, validated like a file (tests, --blocks)."""
         data = self.to_dict()
         data.update(changes)
         # images were checked when this protocol was loaded (or deliberately not, on resume)
-        return protocol_from_dict(data, self.source or f"{self.name}.toml",
+        return protocol_from_dict(data, self.source or f"{self.name}.toml", self.folder,
                                   check_images="gestures" in changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """The flat form stored in session metadata, so a resume needs no file on disk."""
+        """The flat form stored in session metadata, so a resume needs no file on disk
+        (images by their names relative to the protocol, no folder of this machine)."""
         d = dataclasses.asdict(self)
         d["gestures"] = [dataclasses.asdict(g) for g in self.gestures]
         d.pop("source")
+        d.pop("folder")
         return d
 
 
@@ -103,14 +122,22 @@ def _find(name_or_path: str | Path) -> tuple[str, bytes, Path | None]:
     if text.endswith(".toml") or path.parent != Path("."):
         if not path.is_file():
             raise ProtocolError(f"{path}: no such protocol file")
-        # absolute, so image paths stored in a session still resolve from another cwd
+        # absolute, so its images still resolve after the working folder changes
         return path.name, path.read_bytes(), path.parent.resolve()
     res = resources.files("tactile_studio.resources") / "protocols" / f"{text}.toml"
     if not res.is_file():
         known = ", ".join(list_protocols())
         raise ProtocolError(f"unknown protocol {text!r} (shipped: {known}; or give a .toml path)")
+    return f"{text}.toml", res.read_bytes(), shipped_folder(text)
+
+
+def shipped_folder(name: str) -> Path | None:
+    """The folder of the shipped protocol ``name`` (where its images are), else None."""
+    res = resources.files("tactile_studio.resources") / "protocols" / f"{name}.toml"
+    if not res.is_file():
+        return None
     folder = Path(str(res)).parent
-    return f"{text}.toml", res.read_bytes(), folder if folder.is_dir() else None
+    return folder if folder.is_dir() else None
 
 
 def load_protocol(name_or_path: str | Path) -> Protocol:
@@ -199,7 +226,22 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
         wellness_max_age_h=v.number(data, "wellness_max_age_h", low=0.01, high=100_000.0,
                                     default=24.0),
         source=label,
+        folder=folder,
     )
+
+
+def restored_protocol(spec: Any, label: str, at_hand: Protocol | None = None) -> Protocol:
+    """The protocol a session stored (``protocol_spec``), found on this machine: its images
+    are names in the protocol's folder, which the session does not keep, so the folder is
+    a shipped protocol's, or that of ``at_hand`` (the protocol file the experimenter has
+    chosen) when it is the same protocol; else none (the definitions show alone)."""
+    if not isinstance(spec, dict):
+        raise ProtocolError(f"{label}: not a protocol (expected a table of its fields)")
+    p = protocol_from_dict(spec, label, check_images=False)
+    if at_hand is not None and at_hand.folder is not None and at_hand.name == p.name \
+            and at_hand.gestures == p.gestures:
+        return dataclasses.replace(p, folder=at_hand.folder)
+    return dataclasses.replace(p, folder=shipped_folder(p.name))
 
 
 def _flag(v: _Validator, data: dict[str, Any], key: str) -> bool:
@@ -239,14 +281,35 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         image = None
         if item.get("image") is not None:
             image = gv.text(item, "image")
-            path = Path(image) if folder is None else folder / image
-            if check_images and path.suffix.lower() not in IMAGE_SUFFIXES:
-                gv.fail("image", f"{image!r} is not an image (use {', '.join(IMAGE_SUFFIXES)})")
-            if check_images and not path.is_file():
-                gv.fail("image", f"no such file {image!r} (relative to the protocol file)")
-            image = str(path)
+            if check_images:
+                image = _image_name(gv, image, folder)
         out.append(Gesture(name, key, definition, image))
     return tuple(out)
+
+
+def _image_name(v: _Validator, image: str, folder: Path | None) -> str:
+    """A protocol file's image as the name sessions store: relative to the protocol's
+    folder and inside it (a stranger's protocol cannot show, or make a session name, a
+    file elsewhere on the machine); it must exist there and be a picture Qt reads."""
+    name = _inside_name(image)
+    if name is None:
+        v.fail("image", f"{image!r} is outside the protocol's folder (name an image beside "
+                        "the protocol file or in a folder below it)")
+    if Path(name).suffix.lower() not in IMAGE_SUFFIXES:
+        v.fail("image", f"{image!r} is not an image (use {', '.join(IMAGE_SUFFIXES)})")
+    if folder is not None and not (folder / name).is_file():
+        v.fail("image", f"no such file {image!r} (relative to the protocol file)")
+    return name
+
+
+def _inside_name(image: str) -> str | None:
+    """``image`` as a name inside its protocol's folder (normalised, ``/`` between
+    folders), None when it leads out of it (absolute, a drive, ``..``)."""
+    name = posixpath.normpath(image.replace("\\", "/"))
+    if PureWindowsPath(image).drive or posixpath.isabs(name) or name == ".." \
+            or name.startswith("../"):
+        return None
+    return name
 
 
 class _Validator:
