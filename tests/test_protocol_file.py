@@ -129,6 +129,20 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
     (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"),
      "mini.toml: breaks: must be a table"),
     (lambda t: t + "\nblocks = [", "mini.toml: not valid TOML"),
+    # a protocol from a stranger: its name names every session file, and it cannot make a
+    # collection store millions of trials (issue 43, the hunt)
+    (lambda t: t.replace('name = "mini"', 'name = "../../x"'),
+     "mini.toml: name: '../../x' cannot name session files: it holds a path separator"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini\\u001b[2J"'),
+     "mini.toml: name: 'mini\\x1b[2J' cannot name session files: it holds a control"),
+    (lambda t: t + "".join(f'[[gestures]]\nname = "g{i}"\nkey = "{chr(0x4e00 + i)}"\n'
+                           f'definition = "x"\n' for i in range(100)),
+     "mini.toml: gestures: 102 gestures; a protocol has at most 100"),
+    (lambda t: t.replace("blocks = 3", "blocks = 10000") + "".join(
+        f'[[gestures]]\nname = "g{i}"\nkey = "{chr(0x4e00 + i)}"\ndefinition = "x"\n'
+        for i in range(9)),
+     "mini.toml: blocks: 10000 blocks of 11 gestures make 110,000 trials; a protocol holds "
+     "at most 100,000"),
 ])
 def test_validation_names_the_field(tmp_path: Path, edit, message: str) -> None:
     f = tmp_path / "mini.toml"
@@ -214,3 +228,13 @@ def test_randomisation_is_per_block_reproducible_and_per_participant() -> None:
     practice = practice_order(eleven, "P01")
     assert len(practice) == 11 and set(practice) <= set(SHEAR9)
     assert practice_order(eleven, "P02") != practice  # each participant gets their own
+
+
+def test_a_protocol_file_too_large_to_be_one_is_refused_before_it_is_read(
+        tmp_path: Path) -> None:
+    f = tmp_path / "fat.toml"
+    f.write_text(GOOD.replace('definition = "Rub it."', 'definition = "' + "x" * (1 << 20)
+                              + '"'))
+    with pytest.raises(ProtocolError, match=r"fat.toml: 1.0 MB is not a protocol file "
+                                            r"\(at most 1 MB\)"):
+        load_protocol(f)

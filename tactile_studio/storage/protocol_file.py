@@ -21,11 +21,18 @@ from pathlib import Path, PureWindowsPath
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.file_names import name_problem, shown_name
 
 RANDOMISATION_MODES = ("shuffle_per_block", "fixed")
 # "prompted": the screen prompts the next gesture of the block's order and only its key
 # starts the trial; "free": any gesture of the block not done yet, in any order
 ORDER_MODES = ("prompted", "free")
+# A protocol from another lab is read whole and its blocks are stored in every session:
+# bounds far above any study (the papers: 9-14 gestures, 52 blocks, 468 trials) keep a
+# stranger's file from making a collection allocate gigabytes before its first trial
+MAX_PROTOCOL_BYTES = 1 << 20
+MAX_GESTURES = 100
+MAX_TRIALS = 100_000
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".webp", ".svg")  # what Qt reads
 
 
@@ -122,6 +129,10 @@ def _find(name_or_path: str | Path) -> tuple[str, bytes, Path | None]:
     if text.endswith(".toml") or path.parent != Path("."):
         if not path.is_file():
             raise ProtocolError(f"{path}: no such protocol file")
+        size = path.stat().st_size
+        if size > MAX_PROTOCOL_BYTES:
+            raise ProtocolError(f"{path}: {size / 2**20:.1f} MB is not a protocol file "
+                                f"(at most {MAX_PROTOCOL_BYTES >> 20} MB)")
         # absolute, so its images still resolve after the working folder changes
         return path.name, path.read_bytes(), path.parent.resolve()
     res = resources.files("tactile_studio.resources") / "protocols" / f"{text}.toml"
@@ -196,6 +207,9 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
     """
     v = _Validator(label, field_names or {})
     name = v.text(data, "name", default=Path(label).stem)
+    why = name_problem(name)
+    if why:  # it names every session file of the protocol
+        v.fail("name", f"{shown_name(name)} cannot name session files: {why}")
     gestures = _gestures(v, data.get("gestures"), folder, check_images)
     mode = v.text(data, "randomisation", default="shuffle_per_block")
     if mode not in RANDOMISATION_MODES:
@@ -203,15 +217,21 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
     order = v.text(data, "order", default="prompted")
     if order not in ORDER_MODES:
         v.fail("order", f"unknown order {order!r} (use {' or '.join(ORDER_MODES)})")
+    blocks = v.integer(data, "blocks", low=1, high=10_000, required=True)
+    practice = v.integer(data, "practice_trials", low=0, high=1000, default=0)
+    trials = blocks * len(gestures) + practice
+    if trials > MAX_TRIALS:
+        v.fail("blocks", f"{blocks} blocks of {len(gestures)} gestures make {trials:,} trials; "
+                         f"a protocol holds at most {MAX_TRIALS:,}")
     return Protocol(
         name=name,
         title=v.text(data, "title", default=name),
         description=v.text(data, "description", default="", allow_empty=True),
         gestures=gestures,
         trial_s=v.number(data, "trial_s", low=0.05, high=600.0, required=True),
-        blocks=v.integer(data, "blocks", low=1, high=10_000, required=True),
+        blocks=blocks,
         free_play_s=v.number(data, "free_play_s", low=0.0, high=3600.0, default=0.0),
-        practice_trials=v.integer(data, "practice_trials", low=0, high=1000, default=0),
+        practice_trials=practice,
         randomisation=mode,
         order=order,
         seed=v.integer(data, "seed", low=-(2**62), high=2**62, default=0),
@@ -257,6 +277,9 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         v.fail("gestures", "missing (at least one [[gestures]] table is needed)")
     if not isinstance(items, list) or not items:
         v.fail("gestures", "must be a non-empty list of [[gestures]] tables")
+    if len(items) > MAX_GESTURES:
+        v.fail("gestures", f"{len(items)} gestures; a protocol has at most {MAX_GESTURES} "
+                           "(a participant presses one key for each)")
     out: list[Gesture] = []
     names: dict[str, int] = {}
     keys: dict[str, int] = {}
