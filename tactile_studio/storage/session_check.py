@@ -59,7 +59,7 @@ def check_file(path: str | os.PathLike) -> CheckResult:
 
 def check_session(s: Session) -> list[str]:
     """Every violation of the session invariants in ``s``, one line each."""
-    out: list[str] = []
+    out: list[str] = [f"journal {why} (left out when read)" for why in s.journal.skipped]
     n = s.n_frames
     _check_times(s, segment_starts(s.events, n), out)
     trials = _check_trials(s, out)
