@@ -108,3 +108,19 @@ def test_an_older_session_with_absolute_image_paths_still_loads(tmp_path: Path) 
     old = info["protocol"]
     assert old.gestures[0].image == absolute and old.image_file(old.gestures[0]) == absolute
     assert old.image_file(old.gestures[1]) == str(SHIPPED / "wide-pinch.png")
+
+
+def test_an_xdf_export_of_a_replayed_file_does_not_carry_its_folder(tmp_path: Path,
+                                                                     capsys) -> None:
+    """The replay device's settings hold the replayed file's path on this machine; the
+    XDF export put them in its stream description as they were."""
+    source = _collect(capsys, tmp_path, "shear9")
+    copy = tmp_path / "copy.h5"
+    assert main(["record", "--device", "replay", "--set", f"path={source}", "--set",
+                 "speed=0", "--seconds", "100", "--out", str(copy)]) == 0
+    out = tmp_path / "shared"
+    out.mkdir()
+    assert main(["export", str(copy), "--format", "xdf", "--out", str(out)]) == 0
+    capsys.readouterr()
+    data = (out / "copy.xdf").read_bytes()
+    assert str(tmp_path).encode() not in data and source.name.encode() in data
