@@ -11,6 +11,7 @@ import zipfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.protocol.collect import read_resume_info
@@ -124,3 +125,21 @@ def test_an_xdf_export_of_a_replayed_file_does_not_carry_its_folder(tmp_path: Pa
     capsys.readouterr()
     data = (out / "copy.xdf").read_bytes()
     assert str(tmp_path).encode() not in data and source.name.encode() in data
+
+
+@pytest.mark.damaged_files
+def test_resuming_a_session_whose_protocol_is_not_a_table_is_one_line(tmp_path: Path,
+                                                                       capsys) -> None:
+    """A session file from elsewhere whose protocol_spec is text: a traceback before."""
+    layout = get_layout("shearsense-6x6")
+    path = tmp_path / "odd.h5"
+    with SessionWriter(path, layout, {"plugin": "simulated", "layout": layout.name,
+                                      "nominal_rate_hz": 43.0},
+                       {"participant": "P01", "source": "collect", "protocol_spec": "x",
+                        "block_order": [["Poke"]], "practice_order": []}) as w:
+        w.append_frames(np.full((5, layout.n_channels), 1000, np.uint16),
+                        np.arange(5) / 43.0, 1e9 + np.arange(5) / 43.0)
+    code = main(["collect", "--virtual-participant", "--resume", str(path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and err[-1] == ("tactile-studio: error: odd.h5: protocol_spec: not a "
+                                     "protocol (expected a table of its fields)")
