@@ -47,6 +47,13 @@ def _bad_session(path: Path) -> Path:
     return path
 
 
+def _names_each(violations: list[str], expected: tuple[str, ...]) -> None:
+    """Each expected text in one of the violations, and no other violation."""
+    for text in expected:
+        assert any(text in line for line in violations), (text, violations)
+    assert len(violations) == len(expected), violations
+
+
 def test_a_recorded_file_passes(tmp_path: Path, capsys) -> None:
     path = _record(tmp_path / "rec.h5", capsys)
     assert main(["check", str(path)]) == 0
@@ -75,9 +82,7 @@ def test_every_violation_is_named_and_the_exit_status_is_5(tmp_path: Path, capsy
                 "session_end at frame 12 is before trial 1 ends (row 50)",
                 "counters say 2 gaps but the journal has 0 gap events",
                 "calibration_id 3 without a sensor_id")
-    for text in expected:
-        assert any(text in line for line in v), (text, v)
-    assert len(v) == len(expected), v
+    _names_each(v, expected)
     assert f"{bad}: {len(v)} violation(s)" in out and f"{good}: ok" in out
 
     assert main(["check", "--json", str(good), str(bad)]) == EXIT_CHECK_FAIL
@@ -151,9 +156,7 @@ def test_times_rates_and_baselines_that_are_not_finite_are_named(tmp_path: Path,
                 "metadata device.nominal_rate_hz nan is not a finite number",
                 "metadata rate_hz -inf is not a finite number",
                 "metadata calibration_id 2.5 is not a whole number")
-    for text in expected:
-        assert any(text in line for line in v), (text, v)
-    assert len(v) == len(expected), v  # inf -> finite is not also "going back"
+    _names_each(v, expected)  # inf -> finite is not also "going back"
     assert main(["check", str(path)]) == EXIT_CHECK_FAIL
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "device_time is not a finite number at row 5" in err
