@@ -70,14 +70,3 @@ class BadData(DeviceError):
 class Cancelled(Exception):
     """A long job stopped because its cancel flag was set; partial results are kept."""
 
-
-def printable(text: str) -> str:
-    """A stranger's text (a remote client's command, a name another program chose) as it
-    may be shown on a terminal or in a one-line message: every non-printable character
-    (escape sequences, CR, NUL, bidirectional overrides) written as its Python escape
-    (``\\x1b``, ``\\r``, ``\\u202e``), so it can neither drive the terminal nor hide
-    text."""
-    if text.isprintable():
-        return text
-    return "".join(c if c.isprintable() else c.encode("unicode_escape", "backslashreplace")
-                   .decode("ascii") for c in text)

@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from tactile_studio.errors import Cancelled
+from tactile_studio.terminal import printable, raw_stream
 
 ProgressFn = Callable[[float, str], None]
 
@@ -112,9 +113,10 @@ class TerminalProgress:
             self._progress = _rich_progress(self.stream, self.width)
             self._progress.start()
             _LIVE.add(self)
-            self._task = self._progress.add_task(self.label, total=self.total, unit=self.unit,
-                                                 message="")
-        self._progress.update(self._task, completed=fraction * self.total, message=message[:60])
+            self._task = self._progress.add_task(_shown(self.label, 200), total=self.total,
+                                                 unit=self.unit, message="")
+        self._progress.update(self._task, completed=fraction * self.total,
+                              message=_shown(message))
 
     # ---- nested rows -----------------------------------------------------------------
     def subtask(self, key: str, label: str, completed: float, total: float | None,
@@ -127,10 +129,11 @@ class TerminalProgress:
             self._rich(0.0, "")
         new = key not in self._subtasks
         if new:
-            self._subtasks[key] = self._progress.add_task(f"  {label}", total=total, unit=unit,
-                                                          message="")
-        self._progress.update(self._subtasks[key], description=f"  {label}", total=total,
-                              completed=completed, message=message[:60], refresh=new)
+            self._subtasks[key] = self._progress.add_task(f"  {_shown(label)}", total=total,
+                                                          unit=unit, message="")
+        self._progress.update(self._subtasks[key], description=f"  {_shown(label)}",
+                              total=total, completed=completed, message=_shown(message),
+                              refresh=new)
 
     def end_subtask(self, key: str) -> None:
         task = self._subtasks.pop(key, None)
@@ -147,6 +150,14 @@ class TerminalProgress:
             self._progress.stop()
             self._progress = None
             _LIVE.discard(self)
+
+
+def _shown(text: str, limit: int = 60) -> str:
+    """A message for the live display: printable (it may name a file or a peer), no rich
+    markup (a ``[red]`` in a name stays text), at most ``limit`` characters."""
+    from rich.markup import escape
+
+    return escape(printable(text[:limit]))
 
 
 _LIVE: weakref.WeakSet[TerminalProgress] = weakref.WeakSet()
@@ -182,7 +193,7 @@ def _rich_progress(stream, width: int):  # noqa: ANN001, ANN202
                 return Text(f"{speed * 60:.1f} %/min", style="progress.data.speed")
             return Text(f"{speed:.1f} {unit}/s", style="progress.data.speed")
 
-    console = Console(file=stream, stderr=stream is sys.stderr)
+    console = Console(file=raw_stream(stream))  # draws itself; its texts are _shown
     return Progress(TextColumn("{task.description}"), BarColumn(bar_width=width),
                     TaskProgressColumn(), TimeElapsedColumn(), TextColumn("ETA"),
                     TimeRemainingColumn(), RateColumn(), TextColumn("{task.fields[message]}"),

@@ -211,6 +211,13 @@ def test_evaluate_on_other_recordings_with_the_same_names_scores_them_as_new_dat
     assert "external mode" in stdout
     rescore = json.loads((out / "rescore.json").read_text())
     assert rescore["mode"] == "external" and rescore["n_trials"] == 3 * 18
+    # each fold model was tested on the other study's people, not on the run's own held-out
+    # person its fold is named after (issue 43, case 9: the rows said P01, P02, P03 alone)
+    people = ["P01", "P02", "P03"]
+    assert [f["test_participants"] for f in rescore["per_fold"]] == [people] * 3
+    assert [f["n_test_trials"] for f in rescore["per_fold"]] == [18] * 3  # 3 people x 6
+    rows = [ln.split() for ln in stdout.splitlines() if ln.split()[1:2] in (["P01"], ["P02"])]
+    assert rows and all(r[2] == "P01,P02,P03" for r in rows), stdout
     # the run's own recordings are still its folds, re-scored
     assert main(["evaluate", str(out), *cache]) == 0
     assert "folds mode" in capsys.readouterr().out

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import tomllib
 from pathlib import Path
 
@@ -14,6 +15,7 @@ from tactile_studio.storage.protocol_file import (
     list_protocols,
     load_protocol,
     protocol_from_dict,
+    restored_protocol,
 )
 
 SHEAR9 = ["Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
@@ -91,6 +93,15 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
      "gestures[1].image: 'notes.txt' is not an image"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = ""'),
      "gestures[1].image: must not be empty"),
+    # a stranger's protocol cannot point the participant screen (and the session's
+    # metadata) at a file elsewhere on the machine
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "/etc/x.png"'),
+     "gestures[1].image: '/etc/x.png' is outside the protocol's folder"),
+    (lambda t: t.replace('definition = "Rub it."',
+                         'definition = "x"\nimage = "pics/../../x.png"'),
+     "gestures[1].image: 'pics/../../x.png' is outside the protocol's folder"),
+    (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\nimage = "C:\\\\x.png"'),
+     "is outside the protocol's folder"),
     (lambda t: t.replace('definition = "Rub it."', 'definition = "x"\ncolour = "red"'),
      "gestures[1].colour: unknown field"),
     (lambda t: t.replace("blocks = 3", "blocks = 0"), "mini.toml: blocks: 0 is out of range"),
@@ -118,6 +129,20 @@ def test_protocol_by_path_and_roundtrip(tmp_path: Path) -> None:
     (lambda t: t.replace("[breaks]\nevery_blocks = 1\nmin_s = 5", "breaks = 3"),
      "mini.toml: breaks: must be a table"),
     (lambda t: t + "\nblocks = [", "mini.toml: not valid TOML"),
+    # a protocol from a stranger: its name names every session file, and it cannot make a
+    # collection store millions of trials (issue 43, the hunt)
+    (lambda t: t.replace('name = "mini"', 'name = "../../x"'),
+     "mini.toml: name: '../../x' cannot name session files: it holds a path separator"),
+    (lambda t: t.replace('name = "mini"', 'name = "mini\\u001b[2J"'),
+     "mini.toml: name: 'mini\\x1b[2J' cannot name session files: it holds a control"),
+    (lambda t: t + "".join(f'[[gestures]]\nname = "g{i}"\nkey = "{chr(0x4e00 + i)}"\n'
+                           f'definition = "x"\n' for i in range(100)),
+     "mini.toml: gestures: 102 gestures; a protocol has at most 100"),
+    (lambda t: t.replace("blocks = 3", "blocks = 10000") + "".join(
+        f'[[gestures]]\nname = "g{i}"\nkey = "{chr(0x4e00 + i)}"\ndefinition = "x"\n'
+        for i in range(9)),
+     "mini.toml: blocks: 10000 blocks of 11 gestures make 110,000 trials; a protocol holds "
+     "at most 100,000"),
 ])
 def test_validation_names_the_field(tmp_path: Path, edit, message: str) -> None:
     f = tmp_path / "mini.toml"
@@ -134,7 +159,8 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_shear9_ships_a_pictogram_per_gesture_as_package_data() -> None:
-    images = [Path(g.image) for g in load_protocol("shear9").gestures]
+    shear9 = load_protocol("shear9")
+    images = [Path(shear9.image_file(g)) for g in shear9.gestures]
     assert len(images) == 9 and len(set(images)) == 9
     for image in images:
         assert image.is_absolute() and image.read_bytes()[:8] == PNG_MAGIC
@@ -159,13 +185,21 @@ def test_image_paths_are_relative_to_the_protocol_file(tmp_path: Path, monkeypat
     monkeypatch.chdir(tmp_path)
     p = load_protocol("lab/mini.toml")
     rub = p.gesture_by_name("Rub")
-    assert Path(rub.image) == folder / "pics" / "rub.png" and Path(rub.image).is_absolute()
+    assert rub.image == "pics/rub.png"  # the name sessions store, no folder of this machine
+    assert p.image_file(rub) == str(folder / "pics" / "rub.png")
     assert p.gesture_by_name("Poke").image is None
-    monkeypatch.chdir(folder / "pics")  # a session stores the path; it still resolves
+    assert p.image_file(p.gesture_by_name("Poke")) is None
+    assert "lab" not in json.dumps(p.to_dict())
+    monkeypatch.chdir(folder / "pics")  # found from any working folder
     assert protocol_from_dict(p.to_dict(), "again").gestures == p.gestures
-    assert p.with_overrides(blocks=1).gestures == p.gestures
+    assert p.with_overrides(blocks=1).image_file(rub) == p.image_file(rub)
+    # a session's copy finds the images through the protocol file at hand, if it is the same
+    restored = restored_protocol(p.to_dict(), "session", at_hand=p)
+    assert restored.image_file(restored.gesture_by_name("Rub")) == p.image_file(rub)
+    other = restored_protocol(p.to_dict(), "session", at_hand=load_protocol("shear9"))
+    assert other.image_file(other.gesture_by_name("Rub")) is None  # shows the text alone
     (folder / "pics" / "rub.png").unlink()  # resuming elsewhere: not checked, not refused
-    restored = protocol_from_dict(p.to_dict(), "session", check_images=False)
+    restored = restored_protocol(p.to_dict(), "session")
     assert restored.gesture_by_name("Rub").image == rub.image
     with pytest.raises(ProtocolError, match=r"mini.toml: gestures\[1\].image: no such file"):
         load_protocol(folder / "mini.toml")
@@ -194,3 +228,13 @@ def test_randomisation_is_per_block_reproducible_and_per_participant() -> None:
     practice = practice_order(eleven, "P01")
     assert len(practice) == 11 and set(practice) <= set(SHEAR9)
     assert practice_order(eleven, "P02") != practice  # each participant gets their own
+
+
+def test_a_protocol_file_too_large_to_be_one_is_refused_before_it_is_read(
+        tmp_path: Path) -> None:
+    f = tmp_path / "fat.toml"
+    f.write_text(GOOD.replace('definition = "Rub it."', 'definition = "' + "x" * (1 << 20)
+                              + '"'))
+    with pytest.raises(ProtocolError, match=r"fat.toml: 1.0 MB is not a protocol file "
+                                            r"\(at most 1 MB\)"):
+        load_protocol(f)

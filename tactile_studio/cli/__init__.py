@@ -27,6 +27,7 @@ from tactile_studio.errors import (
 )
 from tactile_studio.jobs import Terminated, terminate_unwinds
 from tactile_studio.output_faults import fault_line
+from tactile_studio.terminal import printable_output
 
 
 class Parser(argparse.ArgumentParser):
@@ -58,6 +59,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         args = parser.parse_args(["gui", *(argv or [])])
+    with printable_output():  # what files and peers say never drives the terminal
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The command, and the one line and exit status of how it ended."""
     try:
         with terminate_unwinds():  # the GUI's window loop closes its windows instead
             code = int(args.func(args) or 0)

@@ -15,7 +15,7 @@ from tactile_studio.cli.recording_warnings import (
     watch_health,
 )
 from tactile_studio.devices.registry import create_device, parse_set_options
-from tactile_studio.errors import IncompleteError, UserError, printable
+from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
 from tactile_studio.streams.remote_control import (
@@ -24,6 +24,7 @@ from tactile_studio.streams.remote_control import (
     RemoteControl,
     this_machine_only,
 )
+from tactile_studio.terminal import printable
 
 POLL_S = 0.05
 ECHO_CHARS = 200
@@ -99,14 +100,14 @@ def _echo(text: str) -> str:
     """A client's line or its reply as shown on the terminal: one line of printable
     characters, at most ``ECHO_CHARS`` of them."""
     cut = text if len(text) <= ECHO_CHARS else f"{text[:ECHO_CHARS]}... ({len(text)} characters)"
-    return printable(cut)
+    return printable(cut, keep="")
 
 
 def _report(event: dict, incomplete: list[str]) -> None:
     if event["kind"] == "recording_started":
-        print(f"recording {printable(event['path'])}", flush=True)
+        print(f"recording {printable(event['path'], keep='')}", flush=True)
     elif event["kind"] == "recording_stopped":
-        print(f"wrote {printable(event['path'])} ({event['reason']})", flush=True)
+        print(f"wrote {printable(event['path'], keep='')} ({event['reason']})", flush=True)
         if event.get("message"):
             incomplete.append(event["message"])
-            print(printable(event["message"]), file=sys.stderr, flush=True)
+            print(printable(event["message"], keep=""), file=sys.stderr, flush=True)

@@ -13,6 +13,7 @@ from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
+from tactile_studio.terminal import printable, raw_stream
 
 LSL_HELP = ("also publish the frames (raw counts) and a marker stream on the Lab Streaming "
             "Layer (see docs/lsl.md)")
@@ -79,8 +80,9 @@ def cmd_stream(args: argparse.Namespace) -> int:
     try:
         with ctrl_c_cancels(token):
             while not token.wait(0.25):
-                sys.stderr.write(f"\r{streamer.status_line()}, {engine.measured_rate_hz():.1f} "
-                                 f"Hz, {engine.state}   ")
+                status = printable(f"{streamer.status_line()}, "
+                                   f"{engine.measured_rate_hz():.1f} Hz, {engine.state}   ")
+                raw_stream(sys.stderr).write(f"\r{status}")  # the line redrawn in place
                 sys.stderr.flush()
                 if engine.state in (ERROR, FINISHED):
                     break

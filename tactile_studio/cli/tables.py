@@ -14,6 +14,7 @@ from collections.abc import Sequence
 from typing import Any, TextIO
 
 from tactile_studio.jobs import interactive
+from tactile_studio.terminal import raw_stream
 
 _FIELD = re.compile(r"^([A-Za-z][\w ]*?):\s+(.*)$")
 
@@ -22,7 +23,7 @@ def console(stream: TextIO) -> Any:
     """A rich Console for a terminal ``stream``."""
     from rich.console import Console
 
-    return Console(file=stream, force_terminal=True, highlight=False)
+    return Console(file=raw_stream(stream), force_terminal=True, highlight=False)
 
 
 def table(columns: Sequence[str], rows: Sequence[Sequence[Any]], title: str | None = None,
@@ -43,7 +44,8 @@ def table(columns: Sequence[str], rows: Sequence[Sequence[Any]], title: str | No
     for name in columns:
         t.add_column(name, justify="right" if name in right else "left", overflow="fold")
     for row in rows:
-        t.add_row(*(Text(str(v)) for v in row))  # values are text, never rich markup
+        # values are text, never rich markup, and printable (they may come from a file)
+        t.add_row(*(Text(_printable(str(v))) for v in row))
     out.print(t)
 
 
@@ -89,5 +91,5 @@ def fields(lines: Sequence[str], stream: TextIO | None = None) -> None:
             rest.append(line)
     table(("field", "value"), rows, stream=stream, header=False)
     if rest:
-        stream.write("\n".join(rest) + "\n")
+        stream.write("\n".join(_printable_lines(line) for line in rest) + "\n")
         stream.flush()

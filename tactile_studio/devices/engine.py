@@ -153,10 +153,12 @@ class AcquisitionEngine:
 
     def _room(self) -> int:
         """Frames the device may deliver now without lapping a held reader."""
-        if not self._holds or not self.device.waits_for_reader:
+        if not self.device.waits_for_reader:
             return self.read_chunk
-        with self._lock:
+        with self._lock:  # one look: a hold released between two would leave none here
             holds = list(self._holds.values())
+        if not holds:
+            return self.read_chunk
         written = self.ring.written
         return max(0, min(lead - (written - cursor()) for cursor, lead in holds))
 

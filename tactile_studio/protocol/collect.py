@@ -33,7 +33,7 @@ from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
-from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
+from tactile_studio.storage.protocol_file import Protocol, restored_protocol
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trials_done
@@ -184,14 +184,17 @@ def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> Recorde
     return plain
 
 
-def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
-    """What a resume needs from a session file (protocol, participant, seed, device...)."""
+def read_resume_info(path: str | os.PathLike,
+                     at_hand: Protocol | None = None) -> dict[str, Any]:
+    """What a resume needs from a session file (protocol, participant, seed, device...);
+    ``at_hand``: the protocol file the experimenter has chosen, whose folder holds the
+    images when it is the file's protocol (``restored_protocol``)."""
     with Session(path) as old:
         meta = dict(old.metadata)
         if meta.get("source") != "collect" or "block_order" not in meta:
             raise SessionFileError(f"{path}: not a collection session (nothing to resume)")
-        protocol = protocol_from_dict(meta["protocol_spec"], f"{Path(path).name}: protocol_spec",
-                                      check_images=False)
+        protocol = restored_protocol(meta.get("protocol_spec"),
+                                     f"{Path(path).name}: protocol_spec", at_hand)
         total = sum(len(o) for o in meta["block_order"])
         return {"protocol": protocol, "participant": meta["participant"],
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
@@ -322,13 +325,15 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                    clock: Clock | None = None, auto_continue: bool = True,
                    hold_flagged: bool = False,
                    recorder: RecorderFactory | None = None,
-                   allow_other_sensor: str | None = None) -> CollectionSession:
+                   allow_other_sensor: str | None = None,
+                   protocol_at_hand: Protocol | None = None) -> CollectionSession:
     """Continue a killed or closed session at the next trial of its stored order.
 
     Refused on another device or sensor than the file's, unless ``allow_other_sensor``
-    gives the reason (stored as a note and in the metadata)."""
+    gives the reason (stored as a note and in the metadata). ``protocol_at_hand``: see
+    ``read_resume_info``."""
     path = Path(path)
-    info = read_resume_info(path)
+    info = read_resume_info(path, protocol_at_hand)
     if info["trials_done"] >= info["trials_total"]:
         raise UserError(f"{path}: session is complete ({info['trials_done']} trials); "
                         "nothing to resume")

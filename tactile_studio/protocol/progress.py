@@ -91,8 +91,8 @@ def build_snapshot(r: RunnerView) -> RunnerSnapshot:
         running = cur["gesture"] if cur is not None else None
         prompted = next((n for n in remaining if n != running), None)
     gestures = tuple(
-        GestureView(g.name, g.key, g.definition, g.image, g.name in done, g.name == current,
-                    g.name == prompted)
+        GestureView(g.name, g.key, g.definition, p.image_file(g), g.name in done,
+                    g.name == current, g.name == prompted)
         for g in (p.gesture_by_name(n) for n in r.round_gestures))
     total = sum(len(o) for o in r.orders)
     done_n = trials_done(r.records)

@@ -22,6 +22,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.gesture_metrics import gesture_metrics
+from tactile_studio.storage.file_names import check_name
 from tactile_studio.storage.importers._common import (
     check_outputs,
     frame_interval,
@@ -75,6 +76,9 @@ def shearsense_csv_name(session: Session) -> str:
     name = session.path.stem
     participant = str(session.metadata.get("participant") or "")
     condition = str(session.metadata.get("condition") or "")
+    for what, value in (("participant", participant), ("condition", condition)):
+        if value:  # the file's say: one name, never a path out of the folder given
+            check_name(f"{session.path}: {what}", value)
     named = parse_shearsense_name(f"{name}.csv")[0]
     if participant and normalise_participant(named) != normalise_participant(participant):
         name = f"{participant}_{name}"

@@ -13,18 +13,26 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import posixpath
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
-from pathlib import Path
+from pathlib import Path, PureWindowsPath
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.file_names import name_problem, shown_name
 
 RANDOMISATION_MODES = ("shuffle_per_block", "fixed")
 # "prompted": the screen prompts the next gesture of the block's order and only its key
 # starts the trial; "free": any gesture of the block not done yet, in any order
 ORDER_MODES = ("prompted", "free")
+# A protocol from another lab is read whole and its blocks are stored in every session:
+# bounds far above any study (the papers: 9-14 gestures, 52 blocks, 468 trials) keep a
+# stranger's file from making a collection allocate gigabytes before its first trial
+MAX_PROTOCOL_BYTES = 1 << 20
+MAX_GESTURES = 100
+MAX_TRIALS = 100_000
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".gif", ".bmp", ".webp", ".svg")  # what Qt reads
 
 
@@ -37,7 +45,10 @@ class Gesture:
     name: str
     key: str
     definition: str
-    image: str | None = None  # path, resolved against the protocol file's folder
+    # the image's name relative to the protocol file's folder ("images/poke.png"), as
+    # sessions store it: never the experimenter's own folders (older sessions stored an
+    # absolute path, which still loads); ``Protocol.image_file`` finds the file
+    image: str | None = None
 
 
 @dataclass(frozen=True)
@@ -62,6 +73,8 @@ class Protocol:
     wellness_required: bool = False   # [wellness] required: a check before each participant
     wellness_max_age_h: float = 24.0  # [wellness] max_age_h: older checks are stale
     source: str = ""
+    # the protocol file's folder on this machine, where its images are; never stored
+    folder: Path | None = dataclasses.field(default=None, compare=False)
 
     @property
     def gesture_names(self) -> list[str]:
@@ -74,19 +87,32 @@ class Protocol:
     def gesture_by_name(self, name: str) -> Gesture:
         return next(g for g in self.gestures if g.name == name)
 
+    def image_file(self, gesture: Gesture) -> str | None:
+        """The file to show for ``gesture``'s image on this machine, None without one (or
+        when the protocol's folder is unknown: a resume of another protocol than a
+        shipped one shows the definitions alone)."""
+        if not gesture.image:
+            return None
+        if Path(gesture.image).is_absolute():  # a session written before names were stored
+            return gesture.image
+        name = _inside_name(gesture.image)
+        return str(self.folder / name) if self.folder is not None and name else None
+
     def with_overrides(self, **changes: Any) -> Protocol:
         """A copy with some fields changed, validated like a file (tests, --blocks)."""
         data = self.to_dict()
         data.update(changes)
         # images were checked when this protocol was loaded (or deliberately not, on resume)
-        return protocol_from_dict(data, self.source or f"{self.name}.toml",
+        return protocol_from_dict(data, self.source or f"{self.name}.toml", self.folder,
                                   check_images="gestures" in changes)
 
     def to_dict(self) -> dict[str, Any]:
-        """The flat form stored in session metadata, so a resume needs no file on disk."""
+        """The flat form stored in session metadata, so a resume needs no file on disk
+        (images by their names relative to the protocol, no folder of this machine)."""
         d = dataclasses.asdict(self)
         d["gestures"] = [dataclasses.asdict(g) for g in self.gestures]
         d.pop("source")
+        d.pop("folder")
         return d
 
 
@@ -103,14 +129,26 @@ def _find(name_or_path: str | Path) -> tuple[str, bytes, Path | None]:
     if text.endswith(".toml") or path.parent != Path("."):
         if not path.is_file():
             raise ProtocolError(f"{path}: no such protocol file")
-        # absolute, so image paths stored in a session still resolve from another cwd
+        size = path.stat().st_size
+        if size > MAX_PROTOCOL_BYTES:
+            raise ProtocolError(f"{path}: {size / 2**20:.1f} MB is not a protocol file "
+                                f"(at most {MAX_PROTOCOL_BYTES >> 20} MB)")
+        # absolute, so its images still resolve after the working folder changes
         return path.name, path.read_bytes(), path.parent.resolve()
     res = resources.files("tactile_studio.resources") / "protocols" / f"{text}.toml"
     if not res.is_file():
         known = ", ".join(list_protocols())
         raise ProtocolError(f"unknown protocol {text!r} (shipped: {known}; or give a .toml path)")
+    return f"{text}.toml", res.read_bytes(), shipped_folder(text)
+
+
+def shipped_folder(name: str) -> Path | None:
+    """The folder of the shipped protocol ``name`` (where its images are), else None."""
+    res = resources.files("tactile_studio.resources") / "protocols" / f"{name}.toml"
+    if not res.is_file():
+        return None
     folder = Path(str(res)).parent
-    return f"{text}.toml", res.read_bytes(), folder if folder.is_dir() else None
+    return folder if folder.is_dir() else None
 
 
 def load_protocol(name_or_path: str | Path) -> Protocol:
@@ -169,6 +207,9 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
     """
     v = _Validator(label, field_names or {})
     name = v.text(data, "name", default=Path(label).stem)
+    why = name_problem(name)
+    if why:  # it names every session file of the protocol
+        v.fail("name", f"{shown_name(name)} cannot name session files: {why}")
     gestures = _gestures(v, data.get("gestures"), folder, check_images)
     mode = v.text(data, "randomisation", default="shuffle_per_block")
     if mode not in RANDOMISATION_MODES:
@@ -176,15 +217,21 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
     order = v.text(data, "order", default="prompted")
     if order not in ORDER_MODES:
         v.fail("order", f"unknown order {order!r} (use {' or '.join(ORDER_MODES)})")
+    blocks = v.integer(data, "blocks", low=1, high=10_000, required=True)
+    practice = v.integer(data, "practice_trials", low=0, high=1000, default=0)
+    trials = blocks * len(gestures) + practice
+    if trials > MAX_TRIALS:
+        v.fail("blocks", f"{blocks} blocks of {len(gestures)} gestures make {trials:,} trials; "
+                         f"a protocol holds at most {MAX_TRIALS:,}")
     return Protocol(
         name=name,
         title=v.text(data, "title", default=name),
         description=v.text(data, "description", default="", allow_empty=True),
         gestures=gestures,
         trial_s=v.number(data, "trial_s", low=0.05, high=600.0, required=True),
-        blocks=v.integer(data, "blocks", low=1, high=10_000, required=True),
+        blocks=blocks,
         free_play_s=v.number(data, "free_play_s", low=0.0, high=3600.0, default=0.0),
-        practice_trials=v.integer(data, "practice_trials", low=0, high=1000, default=0),
+        practice_trials=practice,
         randomisation=mode,
         order=order,
         seed=v.integer(data, "seed", low=-(2**62), high=2**62, default=0),
@@ -199,7 +246,22 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
         wellness_max_age_h=v.number(data, "wellness_max_age_h", low=0.01, high=100_000.0,
                                     default=24.0),
         source=label,
+        folder=folder,
     )
+
+
+def restored_protocol(spec: Any, label: str, at_hand: Protocol | None = None) -> Protocol:
+    """The protocol a session stored (``protocol_spec``), found on this machine: its images
+    are names in the protocol's folder, which the session does not keep, so the folder is
+    a shipped protocol's, or that of ``at_hand`` (the protocol file the experimenter has
+    chosen) when it is the same protocol; else none (the definitions show alone)."""
+    if not isinstance(spec, dict):
+        raise ProtocolError(f"{label}: not a protocol (expected a table of its fields)")
+    p = protocol_from_dict(spec, label, check_images=False)
+    if at_hand is not None and at_hand.folder is not None and at_hand.name == p.name \
+            and at_hand.gestures == p.gestures:
+        return dataclasses.replace(p, folder=at_hand.folder)
+    return dataclasses.replace(p, folder=shipped_folder(p.name))
 
 
 def _flag(v: _Validator, data: dict[str, Any], key: str) -> bool:
@@ -215,6 +277,9 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         v.fail("gestures", "missing (at least one [[gestures]] table is needed)")
     if not isinstance(items, list) or not items:
         v.fail("gestures", "must be a non-empty list of [[gestures]] tables")
+    if len(items) > MAX_GESTURES:
+        v.fail("gestures", f"{len(items)} gestures; a protocol has at most {MAX_GESTURES} "
+                           "(a participant presses one key for each)")
     out: list[Gesture] = []
     names: dict[str, int] = {}
     keys: dict[str, int] = {}
@@ -239,14 +304,35 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         image = None
         if item.get("image") is not None:
             image = gv.text(item, "image")
-            path = Path(image) if folder is None else folder / image
-            if check_images and path.suffix.lower() not in IMAGE_SUFFIXES:
-                gv.fail("image", f"{image!r} is not an image (use {', '.join(IMAGE_SUFFIXES)})")
-            if check_images and not path.is_file():
-                gv.fail("image", f"no such file {image!r} (relative to the protocol file)")
-            image = str(path)
+            if check_images:
+                image = _image_name(gv, image, folder)
         out.append(Gesture(name, key, definition, image))
     return tuple(out)
+
+
+def _image_name(v: _Validator, image: str, folder: Path | None) -> str:
+    """A protocol file's image as the name sessions store: relative to the protocol's
+    folder and inside it (a stranger's protocol cannot show, or make a session name, a
+    file elsewhere on the machine); it must exist there and be a picture Qt reads."""
+    name = _inside_name(image)
+    if name is None:
+        v.fail("image", f"{image!r} is outside the protocol's folder (name an image beside "
+                        "the protocol file or in a folder below it)")
+    if Path(name).suffix.lower() not in IMAGE_SUFFIXES:
+        v.fail("image", f"{image!r} is not an image (use {', '.join(IMAGE_SUFFIXES)})")
+    if folder is not None and not (folder / name).is_file():
+        v.fail("image", f"no such file {image!r} (relative to the protocol file)")
+    return name
+
+
+def _inside_name(image: str) -> str | None:
+    """``image`` as a name inside its protocol's folder (normalised, ``/`` between
+    folders), None when it leads out of it (absolute, a drive, ``..``)."""
+    name = posixpath.normpath(image.replace("\\", "/"))
+    if PureWindowsPath(image).drive or posixpath.isabs(name) or name == ".." \
+            or name.startswith("../"):
+        return None
+    return name
 
 
 class _Validator:

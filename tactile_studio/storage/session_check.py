@@ -9,6 +9,7 @@ file before analysing it. Groups it does not know (``/aux``...) are ignored.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,6 +26,14 @@ STATUSES = {s.value for s in TrialStatus}
 # readers take a missing block as 0 and a missing status as ok)
 TRIAL_FIELDS = ("index", "gesture", "start_sample", "end_sample")
 COUNTED_EVENTS = (("gaps", "gap"), ("reconnects", "reconnect"))
+# the journal's times (docs/session-format.md): JSON as Python writes and reads it carries
+# NaN and Infinity, and every comparison with NaN is false, so a time that is not a number
+# passed every ordering rule unseen; ``t`` is a list of times (a load cell's samples)
+EVENT_TIMES = ("time", "t", "lab_t", "lsl_time", "time_correction", "offset_s",
+               "device_time_offset", "gap_s", "seconds", "silent_s")
+TRIAL_TIMES = ("start_time", "end_time")
+FRAME_COLUMNS = ("raw", "device_time", "host_time", "seq", "index")
+METADATA_RATES = (("device", "nominal_rate_hz"), (None, "rate_hz"))
 
 
 @dataclass
@@ -50,11 +59,13 @@ def check_file(path: str | os.PathLike) -> CheckResult:
 
 def check_session(s: Session) -> list[str]:
     """Every violation of the session invariants in ``s``, one line each."""
-    out: list[str] = []
+    out: list[str] = [f"journal {why} (left out when read)" for why in s.journal.skipped]
     n = s.n_frames
     _check_times(s, segment_starts(s.events, n), out)
     trials = _check_trials(s, out)
     _check_events(s, trials, out)
+    _check_numbers(s, out)
+    _check_baselines(s, out)
     _check_metadata(s, out)
     _check_counters(s, out)
     return out
@@ -62,10 +73,15 @@ def check_session(s: Session) -> list[str]:
 
 # ---- frames and clocks ----------------------------------------------------------------
 def _first_backwards(t: np.ndarray, a: int, b: int) -> tuple[int, int]:
-    """(row of the first frame whose time is below its predecessor's, how many) in a..b."""
+    """(row of the first frame whose time is below its predecessor's, how many) in a..b;
+    times that are not finite are named on their own (``_not_finite_rows``)."""
     if b - a < 2:
         return -1, 0
-    back = np.flatnonzero(np.diff(t[a:b]) < 0)
+    part = t[a:b]
+    finite = np.isfinite(part)
+    with np.errstate(invalid="ignore"):  # inf - inf: masked out just below
+        steps = np.diff(part)
+    back = np.flatnonzero((steps < 0) & finite[1:] & finite[:-1])
     return (int(back[0]) + a + 1, len(back)) if len(back) else (-1, 0)
 
 
@@ -86,6 +102,7 @@ def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None
     host_cuts = sorted({e["frame"] for e in segs})
     for name, cuts in (("device_time", device_cuts), ("host_time", host_cuts)):
         t = s.column(name)
+        _not_finite_rows(name, t, out)
         bounds = [0, *cuts, n]
         for a, b in zip(bounds, bounds[1:]):
             row, count = _first_backwards(t, a, b)
@@ -103,12 +120,85 @@ def _check_times(s: Session, segs: list[dict[str, Any]], out: list[str]) -> None
                        f"{_s(dev[r])} s) {how}")
 
 
+def _not_finite_rows(name: str, t: np.ndarray, out: list[str]) -> None:
+    bad = np.flatnonzero(~np.isfinite(t))
+    if len(bad):
+        more = f" ({len(bad)} rows, the last {int(bad[-1])})" if len(bad) > 1 else ""
+        out.append(f"{name} is not a finite number at row {int(bad[0])} "
+                   f"({t[bad[0]]}){more}")
+
+
+# ---- numbers ------------------------------------------------------------------------------
+def _not_a_time(value: Any) -> str | None:
+    """Why ``value`` (a number, a list of numbers or null) is not a time, else None."""
+    items = value if isinstance(value, list) else [value]
+    for v in items:
+        if v is None:
+            continue
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            return f"{v!r} is not a number"
+        if not math.isfinite(v):
+            return f"{v} is not a finite number"
+    return None
+
+
+def _check_numbers(s: Session, out: list[str]) -> None:
+    """Times in trials and events, rates and the calibration id in the metadata."""
+    for t in s.trials:
+        for key in TRIAL_TIMES:
+            why = _not_a_time(t.get(key))
+            if why:
+                out.append(f"trial {t.get('index', '?')}: {key} {why}")
+    for e in s.events:
+        for key in EVENT_TIMES:
+            why = _not_a_time(e.get(key))
+            if why:
+                out.append(f"event {e.get('kind')} at frame {e.get('frame')}: {key} {why}")
+    meta = s.metadata
+    for table, key in METADATA_RATES:
+        holder = meta.get(table) if table else meta
+        value = holder.get(key) if isinstance(holder, dict) else None
+        why = _not_a_time(value)
+        if why is None and value is not None and value < 0:
+            why = f"{value} is negative"
+        if why:
+            out.append(f"metadata {f'{table}.' if table else ''}{key} {why}")
+    cal = meta.get("calibration_id")
+    if cal is not None and (isinstance(cal, bool) or not isinstance(cal, int)):
+        out.append(f"metadata calibration_id {cal!r} is not a whole number")
+
+
+def _check_baselines(s: Session, out: list[str]) -> None:
+    """Each baseline: at a row of the frames, one finite value per channel."""
+    n, width = s.n_frames, s.layout.n_channels
+    for b in s.journal.baselines:
+        f = _frame(b)
+        where = f"baseline at frame {b.get('frame')}"
+        if f is None or not 0 <= f <= n:
+            out.append(f"{where}: not a row of the {n} frames")
+        try:
+            values = np.asarray(b.get("values"), dtype=np.float64)
+        except (TypeError, ValueError):
+            out.append(f"{where}: values are not numbers")
+            continue
+        if values.shape != (width,):
+            out.append(f"{where}: {values.size} values for the layout's {width} channels")
+        elif not np.isfinite(values).all():
+            k = int(np.flatnonzero(~np.isfinite(values))[0])
+            out.append(f"{where}: channel {k} is {values[k]}, not a finite number")
+
+
 def _check_metadata(s: Session, out: list[str]) -> None:
     meta = s.metadata
     width = int(s._f["frames/raw"].shape[1]) if s._f["frames/raw"].ndim == 2 else -1
     if width != s.layout.n_channels:
         out.append(f"frames/raw has {width} channels but layout {s.layout.name} has "
                    f"{s.layout.n_channels}")
+    if s.closed_cleanly and not s.cut_short:  # a crash may leave them one flush apart
+        rows = {name: int(s._f[f"frames/{name}"].shape[0]) for name in FRAME_COLUMNS}
+        if len(set(rows.values())) > 1:
+            out.append("frame columns differ in length: " + ", ".join(
+                f"{name} {k}" for name, k in rows.items()))
     lay = meta.get("layout")
     if isinstance(lay, dict):
         try:

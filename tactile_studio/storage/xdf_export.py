@@ -26,7 +26,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
-from pathlib import Path
+from pathlib import Path, PurePosixPath, PureWindowsPath
 from typing import Any
 
 import numpy as np
@@ -100,7 +100,8 @@ def _frame_stream(s: Session, host: np.ndarray, stamps: np.ndarray, lsl: bool) -
                         "serial_number": sensor_id},
         "tactile_studio": {
             "version": __version__, "content": RAW, "device": plugin,
-            "settings": json.dumps(device.get("settings") or {}, sort_keys=True, default=str),
+            "settings": json.dumps(_portable(device.get("settings") or {}), sort_keys=True,
+                                   default=str),
             "sensor_id": sensor_id, "session_id": s.session_id,
             "participant": meta.get("participant"), "session_file": s.path.name,
             "layout": {"name": lay.name, "rows": lay.rows, "cols": lay.cols,
@@ -115,6 +116,17 @@ def _frame_stream(s: Session, host: np.ndarray, stamps: np.ndarray, lsl: bool) -
     return XdfStream(f"TactileStudio-{plugin}", FRAME_TYPE, "int32" if integer else "float32",
                      rate, f"tactile-studio:{plugin}:{RAW}:{s.session_id}", stamps,
                      s.raw().astype(np.int32 if integer else np.float32), desc)
+
+
+def _portable(settings: dict[str, Any]) -> dict[str, Any]:
+    """The device's settings as a file shared with others may carry them: a path on the
+    experimenter's machine (a replayed file's ``/home/<user>/...``) by its file name."""
+    return {k: (PureWindowsPath(v).name if isinstance(v, str) and _is_path(v) else v)
+            for k, v in settings.items()}
+
+
+def _is_path(text: str) -> bool:
+    return PurePosixPath(text).is_absolute() or PureWindowsPath(text).is_absolute()
 
 
 def paced_host(s: Session, host: np.ndarray) -> np.ndarray:

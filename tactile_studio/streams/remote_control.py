@@ -40,7 +40,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import UserError, printable
+from tactile_studio.errors import UserError
 from tactile_studio.output_faults import fault_line
 from tactile_studio.streams.remote_names import (
     CommandError,
@@ -50,6 +50,7 @@ from tactile_studio.streams.remote_names import (
     shown,
 )
 from tactile_studio.streams.remote_socket import LineServer
+from tactile_studio.terminal import printable
 
 DEFAULT_PORT = 22345
 LOOPBACK = "127.0.0.1"
@@ -169,7 +170,7 @@ class RemoteControl:
                 raise CommandError(f"unknown command {shown(line.strip())} ({KNOWN})")
             return reply
         except UserError as exc:  # CommandError, and a session that refuses (one line)
-            return f"error: {printable(' '.join(str(exc).split()))}"
+            return f"error: {printable(' '.join(str(exc).split()), keep='')}"
         except Exception as exc:  # noqa: BLE001 - a bug must not end the recording
             print(f"remote control: {shown(line)} failed:", file=sys.stderr)
             traceback.print_exc()

@@ -30,8 +30,9 @@ import unicodedata
 from collections.abc import Callable
 from pathlib import Path
 
-from tactile_studio.errors import UserError, printable
+from tactile_studio.errors import UserError
 from tactile_studio.participant_id import PARTICIPANT_RE
+from tactile_studio.terminal import printable
 
 FIELDS = ("root", "template", "participant", "session", "task", "run", "acquisition",
           "modality")
@@ -58,7 +59,7 @@ class CommandError(UserError):
 def shown(text: str, limit: int = 60) -> str:
     """A client's text quoted in a reply: non-printables escaped, long text cut."""
     cut = text if len(text) <= limit else text[:limit] + "..."
-    return f"'{printable(cut)}'"
+    return f"'{printable(cut, keep='')}'"
 
 
 def parse_filename(text: str) -> dict[str, str]:
@@ -120,7 +121,7 @@ def _name_problem(name: str, max_chars: int) -> str:
         return f"a name longer than {max_chars} characters"
     bad = next((c for c in name if not c.isprintable() and c != " "), None)
     if bad is not None:
-        return f"{shown(name)} holds a control character ({printable(bad)})"
+        return f"{shown(name)} holds a control character ({printable(bad, keep='')})"
     if "/" in name or "\\" in name:
         return f"{shown(name)} holds a path separator; a name is one folder or file name"
     if name in (".", ".."):

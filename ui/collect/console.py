@@ -296,7 +296,8 @@ class CollectConsole(ConsoleActions):
             Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
             hold_flagged=hold, auto_continue=auto,
             recorder=self.acquisition.start_recording,
-            allow_other_sensor=allow_other_sensor), device, dev_settings)
+            allow_other_sensor=allow_other_sensor,
+            protocol_at_hand=self.setup.current_protocol()), device, dev_settings)
 
     def ask_other_sensor_note(self, path: str) -> TextDialog:
         """"Resume on this other sensor…": why, then the resume on the form's device."""

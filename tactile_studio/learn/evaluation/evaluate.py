@@ -123,6 +123,11 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
                         "adapt when evaluating new people's data (--data) or a lopo run")
     ds, x, owner, *_ = prepare_inputs(learner, ds, config)
     people = adapt_people(config, ds, owner)  # new people adapt to themselves too
+    # in external mode every fold model meets every trial of the data: its fold is named
+    # as trained (the people it held out), but what it was tested on is the data's people
+    tested = ({"test": list(ds.uids),
+               "test_participants": sorted({str(p) for p in ds.participants})}
+              if mode == "external" else {})
     fresh = []
     for k, rec in enumerate(records):
         if cancel is not None:
@@ -132,7 +137,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
                else np.arange(len(ds)))
         pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"], people)
-        fresh.append({**rec, "predictions": pred, "heldout_predictions": None})
+        fresh.append({**rec, **tested, "predictions": pred, "heldout_predictions": None})
     header = {**run_header(config, ds.channels, learner.windowed),
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.learn.experiments.run_shapes import config_problem, fold_problem
 from tactile_studio.output_faults import WriteFault, said_on_fault
 from tactile_studio.storage.input_files import file_sha256
 
@@ -213,9 +214,10 @@ def write_confusion_csv(path: Path, labels: list[str], matrix: list[list[float]]
 FOLD_KEYS = ("round", "fold", "name", "test")  # what every reader of fold.json relies on
 
 
-def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
+def _fold_record(d: Path, n_classes: int | None = None) -> tuple[dict[str, Any] | None, str]:
     """(record, "") of the finished fold in ``d``; (None, "") when it is unfinished (no
-    fold.json yet: training resumes it); (None, why) when it is damaged."""
+    fold.json yet: training resumes it); (None, why) when it is damaged (``n_classes``:
+    the run's, which its recorded predictions must fit)."""
     if not (d / FOLD).is_file():
         return None, ""
     if not model_file(d).is_file():
@@ -227,6 +229,9 @@ def _fold_record(d: Path) -> tuple[dict[str, Any] | None, str]:
         return None, f"fold {d.name}: {exc}"
     if not isinstance(rec, dict) or any(k not in rec for k in FOLD_KEYS):
         return None, f"{d / FOLD}: fold {d.name} is damaged (not a fold record of this version)"
+    why = fold_problem(d / FOLD, rec, n_classes)
+    if why:  # before any of its names is used: model_sha256 names files in the fold
+        return None, f"{why} (fold {d.name} is damaged)"
     saved = rec.get("model_sha256")
     if isinstance(saved, dict):  # runs written before fingerprints have none to check
         for name, digest in saved.items():
@@ -299,9 +304,15 @@ def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | N
             cfg = None
     except UserError as exc:
         problems.append(str(exc))
+    if cfg is not None:  # a stranger's run folder: each field as we write it
+        why = config_problem(run / CONFIG, cfg)
+        if why:
+            problems.append(f"{why} (damaged, or not written by this version)")
+            cfg = None
+    n_classes = cfg["resolved"]["data_info"]["n_classes"] if cfg is not None else None
     records, finished = [], set()
     for d in sorted((run / "folds").glob("r*-*")):
-        rec, why = _fold_record(d)
+        rec, why = _fold_record(d, n_classes)
         if why:
             problems.append(why)
         elif rec is not None:

@@ -32,7 +32,9 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.participant_id import PARTICIPANT_RE
 from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
+from tactile_studio.storage.file_names import shown_name
 from tactile_studio.storage.importers._common import (
     check_outputs,
     import_session_id,
@@ -164,6 +166,18 @@ def numbering_line(spec: DatasetSpec) -> str:
             + "; names in the file are kept as named")
 
 
+def _participant_of(path: Path, subject: str) -> str:
+    """A subject's participant id, which names its session file: a dataset from
+    elsewhere may hold any text there (a path, ``..``, control characters), so it must be
+    an id as collected ones are, or the import is refused before anything is written."""
+    pid = participant_id(subject)
+    if not PARTICIPANT_RE.match(pid):
+        raise UserError(f"{path}: subject {shown_name(subject)} cannot name a participant: "
+                        "an id is letters, digits, '_', '-' or '.', at most 64, starting "
+                        "with a letter or digit")
+    return pid
+
+
 def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os.PathLike,
                    progress: ProgressFn | None = None, cancel: CancelToken | None = None,
                    force: bool = False,
@@ -181,7 +195,8 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     subjects = table.meta["subject"]
     order = list(dict.fromkeys(subjects[s] for s, _ in bounds))
     prefix = spec.name if spec is COST else f"{spec.name}_{path.stem}"
-    outputs = {s: out_dir / f"{prefix}_{participant_id(s)}.h5" for s in order}
+    people = {s: _participant_of(path, s) for s in order}
+    outputs = {s: out_dir / f"{prefix}_{people[s]}.h5" for s in order}
     check_outputs(list(outputs.values()), force)
     extra = [r for r in ("variant", "substrate", "cover") if r in table.meta]
     malformed = sum(table.malformed_by_kind.values())
@@ -204,7 +219,7 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
             reps[what] += 1
             row += e - s
         times = np.arange(len(rows), dtype=np.float64) / spec.rate_hz
-        participant = participant_id(subject)
+        participant = people[subject]
         metadata = {
             "session_id": import_session_id(spec.name, sha, str(subject)),
             "participant": participant, "subject": subject, "condition": "",
