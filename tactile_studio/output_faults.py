@@ -19,6 +19,7 @@ from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.file_claims import final_name
 
 # the place, not the program: the user can fix these by choosing another place
 ENVIRONMENT_ERRNOS = frozenset({
@@ -78,7 +79,11 @@ def _probe(test: Callable[[Path], bool], path: Path) -> bool:
 
 
 def _final_name(path: Path) -> Path:
-    """The file a writer's temporary was becoming (``.x.csv.part`` -> ``x.csv``)."""
+    """The file a writer's temporary was becoming (``.x.csv.<pid>-<hex>.part`` ->
+    ``x.csv``), or a claim's lock file is for (``file_claims``)."""
+    claimed = final_name(path)
+    if claimed is not None:
+        return claimed
     name = path.name
     for pattern in (r"^\.(.+)\.(?:part|compressing)$", r"^(.+)\.tmp\d*$"):
         match = re.match(pattern, name)

@@ -25,18 +25,22 @@ from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
                    metadata: dict[str, Any] | None = None, *, row_offset: int = 0,
                    base_counters: dict[str, Any] | None = None,
-                   start: bool = True) -> Recorder:
+                   start: bool = True, overwrite: bool = False,
+                   staged: bool = False) -> Recorder:
     """A recorder of ``engine`` into a new file at ``path`` (SessionFileError), told its
     sensor from the logbook and booking its hours when it stops. ``start=False`` leaves
-    its thread to the caller (a resume copies the earlier file in first)."""
+    its thread to the caller (a resume copies the earlier file in first). The file is
+    claimed for this recorder alone (``FileBusy`` when another writer has it; an
+    existing file is replaced only with ``overwrite``; ``staged``: see SessionWriter)."""
     rec = Recorder(engine, path, sensor_metadata(engine, metadata), row_offset=row_offset,
-                   base_counters=base_counters)
+                   base_counters=base_counters, overwrite=overwrite, staged=staged)
     rec.on_stop(book_usage)
     return rec.start() if start else rec
 
 
-def close_file_sink(rec: Recorder) -> None:
+def close_file_sink(rec: Recorder, discard: bool = False) -> None:
     """Finish the file (once: later calls do nothing); its hours of use are booked by the
     on-stop callback :func:`open_file_sink` registered, after every frame the close pulled.
-    Only :func:`open_file_sink` makes a recording's recorder, so none lacks it."""
-    rec.stop()
+    Only :func:`open_file_sink` makes a recording's recorder, so none lacks it.
+    ``discard``: remove the file instead, while it is still claimed."""
+    rec.stop(discard=discard)
