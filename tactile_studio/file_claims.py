@@ -5,8 +5,8 @@ and the file's creation were two steps), both wrote into one file and both could
 success; their compressions shared one ``.x.h5.compressing`` temporary file. A killed
 import left a 0-frame session at its final name.
 
-The mechanism, used by every writer of a session file or export
-(``SessionWriter``, :func:`written_whole`):
+The mechanism, used by every writer of a session file, export, run folder or output
+(``SessionWriter``, :func:`written_whole`, :func:`claim_folder`):
 
 * **A claim** (:func:`claim`) is an ``fcntl.flock`` on a lock file beside the claimed
   path, ``.NAME.lock``. The kernel drops it when its process dies, however it dies, so a
@@ -20,6 +20,8 @@ The mechanism, used by every writer of a session file or export
   export) is written to a temporary and then published under the claim
   (:meth:`Claim.publish`): ``os.replace`` to overwrite, else a hard link that fails if
   the name was taken (no overwrite, even by a program that does not claim).
+* **Inside a claimed folder** (a run's JSON files) or where the last whole copy may win
+  (a cache entry), :func:`replace_whole` writes through a temporary without a claim.
 * **Leftovers**: every temporary of NAME is made under NAME's claim, so one found while
   holding the claim belongs to a dead process and is removed (a killed import's
   ``.part``), and so is the lock file itself when the claim is released.
@@ -229,6 +231,19 @@ def _busy_line(path: Path, lock: Path, what: str) -> str:
             "written to it: wait for it to finish, or choose another name")
 
 
+def claim_folder(path: str | os.PathLike, what: str = "folder") -> Claim:
+    """Claim an output folder for a whole run (``train``/``sweep --out``, a
+    characterisation): a second run into it is refused before it reads or clears
+    anything. ``--out .`` is made absolute (it needs a name to lock); the parent is made
+    first unless something stands there (then the claim's ``OSError`` names the folder)."""
+    folder = Path(path)
+    if folder.name in ("", ".", ".."):  # the user's spelling otherwise, as lines name it
+        folder = Path(os.path.abspath(path))
+    if not os.path.lexists(folder.parent):
+        folder.parent.mkdir(parents=True, exist_ok=True)
+    return claim(folder, what)
+
+
 def sweep_leftovers(path: str | os.PathLike) -> list[Path]:
     """Remove the temporaries of ``path`` that dead processes left (the caller holds the
     claim, so no living writer has any). Returns them."""
@@ -266,6 +281,16 @@ def written_whole(path: str | os.PathLike, write: Callable[[Path], Any], *,
     with claim(path, what) as held:
         _through_temp(held.temp("part"), path, write,
                       lambda tmp: held.publish(tmp, overwrite))
+    return path
+
+
+def replace_whole(path: str | os.PathLike, write: Callable[[Path], Any]) -> Path:
+    """``write(tmp)`` to a temporary of this process's own beside ``path``, then
+    ``os.replace`` it there: whole or not at all, without a claim. For files whose
+    writer holds its folder's claim already (a run folder's JSON) or where the last whole
+    copy may win (a cache entry, a calibration file written after the logbook)."""
+    path = Path(path)
+    _through_temp(temp_beside(path, "tmp"), path, write, lambda tmp: os.replace(tmp, path))
     return path
 
 
