@@ -19,6 +19,7 @@ from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
 
 from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.file_claims import FileBusy, final_name
 
 # the place, not the program: the user can fix these by choosing another place
 ENVIRONMENT_ERRNOS = frozenset({
@@ -78,7 +79,11 @@ def _probe(test: Callable[[Path], bool], path: Path) -> bool:
 
 
 def _final_name(path: Path) -> Path:
-    """The file a writer's temporary was becoming (``.x.csv.part`` -> ``x.csv``)."""
+    """The file a writer's temporary was becoming (``.x.csv.<pid>-<hex>.part`` ->
+    ``x.csv``), or a claim's lock file is for (``file_claims``)."""
+    claimed = final_name(path)
+    if claimed is not None:
+        return claimed
     name = path.name
     for pattern in (r"^\.(.+)\.(?:part|compressing)$", r"^(.+)\.tmp\d*$"):
         match = re.match(pattern, name)
@@ -192,12 +197,16 @@ CALIBRATION_FILE = (b'"tactile-studio-calibration"', "a calibration file")
 
 
 @contextmanager
-def said_on_fault(error: Callable[[str], UserError]) -> Iterator[None]:
+def said_on_fault(error: Callable[[str], UserError],
+                  also: tuple[type[UserError], ...] = ()) -> Iterator[None]:
     """Run writes whose failure must say what is kept: an OSError that is the place's
-    fault (:func:`fault_line`) ends as ``error(line)``, the one line with what the caller
-    adds; any other error keeps its traceback."""
+    fault (:func:`fault_line`), or one of the user errors ``also`` names, ends as
+    ``error(line)``, the one line with what the caller adds; any other error keeps its
+    traceback."""
     try:
         yield
+    except also as exc:
+        raise error(str(exc)) from None
     except OSError as exc:
         line = fault_line(exc)
         if line is None:
@@ -207,6 +216,7 @@ def said_on_fault(error: Callable[[str], UserError]) -> Iterator[None]:
 
 def stored_already(what: str) -> AbstractContextManager[None]:
     """Write an output after the result itself was stored (a check or calibration in the
-    logbook): a place that fails then still ends in one line naming the file, which
-    also says what is kept (``what``), so the user does not measure it all again."""
-    return said_on_fault(lambda line: WriteFault(f"{line}; {what}"))
+    logbook): a place that fails then (or a file another writer holds: ``FileBusy``)
+    still ends in one line naming the file, which also says what is kept (``what``), so
+    the user does not measure it all again."""
+    return said_on_fault(lambda line: WriteFault(f"{line}; {what}"), also=(FileBusy,))

@@ -73,7 +73,9 @@ def write_participant(path: Path, participant: str, style_seed: int, gestures=GE
     t = np.arange(frame) / rate
     meta = {"participant": participant, "protocol": "test-protocol", "condition": condition,
             "gestures": list(gestures), "source": "test:simulator"}
-    with SessionWriter(path, simulator.layout, {"name": "simulated"}, meta) as w:
+    # a participant's file may be written again (a test that changes the data)
+    with SessionWriter(path, simulator.layout, {"name": "simulated"}, meta,
+                       overwrite=True) as w:
         w.append_frames(raw, t, 1.7e9 + t)
         w.add_baseline(raw[:lead].mean(axis=0), frame=0)
         for i, (b, g, start) in enumerate(plan):

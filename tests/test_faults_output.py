@@ -107,10 +107,10 @@ def test_every_writing_command_ends_in_one_line(name, data, capsys, monkeypatch)
 def test_evaluate_and_export_model_in_a_run_folder_they_cannot_write(data, capsys, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(data / "run", run)
-    (run / "rescore.json.tmp").mkdir()  # where evaluate writes its result: a folder
+    (run / "rescore.json").mkdir()  # where evaluate writes its result: a folder
     assert main(["evaluate", str(run)]) == 1
     line = one_error_line(capsys.readouterr().err)
-    assert line == f"{run}/rescore.json: cannot open (Is a directory)"
+    assert line == f"{run}/rescore.json: cannot write (Is a directory)"
     (run / "export").write_text("a file where export-model makes its folder")
     assert main(["export-model", str(run), "--format", "onnx"]) == 1
     line = one_error_line(capsys.readouterr().err)
@@ -236,15 +236,18 @@ def test_a_file_where_the_output_folder_goes_is_named_as_such(argv, data, capsys
 
 def test_a_health_run_that_cannot_write_its_file_ends_in_the_one_line(tmp_path, monkeypatch):
     """The calibration wizard's run (HealthRun): its CAL.json place is a folder."""
+    from tactile_studio.file_claims import claim
     from tactile_studio.health.calibration import CalibrationSpec
     from tactile_studio.health.runner import HealthRun
 
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "appdata"))
-    (tmp_path / "cal.json.tmp").mkdir()  # where the calibration is written first
-    run = HealthRun("simulated", {"speed": 0}, CalibrationSpec("sim-0", (100, 200, 300),
-                                                               taxels=("B2",)),
-                    auto=True, out=str(tmp_path / "cal.json")).start()
-    assert run.join(120)
+    with claim(tmp_path / "cal.json"):  # another job of this program writes it meanwhile
+        run = HealthRun("simulated", {"speed": 0}, CalibrationSpec("sim-0", (100, 200, 300),
+                                                                   taxels=("B2",)),
+                        auto=True, out=str(tmp_path / "cal.json")).start()
+        assert run.join(120)
     # the calibration was stored before its file failed: the line says so (no re-measuring)
-    assert run.error == (f"{tmp_path}/cal.json: cannot open (Is a directory); calibration "
-                         "#1 of sim-0 is stored in the logbook (active)")
+    assert run.error == (f"{tmp_path}/cal.json: this calibration file is being written "
+                         "already by this program (another recording, job or window); "
+                         "nothing was written to it; calibration #1 of sim-0 is stored in "
+                         "the logbook (active)")

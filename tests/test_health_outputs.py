@@ -6,6 +6,9 @@ HTML report (exit 0, the calibration file gone)."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
 from tactile_studio.cli import main
@@ -78,11 +81,19 @@ def test_wellness_report_that_cannot_be_written_is_refused_before_the_check(tmp_
 
 
 def test_a_calibration_file_that_fails_after_the_store_says_what_is_kept(tmp_path, capsys):
-    """The place passed the check before measuring, then failed at the end (here its
-    temporary copy's name is taken by a folder; a disk filling up does the same): the line
-    names the file and says the calibration is in the logbook, active."""
-    (tmp_path / "cal.json.tmp").mkdir()
-    assert calibrate(tmp_path / "cal.json") == 1
+    """The place passed the check before measuring, then failed at the end (here another
+    process writes the file then; a disk filling up does the same): the line names the
+    file and says the calibration is in the logbook, active."""
+    holder = subprocess.Popen([sys.executable, "-c", "import sys; from tactile_studio."
+                               "file_claims import claim; c = claim(sys.argv[1]); "
+                               "print('held', flush=True); sys.stdin.read()",
+                               str(tmp_path / "cal.json")], stdin=subprocess.PIPE,
+                              stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline() == "held\n"
+        assert calibrate(tmp_path / "cal.json") == 1
+    finally:
+        holder.communicate("", timeout=30)
     (line,) = errors(capsys)
     assert str(tmp_path / "cal.json") in line
     assert "calibration #1 of sim-0 is stored in the logbook (active)" in line

@@ -118,7 +118,8 @@ def test_background_compression_keeps_the_file_whole_and_guards_the_name(tmp_pat
     w.close(background=True)
     with Session(p) as s:  # readable at once, whichever copy is in place
         assert s.n_frames == 20000
-    with SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P02"}) as w2:
+    with SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P02"},
+                       overwrite=True) as w2:
         w2.append_frames(raw[:10], t[:10], t[:10], np.arange(10))
     assert wait_for_compression(timeout=30)
     with Session(p) as s:  # the newer recording, not the older one swapped over it

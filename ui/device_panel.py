@@ -235,9 +235,12 @@ class DevicePanel(QWidget):
         self.record_button.setChecked(self.controller.recorder is not None)
 
     def start_recording(self, path: str) -> bool:
+        """Record to ``path``, replacing a file there (the save dialog asked first); a
+        file another recording or program is writing is refused (its one line shown)."""
         try:
             sensor = self.sensor_box.currentText().strip()
-            self.controller.start_recording(path, {"sensor_id": sensor} if sensor else None)
+            self.controller.start_recording(path, {"sensor_id": sensor} if sensor else None,
+                                            overwrite=True)
         except (UserError, OSError) as exc:
             text = fault_text(exc)
             if text is None:

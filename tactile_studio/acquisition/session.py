@@ -29,7 +29,6 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from tactile_studio.acquisition.marker_recording import MarkerRecording
@@ -43,7 +42,6 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session_compress import wait_for_compression
 
 Listener = Callable[[dict[str, Any]], None]
 
@@ -169,12 +167,15 @@ class AcquisitionSession:
     # ---- recording -----------------------------------------------------------------------
     def start_recording(self, path: str | os.PathLike, metadata: dict[str, Any] | None = None,
                         *, row_offset: int = 0, base_counters: dict[str, Any] | None = None,
-                        start: bool = True) -> Recorder:
+                        start: bool = True, overwrite: bool = False,
+                        staged: bool = False) -> Recorder:
         """Record everything from now on into a new session file (SessionFileError).
 
         Before :meth:`start` the file begins with the stream's first frame (step 2); on
         a running stream it begins now. ``start=False`` leaves the recorder's thread to
-        the caller (a resume copies the earlier file in first).
+        the caller (a resume copies the earlier file in first). The file is this
+        recording's alone (``FileBusy`` while another writer has it); one that exists is
+        replaced only with ``overwrite`` (``staged``: see SessionWriter).
         """
         if self.engine is None or (self.engine.state != EngineState.IDLE
                                    and not self.engine.running):
@@ -182,7 +183,8 @@ class AcquisitionSession:
         self.stop_recording()
         self._stop_at = self._stop_rows = None
         self.recorder = open_file_sink(self.engine, path, metadata, row_offset=row_offset,
-                                       base_counters=base_counters, start=False)
+                                       base_counters=base_counters, start=False,
+                                       overwrite=overwrite, staged=staged)
         self.recorder.background_compress = self.compress_in_background
         self.sinks.add(self.recorder, FILE)
         if start:
@@ -195,9 +197,7 @@ class AcquisitionSession:
                 self._markers = self.add_outlet(MarkerRecording(self.engine,
                                                                 self.marker_streams))
             except UserError:  # a named stream is missing: no recording, no empty file
-                self.stop_recording("requested")
-                wait_for_compression(path)
-                Path(path).unlink(missing_ok=True)
+                self.stop_recording("requested", discard=True)
                 raise
         self._emit("recording_started", path=str(path))
         return self.recorder
@@ -211,8 +211,10 @@ class AcquisitionSession:
         self._stop_rows = None if frames is None else int(frames)
         self._stop_all = disconnect
 
-    def stop_recording(self, reason: str = "requested") -> str | None:
-        """Finish the file; returns its path (None if nothing was recording)."""
+    def stop_recording(self, reason: str = "requested", discard: bool = False) -> str | None:
+        """Finish the file; returns its path (None if nothing was recording).
+        ``discard``: remove it instead, while it is still this recording's (one that
+        could not begin: no frame came, a named stream is missing)."""
         rec, self.recorder = self.recorder, None
         self._stop_at = self._stop_rows = None
         self._health = None
@@ -222,7 +224,7 @@ class AcquisitionSession:
         # idempotent: a collection session may have closed it already; the hours of
         # use are booked with it (storage/file_sink.py), never by the file writer
         self.sinks.remove(rec)
-        close_file_sink(rec)
+        close_file_sink(rec, discard=discard)
         eng = self.engine
         self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
         if rec.write_error:

@@ -13,7 +13,8 @@ from pathlib import Path
 
 from tactile_studio.errors import UserError
 
-# every file a run writes (run.py, report.py, the session writer's compression temp)
+# every file a run writes (run.py, report.py; and an older version's compression temp:
+# today's temporaries are unique per process and swept by the next claim of their file)
 RUN_FILES = ("characterisation.json", "calibration.json", "session.h5", "report.html",
              ".session.h5.compressing")
 RUN_FOLDERS = {"raw": "*.json", "figures": "*.png"}

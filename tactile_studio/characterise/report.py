@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.file_claims import replace_whole
 from tactile_studio.sensor.characterise import exp_settle_fit, two_range_fit
 from tactile_studio.sensor.layout import Layout
 
@@ -308,6 +309,6 @@ measure.</p>
 <table><tr><th>Taxel</th>{head}</tr>{rows}</table>
 {f'<h2>Array maps</h2><img src="{maps}" alt="maps">' if maps else ''}
 {''.join(sections)}</body></html>"""
-    (out_dir / "report.html").write_text(page)
+    replace_whole(out_dir / "report.html", lambda tmp: tmp.write_text(page))
     written.append(out_dir / "report.html")
     return written

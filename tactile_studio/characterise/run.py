@@ -29,6 +29,7 @@ from tactile_studio.characterise.sequences import (
 )
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.errors import UserError
+from tactile_studio.file_claims import claim_folder, replace_whole
 from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress, signals_deferred
 from tactile_studio.sensor.layout import get_layout
@@ -66,9 +67,8 @@ class RunControl(CancelToken):
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=float))
-    tmp.replace(path)
+    text = json.dumps(data, indent=1, default=float)
+    replace_whole(path, lambda tmp: tmp.write_text(text))
 
 
 def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
@@ -142,6 +142,10 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                          report: bool = True, overwrite: bool = False) -> dict[str, Any]:
     """Characterise ``taxels`` and return the result dict (also in characterisation.json).
 
+    The folder is claimed for the whole run (tactile_studio/file_claims.py): a second
+    run into it is refused in one line before it clears or writes anything (with
+    ``overwrite`` it would otherwise remove the running one's files).
+
     Raises Cancelled (after retracting and saving) when ``control`` is cancelled, and
     UserError subclasses for instrument problems, also after saving what was measured.
     ``on_point(taxel_name, point)`` sees every measured point (a live plot) and
@@ -151,8 +155,16 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     ``overwrite``: a folder that holds an earlier run is refused (UserError) unless set;
     then that run's files are removed first, so two runs are never mixed.
     """
-    control = control or RunControl()
-    out_dir = Path(out_dir)
+    with claim_folder(out_dir, "characterisation folder"):
+        return _characterise(device, stage, force, plan, taxels, Path(out_dir),
+                             sensor_id, progress, control or RunControl(), on_point, on_taxel,
+                             report, overwrite)
+
+
+def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, plan: Plan,
+                  taxels: list[int], out_dir: Path, sensor_id: str | None,
+                  progress: ProgressFn, control: RunControl, on_point: Any, on_taxel: Any,
+                  report: bool, overwrite: bool) -> dict[str, Any]:
     check_out_dir(out_dir, overwrite)
     clear_run(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -93,21 +93,23 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.sensor is not None:
         metadata["sensor_id"] = _sensor_for(device, args.sensor)
     engine = session.use_device(device, args.device)
-    # The recorder exists before the engine starts so the connect and tare events are kept.
-    session.start_recording(out, metadata=metadata)
+    # The recorder exists before the engine starts so the connect and tare events are
+    # kept. The file is claimed there: another writer of it (a second `record`, a
+    # listener, the GUI) is refused in one line before anything is recorded.
+    session.start_recording(out, metadata=metadata, overwrite=args.force)
     try:
         if args.lsl:
             session.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
         if args.markers:
             session.add_outlet(start_markers(engine, args.markers))
     except UserError:
+        session.stop_recording(discard=True)  # removed while still ours
         session.close()
-        out.unlink(missing_ok=True)
         raise
     session.start()
     if not engine.wait_frames(1, timeout=FIRST_FRAME_TIMEOUT_S):
+        session.stop_recording(discard=True)
         session.close()
-        out.unlink(missing_ok=True)
         raise UserError(engine.error or f"{device_label(device)}: no frames within "
                         f"{FIRST_FRAME_TIMEOUT_S:g} s "
                         "(is it switched on and sending?)")

@@ -18,6 +18,7 @@ import numpy as np
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
+from tactile_studio.file_claims import written_whole
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
@@ -151,15 +152,12 @@ def coverage_line(cal: dict[str, Any], replace_hint: str = "--replace drops them
 
 
 def _write_atomic(path: Path, data: dict[str, Any]) -> None:
-    """Write via a temporary file and rename: the file is whole or absent."""
-    tmp = path.with_name(path.name + ".tmp")
-    try:
-        tmp.write_text(json.dumps(data, indent=1, default=str), encoding="utf-8")
-        os.replace(tmp, path)
-    except OSError:
-        if tmp.is_file():  # a full disk's half-written copy goes, the fault is raised
-            tmp.unlink()
-        raise
+    """Whole or absent, and one writer at a time (tactile_studio/file_claims.py): written
+    to a temporary of this process's own and published under the file's claim (a full
+    disk's half-written copy goes; a file another calibration is writing is refused)."""
+    text = json.dumps(data, indent=1, default=str)
+    written_whole(path, lambda tmp: tmp.write_text(text, encoding="utf-8"),
+                  what="calibration file")
 
 
 def decode_session(path: str | os.PathLike, calibration_id: int | None = None,

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.file_claims import written_whole
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 from tactile_studio.sensor.wellness import channel_label, parse_taxel
 
@@ -146,5 +147,8 @@ def write_report(path: str | os.PathLike, title: str, result: dict[str, Any],
                      f"{result['rms_pct_max']:.2f}%</p>")
         parts.extend(_figures_calibration(result))
     parts.append("</body></html>")
-    path.write_text("\n".join(parts), encoding="utf-8")
+    page = "\n".join(parts)
+    # whole or not at all (a cut report of a stored check would pass for the whole one),
+    # one writer at a time
+    written_whole(path, lambda tmp: tmp.write_text(page, encoding="utf-8"), what="report")
     return path

@@ -5,12 +5,14 @@ whoever ran it.
 
 Resume: a session file whose writer was killed cannot be reopened for writing (HDF5's
 SWMR "open for write" flag stays set), and appending to a file in place risks the very
-trials we want to keep. So a resume copies everything the file holds (frames, baselines,
-events, trials, counters) into a fresh file next to it and flushes it; keeps the original as
-``<name>.bak-N.h5`` (a hard link, else a copy) and then moves the copy onto the original
-name with ``os.replace`` (atomic on POSIX), so a complete session is at that name at
-every instant. The copy's writer stays open and recording continues in it at the next
-trial of the stored block order.
+trials we want to keep. So a resume claims the file (one writer per file: a recording or
+another resume of it is refused, tactile_studio/file_claims.py), copies everything it
+holds (frames, baselines, events, trials, counters) into a staged file of its own next
+to it and flushes it; keeps the original as ``<name>.bak-N.h5`` (a hard link, else a
+copy; never over an existing backup) and then publishes the copy onto the original name
+with ``os.replace`` (atomic on POSIX), so a complete session is at that name at every
+instant. The copy's writer stays open and recording continues in it at the next trial of
+the stored block order.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
+from tactile_studio.file_claims import first_free
 from tactile_studio.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
@@ -114,13 +117,13 @@ def touch_source(engine: AcquisitionEngine, virtual: bool = False) -> str:
     return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 
-def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:
-    """``DIR/P01_shear9_20250101-120000.h5`` (a suffix keeps it unique)."""
+def session_names(out_dir: Path, participant: str, protocol: Protocol
+                  ) -> Callable[[int], Path]:
+    """The k-th candidate name of a new session: ``P01_shear9_<time>.h5``, then ``-2``,
+    ``-3``... The writer's claim decides (``first_free``): two collections that start in
+    one second in one folder both record, each into its own file."""
     stem = f"{participant}_{protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}"
-    path, n = out_dir / f"{stem}.h5", 2
-    while path.exists():
-        path, n = out_dir / f"{stem}-{n}.h5", n + 1
-    return path
+    return lambda k: out_dir / (f"{stem}.h5" if k == 0 else f"{stem}-{k + 1}.h5")
 
 
 def session_metadata(protocol: Protocol, participant: str, seed: int, orders: list[list[str]],
@@ -151,7 +154,6 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     out = Path(out_dir)
     if not out.is_dir():
         raise UserError(f"{out}: output folder does not exist")
-    target = Path(path) if path is not None else session_path(out, participant, protocol)
     orders = block_orders(protocol, participant, seed)
     practice = practice_order(protocol, participant, seed)
     meta = session_metadata(protocol, participant, seed, orders, practice, condition)
@@ -159,8 +161,13 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
     restore = quiet_simulator(engine)  # before the file: its settings say idle
+    make = _factory(engine, recorder)
     try:
-        rec = _factory(engine, recorder)(target, meta)
+        if path is not None:  # the caller's name: refused if taken or being written
+            rec = make(Path(path), meta)
+        else:
+            rec = first_free(session_names(out, participant, protocol),
+                             lambda p: make(p, meta))
     except BaseException:
         if restore is not None:
             engine.device.set_gesture(restore)
@@ -168,7 +175,7 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
-    return CollectionSession(runner, rec, engine, target, protocol, participant, seed,
+    return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
                              touches=touch_source(engine), restore_gesture=restore)
 
 
@@ -177,9 +184,11 @@ def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> Recorde
         return make
 
     def plain(path: Path, metadata: dict[str, Any], *, row_offset: int = 0,
-              base_counters: dict[str, Any] | None = None, start: bool = True) -> Recorder:
+              base_counters: dict[str, Any] | None = None, start: bool = True,
+              overwrite: bool = False, staged: bool = False) -> Recorder:
         return open_file_sink(engine, path, metadata, row_offset=row_offset,
-                              base_counters=base_counters, start=start)
+                              base_counters=base_counters, start=start,
+                              overwrite=overwrite, staged=staged)
 
     return plain
 
@@ -205,21 +214,36 @@ def read_resume_info(path: str | os.PathLike,
                 "frames": old.n_frames}
 
 
-def _backup_path(path: Path) -> Path:
+def _backup_name(path: Path, n: int) -> Path:
+    return path.with_name(f"{path.stem}.bak-{n}{path.suffix}")
+
+
+def _keep_backup(path: Path) -> Path:
+    """The original under the first free ``.bak-N`` name: a hard link (instant, same
+    bytes), else a copy; never over an existing backup (a name taken meanwhile, by a
+    copy of the folder or a user, is skipped). Returns it."""
     n = 1
     while True:
-        cand = path.with_name(f"{path.stem}.bak-{n}{path.suffix}")
-        if not cand.exists():
-            return cand
+        backup = _backup_name(path, n)
         n += 1
-
-
-def _keep_backup(path: Path, backup: Path) -> None:
-    """The original under a new name: a hard link (instant, same bytes), else a copy."""
-    try:
-        os.link(path, backup)
-    except OSError:
-        shutil.copy2(path, backup)
+        if os.path.lexists(backup):
+            continue
+        try:
+            os.link(path, backup)
+            return backup
+        except FileExistsError:
+            continue
+        except OSError:  # no hard links here: a copy, created exclusively
+            try:
+                with open(path, "rb") as src, open(backup, "xb") as dst:
+                    shutil.copyfileobj(src, dst, 1 << 20)
+            except FileExistsError:
+                continue
+            except BaseException:
+                backup.unlink(missing_ok=True)
+                raise
+            shutil.copystat(path, backup)
+            return backup
 
 
 class OtherSensorRefused(UserError):
@@ -345,8 +369,6 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     if other and not note:
         raise OtherSensorRefused(path, other)
     restore = quiet_simulator(engine)  # before the copy: its settings say idle
-    tmp = path.with_name(f".{path.name}.resuming")
-    backup = _backup_path(path)
     with Session(path) as old:
         meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
         meta["session_id"] = old.session_id  # kept (derived once for files without one)
@@ -358,25 +380,32 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                                      "device": engine.device_info()}]
         n = old.n_frames
         after = last_device_time(old)
-        if tmp.exists():
-            tmp.unlink()
-        rec = _factory(engine, recorder)(tmp, meta, row_offset=n,
-                                         base_counters=old.journal.counters, start=False)
-        trials = rec.copy_earlier(old, COPY_CHUNK)
-    if engine.baseline is not None:
-        rec.add_baseline(engine.baseline, n)
-    # a new recording segment: a device clock that starts again continues the file's
-    # (shifted one nominal frame after its last time); the recorder writes the resume
-    # event with the offset once the first frame shows which clock the device has
-    rate = float(engine.nominal_rate_hz or 0.0)
-    rec.begin_segment(after, 1.0 / rate if rate > 0 else 0.0, from_file=path.name,
-                      backup=backup.name, trials=len(trials))
-    if other:
-        rec.add_note(f"resumed on another sensor ({other}): {note}", frame=n)
-    rec.flush()
-    _keep_backup(path, backup)
-    os.replace(tmp, path)  # atomic: there is a complete session at ``path`` at every instant
-    rec.follow_rename(path)  # the open file moved with it; close() reopens it by name
+        # the file is claimed here (a recording or another resume of it is refused
+        # before anything is copied); the copy is staged beside it until published
+        rec = _factory(engine, recorder)(path, meta, row_offset=n,
+                                         base_counters=old.journal.counters, start=False,
+                                         overwrite=True, staged=True)
+        try:
+            trials = rec.copy_earlier(old, COPY_CHUNK)
+        except BaseException:
+            rec.stop(discard=True)  # the staged copy goes; the file is as it was
+            raise
+    try:
+        if engine.baseline is not None:
+            rec.add_baseline(engine.baseline, n)
+        # a new recording segment: a device clock that starts again continues the file's
+        # (shifted one nominal frame after its last time); the recorder writes the resume
+        # event with the offset once the first frame shows which clock the device has
+        rate = float(engine.nominal_rate_hz or 0.0)
+        backup = _keep_backup(path)
+        rec.begin_segment(after, 1.0 / rate if rate > 0 else 0.0, from_file=path.name,
+                          backup=backup.name, trials=len(trials))
+        if other:
+            rec.add_note(f"resumed on another sensor ({other}): {note}", frame=n)
+        rec.publish()  # atomic: a complete session is at ``path`` at every instant
+    except BaseException:
+        rec.stop(discard=True)
+        raise
     rec.start()
     protocol = info["protocol"]
     runner = CollectionRunner(protocol, engine, rec, info["participant"],

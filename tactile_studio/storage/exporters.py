@@ -26,6 +26,7 @@ from tactile_studio.storage.file_names import check_name
 from tactile_studio.storage.importers._common import (
     check_outputs,
     frame_interval,
+    naming_the_file,
     write_through_part,
 )
 from tactile_studio.storage.importers.maps import normalise_participant
@@ -107,8 +108,7 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
             labels[t["start_sample"]:t["end_sample"]] = ord(key)
         raw, baseline = s.raw(), s.baseline(0)
         times = _frame_times(s)
-    def shown(fraction: float, message: str = "") -> None:
-        progress(fraction, message.replace(f".{out.name}.part", out.name))
+    shown = naming_the_file(progress)
     return write_through_part(out, lambda tmp: write_shearsense_csv(
         tmp, raw, times, labels, baseline, progress=shown, cancel=cancel))
 

@@ -49,7 +49,8 @@ class Recorder:
     def __init__(self, engine: RecordableStream, path: str | os.PathLike,
                  metadata: dict[str, Any] | None = None, poll_s: float = 0.05,
                  flush_interval: float = 0.5, *, row_offset: int = 0,
-                 base_counters: dict[str, Any] | None = None) -> None:
+                 base_counters: dict[str, Any] | None = None, overwrite: bool = False,
+                 staged: bool = False) -> None:
         self.engine = engine
         self.row_offset = int(row_offset)
         self.base_counters = dict(base_counters or {})
@@ -63,8 +64,11 @@ class Recorder:
         self.recorded = 0  # frames this recorder took from the engine (for hours of use)
         self.usage_booked = False  # set by storage/sensor_book.book_usage (once)
         self.background_compress = False  # stop() compresses on a worker thread
+        # the file is claimed here: a second writer of it is refused before anything is
+        # recorded (SessionWriter; ``overwrite``, ``staged`` as there)
         self.writer = SessionWriter(path, engine.layout, engine.device_info(), metadata,
-                                    flush_interval=flush_interval)
+                                    flush_interval=flush_interval, overwrite=overwrite,
+                                    staged=staged)
         self.poll_s = poll_s
         self.dropped = 0
         # (first lost engine frame, first kept one after it, frames dropped before it)
@@ -183,9 +187,10 @@ class Recorder:
         self.writer.add_event("resume", frame=self.row_offset, segment=True,
                               device_time_offset=self.device_time_offset, **detail)
 
-    def follow_rename(self, path: str | os.PathLike) -> None:
-        """The open file was moved to ``path`` (resume); closing reopens it there."""
-        self.writer.follow_rename(path)
+    def publish(self) -> None:
+        """A staged file (a resume's copy) takes its name now and records on there."""
+        with self._lock:
+            self.writer.publish()
 
     # ---- what else goes into the file ----------------------------------------------------
     def add_event(self, kind: str, **detail: Any) -> None:
@@ -288,11 +293,12 @@ class Recorder:
         self._thread.start()
         return self
 
-    def stop(self, background_compress: bool | None = None) -> None:
+    def stop(self, background_compress: bool | None = None, discard: bool = False) -> None:
         """Write what is left, then close the file cleanly (once; later calls do nothing).
         With ``background_compress`` (default: the attribute, which a GUI's session sets)
         the file is compressed on a worker thread (a GUI caller does not freeze; the
-        complete uncompressed file is there meanwhile)."""
+        complete uncompressed file is there meanwhile). ``discard``: the file is removed
+        instead, under its claim (a recording that could not begin: no frame came)."""
         if background_compress is None:
             background_compress = self.background_compress
         if self.stopped:
@@ -312,7 +318,10 @@ class Recorder:
                 except WriteFailed as exc:
                     self.write_error = str(exc)
         self._release()
-        self.writer.close(background=background_compress)  # after a write error: no writes
+        if discard:
+            self.writer.discard()
+        else:
+            self.writer.close(background=background_compress)  # after a write error: none
         if self.write_error is None and self.writer.failed:  # the closing touches failed
             self.write_error = self.writer.failed
         _OPEN.discard(self)

@@ -21,11 +21,14 @@ import logging
 import os
 import threading
 import zlib
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+from tactile_studio.file_claims import temp_beside
 
 FILTERS = {"compression": "gzip", "compression_opts": 1, "shuffle": True}
 LIVE_CHUNK_BYTES = 64 * 1024  # uncompressed chunks while recording: ~1.5 min at 43 Hz
@@ -58,14 +61,17 @@ def _copy_compressed(src: h5py.Dataset, dst_group: h5py.Group, name: str, n: int
         ds[i:j] = src[i:j]
 
 
-def compress_session_file(path: str | os.PathLike) -> Path:
+def compress_session_file(path: str | os.PathLike, tmp: str | os.PathLike | None = None
+                          ) -> Path:
     """Rewrite a closed session file with compressed, right-sized chunks, atomically.
 
     The original stays in place until the compressed copy is complete; if the swap is
     refused (another program holds the file open on Windows) the uncompressed file is kept.
+    The copy is written to ``tmp`` (default: a name of this process's own, so two
+    compressions never share one; the session writer passes one of its claim's).
     """
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.compressing")
+    tmp = Path(tmp) if tmp is not None else temp_beside(path, "compressing")
     try:
         with h5py.File(path, "r", locking=False) as src, \
                 h5py.File(tmp, "w", libver="latest", locking=False) as dst:
@@ -103,9 +109,11 @@ _pending_lock = threading.Lock()
 _log = logging.getLogger(__name__)
 
 
-def compress_in_background(path: str | os.PathLike) -> threading.Thread:
+def compress_in_background(path: str | os.PathLike, tmp: str | os.PathLike | None = None,
+                           then: Callable[[], None] | None = None) -> threading.Thread:
     """Compress a closed session file on a worker thread, so stopping a recording does
-    not freeze the window that asked (1-2 s per 100k frames).
+    not freeze the window that asked (1-2 s per 100k frames); ``then()`` runs after it,
+    however it ended (the session writer releases its claim on the file there).
 
     Until the swap the uncompressed file is complete and readable, so nothing is at risk;
     the thread is not a daemon, so the interpreter finishes it before exiting. A failure
@@ -115,13 +123,17 @@ def compress_in_background(path: str | os.PathLike) -> threading.Thread:
 
     def work() -> None:
         try:
-            compress_session_file(path)
+            compress_session_file(path, tmp)
         except Exception as exc:  # the uncompressed file stays: say so, lose nothing
             _log.warning("%s: left uncompressed (%s)", path, exc)
         finally:
-            with _pending_lock:
-                if _pending.get(path) is threading.current_thread():
-                    del _pending[path]
+            try:
+                if then is not None:
+                    then()
+            finally:
+                with _pending_lock:
+                    if _pending.get(path) is threading.current_thread():
+                        del _pending[path]
 
     wait_for_compression(path)
     thread = threading.Thread(target=work, name=f"compress {path.name}")

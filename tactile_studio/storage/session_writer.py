@@ -31,6 +31,7 @@ import numpy as np
 
 from tactile_studio import __version__
 from tactile_studio.errors import SessionFileError
+from tactile_studio.file_claims import NameTaken, claim
 from tactile_studio.output_faults import fault_line
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.aux_signals import AuxSignal, write_aux
@@ -99,25 +100,52 @@ class SessionWriter:
 
     def __init__(self, path: str | os.PathLike, layout: Layout, device_info: dict[str, Any],
                  metadata: dict[str, Any] | None = None, flush_interval: float = 0.5,
-                 aux: list[AuxSignal] | None = None) -> None:
-        """``aux``: auxiliary signals (storage/aux_signals.py), written before SWMR."""
-        self.path = Path(path)
+                 aux: list[AuxSignal] | None = None, *, overwrite: bool = False,
+                 staged: bool = False) -> None:
+        """``aux``: auxiliary signals (storage/aux_signals.py), written before SWMR.
+
+        One writer per file (tactile_studio/file_claims.py): ``path`` is claimed for as
+        long as this writer lives (its background compression too); a second writer is
+        refused (``FileBusy``) before anything is written. An existing file is replaced
+        only with ``overwrite`` (``NameTaken`` otherwise). ``staged`` writes to a
+        temporary name that appears at ``path`` whole, at :meth:`publish` or at a clean
+        :meth:`close` (an import); :meth:`discard` leaves nothing."""
+        self.path = Path(path)  # the session's name; ``file`` is where its bytes are now
         self.layout = layout
         self.flush_interval = flush_interval
+        self.overwrite = overwrite
         self._lock = threading.RLock()
         if self.path.parent and not self.path.parent.exists():
             raise SessionFileError(f"{self.path}: folder {self.path.parent} does not exist")
-        wait_for_compression(self.path)  # an earlier recording's swap must not land on us
+        wait_for_compression(self.path)  # this process's earlier recording lets go first
         try:
+            self._claim = claim(self.path, "session file")
+        except OSError as exc:
+            raise SessionFileError(fault_line(exc) or f"{self.path}: cannot create session "
+                                   f"file ({exc})") from None
+        self.file = self._claim.temp("part") if staged else self.path
+        self.published = not staged
+        try:
+            if not overwrite and os.path.lexists(self.path):
+                raise NameTaken(f"{self.path}: already exists; not overwritten")
             # a chunk cache of two live chunks: the chunk being filled stays in memory.
             # h5py's default (1 MiB per dataset) made a 1 kHz recording's memory grow by
-            # ~40 KB/s for as long as it ran (benchmarks/bench_soak.py)
-            self._f = h5py.File(self.path, "w", libver="latest", locking=False,
+            # ~40 KB/s for as long as it ran (benchmarks/bench_soak.py). "x": created
+            # here, never an existing file (a temporary is new by its name)
+            self._f = h5py.File(self.file, "w" if overwrite and not staged else "x",
+                                libver="latest", locking=False,
                                 rdcc_nbytes=2 * LIVE_CHUNK_BYTES)
         except OSError as exc:
+            self._claim.release()
+            if not overwrite and not staged and os.path.lexists(self.file):
+                # made meanwhile by a program that does not claim: "x" refused it
+                raise NameTaken(f"{self.path}: already exists; not overwritten") from None
             line = fault_line(exc)  # read-only, full, no permission: the plain cause
             raise SessionFileError(line or f"{self.path}: cannot create session file ({exc})"
                                    ) from None
+        except BaseException:
+            self._claim.release()
+            raise
         f, c = self._f, layout.n_channels
         f.attrs["format"] = FORMAT
         f.attrs["schema_version"] = SCHEMA_VERSION
@@ -155,11 +183,16 @@ class SessionWriter:
         self._record({"type": "metadata", "update": self.metadata})
         self.flush()
 
-    def follow_rename(self, path: str | os.PathLike) -> None:
-        """The open file was renamed to ``path`` (an atomic replace during resume):
-        :meth:`close` reopens it there for its final touches."""
+    def publish(self) -> None:
+        """A staged file appears at its name now, open and recording on (a resume: the
+        copy of the earlier file replaces it). Atomic; with ``overwrite`` it replaces
+        what is there, else :class:`NameTaken` if the name was taken meanwhile."""
         with self._lock:
-            self.path = Path(path)
+            if self.published:
+                return
+            self.flush()
+            self._claim.publish(self.file, self.overwrite)
+            self.file, self.published = self.path, True
 
     # ---- frames ----------------------------------------------------------------------
     @property
@@ -283,7 +316,8 @@ class SessionWriter:
     def close(self, compress: bool = True, background: bool = False) -> None:
         """Flush, close, write human-readable copies of the journal as attributes, and
         (unless ``compress`` is False) rewrite the file compressed, on a worker thread
-        with ``background`` (see :func:`compress_in_background`)."""
+        with ``background`` (see :func:`compress_in_background`). A staged file is
+        published then (its failure raises); the claim is released last."""
         with self._lock:
             if self._closed:
                 return
@@ -299,10 +333,11 @@ class SessionWriter:
                     self._f.close()
                 except (OSError, RuntimeError):
                     pass
+                self._let_go(keep=self.published)
                 return
             self._f.close()
         try:
-            with h5py.File(self.path, "r+", locking=False) as f:
+            with h5py.File(self.file, "r+", locking=False) as f:
                 j = read_journal(f)
                 f.attrs["metadata_json"] = json.dumps(j.metadata, default=_jsonable)
                 f.attrs["events_json"] = json.dumps(j.events, default=_jsonable)
@@ -310,14 +345,48 @@ class SessionWriter:
         except (OSError, RuntimeError) as exc:  # closed cleanly; only the copies are missing
             self.failed = describe_write_error(self.path, exc)
             self.failed_errno = write_errno(exc)
+            self._let_go(keep=self.published)
             return
-        if compress and background:
-            compress_in_background(self.path)
-        elif compress:
+        if compress and background and self.published:
+            # the claim is held until the compressed file is in place
+            compress_in_background(self.file, self._claim.temp("compressing"),
+                                   then=self._claim.release)
+            return
+        try:
+            if compress:
+                try:
+                    compress_session_file(self.file, self._claim.temp("compressing"))
+                except (OSError, RuntimeError):  # e.g. no room for the copy: kept as it is
+                    pass
+            if not self.published:
+                self._claim.publish(self.file, self.overwrite)
+                self.file, self.published = self.path, True
+        except BaseException:
+            self._let_go(keep=self.published)  # a recording stays; a staged copy goes
+            raise
+        self._claim.release()
+
+    def discard(self) -> None:
+        """Close and remove the file (a cancelled or failed import, a recording that got
+        no frame): nothing is left at the name, and a staged writer never touched it."""
+        with self._lock:
+            if not self._claim.held:  # closed and let go: the name is another's now
+                return
+            self._closed = True
             try:
-                compress_session_file(self.path)
-            except (OSError, RuntimeError):  # e.g. no room for the copy: keep it uncompressed
+                self._f.close()
+            except (OSError, RuntimeError, ValueError):
                 pass
+            self._let_go(keep=False)
+
+    def _let_go(self, keep: bool) -> None:
+        """Remove the file unless ``keep``, then release the claim."""
+        if not keep:
+            try:
+                os.unlink(self.file)
+            except OSError:
+                pass
+        self._claim.release()
 
     def __enter__(self) -> SessionWriter:
         return self

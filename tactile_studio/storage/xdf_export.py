@@ -35,7 +35,11 @@ from tactile_studio import __version__
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.channels import RAW, frame_channels
-from tactile_studio.storage.importers._common import check_outputs, write_through_part
+from tactile_studio.storage.importers._common import (
+    check_outputs,
+    naming_the_file,
+    write_through_part,
+)
 from tactile_studio.storage.session import Session, measured_rate_hz
 from tactile_studio.storage.xdf_writer import XdfWriter
 
@@ -269,8 +273,7 @@ def export_xdf(path: str | os.PathLike, out_dir: str | os.PathLike,
         out = Path(out_dir) / f"{s.path.stem}.xdf"
         check_outputs([out], force)
         streams = session_streams(s)
-    def shown(fraction: float, message: str = "") -> None:  # the file, not its .part
-        progress(fraction, message.replace(f".{out.name}.part", out.name))
+    shown = naming_the_file(progress)  # the file, not its temporary
     write_through_part(out, lambda tmp: write_xdf(tmp, streams, shown, cancel))
     progress(1.0, f"{out.name}: {len(streams)} streams, {len(streams[0].stamps)} frames")
     return out

@@ -10,7 +10,6 @@ killed run never leaves half a cache entry.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import importlib
 import json
@@ -22,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio import __version__, paths
+from tactile_studio.file_claims import replace_whole
 
 CACHE_FORMAT = 2  # 2: each trial's session condition
 
@@ -63,20 +63,16 @@ def save(ds, key: str, cache_dir: str | os.PathLike | None = None) -> Path:
     meta = {"label_names": ds.label_names, "layout": ds.layout, "grid": ds.grid,
             "has_shear": ds.has_shear, "sources": ds.sources, "format": CACHE_FORMAT,
             "trial_s": ds.trial_s}
-    tmp = path.with_suffix(f".tmp{os.getpid()}.npz")
-    try:
-        np.savez(tmp, frames=np.concatenate(ds.trials, axis=1),
-                 offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
-                 labels=ds.labels, participants=ds.participants.astype(str),
-                 uids=np.array(ds.uids, dtype=str), rates=ds.rates,
-                 conditions=ds.trial_conditions().astype(str),
-                 meta=np.array(json.dumps(meta)))
-        os.replace(tmp, path)
-    except BaseException:
-        # a full disk: the cut file (the size of the data) must not stay, one per run
-        with contextlib.suppress(OSError):
-            tmp.unlink(missing_ok=True)
-        raise
+    def write(tmp: Path) -> None:  # a full disk's cut file goes (file_claims), one per run
+        with open(tmp, "wb") as fh:  # a handle: np.savez would add ".npz" to the name
+            np.savez(fh, frames=np.concatenate(ds.trials, axis=1),
+                     offsets=np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64),
+                     labels=ds.labels, participants=ds.participants.astype(str),
+                     uids=np.array(ds.uids, dtype=str), rates=ds.rates,
+                     conditions=ds.trial_conditions().astype(str),
+                     meta=np.array(json.dumps(meta)))
+
+    replace_whole(path, write)  # a temporary of this process's own: builds never mix
     return path
 
 

@@ -18,7 +18,7 @@ import os
 import tempfile
 import warnings
 from collections.abc import Callable
-from contextlib import contextmanager, suppress
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -27,6 +27,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
+from tactile_studio.file_claims import written_whole
 
 OPSET = 17
 
@@ -101,16 +102,13 @@ def _save_onnx(proto: Any, metadata: dict[str, str], path: Path, what: str) -> P
     for key, value in metadata.items():
         entry = proto.metadata_props.add()
         entry.key, entry.value = str(key), str(value)
-    # written beside it and renamed: a disk filling up part way leaves no cut model that
-    # would pass for one (and an earlier export of it stays as it was)
-    part = path.with_name(f".{path.name}.part")
+    # written beside it and published under its claim (file_claims): a disk filling up
+    # part way leaves no cut model that would pass for one (and an earlier export of it
+    # stays as it was); two exports to one name never mix
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        onnx.save_model(proto, str(part))
-        os.replace(part, path)
+        written_whole(path, lambda part: onnx.save_model(proto, str(part)), what=what)
     except OSError as exc:
-        with suppress(OSError):  # a read-only place may refuse even this
-            part.unlink(missing_ok=True)
         raise UserError(f"{path}: cannot write the {what} ({exc.strerror or exc})") from None
     return path
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from tactile_studio import __version__
 from tactile_studio.errors import Cancelled, UserError
+from tactile_studio.file_claims import claim_folder
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.data.dataset import TrialDataset, build_dataset
 from tactile_studio.learn.data.splits import make_folds, with_shots
@@ -292,8 +293,11 @@ def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = Non
     config.validate()
     # a run folder that cannot be written part way: one line, the finished folds kept
     faults = RunFolder(out).kept_on_fault() if out is not None else nullcontext()
-    with _torch_threads(config.threads), faults:
-        return _run(config, out, progress, cancel, listener, model_spec, dataset)
+    with faults:
+        # one writer per run folder: claimed before any data is read, for the whole run
+        held = claim_folder(out, "run folder") if out is not None else nullcontext()
+        with held, _torch_threads(config.threads):
+            return _run(config, out, progress, cancel, listener, model_spec, dataset)
 
 
 @contextmanager

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import IncompleteError, UserError
+from tactile_studio.file_claims import replace_whole
 from tactile_studio.learn.experiments.run_shapes import config_problem, fold_problem
 from tactile_studio.output_faults import WriteFault, said_on_fault
 from tactile_studio.storage.input_files import file_sha256
@@ -93,10 +94,10 @@ def naming(path: str | os.PathLike) -> Iterator[None]:
 
 
 def write_json(path: Path, data: Any) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with naming(tmp):
-        tmp.write_text(json.dumps(clean_json(data), indent=1, allow_nan=False))
-    os.replace(tmp, path)
+    """Whole or not at all: written to a temporary name of this process's own, then
+    renamed over ``path`` (a failed write leaves no temporary behind)."""
+    text = json.dumps(clean_json(data), indent=1, allow_nan=False)
+    replace_whole(path, lambda tmp: tmp.write_text(text))
 
 
 def read_json(path: Path) -> Any:

@@ -26,11 +26,13 @@ import re
 import tempfile
 import time
 from collections.abc import Callable
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import Cancelled, IncompleteError, UserError
+from tactile_studio.file_claims import claim_folder
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.experiments.executors import WorkerLost
@@ -153,11 +155,20 @@ def run_sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str 
     tasks
     are known and a :class:`~tactile_studio.learn.experiments.job_events.Task` as each one finishes
     (the GUI's per-task progress)."""
-    cancel = cancel or CancelToken()
-    listener = listener or (lambda event: None)
     if not models or not channel_sets:
         raise UserError("a sweep needs at least one model and one channel set")
     base.validate()
+    # one writer per sweep folder (file_claims): a second sweep into OUT is refused
+    # before any data is read
+    held = claim_folder(out, "sweep folder") if out is not None else nullcontext()
+    with held:
+        return _sweep(base, models, channel_sets, executor, out, progress,
+                      cancel or CancelToken(), listener or (lambda event: None))
+
+
+def _sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str | None],
+           executor, out: str | os.PathLike | None, progress: ProgressFn,
+           cancel: CancelToken, listener: SweepListener) -> SweepResult:
     progress(0.0, "reading data")
     full = build_dataset(base.data, base.grid, None, base.cache_dir, base.use_cache,
                          cancel=cancel)

@@ -1,9 +1,13 @@
 """What every importer shares: writing a finished session atomically, labelled runs,
-gesture names from the shipped protocols, progress slices."""
+gesture names from the shipped protocols, progress slices.
+
+Every importer writes its sessions through :func:`import_writer`: the output is claimed
+(one writer per file, tactile_studio/file_claims.py: a second import of the same name is
+refused in one line) and written under a temporary name that appears at the final name
+whole, when the writer closes cleanly, or not at all (cancelled, failed, killed)."""
 
 from __future__ import annotations
 
-import os
 import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -12,8 +16,10 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.file_claims import final_names_in, written_whole
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.segments import pauses
 from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
@@ -104,20 +110,33 @@ def pause_gaps(times: np.ndarray, cause: str) -> list[tuple[str, int, float, dic
             for a in pauses(times)]
 
 
+def import_writer(path: Path, layout: Layout, device_info: dict[str, Any],
+                  metadata: dict[str, Any], overwrite: bool = False,
+                  aux: list[AuxSignal] | None = None) -> SessionWriter:
+    """The one way an importer opens its output: claimed (``FileBusy`` while another
+    writer has the name), staged under a temporary name and published whole by
+    :func:`close_complete`; an existing file is replaced only with ``overwrite``
+    (``--force``). Flushed only at close: the file is hidden until it is complete."""
+    return SessionWriter(path, layout, device_info, metadata, flush_interval=1e9, aux=aux,
+                         overwrite=overwrite, staged=True)
+
+
 def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
                   metadata: dict[str, Any], raw: np.ndarray, times: np.ndarray,
                   baseline: np.ndarray | None, trials: list[dict[str, Any]],
                   counters: dict[str, Any] | None = None,
                   progress: ProgressFn | None = None,
                   cancel: CancelToken | None = None,
-                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = ()) -> Path:
-    """Write one complete session (``events``: (kind, row, time, detail)); a cancelled or
-    failed write leaves no file behind, and no frames write no file (``NoFramesError``)."""
+                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = (),
+                  overwrite: bool = False) -> Path:
+    """Write one complete session (``events``: (kind, row, time, detail)); a cancelled,
+    failed or killed write leaves nothing at ``path`` (:func:`import_writer`), and no
+    frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
     n = int(raw.shape[0])
     if n == 0:
         raise NoFramesError(f"{path.name}: no frames to write, nothing imported")
-    writer = SessionWriter(path, layout, device_info, metadata, flush_interval=1e9)
+    writer = import_writer(path, layout, device_info, metadata, overwrite)
     try:
         if baseline is not None:
             writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
@@ -139,26 +158,26 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
 def close_complete(writer: SessionWriter) -> None:
     """Close an import's writer and raise its write failure: the last frames reach the
     disk only at close (``flush_interval=1e9``), and a failure there (a full disk) would
-    otherwise leave a session cut short that says it was imported whole."""
+    otherwise leave a session cut short that says it was imported whole. The staged
+    file appears at its name here, whole (``NameTaken`` if the name was taken meanwhile
+    and ``--force`` was not given)."""
     writer.close()
     if writer.failed:
         raise WriteFailed(writer.failed, writer.failed_errno)
 
 
+def naming_the_file(progress: ProgressFn) -> ProgressFn:
+    """``progress`` whose messages name the file being written, never its temporary
+    (a writer given the temporary's path reports that name)."""
+    return lambda fraction, message="": progress(fraction, final_names_in(message))
+
+
 def write_through_part(path: Path, write: Callable[[Path], Any]) -> Path:
-    """``write(tmp)`` to ``.NAME.part`` beside ``path``, then rename it to ``path``: a
-    cancelled or failed export leaves no half file (a cut CSV or XDF would pass for a
-    whole one). A failed write names ``path`` (``fh.write`` errors name no file)."""
-    tmp = path.with_name(f".{path.name}.part")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    except BaseException as exc:
-        tmp.unlink(missing_ok=True)
-        if isinstance(exc, OSError) and exc.filename is None:
-            exc.filename = str(path)
-        raise
-    return path
+    """``write(tmp)`` to a temporary of this process's own beside ``path``, then publish
+    it at ``path`` under its claim (``file_claims.written_whole``): a cancelled, failed or
+    killed export leaves no half file (a cut CSV or XDF would pass for a whole one), and
+    two exports to one name never share a temporary (the second is refused)."""
+    return written_whole(path, write, what="output")
 
 
 def append_in_chunks(writer: SessionWriter, raw: np.ndarray, times: np.ndarray, name: str,
@@ -174,15 +193,10 @@ def append_in_chunks(writer: SessionWriter, raw: np.ndarray, times: np.ndarray, 
         progress(min(j / max(n, 1), 0.99), f"{name}: {j} of {n} frames")
 
 
-def _discard(writer: SessionWriter, path: Path) -> None:
-    try:
-        writer.close()
-    except Exception:  # noqa: BLE001 - the file is being thrown away anyway
-        pass
-    try:
-        os.unlink(path)
-    except OSError:
-        pass
+def _discard(writer: SessionWriter, path: Path | None = None) -> None:
+    """A failed or cancelled import's writer: its staged file goes, nothing appears at
+    its name (``path``: unused, kept for callers that name it)."""
+    writer.discard()
 
 
 def run_jobs(jobs: Sequence[Callable[[ProgressFn], Path]], progress: ProgressFn | None,

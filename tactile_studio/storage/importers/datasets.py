@@ -235,7 +235,7 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
             outputs[subject], spec.layout, device, metadata, table.channels[rows], times,
             np.zeros(spec.layout.n_channels), trials,
             counters={"malformed_by_kind": dict(table.malformed_by_kind)},
-            progress=p, cancel=cancel)
+            progress=p, cancel=cancel, overwrite=force)
 
     return run_jobs([job(s) for s in order], progress, 0.5, 1.0, on_done)
 

@@ -143,8 +143,10 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
                            cancel: CancelToken | None = None,
                            key_names: dict[str, str] | None = None,
                            participant_map: dict[str, str] | None = None,
-                           report: ShearSenseImport | None = None) -> Path:
-    """One ShearSense CSV -> one session file at ``out``.
+                           report: ShearSenseImport | None = None,
+                           force: bool = False) -> Path:
+    """One ShearSense CSV -> one session file at ``out`` (an existing one is replaced
+    only with ``force``).
 
     ``key_names``: key -> gesture name (default: the shear9 protocol's);
     ``participant_map``: normalised file-name participant -> id; ``report`` collects
@@ -183,7 +185,8 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
                                or RATE_HZ, 3)}
     write_session(out, SHEARSENSE_6X6, device, metadata, data.raw, data.times, data.baseline,
                   trials, counters={"malformed_by_kind": dict(data.malformed_by_kind)},
-                  progress=slice_progress(progress, 0.7, 1.0), cancel=cancel, events=gaps)
+                  progress=slice_progress(progress, 0.7, 1.0), cancel=cancel, events=gaps,
+                  overwrite=force)
     if report is not None:
         report.key_names, report.custom_keys = names, custom
         report.participants[spelled] = participant
@@ -218,7 +221,7 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
         raise _dup_error(pairs)
     check_outputs(targets, force)
     jobs = [lambda p, c=c, o=o: import_shearsense_file(c, o, p, cancel, key_names,
-                                                       participant_map, report)
+                                                       participant_map, report, force)
             for c, o in pairs]
     return run_jobs(jobs, progress, on_done=on_done,
                     skipped=report.no_frames if report is not None else None)

@@ -41,11 +41,11 @@ from tactile_studio.storage.importers._common import (
     check_outputs,
     close_complete,
     import_session_id,
+    import_writer,
     run_jobs,
 )
 from tactile_studio.storage.input_files import check_input_file, file_sha256
 from tactile_studio.storage.segments import is_segment_start
-from tactile_studio.storage.session_writer import SessionWriter
 
 # jitter removal fits a line per segment: a pause longer than max(BREAK_S, BREAK_SAMPLES
 # sample intervals) starts a new one (pyxdf's default, 500 samples, would smooth a
@@ -209,7 +209,8 @@ def _unnamed_breaks(segments: list[Any], events: list[tuple[str, int, float, dic
 
 def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
                  others: list[dict[str, Any]], aux: list[AuxSignal], meta: dict[str, Any],
-                 cancel: CancelToken | None) -> Callable[[ProgressFn], Path]:
+                 cancel: CancelToken | None, force: bool = False
+                 ) -> Callable[[ProgressFn], Path]:
     name = _stream_name(s)
     times = np.asarray(s["time_stamps"], dtype=np.float64)
     raw = np.asarray(s["time_series"])
@@ -237,7 +238,7 @@ def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout
 
     def job(progress: ProgressFn) -> Path:
         n = len(times)
-        writer = SessionWriter(out, lay, device, metadata, flush_interval=1e9, aux=aux)
+        writer = import_writer(out, lay, device, metadata, force, aux)  # whole or nothing
         try:
             for row, values in markers.baselines:
                 if len(values) == lay.n_channels:
@@ -322,7 +323,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
                     raise NoFramesError(line)
                 skipped.append(line)
                 continue
-            jobs.append(_session_job(path, out, sha, s, lay, markers, aux, meta, cancel))
+            jobs.append(_session_job(path, out, sha, s, lay, markers, aux, meta, cancel,
+                                     force))
     if not jobs and skipped:
         raise NoFramesError(skipped[0] if len(skipped) == 1 else
                             f"nothing imported: none of the {len(skipped)} tactile streams "
