@@ -6,17 +6,19 @@ import hashlib
 from pathlib import Path
 
 from tactile_studio.errors import UserError
+from tactile_studio.storage.file_guards import not_regular
 
 
 def check_input_file(path: Path, what: str, error: type[UserError] = UserError) -> int:
-    """Raise ``error`` naming ``path`` unless it is a non-empty file; return its size."""
-    if not path.exists():
-        raise error(f"{path}: no such file")
-    if path.is_dir():
-        raise error(f"{path}: is a folder, not a {what}")
+    """Raise ``error`` naming ``path`` unless it is a non-empty regular file (a FIFO
+    would block the first read, a device never end: storage/file_guards.py); return
+    its size. ``what``: "an XDF file", "a ShearSense CSV"..."""
+    why = not_regular(path, what)
+    if why:
+        raise error(f"{path}: {why}")
     size = path.stat().st_size
     if size == 0:
-        raise error(f"{path}: empty file, not a {what}")
+        raise error(f"{path}: empty file, not {what}")
     return size
 
 

@@ -185,7 +185,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
     from it), in a thread beside the parse."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, "ShearSense CSV", ShearSenseError)
+    size = check_input_file(path, "a ShearSense CSV", ShearSenseError)
     rows = _Rows()
     try:
         fh = open(path, "rb")

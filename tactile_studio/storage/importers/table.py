@@ -78,7 +78,7 @@ def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
     """Read a dataset table; see the module docstring. ``what`` names the format."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, f"{what} CSV", ImportFormatError)
+    size = check_input_file(path, f"a {what} CSV", ImportFormatError)
     with open(path, "rb") as fh:
         first = fh.readline(1 << 20)
         text = first.decode("utf-8", errors="replace").lstrip("\ufeff").strip()
