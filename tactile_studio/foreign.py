@@ -9,10 +9,12 @@ foreign thing goes through :func:`shown`.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from typing import Any
 
 SHOWN_CHARS = 80  # a foreign name or text quoted in a message, at most
+FILE_PART_CHARS = 60  # of a foreign name in a file name
 
 
 def shown(text: object, limit: int = SHOWN_CHARS) -> str:
@@ -32,3 +34,14 @@ def marker_content(values: Sequence[Any]) -> dict[str, Any]:
     if len(texts) == 1:
         return {"text": texts[0]}
     return {"text": " | ".join(texts), "channels": texts}
+
+
+def file_part(text: object, limit: int = FILE_PART_CHARS) -> str:
+    """A foreign name (a dataset's subject, an XDF stream's name) as one part of a file
+    name: letters, digits, ``.``, ``_`` and ``-`` only, at most ``limit`` characters, no
+    leading or trailing dot or dash ("a/b" -> "a-b", "../x" -> "x", "" -> "unnamed").
+    A separator, ``..``, a NUL or an escape sequence would otherwise make the name
+    another folder, a traceback or a command to the terminal that prints it."""
+    part = re.sub(r"[^A-Za-z0-9._-]+|\.\.+", "-", str(text))
+    part = re.sub(r"-{2,}", "-", part)[:limit].strip(".-")
+    return part or "unnamed"

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import os
 import re
-from collections import Counter
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -48,6 +47,22 @@ def check_outputs(paths: Sequence[Path], force: bool) -> None:
             raise UserError(f"{p}: already exists (use --force to overwrite)")
 
 
+def distinct_paths(paths: Sequence[Path]) -> list[Path]:
+    """``paths`` with any repeated one numbered ``-2``, ``-3``...: two sources named
+    alike (subjects "1" and "1.0" both P01, two XDF streams both "Mat") would
+    otherwise write one file twice, the second over the first."""
+    seen: set[Path] = set()
+    out = []
+    for p in paths:
+        q, k = p, 1
+        while q in seen:
+            k += 1
+            q = p.with_name(f"{p.stem}-{k}{p.suffix}")
+        seen.add(q)
+        out.append(q)
+    return out
+
+
 def labelled_runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
     """(start, end, label) of each run of equal non-zero labels; end is exclusive."""
     labels = np.asarray(labels)
@@ -57,39 +72,6 @@ def labelled_runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
     starts = np.concatenate(([0], change))
     ends = np.concatenate((change, [labels.size]))
     return [(int(s), int(e), int(labels[s])) for s, e in zip(starts, ends) if labels[s] != 0]
-
-
-def unrepresentable_rows(values: np.ndarray, dtype: str | np.dtype
-                         ) -> tuple[np.ndarray, Counter[str]]:
-    """Which rows of ``values`` hold a value the layout's raw ``dtype`` cannot store as
-    it is, and how many rows of each kind: ``not_finite`` (NaN, infinity),
-    ``out_of_range`` (beyond the type: 1e9 in 16-bit counts), ``not_whole`` (12.75 as a
-    count). A cast would turn them into other numbers (NaN -> 0, 1e9 -> 65535, 12.75 ->
-    12) that look like measurements, so importers leave such rows out and count them.
-    Float layouts keep any finite value within float32's range (to its precision)."""
-    dt = np.dtype(dtype)
-    v = np.asarray(values)
-    kinds: Counter[str] = Counter()
-    if v.dtype.kind in "iub" and dt.kind in "iu":
-        lim = np.iinfo(dt)
-        bad = ((v < lim.min) | (v > lim.max)).any(axis=1) if v.size else np.zeros(len(v), bool)
-        kinds["out_of_range"] = int(bad.sum())
-        return bad, +kinds
-    if v.dtype.kind not in "iubf":  # text, objects: nothing of it is a number we can keep
-        return np.ones(len(v), bool), Counter({"not_a_number": len(v)})
-    v = v.astype(np.float64, copy=False)
-    finite = np.isfinite(v)
-    lim = np.iinfo(dt) if dt.kind in "iu" else np.finfo(dt)
-    inside = np.abs(np.where(finite, v, 0.0)) <= lim.max if dt.kind == "f" else \
-        (np.where(finite, v, 0.0) >= lim.min) & (np.where(finite, v, 0.0) <= lim.max)
-    rows_nan = ~finite.all(axis=1)
-    rows_range = ~rows_nan & ~inside.all(axis=1)
-    rows_frac = np.zeros(len(v), bool)
-    if dt.kind in "iu":
-        rows_frac = ~rows_nan & ~rows_range & (np.where(finite, v, 0.0) % 1 != 0).any(axis=1)
-    kinds.update(not_finite=int(rows_nan.sum()), out_of_range=int(rows_range.sum()),
-                 not_whole=int(rows_frac.sum()))
-    return rows_nan | rows_range | rows_frac, +kinds
 
 
 def frame_interval(times: np.ndarray, default: float) -> float:

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import logging
 import os
-import re
 import warnings
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
@@ -38,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.foreign import shown
+from tactile_studio.foreign import file_part, shown
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.channels import RAW, layout_for_channels
 from tactile_studio.sensor.layout import Layout, get_layout
@@ -50,12 +49,12 @@ from tactile_studio.storage.importers._common import (
     append_in_chunks,
     check_outputs,
     close_complete,
+    distinct_paths,
     import_session_id,
     run_jobs,
-    unrepresentable_rows,
 )
 from tactile_studio.storage.importers.xdf_markers import MarkerReader
-from tactile_studio.storage.input_files import check_input_file, file_sha256
+from tactile_studio.storage.input_files import check_input_file, file_sha256, unrepresentable_rows
 from tactile_studio.storage.segments import is_segment_start
 from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.xdf_scan import MAX_RATE_HZ, XdfScan, checked_file, scan_xdf
@@ -67,7 +66,6 @@ BREAK_S, BREAK_SAMPLES = 0.2, 5
 TACTILE_TYPES = frozenset({"tactile", "touch", "pressure", ""})
 BIDS = {"sub": "participant", "ses": "session_label", "task": "task", "run": "run",
         "acq": "acquisition"}
-NAME_CHARS = 60  # of a stream's name in an output file name
 
 
 @dataclass
@@ -364,10 +362,7 @@ def load_xdf(path: Path) -> tuple[list[dict[str, Any]], XdfScan]:
 
 
 def _output_name(path: Path, s: dict[str, Any], several: bool) -> str:
-    if not several:
-        return f"{path.stem}.h5"
-    part = re.sub(r"[^A-Za-z0-9.-]+", "-", _stream_name(s))[:NAME_CHARS].strip(".-") or "stream"
-    return f"{path.stem}_{part}.h5"
+    return f"{path.stem}_{file_part(_stream_name(s))}.h5" if several else f"{path.stem}.h5"
 
 
 def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
@@ -417,7 +412,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
                                                   for line in problems)
             said.short.extend(problems)
         sha = file_sha256(path)
-        outs = [Path(out_dir) / _output_name(path, s, len(tactile) > 1) for s, _ in tactile]
+        outs = distinct_paths([Path(out_dir) / _output_name(path, s, len(tactile) > 1)
+                               for s, _ in tactile])
         check_outputs(outs, force)
         names = {_stream_name(s) for s, _ in tactile}
         for (s, lay), out in zip(tactile, outs):
