@@ -31,7 +31,6 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
-from tactile_studio.foreign import file_part
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
 from tactile_studio.storage.importers._common import (
@@ -183,9 +182,9 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     subjects = table.meta["subject"]
     order = list(dict.fromkeys(subjects[s] for s, _ in bounds))
     prefix = spec.name if spec is COST else f"{spec.name}_{path.stem}"
-    # a subject is the file's text: one safe part of a file name, never two alike
+    # two subjects alike ("1" and "1.0" are both P01) never write one file twice
     outputs = dict(zip(order, distinct_paths(
-        [out_dir / f"{prefix}_{file_part(participant_id(s))}.h5" for s in order])))
+        [out_dir / f"{prefix}_{participant_id(s)}.h5" for s in order])))
     check_outputs(list(outputs.values()), force)
     extra = [r for r in ("variant", "substrate", "cover") if r in table.meta]
     malformed = sum(table.malformed_by_kind.values())
