@@ -109,3 +109,28 @@ def test_two_xdf_streams_named_alike_write_two_sessions(tmp_path, capsys):
     for name, sid in (("twins_Mat.h5", 1), ("twins_Mat-2.h5", 2)):
         with Session(out / name) as s:
             np.testing.assert_array_equal(s.raw(), counts(100) + sid)
+
+
+def test_two_inputs_that_would_write_one_file_are_refused_before_any(tmp_path, capsys):
+    """day1/run1.xdf and day2/run1.xdf both made run1.h5: the second overwrote the first
+    and the import said "imported 2 session(s)". Now refused in one line, as ShearSense
+    CSVs of one name were already; two HAART training.csv files likewise."""
+    from test_import_export import haart_csvs
+    from test_xdf_hostile import write_xdf
+
+    for day in ("day1", "day2"):
+        (tmp_path / day).mkdir()
+        write_xdf(tmp_path / day / "run1.xdf")
+        haart_csvs(tmp_path / day)
+    out = tmp_path / "out"
+    out.mkdir()
+    for fmt, name, made in (("xdf", "run1.xdf", "run1.h5"),
+                            ("haart", "training.csv", "haart_training_<participant>.h5")):
+        code, _, err = run(capsys, "import", fmt, tmp_path / "day1" / name,
+                           tmp_path / "day2" / name, "--out", out)
+        assert code == 1
+        (line,) = err.strip().splitlines()[-1:]
+        assert line == (f"tactile-studio: error: {tmp_path / 'day2' / name}: same file name "
+                        f"as {tmp_path / 'day1' / name}; both would be written to "
+                        f"{out / made}")
+        assert not list(out.iterdir())

@@ -47,6 +47,18 @@ def check_outputs(paths: Sequence[Path], force: bool) -> None:
             raise UserError(f"{p}: already exists (use --force to overwrite)")
 
 
+def refuse_shared_outputs(pairs: Sequence[tuple[Path, Path]]) -> None:
+    """Refuse, before any work, two inputs that would write one output (``day1/run1.xdf``
+    and ``day2/run1.xdf`` both make ``run1.h5``: the second was written over the first,
+    and the import said it made two sessions; one file given twice, likewise)."""
+    seen: dict[Path, Path] = {}
+    for source, out in pairs:
+        if out in seen:
+            raise UserError(f"{source}: same file name as {seen[out]}; both would be "
+                            f"written to {out}")
+        seen.setdefault(out, source)
+
+
 def distinct_paths(paths: Sequence[Path]) -> list[Path]:
     """``paths`` with any repeated one numbered ``-2``, ``-3``...: two sources named
     alike (subjects "1" and "1.0" both P01, two XDF streams both "Mat") would

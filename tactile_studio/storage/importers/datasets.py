@@ -40,6 +40,7 @@ from tactile_studio.storage.importers._common import (
     load_protocol_or_none,
     norm_name,
     participant_id,
+    refuse_shared_outputs,
     run_jobs,
     slice_progress,
     write_session,
@@ -243,6 +244,9 @@ def import_haart(paths: list[str | os.PathLike] | str | os.PathLike, out_dir: st
     """HAART training.csv / testWITHLABELS.csv -> one session per (file, subject)."""
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
+    # a/training.csv and b/training.csv both make haart_training_P01.h5 ...
+    refuse_shared_outputs([(Path(p), Path(out_dir) / f"{HAART.name}_{Path(p).stem}_"
+                                        "<participant>.h5") for p in paths])
     progress = progress or no_progress
     out: list[Path] = []
     for i, p in enumerate(paths):

@@ -51,6 +51,7 @@ from tactile_studio.storage.importers._common import (
     close_complete,
     distinct_paths,
     import_session_id,
+    refuse_shared_outputs,
     run_jobs,
 )
 from tactile_studio.storage.importers.xdf_markers import MarkerReader
@@ -381,6 +382,7 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
     progress = progress or no_progress
     said = report or XdfReport()
     jobs: list[Callable[[ProgressFn], Path]] = []
+    sources: list[tuple[Path, Path]] = []  # (input, output) of every file so far
     for k, p in enumerate(paths):
         path = Path(p)
         streams, scan = load_xdf(path)
@@ -414,6 +416,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
         sha = file_sha256(path)
         outs = distinct_paths([Path(out_dir) / _output_name(path, s, len(tactile) > 1)
                                for s, _ in tactile])
+        sources += [(path, out) for out in outs]
+        refuse_shared_outputs(sources)
         check_outputs(outs, force)
         names = {_stream_name(s) for s, _ in tactile}
         for (s, lay), out in zip(tactile, outs):
