@@ -355,3 +355,44 @@ def test_names_from_the_file_reach_the_terminal_escaped(tmp_path, capsys):
     code, _, err = run(capsys, "import", "xdf", src, "--out", tmp_path)
     assert code == EXIT_ERROR
     assert "(streams: EDA\\r\\x9b2J (1 ch))" in error_line(err)
+
+
+# ---- a study of many files is read one file at a time -----------------------------------
+def eeg_run(path: Path) -> Path:
+    """A LabRecorder-like run: a small tactile stream beside 31 MB of 256-channel EEG."""
+    t = T0 + np.arange(400) / RATE
+    te = T0 + np.arange(15_000) / 500.0
+    with open(path, "wb") as fh:
+        w = XdfWriter(fh)
+        w.file_header()
+        w.stream_header(1, "Mat", "Tactile", 180, RATE, "int32", "mat-1", T0)
+        w.stream_header(2, "EEG", "EEG", 256, 500.0, "double64", "eeg-1", T0)
+        w.samples(1, "int32", t, counts())
+        w.samples(2, "double64", te, np.zeros((15_000, 256)))
+        w.stream_footer(1, t[0], t[-1], 400, [])
+        w.stream_footer(2, te[0], te[-1], 15_000, [])
+    return path
+
+
+def peak_kib(*argv) -> int:
+    """The peak resident memory (KiB) of the real command in a child process."""
+    code = ("import resource, sys; from tactile_studio.cli import main; rc = main(sys.argv[1:]);"
+            " print(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss); sys.exit(rc)")
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    done = subprocess.run([sys.executable, "-c", code, *map(str, argv)], capture_output=True,
+                          text=True, env=env, timeout=300)
+    assert done.returncode == EXIT_OK, done.stderr
+    return int(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+def test_importing_many_files_holds_one_file_at_a_time(tmp_path):
+    """Every file's streams (here 31 MB of EEG each, kept as auxiliary signals) were read
+    before the first session was written, so a study of hour-long runs ran out of memory;
+    now each file is read, written and let go: six files peak as one does."""
+    runs = [eeg_run(tmp_path / f"sub-P0{k}_run-1.xdf") for k in range(1, 7)]
+    one = peak_kib("import", "xdf", runs[0], "--out", tmp_path / "one")
+    six = peak_kib("import", "xdf", *runs, "--out", tmp_path / "six")
+    assert six - one < 40 * 1024, (one, six)  # each file held added its 31 MB
+    with Session(tmp_path / "six" / "sub-P06_run-1.h5") as s:
+        assert s.n_frames == 400 and s.aux_signals()[0].values.shape == (15_000, 256)

@@ -37,6 +37,7 @@ import xml.etree.ElementTree as ET
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -74,6 +75,7 @@ class StreamDecl:
     samples: int = 0
     footer_count: int | None = None
     has_footer: bool = False
+    info: dict[str, Any] = field(default_factory=dict)  # the header as pyxdf gives it
 
     @property
     def sample_bytes(self) -> int:
@@ -163,7 +165,17 @@ def stream_decl(sid: int, data: bytes) -> StreamDecl:
     if not (math.isfinite(rate) and 0.0 <= rate <= MAX_RATE_HZ):
         raise _Bad(f"nominal_srate {rate:g} Hz is not a plausible rate "
                    f"(0 = irregular, at most {MAX_RATE_HZ:,.0f} Hz)")
-    return StreamDecl(sid, name, fmt, channels, rate)
+    return StreamDecl(sid, name, fmt, channels, rate, info=xml_dict(info)["info"])
+
+
+def xml_dict(el: ET.Element) -> dict[str, Any]:
+    """An element as pyxdf gives one: ``{tag: {child: [...], ...}}`` or ``{tag: text}``,
+    so a header can be read before pyxdf reads the file."""
+    children: dict[str, list[Any]] = {}
+    for child in el:
+        for key, value in xml_dict(child).items():
+            children.setdefault(key, []).append(value)
+    return {el.tag: children or el.text}
 
 
 def _numeric_ends(buf: mmap.mmap, pos: int, end: int, n: int, values: int) -> int:
