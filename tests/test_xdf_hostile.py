@@ -173,8 +173,12 @@ def test_naming_a_text_stream_as_the_tactile_one_is_one_line(tmp_path, capsys):
     code, _, err = run(capsys, "import", "xdf", src, "--out", tmp_path, "--stream",
                        "Mat-markers")
     assert code == EXIT_ERROR and error_line(err) == (
-        "tactile-studio: error: stream 'Mat-markers' is a text (marker) stream, not a "
-        "tactile one: name a numeric stream with --stream")
+        f"tactile-studio: error: {src}: stream 'Mat-markers' is a text (marker) stream, not "
+        "a tactile one: name a numeric stream with --stream")
+    code, _, err = run(capsys, "import", "xdf", src, "--out", tmp_path, "--stream", "Mat",
+                       "--layout", "grid-0x5")
+    assert code == EXIT_ERROR and error_line(err) == (
+        f"tactile-studio: error: {src}: grid layout needs positive rows and columns, got 0x5")
     assert not list(tmp_path.glob("*.h5"))
 
 

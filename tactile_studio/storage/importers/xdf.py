@@ -42,6 +42,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.errors import UserError
 from tactile_studio.foreign import file_part, shown
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
@@ -140,8 +141,11 @@ def _plan(path: Path, scan: XdfScan, out_dir: Path, participant: str | None,
     refused = scan.refused_name(stream) if stream else ""
     if refused:
         raise ImportFormatError(f"{path}: {refused}")
-    tactile = [(h, lay) for h in headers
-               if (lay := tactile_layout(h, stream, layout)) is not None]
+    try:
+        tactile = [(h, lay) for h in headers
+                   if (lay := tactile_layout(h, stream, layout)) is not None]
+    except UserError as exc:  # the named stream or layout does not fit: say which file
+        raise ImportFormatError(f"{path}: {exc}") from None
     if not tactile:
         names = ", ".join(f"{shown(stream_name(h))} ({int(text(h['info'], 'channel_count'))}"
                           " ch)" for h in headers) or "none"
