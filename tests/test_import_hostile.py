@@ -15,9 +15,8 @@ from pathlib import Path
 
 import numpy as np
 from csv_fixtures import labelled_csv
-from test_xdf_hostile import counts
+from test_xdf_hostile import counts, run
 
-from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_OK
 from tactile_studio.storage import Session
 from tactile_studio.storage.xdf_writer import XdfWriter
@@ -30,13 +29,6 @@ def cost_csv(path: Path, subjects: list[str], n: int = 40) -> Path:
             for s in subjects for k in range(n)]
     path.write_text(COST_HEADER + "\n" + "\n".join(rows) + "\n", encoding="utf-8")
     return path
-
-
-def run(capsys, *argv) -> tuple[int, str, str]:
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    assert "Traceback" not in err
-    return code, out, err
 
 
 def test_two_subjects_named_alike_write_two_files(tmp_path, capsys):

@@ -14,6 +14,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
+from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.segments import pauses
 from tactile_studio.storage.session_writer import SessionWriter, WriteFailed
@@ -138,17 +139,23 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
                   counters: dict[str, Any] | None = None,
                   progress: ProgressFn | None = None,
                   cancel: CancelToken | None = None,
-                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = ()) -> Path:
-    """Write one complete session (``events``: (kind, row, time, detail)); a cancelled or
-    failed write leaves no file behind, and no frames write no file (``NoFramesError``)."""
+                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = (),
+                  baselines: Sequence[tuple[int, Sequence[float]]] = (),
+                  aux: list[AuxSignal] | None = None) -> Path:
+    """Write one complete session (``events``: (kind, row, time, detail); ``baseline``
+    in force from row 0, ``baselines`` (row, values) from their rows; ``aux``: other
+    instruments' signals); a cancelled or failed write leaves no file behind, and no
+    frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
     n = int(raw.shape[0])
     if n == 0:
         raise NoFramesError(f"{path.name}: no frames to write, nothing imported")
-    writer = SessionWriter(path, layout, device_info, metadata, flush_interval=1e9)
+    writer = SessionWriter(path, layout, device_info, metadata, flush_interval=1e9, aux=aux)
     try:
         if baseline is not None:
             writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
+        for row, values in baselines:
+            writer.add_baseline(np.asarray(values, dtype=np.float64), row)
         if counters:
             writer.set_counters(counters)
         append_in_chunks(writer, raw, times, path.name, progress, cancel)

@@ -20,16 +20,13 @@ from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.importers._common import (
     NoFramesError,
-    _discard,
-    append_in_chunks,
-    close_complete,
     import_session_id,
+    write_session,
 )
 from tactile_studio.storage.importers.xdf_info import ours, stream_name, text
 from tactile_studio.storage.importers.xdf_markers import MarkerReader
 from tactile_studio.storage.input_files import unrepresentable_rows
 from tactile_studio.storage.segments import is_segment_start
-from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.xdf_scan import MAX_RATE_HZ
 
 
@@ -172,26 +169,12 @@ def session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
 
     def job(progress: ProgressFn) -> Path:
         n = len(times)
-        writer = SessionWriter(out, lay, device, metadata, flush_interval=1e9, aux=aux)
-        try:
-            if frames.left_out:
-                writer.set_counters({"malformed_by_kind": dict(frames.left_out)})
-            for row, values in markers.baselines:
-                writer.add_baseline(np.asarray(values), row)
-            append_in_chunks(writer, frames.raw, times, out.name, progress, cancel)
-            for a in _unnamed_breaks(segments, markers.events):
-                if 0 < a < n:
-                    writer.add_event("gap", a, float(times[a]), cause="xdf",
-                                     seconds=round(float(times[a] - times[a - 1]), 6))
-            for kind, row, t, detail in markers.events:
-                writer.add_event(kind, row, t, **detail)
-            for trial in trials:
-                writer.add_trial(trial)
-            close_complete(writer)
-        except BaseException:
-            _discard(writer, out)
-            raise
-        progress(1.0, f"{out.name}: {n} frames, {len(trials)} trials")
-        return out
+        gaps = [("gap", a, float(times[a]), {"cause": "xdf",
+                                              "seconds": round(float(times[a] - times[a - 1]), 6)})
+                for a in _unnamed_breaks(segments, markers.events) if 0 < a < n]
+        return write_session(out, lay, device, metadata, frames.raw, times, None, trials,
+                             {"malformed_by_kind": dict(frames.left_out)}
+                             if frames.left_out else None, progress, cancel,
+                             gaps + markers.events, markers.baselines, aux)
 
     return job
