@@ -410,7 +410,7 @@ def test_a_non_finite_device_setting_is_named_in_the_collection_setup(qtbot, tmp
 
 def _xdf(path: Path, mats: dict[str, int]) -> Path:
     """An XDF file with a 64-channel pressure mat per name, each with that many samples."""
-    from test_xdf import chunk, header_xml, numeric_samples
+    from test_xdf import chunk, footer, header_xml, numeric_samples
 
     parts = [b"XDF:", chunk(1, b'<?xml version="1.0"?><info><version>1.0</version></info>')]
     for k, name in enumerate(mats, 1):
@@ -419,6 +419,7 @@ def _xdf(path: Path, mats: dict[str, int]) -> Path:
         if n:
             t = 10.0 + np.arange(n) / 100.0
             parts.append(chunk(3, numeric_samples(t, np.full((n, 64), 5.0, np.float32), "f"), k))
+    parts += [footer(k, n) for k, n in enumerate(mats.values(), 1)]
     path.write_bytes(b"".join(parts))
     return path
 

@@ -187,3 +187,41 @@ def test_the_collection_console_records_markers_from_collect_markers(qtbot, tmp_
     console.close()
     with Session(path) as s:
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["block cue"]
+
+
+def test_a_numeric_stream_named_as_markers_is_said_to_be_found_but_not_text(tmp_path, capsys):
+    """Was "not a string stream within 5 s (is the program running?)" although found."""
+    name = unique("eda")
+    outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "EDA", 1, 32, pylsl.cf_float32,
+                                                 f"{name}-src"))
+    rc = main(["record", "--device", "simulated", "--seconds", "1", "--out",
+               str(tmp_path / "s.h5"), "--markers", name])
+    err = capsys.readouterr().err
+    del outlet
+    assert rc == 1 and "Traceback" not in err
+    (line,) = [ln for ln in err.splitlines() if ln.startswith("tactile-studio:")]
+    assert line == (f"tactile-studio: error: lsl: stream '{name}' was found but is a float32 "
+                    "stream, not a string (marker) stream: name the program's marker stream")
+    assert not (tmp_path / "s.h5").exists()
+
+
+def test_a_marker_stream_of_two_channels_keeps_both(tmp_path, capsys):
+    """Only the first channel was stored."""
+    name = unique("stim2")
+    outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "Markers", 2, pylsl.IRREGULAR_RATE,
+                                                 pylsl.cf_string, f"{name}-src"))
+    out = tmp_path / "s.h5"
+    sent: list[tuple[str, float]] = []
+
+    class Pairs:  # push_when_connected pushes [text]: this outlet takes two channels
+        def push_sample(self, sample, ts):
+            outlet.push_sample([sample[0], "left"], ts)
+
+    pusher = push_when_connected(Pairs(), ["cue"], 0.05, sent, out)
+    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "3",
+               "--out", str(out), "--markers", name])
+    pusher.join(WAIT_S)
+    assert rc == 0, capsys.readouterr().err
+    with Session(out) as s:
+        (m,) = [e for e in s.events if e["kind"] == "marker"]
+    assert (m["text"], m["channels"]) == ("cue | left", ["cue", "left"])

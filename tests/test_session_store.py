@@ -198,3 +198,21 @@ def test_events_at_rows_a_truncation_cut_are_kept_at_the_last_row(tmp_path):
         assert [(e["kind"], e["frame"]) for e in s.events] == [("session_end", 5),
                                                                 ("stream_silent", 5)]
     assert check_file(path).ok
+
+
+def test_a_detail_never_overwrites_a_journal_records_own_fields(tmp_path):
+    """The mechanism under the importers: whoever hands a writer a detail named like the
+    record's own fields (type, kind, frame, time; a trial's type) is told at once, and
+    nothing is written."""
+    with SessionWriter(tmp_path / "s.h5", LAYOUT, {"plugin": "counting"}) as w:
+        w.append_frames(np.zeros((3, 4), np.float32), np.arange(3.0), np.arange(3.0))
+        with pytest.raises(ValueError, match="event record: detail would overwrite its own "
+                                             "field"):
+            w.add_event("note", 1, 1.0, type="metadata", update={"layout": "x"})
+        with pytest.raises(ValueError, match="trial record"):
+            w.add_trial({"type": "metadata", "index": 0, "gesture": "Poke",
+                         "start_sample": 0, "end_sample": 2})
+        w.add_event("note", 1, 1.0, text="kept")
+    with Session(tmp_path / "s.h5") as s:
+        assert s.layout.name == LAYOUT.name and s.trials == []
+        assert [e["kind"] for e in s.events] == ["note"]

@@ -133,6 +133,15 @@ def header_xml(name, type_, n, rate, fmt, extra=""):
             f"<desc>{extra}</desc></info>").encode()
 
 
+def footer(stream_id, n, first=0.0, last=0.0):
+    """A StreamFooter chunk (LabRecorder writes one per stream when it stops; a file
+    without them is a recording that did not end)."""
+    xml = (f'<?xml version="1.0"?><info><first_timestamp>{first}</first_timestamp>'
+           f"<last_timestamp>{last}</last_timestamp><sample_count>{n}</sample_count>"
+           "<clock_offsets></clock_offsets></info>").encode()
+    return chunk(6, xml, stream_id)
+
+
 def numeric_samples(stamps, values, code):
     out = [b"\x04" + struct.pack("<I", len(stamps))]
     for t, row in zip(stamps, values):
@@ -181,6 +190,7 @@ def foreign_xdf(path):
         parts.append(chunk(4, struct.pack("<dd", 1000.5 + 2 * k, -998.75), 2))
     parts.append(chunk(3, string_samples([1001.0, 1004.0], ["start", "stop"]), 3))
     parts.append(chunk(4, struct.pack("<dd", 1001.0, 0.0), 3))
+    parts += [footer(1, 600), footer(2, 192), footer(3, 2)]
     path.write_bytes(b"".join(parts))
     return mat, eda
 
@@ -250,7 +260,8 @@ def test_import_xdf_refuses_a_file_without_tactile_stream_in_one_line(tmp_path, 
     src = tmp_path / "eda_only.xdf"
     src.write_bytes(b"XDF:" + chunk(1, b"<info><version>1.0</version></info>")
                     + chunk(2, header_xml("Shimmer-EDA", "EDA", 1, 32, "double64"), 1)
-                    + chunk(3, numeric_samples([1.0, 1.03], [[1.0], [2.0]], "d"), 1))
+                    + chunk(3, numeric_samples([1.0, 1.03], [[1.0], [2.0]], "d"), 1)
+                    + footer(1, 2))
     rc = main(["import", "xdf", str(src), "--out", str(tmp_path)])
     err = capsys.readouterr().err
     lines = [ln for ln in err.splitlines() if "error:" in ln]
@@ -262,7 +273,7 @@ def test_import_xdf_refuses_a_file_without_tactile_stream_in_one_line(tmp_path, 
     (tmp_path / "bad.xdf").write_bytes(b"not an xdf")
     rc = main(["import", "xdf", str(tmp_path / "bad.xdf"), "--out", str(tmp_path)])
     err = capsys.readouterr().err
-    assert rc == 1 and "bad.xdf: not a readable XDF file" in err and "Traceback" not in err
+    assert rc == 1 and "bad.xdf: not an XDF file" in err and "Traceback" not in err
 
 
 def test_a_session_recorded_while_streaming_exports_the_stamps_the_outlet_sent(tmp_path,

@@ -15,7 +15,7 @@ from pathlib import Path
 import pylsl
 from collect_fixtures import do_trial, make_rig, mini_protocol, start
 from lsl_fixtures import WAIT_S, Collector, unique
-from test_xdf import chunk, numeric_samples, string_samples
+from test_xdf import chunk, footer, numeric_samples, string_samples
 
 from tactile_studio.cli import main
 from tactile_studio.storage import Session
@@ -33,6 +33,7 @@ def write_like_labrecorder(path: Path, collectors: list[Collector]) -> None:
         else:
             parts.append(chunk(3, numeric_samples(c.stamps, c.samples, "i"), sid))
         parts.append(chunk(4, struct.pack("<dd", now + 1.0, 0.0), sid))
+    parts += [footer(sid, len(c.stamps)) for sid, c in enumerate(collectors, 1)]
     path.write_bytes(b"".join(parts))
 
 

@@ -92,9 +92,10 @@ def cmd_import(args: argparse.Namespace) -> int:
     make_out_dir(args.out)
     from tactile_studio.storage.importers import import_cost, import_haart
     from tactile_studio.storage.importers.shearsense import import_shearsense_study
+    from tactile_studio.storage.importers.xdf import XdfReport
 
     token = CancelToken()
-    skipped: list[str] = []  # inputs without frames: listed, never a 0-frame session
+    said = XdfReport()  # xdf: streams without frames, what was imported short, notes
     written: list[Path] = []
     with kept_when_full(written, "session", "imported"), ctrl_c_cancels(token), \
             _bar(f"import {args.import_format}") as bar:
@@ -111,7 +112,7 @@ def cmd_import(args: argparse.Namespace) -> int:
             from tactile_studio.storage.importers.xdf import import_xdf
 
             out = import_xdf(args.files, args.out, args.participant, args.stream, args.layout,
-                             bar, token, args.force, done, skipped)
+                             bar, token, args.force, done, said)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:
@@ -120,7 +121,9 @@ def cmd_import(args: argparse.Namespace) -> int:
         for line in report.lines():  # its files without frames among them
             print(line)
     elif args.import_format == "xdf":
-        for line in skipped:
+        # one problem of an import short of its file is the error line itself
+        shorts = said.short if len(said.short) > 1 or said.skipped else []
+        for line in (*said.skipped, *shorts, *said.notes):
             print(line)
     else:
         from tactile_studio.storage.importers.datasets import COST, HAART, numbering_line
@@ -129,9 +132,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     if args.import_format == "shearsense" and report.no_frames:  # listed above
         raise IncompleteError(f"{len(report.no_frames)} of {len(args.files)} file(s) not "
                               "imported (no frames after the baseline row)")
-    if skipped:
-        raise IncompleteError(f"{len(skipped)} tactile stream(s) not imported (no samples; "
-                              "listed above)")
+    if said.skipped:
+        raise IncompleteError(f"{len(said.skipped)} tactile stream(s) not imported (no "
+                              "samples; listed above)")
+    if said.short:
+        raise IncompleteError(said.short[0] if len(said.short) == 1 else
+                              f"imported short of what the files recorded: "
+                              f"{len(said.short)} problems (listed above)")
     return 0
 
 

@@ -186,6 +186,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         notes = [] if summary["closed_cleanly"] else [
             "cut short (writes failed), recovered" if summary.get("cut_short")
             else "not closed cleanly (recovered)"]
+        if summary["closed_cleanly"] and summary.get("cut_short"):
+            notes.append("imported cut short")
         if f in backups:
             notes.append("resume backup")
         lost = sum(summary["frames_lost"].values())
@@ -209,6 +211,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
 
 
 def _closed_text(summary: dict[str, Any]) -> str:
+    source = summary["metadata"].get("source_incomplete")
+    if summary["closed_cleanly"] and source:
+        return f"cleanly; imported short of its source file: {source}"
     if summary["closed_cleanly"]:
         return "cleanly"
     if summary.get("cut_short"):

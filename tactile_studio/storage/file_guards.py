@@ -40,8 +40,9 @@ _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character de
           (stat.S_ISDIR, "a folder"))
 
 
-def not_regular(path: str | os.PathLike) -> str:
-    """Why ``path`` (links followed) is not a regular file to read ("" when it is)."""
+def not_regular(path: str | os.PathLike, what: str = "a session file") -> str:
+    """Why ``path`` (links followed) is not a regular file to read ("" when it is);
+    ``what`` it should have been (an importer's "an XDF file")."""
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
@@ -51,7 +52,7 @@ def not_regular(path: str | os.PathLike) -> str:
     if stat.S_ISREG(mode):
         return ""
     kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
-    return f"{kind}, not a session file"
+    return f"{kind}, not {what}"
 
 
 def check_regular_file(path: Path) -> None:

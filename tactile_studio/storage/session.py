@@ -283,7 +283,8 @@ class Session:
             "reconnects": sum(1 for e in self.events if e.get("kind") == "reconnect"),
             "frames_lost": self.frames_lost(),
             "closed_cleanly": self.closed_cleanly,
-            "cut_short": self.cut_short,
+            # or imported from a file cut short or damaged (importers/xdf.py)
+            "cut_short": self.cut_short or bool(self.metadata.get("source_incomplete")),
             "layout": self.layout.name,
             "events": [_user_blocks(e) for e in self.events],
             "metadata": self.metadata,

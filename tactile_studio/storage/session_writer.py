@@ -21,7 +21,7 @@ import re
 import threading
 import time
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -53,6 +53,19 @@ def _jsonable(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def own_record(fields: dict[str, Any], detail: Mapping[str, Any]) -> dict[str, Any]:
+    """A journal record: its own ``fields`` (type, kind, frame, time, index), then
+    ``detail``. A detail key naming one of them would rewrite what the record is (an
+    event's ``type: trial`` becomes a trial; ``type: metadata`` replaces the metadata):
+    a caller's bug, since foreign content (an imported marker, another program's) is
+    kept as values under names the caller chose, so it raises instead."""
+    clash = sorted(fields.keys() & detail.keys())
+    if clash:
+        raise ValueError(f"{fields['type']} record: detail would overwrite its own "
+                         f"field(s) {', '.join(clash)}")
+    return {**fields, **detail}
 
 
 class WriteFailed(SessionFileError):
@@ -282,9 +295,9 @@ class SessionWriter:
     def add_event(self, kind: str, frame: int | None = None, time_s: float | None = None,
                   **detail: Any) -> None:
         """An event at file row ``frame`` (default: the next frame to be written)."""
-        self._record({"type": "event", "kind": kind,
-                      "frame": self._n if frame is None else int(frame),
-                      "time": time.time() if time_s is None else time_s, **detail})
+        self._record(own_record({"type": "event", "kind": kind,
+                                 "frame": self._n if frame is None else int(frame),
+                                 "time": time.time() if time_s is None else time_s}, detail))
 
     def add_baseline(self, values: np.ndarray, frame: int | None = None) -> None:
         self._record({"type": "baseline", "frame": self._n if frame is None else int(frame),
@@ -292,10 +305,10 @@ class SessionWriter:
 
     def add_trial(self, trial: dict[str, Any]) -> None:
         """A trial record; must carry an ``index``. Later updates merge by index."""
-        self._record({"type": "trial", **trial})
+        self._record(own_record({"type": "trial"}, trial))
 
     def update_trial(self, index: int, **changes: Any) -> None:
-        self._record({"type": "trial_update", "index": int(index), **changes})
+        self._record(own_record({"type": "trial_update", "index": int(index)}, changes))
 
     def set_counters(self, counters: dict[str, Any]) -> None:
         """Device counters (malformed by kind, gaps, ...) for this session; last one wins."""

@@ -20,7 +20,8 @@ Malformed rows are skipped and counted by kind:
 
 * ``unparsable`` -- a field that is empty or not a plain non-negative number;
 * ``merged_number`` -- a channel value above 65535 (two counts run together);
-* ``short_row`` / ``long_row`` -- fewer / more than 183 fields otherwise.
+* ``short_row`` / ``long_row`` -- fewer / more than 183 fields otherwise (a "line" of
+  more than 1 MiB too: storage/input_files.LineBlocks).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.storage.input_files import check_input_file
+from tactile_studio.storage.input_files import LineBlocks, check_input_file
 from tactile_studio.storage.shearsense_format import (
     HEADER,
     MALFORMED_KINDS,
@@ -185,7 +186,7 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
     from it), in a thread beside the parse."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, "ShearSense CSV", ShearSenseError)
+    size = check_input_file(path, "a ShearSense CSV", ShearSenseError)
     rows = _Rows()
     try:
         fh = open(path, "rb")
@@ -193,25 +194,16 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         raise ShearSenseError(f"{path}: cannot be read ({exc.strerror})") from None
     hasher = _FileHash(path) if digest else None
     with fh:
-        header = fh.readline(1 << 20)
-        _check_header(path, header)
-        done = len(header)
-        rest = b""
-        while True:
+        lines = LineBlocks(fh, _BLOCK_BYTES)
+        _check_header(path, lines.first_line())
+        for data in lines.blocks():
             if cancel is not None:
                 cancel.check()
-            chunk = fh.read(_BLOCK_BYTES)
-            data = rest + chunk
-            if not chunk:
-                if data.strip():
-                    rows.add(data + b"\n")
-                break
-            cut = data.rfind(b"\n") + 1
-            rest = data[cut:]
-            if cut:
-                rows.add(data[:cut])
-            done += len(chunk)
-            progress(min(done / size, 0.99), f"{path.name}: {_megabytes(done, size)}")
+            rows.add(data if data.endswith(b"\n") else data + b"\n")
+            progress(min(lines.done / size, 0.99), f"{path.name}: "
+                     f"{_megabytes(lines.done, size)}")
+        if lines.overlong:
+            rows.kinds["long_row"] += lines.overlong
     raw = rows.joined("raw", np.empty((0, N_CHANNELS), dtype=np.uint16))
     times = rows.joined("times", np.empty(0))
     touched = rows.joined("touched", np.empty(0, dtype=bool))

@@ -8,7 +8,9 @@ clock with the inlet's ``time_correction()`` and on the host clock (the frames'
 ``host = ts + correction - offset_s``. It becomes an engine event ``marker`` (``text``,
 ``stream``, ``lsl_time``, ``time_correction``, ``offset_s``, ``source: lsl``) at the frame
 whose host time is nearest, so the recorder writes it at that row and the player and
-exports show it. A marker stamped ahead of the newest frame waits for that frame.
+exports show it. What the sender says is content: a sample of several channels keeps
+each (``channels``; ``text`` joins them: foreign.marker_content), and is never read as
+fields of our records. A marker stamped ahead of the newest frame waits for that frame.
 
 A stream that disappears (its sender quit) is reported once: an engine event
 ``marker_stream_lost`` and ``on_problem(message)``. Each stream's start is an event
@@ -25,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import DeviceNotFound
+from tactile_studio.foreign import marker_content, shown
 from tactile_studio.streams.clock import measure_offset
 from tactile_studio.streams.lsl_lib import load_pylsl
 
@@ -32,6 +35,8 @@ FIND_TIMEOUT_S = 5.0
 PULL_S = 0.05
 WAIT_FOR_FRAME_S = 1.0   # a marker ahead of the frames gets the newest frame after this
 LOOKBACK = 8192          # frames searched back for a marker's frame
+# liblsl's channel_format codes (pylsl's cf_*)
+FORMAT_NAMES = {1: "float32", 2: "double64", 4: "int32", 5: "int16", 6: "int8", 7: "int64"}
 
 
 class MarkerInlets:
@@ -49,17 +54,21 @@ class MarkerInlets:
         for name in dict.fromkeys(names):
             found = self.pylsl.resolve_byprop("name", name, 1, find_timeout)
             strings = [i for i in found if i.channel_format() == self.pylsl.cf_string]
+            if found and not strings:
+                fmt = FORMAT_NAMES.get(found[0].channel_format(), "numeric")
+                raise DeviceNotFound(f"lsl: stream '{shown(name)}' was found but is a {fmt} "
+                                     "stream, not a string (marker) stream: name the "
+                                     "program's marker stream")
             if not strings:
-                what = "is not a string (marker) stream" if found else "was not found"
-                raise DeviceNotFound(f"lsl: marker stream '{name}' {what} within "
-                                     f"{find_timeout:g} s (is the program that sends it "
-                                     "running?)")
+                raise DeviceNotFound(f"lsl: marker stream '{shown(name)}' was not found "
+                                     f"within {find_timeout:g} s (is the program that "
+                                     "sends it running?)")
             inlet = self.pylsl.StreamInlet(strings[0], max_buflen=360, recover=False)
             try:
                 inlet.open_stream(find_timeout)
                 correction = float(inlet.time_correction(find_timeout))
             except Exception:  # noqa: BLE001 - pylsl's LostError / TimeoutError
-                raise DeviceNotFound(f"lsl: marker stream '{name}' went away while "
+                raise DeviceNotFound(f"lsl: marker stream '{shown(name)}' went away while "
                                      "connecting to it") from None
             info = strings[0]
             engine.add_event("marker_stream", stream=name, source_id=info.source_id(),
@@ -102,7 +111,7 @@ class MarkerInlets:
                 self.inlets[k] = (name, inlet, correction)
             for sample, ts in zip(samples, stamps):
                 lsl_time = float(ts) + correction
-                detail = {"text": str(sample[0]), "stream": name, "lsl_time": lsl_time,
+                detail = {**marker_content(sample), "stream": name, "lsl_time": lsl_time,
                           "time_correction": correction, "offset_s": self.offset.offset_s,
                           "source": "lsl"}
                 self._pending.append((self.offset.to_host(lsl_time), detail, time.monotonic()))
@@ -111,7 +120,7 @@ class MarkerInlets:
     def _lost(self, name: str) -> None:
         self.lost.append(name)
         self.engine.add_event("marker_stream_lost", stream=name)
-        self.on_problem(f"lsl: marker stream '{name}' disappeared (its sender stopped); "
+        self.on_problem(f"lsl: marker stream '{shown(name)}' disappeared (its sender stopped); "
                         "later markers from it are not recorded")
 
     def _place(self, final: bool = False) -> None:

@@ -10,7 +10,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QFormLayout, QLineEdit, QWidget
 
-from tactile_studio.storage.importers.xdf import import_xdf
+from tactile_studio.storage.importers.xdf import XdfReport, import_xdf
 from tactile_studio.ui.research.import_base import ImportDialogBase, ImportJob
 
 
@@ -29,7 +29,7 @@ class XdfImportDialog(ImportDialogBase):
     CLI_WORDS = (("--stream NAME --layout L", "Tactile stream and Its layout"),)
 
     def __init__(self, parent: QWidget | None = None) -> None:
-        self.skipped: list[str] = []  # tactile streams without samples (no session written)
+        self.said = XdfReport()  # streams not imported, imported short, notes
         super().__init__(parent)
 
     def add_fields(self, form: QFormLayout) -> None:
@@ -49,11 +49,13 @@ class XdfImportDialog(ImportDialogBase):
         participant = self.participant.text().strip() or None
         stream = self.stream.text().strip() or None
         layout = self.layout_name.text().strip() or None
-        self.skipped = []
+        self.said = XdfReport()
         return lambda progress, cancel: import_xdf(
             files, out, participant, stream, layout, progress, cancel, force, written,
-            self.skipped)
+            self.said)
 
     def finished_text(self, out: str, result: Any) -> str:
         return (f"Imported {len(result)} session(s) into {out}; they are listed in the "
-                "Sessions tab." + "".join(f"\nNot imported: {line}" for line in self.skipped))
+                "Sessions tab." + "".join(f"\nNot imported: {line}" for line in self.said.skipped)
+                + "".join(f"\nImported short: {line}" for line in self.said.short)
+                + "".join(f"\nNote: {line}" for line in self.said.notes))

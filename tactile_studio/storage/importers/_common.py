@@ -53,6 +53,34 @@ def check_outputs(paths: Sequence[Path], force: bool) -> None:
             raise UserError(f"{p}: already exists (use --force to overwrite)")
 
 
+def refuse_shared_outputs(pairs: Sequence[tuple[Path, Path]]) -> None:
+    """Refuse, before any work, two inputs that would write one output (``day1/run1.xdf``
+    and ``day2/run1.xdf`` both make ``run1.h5``: the second was written over the first,
+    and the import said it made two sessions; one file given twice, likewise)."""
+    seen: dict[Path, Path] = {}
+    for source, out in pairs:
+        if out in seen:
+            raise UserError(f"{source}: same file name as {seen[out]}; both would be "
+                            f"written to {out}")
+        seen.setdefault(out, source)
+
+
+def distinct_paths(paths: Sequence[Path]) -> list[Path]:
+    """``paths`` with any repeated one numbered ``-2``, ``-3``...: two sources named
+    alike (subjects "1" and "1.0" both P01, two XDF streams both "Mat") would
+    otherwise write one file twice, the second over the first."""
+    seen: set[Path] = set()
+    out = []
+    for p in paths:
+        q, k = p, 1
+        while q in seen:
+            k += 1
+            q = p.with_name(f"{p.stem}-{k}{p.suffix}")
+        seen.add(q)
+        out.append(q)
+    return out
+
+
 def labelled_runs(labels: np.ndarray) -> list[tuple[int, int, int]]:
     """(start, end, label) of each run of equal non-zero labels; end is exclusive."""
     labels = np.asarray(labels)
@@ -128,18 +156,23 @@ def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
                   progress: ProgressFn | None = None,
                   cancel: CancelToken | None = None,
                   events: Sequence[tuple[str, int, float, dict[str, Any]]] = (),
-                  overwrite: bool = False) -> Path:
-    """Write one complete session (``events``: (kind, row, time, detail)); a cancelled,
+                  baselines: Sequence[tuple[int, Sequence[float]]] = (),
+                  aux: list[AuxSignal] | None = None, overwrite: bool = False) -> Path:
+    """Write one complete session (``events``: (kind, row, time, detail); ``baseline``
+    in force from row 0, ``baselines`` (row, values) from their rows; ``aux``: other
+    instruments' signals); a cancelled,
     failed or killed write leaves nothing at ``path`` (:func:`import_writer`), and no
     frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
     n = int(raw.shape[0])
     if n == 0:
         raise NoFramesError(f"{path.name}: no frames to write, nothing imported")
-    writer = import_writer(path, layout, device_info, metadata, overwrite)
+    writer = import_writer(path, layout, device_info, metadata, overwrite, aux)
     try:
         if baseline is not None:
             writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
+        for row, values in baselines:
+            writer.add_baseline(np.asarray(values, dtype=np.float64), row)
         if counters:
             writer.set_counters(counters)
         append_in_chunks(writer, raw, times, path.name, progress, cancel)

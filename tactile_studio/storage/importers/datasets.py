@@ -37,10 +37,12 @@ from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
 from tactile_studio.storage.file_names import shown_name
 from tactile_studio.storage.importers._common import (
     check_outputs,
+    distinct_paths,
     import_session_id,
     load_protocol_or_none,
     norm_name,
     participant_id,
+    refuse_shared_outputs,
     run_jobs,
     slice_progress,
     write_session,
@@ -196,7 +198,9 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     order = list(dict.fromkeys(subjects[s] for s, _ in bounds))
     prefix = spec.name if spec is COST else f"{spec.name}_{path.stem}"
     people = {s: _participant_of(path, s) for s in order}
-    outputs = {s: out_dir / f"{prefix}_{people[s]}.h5" for s in order}
+    # two subjects alike ("1" and "1.0" are both P01) never write one file twice
+    outputs = dict(zip(order, distinct_paths(
+        [out_dir / f"{prefix}_{people[s]}.h5" for s in order])))
     check_outputs(list(outputs.values()), force)
     extra = [r for r in ("variant", "substrate", "cover") if r in table.meta]
     malformed = sum(table.malformed_by_kind.values())
@@ -255,6 +259,9 @@ def import_haart(paths: list[str | os.PathLike] | str | os.PathLike, out_dir: st
     """HAART training.csv / testWITHLABELS.csv -> one session per (file, subject)."""
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
+    # a/training.csv and b/training.csv both make haart_training_P01.h5 ...
+    refuse_shared_outputs([(Path(p), Path(out_dir) / f"{HAART.name}_{Path(p).stem}_"
+                                        "<participant>.h5") for p in paths])
     progress = progress or no_progress
     out: list[Path] = []
     for i, p in enumerate(paths):

@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.paths import make_out_dir
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
@@ -20,6 +19,7 @@ from tactile_studio.storage.importers._common import (
     labelled_runs,
     load_protocol_or_none,
     pause_gaps,
+    refuse_shared_outputs,
     run_jobs,
     slice_progress,
     write_session,
@@ -217,8 +217,7 @@ def import_shearsense(files: Sequence[str | os.PathLike], out_dir: str | os.Path
                                   else f"{f}: is a folder, not a ShearSense CSV")
     pairs = [(Path(f), out_dir / session_name(Path(f))) for f in files]
     targets = [o for _, o in pairs]
-    if len(set(targets)) != len(targets):
-        raise _dup_error(pairs)
+    refuse_shared_outputs(pairs)
     check_outputs(targets, force)
     jobs = [lambda p, c=c, o=o: import_shearsense_file(c, o, p, cancel, key_names,
                                                        participant_map, report, force)
@@ -251,12 +250,3 @@ def import_shearsense_study(files: Sequence[str | os.PathLike], out_dir: str | o
                             "has frames after its baseline row "
                             f"({', '.join(Path(f).name for f in files)})")
     return paths, report
-
-
-def _dup_error(pairs: list[tuple[Path, Path]]) -> UserError:
-    seen: dict[Path, Path] = {}
-    for c, o in pairs:
-        if o in seen:
-            return UserError(f"{c}: same file name as {seen[o]}; both would be written to {o}")
-        seen[o] = c
-    return UserError("duplicate output names")

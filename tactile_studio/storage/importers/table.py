@@ -10,6 +10,7 @@ is not a finite number are skipped and counted by kind, like ShearSense rows.
 from __future__ import annotations
 
 import io
+import itertools
 import re
 from collections import Counter
 from collections.abc import Callable, Sequence
@@ -20,7 +21,7 @@ import numpy as np
 
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.storage.importers._common import ImportFormatError, norm_name
-from tactile_studio.storage.input_files import check_input_file
+from tactile_studio.storage.input_files import LineBlocks, check_input_file
 
 _CHANNEL = re.compile(r"^(?:ch|channel|c|taxel|sensor)?(\d+)$")
 _BLOCK_BYTES = 4 << 20
@@ -78,9 +79,10 @@ def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
     """Read a dataset table; see the module docstring. ``what`` names the format."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, f"{what} CSV", ImportFormatError)
+    size = check_input_file(path, f"a {what} CSV", ImportFormatError)
     with open(path, "rb") as fh:
-        first = fh.readline(1 << 20)
+        lines = LineBlocks(fh, _BLOCK_BYTES)
+        first = lines.first_line()
         text = first.decode("utf-8", errors="replace").lstrip("\ufeff").strip()
         if not text:
             raise ImportFormatError(f"{path}: empty file, not a {what} CSV")
@@ -104,23 +106,18 @@ def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
         kinds: Counter = Counter()
         metas: dict[str, list[np.ndarray]] = {r: [] for r in cols}
         chans: list[np.ndarray] = []
-        done = len(first)
-        while True:
+        for data in itertools.chain([pending], lines.blocks()):
             if cancel is not None:
                 cancel.check()
-            chunk = fh.read(_BLOCK_BYTES)
-            data = pending + chunk
-            cut = len(data) if not chunk else data.rfind(b"\n") + 1
-            pending = data[cut:]
-            rows = _parse_lines(data[:cut], ncols, cols, c0, c1, kinds)
+            rows = _parse_lines(data, ncols, cols, c0, c1, kinds)
             if rows is not None:
                 for r, v in rows[0].items():
                     metas[r].append(v)
                 chans.append(rows[1])
-            done += len(chunk)
-            progress(min(done / max(size, 1), 1.0), f"{path.name}: {done >> 20} MB read")
-            if not chunk:
-                break
+            progress(min(lines.done / max(size, 1), 1.0),
+                     f"{path.name}: {lines.done >> 20} MB read")
+        if lines.overlong:
+            kinds["long_row"] += lines.overlong
     if not chans:
         raise ImportFormatError(f"{path}: {what} CSV has no readable rows "
                                 f"({sum(kinds.values())} malformed)")
