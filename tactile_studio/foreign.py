@@ -3,8 +3,8 @@ say is data, stored as the content of our records and shown escaped, never taken
 key of our own records or written raw to a terminal.
 
 Shared below every layer: the XDF importer (storage) and the LSL marker inlets (streams)
-both store a marker sample with :func:`marker_content`, and every line that names a
-foreign thing goes through :func:`shown`.
+both store a marker sample with :func:`marker_content`; every line that names a
+foreign thing quotes it with ``terminal.shown``.
 """
 
 from __future__ import annotations
@@ -13,17 +13,8 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
-SHOWN_CHARS = 80  # a foreign name or text quoted in a message, at most
 FILE_PART_CHARS = 60  # of a foreign name in a file name
 
-
-def shown(text: object, limit: int = SHOWN_CHARS) -> str:
-    """``text`` safe to print: every control or non-printable character (an escape
-    sequence, a CR that would overwrite the line, a NUL) as a visible ``\\xNN`` /
-    ``\\uNNNN``, and at most ``limit`` characters (then ``…``)."""
-    s = str(text)
-    out = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in s[:limit])
-    return out + ("…" if len(s) > limit else "")
 
 
 def marker_content(values: Sequence[Any]) -> dict[str, Any]:

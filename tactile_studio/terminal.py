@@ -32,6 +32,19 @@ def printable(text: str, keep: str = "\n\t") -> str:
     return "".join(c if c.isprintable() or c in keep else _escape(c) for c in text)
 
 
+SHOWN_CHARS = 80  # a stranger's name or text quoted in a message, at most
+
+
+def shown(text: object, limit: int = SHOWN_CHARS) -> str:
+    """A stranger's name or text (a foreign file's stream, a client's field, a session's
+    participant) as quoted in a one-line message: every non-printable character as its
+    Python escape (``\\r``, ``\\x1b``, ``\\u202e``), so it can neither drive the
+    terminal nor hide or forge text, and at most ``limit`` characters (then ``…``)."""
+    s = str(text)
+    out = "".join(c if c.isprintable() else ascii(c)[1:-1] for c in s[:limit])
+    return out + ("…" if len(s) > limit else "")
+
+
 def _escape(c: str) -> str:
     n = ord(c)
     return f"\\u{n:04x}" if n <= 0xFFFF else f"\\U{n:08x}"

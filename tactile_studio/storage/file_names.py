@@ -12,6 +12,7 @@ or a space, so a study's files copy to any lab's machine.
 from __future__ import annotations
 
 from tactile_studio.errors import UserError
+from tactile_studio.terminal import shown
 
 MAX_NAME_CHARS = 64
 WINDOWS_FORBIDDEN = frozenset('<>:"|?*')
@@ -38,9 +39,8 @@ def name_problem(name: str, max_chars: int = MAX_NAME_CHARS) -> str | None:
 
 
 def shown_name(name: str, limit: int = 40) -> str:
-    """``name`` quoted for a message: escaped (``repr``) and cut at ``limit``."""
-    text = str(name)
-    return repr(text[:limit] + ("..." if len(text) > limit else ""))
+    """``name`` quoted for a message (``terminal.shown``: escaped, cut at ``limit``)."""
+    return f"'{shown(name, limit)}'"
 
 
 def check_name(what: str, name: str, max_chars: int = MAX_NAME_CHARS) -> str:

@@ -41,7 +41,6 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.foreign import shown
 from tactile_studio.storage.xdf_writer import (
     BOUNDARY,
     BOUNDARY_UUID,
@@ -53,6 +52,7 @@ from tactile_studio.storage.xdf_writer import (
     STREAM_HEADER,
     varlen,
 )
+from tactile_studio.terminal import shown
 
 MAX_CHANNELS = 65536          # more than any tactile array, EEG cap or marker stream
 MAX_RATE_HZ = 100_000.0       # a nominal rate above this is not a recording's

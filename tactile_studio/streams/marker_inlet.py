@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import DeviceNotFound
-from tactile_studio.foreign import marker_content, shown
+from tactile_studio.foreign import marker_content
 from tactile_studio.streams.clock import measure_offset
 from tactile_studio.streams.lsl_lib import load_pylsl
+from tactile_studio.terminal import shown
 
 FIND_TIMEOUT_S = 5.0
 PULL_S = 0.05

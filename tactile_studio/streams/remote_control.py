@@ -46,8 +46,8 @@ from tactile_studio.streams.remote_names import (
     CommandError,
     free_path,
     parse_filename,
+    quoted,
     recording_path,
-    shown,
 )
 from tactile_studio.streams.remote_socket import LineServer
 from tactile_studio.terminal import printable
@@ -140,7 +140,7 @@ class RemoteControl:
             self.commands.put(pending)
         if not pending.done.wait(self.reply_wait_s) and pending.claim("given up"):
             return (f"error: Tactile Studio was busy for {self.reply_wait_s:g} s; "
-                    f"{shown(line)} was not carried out")
+                    f"{quoted(line)} was not carried out")
         pending.done.wait()  # taken in time: its answer comes
         return pending.reply
 
@@ -167,15 +167,15 @@ class RemoteControl:
         try:
             reply = self._do(verb, rest)
             if reply is None:
-                raise CommandError(f"unknown command {shown(line.strip())} ({KNOWN})")
+                raise CommandError(f"unknown command {quoted(line.strip())} ({KNOWN})")
             return reply
         except UserError as exc:  # CommandError, and a session that refuses (one line)
             return f"error: {printable(' '.join(str(exc).split()), keep='')}"
         except Exception as exc:  # noqa: BLE001 - a bug must not end the recording
-            print(f"remote control: {shown(line)} failed:", file=sys.stderr)
+            print(f"remote control: {quoted(line)} failed:", file=sys.stderr)
             traceback.print_exc()
             return (f"error: {type(exc).__name__} in Tactile Studio while doing "
-                    f"{shown(verb)} (a bug; the recorder's log has the traceback)")
+                    f"{quoted(verb)} (a bug; the recorder's log has the traceback)")
 
     def _do(self, verb: str, rest: str) -> str | None:
         """The reply; None: no such command."""

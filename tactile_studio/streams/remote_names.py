@@ -32,7 +32,7 @@ from pathlib import Path
 
 from tactile_studio.errors import UserError
 from tactile_studio.participant_id import PARTICIPANT_RE
-from tactile_studio.terminal import printable
+from tactile_studio.terminal import shown
 
 FIELDS = ("root", "template", "participant", "session", "task", "run", "acquisition",
           "modality")
@@ -56,10 +56,9 @@ class CommandError(UserError):
     """A command that is malformed or cannot be carried out now (the reply's text)."""
 
 
-def shown(text: str, limit: int = 60) -> str:
-    """A client's text quoted in a reply: non-printables escaped, long text cut."""
-    cut = text if len(text) <= limit else text[:limit] + "..."
-    return f"'{printable(cut, keep='')}'"
+def quoted(text: str, limit: int = 60) -> str:
+    """A client's text quoted in a reply (``terminal.shown``: escaped, long text cut)."""
+    return f"'{shown(text, limit)}'"
 
 
 def parse_filename(text: str) -> dict[str, str]:
@@ -70,7 +69,7 @@ def parse_filename(text: str) -> dict[str, str]:
     fields: dict[str, str] = {}
     for key, value in pairs:
         if key not in FIELDS:
-            raise CommandError(f"filename: unknown field {shown(key)} (known: "
+            raise CommandError(f"filename: unknown field {quoted(key)} (known: "
                                f"{', '.join(FIELDS)})")
         if key in fields:
             raise CommandError(f"filename: {key} given twice")
@@ -86,22 +85,22 @@ def check_field(key: str, value: str) -> str:
     if key == "run":
         if not (value.isascii() and value.isdigit()) or len(value) > MAX_RUN_DIGITS:
             raise CommandError(f"filename: run must be a number of 1 to {MAX_RUN_DIGITS} "
-                               f"digits, got {shown(value)}")
+                               f"digits, got {quoted(value)}")
         return value
     if key in ("root", "template"):
         if len(value) > MAX_PATH_CHARS:
             raise CommandError(f"filename: {key} longer than {MAX_PATH_CHARS} characters")
         if value.startswith(("/", "\\")) or re.match(r"[A-Za-z]:", value):
-            raise CommandError(f"filename: {key} {shown(value)} is an absolute path; it "
+            raise CommandError(f"filename: {key} {quoted(value)} is an absolute path; it "
                                "must be relative to the recorder's folder")
         for part in value.split("/"):
-            check_name(f"{key} {shown(value)}", part)
+            check_name(f"{key} {quoted(value)}", part)
         if key == "template" and Path(value).suffix.lower() not in ("", *TEMPLATE_SUFFIXES):
-            raise CommandError(f"filename: template {shown(value)} must end in .xdf or .h5 "
+            raise CommandError(f"filename: template {quoted(value)} must end in .xdf or .h5 "
                                "(the file is HDF5)")
         return value
     if not PARTICIPANT_RE.match(value):  # collected and imported sessions' one rule
-        raise CommandError(f"filename: bad {key} {shown(value)}: use letters, digits, '_', "
+        raise CommandError(f"filename: bad {key} {quoted(value)}: use letters, digits, '_', "
                            "'-' or '.' (at most 64), e.g. P01")
     check_name(key, value)
     return value
@@ -121,20 +120,20 @@ def _name_problem(name: str, max_chars: int) -> str:
         return f"a name longer than {max_chars} characters"
     bad = next((c for c in name if not c.isprintable() and c != " "), None)
     if bad is not None:
-        return f"{shown(name)} holds a control character ({printable(bad, keep='')})"
+        return f"{quoted(name)} holds a control character ({shown(bad)})"
     if "/" in name or "\\" in name:
-        return f"{shown(name)} holds a path separator; a name is one folder or file name"
+        return f"{quoted(name)} holds a path separator; a name is one folder or file name"
     if name in (".", ".."):
-        return f"{shown(name)} is not a name; the file must stay in the recorder's folder"
+        return f"{quoted(name)} is not a name; the file must stay in the recorder's folder"
     if name.startswith("."):
-        return f"{shown(name)} starts with a dot (a hidden file)"
+        return f"{quoted(name)} starts with a dot (a hidden file)"
     forbidden = sorted(WINDOWS_FORBIDDEN & set(name))
     if forbidden:
-        return f"{shown(name)} holds {' '.join(forbidden)}, which Windows forbids in names"
+        return f"{quoted(name)} holds {' '.join(forbidden)}, which Windows forbids in names"
     if name[-1] in ". " or name[0] == " ":
-        return f"{shown(name)} begins or ends with a space or ends with a dot"
+        return f"{quoted(name)} begins or ends with a space or ends with a dot"
     if name.split(".")[0].rstrip().upper() in WINDOWS_RESERVED:
-        return f"{shown(name)} is a device name Windows reserves"
+        return f"{quoted(name)} is a device name Windows reserves"
     return ""
 
 
@@ -166,9 +165,9 @@ def recording_path(fields: dict[str, str], out_dir: Path, run: int | None = None
 def _under(out_dir: Path, rel: str) -> Path:
     """``out_dir/rel`` once each component is checked and the resolved path is inside."""
     for part in rel.split("/"):
-        check_name(f"the file name {shown(rel)}", part, MAX_NAME_BYTES)
+        check_name(f"the file name {quoted(rel)}", part, MAX_NAME_BYTES)
         if len(part.encode()) > MAX_NAME_BYTES:
-            raise CommandError(f"filename: the file name {shown(rel)}: a name longer than "
+            raise CommandError(f"filename: the file name {quoted(rel)}: a name longer than "
                                f"{MAX_NAME_BYTES} bytes")
     path = out_dir.joinpath(*rel.split("/"))
     try:
@@ -176,7 +175,7 @@ def _under(out_dir: Path, rel: str) -> Path:
     except (OSError, RuntimeError):  # a symbolic-link loop
         inside = False
     if not inside:
-        raise CommandError(f"filename: {shown(rel)} leads out of the recorder's folder "
+        raise CommandError(f"filename: {quoted(rel)} leads out of the recorder's folder "
                            "(through a symbolic link)")
     return path
 

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
-from tactile_studio.foreign import file_part, shown
+from tactile_studio.foreign import file_part
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.importers._common import (
@@ -64,6 +64,7 @@ from tactile_studio.storage.importers.xdf_info import (
 from tactile_studio.storage.importers.xdf_session import XdfReport, session_job
 from tactile_studio.storage.input_files import check_input_file, file_sha256
 from tactile_studio.storage.xdf_scan import XdfScan, checked_file, scan_xdf
+from tactile_studio.terminal import shown
 
 # jitter removal fits a line per segment: a pause longer than max(BREAK_S, BREAK_SAMPLES
 # sample intervals) starts a new one (pyxdf's default, 500 samples, would smooth a

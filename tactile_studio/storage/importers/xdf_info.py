@@ -10,11 +10,11 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.foreign import shown
 from tactile_studio.sensor.channels import RAW, layout_for_channels
 from tactile_studio.sensor.layout import Layout, get_layout
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.importers._common import ImportFormatError
+from tactile_studio.terminal import shown
 
 TACTILE_TYPES = frozenset({"tactile", "touch", "pressure", ""})
 BIDS = {"sub": "participant", "ses": "session_label", "task": "task", "run": "run",

@@ -22,8 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.foreign import marker_content, shown
+from tactile_studio.foreign import marker_content
 from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.terminal import shown
 
 # fields of our journal records that no marker of ours carries (``frame`` and ``row`` are
 # ours too: the export writes them, the import places a marker by its time instead)

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.foreign import shown
 from tactile_studio.jobs import CancelToken, ProgressFn
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.aux_signals import AuxSignal
@@ -28,6 +27,7 @@ from tactile_studio.storage.importers.xdf_markers import MarkerReader
 from tactile_studio.storage.input_files import unrepresentable_rows
 from tactile_studio.storage.segments import is_segment_start
 from tactile_studio.storage.xdf_scan import MAX_RATE_HZ
+from tactile_studio.terminal import shown
 
 
 def _unnamed_breaks(segments: list[Any], events: list[tuple[str, int, float, dict[str, Any]]]
