@@ -133,6 +133,14 @@ class RunRow:
     def name(self) -> str:
         return Path(self.path).name
 
+    @property
+    def ran_config(self) -> dict[str, Any]:
+        """The config with the channel set the run used (its metrics say which when
+        train left it to the model): what ``config_difference`` compares."""
+        from tactile_studio.learn.evaluation.compare import as_ran
+
+        return as_ran(self.config, self.channels if self.channels != "all" else None)
+
 
 def _number(m: dict[str, Any], *keys: str) -> float | None:
     """The first of ``keys`` that holds a number (old and new metrics.json spell
