@@ -200,9 +200,9 @@ def _same_recordings(a: RunPredictions, b: RunPredictions,
                 (tb.participant, tb.true, tb.start_sample):
             raise UserError(
                 f"{a.path} and {b.path} were not tested on the same recordings: trial "
-                f"{ta.uid} is {a.labels[ta.true]} by {ta.participant} in one and "
-                f"{b.labels[tb.true]} by {tb.participant} in the other; they cannot be "
-                "compared trial by trial")
+                f"{ta.number} of {ta.session} is {a.labels[ta.true]} by {ta.participant} in "
+                f"one and {b.labels[tb.true]} by {tb.participant} in the other; they cannot "
+                "be compared trial by trial")
 
 
 ALPHA = 0.05  # a difference is said as a win only when its tests put p under this
