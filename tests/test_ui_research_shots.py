@@ -162,3 +162,16 @@ def test_the_workspace_compares_few_shot_runs_per_k(settings_env, runs, qtbot):
     # each test trial matched once (at K = 0), not once per K
     assert r["n_matched"] == len(load_predictions(folders["rf"]).at_shots(0).trials)
     assert [s["k"] for s in r["shots"]] == [0, 1]
+
+
+def test_the_status_line_counts_the_trials_the_matrix_shows(settings_env, runs, qtbot):
+    """The status bar said "opened …: 135 test trials" under a matrix headed "over 45
+    trials" (a few-shot run tests each trial once per K)."""
+    _, folders = runs
+    w = ResearchWindow()
+    qtbot.addWidget(w)
+    assert w.open_run(str(folders["rf"]))
+    n = len(load_predictions(folders["rf"]).at_shots(0).trials)
+    assert w.message.text().endswith(f": {n} test trials, each scored at K = 0, 1 (the "
+                                     "header's K is shown)")
+    assert f"over {n} trials · K=0" in w.confusion.matrix.title

@@ -494,6 +494,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     learner.check(info)
     first_folds = folds_for(config, ds, 0)  # fails early on too few participants
     header = run_header(config, ds.channels, learner.windowed)
+    if config.shots:  # the trials a plain run would test: said beside the shots' test set
+        header["data_trials"] = len(ds)
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
