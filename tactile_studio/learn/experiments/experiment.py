@@ -505,7 +505,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
         from tactile_studio.learn.data.trialinfo import write_trial_table
 
         write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
-    progress(0.05, "making model inputs")
+    progress(0.05, f"making model inputs: {len(ds)} trials, {learner.facts.view} view")
     ds, x, owner, n_pieces, spec, extra, moments = prepare_inputs(learner, ds, config)
     header["window_s"] = spec.seconds
     header["windows"] = n_pieces
