@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 import pyxdf
 
@@ -70,3 +71,19 @@ def test_what_a_stranger_writes_there_is_read_only_when_it_is_what_it_should_be(
            "unknown_key": [json.dumps("ignored")]}
     assert session_fields(bad) == {}
     assert session_fields("not an element") == {} and session_fields({"seed": []}) == {}
+
+
+def test_an_xdf_exported_and_imported_back_is_the_same_session_for_a_researcher(
+        collected, tmp_path, capsys):
+    path, meta = collected
+    xdf = export_xdf(path, tmp_path)
+    assert main(["import", "xdf", str(xdf), "--out", str(tmp_path / "back")]) == 0
+    capsys.readouterr()
+    (again,) = (tmp_path / "back").glob("*.h5")
+    with Session(path) as a, Session(again) as b:
+        np.testing.assert_array_equal(b.raw(), a.raw())
+        assert {k: b.metadata.get(k) for k in PROTOCOL_FIELDS} == \
+            {k: a.metadata.get(k) for k in PROTOCOL_FIELDS}
+        assert b.metadata["source"] == "import:xdf"  # an import, with its own id
+        assert b.session_id != a.session_id and b.recording == a.recording
+    assert main(["check", str(again)]) == 0  # its trials' blocks agree with block_order

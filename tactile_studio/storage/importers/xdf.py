@@ -46,6 +46,7 @@ from tactile_studio.storage.importers._common import (
 from tactile_studio.storage.input_files import check_input_file, file_sha256
 from tactile_studio.storage.segments import is_segment_start
 from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.xdf_session import session_fields
 
 # jitter removal fits a line per segment: a pause longer than max(BREAK_S, BREAK_SAMPLES
 # sample intervals) starts a new one (pyxdf's default, 500 samples, would smooth a
@@ -225,6 +226,9 @@ def _session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout
     ours = _ours(s)
     metadata = {
         "session_id": import_session_id("xdf", sha, name),
+        # our own export's protocol, condition, orders, seeds, sensor and calibration,
+        # each field checked (storage/xdf_session.py); the file name's BIDS entities win
+        **session_fields(_first(ours, "session")),
         "participant": meta.get("participant") or _first(ours, "participant") or "",
         **{k: v for k, v in meta.items() if k != "participant"},
         "source": "import:xdf", "original_file": path.name, "stream": name,
