@@ -4,7 +4,9 @@ the source, and a dataset never counts a session twice (resume backups, copies).
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import tempfile
 import uuid
 from pathlib import Path
 
@@ -21,6 +23,8 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import is_resume_backup, select_sessions
 from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.shearsense import write_shearsense_csv
+
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
 
 def _resumed_session(folder: Path) -> tuple[Path, Path, list[str]]:
@@ -236,7 +240,7 @@ def test_the_workspace_shows_folders_and_marks_copies_and_backups(tmp_path, qtbo
         return view.table.item(r, COLUMNS.index(column)).text()
 
     assert cell(again.name, "folder") == "reimported" and cell("P01.h5", "folder") == "data"
-    assert cell(again.name, "note") == "same frames as data/P01.h5 (a re-import or copy)"
+    assert cell(again.name, "note") == "copy of data/P01.h5 (same frames)"
     assert cell("P02.bak-1.h5", "note") == "resume backup of data/P02.h5"
     assert cell("P01.h5", "note") == cell("P02.h5", "note") == ""
     # the copies start unselected: the selection is what a run reads
@@ -244,6 +248,8 @@ def test_the_workspace_shows_folders_and_marks_copies_and_backups(tmp_path, qtbo
                                                                      "P03.h5"]
     assert view.summary.text() == ("3 of 5 sessions selected: 3 participants, 18 ok trials"
                                    " — 2 listed copies not selected (see the note column)")
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    view.grab().save(str(SHOTS / "research_sessions_copies.png"))
     view.table.selectAll()  # selected anyway: counted once, and said
     assert view.summary.text().startswith(
         "5 of 5 sessions selected: 3 participants, 18 ok trials (2 not counted: "

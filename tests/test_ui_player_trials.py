@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from learn_fixtures import write_participant
+from PySide6.QtWidgets import QApplication
 
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.chart import ChartWindow
@@ -69,6 +70,7 @@ def test_jump_to_trial_centres_it_and_the_trial_box_follows_the_cursor(session, 
     assert player.trial_box.currentText().startswith(f"6: {six.gesture}")
     assert player.position.text().endswith(f"trial 6 {six.gesture}")
     SHOTS.mkdir(parents=True, exist_ok=True)
+    QApplication.processEvents()  # the labels laid out for their new texts
     player.grab().save(str(SHOTS / "research_player_trial.png"))
     # the cursor moved by the timeline into trial 8, then between 8 and 9: the box follows
     eight, nine = pb.trial(7), pb.trial(8)

@@ -67,8 +67,14 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     panel.protocol.setCurrentText("lopo")
     assert panel.shots.isEnabled() and panel.config().shots == (0, 1)
     assert panel.shots_by.isEnabled() and panel.config().shots_by == "auto"
+    # rf's shots always join the training: the choice is not offered, and auto is join
+    assert not panel.shots_by.isVisibleTo(panel)
+    assert panel.config().resolved().shots_by == "join"
+    panel.model.setCurrentText("knn")
+    panel.model.setCurrentText("cnn1d")  # a network: train --shots-by from the panel
     panel.shots_by.setCurrentIndex(panel.shots_by.findData("join"))
-    assert panel.config().shots_by == "join"  # train --shots-by join
+    assert panel.shots_by.isVisibleTo(panel) and panel.config().shots_by == "join"
+    panel.model.setCurrentText("rf")
     panel.shots.setText("1,1")
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert "distinct counts" in w.message.text()  # refused before any training

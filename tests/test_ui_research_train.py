@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 from learn_fixtures import make_dataset_folder, trial_record, write_participant
 from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QApplication
 
 from tactile_studio.ui.research.train_panel import FOLD_COLUMNS, TrainPanel
 from tactile_studio.ui.research.window import ResearchWindow
@@ -195,8 +196,11 @@ def test_rf_and_knn_are_offered_what_they_use_and_the_status_names_each_stage(
         assert not any(shown(w) for w in offered) and not shown(panel.plot), model
         for name in ("epochs", "best val acc"):
             assert panel.folds.isColumnHidden(FOLD_COLUMNS.index(name))
+    panel.recipe.header.setChecked(False)  # folded, as the tab opens
     SHOTS.mkdir(parents=True, exist_ok=True)
+    QApplication.processEvents()
     window.grab().save(str(SHOTS / "research_train_rf.png"))
+    panel.recipe.header.setChecked(True)
     # what is not offered is not asked for: a network's choices stay out of rf's config
     panel.model.setCurrentText("cnn1d")
     panel.epochs.setValue(7)

@@ -120,7 +120,8 @@ class SessionsView(QWidget):
                 for c in range(len(COLUMNS)):
                     self.table.item(r, c).setForeground(LEFT_OUT)
                 self.table.item(r, COLUMNS.index("note")).setToolTip(
-                    f"{row.note}: its trials are that file's.\nA dataset reads one file per "
+                    f"{row.note}: its trials are that file's (re-imported from an export, or "
+                    "copied).\nA dataset reads one file per "
                     "session and per recording: train and the Train tab skip this one when "
                     "the other is selected too.")
         self.table.setSortingEnabled(True)

@@ -56,13 +56,12 @@ class SessionRow:
     @property
     def note(self) -> str:
         """Why the whole listing's dataset leaves the file out, in words; "" if it does
-        not ("same frames as data/P01.h5 (a re-import or copy)")."""
+        not ("copy of data/P01.h5 (same frames)")."""
         if not self.left_out:
             return ""
         return {"resume backup": f"resume backup of {self.kept_instead}",
                 "duplicate session": f"same session as {self.kept_instead}",
-                "same recording": f"same frames as {self.kept_instead} (a re-import or "
-                                  "copy)"}[self.left_out]
+                "same recording": f"copy of {self.kept_instead} (same frames)"}[self.left_out]
 
     def matches(self, text: str) -> bool:
         """Case-insensitive filter over the visible fields."""
