@@ -46,7 +46,8 @@ screenshots: $(STAMP)
 	TACTILE_STUDIO_SCREENSHOTS=docs/screenshots QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -q \
 	  tests/test_ui_research.py tests/test_ui_research_train.py tests/test_ui_research_recipe.py \
 	  tests/test_ui_live_inference.py tests/test_ui_personalise.py tests/test_ui_xdf.py \
-	  tests/test_ui_check_flags.py
+	  tests/test_ui_check_flags.py tests/test_ui_player_trials.py tests/test_session_identity.py \
+	  tests/test_ui_research_shots.py
 
 bench: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m benchmarks

@@ -9,6 +9,12 @@ import pytest
 
 os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 os.environ.setdefault("TACTILE_STUDIO_TESTING", "1")
+# one thread per library (torch, BLAS) in every test process: what float noise a parallel
+# reduction leaves depends on the thread count, which would otherwise be the host's cores
+# or whatever an earlier test in the same xdist worker set (whole files per worker, so
+# which files run before a test depends on the machine's load)
+for _lib in ("OMP", "MKL", "OPENBLAS"):
+    os.environ.setdefault(f"{_lib}_NUM_THREADS", "1")
 # the app's data, cache and config folders (tactile_studio.paths) live in one temporary
 # folder per test run; tests that need their own set them with monkeypatch
 _APPDIRS = tempfile.mkdtemp(prefix="tactile-studio-appdirs-")

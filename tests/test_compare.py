@@ -238,3 +238,76 @@ def test_a_run_on_the_models_default_channels_is_named_by_the_channels_it_used(r
     assert compare_runs(runs["normal"], root / "default-channels")["name_b"] == \
         "both channels · n_neighbors 3"
     assert "None" not in r["sentence"]
+
+
+def test_every_setting_a_run_config_holds_is_named_when_it_differs():
+    """compare said "differ in: nothing recorded" for an rf run against an rf --shots
+    0,1,2 run: only some settings were described. Now every result-changing setting is,
+    where it acts (the folds of a k-fold mean nothing under lopo)."""
+    base = ExperimentConfig(data=["d"], model="rf", protocol="lopo").to_dict()
+    changed = {"data": ["d", "e"], "model": "knn", "channels": "normal", "grid": "virtual",
+               "protocol": "group-kfold", "rounds": 3, "preset": "tiny", "epochs": 5,
+               "overrides": {"k": 3}, "seed": 1, "window_s": 12.0, "window_overlap": 0.25,
+               "aggregate": "vote", "augment": "flip", "participant_norm": True,
+               "balance": True, "val_by": "participant", "adapt": "person", "shots": [0, 1],
+               "val_fraction": 0.3}
+    # settings that act only beside another: changed together with it
+    along = {"folds": {"protocol": "group-kfold", "folds": 5},
+             "heldout_fraction": {"protocol": "group-kfold", "heldout_fraction": 0.2},
+             "split": {"protocol": "all-inclusive", "split": [0.6, 0.2, 0.2]},
+             "shots_by": {"shots": [0, 1], "shots_by": "fine-tune"},
+             "augment_copies": {"augment": "flip", "augment_copies": 3}}
+    from tactile_studio.learn.experiments.experiment import RESULT_KEYS
+    assert set(changed) | set(along) == set(RESULT_KEYS)
+    for key in RESULT_KEYS:
+        other = {**base, **along.get(key, {key: changed.get(key)})}
+        said = config_difference(base, other)
+        named = "k" if key == "overrides" else key
+        assert any(p.startswith(f"{named}: ") for p in said), (key, said)
+    assert config_difference(base, {**base, "shots": [0, 1, 2]}) == ["shots: none → 0,1,2"]
+    assert config_difference(base, {**base, "participant_norm": True}) == \
+        ["participant_norm: off → on"]
+    # a setting that does not act here is no difference
+    assert config_difference(base, {**base, "folds": 5, "split": [0.5, 0.25, 0.25],
+                                     "shots_by": "join"}) == []
+
+
+def _result(diff: float, wilcoxon: float | None, mcnemar: float) -> dict:
+    return {"difference": diff, "accuracy_a": 0.5, "name_a": "normal", "name_b": "both",
+            "wilcoxon_p": wilcoxon, "n_participants": 10 if wilcoxon is not None else 1,
+            "mcnemar_p": mcnemar, "n_matched": 270}
+
+
+def test_a_difference_its_tests_do_not_support_is_not_said_as_a_win():
+    """"both beats normal by 1.5 points, p = 0.27" said a win the test did not show."""
+    from tactile_studio.learn.evaluation.compare import sentence
+
+    s = sentence(_result(0.015, 0.27, 0.40))
+    assert "beats" not in s
+    assert s.startswith("both is 1.5 points above normal, not significant: p = 0.27")
+    assert sentence(_result(0.079, 0.02, 0.004)).startswith(
+        "both beats normal by 7.9 points, p = 0.020")
+    assert sentence(_result(-0.04, 0.30, 0.01)).startswith(
+        "normal is 4.0 points above both, significant over trials, not over participants:")
+    assert sentence(_result(0.04, 0.01, 0.20)).startswith(
+        "both is 4.0 points above normal, significant over participants, not over trials:")
+    assert sentence(_result(0.04, None, 0.01)).startswith("both beats normal by 4.0")
+    assert "beats" not in sentence(_result(0.04, None, 0.2))
+
+
+def test_compare_names_the_channels_and_shots_the_runs_used(runs, capsys):
+    """compare named the channel sets "normal → default" (a run left to the model's
+    channels) and printed no difference for a --shots run against a plain one."""
+    root = runs["both"].parent
+    for name, kw in (("model-channels", {"channels": None}), ("with-shots",
+                                                              {"shots": (0, 1)})):
+        cfg = ExperimentConfig(data=[str(root / "data")], model="knn", protocol="lopo",
+                               preset="tiny", cache_dir=str(root / "cache"), **kw)
+        run_experiment(cfg, root / name)
+    r = compare_runs(runs["normal"], root / "model-channels")
+    assert r["config_difference"] == ["channels: normal → both"]
+    assert "default" not in r["sentence"]
+    assert main(["compare", str(runs["both"]), str(root / "with-shots")]) == 0
+    out = capsys.readouterr().out
+    assert "differ in: shots: none → 0,1" in out
+    assert "few-shot (K 0,1)" in out and "plain" in out

@@ -6,6 +6,7 @@ cell that sends garbage or nothing."""
 from __future__ import annotations
 
 import os
+import re
 import time
 
 import numpy as np
@@ -85,19 +86,49 @@ def test_error_reply_soft_limits_and_a_stage_that_does_not_home(printer):
         bad.stop()
 
 
-def test_abort_mid_move_quick_stops_and_retracts(printer):
+class HeldClock:
+    """The printer emulator's clock held at a chosen moment until the quick stop, then
+    running on from there: where the head stops is then the test's choice, not how long
+    a loaded machine took between the move and the abort (it slept 0.3 s and allowed
+    3 s of lag)."""
+
+    def __init__(self, printer_ref: list) -> None:
+        self.printer_ref = printer_ref
+        self.held: float | None = None
+        self.released_at: float | None = None
+
+    def __call__(self) -> float:
+        if self.held is None:
+            return time.monotonic()
+        if self.printer_ref and self.printer_ref[0].stopped_at:  # stopped: time runs on
+            if self.released_at is None:
+                self.released_at = time.monotonic()
+            return self.held + time.monotonic() - self.released_at
+        return self.held
+
+
+def test_abort_mid_move_quick_stops_and_retracts():
+    ref: list = []
+    clock = HeldClock(ref)
+    printer = PrinterEmulator(home_s=0.05, busy_s=0.1, home=(90.0, 95.0, 28.0), clock=clock)
+    ref.append(printer)
+    printer.open()
     stage = stage_on(printer)
     try:
         stage.home()
-        stage.move_to(z=-0.5, speed=2.0)  # 5.5 mm at 2 mm/s: under way for ~3 s
-        time.sleep(0.3)
+        stage.move_to(z=-0.5, speed=2.0)  # machine z 25 -> 19.5 at 2 mm/s: 2.75 s
+        (began, start, end, _), = printer._moves  # noqa: SLF001 - the emulator's own move
+        assert (start[2], end[2]) == (25.0, 19.5)
+        clock.held = began + 1.5  # 3 mm down when the abort comes
         stage.retract()
         assert "M410" in printer.received
-        # stopped part-way down (machine z 28 -> 19.5), well above the skin at z 20
-        assert len(printer.stopped_at) == 1 and 21.0 < printer.stopped_at[0][2] < 28.0
+        # stopped part-way down, where the move had got to, well above the skin at z 20
+        assert len(printer.stopped_at) == 1
+        assert printer.stopped_at[0][2] == pytest.approx(22.0, abs=1e-6)
         assert stage.position() == pytest.approx((0.0, 0.0, 5.0), abs=1e-3)
     finally:
         stage.close()
+        printer.stop()
 
 
 def test_stage_disconnect_is_one_line(printer):
@@ -134,16 +165,52 @@ def test_load_cell_streams_tares_and_scales(loadcell):
     force.open()
     try:
         force.tare()
-        time.sleep(0.2)
-        s = force.read()
-        assert len(s) > 10 and np.all(np.diff(s.t) >= 0)
+        s = samples_until(force, lambda got: len(got) > 10)
+        assert np.all(np.diff(s.t) >= 0)
         assert s.f.mean(axis=0) == pytest.approx((0.0, 0.0, 0.0), abs=1e-6)
         loadcell.source = lambda t: (0.1, -0.2, 3.0)
-        time.sleep(0.2)
-        s = force.read()
+        # the new force once a line of it has come (a loaded machine: later, not never)
+        s = samples_until(force, lambda got: len(got) and got.f[-1][2] > 1.0)
         assert s.f[-1] == pytest.approx((0.0, 0.0, 2.0), abs=1e-6)  # (3.0 - 2.0) x 2
     finally:
         force.close()
+
+
+def samples_until(force: SerialForce, done, timeout: float = 15.0):  # noqa: ANN001
+    """Read ``force`` until the samples read so far satisfy ``done`` (bounded; a read
+    that finds nothing yet, or only the silence before data, is tried again)."""
+    from tactile_studio.instruments.contract import ForceSamples
+
+    got = ForceSamples(np.empty(0), np.empty((0, 3)), {})
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            s = force.read()
+        except InstrumentError:
+            s = None
+        if s is not None and len(s):
+            got = ForceSamples(np.concatenate([got.t, s.t]), np.concatenate([got.f, s.f]), {})
+        if done(got):
+            return got
+        time.sleep(0.01)
+    raise AssertionError(f"no such samples from the load cell in {timeout:g} s")
+
+
+def raises_within(fn, match: str, timeout: float = 15.0) -> None:  # noqa: ANN001
+    """``fn`` raises InstrumentError matching ``match`` once the emulator's change has
+    reached the reader (bounded): lines already on their way are read first, and the
+    state before the change is still said until it has lasted ``silence_s`` (garbage
+    seen 0.1 s ago still names garbage when the cell has since gone silent)."""
+    deadline, last = time.monotonic() + timeout, "none"
+    while time.monotonic() < deadline:
+        try:
+            fn()
+        except InstrumentError as exc:
+            if re.search(match, str(exc)):
+                return
+            last = str(exc)
+        time.sleep(0.02)
+    raise AssertionError(f"no error matching {match!r} in {timeout:g} s (last: {last})")
 
 
 def test_load_cell_garbage_silence_and_disconnect_are_one_line(loadcell):
@@ -151,22 +218,13 @@ def test_load_cell_garbage_silence_and_disconnect_are_one_line(loadcell):
     force.open()
     try:
         loadcell.set_mode("garbage")
-        time.sleep(0.1)
-        force.read()
-        time.sleep(0.5)
-        with pytest.raises(InstrumentError, match=r"only garbage from .* bad lines, last 'ovf"):
-            force.read()
+        raises_within(force.read, r"only garbage from .* bad lines, last 'ovf")
         loadcell.set_mode("silent")
-        time.sleep(0.5)
-        with pytest.raises(InstrumentError, match="no data from"):
-            force.read()
+        raises_within(force.read, "no data from")
         loadcell.set_mode("ok")
-        time.sleep(0.1)
-        assert len(force.read()) > 0
+        assert len(samples_until(force, lambda got: len(got) > 0)) > 0
         loadcell.unplug()
-        time.sleep(0.5)
-        with pytest.raises(InstrumentError, match="disconnected|no data"):
-            force.read()
+        raises_within(force.read, "disconnected|no data")
     finally:
         force.close()
 

@@ -124,7 +124,7 @@ def test_runs_on_other_recordings_with_the_same_file_names_are_not_paired(data, 
     out, err = capsys.readouterr()
     line = _error_line(err)
     assert code == 1 and "McNemar" not in out
-    assert "not tested on the same recordings" in line and "P01.h5#" in line
+    assert "not tested on the same recordings" in line and "trial 1 of P01.h5 is" in line
     # the same recordings in another folder still pair trial by trial
     moved = tmp_path / "moved"
     make_dataset_folder(moved / "data", participants=3, blocks=2, gestures=GESTURES3)

@@ -12,6 +12,7 @@ import numpy as np
 import pylsl
 import pytest
 from lsl_fixtures import WAIT_S, unique
+from waiting import wait_until
 
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
@@ -86,16 +87,28 @@ def test_record_an_lsl_stream_across_a_vanish_and_return(tmp_path: Path, capsys)
     pub = Publisher(name).start()
     out = tmp_path / "lsl.h5"
 
+    def recorded(enough) -> bool:  # noqa: ANN001 - the file as the recorder has it now
+        try:
+            with Session(out) as s:
+                return enough(s)
+        except Exception:  # noqa: BLE001 - not created yet, or mid-creation
+            return False
+
     def script() -> None:  # while `record` runs in this thread's sibling (the main one)
-        time.sleep(1.2)
+        # each step on what the file holds, not on a sleep: a loaded machine that took
+        # a second to find the stream had vanished it before the first frame
+        wait_until(lambda: recorded(lambda s: s.n_frames > 60), WAIT_S, 0.05,
+                   "60 frames before the stream vanishes")
         pub.vanish()
-        time.sleep(1.0)
+        wait_until(lambda: recorded(lambda s: any(e["kind"] == "disconnect"
+                                                  for e in s.events)), WAIT_S, 0.05,
+                   "the recording to say the stream is gone")
         pub.come_back()
 
     helper = threading.Thread(target=script, daemon=True)
     helper.start()
     try:
-        code = main(["record", "--device", "lsl", "--set", f"name={name}", "--seconds", "4",
+        code = main(["record", "--device", "lsl", "--set", f"name={name}", "--seconds", "6",
                      "--out", str(out)])
     finally:
         helper.join(WAIT_S)

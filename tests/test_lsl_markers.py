@@ -11,6 +11,7 @@ import time
 
 import pylsl
 from lsl_fixtures import WAIT_S, unique
+from waiting import wait_until
 
 from tactile_studio.cli import main
 from tactile_studio.storage import Session
@@ -42,6 +43,15 @@ def recording_ready(path) -> bool:
             return s.n_frames >= 10 and any(e["kind"] == "marker_stream" for e in s.events)
     except Exception:  # noqa: BLE001 - not created yet, or mid-creation
         return False
+
+
+def markers_in(path) -> list[str]:
+    """The marker texts the file at ``path`` holds so far ([] before it can be read)."""
+    try:
+        with Session(path) as s:
+            return [e["text"] for e in s.events if e["kind"] == "marker"]
+    except Exception:  # noqa: BLE001 - not created yet, or mid-creation
+        return []
 
 
 def push_when_connected(outlet, texts, gap_s, sent, path, then=None):
@@ -138,8 +148,14 @@ def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_pa
         session.marker_streams = (name,)
         out = tmp_path / "s.h5"
         sent: list[tuple[str, float]] = []
+        def vanish() -> None:  # once both are in the file: an outlet gone 0.1 s after
+            # its last push took samples not yet pulled with it on a loaded machine
+            wait_until(lambda: markers_in(out) == ["a", "b"], WAIT_S, 0.05,
+                       "both markers in the file")
+            holder.pop("outlet")
+
         pusher = push_when_connected(holder["outlet"], ["a", "b"], 0.1, sent, out,
-                                     then=lambda: holder.pop("outlet"))
+                                     then=vanish)
         session.start_recording(out)
         deadline = time.monotonic() + WAIT_S
         while not heard and time.monotonic() < deadline:  # bounded, on a condition
@@ -184,6 +200,11 @@ def test_the_collection_console_records_markers_from_collect_markers(qtbot, tmp_
     pusher = push_when_connected(outlet, ["block cue"], 0.05, sent, path)
     qtbot.waitUntil(lambda: not pusher.is_alive(), timeout=int(WAIT_S * 1000))
     qtbot.waitUntil(lambda: console.acquisition.engine.frames > 0, timeout=10000)
+
+    # closed only once the marker is in (the journal is flushed within 0.5 s): closed
+    # 0.05 s after the push, a loaded machine's inlet had not pulled it yet (make test,
+    # 1 of 1188; alone it passed 5 of 5)
+    qtbot.waitUntil(lambda: bool(markers_in(path)), timeout=int(WAIT_S * 1000))
     console.close()
     with Session(path) as s:
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["block cue"]

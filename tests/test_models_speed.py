@@ -19,6 +19,19 @@ from tactile_studio.learn.models._common import (
 RECIPE_MODELS = ["cnn1d", "cnn3d", "sefusion", "mts3d", "cnn_transformer"]
 
 
+@pytest.fixture(autouse=True)
+def one_torch_thread():
+    """Every comparison here on one thread: torch splits a reduction by its thread count,
+    so what float noise two summation orders leave depends on that count (the host's
+    cores, or what an earlier test in the same worker set). Measured on cnn1d's cached
+    statistics: identical weights at 1 and 2 threads, 0.049 apart at 8; mts3d's
+    channels-last run: 3e-5 at 1-2 threads, 4.3e-3 at 8 (the CI failure's figure)."""
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(previous)
+
+
 def _data(name: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     frames = MODELS[name].view("tiny").frames
@@ -88,7 +101,15 @@ def test_random_mirror_index_names_the_mirror_image_each_sample_became():
                                          ("cnn_transformer", torch.channels_last)])
 def test_a_model_trains_the_same_in_its_channels_last_layout(name, layout):
     """mts3d and cnn_transformer train with channels-last weights (faster convolutions on
-    CPU); mts3d's dropout still draws over the usual layout, so the same weights come out."""
+    CPU); mts3d's dropout still draws over the usual layout, so the same weights come out.
+
+    One epoch (4 steps): what is compared is the draws, and every further step amplifies
+    the float noise of the two layouts' summation orders (after 3 epochs mts3d's reached
+    4.3e-3 at 8 threads, over the 2e-3 this test allowed: a red CI for nobody's fault).
+    The bound, measured after one epoch at 1, 2 and 8 threads: summation order moves a
+    probability by at most 3.6e-7 (mts3d) and 6.6e-4 (cnn_transformer); dropout drawn
+    otherwise (another training seed, same initial weights) by 0.062 and 0.18. 0.01 sits
+    15x over the first and 6x under the second."""
     out = []
     for faster in (True, False):
         torch.manual_seed(0)
@@ -96,13 +117,12 @@ def test_a_model_trains_the_same_in_its_channels_last_layout(name, layout):
         assert model.train_memory_format == layout
         if not faster:
             model.train_memory_format = None
-        settings = train_settings(MODELS[name].train["tiny"], {"epochs": 3, "batch_size": 8})
+        settings = train_settings(MODELS[name].train["tiny"], {"epochs": 1, "batch_size": 8})
         state, _, _ = fit(model, _data(name, 30, 1), _data(name, 12, 2), settings,
                           seed=3, device=torch.device("cpu"))
         assert all(v.is_contiguous() for v in state.values())  # saved as usual
         out.append(predict_proba(model, _data(name, 10, 5)[0]))
-    # float noise of another summation order only (different dropout draws: ~0.2)
-    np.testing.assert_allclose(out[0], out[1], atol=2e-3)
+    np.testing.assert_allclose(out[0], out[1], atol=1e-2)
 
 
 @pytest.mark.parametrize("optimizer", ["adamw", "adam"])

@@ -47,7 +47,7 @@ def test_time_frames_trials_and_clock(tmp_path):
         assert h.t[-1] == 0 and h.t[0] >= -2.0 - 1 / 43 and h.values.shape == (len(h.t), 2)
         assert h.values[-1, 0] == pytest.approx(normal[2, 3], rel=1e-4, abs=1e-4)
         assert session_history(pb, mid, [(2, 3)], "shear").values.min() >= 0
-        with pytest.raises(UserError, match="no trial 12345"):
+        with pytest.raises(UserError, match="no trial 12346"):  # said from 1
             pb.trial(12345)
         clock = PlayClock(pb)
         clock.playing, clock.speed = True, 2.0

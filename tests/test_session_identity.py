@@ -4,7 +4,9 @@ the source, and a dataset never counts a session twice (resume backups, copies).
 from __future__ import annotations
 
 import json
+import os
 import shutil
+import tempfile
 import uuid
 from pathlib import Path
 
@@ -21,6 +23,8 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import is_resume_backup, select_sessions
 from tactile_studio.storage.session_writer import SessionWriter
 from tactile_studio.storage.shearsense import write_shearsense_csv
+
+SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
 
 def _resumed_session(folder: Path) -> tuple[Path, Path, list[str]]:
@@ -169,3 +173,84 @@ def test_hidden_folders_hold_no_sessions(tmp_path):
     chosen = select_sessions([tmp_path / "study"])
     assert [p.name for p in chosen.files] == ["P01.h5"]
     assert [Path(r.path).name for r in scan_sessions([tmp_path / "study"])] == ["P01.h5"]
+
+
+def _reimported(tmp_path: Path) -> tuple[Path, Path]:
+    """A study folder: P01..P03 in data/, and P01 exported as the old CSV and imported
+    back into reimported/ (a new session_id, the importer's, from the CSV)."""
+    study = tmp_path / "study"
+    data = study / "data"
+    data.mkdir(parents=True)
+    gestures = ("Poke", "Heavy Pat", "Tickle")
+    for p, seed in (("P01", 101), ("P02", 202), ("P03", 303)):
+        write_participant(data / f"{p}.h5", p, seed, gestures=gestures, blocks=2)
+    assert main(["export", str(data / "P01.h5"), "--format", "shearsense-csv",
+                 "--out", str(tmp_path / "csv")]) == 0
+    assert main(["import", "shearsense", *map(str, (tmp_path / "csv").glob("*.csv")),
+                 "--out", str(study / "reimported")]) == 0
+    (again,) = (study / "reimported").glob("*.h5")
+    return study, again
+
+
+def test_a_session_imported_back_from_its_export_is_the_same_recording(tmp_path, capsys):
+    """A session re-imported from its own CSV export got a new session id, so the same
+    person's trials were trained on twice (the issue's 162 trials for 81)."""
+    study, again = _reimported(tmp_path)
+    with Session(study / "data" / "P01.h5") as a, Session(again) as b, \
+            Session(study / "data" / "P02.h5") as c:
+        assert a.session_id != b.session_id  # the import's own id...
+        assert a.recording == b.recording  # ...but the same frames
+        assert c.recording != a.recording
+    chosen = select_sessions([study])
+    assert [p.name for p in chosen.files] == ["P01.h5", "P02.h5", "P03.h5"]  # the original
+    assert chosen.skipped == [{"file": "reimported/P01_FLAT.h5", "reason": "same recording",
+                               "kept": "data/P01.h5"}]
+    capsys.readouterr()
+    code = main(["train", "--data", str(study), "--model", "rf", "--preset", "tiny",
+                 "--eval", "lopo", "--out", str(tmp_path / "run"),
+                 "--cache-dir", str(tmp_path / "cache"), "--set", "n_estimators=10"])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert ("data: skipped 1 copy of a recording already in the data "
+            "(reimported/P01_FLAT.h5: the same frames as data/P01.h5)") in out
+    resolved = json.loads((tmp_path / "run" / "config.json").read_text())["resolved"]
+    assert resolved["dataset"]["trials"] == 3 * 6  # each person's trials once
+
+
+def test_the_workspace_shows_folders_and_marks_copies_and_backups(tmp_path, qtbot,
+                                                                   monkeypatch):
+    """The workspace listed the re-import beside its original (same participant, no
+    folder column) and a .bak resume backup unmarked, all selected: 189 ok trials for
+    135."""
+    from tactile_studio.ui.research.sessions_view import COLUMNS, SessionsView
+
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    study, again = _reimported(tmp_path)
+    shutil.copy(study / "data" / "P02.h5", study / "data" / "P02.bak-1.h5")
+    view = SessionsView()
+    qtbot.addWidget(view)
+    view.resize(1300, 400)
+    view.set_folders([str(study)])
+
+    def cell(name: str, column: str) -> str:
+        r = next(r for r in range(view.table.rowCount())
+                 if view.table.item(r, 0).text() == name
+                 and view.table.item(r, COLUMNS.index("folder")).text() ==
+                 ("reimported" if name == again.name else "data"))
+        return view.table.item(r, COLUMNS.index(column)).text()
+
+    assert cell(again.name, "folder") == "reimported" and cell("P01.h5", "folder") == "data"
+    assert cell(again.name, "note") == "copy of data/P01.h5 (same frames)"
+    assert cell("P02.bak-1.h5", "note") == "resume backup of data/P02.h5"
+    assert cell("P01.h5", "note") == cell("P02.h5", "note") == ""
+    # the copies start unselected: the selection is what a run reads
+    assert sorted(Path(p).name for p in view.selected_paths()) == ["P01.h5", "P02.h5",
+                                                                     "P03.h5"]
+    assert view.summary.text() == ("3 of 5 sessions selected: 3 participants, 18 ok trials"
+                                   " — 2 listed copies not selected (see the note column)")
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    view.grab().save(str(SHOTS / "research_sessions_copies.png"))
+    view.table.selectAll()  # selected anyway: counted once, and said
+    assert view.summary.text().startswith(
+        "5 of 5 sessions selected: 3 participants, 18 ok trials (2 not counted: "
+        "a resume backup, a copy of a recording)")

@@ -81,6 +81,12 @@ def test_cli_prints_the_curve_and_refuses_all_inclusive(long_trials, tmp_path, c
     assert code == 0, err
     assert "few-shot personalisation" in stdout and "points vs K=0" in stdout
     metrics = json.loads((out / "metrics.json").read_text())
+    # the headline (the progress line's last) says the test set is not a plain run's:
+    # "accuracy 0.556 (K=0, 45 trials)" stood beside a plain run's 0.504 (135) unsaid
+    n, total = metrics["n_trials"], metrics["data_trials"]
+    assert n < total
+    assert f" at K=0, {n} of {total} trials tested (" in err  # the last progress line
+    assert f"{n} test trials at every K; without --shots all {total} are tested" in stdout
     assert [s["k"] for s in metrics["shots"]] == [0, 1]
     assert json.loads((out / "config.json").read_text())["config"]["shots"] == [0, 1]
     with pytest.raises(UserError, match="all-inclusive"):
@@ -153,9 +159,13 @@ def test_the_printed_curve_says_how_the_shots_were_used(capsys):
     from tactile_studio.cli.learn import print_shots
 
     curve = [{"k": 0, "accuracy": 0.5, "n_trials": 9}, {"k": 1, "accuracy": 0.6, "n_trials": 9}]
-    print_shots(curve, False, "fine-tune")
-    assert "output layers fine-tuned on them" in capsys.readouterr().out
-    print_shots(curve, False)
+    m = {"shots": curve, "shots_by": "fine-tune", "n_trials": 9, "data_trials": 27}
+    print_shots(m, False)
+    out = capsys.readouterr().out
+    assert "output layers fine-tuned on them" in out
+    # a few-shot run tests fewer trials than a plain run: said, in the curve's line
+    assert "9 test trials at every K; without --shots all 27 are tested" in out
+    print_shots({**m, "shots_by": "join"}, False)
     assert "person in the training" in capsys.readouterr().out
 
 

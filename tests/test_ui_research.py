@@ -155,7 +155,11 @@ def test_runs_matrix_cell_trials_and_compare(window, workspace, qtbot, tmp_path)
     assert player.current_frame() == span.start == trial.start_sample
     assert player.pb.path.name == trial.session and player.pred_probs is not None
     assert player.prediction.text().startswith("prediction:")
-    assert f"trial {trial.trial}" in player.position.text()
+    # trial numbers count from 1 on every screen, as the console's "Trial 22" (index 21):
+    # the cell's list, the player's trial box and position line say the same number
+    assert conf.table.item(0, 2).text() == str(trial.trial + 1)
+    assert player.trial_box.currentText().startswith(f"{trial.trial + 1}: ")
+    assert player.position.text().endswith(f"· trial {trial.trial + 1} {span.gesture}")
     assert player.strip.curve_names() == [player.pb.layout.taxel_name(r, c)
                                           for r, c in player.taxels] and player.taxels
     had = (5, 5) in player.taxels

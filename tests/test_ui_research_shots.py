@@ -67,8 +67,14 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     panel.protocol.setCurrentText("lopo")
     assert panel.shots.isEnabled() and panel.config().shots == (0, 1)
     assert panel.shots_by.isEnabled() and panel.config().shots_by == "auto"
+    # rf's shots always join the training: the choice is not offered, and auto is join
+    assert not panel.shots_by.isVisibleTo(panel)
+    assert panel.config().resolved().shots_by == "join"
+    panel.model.setCurrentText("knn")
+    panel.model.setCurrentText("cnn1d")  # a network: train --shots-by from the panel
     panel.shots_by.setCurrentIndex(panel.shots_by.findData("join"))
-    assert panel.config().shots_by == "join"  # train --shots-by join
+    assert panel.shots_by.isVisibleTo(panel) and panel.config().shots_by == "join"
+    panel.model.setCurrentText("rf")
     panel.shots.setText("1,1")
     qtbot.mouseClick(panel.start_button, Qt.MouseButton.LeftButton)
     assert "distinct counts" in w.message.text()  # refused before any training
@@ -162,3 +168,16 @@ def test_the_workspace_compares_few_shot_runs_per_k(settings_env, runs, qtbot):
     # each test trial matched once (at K = 0), not once per K
     assert r["n_matched"] == len(load_predictions(folders["rf"]).at_shots(0).trials)
     assert [s["k"] for s in r["shots"]] == [0, 1]
+
+
+def test_the_status_line_counts_the_trials_the_matrix_shows(settings_env, runs, qtbot):
+    """The status bar said "opened …: 135 test trials" under a matrix headed "over 45
+    trials" (a few-shot run tests each trial once per K)."""
+    _, folders = runs
+    w = ResearchWindow()
+    qtbot.addWidget(w)
+    assert w.open_run(str(folders["rf"]))
+    n = len(load_predictions(folders["rf"]).at_shots(0).trials)
+    assert w.message.text().endswith(f": {n} test trials, each scored at K = 0, 1 (the "
+                                     "header's K is shown)")
+    assert f"over {n} trials · K=0" in w.confusion.matrix.title

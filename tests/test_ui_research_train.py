@@ -13,8 +13,9 @@ from pathlib import Path
 import pytest
 from learn_fixtures import make_dataset_folder, trial_record, write_participant
 from PySide6.QtCore import Qt
+from PySide6.QtWidgets import QApplication
 
-from tactile_studio.ui.research.train_panel import TrainPanel
+from tactile_studio.ui.research.train_panel import FOLD_COLUMNS, TrainPanel
 from tactile_studio.ui.research.window import ResearchWindow
 from tactile_studio.ui.settings import app_settings
 
@@ -173,3 +174,61 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     again.deleteLater()
     SHOTS.mkdir(parents=True, exist_ok=True)
     window.grab().save(str(SHOTS / "research_train_adapted.png"))
+
+
+def test_rf_and_knn_are_offered_what_they_use_and_the_status_names_each_stage(
+        window, data, qtbot, tmp_path):
+    """The rf/knn Train tab showed an empty epoch plot over half the panel and
+    network-only options (epochs, early stopping, fine-tuning), and its status line read
+    "decoded · time left…" while rf computed its features."""
+    window.sessions.set_folders([str(data / "data")])
+    window.tabs.setCurrentWidget(window.train)
+    panel = window.train
+    panel.model.setCurrentText("cnn1d")
+    panel.recipe.header.setChecked(True)  # the recipe unfolded: its rows can be seen
+    offered = (panel.epochs, panel.shots_by, panel.recipe.val_by)
+
+    def shown(w) -> bool:
+        return w.isVisibleTo(panel)
+    assert all(shown(w) for w in offered) and shown(panel.plot)
+    for model in ("rf", "knn"):
+        panel.model.setCurrentText(model)
+        assert not any(shown(w) for w in offered) and not shown(panel.plot), model
+        for name in ("epochs", "best val acc"):
+            assert panel.folds.isColumnHidden(FOLD_COLUMNS.index(name))
+    panel.recipe.header.setChecked(False)  # folded, as the tab opens
+    SHOTS.mkdir(parents=True, exist_ok=True)
+    QApplication.processEvents()
+    window.grab().save(str(SHOTS / "research_train_rf.png"))
+    panel.recipe.header.setChecked(True)
+    # what is not offered is not asked for: a network's choices stay out of rf's config
+    panel.model.setCurrentText("cnn1d")
+    panel.epochs.setValue(7)
+    panel.recipe.val_by.setCurrentIndex(panel.recipe.val_by.findData("participant"))
+    panel.shots_by.setCurrentIndex(panel.shots_by.findData("fine-tune"))
+    assert panel.config().epochs == 7 and panel.config().val_by == "participant"
+    panel.model.setCurrentText("rf")
+    cfg = panel.config()
+    assert (cfg.epochs, cfg.val_by, cfg.shots_by) == (None, "trial", "auto")
+    panel.model.setCurrentText("cnn1d")
+    assert all(shown(w) for w in offered) and shown(panel.plot)
+    assert panel.epochs.value() == 7  # the network's choices are kept for it
+
+
+def test_every_new_stage_of_progress_reaches_the_window():
+    from tactile_studio.learn.experiments.train_job import ProgressThrottle
+
+    now = [0.0]
+    throttle = ProgressThrottle(0.1, clock=lambda: now[0])
+    sent = []
+    for message in ("reading P01.h5", "reading P02.h5", "decoded 27 trials of 3 session(s)",
+                    "making model inputs: 27 trials, features view",
+                    "round 1/1 fold 1/3 (P01) epoch 1 acc 0.40",
+                    "round 1/1 fold 1/3 (P01) epoch 2 acc 0.52"):
+        now[0] += 0.01
+        if throttle.passes(0.05, message):
+            sent.append(message)
+    # every stage's first message, the same kind at most ten a second
+    assert sent == ["reading P01.h5", "decoded 27 trials of 3 session(s)",
+                    "making model inputs: 27 trials, features view",
+                    "round 1/1 fold 1/3 (P01) epoch 1 acc 0.40"]

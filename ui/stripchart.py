@@ -79,6 +79,10 @@ class StripChart(QWidget):
     def __init__(self, parent: QWidget | None = None, seconds: float = 10.0) -> None:
         super().__init__(parent)
         self.seconds = seconds
+        self._x = (-seconds, 0.0)  # the time axis: live, the last seconds up to now
+        self.cursor_line: pg.InfiniteLine | None = None  # a player's cursor (set_window)
+        self._spans: list[tuple[float, float, str, bool]] = []  # shaded stretches
+        self._span_items: list[pg.GraphicsObject] = []
         self.quantity_box = QComboBox()
         for q in QUANTITIES:
             self.quantity_box.addItem(QUANTITY_LABELS[q], q)
@@ -150,7 +154,7 @@ class StripChart(QWidget):
         if history.names != self._names:
             self._set_names(list(history.names))
         # never more than two points per pixel column (its min and max: peaks stay)
-        t, values = decimate_minmax(history.t, history.values, -self.seconds, 0.0,
+        t, values = decimate_minmax(history.t, history.values, *self._x,
                                     self.pixel_columns())
         self.traces.set_lines(t, values, self._pens)
         self._update_y_range(history.values)
@@ -177,10 +181,50 @@ class StripChart(QWidget):
             legend_item.setCacheMode(QGraphicsItem.CacheMode.DeviceCoordinateCache)
         self._names = names
 
+    def set_window(self, t0: float, t1: float, cursor: float | None = None) -> None:
+        """Chart ``t0..t1`` instead of the last seconds (a player: session time, the
+        stretch before and after its cursor), with a vertical line at ``cursor``; the
+        next :meth:`set_history` gives t on the same axis."""
+        if (t0, t1) != self._x:
+            self._x = (float(t0), float(t1))
+            self.plot.setXRange(t0, t1, padding=0.02)
+            lo, hi = self._y_range
+            self.traces.set_bounds(QRectF(t0, lo, t1 - t0, hi - lo))
+        if cursor is not None:
+            if self.cursor_line is None:
+                self.cursor_line = pg.InfiniteLine(pos=cursor, angle=90,
+                                                   pen=pg.mkPen(FOREGROUND, width=1))
+                self.plot.addItem(self.cursor_line)
+            self.cursor_line.setPos(cursor)
+
+    def set_spans(self, spans: list[tuple[float, float, str, bool]]) -> None:
+        """Shade stretches of the time axis (start, end, name, emphasised), each named at
+        its top: a player's trials, the current one darker, so the trial jumped to is
+        seen on the chart; remade only when they change."""
+        if spans == self._spans:
+            return
+        for item in self._span_items:
+            self.plot.removeItem(item)
+        self._spans, self._span_items = list(spans), []
+        for a, b, name, strong in spans:
+            region = pg.LinearRegionItem((a, b), movable=False,
+                                         brush=pg.mkBrush(70, 130, 200, 70 if strong else 22),
+                                         pen=pg.mkPen(70, 130, 200, 90))
+            region.setZValue(-10)  # under the lines
+            label = pg.TextItem(name, color=FOREGROUND, anchor=(0, 0))
+            label.setPos(a, self._y_range[1])
+            self.plot.addItem(region)
+            self.plot.addItem(label)
+            self._span_items += [region, label]
+
+    def span_names(self) -> list[str]:
+        return [name for _, _, name, _ in self._spans]
+
     def pixel_columns(self) -> int:
         """How many pixel columns the chart's time window spans on screen."""
         (x0, x1), _ = self.plot.vb.viewRange()
-        return max(1, int(self.plot.vb.width() * self.seconds / max(x1 - x0, 1e-9)))
+        span = self._x[1] - self._x[0]
+        return max(1, int(self.plot.vb.width() * span / max(x1 - x0, 1e-9)))
 
     def curve_names(self) -> list[str]:
         return list(self._names)
@@ -209,7 +253,10 @@ class StripChart(QWidget):
             self._y_range = (float(want[0]), float(want[1]))
             self.plot.setYRange(*self._y_range, padding=0.08)
             lo, hi = self._y_range
-            self.traces.set_bounds(QRectF(-self.seconds, lo, self.seconds, hi - lo))
+            for item in self._span_items:
+                if isinstance(item, pg.TextItem):
+                    item.setPos(item.pos().x(), hi)
+            self.traces.set_bounds(QRectF(self._x[0], lo, self._x[1] - self._x[0], hi - lo))
 
 
 def _nice_step(x: float) -> float:

@@ -179,18 +179,22 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
                    *(_fmt(f.get(k)) for k in keys)) for f in m["per_fold"]],
                  right=("round", *heads))
     if m.get("shots"):
-        print_shots(m["shots"], cut, m.get("shots_by", "join"))
+        print_shots(m, cut)
     if m.get("windows") is not None:
         print(f"  ({m.get('n_trials', '?')} test trials, {m['windows']} windows of "
-              f"{m.get('window_s', 0):g} s over all trials; trial = {m.get('aggregate', 'mean')} "
-              "of its windows)")
+              f"{m.get('window_s', 0):g} s over the data's trials; "
+              f"trial = {m.get('aggregate', 'mean')} of its windows)")
     if out is not None:
         print(f"run folder: {out}")
 
 
-def print_shots(shots: list[dict[str, Any]], cut: bool, by: str = "join") -> None:
-    """The few-shot curve: accuracy for K labelled performances per gesture of the test
-    person in the training, or fine-tuning it (``by``; the same test trials at every K)."""
+def print_shots(m: dict[str, Any], cut: bool) -> None:
+    """The few-shot curve of metrics ``m``: accuracy for K labelled performances per
+    gesture of the test person in the training, or fine-tuning it (the same test trials
+    at every K, fewer than a plain run's: said)."""
+    from tactile_studio.learn.evaluation.summary import shots_test_set
+
+    shots, by = m["shots"], m.get("shots_by", "join")
     base = shots[0]
     key = "trial_accuracy" if cut else "accuracy"
     gain = f"points vs K={base['k']}"
@@ -205,7 +209,7 @@ def print_shots(shots: list[dict[str, Any]], cut: bool, by: str = "join") -> Non
     how = "the K = 0 model's output layers fine-tuned on them" if by == "fine-tune" else \
         "in the training"
     print("few-shot personalisation: K labelled performances per gesture of the test "
-          f"person {how}, {base.get('n_trials', '?')} test trials at every K")
+          f"person {how}, {shots_test_set(m)}")
     tables.table(("K", *heads, gain), rows, right=("K", *heads, gain))
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.trials import TrialStatus, trial_number
 
 
 @dataclass
@@ -25,6 +25,11 @@ class TrialSpan:
     start: int
     end: int
     flags: list[str] = field(default_factory=list)
+
+    @property
+    def number(self) -> int:
+        """The trial's number as people see it (from 1; ``index`` is the file's)."""
+        return trial_number(self.index)
 
 
 @dataclass
@@ -128,11 +133,20 @@ class SessionPlayback:
                 return t
         return None
 
+    def trial_near(self, frame: int) -> TrialSpan | None:
+        """The trial ``frame`` is in, else the last one begun before it (what the
+        player's trial box shows as the cursor moves); None before the first."""
+        inside = self.trial_at(frame)
+        if inside is not None:
+            return inside
+        begun = [t for t in self.trials if t.start <= frame]
+        return begun[-1] if begun else None
+
     def trial(self, index: int) -> TrialSpan:
         for t in self.trials:
             if t.index == index:
                 return t
-        raise UserError(f"{self.path}: no trial {index}")
+        raise UserError(f"{self.path}: no trial {trial_number(index)}")
 
     # --- frames ----------------------------------------------------------------------------
     def frame(self, i: int, virtual: bool = False):
@@ -145,15 +159,22 @@ class SessionPlayback:
 
 
 def session_history(pb: SessionPlayback, frame: int, taxels: list[tuple[int, int]],
-                    quantity: str = "normal", seconds: float = 10.0, max_points: int = 600):
-    """The strip chart's data for the ``seconds`` before ``frame`` (physical taxels),
-    as the live view's :class:`~tactile_studio.live.view.History` (t <= 0)."""
+                    quantity: str = "normal", seconds: float = 10.0, max_points: int = 600,
+                    window: tuple[float, float] | None = None):
+    """The strip chart's data (physical taxels) as the live view's
+    :class:`~tactile_studio.live.view.History`: the ``seconds`` before ``frame`` (t <= 0,
+    as live), or with ``window`` the frames of that stretch of session time, t in session
+    seconds (the player's :class:`~tactile_studio.playback.chart.ChartWindow`)."""
     from tactile_studio.live.view import QUANTITIES, History
 
     if quantity not in QUANTITIES:
         raise ValueError(f"quantity {quantity!r} not in {QUANTITIES}")
-    end = int(np.clip(frame, 0, pb.n_frames - 1)) + 1
-    start = pb.frame_at(pb.time_of(end - 1) - seconds)
+    if window is None:
+        end = int(np.clip(frame, 0, pb.n_frames - 1)) + 1
+        start, zero = pb.frame_at(pb.time_of(end - 1) - seconds), pb.times[end - 1]
+    else:
+        start = pb.frame_at(window[0])
+        end, zero = min(pb.frame_at(window[1]) + 1, pb.n_frames), 0.0
     step = max(1, (end - start) // max_points)
     rows = np.arange(start, end, step)
     fr = decode(pb.layout, pb.raw[rows], pb.session.baseline(start), False)
@@ -167,7 +188,7 @@ def session_history(pb: SessionPlayback, frame: int, taxels: list[tuple[int, int
         q = np.hypot(fr.shear_x, fr.shear_y)
     values = np.stack([q[:, r, c] for r, c in taxels], axis=1) if taxels else \
         np.zeros((len(rows), 0), np.float32)
-    return History(t=pb.times[rows] - pb.times[end - 1], values=values.astype(np.float32),
+    return History(t=pb.times[rows] - zero, values=values.astype(np.float32),
                    names=[pb.layout.taxel_name(r, c) for r, c in taxels], quantity=quantity,
                    units=fr.units)
 

@@ -36,7 +36,7 @@ from tactile_studio.storage.shearsense import (
     parse_shearsense_name,
     write_shearsense_csv,
 )
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.trials import TrialStatus, trial_number
 
 FORMATS = ("shearsense-csv", "npz", "csv-trials", "xdf")
 GRIDS = ("auto", "virtual", "physical")
@@ -103,7 +103,7 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
         for t in selected_trials(s, all_trials):
             key = str(t.get("key") or "")
             if len(key) != 1:
-                raise UserError(f"{s.path}: trial {t['index']} has no one-letter key "
+                raise UserError(f"{s.path}: trial {trial_number(t['index'])} has no one-letter key "
                                 f"({key!r}); the ShearSense CSV labels rows by key")
             labels[t["start_sample"]:t["end_sample"]] = ord(key)
         raw, baseline = s.raw(), s.baseline(0)
@@ -235,7 +235,7 @@ def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
             if cancel is not None:
                 cancel.check()
             rows.append({**trial_row(s, t, labels, rate), **{k: t.get(k, "") for k in extra}})
-            progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {t['index']}")
+            progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {trial_number(t['index'])}")
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="", encoding="utf-8") as fh:

@@ -198,6 +198,18 @@ class Session:
         h.update(np.ascontiguousarray(self.column("device_time", 0, n)).tobytes())
         return derived_session_id(f"fingerprint:{h.hexdigest()}")
 
+    @property
+    def recording(self) -> str:
+        """What the recording is by content: a digest of the layout, the frame count and
+        the raw counts of the first and last frames. A session re-imported from its own
+        export (a new ``session_id``: the importer's, from the exported file) has the
+        same frames, so the same digest; two recordings never do (sensor noise)."""
+        n = self.n_frames
+        h = hashlib.sha256(f"{self.layout.name};{n};".encode())
+        h.update(np.ascontiguousarray(self.raw(0, min(n, FINGERPRINT_FRAMES))).tobytes())
+        h.update(np.ascontiguousarray(self.raw(max(0, n - FINGERPRINT_FRAMES), n)).tobytes())
+        return h.hexdigest()[:32]
+
     def aux_signals(self) -> list[AuxSignal]:
         """Other instruments' signals kept beside the touch (storage/aux_signals.py)."""
         return read_aux(self._f)

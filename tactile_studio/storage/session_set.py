@@ -1,13 +1,16 @@
 """Choosing the session files of a dataset so that no session counts twice.
 
 A resume keeps the original file as ``NAME.bak-N.h5`` beside the resumed one, and the
-same recording can sit in two folders (a copy, the same source imported twice). Both
-would put copies of a participant's trials into a dataset, possibly on both sides of a
-train/test split. So a folder scan skips resume backups, and files sharing a
-``session_id`` (see :attr:`Session.session_id`) are reduced to one: a non-backup before
-a backup, then a cleanly closed file, then the one with more trials, more frames, the
-newest modification time and finally the first path in sort order. What was skipped is
-returned so it can be reported.
+same recording can sit in two folders (a copy, the same source imported twice) or come
+back under a new ``session_id`` (a session exported and imported again: the importer's
+id). Each would put copies of a participant's trials into a dataset, possibly on both
+sides of a train/test split. So a folder scan skips resume backups, files sharing a
+``session_id`` (see :attr:`Session.session_id`) are reduced to one, and so are files
+holding the same recording by content (:attr:`Session.recording`): a non-backup before
+a backup, then a recording made here before an import of it, then a cleanly closed
+file, then the one with more trials, more frames, the newest modification time and
+finally the first path in sort order (:func:`choose`, which the research workspace's
+listing uses too). What was skipped is returned so it can be reported.
 """
 
 from __future__ import annotations
@@ -51,7 +54,9 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
         return ""
     backups = [s for s in skipped if s["reason"] == "resume backup"]
     dups = [s for s in skipped if s["reason"] == "duplicate session"]
-    odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session")]
+    same = [s for s in skipped if s["reason"] == "same recording"]
+    odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session",
+                                                     "same recording")]
     parts = []
     if odd:  # a FIFO, a device, a broken link named *.h5: never opened
         parts.append(f"{len(odd)} file{'s' if len(odd) != 1 else ''} that cannot be read ("
@@ -63,6 +68,11 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
         more = f"; {len(dups) - 3} more" if len(dups) > 3 else ""
         parts.append(f"{len(dups)} duplicate session{'s' if len(dups) != 1 else ''} "
                      f"({shown}{more})")
+    if same:
+        shown = "; ".join(f"{d['file']}: the same frames as {d['kept']}" for d in same[:3])
+        more = f"; {len(same) - 3} more" if len(same) > 3 else ""
+        parts.append(f"{len(same)} cop{'ies' if len(same) != 1 else 'y'} of a recording "
+                     f"already in the data ({shown}{more})")
     return "skipped " + ", ".join(parts)
 
 
@@ -105,14 +115,59 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
     return files, backups
 
 
-def _rank(path: Path, s: Session) -> tuple:
+@dataclass(frozen=True)
+class SessionKey:
+    """What choosing among files needs of one: its session id, its recording by content
+    (:attr:`Session.recording`) and its rank (the better copy first)."""
+
+    path: Path
+    session_id: str
+    recording: str
+    rank: tuple
+
+
+def session_key(path: Path, s: Session) -> SessionKey:
+    """``path``'s key, from its open session. The rank prefers a file that is no resume
+    backup, then a recording made here over an import of it (an export re-imported keeps
+    no protocol, blocks or sensor), then a cleanly closed one, more ok trials, more
+    frames, the newest."""
     ok = sum(1 for t in records(s.trials) if t.ok)
-    return (not is_resume_backup(path), s.closed_cleanly, ok, s.n_frames,
-            path.stat().st_mtime_ns)
+    made_here = not str(s.metadata.get("source") or "").startswith("import")
+    return SessionKey(path, s.session_id, s.recording,
+                      (not is_resume_backup(path), made_here, s.closed_cleanly, ok,
+                       s.n_frames, path.stat().st_mtime_ns))
+
+
+def choose(keys: Sequence[SessionKey]) -> tuple[list[Path], list[tuple[Path, str, Path]]]:
+    """(kept, left out): one file per session (``session_id``), then one per recording
+    (the same frames under two ids: an export imported back, two imports of one
+    recording); each left-out file as (file, reason, the file kept instead), the reason
+    "duplicate session" (a resume backup among them: :func:`is_resume_backup`) or "same
+    recording"."""
+    def best(group: list[SessionKey]) -> list[SessionKey]:
+        group = sorted(group, key=lambda k: k.path)          # equal ranks: first path wins
+        return sorted(group, key=lambda k: k.rank, reverse=True)
+
+    left: list[tuple[Path, str, Path]] = []
+    sessions: dict[str, list[SessionKey]] = {}
+    for k in keys:
+        sessions.setdefault(k.session_id, []).append(k)
+    recordings: dict[str, list[SessionKey]] = {}
+    for group in sessions.values():
+        first, *rest = best(group)
+        recordings.setdefault(first.recording, []).append(first)
+        left += [(k.path, "duplicate session", first.path) for k in rest]
+    kept = []
+    for group in recordings.values():
+        first, *rest = best(group)
+        kept.append(first.path)
+        left += [(k.path, "same recording", first.path) for k in rest]
+    return sorted(kept), left
 
 
 def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
-    """The session files under ``paths`` with resume backups and duplicates left out."""
+    """The session files under ``paths`` with resume backups and duplicates (the same
+    session, or the same recording under another session id) left out."""
     files, backups = scan_session_files(paths)
     every = files + backups
     shown_root = Path(os.path.commonpath([f.parent for f in every])) if every else None
@@ -124,22 +179,19 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
         {"file": rel(b), "reason": "resume backup"} for b in backups]
     odd = {f: not_regular(f) for f in files}
     skipped += [{"file": rel(f), "reason": why} for f, why in odd.items() if why]
-    by_id: dict[str, list[tuple[tuple, Path]]] = {}
+    keys = []
     for f in (f for f in files if not odd[f]):
         with Session(f) as s:
-            by_id.setdefault(s.session_id, []).append((_rank(f, s), f))
-    keep: list[Path] = []
-    for sid, group in by_id.items():
-        group.sort(key=lambda g: g[1])                  # equal ranks: first path wins
-        group.sort(key=lambda g: g[0], reverse=True)
-        best = group[0][1]
-        keep.append(best)
-        skipped += [{"file": rel(f), "reason": "duplicate session", "session_id": sid,
-                     "kept": rel(best)} for _, f in group[1:]]
-    keep.sort()
+            keys.append(session_key(f, s))
+    keep, left = choose(keys)
+    ids = {k.path: k.session_id for k in keys}
+    skipped += [{"file": rel(f), "reason": why, "kept": rel(kept),
+                 **({"session_id": ids[f]} if why != "same recording" else {})}
+                for f, why, kept in left]
     # Trial uids are relative to the kept files' folder, as before backups were skipped.
     root = Path(os.path.commonpath([f.parent for f in keep])) if keep else None
     return SessionSet(keep, root, skipped)
 
 
-__all__ = ["SessionSet", "describe_skipped", "is_resume_backup", "select_sessions"]
+__all__ = ["SessionKey", "SessionSet", "choose", "describe_skipped", "is_resume_backup",
+           "select_sessions", "session_key"]

@@ -24,6 +24,12 @@ class TrialStatus(StrEnum):
     DISCARDED = "discarded"  # kept in the file but not used (practice, or by hand)
 
 
+def trial_number(index: int) -> int:
+    """The number people see for the trial stored with ``index``: the file counts from 0,
+    every screen and message from 1 (the console's "Trial 22" is index 21)."""
+    return int(index) + 1
+
+
 _FIELDS = ("index", "block", "gesture", "key", "start_sample", "end_sample", "start_time",
            "end_time", "status", "reason", "flags")
 

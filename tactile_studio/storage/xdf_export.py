@@ -5,7 +5,8 @@ Streams (ids in this order):
 
 1. frames: ``TactileStudio-<device>``, type ``Tactile``, raw counts (int32; float32 for
    float layouts), one channel per raw channel labelled as on LSL (docs/lsl.md), the
-   layout and device in ``desc/tactile_studio``;
+   layout and device in ``desc/tactile_studio``, and in its ``session`` the protocol,
+   condition, orders, seeds, sensor and calibration (storage/xdf_session_fields.py);
 2. markers: ``<frames>-markers``, type ``Markers``, one JSON string per event and two per
    trial (``trial_start`` at its first frame, ``trial_end`` at its last with gesture,
    block, status...), the same JSON the live marker stream carries;
@@ -41,6 +42,7 @@ from tactile_studio.storage.importers._common import (
     write_through_part,
 )
 from tactile_studio.storage.session import Session, measured_rate_hz
+from tactile_studio.storage.xdf_session_fields import session_desc
 from tactile_studio.storage.xdf_writer import XdfWriter
 
 WINDOW_S = 10.0      # a Boundary chunk and ClockOffsets every WINDOW_S of data
@@ -96,7 +98,9 @@ def _frame_stream(s: Session, host: np.ndarray, stamps: np.ndarray, lsl: bool) -
     plugin = str(device.get("plugin") or "session")
     rate = float(device.get("nominal_rate_hz") or 0.0) or round(measured_rate_hz(host), 6)
     integer = np.issubdtype(np.dtype(lay.raw_dtype), np.integer)
-    sensor_id = device.get("sensor_id") or (device.get("settings") or {}).get("sensor_id")
+    # the session's own sensor (the logbook's, in the metadata), else what the device said
+    sensor_id = meta.get("sensor_id") or device.get("sensor_id") or \
+        (device.get("settings") or {}).get("sensor_id")
     desc = {
         "channels": {"channel": [{k: str(v) for k, v in ch.items()}
                                  for ch in frame_channels(lay, RAW)]},
@@ -112,6 +116,8 @@ def _frame_stream(s: Session, host: np.ndarray, stamps: np.ndarray, lsl: bool) -
                        "channels_per_taxel": lay.channels_per_taxel,
                        "column_major": int(bool(lay.column_major)),
                        "pitch_mm": repr(lay.pitch_mm), "units": lay.units},
+            # protocol, condition, gesture and block orders, seeds, sensor, calibration
+            "session": session_desc(meta),
             "clock": {"timeline": "lsl" if lsl else "host",
                       "meaning": "lsl: host_time + offset_s of the lsl_clock event in force; "
                                  "host: host_time (Unix seconds)"},

@@ -133,7 +133,7 @@ class CompareView(QWidget):
         self.details.setText(
             f"A = {r['name_a']} ({r['run_a']}): {100 * r['accuracy_a']:.1f}%   ·   "
             f"B = {r['name_b']} ({r['run_b']}): {100 * r['accuracy_b']:.1f}%   ·   differ in: "
-            + ("; ".join(r["config_difference"]) or "nothing recorded"))
+            + ("; ".join(r["config_difference"]) or "the same settings"))
         self.shots.setText(shots_text(r))
         self.shots.setVisible(bool(r.get("shots")))
         diff = np.asarray(r["difference_matrix"])

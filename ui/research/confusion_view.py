@@ -194,7 +194,7 @@ class ConfusionView(QWidget):
         names = self.model.labels
         self.table.setRowCount(len(self.cell_rows))
         for r, t in enumerate(self.cell_rows):
-            for c, v in enumerate((t.participant, t.session, str(t.trial), names[t.true],
+            for c, v in enumerate((t.participant, t.session, str(t.number), names[t.true],
                                    names[t.pred], f"{t.confidence:.2f}", names[t.runner_up])):
                 self.table.setItem(r, c, QTableWidgetItem(v))
 

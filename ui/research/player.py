@@ -20,6 +20,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.playback import PlayClock, SessionPlayback, session_history
+from tactile_studio.playback.chart import ChartWindow
 from tactile_studio.storage.session_check import check_file, verdict_text
 from tactile_studio.ui.heatmap import HeatmapView, strip_colors
 from tactile_studio.ui.research.timeline import Timeline
@@ -38,6 +39,7 @@ class SessionPlayer(QWidget):
         super().__init__(parent)
         self.pb: SessionPlayback | None = None
         self.clock: PlayClock | None = None
+        self.window = ChartWindow()  # the strip chart's stretch of the session
         self.run_path: str | None = None
         self.heatmap = HeatmapView()
         self.strip = StripChart()
@@ -119,11 +121,12 @@ class SessionPlayer(QWidget):
         if self.pb is not None:
             self.pb.close()
         self.pb, self.clock = pb, PlayClock(pb)
+        self.window = ChartWindow(self.strip.seconds, pb.duration)
         self.heatmap.set_layout(pb.layout)
         self.timeline.set_playback(pb)
         self.trial_box.clear()
         for t in pb.trials:
-            self.trial_box.addItem(f"{t.index}: {t.gesture} ({t.status})", t.index)
+            self.trial_box.addItem(f"{t.number}: {t.gesture} ({t.status})", t.index)
         # chart the two most-loaded taxels of the session to start with
         peak = np.abs(pb.frame(int(np.argmax(np.abs(pb.raw - pb.raw[0]).sum(axis=1))))[0])
         order = np.argsort(-peak.ravel())[:2]
@@ -213,12 +216,12 @@ class SessionPlayer(QWidget):
             self.show_frame()
 
     def jump_to_trial(self, index: int) -> None:
+        """The cursor to the trial's start, the trial centred in the strip chart (with
+        what came before and after it)."""
         if self.pb is None or self.clock is None:
             return
         span = self.pb.trial(index)
-        k = self.trial_box.findData(index)
-        if k >= 0:
-            self.trial_box.setCurrentIndex(k)
+        self.window.centre_on(self.pb.time_of(span.start), self.pb.time_of(span.end - 1))
         if self.loop.isChecked():
             self.clock.loop_trial(span)
         self.seek(span.start)
@@ -265,10 +268,14 @@ class SessionPlayer(QWidget):
         normal, sx, sy, units = self.pb.frame(f, self.heatmap.virtual)
         self.heatmap.set_frame(normal, sx, sy, units)
         self.timeline.set_cursor(f)
-        self.strip.set_history(session_history(self.pb, f, self.taxels, self.strip.quantity()))
+        near = self.pb.trial_near(f)  # the trial box and the chart follow the cursor
+        self._show_chart(f, near)
         self.heatmap.set_marked_cells(self.taxels, strip_colors(len(self.taxels)))
         t = self.pb.trial_at(f)
-        where = f"trial {t.index} {t.gesture}" if t else "between trials"
+        where = f"trial {t.number} {t.gesture}" if t else "between trials"
+        k = self.trial_box.findData(near.index) if near is not None else -1
+        if k >= 0 and k != self.trial_box.currentIndex():
+            self.trial_box.setCurrentIndex(k)
         self.position.setText(f"{self.pb.time_of(f):7.2f} s · frame {f}/{self.pb.n_frames - 1}"
                               f" · {where}")
         if self.pred_frames is not None and self.pred_probs is not None:
@@ -279,6 +286,19 @@ class SessionPlayer(QWidget):
                 order = np.argsort(-self.pred_probs[k])[:3]
                 self.prediction.setText("prediction: " + ",  ".join(
                     f"{self.pred_labels[i]} {100 * self.pred_probs[k, i]:.0f}%" for i in order))
+
+    def _show_chart(self, f: int, near) -> None:  # noqa: ANN001 - a TrialSpan or None
+        """The strip chart's stretch around the cursor (playback.chart.ChartWindow), the
+        trials in it shaded (``near``, the trial box's, darker) and the cursor line."""
+        assert self.pb is not None
+        pb, now = self.pb, self.pb.time_of(f)
+        t0, t1 = self.window.follow(now)
+        self.strip.set_window(t0, t1, now)
+        self.strip.set_spans([(pb.time_of(s.start), pb.time_of(s.end - 1),
+                               f"{s.number}: {s.gesture}", s is near) for s in pb.trials
+                              if pb.time_of(s.end - 1) >= t0 and pb.time_of(s.start) <= t1])
+        self.strip.set_history(session_history(pb, f, self.taxels, self.strip.quantity(),
+                                               window=(t0, t1)))
 
     def current_frame(self) -> int:
         return self.clock.frame if self.clock else 0

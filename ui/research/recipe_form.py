@@ -93,7 +93,7 @@ class RecipeForm(QWidget):
                                           "typical person")
         self.balance = QCheckBox("repeat rarer gestures when training")
         self.body = QWidget()
-        form = QFormLayout(self.body)
+        self.form = form = QFormLayout(self.body)
         form.setContentsMargins(16, 0, 0, 0)
         kinds_row = QWidget()
         kinds_row.setLayout(kinds)
@@ -170,6 +170,10 @@ class RecipeForm(QWidget):
         if v["val_by"] == "participant":
             parts.append("early stop on people")
         return ", ".join(parts) or "defaults"
+
+    def offer_epoch_options(self, on: bool) -> None:
+        """Early stopping only for a model that trains in epochs (not rf / knn)."""
+        self.form.setRowVisible(self.val_by, on)
 
     # --- settings ----------------------------------------------------------------------
     def load(self, settings: QSettings, key: str) -> None:

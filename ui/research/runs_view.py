@@ -122,7 +122,7 @@ class RunsView(QWidget):
         self.open_button.setEnabled(len(sel) == 1)
         self.compare_button.setEnabled(len(sel) == 2)
         if len(sel) == 2:
-            diff = config_difference(sel[0].config, sel[1].config)
+            diff = config_difference(sel[0].ran_config, sel[1].ran_config)
             self.difference.setText(f"{sel[0].name} → {sel[1].name}: " +
                                     ("; ".join(diff) if diff else "same settings"))
         elif len(sel) == 1:

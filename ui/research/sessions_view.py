@@ -23,6 +23,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.learn.experiments.workspace_index import (
     SessionRow,
     check_sessions,
+    chosen_rows,
     scan_sessions,
 )
 from tactile_studio.storage.study_summary import study_counts
@@ -33,8 +34,9 @@ from tactile_studio.ui.settings import app_settings, get_json, set_json
 
 FOLDERS_KEY = "research/session_folders"
 
-COLUMNS = ["session", "participant", "condition", "protocol", "sensor", "date", "ok trials",
-           "flagged", "discarded", "per gesture", "problem"]
+COLUMNS = ["session", "folder", "participant", "condition", "protocol", "sensor", "date",
+           "ok trials", "flagged", "discarded", "per gesture", "note", "problem"]
+LEFT_OUT = QColor(120, 120, 120)  # a backup or a copy: listed, not counted twice
 CHECKING = "checking…"
 
 
@@ -44,6 +46,15 @@ def per_gesture_text(per: dict[str, int]) -> str:
     if len(counts) == 1:
         return f"{len(per)} gestures × {counts.pop()}"
     return ", ".join(f"{g} {n}" for g, n in sorted(per.items()))
+
+
+def left_out_text(reasons: list[str]) -> str:
+    """"2 not counted: a resume backup, a copy of a recording" (``choose``'s reasons)."""
+    words = {"resume backup": "resume backup", "duplicate session": "copy of a session",
+             "same recording": "copy of a recording"}
+    named = [f"{n} {words[why]}s" if n > 1 else f"a {words[why]}"
+             for why in words if (n := reasons.count(why))]
+    return f"{len(reasons)} not counted: " + ", ".join(named)
 
 
 class SessionsView(QWidget):
@@ -98,20 +109,39 @@ class SessionsView(QWidget):
         self.table.setRowCount(0)  # no selected row may point at a row of the last scan
         self.table.setRowCount(len(self.rows))
         for r, row in enumerate(self.rows):
-            values = [row.path.rsplit("/", 1)[-1], row.participant, row.condition, row.protocol,
-                      row.sensor, row.date, row.ok, row.flagged, row.discarded,
-                      per_gesture_text(row.per_gesture), row.problem or CHECKING]
+            values = [row.path.rsplit("/", 1)[-1], row.folder, row.participant, row.condition,
+                      row.protocol, row.sensor, row.date, row.ok, row.flagged, row.discarded,
+                      per_gesture_text(row.per_gesture), row.note, row.problem or CHECKING]
             fill_row(self.table, r, values, [None] * len(values), row.error)
             self.table.item(r, 0).setToolTip(row.path)
-            self.table.item(r, 9).setToolTip("\n".join(
+            self.table.item(r, COLUMNS.index("per gesture")).setToolTip("\n".join(
                 f"{g}: {n}" for g, n in sorted(row.per_gesture.items())))
+            if row.left_out and not row.error:
+                for c in range(len(COLUMNS)):
+                    self.table.item(r, c).setForeground(LEFT_OUT)
+                self.table.item(r, COLUMNS.index("note")).setToolTip(
+                    f"{row.note}: its trials are that file's (re-imported from an export, or "
+                    "copied).\nA dataset reads one file per "
+                    "session and per recording: train and the Train tab skip this one when "
+                    "the other is selected too.")
         self.table.setSortingEnabled(True)
         self.table.sortItems(0, Qt.SortOrder.AscendingOrder)
+        self.table.setColumnHidden(COLUMNS.index("note"), not any(r.note for r in self.rows))
         self._show_problem_column()
         self._apply_filter()
         self.table.selectAll()
+        self._deselect_copies()
         self._selection_changed()
         self._start_checks()
+
+    def _deselect_copies(self) -> None:
+        """A resume backup or another copy of a listed recording starts unselected: the
+        selection is then what a run reads (selected anyway, it is counted once)."""
+        model = self.table.selectionModel()
+        for r in range(self.table.rowCount()):
+            if self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)].left_out:
+                model.select(self.table.model().index(r, 0),
+                             model.SelectionFlag.Deselect | model.SelectionFlag.Rows)
 
     def stop_checks(self, wait_s: float = 0.0) -> None:
         """Cancel the listing's checks (they stop between files; a file being read is
@@ -222,13 +252,18 @@ class SessionsView(QWidget):
 
     def _selection_changed(self) -> None:
         sel = self.selected()
-        ok = sum(r.ok for r in sel)
-        people = len({r.participant for r in sel if not r.error})  # a junk file is nobody
+        read, left = chosen_rows(sel)  # what a run on the selection reads, as train does
+        ok = sum(r.ok for r in read)
+        people = len({r.participant for r in read})  # a junk file is nobody
         gaps = study_counts((r.participant, r.condition, r.per_gesture)
-                            for r in sel if not r.error).missing_text()
+                            for r in read).missing_text()
         failing = sum(1 for r in sel if r.violations and not r.error)
+        unpicked = sum(1 for r in self.rows if r.left_out) - sum(1 for r in sel if r.left_out)
         self.summary.setText(f"{len(sel)} of {len(self.rows)} sessions selected: {people} "
                              f"participants, {ok} ok trials" +
+                             (f" ({left_out_text(left)})" if left else "") +
+                             (f" — {unpicked} listed cop{'ies' if unpicked != 1 else 'y'} "
+                              "not selected (see the note column)" if unpicked else "") +
                              (" — no ok trials to train on" if sel and not ok else "") +
                              (f" — {gaps}" if gaps else "") +
                              (f" — {failing} fail{'s' if failing == 1 else ''} check "

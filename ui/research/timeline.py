@@ -85,7 +85,7 @@ class Timeline(QWidget):
         t = self.pb.trial_at(frame)
         tip = f"{self.pb.time_of(frame):.2f} s (frame {frame})"
         if t is not None:
-            tip += f"\ntrial {t.index}: {t.gesture} ({t.status}{', flagged' if t.flags else ''})"
+            tip += f"\ntrial {t.number}: {t.gesture} ({t.status}{', flagged' if t.flags else ''})"
         near = 3 * (self.pb.n_frames - 1) / max(self.width() - 8, 1)  # 3 px either side
         for ev in [ev for ev in self.pb.events if abs(ev.frame - frame) <= near][:6]:
             tip += f"\n{ev.kind}: {ev.text}" if ev.text != ev.kind else f"\n{ev.kind}"

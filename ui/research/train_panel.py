@@ -39,7 +39,11 @@ from tactile_studio.learn.experiments.job_events import (
     JobEvent,
     Progress,
 )
-from tactile_studio.learn.experiments.train_job import TrainJob, model_settings
+from tactile_studio.learn.experiments.train_job import (
+    TrainJob,
+    model_settings,
+    trains_in_epochs,
+)
 from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.paths import data_dir
@@ -47,6 +51,7 @@ from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.bound_settings import BoundSettings
 from tactile_studio.ui.research.choices import adapt_combo, preset_combo
 from tactile_studio.ui.research.job_panel import JobPanel
+from tactile_studio.ui.research.recipe_form import DEFAULTS as RECIPE_DEFAULTS
 from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import make_table
 from tactile_studio.ui.research.timeline import PALETTE
@@ -139,7 +144,7 @@ class TrainPanel(JobPanel):
         self.options.setHorizontalHeaderLabels(["option", "value", "help"])
         self.options.verticalHeader().hide()
         self.options.horizontalHeader().setStretchLastSection(True)
-        form = QFormLayout()
+        self.form = form = QFormLayout()
         for label, w in (("Model", self.model), ("Preset", self.preset),
                          ("Channels", self.channels), ("Grid", self.grid),
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
@@ -237,9 +242,11 @@ class TrainPanel(JobPanel):
     def fill_options(self) -> None:
         try:
             rows = model_settings(self.model.currentText(), self.preset.currentText())
+            epochs = trains_in_epochs(self.model.currentText(), self.preset.currentText())
         except UserError as exc:
             self.error.emit(str(exc))
-            rows = []
+            rows, epochs = [], True
+        self._offer_epoch_options(epochs)
         self.defaults = {k: v for k, v, _ in rows}
         self.options.setRowCount(len(rows))
         for r, (k, v, h) in enumerate(rows):
@@ -249,6 +256,18 @@ class TrainPanel(JobPanel):
                     item.setFlags(item.flags() & ~item.flags().ItemIsEditable)
                 self.options.setItem(r, c, item)
         self.options.resizeColumnsToContents()
+
+    def _offer_epoch_options(self, on: bool) -> None:
+        """A model that trains in epochs (a network) gets its epochs, early stopping,
+        fine-tuning and the validation-curve plot; rf and knn fit once: none of these,
+        and the fold table takes the plot's room."""
+        self.epoch_model = on
+        self.form.setRowVisible(self.epochs, on)
+        self.form.setRowVisible(self.shots_by, on)  # rf / knn: the shots always join
+        self.recipe.offer_epoch_options(on)
+        self.plot.setVisible(on)
+        for name in ("epochs", "best val acc"):
+            self.folds.setColumnHidden(FOLD_COLUMNS.index(name), not on)
 
     def overrides(self) -> dict[str, Any]:
         out = {}
@@ -268,14 +287,18 @@ class TrainPanel(JobPanel):
         if not data:
             raise UserError("no sessions selected: pick sessions with ok trials in the "
                             "Sessions tab")
+        recipe = self.recipe.kwargs()
+        if not self.epoch_model:  # what is not offered is not asked for (rf / knn)
+            recipe["val_by"] = RECIPE_DEFAULTS["val_by"]
         return ExperimentConfig(
             data=data, model=self.model.currentText(), preset=self.preset.currentText(),
             channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
             protocol=self.protocol.currentText(), rounds=self.rounds.value(),
-            epochs=self.epochs.value() or None, overrides=self.overrides(), threads=1,
+            epochs=(self.epochs.value() or None) if self.epoch_model else None,
+            overrides=self.overrides(), threads=1,
             device="cpu", adapt=self.adapt.currentData(), shots=self.shot_counts(),
-            shots_by=self.shots_by.currentData(),
-            **self.recipe.kwargs())
+            shots_by=self.shots_by.currentData() if self.epoch_model else "auto",
+            **recipe)
 
     def shot_counts(self) -> tuple[int, ...]:
         """The K of few-shot personalisation ("0,1,2"), () when off or not offered."""

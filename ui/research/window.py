@@ -118,7 +118,11 @@ class ResearchWindow(QMainWindow):
             return False
         self.confusion.set_run(run)
         self.tabs.setCurrentWidget(self.confusion)
-        self.show_info(f"opened {path}: {len(run.trials)} test trials")
+        ks = run.shot_counts  # a few-shot run scores each test trial once per K
+        tested = len(run.at_shots(ks[0]).trials) if ks else len(run.trials)
+        self.show_info(f"opened {path}: {tested} test trials" + (
+            f", each scored at K = {', '.join(map(str, ks))} (the header's K is shown)"
+            if ks else ""))
         return True
 
     def compare_runs(self, a: str, b: str) -> bool:

@@ -218,7 +218,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
                 conditions.append(condition)
                 uids.append(f"{rel}#{int(t['index'])}")
                 rates.append(_trial_rate(s, t, start, stop))
-    progress(1.0, "decoded")
+    progress(1.0, f"decoded {len(trials)} trials of {len(files)} session(s)")
     if not trials:
         where = ", ".join(str(p) for p in paths)
         raise UserError(f"{where}: no trials with status ok in {len(files)} session file(s)")

@@ -15,40 +15,77 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.evaluation.trialpreds import RunPredictions, load_predictions
-from tactile_studio.learn.experiments.experiment import result_defaults
+from tactile_studio.learn.experiments.experiment import RESULT_KEYS, result_defaults
 from tactile_studio.learn.learners.fused import display_name
 
-_DESCRIBED = ("model", "channels", "grid", "protocol", "preset", "rounds", "epochs", "seed",
-              "folds", "overrides", "data", "window_s", "aggregate", "augment",
-              "augment_copies", "participant_norm", "balance", "val_by", "adapt")
 _ADAPT_LABEL = {"person": "adapted", "person-condition": "adapted per condition",
                 "none": "as trained"}
+# settings that mean nothing unless another one says so: (setting, in effect when)
+_IN_EFFECT = {
+    "folds": lambda c: c.get("protocol") == "group-kfold",
+    "heldout_fraction": lambda c: c.get("protocol") == "group-kfold",
+    "split": lambda c: c.get("protocol") == "all-inclusive",
+    "shots_by": lambda c: bool(c.get("shots")),
+    "augment_copies": lambda c: bool(c.get("augment")),
+}
+_NONE_WHEN_EMPTY = ("shots", "augment")  # an empty value means "none", not "default"
+
+
+def _value_text(key: str, value: Any) -> str:
+    """A setting's value in a phrase: lists joined ("0,1,2"), switches on/off, an unset
+    setting "default" (the model's or protocol's own), an empty list or text "none"."""
+    if value is None or (isinstance(value, (list, tuple, str)) and not value):
+        return "none" if key in _NONE_WHEN_EMPTY else "default"
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, (list, tuple)):
+        return ",".join(_value_text(key, v) for v in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
 
 
 def config_difference(a: dict[str, Any], b: dict[str, Any]) -> list[str]:
-    """The settings two run configs differ in, one phrase each ("channels: normal → both")."""
+    """Every result-changing setting two run configs differ in, one phrase each
+    ("channels: normal → both", "shots: none → 0,1,2"); a setting counts only where it
+    acts (a k-fold's folds under lopo do not). Pass the configs as the runs ran
+    (:func:`as_ran`): a setting left to its default reads as the value it took."""
     since = result_defaults()  # what a run written before a setting existed ran with
     out = []
-    for key in _DESCRIBED:
+    for key in RESULT_KEYS:
         va, vb = a.get(key, since.get(key)), b.get(key, since.get(key))
+        if key in ("shots", "split"):  # lists and tuples alike
+            va, vb = list(va or []), list(vb or [])
         if va == vb:
+            continue
+        if key in _IN_EFFECT and not (_IN_EFFECT[key](a) or _IN_EFFECT[key](b)):
             continue
         if key == "overrides" and isinstance(va, dict) and isinstance(vb, dict):
             for k in sorted(set(va) | set(vb)):
                 if va.get(k) != vb.get(k):
-                    out.append(f"{k}: {va.get(k, 'default')} → {vb.get(k, 'default')}")
+                    out.append(f"{k}: {_value_text(k, va.get(k))} → "
+                               f"{_value_text(k, vb.get(k))}")
         elif key == "data":
             out.append(f"data: {len(va or [])} → {len(vb or [])} source(s)"
                        if len(va or []) != len(vb or []) else "data: different sources")
         else:
-            out.append(f"{key}: {va if va is not None else 'default'} → "
-                       f"{vb if vb is not None else 'default'}")
+            out.append(f"{key}: {_value_text(key, va)} → {_value_text(key, vb)}")
     return out
 
 
-_LABELLED = ("model", "channels", "grid", "preset", "protocol", "adapt")
+def as_ran(config: dict[str, Any], channels: str | None) -> dict[str, Any]:
+    """``config`` with the channel set the run used (``channels``: from its dataset or
+    metrics) where train left it to the model (None): "normal → default" named no
+    difference two runs on normal and on both channels had."""
+    if config.get("channels") is None and channels:
+        return {**config, "channels": channels}
+    return config
+
+
+_LABELLED = ("model", "channels", "grid", "preset", "protocol", "adapt", "shots")
 _PHRASE = {"channels": "{} channels", "grid": "{} grid", "preset": "preset {}",
            "protocol": "{} evaluation"}
+_OWN_PHRASE = ("model", "adapt", "shots")  # named by their phrase even when alone
 
 
 def _phrase(run: RunPredictions, key: str, value: Any) -> str:
@@ -56,7 +93,13 @@ def _phrase(run: RunPredictions, key: str, value: Any) -> str:
         return display_name(run.config["model"], run.config.get("overrides"))
     if key == "adapt":
         return _ADAPT_LABEL[value or "none"]
+    if key == "shots":
+        return f"few-shot (K {_value_text(key, value)})" if value else "plain"
     return _PHRASE.get(key, "{}").format(value)
+
+
+def _channels_used(run: RunPredictions) -> str | None:
+    return (run.resolved.get("dataset") or {}).get("channels")
 
 
 def _labelled(run: RunPredictions) -> dict[str, Any]:
@@ -64,9 +107,9 @@ def _labelled(run: RunPredictions) -> dict[str, Any]:
     (None, as train without --channels writes it) is the set it used ("None channels"
     named a difference two runs on the same channels did not have)."""
     since = result_defaults()
-    out = {k: run.config.get(k, since.get(k)) for k in _LABELLED}
-    if out["channels"] is None:
-        out["channels"] = (run.resolved.get("dataset") or {}).get("channels")
+    config = as_ran(run.config, _channels_used(run))
+    out = {k: config.get(k, since.get(k)) for k in _LABELLED}
+    out["shots"] = list(out["shots"] or [])
     return out
 
 
@@ -81,9 +124,9 @@ def run_label(run: RunPredictions, other: RunPredictions) -> str:
     opts = [k for k in sorted(set(mine) | set(theirs)) if mine.get(k) != theirs.get(k)]
     if "model" in keys:  # a model's options differ with it: the model says it
         opts = []
-    if len(keys) == 1 and not opts and mine_set[keys[0]] is not None:
+    if len(keys) == 1 and not opts and (mine_set[keys[0]] is not None or keys[0] == "shots"):
         value = mine_set[keys[0]]
-        return _phrase(run, keys[0], value) if keys[0] in ("model", "adapt") else str(value)
+        return _phrase(run, keys[0], value) if keys[0] in _OWN_PHRASE else str(value)
     phrases = [_phrase(run, k, mine_set[k]) for k in keys]
     phrases += [f"{k} {mine.get(k, 'default')}" for k in opts]
     if 1 <= len(phrases) <= 3:
@@ -140,7 +183,8 @@ def compare_predictions(a: RunPredictions, b: RunPredictions) -> dict[str, Any]:
         "wilcoxon_p": w_p, "wilcoxon_n": w_n, "mcnemar_p": mcnemar_exact(only_a, only_b),
         "only_a_correct": only_a, "only_b_correct": only_b, "per_participant": pp,
         "difference_matrix": diff.round(6).tolist(),
-        "config_difference": config_difference(a.config, b.config),
+        "config_difference": config_difference(as_ran(a.config, _channels_used(a)),
+                                               as_ran(b.config, _channels_used(b))),
     }
     result["sentence"] = sentence(result)
     return result
@@ -156,29 +200,52 @@ def _same_recordings(a: RunPredictions, b: RunPredictions,
                 (tb.participant, tb.true, tb.start_sample):
             raise UserError(
                 f"{a.path} and {b.path} were not tested on the same recordings: trial "
-                f"{ta.uid} is {a.labels[ta.true]} by {ta.participant} in one and "
-                f"{b.labels[tb.true]} by {tb.participant} in the other; they cannot be "
-                "compared trial by trial")
+                f"{ta.number} of {ta.session} is {a.labels[ta.true]} by {ta.participant} in "
+                f"one and {b.labels[tb.true]} by {tb.participant} in the other; they cannot "
+                "be compared trial by trial")
+
+
+ALPHA = 0.05  # a difference is said as a win only when its tests put p under this
+
+
+def _significance(r: dict[str, Any]) -> str:
+    """How the difference stands: "significant" (every test run says p < ALPHA), "not
+    significant" (none does), or which test does and which does not."""
+    over_people = r["wilcoxon_p"] is not None and r["wilcoxon_p"] < ALPHA
+    over_trials = r["mcnemar_p"] < ALPHA
+    if r["wilcoxon_p"] is None:
+        return "significant" if over_trials else "not significant"
+    if over_people and over_trials:
+        return "significant"
+    if over_trials:
+        return "significant over trials, not over participants"
+    if over_people:
+        return "significant over participants, not over trials"
+    return "not significant"
 
 
 def sentence(r: dict[str, Any]) -> str:
     """"both beats normal by 7.9 points, p = 0.020, Wilcoxon signed-rank over 10
-    participants; McNemar on 270 matched test trials p = 0.004"."""
+    participants; McNemar on 270 matched test trials p = 0.004"; a difference its tests
+    do not support is said as a difference, not a win ("both is 1.5 points above normal,
+    not significant: p = 0.27, ...")."""
     d = 100 * r["difference"]
     a, b = r["name_a"], r["name_b"]
+    better, worse = (b, a) if d > 0 else (a, b)
+    how = _significance(r)
     if abs(d) < 0.05:
         head = f"{b} and {a} are equally accurate ({100 * r['accuracy_a']:.1f}%)"
-    elif d > 0:
-        head = f"{b} beats {a} by {d:.1f} points"
+    elif how == "significant":
+        head = f"{better} beats {worse} by {abs(d):.1f} points"
     else:
-        head = f"{a} beats {b} by {-d:.1f} points"
+        head = f"{better} is {abs(d):.1f} points above {worse}, {how}:"
     if r["wilcoxon_p"] is None:
         wil = f"no Wilcoxon test (only {r['n_participants']} participant)"
     else:
         wil = (f"{_fmt_p(r['wilcoxon_p'])}, Wilcoxon signed-rank over "
                f"{r['n_participants']} participants")
-    return (f"{head}, {wil}; McNemar on {r['n_matched']} matched test trials "
-            f"{_fmt_p(r['mcnemar_p'])}")
+    return (f"{head}{'' if head.endswith(':') else ','} {wil}; McNemar on "
+            f"{r['n_matched']} matched test trials {_fmt_p(r['mcnemar_p'])}")
 
 
 def compare_runs(run_a: str | os.PathLike, run_b: str | os.PathLike) -> dict[str, Any]:

@@ -131,9 +131,26 @@ def headline(m: dict[str, Any]) -> str:
     """The run's accuracy in one phrase; both figures when long trials were cut into
     windows, since a figure per performance is the one people quote."""
     if trials_were_cut(m) and m.get("trial_accuracy") is not None:
-        return (f"accuracy {m['trial_accuracy']:.3f} per trial "
+        text = (f"accuracy {m['trial_accuracy']:.3f} per trial "
                 f"({m['accuracy']:.3f} per window)")
-    return f"accuracy {m['accuracy']:.3f}"
+    else:
+        text = f"accuracy {m['accuracy']:.3f}"
+    if m.get("shots"):  # not the test set of a plain run: said (short: progress lines
+        # are cut at 80 characters), so no one sets the two figures side by side unwarned
+        n, total = m.get("n_trials", m.get("n", "?")), m.get("data_trials")
+        text += f" at K={m['shots'][0]['k']}, " + (
+            f"{n} of {total} trials tested" if total else f"{n} trials tested")
+    return text
+
+
+def shots_test_set(m: dict[str, Any]) -> str:
+    """What a few-shot run tested, against a plain run's test set: "45 test trials at
+    every K; without --shots all 135 are tested" (a person's performances taken as shots
+    at some K are tested at none)."""
+    n = m.get("n_trials", m.get("n", "?"))
+    total = m.get("data_trials")
+    return f"{n} test trials at every K" + (
+        f"; without --shots all {total} are tested" if total and total != n else "")
 
 
 def shots_curve(shots: list[dict[str, Any]] | None) -> str:

@@ -20,6 +20,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.data.trialinfo import load_trial_table
 from tactile_studio.learn.data.windowing import aggregate
 from tactile_studio.learn.experiments.runfolder import read_run
+from tactile_studio.storage.trials import trial_number
 
 
 @dataclass
@@ -39,6 +40,12 @@ class TrialPrediction:
     path: str = ""
     start_sample: int = 0
     shots: int | None = None  # a few-shot run's K for this fold (``--shots``)
+
+    @property
+    def number(self) -> int:
+        """The trial's number in its session as people see it (from 1, as the console and
+        the player count; ``trial`` is the file's index)."""
+        return trial_number(self.trial)
 
     @property
     def correct(self) -> bool:

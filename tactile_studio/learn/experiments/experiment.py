@@ -333,6 +333,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     learner.check(info)
     first_folds = folds_for(config, ds, 0)  # fails early on too few participants
     header = run_header(config, ds.channels, learner.windowed)
+    if config.shots:  # the trials a plain run would test: said beside the shots' test set
+        header["data_trials"] = len(ds)
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
@@ -342,7 +344,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
         from tactile_studio.learn.data.trialinfo import write_trial_table
 
         write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
-    progress(0.05, "making model inputs")
+    progress(0.05, f"making model inputs: {len(ds)} trials, {learner.facts.view} view")
     ds, x, owner, n_pieces, spec, extra, moments = prepare_inputs(learner, ds, config)
     header["window_s"] = spec.seconds
     header["windows"] = n_pieces

@@ -19,6 +19,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import queue
+import re
 import threading
 import time
 from typing import Any
@@ -61,6 +62,14 @@ def model_settings(name: str, preset: str) -> list[tuple[str, Any, str]]:
     return [(k, v, helps.get(k, "model option")) for k, v in options.items()]
 
 
+def trains_in_epochs(name: str, preset: str = "full") -> bool:
+    """The model trains in epochs (a network, fused with rf or not): rf and knn fit once,
+    so the panels offer them no epochs, early stopping, epoch curve or fine-tuning."""
+    from tactile_studio.learn.learners.families import make_learner
+
+    return "train" in make_learner(name, preset).describe()
+
+
 def eta_from_folds(durations: list[float], done: int, total: int,
                    in_current: float) -> float | None:
     """Remaining seconds from measured fold times: the mean of the folds trained here
@@ -80,6 +89,26 @@ def eta_seconds(fraction: float, elapsed: float) -> float | None:
     return max(0.0, elapsed * (1 - fraction) / fraction)
 
 
+class ProgressThrottle:
+    """Which progress messages cross to the window: at most one each ``interval`` of one
+    kind ("epoch 3 acc 0.52" and "epoch 4 acc 0.55" are one kind: numbers aside, the
+    same text), but never the first of a new kind. Throttled by time alone, "decoded"
+    stood in the Train tab while rf computed its features: that message came within
+    0.1 s of it and was dropped."""
+
+    def __init__(self, interval: float = 0.1, clock=time.monotonic) -> None:  # noqa: ANN001
+        self.interval, self.clock = interval, clock
+        self._last, self._kind = float("-inf"), None
+
+    def passes(self, fraction: float, message: str) -> bool:
+        now, kind = self.clock(), re.sub(r"[\d.]+", "#", message)
+        if now - self._last > self.interval or fraction >= 1.0 or kind != self._kind or \
+                message.endswith(("done", "training")):
+            self._last, self._kind = now, kind
+            return True
+        return False
+
+
 def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
     from tactile_studio.errors import Cancelled as Stopped
     from tactile_studio.errors import UserError
@@ -94,12 +123,10 @@ def _worker(config: dict[str, Any], out: str, events: Any, stop: Any) -> None:
         token.cancel()
 
     threading.Thread(target=watch, daemon=True).start()
-    last = [0.0]
+    throttle = ProgressThrottle()
 
     def progress(fraction: float, message: str = "") -> None:
-        now = time.monotonic()
-        if now - last[0] > 0.1 or fraction >= 1.0 or message.endswith(("done", "training")):
-            last[0] = now
+        if throttle.passes(fraction, message):
             events.put(Progress(float(fraction), message))
 
     def listener(event: Epoch | Fold) -> None:  # already the typed events: pass them on

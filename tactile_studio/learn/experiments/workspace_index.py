@@ -18,6 +18,12 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluation.summary import shots_curve
 from tactile_studio.learn.experiments.runfolder import CONFIG, METRICS, read_json, run_problems
+from tactile_studio.storage.session_set import (
+    SessionKey,
+    choose,
+    is_resume_backup,
+    session_key,
+)
 
 
 @dataclass
@@ -35,6 +41,10 @@ class SessionRow:
     error: str = ""  # the file cannot be read: not listed for training
     violations: list[str] = field(default_factory=list)  # what ``check`` finds wrong
     checked: bool = False  # ``violations`` is known (a scan may leave the check for later)
+    folder: str = ""  # the file's folder, relative to what the listing holds
+    key: SessionKey | None = None  # its session and recording (storage.session_set)
+    left_out: str = ""  # why a dataset of the whole listing skips it ("resume backup"...)
+    kept_instead: str = ""  # the listed file read instead (its folder/name)
 
     @property
     def problem(self) -> str:
@@ -43,10 +53,20 @@ class SessionRow:
 
         return self.error or (verdict_text(self.violations) if self.violations else "")
 
+    @property
+    def note(self) -> str:
+        """Why the whole listing's dataset leaves the file out, in words; "" if it does
+        not ("copy of data/P01.h5 (same frames)")."""
+        if not self.left_out:
+            return ""
+        return {"resume backup": f"resume backup of {self.kept_instead}",
+                "duplicate session": f"same session as {self.kept_instead}",
+                "same recording": f"copy of {self.kept_instead} (same frames)"}[self.left_out]
+
     def matches(self, text: str) -> bool:
         """Case-insensitive filter over the visible fields."""
         hay = " ".join([self.path, self.participant, self.condition, self.protocol,
-                        self.sensor, self.date]).lower()
+                        self.sensor, self.date, self.note]).lower()
         return all(word in hay for word in text.lower().split())
 
 
@@ -67,6 +87,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
         row = SessionRow(str(path))
         try:
             with Session(path) as s:
+                row.key = session_key(path, s)
                 meta = s.metadata
                 row.participant = str(meta.get("participant") or path.stem)
                 row.condition = str(meta.get("condition") or "")
@@ -87,7 +108,43 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
         except (UserError, OSError, KeyError, ValueError) as exc:
             row.error = str(exc).splitlines()[0]
         rows.append(row)
+    _mark_copies(rows)
     return rows
+
+
+def _mark_copies(rows: list[SessionRow]) -> None:
+    """Each row's folder, and why a dataset of the whole listing would leave it out
+    (``session_set.choose``, what ``train`` applies): the same file name in two folders
+    is then told apart, and a resume backup or a re-import says what it repeats."""
+    paths = [Path(r.path) for r in rows]
+    root = Path(os.path.commonpath([p.parent for p in paths])) if paths else None
+
+    def shown(p: Path) -> str:
+        rel = p.parent.relative_to(root).as_posix() if root else ""
+        return rel if rel != "." else p.parent.name
+
+    for row, p in zip(rows, paths):
+        row.folder = shown(p)
+    by_path = {Path(r.path): r for r in rows}
+    _, left = choose([r.key for r in rows if r.key is not None and not r.error])
+    for path, why, kept in left:
+        by_path[path].left_out = copy_kind(path, why)
+        by_path[path].kept_instead = f"{shown(kept)}/{kept.name}"
+
+
+def chosen_rows(rows: Sequence[SessionRow]) -> tuple[list[SessionRow], list[str]]:
+    """(read, why each other one is left out) when ``rows`` alone (a selection) make a
+    dataset: one file per session and per recording, readable files only."""
+    readable = [r for r in rows if r.key is not None and not r.error]
+    kept, left = choose([r.key for r in readable])
+    keep = set(kept)
+    return ([r for r in readable if Path(r.path) in keep],
+            [copy_kind(path, why) for path, why, _ in left])
+
+
+def copy_kind(path: Path, why: str) -> str:
+    """``choose``'s reason as the listing says it: a resume backup is named so."""
+    return "resume backup" if why == "duplicate session" and is_resume_backup(path) else why
 
 
 def check_sessions(paths: Sequence[str], on_result: Callable[[int, list[str], str], None],
@@ -132,6 +189,14 @@ class RunRow:
     @property
     def name(self) -> str:
         return Path(self.path).name
+
+    @property
+    def ran_config(self) -> dict[str, Any]:
+        """The config with the channel set the run used (its metrics say which when
+        train left it to the model): what ``config_difference`` compares."""
+        from tactile_studio.learn.evaluation.compare import as_ran
+
+        return as_ran(self.config, self.channels if self.channels != "all" else None)
 
 
 def _number(m: dict[str, Any], *keys: str) -> float | None:

@@ -22,11 +22,12 @@ from tactile_studio.storage.importers._common import (
     import_session_id,
     write_session,
 )
-from tactile_studio.storage.importers.xdf_info import ours, stream_name, text
+from tactile_studio.storage.importers.xdf_info import first, ours, stream_name, text
 from tactile_studio.storage.importers.xdf_markers import MarkerReader
 from tactile_studio.storage.input_files import unrepresentable_rows
 from tactile_studio.storage.segments import is_segment_start
 from tactile_studio.storage.xdf_scan import MAX_RATE_HZ
+from tactile_studio.storage.xdf_session_fields import session_fields
 from tactile_studio.terminal import shown
 
 
@@ -156,6 +157,9 @@ def session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
     desc = ours(s)
     metadata = {
         "session_id": import_session_id("xdf", sha, name),
+        # our own export's protocol, condition, orders, seeds, sensor and calibration,
+        # each field checked (storage/xdf_session_fields.py); the BIDS entities win
+        **session_fields(first(desc, "session")),
         "participant": meta.get("participant") or text(desc, "participant"),
         **{k: v for k, v in meta.items() if k != "participant"},
         "source": "import:xdf", "original_file": path.name, "stream": name,
