@@ -154,8 +154,9 @@ def test_a_discarded_gesture_is_collected_again_at_the_end_of_its_block(qtbot, e
     qtbot.keyClicks(dialog.edit.lineEdit(), "started late")
     qtbot.mouseClick(dialog.buttons.buttons()[0], Qt.MouseButton.LeftButton)
     s = snap(console)
-    assert s.trials[0]["status"] == "redone"
-    assert s.trials[0]["reason"] == "discarded (started late); collected again"
+    assert s.trials[0]["status"] == "discarded" and s.trials[0]["collected_again"]
+    assert s.trials[0]["reason"] == "started late"
+    assert console.log.item(0, 3).text() == "discarded (started late; collected again)"
     assert list(s.remaining) == [*order[1:], order[0]]  # the discarded one comes last
     for name in [*order[1:], order[0]]:
         do_trial(qtbot, console, name, keys[name])
