@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import time
 from collections import Counter
 from pathlib import Path
@@ -242,7 +243,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         f"frames:     {summary['frames']} over {summary['duration_s']:.2f} s "
         f"({summary['rate_hz']:.2f} Hz)",
         f"malformed:  {summary['malformed']} {summary['malformed_by_kind'] or ''}",
-        f"gaps:       {summary['gaps']}   reconnects {summary['reconnects']}",
+        f"gaps:       {summary['gaps']}{_gaps_why(summary)}   reconnects {summary['reconnects']}",
         *_lost_line(summary["frames_lost"]),
         f"events:     {len(summary['events'])}"
         + (f" ({', '.join(sorted({e['kind'] for e in summary['events']}))})"
@@ -255,6 +256,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         lines.insert(1, f"backup:     a resume backup: the session continues in "
                         f"{BACKUP_RE.sub('', Path(args.file[0]).stem)}.h5 "
                         "(folders and datasets skip this file)")
+    elif summary["collection"] is not None:
+        lines.append(_collection_line(summary["collection"], summary["path"]))
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
     if meta.get("notes"):
@@ -268,6 +271,27 @@ def cmd_info(args: argparse.Namespace) -> int:
         lines.append(table)
     tables.fields(lines)
     return 0
+
+
+def _gaps_why(summary: dict[str, Any]) -> str:
+    """Which of the gaps are resumes (a resume continues the file in a new recording
+    segment: the device stopped between the runs), so one is not taken for a fault."""
+    resumes = summary["segments"] - 1
+    if not resumes:
+        return ""
+    others = summary["gaps"] - resumes
+    what = f"{resumes} resume{'s' if resumes != 1 else ''}: the recording continued later"
+    return f" ({what}; {others} in the stream)" if others else f" ({what})"
+
+
+def _collection_line(progress: dict[str, Any], path: str) -> str:
+    """A collection's progress: finished, or how far it got and how to go on."""
+    blocks = f"{progress['blocks_done']} of {progress['blocks_total']} blocks"
+    trials = f"{progress['trials_done']} of {progress['trials_total']} trials"
+    if progress["finished"]:
+        return f"collection: finished ({blocks}, {trials})"
+    return (f"collection: unfinished, {blocks} done ({trials}); resume with "
+            f"tactile-studio collect --resume {shlex.quote(path)}")
 
 
 def _lost_line(lost: dict[str, int]) -> list[str]:

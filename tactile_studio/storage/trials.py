@@ -111,3 +111,33 @@ def trials_done(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> int:
     trial still counts (its gesture is not collected again) unless it is
     ``collected_again``; a redone one does not."""
     return len({(t.block, t.gesture) for t in records(trials) if t.counts})
+
+
+@dataclass(frozen=True)
+class CollectionProgress:
+    """How far a collection got against its stored block orders (``info``)."""
+
+    trials_done: int
+    trials_total: int
+    blocks_done: int    # blocks with every gesture done
+    blocks_total: int
+
+    @property
+    def finished(self) -> bool:
+        return self.trials_done >= self.trials_total
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"trials_done": self.trials_done, "trials_total": self.trials_total,
+                "blocks_done": self.blocks_done, "blocks_total": self.blocks_total,
+                "finished": self.finished}
+
+
+def collection_progress(block_order: list[list[str]],
+                        trials: Iterable[Mapping[str, Any] | TrialRecord]) -> CollectionProgress:
+    """Progress of a collection whose blocks are ``block_order`` (the metadata's), by
+    :func:`trials_done`'s rule."""
+    done = {(t.block, t.gesture) for t in records(trials) if t.counts}
+    blocks = sum(1 for b, order in enumerate(block_order)
+                 if all((b, g) in done for g in order))
+    total = sum(len(order) for order in block_order)
+    return CollectionProgress(len(done), total, blocks, len(block_order))
