@@ -63,7 +63,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"simulator speed, x real time (headless default {DEFAULT_SPEED:g}, "
                         "console 1)")
     p.add_argument("--blocks", type=int, default=None, help="run only the first N blocks")
-    p.add_argument("--seed", type=int, default=None, help="randomisation and simulation seed")
+    p.add_argument("--seed", type=int, default=None,
+                   help="order seed: the blocks' random orders (and a virtual participant's "
+                        "style); the simulated sensor keeps its own seed (--set seed=N)")
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
     p.add_argument("--out", default=None,
                    help="output folder (default: the current folder; the console: its form's "
@@ -81,12 +83,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _device_settings(args: argparse.Namespace, name: str, seed: int,
+def _device_settings(args: argparse.Namespace, name: str,
                      base: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The device's settings: ``base`` (a resumed file's), the speed, then ``--set``.
+    The order seed (``--seed``) is not the simulated sensor's seed, which is its
+    identity (sim-N): another order must not mean another sensor."""
     settings: dict[str, Any] = dict(base or {})
     if name == "simulated":
         settings.pop("speed", None)
-        settings.setdefault("seed", seed)
         settings["gesture"] = "idle"
         settings["speed"] = DEFAULT_SPEED if args.speed is None else args.speed
     elif args.speed is not None:
@@ -106,7 +110,7 @@ def _check_resume(args: argparse.Namespace) -> dict[str, Any]:
         raise UserError(f"{args.resume}: belongs to participant {participant}, "
                         f"not {args.participant}")
     if args.seed is not None and args.seed != seed:
-        raise UserError(f"{args.resume}: was recorded with seed {seed}, not {args.seed}")
+        raise UserError(f"{args.resume}: was recorded with order seed {seed}, not {args.seed}")
     return info
 
 
@@ -191,7 +195,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
-    device = create_device(name, _device_settings(args, name, seed, base))
+    device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
     acq = AcquisitionSession()
