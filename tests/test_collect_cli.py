@@ -148,7 +148,9 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     assert s.device.currentData() == "simulated"
     assert s.device_form.fields["noise"].text() == "5"
     assert s.device_form.changed_values() == {"noise": "5"}
-    assert s.out_dir.text() == str(out) and out.is_dir()  # made, as the form needs it
+    assert s.out_dir.text() == str(out) and not out.exists()  # made when the session opens
+    assert s.out_note.text() == \
+        f"{out} does not exist yet: it will be made when the session opens."
     assert console.stack.currentIndex() == 0 and console.session is None  # not started
     choice = s.choice()  # what "Open session" would start
     assert (choice.protocol.blocks, choice.seed, choice.device_settings) == \
@@ -156,6 +158,7 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     # the experimenter opens it; then, closed mid-session, the command resumes it
     assert console.start_session(choice)
     path = console.session.path
+    assert path.parent == out  # made (one rule for a missing folder: tests/test_out_folders)
     console.close()
     code, err, opened = _run_console_cli(capsys, "--resume", str(path))
     assert code == 0, err

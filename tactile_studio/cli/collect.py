@@ -29,6 +29,7 @@ from tactile_studio.devices.registry import create_device, parse_set_options, pl
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.paths import make_out_dir, say_on_stderr
 from tactile_studio.protocol.collect import (
     CollectionSession,
     check_participant,
@@ -146,8 +147,6 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
         protocol, participant, _ = _new_session(args)
         name, settings = args.device, {}
         out = None if args.out is None else Path(args.out).expanduser().resolve()
-        if out is not None:
-            out.mkdir(parents=True, exist_ok=True)  # the form refuses a missing folder
         options = {"protocol": args.protocol, "participant": participant,
                    "out_dir": None if out is None else str(out),
                    "blocks": protocol.blocks if args.blocks is not None else None,
@@ -210,8 +209,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
-        out = Path(args.out or ".")
-        out.mkdir(parents=True, exist_ok=True)
+        out = make_out_dir(args.out or ".", say_on_stderr)
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
         print(status.text(), file=sys.stderr)

@@ -28,6 +28,7 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine, EngineState
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
+from tactile_studio.paths import make_out_dir
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
@@ -148,9 +149,7 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     ``start_recording``, so the session knows about the recording); default: a plain one.
     """
     participant = check_participant(participant)
-    out = Path(out_dir)
-    if not out.is_dir():
-        raise UserError(f"{out}: output folder does not exist")
+    out = make_out_dir(out_dir)  # a missing folder is made: the rule of every output
     target = Path(path) if path is not None else session_path(out, participant, protocol)
     orders = block_orders(protocol, participant, seed)
     practice = practice_order(protocol, participant, seed)

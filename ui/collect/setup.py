@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.paths import data_dir, make_out_dir
+from tactile_studio.paths import data_dir
 from tactile_studio.protocol.collect import device_differences, read_resume_info, resume_device
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
@@ -115,6 +115,9 @@ class CollectSetup(QWidget):
         out_row = QHBoxLayout()
         out_row.addWidget(self.out_dir, 1)
         out_row.addWidget(browse)
+        self.out_note = QLabel()  # a folder that does not exist: it will be made
+        self.out_note.setWordWrap(True)
+        self.out_note.setStyleSheet("color: #606770;")
         self.plugins = {name: cls for name, cls in available_plugins().items()
                         if not isinstance(cls, Exception) and name != "replay"}
         self.device = QComboBox()
@@ -179,6 +182,7 @@ class CollectSetup(QWidget):
         form.addRow("Blocks", self.blocks)
         form.addRow("Order seed", self.seed)
         form.addRow("Output folder", out_row)
+        form.addRow("", self.out_note)
         form.addRow("Device", self.device)
         form.addRow(self.device_form)
         form.addRow("", self.device_error)
@@ -210,6 +214,7 @@ class CollectSetup(QWidget):
         buttons.addWidget(self.continue_button)
         self.participant.textEdited.connect(self._clear_error)
         self.out_dir.textEdited.connect(self._clear_error)
+        self.out_dir.textChanged.connect(self._say_out_dir)
 
         card = QWidget()
         card.setMaximumWidth(760)
@@ -250,6 +255,7 @@ class CollectSetup(QWidget):
                        self.blocks, self.seed):
             self.form.setRowVisible(widget, not on)
         self._set_row_visible(self.out_dir, not on)
+        self._say_out_dir()
         self.form.setRowVisible(self.resume_info, on)
         self._set_row_visible(self.resume_file, on)
         self.start_button.setVisible(not on)
@@ -260,6 +266,10 @@ class CollectSetup(QWidget):
         self.start_button.setDefault(not on)
         self.error.setText("")
         self._check_other_sensor()
+
+    def _set_row_visible_widget(self, widget: QWidget, on: bool) -> None:
+        """Show or hide the row of a label (never in the resume form, which has no folder)."""
+        self.form.setRowVisible(widget, on and not self.resuming)
 
     def _set_row_visible(self, widget: QWidget, on: bool) -> None:
         """Show or hide the form row holding ``widget`` (also inside a row's layout)."""
@@ -337,6 +347,20 @@ class CollectSetup(QWidget):
 
     def _remember_dir(self, folder: Path) -> None:
         self.settings.setValue(KEY_LAST_DIR, str(folder))
+
+    def out_path(self) -> Path:
+        """The output folder the form names (the app's sessions folder when empty)."""
+        return Path(self.out_dir.text().strip() or default_sessions_dir()).expanduser()
+
+    def _say_out_dir(self, *_: object) -> None:
+        """Say, before anything is written, that a folder that does not exist will be
+        made (the rule of every output folder, ``paths.make_out_dir``): a mistyped one
+        shows here, not as a stray folder found later."""
+        out = self.out_path()
+        missing = not out.exists()
+        self.out_note.setText(f"{out} does not exist yet: it will be made when the "
+                              "session opens." if missing else "")
+        self._set_row_visible_widget(self.out_note, missing)
 
     def choose_out_dir(self) -> None:
         start = self.out_dir.text() or self._last_dir()
@@ -458,11 +482,9 @@ class CollectSetup(QWidget):
         participant = self.participant.text().strip()
         if not participant:
             raise UserError("enter a participant id (e.g. P01)")
-        out = Path(self.out_dir.text().strip() or default_sessions_dir()).expanduser()
-        if out == default_sessions_dir():
-            make_out_dir(out)  # the app's own sessions folder is made on first use
-        if not out.is_dir():
-            raise UserError(f"{out}: output folder does not exist")
+        out = self.out_path()  # made when the session opens, if it does not exist
+        if out.exists() and not out.is_dir():
+            raise UserError(f"{out}: not a folder; choose a folder for the sessions")
         p = load_protocol(self._protocol_source())
         if self.blocks.value() != p.blocks:
             p = p.with_overrides(blocks=self.blocks.value())
