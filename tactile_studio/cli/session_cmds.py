@@ -262,17 +262,50 @@ def cmd_info(args: argparse.Namespace) -> int:
         lines.append(_collection_line(summary["collection"], summary["path"]))
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
+    lines.extend(_recording_labels(meta))
     if meta.get("notes"):
         lines.append(f"notes:      {meta['notes']}")
     if summary["unmapped_keys"]:
         lines.append(f"unmapped keys: {', '.join(summary['unmapped_keys'])} "
                      "(no gesture name; trials keep the key)")
     lines.extend(f"aux:        {line}" for line in aux)
+    lines.extend(_marker_lines(summary["events"], summary["rate_hz"]))
     if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
         lines.append(table)
     tables.fields(lines)
     return 0
+
+
+MARKERS_SHOWN = 20
+
+
+def _recording_labels(meta: dict[str, Any]) -> list[str]:
+    """What a remote-controlled recording was named for (LabRecorder's filename fields:
+    session, task, run, acquisition), as the experiment script sent them."""
+    named = [(label, meta.get(key)) for label, key in (
+        ("session", "session_label"), ("task", "task"), ("run", "run"),
+        ("acquisition", "acquisition")) if meta.get(key)]
+    if not named:
+        return []
+    return ["recording:  " + ", ".join(f"{label} {value}" for label, value in named)]
+
+
+def _marker_lines(events: list[dict[str, Any]], rate: float) -> list[str]:
+    """Each marker (another program's over LSL, or a script's ``mark TEXT``) with its
+    row, its time into the recording and its text: what the experiment said happened."""
+    marks = [e for e in events if e.get("kind") == "marker"]
+    if not marks:
+        return []
+    lines = [f"markers:    {len(marks)}"]
+    for e in marks[:MARKERS_SHOWN]:
+        row = e.get("frame")
+        at = f" ({row / rate:.2f} s)" if isinstance(row, int) and rate > 0 else ""
+        source = e.get("stream") or e.get("source") or "?"
+        lines.append(f"  row {row}{at}  {str(e.get('text', ''))!r}  from {source}")
+    if len(marks) > MARKERS_SHOWN:
+        lines.append(f"  … {len(marks) - MARKERS_SHOWN} more (info --json lists them all)")
+    return lines
 
 
 def _gaps_why(summary: dict[str, Any]) -> str:
