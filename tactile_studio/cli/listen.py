@@ -47,7 +47,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_listen(args: argparse.Namespace) -> int:
-    out = make_out_dir(args.out, say_on_stderr)
+    made: list[str] = []  # said after the "listening on" line, which scripts read first
+    out = make_out_dir(args.out, made.append)
     device = create_device(args.device, parse_set_options(args.set))
     session = AcquisitionSession()
     apply_silence_option(session, args)
@@ -65,6 +66,8 @@ def cmd_listen(args: argparse.Namespace) -> int:
         session.start()
         print(f"remote control: listening on {args.host}:{port} for {args.device}; "
               "Ctrl-C ends", file=sys.stderr, flush=True)
+        for line in made:
+            say_on_stderr(line)
         end = None if args.seconds is None else time.monotonic() + args.seconds
         with ctrl_c_cancels(token):
             while not token.wait(POLL_S):
