@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
+    QSizePolicy,
     QSplitter,
     QStackedWidget,
     QVBoxLayout,
@@ -118,7 +119,7 @@ class CollectConsole(ConsoleActions):
         mirror_box = QGroupBox("Participant screen (mirror)")
         mb = QVBoxLayout(mirror_box)
         mb.setContentsMargins(6, 6, 6, 6)
-        mb.addWidget(self.mirror)
+        mb.addWidget(self.mirror, 1)  # the box's room goes to the mirror, not around it
         mb.addWidget(self.mirror_hint)
         self.state = QLabel()
         self.state.setStyleSheet("font-size: 17px; font-weight: 600;")
@@ -160,6 +161,13 @@ class CollectConsole(ConsoleActions):
         self.sound_notice.hide()
         self.hint_label = QLabel()
         self.hint_label.setStyleSheet("color: #c0392b;")
+        # lines that grow with what they say wrap in the pane's width instead of
+        # widening it (the state line pushed the splitter as the prompts changed)
+        for label in (self.state, self.progress_label, self.file_label, self.touches_label,
+                      self.redo_banner, self.fault_banner, self.health_banner,
+                      self.sound_notice, self.hint_label):
+            label.setWordWrap(True)
+            label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
 
         b = self.buttons = {}
         self.shortcuts: dict[str, QShortcut] = {}
@@ -212,7 +220,7 @@ class CollectConsole(ConsoleActions):
         right.addWidget(log_box)
         right.setSizes([540, 320])
 
-        page = QSplitter(Qt.Orientation.Horizontal)
+        page = self.page_splitter = QSplitter(Qt.Orientation.Horizontal)
         page.addWidget(left)
         page.addWidget(right)
         page.setSizes([560, 900])
@@ -330,7 +338,8 @@ class CollectConsole(ConsoleActions):
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
         self.touches_label.setText(self.session.touches)
-        self.file_label.setText(f"File: {self.session.path}"
+        path = Path(self.session.path)  # the name, then its folder: wraps between them
+        self.file_label.setText(f"File: {path.name}   in {path.parent}"
                                 + (f"   ·   {self.wellness_text}" if self.wellness_text else ""))
         self._closed_session_path = None
         if not self.beeper.has_audio:
