@@ -68,6 +68,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="order seed: the blocks' random orders (and a virtual participant's "
                         "style); the simulated sensor keeps its own seed (--set seed=N)")
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
+    p.add_argument("--pilot", action="store_true",
+                   help="a rehearsal: the file is marked pilot (named PILOT_...) and "
+                        "datasets, train and info's study leave it out unless it is named; "
+                        "the console opens with Pilot ticked (on the simulated sensor a "
+                        "virtual participant performs)")
     p.add_argument("--out", default=None,
                    help="output folder (default: the current folder; the console: its form's "
                         "folder, sessions under the app's data folder or the last one used)")
@@ -110,6 +115,9 @@ def _check_resume(args: argparse.Namespace) -> dict[str, Any]:
     if args.participant and args.participant != participant:
         raise UserError(f"{args.resume}: belongs to participant {participant}, "
                         f"not {args.participant}")
+    if args.pilot and not info.get("pilot"):
+        raise UserError(f"{args.resume}: is not a pilot session; --pilot cannot make a "
+                        "participant's session a rehearsal")
     if args.seed is not None and args.seed != seed:
         raise UserError(f"{args.resume}: was recorded with order seed {seed}, not {args.seed}")
     return info
@@ -150,7 +158,7 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
         options = {"protocol": args.protocol, "participant": participant,
                    "out_dir": None if out is None else str(out),
                    "blocks": protocol.blocks if args.blocks is not None else None,
-                   "seed": args.seed, "condition": args.condition}
+                   "seed": args.seed, "condition": args.condition, "pilot": args.pilot}
     if args.speed is not None:
         if name != "simulated":
             raise UserError("--speed applies to the simulated device only")
@@ -216,7 +224,7 @@ def run(args: argparse.Namespace) -> int:
         session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
                                condition=args.condition,
                                wellness=admit(status, args.wellness_override),
-                               recorder=acq.start_recording)
+                               recorder=acq.start_recording, pilot=args.pilot)
         print(f"writing {session.path}", file=sys.stderr)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()

@@ -152,7 +152,11 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     """One row per session file under ``paths`` (folders searched recursively): what an
     experimenter checks after importing a study (malformed rows, unmapped keys, trials).
     A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
-    from tactile_studio.storage.session_set import is_resume_backup, scan_session_files
+    from tactile_studio.storage.session_set import (
+        is_pilot,
+        is_resume_backup,
+        scan_session_files,
+    )
     from tactile_studio.storage.study_summary import study_counts
 
     files, backups = scan_session_files(paths)
@@ -161,7 +165,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     every = sorted(set(files) | set(backups))
     counted: dict[str, int] = {}  # session_id -> index in ``study``: each session once
     root = Path(os.path.commonpath([f.parent for f in every]))
-    summaries, rows, bad, study = [], [], 0, []
+    summaries, rows, bad, study, pilots = [], [], 0, [], 0
     for f in every:
         name = f.relative_to(root).as_posix()
         try:
@@ -175,7 +179,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         summaries.append(summary)
         meta, trials = summary["metadata"], summary["trials"]
         ok = sum(1 for t in trials if t.get("status") == "ok")
-        if f not in backups:  # a resume backup repeats its session's trials
+        pilot = is_pilot(meta)  # a rehearsal: no one's data, left out of the study
+        pilots += pilot
+        if f not in backups and not pilot:  # a resume backup repeats its session's trials
             entry = (meta.get("participant") or "", meta.get("condition") or "",
                      Counter(t.get("gesture") for t in trials if t.get("status") == "ok"))
             sid = str(summary.get("session_id"))
@@ -189,6 +195,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
             else "not closed cleanly (recovered)"]
         if f in backups:
             notes.append("resume backup")
+        if pilot:
+            notes.append("pilot (rehearsal; not counted)")
         lost = sum(summary["frames_lost"].values())
         if lost:
             notes.append(f"{lost} frames lost")
@@ -203,7 +211,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
                       "malformed", "unmapped keys", "note"), rows,
                      right=("frames", "Hz", "ok trials", "malformed"))
         print(f"{len(every)} session file(s) under {root}"
-              + (f"; {bad} unreadable" if bad else ""))
+              + (f"; {bad} unreadable" if bad else "")
+              + (f"; {pilots} pilot (rehearsals, not counted)" if pilots else ""))
         for line in study_counts(study).lines():
             print(line)
     return 1 if bad else 0
@@ -252,7 +261,7 @@ def cmd_info(args: argparse.Namespace) -> int:
            if summary["events"] else ""),
         f"closed:     {_closed_text(summary)}",
     ]
-    from tactile_studio.storage.session_set import BACKUP_RE, is_resume_backup
+    from tactile_studio.storage.session_set import BACKUP_RE, is_pilot, is_resume_backup
 
     if is_resume_backup(Path(args.file[0])):  # as the table of several files marks it
         lines.insert(1, f"backup:     a resume backup: the session continues in "
@@ -260,6 +269,9 @@ def cmd_info(args: argparse.Namespace) -> int:
                         "(folders and datasets skip this file)")
     elif summary["collection"] is not None:
         lines.append(_collection_line(summary["collection"], summary["path"]))
+    if is_pilot(meta):
+        lines.insert(1, "pilot:      yes: a rehearsal, not a participant's data; datasets, "
+                        "train and info's study leave it out unless the file is named")
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
     lines.extend(_recording_labels(meta))

@@ -62,6 +62,7 @@ class CollectionSession:
     backup: Path | None = None
     touches: str = ""                  # who makes the touches, in words (touch_source)
     restore_gesture: str | None = None  # a simulator's own mode before the session
+    pilot: bool = False                # a rehearsal: marked so, left out of datasets
 
     def end_if_cut_off(self) -> str | None:
         """End the session when it cannot go on, and say why in one line (None: it goes
@@ -105,19 +106,31 @@ def quiet_simulator(engine: AcquisitionEngine) -> str | None:
     return mode
 
 
-def touch_source(engine: AcquisitionEngine, virtual: bool = False) -> str:
+def touch_source(engine: AcquisitionEngine, virtual: bool = False, pilot: bool = False) -> str:
     """Who makes the touches a collection records, as the console shows it."""
-    if virtual:
+    if virtual or (pilot and can_perform(engine)):
         return "Touches: a virtual participant, on the simulated sensor"
+    if pilot:
+        return (f"Touches: you, rehearsing on the sensor "
+                f"({engine.device_info().get('plugin') or 'device'})")
     if hasattr(engine.device, "set_gesture"):
         return ("Touches: simulated sensor, idle until a virtual participant or a person "
                 "touches (its demo gestures are off)")
     return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 
-def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:
-    """``DIR/P01_shear9_20250101-120000.h5`` (a suffix keeps it unique)."""
+def can_perform(engine: AcquisitionEngine) -> bool:
+    """The device is a simulator a virtual participant can perform on."""
+    return hasattr(engine.device, "perform")
+
+
+def session_path(out_dir: Path, participant: str, protocol: Protocol,
+                 pilot: bool = False) -> Path:
+    """``DIR/P01_shear9_20250101-120000.h5`` (a suffix keeps it unique); a pilot's
+    name begins ``PILOT_``, so it is told apart in any file list."""
     stem = f"{participant}_{protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}"
+    if pilot:
+        stem = f"PILOT_{stem}"
     path, n = out_dir / f"{stem}.h5", 2
     while path.exists():
         path, n = out_dir / f"{stem}-{n}.h5", n + 1
@@ -125,8 +138,12 @@ def session_path(out_dir: Path, participant: str, protocol: Protocol) -> Path:
 
 
 def session_metadata(protocol: Protocol, participant: str, seed: int, orders: list[list[str]],
-                     practice: list[str], condition: str = "") -> dict[str, Any]:
-    return {
+                     practice: list[str], condition: str = "", pilot: bool = False
+                     ) -> dict[str, Any]:
+    """What a collection's file says of itself; ``pilot: true`` marks a rehearsal, which
+    datasets, ``train`` and ``info``'s study leave out (storage/session_set.py)."""
+    pilot_mark = {"pilot": True} if pilot else {}
+    return {**pilot_mark,
         "participant": participant, "protocol": protocol.name, "condition": condition,
         "gestures": protocol.gesture_names, "source": "collect",
         "protocol_spec": protocol.to_dict(), "seed": int(seed),
@@ -140,8 +157,12 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
                  wellness: dict[str, Any] | None = None,
-                 recorder: RecorderFactory | None = None) -> CollectionSession:
+                 recorder: RecorderFactory | None = None,
+                 pilot: bool = False) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
+
+    ``pilot``: a rehearsal (the file marked so and named ``PILOT_...``; see
+    :func:`session_metadata`).
 
     ``engine`` may be started or not: opened before ``engine.start()`` (the start order
     of an AcquisitionSession) file rows equal engine frames; on a running stream the
@@ -150,10 +171,11 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     """
     participant = check_participant(participant)
     out = make_out_dir(out_dir)  # a missing folder is made: the rule of every output
-    target = Path(path) if path is not None else session_path(out, participant, protocol)
+    target = Path(path) if path is not None else session_path(out, participant, protocol,
+                                                              pilot)
     orders = block_orders(protocol, participant, seed)
     practice = practice_order(protocol, participant, seed)
-    meta = session_metadata(protocol, participant, seed, orders, practice, condition)
+    meta = session_metadata(protocol, participant, seed, orders, practice, condition, pilot)
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
@@ -168,7 +190,8 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
     return CollectionSession(runner, rec, engine, target, protocol, participant, seed,
-                             touches=touch_source(engine), restore_gesture=restore)
+                             touches=touch_source(engine, pilot=pilot),
+                             restore_gesture=restore, pilot=pilot)
 
 
 def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
@@ -196,6 +219,7 @@ def read_resume_info(path: str | os.PathLike) -> dict[str, Any]:
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
                 "sensor_id": meta.get("sensor_id"),
                 "other_sensor": meta.get("other_sensor") or [],
+                "pilot": bool(meta.get("pilot")),
                 "layout": old.layout.name, "trials_done": trials_done(old.trials),
                 "trials_total": total,
                 "frames": old.n_frames}
@@ -379,6 +403,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                               hold_flagged=hold_flagged, previous_trials=trials)
     notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
     runner.notes = [line for line in str(notes).split("\n") if line]
+    pilot = bool(meta.get("pilot"))  # a rehearsal stays one
     return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
                              info["seed"], resumed=True, backup=backup,
-                             touches=touch_source(engine), restore_gesture=restore)
+                             touches=touch_source(engine, pilot=pilot),
+                             restore_gesture=restore, pilot=pilot)

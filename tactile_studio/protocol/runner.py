@@ -430,6 +430,12 @@ class CollectionRunner(RunnerInputs):
         return self.state == State.REVIEW and self._held()
 
     @property
+    def at_frame(self) -> int:
+        """The stream frame the runner has acted at (its last start, pause, resume, end
+        of a phase or of a trial): a key may not name a frame before it."""
+        return max(self._at, self._min_start)
+
+    @property
     def phase_until(self) -> float:
         return self._phase_until
 

@@ -14,6 +14,11 @@ same seed gives the same trials at the same file rows with the same frames.
 The personal style (where on the sensor, how hard, how fast) is the simulator's
 ``style_seed``, derived from the participant id, so two virtual participants differ
 the way two people do.
+
+In the console's pilot mode (``plan_ahead=False``) the experimenter drives the session
+(Start, Continue, pauses, redo) in real time: the participant plans nothing ahead; it
+reacts to what the screen prompts now, as a person would, and a plan the session moved
+past (a pause, a redo) is made again.
 """
 
 from __future__ import annotations
@@ -67,8 +72,9 @@ class VirtualParticipant:
     """
 
     def __init__(self, runner: CollectionRunner, device: Any, participant: str,
-                 seed: int = 0) -> None:
+                 seed: int = 0, plan_ahead: bool = True) -> None:
         self.runner, self.device = runner, device
+        self.plan_ahead = plan_ahead
         self.participant, self.seed = participant, int(seed)
         self.style = style_seed(participant, seed)
         self.rate = runner.rate
@@ -76,6 +82,7 @@ class VirtualParticipant:
         self.start_frame = runner.engine.baseline_frames + round(0.5 * self.rate)
         self._beep_frames = math.ceil(runner.protocol.beep_s * self.rate) + 1
         self._plans: list[tuple[int, str, int]] = []  # (block, gesture, key frame) in order
+        self._free_until = 0  # frame where its current free-play touch ends (not planned ahead)
         self._count = 0
         self.replanned = 0  # plans that had to move because the stream overtook them
 
@@ -87,6 +94,8 @@ class VirtualParticipant:
         remaining trial planned on the stream (so the plan never races the stream)."""
         self.device.set_gesture("idle")  # from the next frame on
         self.device.set_style(self.style)
+        if not self.plan_ahead:
+            return  # it reacts to the screen as it goes (step)
         self.start_frame = max(self.start_frame, self.device.next_frame + round(0.5 * self.rate))
         r = self.runner
         fp_frames = round(r.free_play_s * self.rate)
@@ -156,6 +165,8 @@ class VirtualParticipant:
     def step(self) -> bool:
         """Act if it is time; True if a key was pressed (or the session started)."""
         r = self.runner
+        if not self.plan_ahead:
+            return self._react()
         if r.state == State.SETUP:
             # started once its start frame is in: the runner's clock then reads it
             if r.engine.frames > self.start_frame and r.engine.baseline is not None:
@@ -175,4 +186,40 @@ class VirtualParticipant:
         if r.engine.frames - 1 < frame:
             return False  # not there yet
         del self._plans[i]
+        return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)
+
+    def _react(self) -> bool:
+        """Not planned ahead (the console's pilot): touch during free play, and do the
+        prompted gesture a reaction time after the screen asks for it."""
+        r = self.runner
+        if r.state == State.FREE_PLAY:
+            self._plans.clear()
+            if self.device.next_frame >= self._free_until:
+                names = r.protocol.gesture_names
+                rng = self._rng(0xF4EE, self._count)
+                self._count += 1
+                sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
+                start = self.device.next_frame + round(rng.uniform(0.3, 0.8) * self.rate)
+                if sim is not None:
+                    try:
+                        self.device.perform(sim, self.n / self.rate, inten, speed,
+                                            at_frame=start)
+                    except ValueError:
+                        return False  # overtaken: the next step tries again
+                self._free_until = start + self.n
+            return False
+        if r.state not in State.KEY_STATES or r.held:
+            return False
+        nxt = self._next()
+        if nxt is None:
+            return False
+        # a plan the session moved past (paused, redone, another gesture prompted) is
+        # dropped: its touch happened unlabelled, as a person's would
+        self._plans = [p for p in self._plans if p[:2] == nxt and p[2] >= r.at_frame]
+        if not self._plans:
+            self._plan(*nxt, self.device.next_frame + self._gap())
+        block, gesture, frame = self._plans[0]
+        if r.engine.frames - 1 < frame:
+            return False  # not there yet
+        self._plans.clear()
         return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)

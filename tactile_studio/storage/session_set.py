@@ -6,8 +6,10 @@ would put copies of a participant's trials into a dataset, possibly on both side
 train/test split. So a folder scan skips resume backups, and files sharing a
 ``session_id`` (see :attr:`Session.session_id`) are reduced to one: a non-backup before
 a backup, then a cleanly closed file, then the one with more trials, more frames, the
-newest modification time and finally the first path in sort order. What was skipped is
-returned so it can be reported.
+newest modification time and finally the first path in sort order. A pilot session (a
+rehearsal, metadata ``pilot: true``) found in a folder is left out too: it is never mixed
+with participants' data unless its file is named. What was skipped is returned so it can
+be reported.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
+PILOT = "pilot session"
 
 
 def is_resume_backup(path: Path) -> bool:
@@ -51,13 +54,18 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
         return ""
     backups = [s for s in skipped if s["reason"] == "resume backup"]
     dups = [s for s in skipped if s["reason"] == "duplicate session"]
-    odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session")]
+    pilots = [s for s in skipped if s["reason"] == PILOT]
+    odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session",
+                                                     PILOT)]
     parts = []
     if odd:  # a FIFO, a device, a broken link named *.h5: never opened
         parts.append(f"{len(odd)} file{'s' if len(odd) != 1 else ''} that cannot be read ("
                      + "; ".join(f"{s['file']}: {s['reason']}" for s in odd) + ")")
     if backups:
         parts.append(f"{len(backups)} resume backup{'s' if len(backups) != 1 else ''}")
+    if pilots:
+        parts.append(f"{len(pilots)} pilot session{'s' if len(pilots) != 1 else ''} "
+                     "(rehearsals; name a file to use it)")
     if dups:
         shown = "; ".join(f"{d['file']}: same session_id as {d['kept']}" for d in dups[:3])
         more = f"; {len(dups) - 3} more" if len(dups) > 3 else ""
@@ -105,6 +113,11 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
     return files, backups
 
 
+def is_pilot(metadata: dict[str, Any]) -> bool:
+    """A rehearsal (the console's pilot mode, ``collect --pilot``), not a participant's."""
+    return metadata.get("pilot") is True
+
+
 def _rank(path: Path, s: Session) -> tuple:
     ok = sum(1 for t in records(s.trials) if t.ok)
     return (not is_resume_backup(path), s.closed_cleanly, ok, s.n_frames,
@@ -124,9 +137,13 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
         {"file": rel(b), "reason": "resume backup"} for b in backups]
     odd = {f: not_regular(f) for f in files}
     skipped += [{"file": rel(f), "reason": why} for f, why in odd.items() if why]
+    named = {Path(p).resolve() for p in paths if Path(p).is_file()}
     by_id: dict[str, list[tuple[tuple, Path]]] = {}
     for f in (f for f in files if not odd[f]):
         with Session(f) as s:
+            if is_pilot(s.metadata) and f not in named:  # a rehearsal, found in a folder
+                skipped.append({"file": rel(f), "reason": PILOT})
+                continue
             by_id.setdefault(s.session_id, []).append((_rank(f, s), f))
     keep: list[Path] = []
     for sid, group in by_id.items():
@@ -142,4 +159,4 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
     return SessionSet(keep, root, skipped)
 
 
-__all__ = ["SessionSet", "describe_skipped", "is_resume_backup", "select_sessions"]
+__all__ = ["SessionSet", "describe_skipped", "is_pilot", "is_resume_backup", "select_sessions"]

@@ -71,6 +71,7 @@ class SetupChoice:
     device_settings: dict[str, Any] = field(default_factory=dict)
     hold_flagged: bool = True          # a flagged trial waits for Redo or Continue
     auto_continue: bool = False        # breaks end by themselves after their minimum
+    pilot: bool = False                # a rehearsal (protocol/collect.py: session_metadata)
 
 
 class CollectSetup(QWidget):
@@ -151,6 +152,10 @@ class CollectSetup(QWidget):
         self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
+        self.pilot = QCheckBox("Pilot: rehearse the protocol (on the simulated sensor a "
+                               "virtual participant performs)")
+        self.pilot.setToolTip("The file is marked pilot and named PILOT_...; datasets, "
+                              "train and info's study leave it out unless the file is named")
         self.test_sound_button = QPushButton("Test sound")
         self.test_sound_button.setToolTip("Play the protocol's end-of-trial beep now")
         self.test_sound_button.clicked.connect(self.testSoundRequested)
@@ -189,6 +194,7 @@ class CollectSetup(QWidget):
         form.addRow("", self.other_sensor_info)
         form.setRowVisible(self.other_sensor_info, False)
         self.other_sensor_button.hide()
+        form.addRow("", self.pilot)
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
         form.addRow("Beep", sound_row)
@@ -252,7 +258,7 @@ class CollectSetup(QWidget):
         self.resuming = on
         self.title.setText("Resume a collection session" if on else "New collection session")
         for widget in (self.protocol, self.protocol_info, self.participant, self.condition,
-                       self.blocks, self.seed):
+                       self.blocks, self.seed, self.pilot):
             self.form.setRowVisible(widget, not on)
         self._set_row_visible(self.out_dir, not on)
         self._say_out_dir()
@@ -491,7 +497,8 @@ class CollectSetup(QWidget):
         device, dev_settings = self.device_choice()
         return SetupChoice(p, participant, out, self.condition.text().strip(),
                            self.seed.value(), device, dev_settings,
-                           self.hold_flagged.isChecked(), self.auto_continue.isChecked())
+                           self.hold_flagged.isChecked(), self.auto_continue.isChecked(),
+                           self.pilot.isChecked())
 
     def show_sound(self, text: str, ok: bool) -> None:
         """The result of "Test sound" beside its button."""
@@ -516,7 +523,7 @@ class CollectSetup(QWidget):
     def prefill(self, protocol: str | None = None, participant: str = "",
                 device: str | None = None, device_values: dict[str, str] | None = None,
                 out_dir: str | None = None, blocks: int | None = None,
-                seed: int | None = None, condition: str = "") -> None:
+                seed: int | None = None, condition: str = "", pilot: bool = False) -> None:
         """Fill the form (the ``collect`` command's options); it stays editable. A
         device that cannot run a session is a one-line UserError."""
         if device and self.device.findData(device) < 0:
@@ -540,6 +547,7 @@ class CollectSetup(QWidget):
             self.blocks.setValue(int(blocks))
         if seed is not None:
             self.seed.setValue(int(seed))
+        self.pilot.setChecked(pilot)
 
     def _on_start(self) -> None:
         try:

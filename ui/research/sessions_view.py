@@ -110,8 +110,18 @@ class SessionsView(QWidget):
         self._show_problem_column()
         self._apply_filter()
         self.table.selectAll()
+        self._leave_out_pilots()
         self._selection_changed()
         self._start_checks()
+
+    def _leave_out_pilots(self) -> None:
+        """A pilot session (a rehearsal) is listed but not selected: never mixed with the
+        participants' data unless chosen by hand."""
+        model, sel = self.table.model(), self.table.selectionModel()
+        flags = (sel.SelectionFlag.Deselect | sel.SelectionFlag.Rows)
+        for r in range(self.table.rowCount()):
+            if self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)].pilot:
+                sel.select(model.index(r, 0), flags)
 
     def stop_checks(self, wait_s: float = 0.0) -> None:
         """Cancel the listing's checks (they stop between files; a file being read is

@@ -35,13 +35,16 @@ class SessionRow:
     error: str = ""  # the file cannot be read: not listed for training
     violations: list[str] = field(default_factory=list)  # what ``check`` finds wrong
     checked: bool = False  # ``violations`` is known (a scan may leave the check for later)
+    pilot: bool = False  # a rehearsal (storage/session_set.is_pilot): not selected by default
 
     @property
     def problem(self) -> str:
         """Why the file is not to be trusted as it is ("" when it is)."""
         from tactile_studio.storage.session_check import verdict_text
 
-        return self.error or (verdict_text(self.violations) if self.violations else "")
+        if self.error or self.violations:
+            return self.error or verdict_text(self.violations)
+        return "pilot (a rehearsal): select it to train on it" if self.pilot else ""
 
     def matches(self, text: str) -> bool:
         """Case-insensitive filter over the visible fields."""
@@ -57,7 +60,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
     can list a folder of long sessions at once."""
     from tactile_studio.storage.session import Session
     from tactile_studio.storage.session_check import check_session
-    from tactile_studio.storage.session_set import session_files_under
+    from tactile_studio.storage.session_set import is_pilot, session_files_under
 
     files: list[Path] = []
     for f in map(Path, folders):
@@ -73,6 +76,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
                 row.protocol = str(meta.get("protocol") or "")
                 row.sensor = s.layout.name
                 row.date = str(meta.get("created") or "")[:16].replace("T", " ")
+                row.pilot = is_pilot(meta)
                 counts: Counter[str] = Counter()
                 for t in s.trials:
                     status = t.get("status", "ok")
