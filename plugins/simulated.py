@@ -41,12 +41,12 @@ class SimulatedSensor(DevicePlugin):
                 label="Frame rate", unit="Hz"),
         Setting("speed", "float", 1.0, "1 = real time, 10 = ten times faster, "
                 "0 = as fast as possible", minimum=0.0, maximum=10000.0,
-                label="Speed", unit="\u00d7 real time; 0 = as fast as possible"),
+                label="Speed", unit="\u00d7 real time"),
         Setting("seed", "int", 0, "random seed: sensor identity (sim-N in the logbook), "
-                "noise, trials", minimum=0, label="Sensor", unit="seed N: sensor sim-N"),
+                "noise, trials", minimum=0, label="Sensor seed", unit="sim-N"),
         Setting("gesture", "str", AUTO, "auto (demo cycle), idle, or a gesture name: "
                 + ", ".join(GESTURE_NAMES), label="Touches by itself",
-                unit="auto = demo cycle, idle, or a gesture"),
+                unit="auto, idle, a gesture"),
         Setting("intensity", "float", 1.0, "scales gesture load", minimum=0.0, maximum=5.0,
                 label="Touch strength", unit="\u00d7 typical", advanced=True),
         Setting("gesture_speed", "float", 1.0, "scales gesture tempo", minimum=0.1, maximum=5.0,
@@ -57,10 +57,10 @@ class SimulatedSensor(DevicePlugin):
                 label="Noise", unit="counts rms", advanced=True),
         Setting("drift", "float", 0.002, "slow baseline wander, relative amplitude",
                 minimum=0.0, maximum=0.1, label="Baseline drift",
-                unit="fraction of baseline; 0.002 = 0.2 %", advanced=True),
+                unit="fraction of baseline", advanced=True),
         Setting("crosstalk", "float", 0.07, "shear x<->y crosstalk fraction",
                 minimum=0.0, maximum=0.2, label="Shear crosstalk x\u2194y",
-                unit="fraction; 0.07 = 7 %", advanced=True),
+                unit="fraction", advanced=True),
         Setting("difficulty", "choice", DEFAULT_DIFFICULTY, "how varied virtual people are: "
                 "easy (original), real (calibrated to recordings), hard", choices=DIFFICULTIES,
                 label="How people vary", advanced=True),
@@ -73,7 +73,7 @@ class SimulatedSensor(DevicePlugin):
                 unit="A1..F6", advanced=True),
         Setting("sensitivity_spread", "float", 0.0, "per-taxel sensitivity spread "
                 "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5,
-                label="Taxel sensitivity spread", unit="relative std; 0.15 = 15 %",
+                label="Taxel sensitivity spread", unit="relative std",
                 advanced=True),
     )
 

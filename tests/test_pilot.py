@@ -42,6 +42,7 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     assert console.touches_label.text() == \
         "Touches: a virtual participant, on the simulated sensor"
     assert console.virtual is not None and snap(console).state == State.SETUP  # yours to start
+    device = console.engine.device
     click(qtbot, console, "primary")  # Start
     paused = False
     deadline = time.monotonic() + 4 * WAIT_MS / 1000  # a safety net, never a timing check
@@ -66,6 +67,9 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
         trials, meta = f.trials, f.metadata
     assert meta["pilot"] is True and len(trials) == 6
     assert not any("no_contact" in t["flags"] for t in trials), trials  # someone touched
+    for t in trials:  # ...with the prompted gesture, during its trial (the ground truth)
+        middle = (t["start_sample"] + t["end_sample"]) // 2
+        assert device.gesture_at(middle) == t["gesture"], t
     assert console.participant.view.pilot and console.pilot_banner.isVisibleTo(console)
 
 

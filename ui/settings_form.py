@@ -113,6 +113,9 @@ class SettingsForm(QGroupBox):
         super().__init__(title, parent)
         self.form = QFormLayout(self)
         self.form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        # a label in words with its unit goes above its field where the two do not fit
+        # side by side (the main window's device dock), never squeezing the field
+        self.form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
         self.plugin: type[DevicePlugin] | None = None
         self.fields: dict[str, SettingField | DiscoverField] = {}
         self.discover_field: DiscoverField | None = None
