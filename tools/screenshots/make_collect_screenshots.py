@@ -112,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         trial(g)
         if snap().state == State.REVIEW:
             console.primary_action()
+    engine = console.engine  # the last touch relaxes off the skin (tau ~3 s) first
+    settled = engine.frames + round(15 * engine.nominal_rate_hz)
+    _pump(app, lambda: engine.frames >= settled)
     trial(gestures[6], perform=False)  # nobody touched: flagged and held for a decision
     dev.perform("Circular Stroke", duration_s=6.0)
     _settle(app, 1.0)
