@@ -101,14 +101,8 @@ class VirtualParticipant:
         fp_frames = round(r.free_play_s * self.rate)
         rng = self._rng(0xF4EE)
         f = self.start_frame + round(0.3 * self.rate)
-        names = r.protocol.gesture_names
         while fp_frames and f + self.n < self.start_frame + fp_frames:
-            sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
-            if sim is not None:
-                try:
-                    self.device.perform(sim, self.n / self.rate, inten, speed, at_frame=f)
-                except ValueError:
-                    pass  # the stream is already past it (prepared late): skip the touch
+            self._touch_any(rng, f)  # the stream already past it (prepared late): skipped
             f += self.n + round(rng.uniform(0.3, 0.8) * self.rate)
         frame = self.start_frame + fp_frames + round(1.0 * self.rate)
         prev: int | None = None
@@ -162,24 +156,40 @@ class VirtualParticipant:
         self._plans.append((block, gesture, frame))
         return frame
 
+    def _touch_any(self, rng: np.random.Generator, frame: int) -> bool:
+        """A free-play touch: one of the protocol's gestures at ``frame``; False when the
+        stream has passed it."""
+        names = self.runner.protocol.gesture_names
+        sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
+        if sim is None:
+            return True
+        try:
+            self.device.perform(sim, self.n / self.rate, inten, speed, at_frame=frame)
+        except ValueError:
+            return False
+        return True
+
     def step(self) -> bool:
         """Act if it is time; True if a key was pressed (or the session started)."""
         r = self.runner
-        if not self.plan_ahead:
-            return self._react()
-        if r.state == State.SETUP:
+        if r.state == State.SETUP and self.plan_ahead:
             # started once its start frame is in: the runner's clock then reads it
             if r.engine.frames > self.start_frame and r.engine.baseline is not None:
                 return r.start(at_frame=self.start_frame)
             return False
+        if r.state == State.FREE_PLAY and not self.plan_ahead:
+            return self._free_play()
         if r.state not in State.KEY_STATES or r.held:
             return False
         nxt = self._next()
         if nxt is None:
             return False
+        if not self.plan_ahead:  # a plan the session moved past (a pause, a redo, another
+            # prompt) is dropped: its touch happened unlabelled, as a person's would
+            self._plans = [p for p in self._plans if p[:2] == nxt and p[2] >= r.at_frame]
         block, gesture = nxt
         i = next((i for i, p in enumerate(self._plans) if p[:2] == (block, gesture)), None)
-        if i is None:  # off the plan (a redo): do it now
+        if i is None:  # off the plan (a redo; in a pilot, every trial): do it now
             self._plan(block, gesture, self.device.next_frame + self._gap())
             i = len(self._plans) - 1
         frame = self._plans[i][2]
@@ -188,38 +198,13 @@ class VirtualParticipant:
         del self._plans[i]
         return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)
 
-    def _react(self) -> bool:
-        """Not planned ahead (the console's pilot): touch during free play, and do the
-        prompted gesture a reaction time after the screen asks for it."""
-        r = self.runner
-        if r.state == State.FREE_PLAY:
-            self._plans.clear()
-            if self.device.next_frame >= self._free_until:
-                names = r.protocol.gesture_names
-                rng = self._rng(0xF4EE, self._count)
-                self._count += 1
-                sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
-                start = self.device.next_frame + round(rng.uniform(0.3, 0.8) * self.rate)
-                if sim is not None:
-                    try:
-                        self.device.perform(sim, self.n / self.rate, inten, speed,
-                                            at_frame=start)
-                    except ValueError:
-                        return False  # overtaken: the next step tries again
-                self._free_until = start + self.n
-            return False
-        if r.state not in State.KEY_STATES or r.held:
-            return False
-        nxt = self._next()
-        if nxt is None:
-            return False
-        # a plan the session moved past (paused, redone, another gesture prompted) is
-        # dropped: its touch happened unlabelled, as a person's would
-        self._plans = [p for p in self._plans if p[:2] == nxt and p[2] >= r.at_frame]
-        if not self._plans:
-            self._plan(*nxt, self.device.next_frame + self._gap())
-        block, gesture, frame = self._plans[0]
-        if r.engine.frames - 1 < frame:
-            return False  # not there yet
+    def _free_play(self) -> bool:
+        """Not planned ahead (the console's pilot): a touch now and then in free play."""
         self._plans.clear()
-        return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)
+        if self.device.next_frame >= self._free_until:
+            rng = self._rng(0xF4EE, self._count)
+            self._count += 1
+            start = self.device.next_frame + round(rng.uniform(0.3, 0.8) * self.rate)
+            if self._touch_any(rng, start):
+                self._free_until = start + self.n
+        return False
