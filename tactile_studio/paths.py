@@ -12,10 +12,7 @@ user's real folders:
 from __future__ import annotations
 
 import os
-import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 import platformdirs
 
@@ -25,28 +22,21 @@ APP_NAME = "tactile-studio"
 APP_AUTHOR = "TactileStudio"
 
 
-def make_out_dir(out: str | os.PathLike, say: Callable[[str], Any] | None = None) -> Path:
+def make_out_dir(out: str | os.PathLike) -> Path:
     """The one rule for an output folder that does not exist, in every command and the
-    collection console: it is made (with its parents), as any export tool does, and
-    ``say`` (a command's stderr) is told so, since a mistyped folder is made too. A
-    folder that cannot be made is a one-line error naming it."""
+    collection console: it is made (with its parents), as any export tool does. The
+    commands' last line names what they wrote there, and the console says beforehand
+    that the folder will be made, so a mistyped folder shows. A folder that cannot be
+    made is the house's one fault line naming it."""
     path = Path(out)
-    existed = path.is_dir()
     try:
         path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:  # a file in the way, no permission...: the house's one line
+    except OSError as exc:  # a file in the way, no permission...
         error = as_user_error(exc)
         if error is None:
             raise
         raise error from None
-    if not existed and say is not None:
-        say(f"{out}: made the output folder (it did not exist)")
     return path
-
-
-def say_on_stderr(line: str) -> None:
-    """A command's side remark (``make_out_dir``'s "made the output folder")."""
-    print(line, file=sys.stderr)
 
 
 def text_path(path: str | os.PathLike) -> str:

@@ -29,7 +29,7 @@ from tactile_studio.devices.registry import create_device, parse_set_options, pl
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.paths import make_out_dir, say_on_stderr
+from tactile_studio.paths import make_out_dir
 from tactile_studio.protocol.collect import (
     CollectionSession,
     check_participant,
@@ -217,7 +217,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
-        out = make_out_dir(args.out or ".", say_on_stderr)
+        out = make_out_dir(args.out or ".")
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
         print(status.text(), file=sys.stderr)

@@ -10,7 +10,7 @@ from pathlib import Path
 from tactile_studio.errors import IncompleteError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.output_faults import kept_when_full
-from tactile_studio.paths import make_out_dir, say_on_stderr
+from tactile_studio.paths import make_out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -89,7 +89,7 @@ def _bar(label: str) -> Iterator[_Bar]:
 
 
 def cmd_import(args: argparse.Namespace) -> int:
-    make_out_dir(args.out, say_on_stderr)
+    make_out_dir(args.out)
     from tactile_studio.storage.importers import import_cost, import_haart
     from tactile_studio.storage.importers.shearsense import import_shearsense_study
 
@@ -136,7 +136,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
-    make_out_dir(args.out, say_on_stderr)
+    make_out_dir(args.out)
     from tactile_studio.storage.exporters import export_session, shearsense_status_note
 
     token = CancelToken()

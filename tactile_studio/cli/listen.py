@@ -17,7 +17,7 @@ from tactile_studio.cli.recording_warnings import (
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
-from tactile_studio.paths import make_out_dir, say_on_stderr
+from tactile_studio.paths import make_out_dir
 from tactile_studio.streams.remote_control import DEFAULT_PORT, LOOPBACK, RemoteControl
 
 POLL_S = 0.05
@@ -47,8 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_listen(args: argparse.Namespace) -> int:
-    made: list[str] = []  # said after the "listening on" line, which scripts read first
-    out = make_out_dir(args.out, made.append)
+    out = make_out_dir(args.out)
     device = create_device(args.device, parse_set_options(args.set))
     session = AcquisitionSession()
     apply_silence_option(session, args)
@@ -66,8 +65,6 @@ def cmd_listen(args: argparse.Namespace) -> int:
         session.start()
         print(f"remote control: listening on {args.host}:{port} for {args.device}; "
               "Ctrl-C ends", file=sys.stderr, flush=True)
-        for line in made:
-            say_on_stderr(line)
         end = None if args.seconds is None else time.monotonic() + args.seconds
         with ctrl_c_cancels(token):
             while not token.wait(POLL_S):

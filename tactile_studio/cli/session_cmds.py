@@ -24,7 +24,7 @@ from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
-from tactile_studio.paths import make_out_dir, say_on_stderr
+from tactile_studio.paths import make_out_dir
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.logbook import check_sensor_id
 from tactile_studio.storage.session import Session, measured_rate_hz
@@ -88,7 +88,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
-    make_out_dir(out.parent, say_on_stderr)  # the rule of every output folder
+    make_out_dir(out.parent)  # the rule of every output folder
     session = AcquisitionSession()
     apply_silence_option(session, args)
     watch_health(session)  # a device gone silent while recording: a warning line
