@@ -45,6 +45,14 @@ def recording_ready(path) -> bool:
         return False
 
 
+def _has_marker(path) -> bool:
+    try:
+        with Session(path) as s:
+            return any(e["kind"] == "marker" for e in s.events)
+    except Exception:  # noqa: BLE001 - mid-creation
+        return False
+
+
 def push_when_connected(outlet, texts, gap_s, sent, path, then=None):
     """Push ``texts`` once the recording at ``path`` is under way (a condition, bounded)."""
     def run():
@@ -90,9 +98,18 @@ def test_a_marker_stream_that_disappears_is_reported(tmp_path, capsys):
     holder = {"outlet": marker_outlet(name)}
     sent: list[tuple[str, float]] = []
     out = tmp_path / "s.h5"
+
+    def quit_once_recorded() -> None:
+        """The sender quits once its marker is in the file: gone before the inlet's next
+        pull (every 50 ms), a marker was lost with the stream on a loaded machine."""
+        deadline = time.monotonic() + WAIT_S
+        while not _has_marker(out) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        holder.pop("outlet")
+
     pusher = push_when_connected(holder["outlet"], ["one"], 0.05, sent, out,
-                                 then=lambda: holder.pop("outlet"))
-    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "2.5",
+                                 then=quit_once_recorded)
+    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "4",
                "--out", str(out), "--markers", name])
     pusher.join(WAIT_S)
     err = capsys.readouterr().err
