@@ -2,7 +2,7 @@
 difficulties do to a random forest leave-one-participant-out.
 
 Part 1, the table: populations of 10 virtual people as ``collect --virtual-participant
---seed S`` draws them (default ``real`` difficulty, shear9, 2 blocks, flat surface),
+--seed S --set seed=S`` draws them (default ``real`` difficulty, shear9, 2 blocks, flat surface),
 decoded with the project's ``decode`` on the physical grid; the statistics of
 ``tactile_studio.learn.data.touch_stats`` (median [IQR] over trials, CV of the participants'
 medians) for population seed 0 alone and pooled over ``--populations`` seeds (the mean,

@@ -35,30 +35,46 @@ class SimulatedSensor(DevicePlugin):
     description: ClassVar[str] = (
         "Simulated ShearSense 6x6 sensor: the nine protocol gestures, viscoelasticity, "
         "noise, drift, crosstalk and optional faults")
+    # labels and units are what a form shows a person; the names are --set's and the files'
     settings_schema: ClassVar[tuple[Setting, ...]] = (
-        Setting("rate", "float", 43.0, "frames per second", minimum=1.0, maximum=5000.0),
+        Setting("rate", "float", 43.0, "frames per second", minimum=1.0, maximum=5000.0,
+                label="Frame rate", unit="Hz"),
         Setting("speed", "float", 1.0, "1 = real time, 10 = ten times faster, "
-                "0 = as fast as possible", minimum=0.0, maximum=10000.0),
-        Setting("seed", "int", 0, "random seed: sensor identity, noise, trials", minimum=0),
+                "0 = as fast as possible", minimum=0.0, maximum=10000.0,
+                label="Speed", unit="\u00d7 real time"),
+        Setting("seed", "int", 0, "random seed: sensor identity (sim-N in the logbook), "
+                "noise, trials", minimum=0, label="Sensor seed", unit="sim-N"),
         Setting("gesture", "str", AUTO, "auto (demo cycle), idle, or a gesture name: "
-                + ", ".join(GESTURE_NAMES)),
-        Setting("intensity", "float", 1.0, "scales gesture load", minimum=0.0, maximum=5.0),
-        Setting("gesture_speed", "float", 1.0, "scales gesture tempo", minimum=0.1, maximum=5.0),
-        Setting("style_seed", "int", 0, "virtual participant's personal style", minimum=0),
-        Setting("noise", "float", 20.0, "Gaussian noise, counts std", minimum=0.0, maximum=5000.0),
+                + ", ".join(GESTURE_NAMES), label="Touches by itself",
+                unit="auto, idle, a gesture"),
+        Setting("intensity", "float", 1.0, "scales gesture load", minimum=0.0, maximum=5.0,
+                label="Touch strength", unit="\u00d7 typical", advanced=True),
+        Setting("gesture_speed", "float", 1.0, "scales gesture tempo", minimum=0.1, maximum=5.0,
+                label="Touch tempo", unit="\u00d7 typical", advanced=True),
+        Setting("style_seed", "int", 0, "virtual participant's personal style", minimum=0,
+                label="Person's style", unit="seed", advanced=True),
+        Setting("noise", "float", 20.0, "Gaussian noise, counts std", minimum=0.0, maximum=5000.0,
+                label="Noise", unit="counts rms", advanced=True),
         Setting("drift", "float", 0.002, "slow baseline wander, relative amplitude",
-                minimum=0.0, maximum=0.1),
+                minimum=0.0, maximum=0.1, label="Baseline drift",
+                unit="fraction of baseline", advanced=True),
         Setting("crosstalk", "float", 0.07, "shear x<->y crosstalk fraction",
-                minimum=0.0, maximum=0.2),
+                minimum=0.0, maximum=0.2, label="Shear crosstalk x\u2194y",
+                unit="fraction", advanced=True),
         Setting("difficulty", "choice", DEFAULT_DIFFICULTY, "how varied virtual people are: "
-                "easy (original), real (calibrated to recordings), hard", choices=DIFFICULTIES),
+                "easy (original), real (calibrated to recordings), hard", choices=DIFFICULTIES,
+                label="How people vary", advanced=True),
         Setting("surface", "choice", "flat", "flat, or a soft pillow under the sensor",
-                choices=SURFACES),
-        Setting("fault", "choice", "none", "simulated defect", choices=FAULTS),
+                choices=SURFACES, label="Surface under the sensor", advanced=True),
+        Setting("fault", "choice", "none", "simulated defect", choices=FAULTS,
+                label="Simulated fault", advanced=True),
         Setting("fault_taxel", "taxel", "C3", "taxel the fault affects: a name (A1..F6) "
-                "or an index (0..35)", minimum=0, maximum=35),
+                "or an index (0..35)", minimum=0, maximum=35, label="Faulty taxel",
+                unit="A1..F6", advanced=True),
         Setting("sensitivity_spread", "float", 0.0, "per-taxel sensitivity spread "
-                "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5),
+                "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5,
+                label="Taxel sensitivity spread", unit="relative std",
+                advanced=True),
     )
 
     def __init__(self, **settings: Any) -> None:

@@ -16,20 +16,27 @@ from pathlib import Path
 
 import platformdirs
 
-from tactile_studio.errors import UserError
+from tactile_studio.output_faults import as_user_error
 
 APP_NAME = "tactile-studio"
 APP_AUTHOR = "TactileStudio"
 
 
 def make_out_dir(out: str | os.PathLike) -> Path:
-    """Create an output folder (and parents) like any export tool would; a folder that
-    cannot be made is a one-line error naming it."""
+    """The one rule for an output folder that does not exist, in every command and the
+    collection console: it is made (with its parents), as any export tool does. The
+    commands' last line names what they wrote there, and the console says beforehand
+    that the folder will be made, so a mistyped folder shows. A folder that cannot be
+    made is the house's one fault line naming it."""
+    path = Path(out)
     try:
-        Path(out).mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise UserError(f"{out}: cannot create output folder ({exc.strerror})") from None
-    return Path(out)
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:  # a file in the way, no permission...
+        error = as_user_error(exc)
+        if error is None:
+            raise
+        raise error from None
+    return path
 
 
 def text_path(path: str | os.PathLike) -> str:

@@ -32,6 +32,17 @@ class Setting:
     choices: tuple[str, ...] = ()
     minimum: float | None = None
     maximum: float | None = None
+    # how a form shows it to a person: words and a unit ("Noise", "counts rms"); the
+    # name stays what --set and the files use. ``advanced``: a form folds it away
+    label: str = ""
+    unit: str = ""
+    advanced: bool = False
+
+    @property
+    def title(self) -> str:
+        """The form's row label: ``label (unit)``, else the name."""
+        text = self.label or self.name
+        return f"{text} ({self.unit})" if self.unit else text
 
     def parse(self, value: Any, device: str, kind: str = "device") -> Any:
         """Convert a value (possibly the text of ``--set key=value``) and check it."""
@@ -69,7 +80,8 @@ class Setting:
         if self.minimum is not None or self.maximum is not None:
             rng = f" (range {self.minimum if self.minimum is not None else ''}.."
             rng += f"{self.maximum if self.maximum is not None else ''})"
-        return f"{self.name}={self.default!r} ({self.kind}{extra}){rng}  {self.help}"
+        unit = f", {self.unit}" if self.unit else ""
+        return f"{self.name}={self.default!r} ({self.kind}{extra}{unit}){rng}  {self.help}"
 
 
 def validate_settings(schema: tuple[Setting, ...], settings: dict[str, Any], name: str,

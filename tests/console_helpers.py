@@ -9,14 +9,17 @@ from PySide6.QtCore import Qt
 
 
 def open_console_session(qtbot, console, out_dir: Path, participant: str,  # noqa: ANN001
-                         device_settings: dict[str, str] | None = None) -> Path:
+                         device_settings: dict[str, str] | None = None,
+                         make_folder: bool = True) -> Path:
     """Fill the shown ``console``'s setup (the first protocol, the simulated device with
-    ``device_settings`` typed in) and open the session; returns its file."""
+    ``device_settings`` typed in) and open the session; returns its file. With
+    ``make_folder`` False a missing ``out_dir`` is left for the console to make."""
     s = console.setup
     s.protocol.setCurrentIndex(0)
     qtbot.keyClicks(s.participant, participant)
     s.out_dir.clear()
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if make_folder:
+        out_dir.mkdir(parents=True, exist_ok=True)
     qtbot.keyClicks(s.out_dir, str(out_dir))
     s.device.setCurrentIndex(s.device.findData("simulated"))
     for name, value in (device_settings or {}).items():

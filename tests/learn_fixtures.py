@@ -115,8 +115,9 @@ def make_dataset_folder(folder: Path, participants: int = 4, blocks: int = 3,
 
 def make_virtual_population(folder: Path, population_seed: int, participants: int = 10,
                             blocks: int = 2, **kw: object) -> list[Path]:
-    """Ten (``participants``) virtual people as ``collect --virtual-participant --seed S``
-    draws them (style from the participant id and seed, one sensor per population):
+    """Ten (``participants``) virtual people as ``collect --virtual-participant --seed S
+    --set seed=S`` draws them (style from the participant id and order seed, one
+    simulated sensor per population):
     the sample issue 37's table compares with the real recordings."""
     from tactile_studio.protocol.virtual import style_seed
 

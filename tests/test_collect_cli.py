@@ -148,7 +148,9 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     assert s.device.currentData() == "simulated"
     assert s.device_form.fields["noise"].text() == "5"
     assert s.device_form.changed_values() == {"noise": "5"}
-    assert s.out_dir.text() == str(out) and out.is_dir()  # made, as the form needs it
+    assert s.out_dir.text() == str(out) and not out.exists()  # made when the session opens
+    assert s.out_note.text() == \
+        f"{out} does not exist yet: it will be made when the session opens."
     assert console.stack.currentIndex() == 0 and console.session is None  # not started
     choice = s.choice()  # what "Open session" would start
     assert (choice.protocol.blocks, choice.seed, choice.device_settings) == \
@@ -156,6 +158,7 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     # the experimenter opens it; then, closed mid-session, the command resumes it
     assert console.start_session(choice)
     path = console.session.path
+    assert path.parent == out  # made (one rule for a missing folder: tests/test_out_folders)
     console.close()
     code, err, opened = _run_console_cli(capsys, "--resume", str(path))
     assert code == 0, err
@@ -254,3 +257,20 @@ def test_the_console_without_out_keeps_its_own_folder_not_the_current_one(
     assert s.out_dir.text() == str(tmp_path / "data" / "sessions")
     assert s.blocks.value() == 52  # the protocol's own count
     opened[0].close()
+
+
+def test_the_order_seed_is_not_the_simulated_sensors_seed(tmp_path: Path, capsys) -> None:
+    """Issue 47 item 16: `collect --seed 1` also made the simulated sensor sim-1 (a
+    different sensor, with its own logbook entry), while the console's "order seed" did
+    not. The order seed orders the blocks; `--set seed=N` chooses the sensor."""
+    found = {}
+    for name, extra in (("a", []), ("b", ["--set", "seed=4"])):
+        code, out, err = _main(capsys, "--protocol", "shear9", "--participant", "P01",
+                               "--virtual-participant", "--blocks", "1", "--seed", "1",
+                               "--speed", "0", "--out", str(tmp_path / name), *extra)
+        assert code == 0, err
+        with Session(Path(out.strip().splitlines()[-1])) as s:
+            found[name] = (s.metadata["sensor_id"], s.metadata["order_seed"],
+                           s.metadata["block_order"])
+    assert found["a"][0] == "sim-0" and found["b"][0] == "sim-4"
+    assert found["a"][1:] == found["b"][1:]  # the same orders on either sensor

@@ -61,6 +61,11 @@ def test_a_console_on_the_live_demo_simulator_records_only_touches(qtbot, tmp_pa
         assert console.touches_label.text().startswith(
             "Touches: simulated sensor, idle until a virtual participant or a person touches")
         assert device.settings["gesture"] == "idle"
+        # the demo's last touch relaxes off the skin over seconds (tau ~3 s): the trial
+        # starts once 15 s of stream have passed, not when a loaded or idle machine gets
+        # there (a trial right away saw 1.04 kPa of it, now and then)
+        settled = engine.frames + round(15 * engine.nominal_rate_hz)
+        qtbot.waitUntil(lambda: engine.frames >= settled, timeout=15000)
         qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)  # Start
         snap = console.runner.snapshot
         qtbot.waitUntil(lambda: snap().state == State.WAITING, timeout=15000)
@@ -81,3 +86,53 @@ def test_a_console_on_the_live_demo_simulator_records_only_touches(qtbot, tmp_pa
         raw = sess.raw(t["start_sample"], t["end_sample"])
         load = decode(sess.layout, raw, sess.baseline(t["start_sample"])).normal
         assert float(np.abs(load).max()) < 1.0  # kPa: noise, no gesture
+
+
+def test_the_device_panel_says_the_simulator_is_idle_while_a_collection_uses_it(
+        qtbot, tmp_path, monkeypatch):
+    """Issue 47 item 14: the device panel listed the simulator's settings as raw names
+    without units ("noise 20.0, drift 0.002") and showed gesture=auto while the
+    collection forced it idle."""
+    from tactile_studio.ui.collect.app import open_console
+    from tactile_studio.ui.main_window import MainWindow
+    from tactile_studio.ui.settings import SETTINGS_ENV
+
+    monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
+    (tmp_path / "mini2.toml").write_text(MINI)
+    w = MainWindow(device="simulated", settings={"rate": "200", "speed": "4"})
+    qtbot.addWidget(w)
+    w.show()
+    try:
+        form = w.panel.form_box
+        label = form.form.labelForField(form.fields["noise"].widget)
+        assert label.text() == "Noise (counts rms)"
+        assert form.form.labelForField(form.fields["drift"].widget).text() == \
+            "Baseline drift (fraction of baseline)"
+        assert form.form.labelForField(form.fields["rate"].widget).text() == "Frame rate (Hz)"
+        assert "--set noise=" in form.fields["noise"].widget.toolTip()
+        assert form.more.text() == "More settings (11)" and not form.more.isChecked()
+        assert not form.fields["noise"].widget.isVisibleTo(w)  # folded: not the default set
+        assert form.fields["rate"].widget.isVisibleTo(w)
+        gesture = form.fields["gesture"]
+        assert w.panel.connect_device() and gesture.text() == "auto"
+        engine = w.controller.engine
+        qtbot.waitUntil(lambda: engine.baseline is not None, timeout=15000)
+        console = open_console(lambda: (engine, "simulated"))
+        qtbot.addWidget(console)
+        s = console.setup
+        s.set_protocol_file(str(tmp_path / "mini2.toml"))
+        qtbot.keyClicks(s.participant, "P03")
+        s.out_dir.setText(str(tmp_path / "data"))
+        qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+        assert s.error.text() == "" and console.engine is engine
+        qtbot.waitUntil(lambda: gesture.text() == "idle", timeout=5000)  # the panel's timer
+        assert not gesture.widget.isEnabled()
+        assert w.panel.held_label.text() == ("Touches by itself: idle while a collection "
+                                             "session uses this device (it was auto; back "
+                                             "when the session closes)")
+        assert w.panel.values()["gesture"] == "auto"  # a Restart keeps the user's choice
+        console.close()
+        qtbot.waitUntil(lambda: gesture.text() == "auto", timeout=5000)
+        assert gesture.widget.isEnabled() and not w.panel.held_label.isVisibleTo(w)
+    finally:
+        w.shutdown()

@@ -159,3 +159,40 @@ def test_info_on_a_run_folder_says_what_it_is_and_where_to_go(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and err.startswith("tactile-studio: error: ")
     assert f"{run}: a run folder (trained models), not sessions" in err
     assert f"tactile-studio evaluate {run}" in err
+
+
+def test_info_says_a_collection_is_unfinished_and_a_resume_is_a_gap(tmp_path, capsys):
+    """Issue 47 item 11: `info` on a half-done collection said "closed: cleanly" and
+    nothing of the blocks left, and after a resume "gaps: 1" was not explained."""
+    from collect_fixtures import do_trial, drive, make_rig, mini_protocol, start
+
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=2, blocks=2))
+    try:
+        start(rig)
+        for g in rig.runner.orders[0]:
+            do_trial(rig, g)
+    finally:
+        rig.close()  # the experimenter closes the console after block 1
+    path = rig.session.path
+    out = _info(capsys, path)
+    assert ("collection: unfinished, 1 of 2 blocks done (2 of 4 trials); resume with "
+            f"tactile-studio collect --resume {path}") in out
+    assert "gaps:       0   reconnects 0" in out
+    assert json.loads(_info(capsys, path, "--json"))["collection"] == {
+        "trials_done": 2, "trials_total": 4, "blocks_done": 1, "blocks_total": 2,
+        "finished": False}
+    rig = make_rig(tmp_path, None, resume=path)
+    try:
+        start(rig)
+        for g in rig.runner.orders[1]:
+            do_trial(rig, g)
+        drive(rig, lambda: rig.runner.state == "finished")
+    finally:
+        rig.close()
+    out = _info(capsys, path)
+    assert "gaps:       1 (1 resume: the recording continued later)   reconnects 0" in out
+    assert "collection: finished (2 of 2 blocks, 4 of 4 trials)" in out
+    backup = next(tmp_path.glob("*.bak-1.h5"))  # the backup's session goes on elsewhere
+    assert "collection:" not in _info(capsys, backup)
+    assert json.loads(_info(capsys, _collected(tmp_path / "c.h5"), "--json"))[
+        "collection"] is None  # no stored block orders: not a collection the runner made

@@ -10,6 +10,7 @@ import threading
 import time
 
 import pylsl
+import pytest
 from lsl_fixtures import WAIT_S, unique
 from waiting import wait_until
 
@@ -99,9 +100,18 @@ def test_a_marker_stream_that_disappears_is_reported(tmp_path, capsys):
     holder = {"outlet": marker_outlet(name)}
     sent: list[tuple[str, float]] = []
     out = tmp_path / "s.h5"
+
+    def quit_once_recorded() -> None:
+        """The sender quits once its marker is in the file: gone before the inlet's next
+        pull (every 50 ms), a marker was lost with the stream on a loaded machine."""
+        deadline = time.monotonic() + WAIT_S
+        while not markers_in(out) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        holder.pop("outlet")
+
     pusher = push_when_connected(holder["outlet"], ["one"], 0.05, sent, out,
-                                 then=lambda: holder.pop("outlet"))
-    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "2.5",
+                                 then=quit_once_recorded)
+    rc = main(["record", "--device", "simulated", "--set", f"rate={RATE:g}", "--seconds", "4",
                "--out", str(out), "--markers", name])
     pusher.join(WAIT_S)
     err = capsys.readouterr().err
@@ -246,3 +256,80 @@ def test_a_marker_stream_of_two_channels_keeps_both(tmp_path, capsys):
     with Session(out) as s:
         (m,) = [e for e in s.events if e["kind"] == "marker"]
     assert (m["text"], m["channels"]) == ("cue | left", ["cue", "left"])
+
+
+HELD = 9500  # frames the stream is held at: more than a marker's old 8192-frame look-back
+
+
+def test_a_marker_stamped_before_the_first_frame_is_at_row_0_however_late(tmp_path, capsys):
+    """Issue 47 item 17: a marker sent 0.39 s before the first frame was stored at a later
+    frame (the docs say row 0), and `check` passed it. The inlet read the frame count,
+    then the newest frames: a window that had moved on, or that started after frame 0.
+    Held at a fixed frame count (the simulator at speed 0 runs as its readers let it),
+    the placement is the same on any machine."""
+    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.devices.frame_stream import hold_frames
+
+    name = unique("stimpc")
+    outlet = marker_outlet(name)
+    session = AcquisitionSession()
+    engine = session.open("simulated", {"speed": 0, "gesture": "idle"})
+    release = hold_frames(engine, lambda: 0, HELD)
+    session.marker_streams = (name,)
+    out = tmp_path / "s.h5"
+    try:
+        session.start_recording(out)  # the inlet connects; then the frames begin
+        session.start()
+        deadline = time.monotonic() + WAIT_S
+        while engine.frames < HELD and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert engine.frames == HELD  # held there
+        first = float(engine.ring.read_since(0, 1).host_time[0])
+        outlet.push_sample(["before the first frame"], first + host_to_lsl() - 0.39)
+        while not [e for e in engine.events_since(0) if e["kind"] == "marker"] \
+                and time.monotonic() < deadline:
+            time.sleep(0.01)
+        release()
+        session.stop_recording()
+    finally:
+        release()
+        session.close()
+    with Session(out) as s:
+        (mark,) = [e for e in s.events if e["kind"] == "marker"]
+    assert mark["frame"] == 0 and mark["text"] == "before the first frame"
+    assert main(["info", str(out)]) == 0  # (the conftest runs `check` on the file too)
+    info = capsys.readouterr().out
+    assert "markers:    1\n  row 0 (0.00 s)  'before the first frame'  from " + name in info
+
+
+@pytest.mark.damaged_files  # a marker stored at the wrong row on purpose
+def test_check_names_a_marker_stored_after_its_frame_and_info_lists_markers(tmp_path,
+                                                                           capsys):
+    """`check` verifies where an LSL marker is (the frame nearest its time; row 0 before
+    the first frame), and `info` lists each marker's text and the recording's task/run."""
+    import numpy as np
+
+    from tactile_studio.sensor.layout import SHEARSENSE_6X6
+    from tactile_studio.storage.session_writer import SessionWriter
+
+    path = tmp_path / "sub-P01_ses-S1_task-touch_run-002_tactile.h5"
+    t = 1.7e9 + np.arange(200) / 43.0
+    meta = {"source": "remote", "participant": "P01", "session_label": "S1", "task": "touch",
+            "run": "002"}
+    with SessionWriter(path, SHEARSENSE_6X6, {"plugin": "test"}, meta) as w:
+        w.append_frames(np.full((200, 180), 30000, np.uint16), t, t)
+        lsl = {"stream": "StimPC", "lsl_time": 0.0, "time_correction": 0.0, "offset_s": 0.0,
+               "source": "lsl"}
+        w.add_event("marker", 1, t[0] - 0.39, text="block 1", **lsl)   # row 0's
+        w.add_event("marker", 43, t[43] + 0.002, text="cue", **lsl)    # its own row
+        w.add_event("marker", 60, t[60], text="stim on", source="remote")
+    assert main(["check", str(path)]) == 5
+    err = capsys.readouterr()
+    assert "marker 'block 1' at row 1 is -0.413 s from its frame, but row 0 is nearer " \
+        "(-0.390 s)" in err.out + err.err
+    assert main(["info", str(path)]) == 0
+    info = capsys.readouterr().out
+    assert "recording:  session S1, task touch, run 002" in info
+    assert ("markers:    3\n  row 1 (0.02 s)  'block 1'  from StimPC\n"
+            "  row 43 (1.00 s)  'cue'  from StimPC\n  row 60 (1.40 s)  'stim on'  from remote"
+            ) in info

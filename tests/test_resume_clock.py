@@ -31,10 +31,11 @@ def _ok_trials(path: Path) -> int:
 
 
 def _killed_session(out: Path, trials: int = 3) -> Path:
-    """A shear9 block killed with SIGKILL once ``trials`` trials are in the file."""
+    """A shear9 block on sensor sim-5 (order seed 5 too) killed with SIGKILL once
+    ``trials`` trials are in the file."""
     proc = subprocess.Popen([EXE, "collect", "--protocol", "shear9", "--participant", "P05",
                              "--virtual-participant", "--speed", "20", "--blocks", "1",
-                             "--seed", "5", "--out", str(out)],
+                             "--seed", "5", "--set", "seed=5", "--out", str(out)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + WAIT_S
     try:

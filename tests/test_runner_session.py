@@ -16,6 +16,7 @@ from collect_fixtures import (
     start,
 )
 
+from tactile_studio.cli import main
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
@@ -357,5 +358,65 @@ def test_a_discarded_trial_collected_again_in_the_break_after_its_block(tmp_path
         rig.close()
     with Session(rig.session.path) as s:
         statuses = [(t["block"], t["gesture"], t["status"]) for t in s.trials]
-    assert statuses.count((0, order[0], "redone")) == 1
+    assert statuses.count((0, order[0], "discarded")) == 1  # on record, with its reason
     assert statuses.count((0, order[0], "ok")) == 1 and len(statuses) == 5
+
+
+def test_a_trial_discarded_and_collected_again_stays_discarded_on_record(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Issue 47 item 9: "collect again" stored the discarded trial as *redone*, so
+    `info` counted 0 discarded. It stays discarded with its reason, marked collected
+    again; a session closed before the new trial collects the gesture on resume."""
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=2, blocks=1))
+    r = rig.runner
+    try:
+        start(rig)
+        order = list(r.orders[0])
+        first = do_trial(rig, order[0])
+        assert r.discard(first["index"], "started late", again=True)
+        t = r.snapshot().trials[0]
+        assert (t["status"], t["reason"], t["collected_again"]) == \
+            ("discarded", "started late", True)
+        assert r.snapshot().trials_done == 0  # replaced by a trial still to come
+        assert not r.redo_last() and "already being collected again" in r.snapshot().hint
+    finally:
+        rig.close()  # closed before the new trial: the resume must collect it
+    rig = make_rig(tmp_path, None, resume=rig.session.path)
+    r = rig.runner
+    try:
+        assert r.snapshot().trials_done == 0
+        start(rig)
+        assert r.snapshot().prompted == order[0]
+        for g in order:
+            do_trial(rig, g)
+        drive(rig, lambda: r.state == "finished")
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        trials = s.trials
+    assert [(t["gesture"], t["status"]) for t in trials] == \
+        [(order[0], "discarded"), (order[0], "ok"), (order[1], "ok")]
+    capsys.readouterr()
+    assert main(["info", str(rig.session.path)]) == 0
+    out = capsys.readouterr().out
+    total = next(line for line in out.splitlines() if line.startswith("total"))
+    assert total.split()[1:4] == ["2", "0", "1"]  # ok, redone, discarded
+
+
+def test_the_redo_prompt_goes_with_its_trial_and_at_the_end(tmp_path: Path) -> None:
+    """Issue 47 item 10: the amber "Trial N ... redo?" stayed after trial N was
+    discarded, and on the Finished screen (where nothing can be redone)."""
+    rig = make_rig(tmp_path, mini_protocol(n_gestures=2, blocks=1))
+    r = rig.runner
+    try:
+        start(rig)
+        order = list(r.orders[0])
+        t0 = do_trial(rig, order[0], perform=False)  # nobody touched: flagged
+        assert r.snapshot().redo_prompt.startswith(f"Trial {t0['index'] + 1} ")
+        assert r.discard(t0["index"], "no contact")
+        assert r.snapshot().redo_prompt == ""
+        t1 = do_trial(rig, order[1], perform=False)  # the last trial, flagged again
+        drive(rig, lambda: r.state == "finished")
+        assert "no_contact" in t1["flags"] and r.snapshot().redo_prompt == ""
+    finally:
+        rig.close()

@@ -350,9 +350,11 @@ def test_setup_errors_are_one_line_and_nothing_opens(qtbot, env, tmp_path):
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert "participant" in s.error.text() and console.stack.currentIndex() == 0
     qtbot.keyClicks(s.participant, "P01")
-    s.out_dir.setText(str(tmp_path / "missing"))
+    in_the_way = tmp_path / "a-file"  # (a missing folder is made: tests/test_out_folders)
+    in_the_way.write_text("not a folder")
+    s.out_dir.setText(str(in_the_way))
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert "missing" in s.error.text() and "does not exist" in s.error.text()
+    assert s.error.text() == f"{in_the_way}: not a folder; choose a folder for the sessions"
     bad = tmp_path / "bad.toml"
     bad.write_text(MINI.replace("trial_s = 0.5", "trial_s = -1"))
     s.set_protocol_file(str(bad))

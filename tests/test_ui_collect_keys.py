@@ -154,8 +154,9 @@ def test_a_discarded_gesture_is_collected_again_at_the_end_of_its_block(qtbot, e
     qtbot.keyClicks(dialog.edit.lineEdit(), "started late")
     qtbot.mouseClick(dialog.buttons.buttons()[0], Qt.MouseButton.LeftButton)
     s = snap(console)
-    assert s.trials[0]["status"] == "redone"
-    assert s.trials[0]["reason"] == "discarded (started late); collected again"
+    assert s.trials[0]["status"] == "discarded" and s.trials[0]["collected_again"]
+    assert s.trials[0]["reason"] == "started late"
+    assert console.log.item(0, 3).text() == "discarded (started late; collected again)"
     assert list(s.remaining) == [*order[1:], order[0]]  # the discarded one comes last
     for name in [*order[1:], order[0]]:
         do_trial(qtbot, console, name, keys[name])
@@ -233,3 +234,34 @@ def test_resume_form_hides_what_the_file_decides(qtbot, env, monkeypatch):
     assert str(junk) in s.error.text()  # the failed resume says why, under the resume form
     qtbot.mouseClick(s.new_button, Qt.MouseButton.LeftButton)
     assert s.participant.isVisible() and not s.resume_file.isVisible()
+
+
+LONG = "Twist slowly with the whole flat hand, then hold it still"
+
+
+def test_the_mirror_fills_its_pane_and_long_lines_wrap_in_the_left_pane(qtbot, env, tmp_path):
+    """Issue 47 item 15: the mirror filled a third of its pane (the rest empty around
+    it), and the left pane widened whenever the state line or a hint grew."""
+    proto, out = env
+    long_proto = tmp_path / "long.toml"
+    long_proto.write_text(MINI.replace('name = "Twist"', f'name = "{LONG}"'))
+    console = make_console(qtbot)
+    console.resize(1500, 900)
+    open_mini(qtbot, console, long_proto, out, blocks=1)
+    settle_ui = lambda: QApplication.processEvents()  # noqa: E731 - layouts run on events
+    settle_ui()
+    m = console.mirror
+    painted_w = min(m.width(), m.height() * m.aspect)  # its 16:9 screen, letterboxed
+    assert painted_w >= 0.97 * m.width(), (m.width(), m.height())
+    widths, said = [], []
+    keys = {g.name: g.key for g in console.protocol.gestures}
+    for name in console.runner.orders[0]:
+        qtbot.keyClick(console.participant, "z")  # refused: a hint naming the prompt
+        settle_ui()
+        said += [console.state.text(), console.hint_label.text()]
+        widths.append(console.page_splitter.sizes()[0])
+        do_trial(qtbot, console, name, keys[name], perform=name != LONG)
+        settle_ui()
+        widths.append(console.page_splitter.sizes()[0])
+    assert f"next is {LONG} (T)" in " ".join(said)  # the long lines were shown
+    assert len(set(widths)) == 1, widths

@@ -84,7 +84,7 @@ def test_status_missing_failed_stale_and_fresh():
 
 def _collect(capsys, proto, out, *extra):
     code = main(["collect", "--protocol", str(proto), "--participant", "P01",
-                 "--virtual-participant", "--seed", "5", "--speed", "40", "--out", str(out),
+                 "--virtual-participant", "--set", "seed=5", "--speed", "40", "--out", str(out),
                  *extra])
     return code, *capsys.readouterr()
 

@@ -76,6 +76,14 @@ class DevicePanel(QWidget):
 
         self.form_box = SettingsForm("Settings")
         self.form_box.changed.connect(self._validate)
+        # a setting the device changed while connected (a collection session quiets the
+        # simulator): shown as it is now, locked, and said; name -> the form's own text
+        self._connected: dict[str, Any] = {}
+        self._held: dict[str, str] = {}
+        self.held_label = QLabel()
+        self.held_label.setObjectName("detail")
+        self.held_label.setWordWrap(True)
+        self.held_label.hide()
 
         self.sensor_box = sensor_id_box()
 
@@ -116,6 +124,7 @@ class DevicePanel(QWidget):
         box.addWidget(self.device_box)
         box.addWidget(self.description)
         box.addWidget(self.form_box)
+        box.addWidget(self.held_label)
         box.addWidget(self.sensor_box)
         box.addWidget(self.error_label)
         box.addLayout(buttons)
@@ -160,6 +169,8 @@ class DevicePanel(QWidget):
         return self.form_box.discover_field
 
     def _rebuild_form(self) -> None:
+        self._held.clear()  # new rows: nothing of the old ones is held
+        self.held_label.hide()
         cls = self.plugin()
         self.description.setText(getattr(cls, "description", "") or "")
         self.description.setVisible(bool(self.description.text()))
@@ -167,8 +178,9 @@ class DevicePanel(QWidget):
         self._validate()
 
     def values(self) -> dict[str, str]:
-        """The form as text, as ``--set key=value`` would give it (empty = default)."""
-        return self.form_box.values()
+        """The form as text, as ``--set key=value`` would give it (empty = default); a
+        setting the device holds for a session keeps the user's own value here."""
+        return {**self.form_box.values(), **self._held}
 
     def _validate(self, *_: object) -> bool:
         first = self.form_box.first_error()
@@ -203,6 +215,9 @@ class DevicePanel(QWidget):
             self.show_error(one_line(exc))
             return False
         self.show_error(None)
+        self._release_held()
+        engine = self.controller.engine
+        self._connected = dict(getattr(engine.device, "settings", None) or {})
         self.engineChanged.emit()
         self.refresh(self.controller.status())
         return True
@@ -330,7 +345,43 @@ class DevicePanel(QWidget):
                 f"Recording {os.path.basename(st.recording)} · {st.recorded_frames} frames")
             self.record_label.show()
         self._show_lsl()
+        self._show_device_settings(st)
         self._update_buttons(st)
+
+    def _show_device_settings(self, st: LiveStatus) -> None:
+        """A setting the connected device now has other than it was connected with (a
+        collection session sets the simulator idle: its touches must be the
+        participant's) is shown as it is, locked, with a line saying why; it goes back
+        when the device does. The form never claims gesture=auto while it is idle."""
+        engine = self.controller.engine
+        live = st.state in ("connecting", "running", "reconnecting") and engine is not None
+        now = dict(getattr(engine.device, "settings", None) or {}) if live else {}
+        lines = []
+        for name, field in self.form_box.fields.items():
+            was = self._connected.get(name)
+            if name in now and name in self._connected and now[name] != was:
+                if name not in self._held:
+                    self._held[name] = field.text()
+                    field.set_text(str(now[name]))
+                    field.widget.setEnabled(False)
+                lines.append(f"{field.setting.label or name}: {now[name]} while a collection "
+                             f"session uses this device (it was {was}; back when the session "
+                             "closes)")
+            elif name in self._held:
+                self._release_held(name)
+        self.held_label.setText("\n".join(lines))
+        self.held_label.setVisible(bool(lines))
+
+    def _release_held(self, *names: str) -> None:
+        """The form's own value back in the rows the device held (all when none named)."""
+        for name in names or list(self._held):
+            text = self._held.pop(name)
+            field = self.form_box.fields.get(name)
+            if field is not None:
+                field.set_text(text)
+                field.widget.setEnabled(True)
+        if not self._held:
+            self.held_label.hide()
 
     def _update_buttons(self, st: LiveStatus) -> None:
         live = st.state in ("connecting", "running", "reconnecting")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from PySide6.QtCore import Signal
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -66,7 +66,7 @@ class SettingField:
                 lay.addWidget(self.editor, 1)
                 lay.addWidget(browse)
                 self.widget = row
-        tip = setting.help or setting.name
+        tip = f"{setting.help or setting.name} (--set {setting.name}=\u2026)"
         if setting.minimum is not None or setting.maximum is not None:
             tip += f" (range {setting.minimum if setting.minimum is not None else ''}.."
             tip += f"{setting.maximum if setting.maximum is not None else ''})"
@@ -100,7 +100,12 @@ class SettingField:
 
 
 class SettingsForm(QGroupBox):
-    """The settings rows of one plugin; ``changed`` fires on every edit."""
+    """The settings rows of one plugin; ``changed`` fires on every edit.
+
+    Rows are labelled in words with their unit (``Setting.title``: "Noise (counts rms)";
+    the name ``--set`` takes is in the tooltip). Settings the plugin marks ``advanced``
+    fold under "More settings (N)", shown at once when one of them is not its default
+    or is wrong, so nothing that matters is ever hidden."""
 
     changed = Signal()
 
@@ -108,9 +113,14 @@ class SettingsForm(QGroupBox):
         super().__init__(title, parent)
         self.form = QFormLayout(self)
         self.form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        # a label in words with its unit goes above its field where the two do not fit
+        # side by side (the main window's device dock), never squeezing the field
+        self.form.setRowWrapPolicy(QFormLayout.RowWrapPolicy.WrapLongRows)
         self.plugin: type[DevicePlugin] | None = None
         self.fields: dict[str, SettingField | DiscoverField] = {}
         self.discover_field: DiscoverField | None = None
+        self.more: QToolButton | None = None  # "More settings (N)"
+        self._advanced: list[str] = []
 
     def set_plugin(self, cls: type[DevicePlugin] | None) -> None:
         """Rebuild the rows for ``cls`` (None: no rows), filled with its defaults."""
@@ -120,21 +130,67 @@ class SettingsForm(QGroupBox):
         while self.form.rowCount():
             self.form.removeRow(0)
         self.fields.clear()
+        self.more = None
         self.plugin = cls
         scan_name = discover_setting(cls)
-        for setting in (cls.settings_schema if cls else ()):
+        schema = cls.settings_schema if cls else ()
+        self._advanced = [s.name for s in schema if s.advanced and s.name != scan_name]
+        first_advanced = self._advanced[0] if self._advanced else None
+        for setting in sorted(schema, key=lambda s: s.name in self._advanced):
+            if setting.name == first_advanced:
+                self._add_more_row()
             if setting.name == scan_name:
                 field = DiscoverField(setting, cls, self._changed, self.values)
                 self.discover_field = field
             else:
                 field = SettingField(setting, self._changed)
             self.fields[setting.name] = field
-            self.form.addRow(setting.name, field.widget)
+            self.form.addRow(setting.title, field.widget)
+        self.show_advanced(False)
         self.setVisible(bool(self.fields))
         if self.discover_field is not None and self.discover_field.instant:
             self.discover_field.scan()
 
+    def _add_more_row(self) -> None:
+        self.more = QToolButton()
+        self.more.setCheckable(True)
+        self.more.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextBesideIcon)
+        self.more.setArrowType(Qt.ArrowType.RightArrow)
+        self.more.setAutoRaise(True)
+        self.more.setText(f"More settings ({len(self._advanced)})")
+        self.more.toggled.connect(self.show_advanced)
+        self.form.addRow(self.more)
+
+    def show_advanced(self, on: bool) -> None:
+        """Unfold (or fold) the advanced settings' rows."""
+        if self.more is None:
+            return
+        if self.more.isChecked() != on:
+            self.more.setChecked(on)  # toggled: comes back here
+            return
+        self.more.setArrowType(Qt.ArrowType.DownArrow if on else Qt.ArrowType.RightArrow)
+        for name in self._advanced:
+            self.form.setRowVisible(self.fields[name].widget, on)
+
+    def _unfold_if_needed(self) -> None:
+        """An advanced setting that is not its default, or is wrong, is shown."""
+        if self.more is None or self.more.isChecked():
+            return
+        device = self.plugin.name if self.plugin else ""
+        for name in self._advanced:
+            field = self.fields[name]
+            try:
+                if field.text() != "" and field.setting.parse(field.text(), device) \
+                        != field.setting.default:
+                    break
+            except UserError:
+                break
+        else:
+            return
+        self.show_advanced(True)
+
     def _changed(self, *_: object) -> None:
+        self._unfold_if_needed()
         self.changed.emit()
 
     def values(self) -> dict[str, str]:
@@ -146,6 +202,7 @@ class SettingsForm(QGroupBox):
         for key, value in values.items():
             if key in self.fields and value is not None:
                 self.fields[key].set_text(str(value))
+        self._unfold_if_needed()
 
     def changed_values(self) -> dict[str, str]:
         """Only the values that differ from the plugin's defaults (what a session or a

@@ -29,6 +29,7 @@ from tactile_studio.devices.registry import create_device, parse_set_options, pl
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.paths import make_out_dir
 from tactile_studio.protocol.collect import (
     CollectionSession,
     check_participant,
@@ -63,8 +64,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help=f"simulator speed, x real time (headless default {DEFAULT_SPEED:g}, "
                         "console 1)")
     p.add_argument("--blocks", type=int, default=None, help="run only the first N blocks")
-    p.add_argument("--seed", type=int, default=None, help="randomisation and simulation seed")
+    p.add_argument("--seed", type=int, default=None,
+                   help="order seed: the blocks' random orders (and a virtual participant's "
+                        "style); the simulated sensor keeps its own seed (--set seed=N)")
     p.add_argument("--condition", default="", help="condition label, e.g. FLAT")
+    p.add_argument("--pilot", action="store_true",
+                   help="a rehearsal: the file is marked pilot (named PILOT_...) and "
+                        "datasets, train and info's study leave it out unless it is named; "
+                        "the console opens with Pilot ticked (on the simulated sensor a "
+                        "virtual participant performs)")
     p.add_argument("--out", default=None,
                    help="output folder (default: the current folder; the console: its form's "
                         "folder, sessions under the app's data folder or the last one used)")
@@ -81,12 +89,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def _device_settings(args: argparse.Namespace, name: str, seed: int,
+def _device_settings(args: argparse.Namespace, name: str,
                      base: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The device's settings: ``base`` (a resumed file's), the speed, then ``--set``.
+    The order seed (``--seed``) is not the simulated sensor's seed, which is its
+    identity (sim-N): another order must not mean another sensor."""
     settings: dict[str, Any] = dict(base or {})
     if name == "simulated":
         settings.pop("speed", None)
-        settings.setdefault("seed", seed)
         settings["gesture"] = "idle"
         settings["speed"] = DEFAULT_SPEED if args.speed is None else args.speed
     elif args.speed is not None:
@@ -105,8 +115,11 @@ def _check_resume(args: argparse.Namespace) -> dict[str, Any]:
     if args.participant and args.participant != participant:
         raise UserError(f"{args.resume}: belongs to participant {participant}, "
                         f"not {args.participant}")
+    if args.pilot and not info.get("pilot"):
+        raise UserError(f"{args.resume}: is not a pilot session; --pilot cannot make a "
+                        "participant's session a rehearsal")
     if args.seed is not None and args.seed != seed:
-        raise UserError(f"{args.resume}: was recorded with seed {seed}, not {args.seed}")
+        raise UserError(f"{args.resume}: was recorded with order seed {seed}, not {args.seed}")
     return info
 
 
@@ -142,12 +155,10 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
         protocol, participant, _ = _new_session(args)
         name, settings = args.device, {}
         out = None if args.out is None else Path(args.out).expanduser().resolve()
-        if out is not None:
-            out.mkdir(parents=True, exist_ok=True)  # the form refuses a missing folder
         options = {"protocol": args.protocol, "participant": participant,
                    "out_dir": None if out is None else str(out),
                    "blocks": protocol.blocks if args.blocks is not None else None,
-                   "seed": args.seed, "condition": args.condition}
+                   "seed": args.seed, "condition": args.condition, "pilot": args.pilot}
     if args.speed is not None:
         if name != "simulated":
             raise UserError("--speed applies to the simulated device only")
@@ -191,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
-    device = create_device(name, _device_settings(args, name, seed, base))
+    device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
     acq = AcquisitionSession()
@@ -206,15 +217,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
-        out = Path(args.out or ".")
-        out.mkdir(parents=True, exist_ok=True)
+        out = make_out_dir(args.out or ".")
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
         print(status.text(), file=sys.stderr)
         session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
                                condition=args.condition,
                                wellness=admit(status, args.wellness_override),
-                               recorder=acq.start_recording)
+                               recorder=acq.start_recording, pilot=args.pilot)
         print(f"writing {session.path}", file=sys.stderr)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import time
 from collections import Counter
 from pathlib import Path
@@ -23,6 +24,7 @@ from tactile_studio.cli.stream import add_lsl_option, start_lsl
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.paths import make_out_dir
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.logbook import check_sensor_id
 from tactile_studio.storage.session import Session, measured_rate_hz
@@ -86,6 +88,7 @@ def cmd_record(args: argparse.Namespace) -> int:
     if args.seconds <= 0:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
+    make_out_dir(out.parent)  # the rule of every output folder
     session = AcquisitionSession()
     apply_silence_option(session, args)
     watch_health(session)  # a device gone silent while recording: a warning line
@@ -151,7 +154,11 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     """One row per session file under ``paths`` (folders searched recursively): what an
     experimenter checks after importing a study (malformed rows, unmapped keys, trials).
     A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
-    from tactile_studio.storage.session_set import is_resume_backup, scan_session_files
+    from tactile_studio.storage.session_set import (
+        is_pilot,
+        is_resume_backup,
+        scan_session_files,
+    )
     from tactile_studio.storage.study_summary import study_counts
 
     files, backups = scan_session_files(paths)
@@ -160,7 +167,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     every = sorted(set(files) | set(backups))
     counted: dict[str, int] = {}  # session_id -> index in ``study``: each session once
     root = Path(os.path.commonpath([f.parent for f in every]))
-    summaries, rows, bad, study = [], [], 0, []
+    summaries, rows, bad, study, pilots = [], [], 0, [], 0
     for f in every:
         name = f.relative_to(root).as_posix()
         try:
@@ -174,7 +181,9 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         summaries.append(summary)
         meta, trials = summary["metadata"], summary["trials"]
         ok = sum(1 for t in trials if t.get("status") == "ok")
-        if f not in backups:  # a resume backup repeats its session's trials
+        pilot = is_pilot(meta)  # a rehearsal: no one's data, left out of the study
+        pilots += pilot
+        if f not in backups and not pilot:  # a resume backup repeats its session's trials
             entry = (meta.get("participant") or "", meta.get("condition") or "",
                      Counter(t.get("gesture") for t in trials if t.get("status") == "ok"))
             sid = str(summary.get("session_id"))
@@ -190,6 +199,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
             notes.append("imported cut short")
         if f in backups:
             notes.append("resume backup")
+        if pilot:
+            notes.append("pilot (rehearsal; not counted)")
         lost = sum(summary["frames_lost"].values())
         if lost:
             notes.append(f"{lost} frames lost")
@@ -204,7 +215,8 @@ def _info_files(paths: list[str], as_json: bool) -> int:
                       "malformed", "unmapped keys", "note"), rows,
                      right=("frames", "Hz", "ok trials", "malformed"))
         print(f"{len(every)} session file(s) under {root}"
-              + (f"; {bad} unreadable" if bad else ""))
+              + (f"; {bad} unreadable" if bad else "")
+              + (f"; {pilots} pilot (rehearsals, not counted)" if pilots else ""))
         for line in study_counts(study).lines():
             print(line)
     return 1 if bad else 0
@@ -249,32 +261,91 @@ def cmd_info(args: argparse.Namespace) -> int:
         f"frames:     {summary['frames']} over {summary['duration_s']:.2f} s "
         f"({summary['rate_hz']:.2f} Hz)",
         f"malformed:  {summary['malformed']} {summary['malformed_by_kind'] or ''}",
-        f"gaps:       {summary['gaps']}   reconnects {summary['reconnects']}",
+        f"gaps:       {summary['gaps']}{_gaps_why(summary)}   reconnects {summary['reconnects']}",
         *_lost_line(summary["frames_lost"]),
         f"events:     {len(summary['events'])}"
         + (f" ({', '.join(sorted({e['kind'] for e in summary['events']}))})"
            if summary["events"] else ""),
         f"closed:     {_closed_text(summary)}",
     ]
-    from tactile_studio.storage.session_set import BACKUP_RE, is_resume_backup
+    from tactile_studio.storage.session_set import BACKUP_RE, is_pilot, is_resume_backup
 
     if is_resume_backup(Path(args.file[0])):  # as the table of several files marks it
         lines.insert(1, f"backup:     a resume backup: the session continues in "
                         f"{BACKUP_RE.sub('', Path(args.file[0]).stem)}.h5 "
                         "(folders and datasets skip this file)")
+    elif summary["collection"] is not None:
+        lines.append(_collection_line(summary["collection"], summary["path"]))
+    if is_pilot(meta):
+        lines.insert(1, "pilot:      yes: a rehearsal, not a participant's data; datasets, "
+                        "train and info's study leave it out unless the file is named")
     if meta.get("participant"):
         lines.append(f"participant: {meta['participant']}")
+    lines.extend(_recording_labels(meta))
     if meta.get("notes"):
         lines.append(f"notes:      {meta['notes']}")
     if summary["unmapped_keys"]:
         lines.append(f"unmapped keys: {', '.join(summary['unmapped_keys'])} "
                      "(no gesture name; trials keep the key)")
     lines.extend(f"aux:        {line}" for line in aux)
+    lines.extend(_marker_lines(summary["events"], summary["rate_hz"]))
     if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
         lines.append(table)
     tables.fields(lines)
     return 0
+
+
+MARKERS_SHOWN = 20
+
+
+def _recording_labels(meta: dict[str, Any]) -> list[str]:
+    """What a remote-controlled recording was named for (LabRecorder's filename fields:
+    session, task, run, acquisition), as the experiment script sent them."""
+    named = [(label, meta.get(key)) for label, key in (
+        ("session", "session_label"), ("task", "task"), ("run", "run"),
+        ("acquisition", "acquisition")) if meta.get(key)]
+    if not named:
+        return []
+    return ["recording:  " + ", ".join(f"{label} {value}" for label, value in named)]
+
+
+def _marker_lines(events: list[dict[str, Any]], rate: float) -> list[str]:
+    """Each marker (another program's over LSL, or a script's ``mark TEXT``) with its
+    row, its time into the recording and its text: what the experiment said happened."""
+    marks = [e for e in events if e.get("kind") == "marker"]
+    if not marks:
+        return []
+    lines = [f"markers:    {len(marks)}"]
+    for e in marks[:MARKERS_SHOWN]:
+        row = e.get("frame")
+        at = f" ({row / rate:.2f} s)" if isinstance(row, int) and rate > 0 else ""
+        source = e.get("stream") or e.get("source") or "?"
+        lines.append(f"  row {row}{at}  {str(e.get('text', ''))!r}  from {source}")
+    if len(marks) > MARKERS_SHOWN:
+        lines.append(f"  … {len(marks) - MARKERS_SHOWN} more (info --json lists them all)")
+    return lines
+
+
+def _gaps_why(summary: dict[str, Any]) -> str:
+    """Which of the gaps are resumes (a resume continues the file in a new recording
+    segment: the device stopped between the runs), so one is not taken for a fault."""
+    resumes = summary["segments"] - 1
+    if not resumes:
+        return ""
+    others = summary["gaps"] - resumes
+    what = f"{resumes} resume{'s' if resumes != 1 else ''}: the recording continued later"
+    return f" ({what}; {others} in the stream)" if others else f" ({what})"
+
+
+def _collection_line(progress: dict[str, Any], path: str) -> str:
+    """A collection's progress: finished, or how far it got and how to go on."""
+    blocks = f"{progress['blocks_done']} of {progress['blocks_total']} blocks"
+    trials = f"{progress['trials_done']} of {progress['trials_total']} trials"
+    if progress["finished"]:
+        return f"collection: finished ({blocks}, {trials})"
+    return (f"collection: unfinished, {blocks} done ({trials}); resume with "
+            f"tactile-studio collect --resume {shlex.quote(path)}")
 
 
 def _lost_line(lost: dict[str, int]) -> list[str]:

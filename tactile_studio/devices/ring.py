@@ -85,8 +85,27 @@ class RingBuffer:
             end = self._written
         return self.read_since(max(0, end - min(n, self.capacity)), n)
 
+    def host_times(self) -> tuple[int, np.ndarray]:
+        """(index of the oldest frame kept, the host times of every frame kept), read in
+        one go: a reader that took the frame count first and then the newest N frames
+        got a window that had moved on if frames arrived in between."""
+        with self._lock:
+            end = self._written
+            start = max(0, end - self.capacity)
+            return start, self.host_time[np.arange(start, end) % self.capacity]
+
     def latest(self) -> FrameChunk | None:
         """The newest frame, or None before the first."""
         if self._written == 0:
             return None
         return self.last(1)
+
+
+def nearest_frame(times: np.ndarray, t: float) -> int:
+    """The index of the time in ``times`` (non-decreasing) nearest to ``t``, the earlier
+    of two as near; 0 before the first, the last after the last: the frame a marker
+    stamped ``t`` belongs to (streams/marker_inlet.py; ``check`` verifies it)."""
+    i = int(np.searchsorted(times, t))
+    if i > 0 and (i == len(times) or t - times[i - 1] <= times[i] - t):
+        i -= 1
+    return max(0, min(i, len(times) - 1))

@@ -32,6 +32,7 @@ from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.file_claims import first_free
 from tactile_studio.participant_id import PARTICIPANT_RE, check_participant  # noqa: F401
+from tactile_studio.paths import make_out_dir
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
@@ -64,6 +65,7 @@ class CollectionSession:
     backup: Path | None = None
     touches: str = ""                  # who makes the touches, in words (touch_source)
     restore_gesture: str | None = None  # a simulator's own mode before the session
+    pilot: bool = False                # a rehearsal: marked so, left out of datasets
 
     def end_if_cut_off(self) -> str | None:
         """End the session when it cannot go on, and say why in one line (None: it goes
@@ -107,28 +109,43 @@ def quiet_simulator(engine: AcquisitionEngine) -> str | None:
     return mode
 
 
-def touch_source(engine: AcquisitionEngine, virtual: bool = False) -> str:
+def touch_source(engine: AcquisitionEngine, virtual: bool = False, pilot: bool = False) -> str:
     """Who makes the touches a collection records, as the console shows it."""
-    if virtual:
+    if virtual or (pilot and can_perform(engine)):
         return "Touches: a virtual participant, on the simulated sensor"
+    if pilot:
+        return (f"Touches: you, rehearsing on the sensor "
+                f"({engine.device_info().get('plugin') or 'device'})")
     if hasattr(engine.device, "set_gesture"):
         return ("Touches: simulated sensor, idle until a virtual participant or a person "
                 "touches (its demo gestures are off)")
     return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 
-def session_names(out_dir: Path, participant: str, protocol: Protocol
+def can_perform(engine: AcquisitionEngine) -> bool:
+    """The device is a simulator a virtual participant can perform on."""
+    return hasattr(engine.device, "perform")
+
+
+def session_names(out_dir: Path, participant: str, protocol: Protocol, pilot: bool = False
                   ) -> Callable[[int], Path]:
     """The k-th candidate name of a new session: ``P01_shear9_<time>.h5``, then ``-2``,
     ``-3``... The writer's claim decides (``first_free``): two collections that start in
-    one second in one folder both record, each into its own file."""
+    one second in one folder both record, each into its own file. A pilot's name begins
+    ``PILOT_``, so it is told apart in any file list."""
     stem = f"{participant}_{protocol.name}_{time.strftime('%Y%m%d-%H%M%S')}"
+    if pilot:
+        stem = f"PILOT_{stem}"
     return lambda k: out_dir / (f"{stem}.h5" if k == 0 else f"{stem}-{k + 1}.h5")
 
 
 def session_metadata(protocol: Protocol, participant: str, seed: int, orders: list[list[str]],
-                     practice: list[str], condition: str = "") -> dict[str, Any]:
-    return {
+                     practice: list[str], condition: str = "", pilot: bool = False
+                     ) -> dict[str, Any]:
+    """What a collection's file says of itself; ``pilot: true`` marks a rehearsal, which
+    datasets, ``train`` and ``info``'s study leave out (storage/session_set.py)."""
+    pilot_mark = {"pilot": True} if pilot else {}
+    return {**pilot_mark,
         "participant": participant, "protocol": protocol.name, "condition": condition,
         "gestures": protocol.gesture_names, "source": "collect",
         "protocol_spec": protocol.to_dict(), "seed": int(seed),
@@ -142,8 +159,12 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
                  wellness: dict[str, Any] | None = None,
-                 recorder: RecorderFactory | None = None) -> CollectionSession:
+                 recorder: RecorderFactory | None = None,
+                 pilot: bool = False) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
+
+    ``pilot``: a rehearsal (the file marked so and named ``PILOT_...``; see
+    :func:`session_metadata`).
 
     ``engine`` may be started or not: opened before ``engine.start()`` (the start order
     of an AcquisitionSession) file rows equal engine frames; on a running stream the
@@ -151,12 +172,10 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     ``start_recording``, so the session knows about the recording); default: a plain one.
     """
     participant = check_participant(participant)
-    out = Path(out_dir)
-    if not out.is_dir():
-        raise UserError(f"{out}: output folder does not exist")
+    out = make_out_dir(out_dir)  # a missing folder is made: the rule of every output
     orders = block_orders(protocol, participant, seed)
     practice = practice_order(protocol, participant, seed)
-    meta = session_metadata(protocol, participant, seed, orders, practice, condition)
+    meta = session_metadata(protocol, participant, seed, orders, practice, condition, pilot)
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
@@ -166,7 +185,7 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
         if path is not None:  # the caller's name: refused if taken or being written
             rec = make(Path(path), meta)
         else:
-            rec = first_free(session_names(out, participant, protocol),
+            rec = first_free(session_names(out, participant, protocol, pilot),
                              lambda p: make(p, meta))
     except BaseException:
         if restore is not None:
@@ -176,7 +195,8 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
                               hold_flagged=hold_flagged)
     return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
-                             touches=touch_source(engine), restore_gesture=restore)
+                             touches=touch_source(engine, pilot=pilot),
+                             restore_gesture=restore, pilot=pilot)
 
 
 def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
@@ -209,6 +229,7 @@ def read_resume_info(path: str | os.PathLike,
                 "seed": int(meta.get("seed", 0)), "device": meta.get("device", {}),
                 "sensor_id": meta.get("sensor_id"),
                 "other_sensor": meta.get("other_sensor") or [],
+                "pilot": bool(meta.get("pilot")),
                 "layout": old.layout.name, "trials_done": trials_done(old.trials),
                 "trials_total": total,
                 "frames": old.n_frames}
@@ -414,6 +435,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                               hold_flagged=hold_flagged, previous_trials=trials)
     notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
     runner.notes = [line for line in str(notes).split("\n") if line]
+    pilot = bool(meta.get("pilot"))  # a rehearsal stays one
     return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
                              info["seed"], resumed=True, backup=backup,
-                             touches=touch_source(engine), restore_gesture=restore)
+                             touches=touch_source(engine, pilot=pilot),
+                             restore_gesture=restore, pilot=pilot)

@@ -55,7 +55,7 @@ class CollectionRunner(RunnerInputs):
         self.notes: list[str] = []
         self.state = State.SETUP
         self.hint = ""
-        self.redo_prompt = ""
+        self._redo_for: int | None = None  # the flagged trial the redo prompt asks about
         self.beeps = 0
         self.free_play_s = protocol.free_play_s
         self._listeners: list[Callable[[dict[str, Any]], None]] = []
@@ -220,7 +220,7 @@ class CollectionRunner(RunnerInputs):
 
     def _begin_trial(self, gesture: str, key: str, start: int) -> None:
         self.hint = ""
-        self.redo_prompt = ""
+        self._redo_for = None
         self._current = {
             "gesture": gesture, "key": key, "block": self.block, "start": start,
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
@@ -311,9 +311,7 @@ class CollectionRunner(RunnerInputs):
         """Into the file (flushed) before anything else happens: a crash keeps it."""
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
-        if rec.flagged:
-            self.redo_prompt = (f"Trial {rec.index + 1} ({rec.gesture}): "
-                                f"{describe(list(rec.flags))} - redo?")
+        self._redo_for = rec.index if rec.flagged else None
         self._emit("trial_ended", trial=rec.to_dict())
 
     def _after_trial(self) -> None:
@@ -396,6 +394,18 @@ class CollectionRunner(RunnerInputs):
         self._emit("trial_updated", trial=new.to_dict())
         return new
 
+    @property
+    def redo_prompt(self) -> str:
+        """"Trial 4 (Stroke): no contact - redo?" while the last flagged trial awaits a
+        decision: gone once it is redone, discarded or kept (Continue), when the next
+        trial starts, and when the session is over (nothing can be redone there)."""
+        if self._redo_for is None or self.state in State.DONE:
+            return ""
+        t = next((t for t in self.records if t.index == self._redo_for), None)
+        if t is None or not t.flagged:
+            return ""
+        return f"Trial {t.index + 1} ({t.gesture}): {describe(list(t.flags))} - redo?"
+
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:
         """Everything the participant screen and the experimenter console show."""
@@ -418,6 +428,12 @@ class CollectionRunner(RunnerInputs):
     def held(self) -> bool:
         """True while a flagged trial waits for the experimenter (``hold_flagged``)."""
         return self.state == State.REVIEW and self._held()
+
+    @property
+    def at_frame(self) -> int:
+        """The stream frame the runner has acted at (its last start, pause, resume, end
+        of a phase or of a trial): a key may not name a frame before it."""
+        return max(self._at, self._min_start)
 
     @property
     def phase_until(self) -> float:

@@ -92,6 +92,7 @@ class RunnerInputs:
             self._end_break()
             return True
         if self.state == State.REVIEW:
+            self._redo_for = None  # the experimenter kept the flagged trial
             self._after_trial()
             return True
         return self._refuse(f"nothing to continue in state {self.state}")
@@ -105,9 +106,16 @@ class RunnerInputs:
         last = self.records[-1]
         if last.status == TrialStatus.REDONE:
             return self._refuse(f"trial {last.index + 1} is already marked redone")
-        self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None)
+        if last.collected_again:
+            return self._refuse(f"trial {last.index + 1} was discarded and its gesture is "
+                                "already being collected again")
+        if last.status == TrialStatus.DISCARDED:  # it stays discarded on record
+            self._update_trial(last, collected_again=True)
+            self._again_for[(last.block, last.gesture)] = (
+                f"collected again for trial {last.index + 1}")
+        else:
+            self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None)
         self._plan.reopen(last.block, last.gesture)
-        self.redo_prompt = ""
         self.hint = f"redo: {last.gesture} ({last.key})"
         if self.protocol.order == "prompted":  # the redone gesture is prompted next
             self.hint = f"Please redo it. {self.next_prompt()}"
@@ -129,10 +137,11 @@ class RunnerInputs:
 
         Without ``again`` its gesture is not collected again (the block stays one
         trial short). With ``again`` (only for a trial of the current block, see
-        :meth:`can_collect_again`) the trial is marked ``redone`` (replaced by a later
-        trial), its reason says it was discarded, and the gesture is prompted once more
-        after the block's other gestures; the new trial's reason names the one it
-        replaces and a ``discard`` event records the choice."""
+        :meth:`can_collect_again`) the trial is still ``discarded`` with its reason, and
+        marked ``collected_again`` (a later trial replaces it, so it does not count as
+        done); the gesture is prompted once more after the block's other gestures, the
+        new trial's reason names the one it replaces and a ``discard`` event records the
+        choice."""
         if not reason or not reason.strip():
             return self._refuse("give a reason to discard a trial")
         trial = next((t for t in self.records if t.index == index), None)
@@ -148,8 +157,8 @@ class RunnerInputs:
         if not again:
             self._update_trial(trial, status=TrialStatus.DISCARDED, reason=reason)
             return True
-        self._update_trial(trial, status=TrialStatus.REDONE,
-                           reason=f"discarded ({reason}); collected again")
+        self._update_trial(trial, status=TrialStatus.DISCARDED, reason=reason,
+                           collected_again=True)
         self._plan.collect_again(trial.gesture)
         self._again_for[(trial.block, trial.gesture)] = f"collected again for trial {index + 1}"
         return True

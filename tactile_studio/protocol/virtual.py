@@ -14,6 +14,11 @@ same seed gives the same trials at the same file rows with the same frames.
 The personal style (where on the sensor, how hard, how fast) is the simulator's
 ``style_seed``, derived from the participant id, so two virtual participants differ
 the way two people do.
+
+In the console's pilot mode (``plan_ahead=False``) the experimenter drives the session
+(Start, Continue, pauses, redo) in real time: the participant plans nothing ahead; it
+reacts to what the screen prompts now, as a person would, and a plan the session moved
+past (a pause, a redo) is made again.
 """
 
 from __future__ import annotations
@@ -67,8 +72,9 @@ class VirtualParticipant:
     """
 
     def __init__(self, runner: CollectionRunner, device: Any, participant: str,
-                 seed: int = 0) -> None:
+                 seed: int = 0, plan_ahead: bool = True) -> None:
         self.runner, self.device = runner, device
+        self.plan_ahead = plan_ahead
         self.participant, self.seed = participant, int(seed)
         self.style = style_seed(participant, seed)
         self.rate = runner.rate
@@ -76,6 +82,7 @@ class VirtualParticipant:
         self.start_frame = runner.engine.baseline_frames + round(0.5 * self.rate)
         self._beep_frames = math.ceil(runner.protocol.beep_s * self.rate) + 1
         self._plans: list[tuple[int, str, int]] = []  # (block, gesture, key frame) in order
+        self._free_until = 0  # frame where its current free-play touch ends (not planned ahead)
         self._count = 0
         self.replanned = 0  # plans that had to move because the stream overtook them
 
@@ -87,19 +94,15 @@ class VirtualParticipant:
         remaining trial planned on the stream (so the plan never races the stream)."""
         self.device.set_gesture("idle")  # from the next frame on
         self.device.set_style(self.style)
+        if not self.plan_ahead:
+            return  # it reacts to the screen as it goes (step)
         self.start_frame = max(self.start_frame, self.device.next_frame + round(0.5 * self.rate))
         r = self.runner
         fp_frames = round(r.free_play_s * self.rate)
         rng = self._rng(0xF4EE)
         f = self.start_frame + round(0.3 * self.rate)
-        names = r.protocol.gesture_names
         while fp_frames and f + self.n < self.start_frame + fp_frames:
-            sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
-            if sim is not None:
-                try:
-                    self.device.perform(sim, self.n / self.rate, inten, speed, at_frame=f)
-                except ValueError:
-                    pass  # the stream is already past it (prepared late): skip the touch
+            self._touch_any(rng, f)  # the stream already past it (prepared late): skipped
             f += self.n + round(rng.uniform(0.3, 0.8) * self.rate)
         frame = self.start_frame + fp_frames + round(1.0 * self.rate)
         prev: int | None = None
@@ -153,22 +156,40 @@ class VirtualParticipant:
         self._plans.append((block, gesture, frame))
         return frame
 
+    def _touch_any(self, rng: np.random.Generator, frame: int) -> bool:
+        """A free-play touch: one of the protocol's gestures at ``frame``; False when the
+        stream has passed it."""
+        names = self.runner.protocol.gesture_names
+        sim, inten, speed = sim_gesture(names[int(rng.integers(len(names)))])
+        if sim is None:
+            return True
+        try:
+            self.device.perform(sim, self.n / self.rate, inten, speed, at_frame=frame)
+        except ValueError:
+            return False
+        return True
+
     def step(self) -> bool:
         """Act if it is time; True if a key was pressed (or the session started)."""
         r = self.runner
-        if r.state == State.SETUP:
+        if r.state == State.SETUP and self.plan_ahead:
             # started once its start frame is in: the runner's clock then reads it
             if r.engine.frames > self.start_frame and r.engine.baseline is not None:
                 return r.start(at_frame=self.start_frame)
             return False
+        if r.state == State.FREE_PLAY and not self.plan_ahead:
+            return self._free_play()
         if r.state not in State.KEY_STATES or r.held:
             return False
         nxt = self._next()
         if nxt is None:
             return False
+        if not self.plan_ahead:  # a plan the session moved past (a pause, a redo, another
+            # prompt) is dropped: its touch happened unlabelled, as a person's would
+            self._plans = [p for p in self._plans if p[:2] == nxt and p[2] >= r.at_frame]
         block, gesture = nxt
         i = next((i for i, p in enumerate(self._plans) if p[:2] == (block, gesture)), None)
-        if i is None:  # off the plan (a redo): do it now
+        if i is None:  # off the plan (a redo; in a pilot, every trial): do it now
             self._plan(block, gesture, self.device.next_frame + self._gap())
             i = len(self._plans) - 1
         frame = self._plans[i][2]
@@ -176,3 +197,14 @@ class VirtualParticipant:
             return False  # not there yet
         del self._plans[i]
         return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)
+
+    def _free_play(self) -> bool:
+        """Not planned ahead (the console's pilot): a touch now and then in free play."""
+        self._plans.clear()
+        if self.device.next_frame >= self._free_until:
+            rng = self._rng(0xF4EE, self._count)
+            self._count += 1
+            start = self.device.next_frame + round(rng.uniform(0.3, 0.8) * self.rate)
+            if self._touch_any(rng, start):
+                self._free_until = start + self.n
+        return False

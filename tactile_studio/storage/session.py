@@ -21,6 +21,7 @@ from tactile_studio.storage.segments import segment_starts, segmented_rate_hz
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 from tactile_studio.storage.session_recover import cut_short_rows, open_cut_short, written_rows
+from tactile_studio.storage.trials import collection_progress
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
 SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
@@ -305,11 +306,21 @@ class Session:
             "gestures": self.gesture_order(),
             "unmapped_keys": list(self.metadata.get("unmapped_keys") or []),
             "trials": [_user_blocks(t) for t in self.trials],
+            # a collection's progress against its stored block orders (None otherwise)
+            "collection": self.collection_progress(),
             "aux": [{"name": a.name, "type": a.type, "unit": a.unit, "rate_hz": a.rate_hz,
                      "channels": a.labels, "samples": len(a.time)}
                     for a in self.aux_signals()],
         }
         return out
+
+    def collection_progress(self) -> dict[str, Any] | None:
+        """Trials and blocks done of a collection session (None for other files)."""
+        order = self.metadata.get("block_order")
+        if self.metadata.get("source") != "collect" or not isinstance(order, list):
+            return None
+        blocks = [[str(g) for g in o] for o in order if isinstance(o, list)]
+        return collection_progress(blocks, self.trials).to_dict()
 
     def frames_lost(self) -> dict[str, int]:
         """Frames that never reached the file: ``overrun`` (the recorder fell a whole

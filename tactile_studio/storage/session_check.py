@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.devices.ring import nearest_frame
 from tactile_studio.storage.segments import is_segment_start, segment_starts
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import TrialStatus
@@ -66,6 +67,7 @@ def check_session(s: Session) -> list[str]:
     _check_events(s, trials, out)
     _check_numbers(s, out)
     _check_baselines(s, out)
+    _check_markers(s, out)
     _check_metadata(s, out)
     _check_counters(s, out)
     return out
@@ -335,6 +337,30 @@ def _check_events(s: Session, trials: list[dict[str, Any]], out: list[str]) -> N
                     f > int(first["start_sample"]) and not _after_resume(s, f):
                 out.append(f"{e['kind']} at frame {f} is after trial {first['index']} starts "
                            f"(row {first['start_sample']})")
+
+
+def _check_markers(s: Session, out: list[str]) -> None:
+    """Another program's LSL marker (``--markers``) is at the frame whose host time is
+    nearest its own (streams/marker_inlet.py; one stamped before the first frame at row
+    0), never at a later row when an earlier one is nearer. (An earlier row is allowed:
+    a marker that waited over a second for its frame, the device silent, takes the
+    newest frame there was.) Imports place markers by their own rule: not checked."""
+    n = s.n_frames
+    if n == 0 or str(s.metadata.get("source") or "").startswith("import:"):
+        return
+    marks = [e for e in s.events if e.get("kind") == "marker" and e.get("source") == "lsl"
+             and _frame(e) is not None and 0 < e["frame"] < n
+             and isinstance(e.get("time"), (int, float))]
+    if not marks:
+        return
+    host = s.column("host_time", 0, n)
+    for e in marks:
+        row, t = e["frame"], float(e["time"])
+        if abs(host[row - 1] - t) < abs(host[row] - t):
+            near = nearest_frame(host, t)
+            out.append(f"marker {str(e.get('text'))[:40]!r} at row {row} is "
+                       f"{t - host[row]:+.3f} s from its frame, but row {near} is nearer "
+                       f"({t - host[near]:+.3f} s)")
 
 
 def _after_resume(s: Session, frame: int) -> bool:

@@ -10,7 +10,9 @@ holding the same recording by content (:attr:`Session.recording`): a non-backup 
 a backup, then a recording made here before an import of it, then a cleanly closed
 file, then the one with more trials, more frames, the newest modification time and
 finally the first path in sort order (:func:`choose`, which the research workspace's
-listing uses too). What was skipped is returned so it can be reported.
+listing uses too). A pilot session (a rehearsal, metadata ``pilot: true``) found
+in a folder is left out too: it is never mixed with participants' data unless its file
+is named. What was skipped is returned so it can be reported.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
+PILOT = "pilot session"
 
 
 def is_resume_backup(path: Path) -> bool:
@@ -55,14 +58,18 @@ def describe_skipped(skipped: list[dict[str, Any]]) -> str:
     backups = [s for s in skipped if s["reason"] == "resume backup"]
     dups = [s for s in skipped if s["reason"] == "duplicate session"]
     same = [s for s in skipped if s["reason"] == "same recording"]
+    pilots = [s for s in skipped if s["reason"] == PILOT]
     odd = [s for s in skipped if s["reason"] not in ("resume backup", "duplicate session",
-                                                     "same recording")]
+                                                     "same recording", PILOT)]
     parts = []
     if odd:  # a FIFO, a device, a broken link named *.h5: never opened
         parts.append(f"{len(odd)} file{'s' if len(odd) != 1 else ''} that cannot be read ("
                      + "; ".join(f"{s['file']}: {s['reason']}" for s in odd) + ")")
     if backups:
         parts.append(f"{len(backups)} resume backup{'s' if len(backups) != 1 else ''}")
+    if pilots:
+        parts.append(f"{len(pilots)} pilot session{'s' if len(pilots) != 1 else ''} "
+                     "(rehearsals; name a file to use it)")
     if dups:
         shown = "; ".join(f"{d['file']}: same session_id as {d['kept']}" for d in dups[:3])
         more = f"; {len(dups) - 3} more" if len(dups) > 3 else ""
@@ -113,6 +120,11 @@ def scan_session_files(paths: Sequence[str | os.PathLike]
     files = sorted({f.resolve() if not not_regular(f) else f.absolute() for f in files})
     backups = sorted({b.resolve() for b in backups} - set(files))
     return files, backups
+
+
+def is_pilot(metadata: dict[str, Any]) -> bool:
+    """A rehearsal (the console's pilot mode, ``collect --pilot``), not a participant's."""
+    return metadata.get("pilot") is True
 
 
 @dataclass(frozen=True)
@@ -179,9 +191,13 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
         {"file": rel(b), "reason": "resume backup"} for b in backups]
     odd = {f: not_regular(f) for f in files}
     skipped += [{"file": rel(f), "reason": why} for f, why in odd.items() if why]
+    named = {Path(p).resolve() for p in paths if Path(p).is_file()}
     keys = []
     for f in (f for f in files if not odd[f]):
         with Session(f) as s:
+            if is_pilot(s.metadata) and f not in named:  # a rehearsal, found in a folder
+                skipped.append({"file": rel(f), "reason": PILOT})
+                continue
             keys.append(session_key(f, s))
     keep, left = choose(keys)
     ids = {k.path: k.session_id for k in keys}
@@ -193,5 +209,5 @@ def select_sessions(paths: Sequence[str | os.PathLike]) -> SessionSet:
     return SessionSet(keep, root, skipped)
 
 
-__all__ = ["SessionKey", "SessionSet", "choose", "describe_skipped", "is_resume_backup",
-           "select_sessions", "session_key"]
+__all__ = ["SessionKey", "SessionSet", "choose", "describe_skipped", "is_pilot",
+           "is_resume_backup", "select_sessions", "session_key"]

@@ -2,7 +2,8 @@
 
 On disk (the session journal, ``trials_json``) and in the runner's snapshot a trial stays
 the flat dict of docs/file-format (index, block, gesture, key, start_sample, end_sample,
-start_time, end_time, status, reason, flags, plus any columns an importer adds); code
+start_time, end_time, status, reason, flags, ``collected_again`` when true, plus any
+columns an importer adds); code
 converts at the edge with :meth:`TrialRecord.from_dict` / :meth:`TrialRecord.to_dict`
 instead of indexing dicts by string. :func:`trials_done` is the one definition of
 progress (the runner's snapshot, resume and the console all use it).
@@ -21,7 +22,8 @@ class TrialStatus(StrEnum):
 
     OK = "ok"                # counts (flags may still say it is doubtful)
     REDONE = "redone"        # replaced by a later trial of the same gesture and block
-    DISCARDED = "discarded"  # kept in the file but not used (practice, or by hand)
+    DISCARDED = "discarded"  # kept in the file but not used (practice, or by hand);
+    # with ``collected_again`` its gesture is collected once more, so it does not count
 
 
 def trial_number(index: int) -> int:
@@ -49,6 +51,9 @@ class TrialRecord:
     status: TrialStatus = TrialStatus.OK
     reason: str | None = None
     flags: tuple[str, ...] = ()     # quality flags (tactile_studio.protocol.quality)
+    # a discarded trial whose gesture is collected again (a later trial replaces it):
+    # discarded on record, but not counted as done (resume collects it if it is not yet)
+    collected_again: bool = False
     extra: Mapping[str, Any] = field(default_factory=dict)  # importers' extra columns
 
     @classmethod
@@ -60,13 +65,17 @@ class TrialRecord:
         known["gesture"] = str(known.get("gesture", ""))
         known["status"] = TrialStatus(known.get("status") or TrialStatus.OK)
         known["flags"] = tuple(known.get("flags") or ())
-        return cls(**known, extra={k: v for k, v in d.items() if k not in _FIELDS})
+        again = bool(d.get("collected_again", False))
+        return cls(**known, collected_again=again,
+                   extra={k: v for k, v in d.items() if k not in (*_FIELDS, "collected_again")})
 
     def to_dict(self) -> dict[str, Any]:
         """The file's form (plain strings and lists; the key order of the journal)."""
         out: dict[str, Any] = {k: getattr(self, k) for k in _FIELDS}
         out["status"] = self.status.value
         out["flags"] = list(self.flags)
+        if self.collected_again:  # only then: the file's trials keep their columns
+            out["collected_again"] = True
         out.update(self.extra)
         return out
 
@@ -92,8 +101,10 @@ class TrialRecord:
 
     @property
     def counts(self) -> bool:
-        """Counts toward progress: a real block's trial not replaced by a redo."""
-        return not self.practice and self.status != TrialStatus.REDONE
+        """Counts toward progress: a real block's trial not replaced by a later one (a
+        redo, or a discard whose gesture is collected again)."""
+        return (not self.practice and self.status != TrialStatus.REDONE
+                and not self.collected_again)
 
 
 def records(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> list[TrialRecord]:
@@ -103,5 +114,36 @@ def records(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> list[TrialReco
 
 def trials_done(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> int:
     """Gestures done: distinct (block, gesture) with a counting trial. A discarded
-    trial still counts (its gesture is not collected again); a redone one does not."""
+    trial still counts (its gesture is not collected again) unless it is
+    ``collected_again``; a redone one does not."""
     return len({(t.block, t.gesture) for t in records(trials) if t.counts})
+
+
+@dataclass(frozen=True)
+class CollectionProgress:
+    """How far a collection got against its stored block orders (``info``)."""
+
+    trials_done: int
+    trials_total: int
+    blocks_done: int    # blocks with every gesture done
+    blocks_total: int
+
+    @property
+    def finished(self) -> bool:
+        return self.trials_done >= self.trials_total
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"trials_done": self.trials_done, "trials_total": self.trials_total,
+                "blocks_done": self.blocks_done, "blocks_total": self.blocks_total,
+                "finished": self.finished}
+
+
+def collection_progress(block_order: list[list[str]],
+                        trials: Iterable[Mapping[str, Any] | TrialRecord]) -> CollectionProgress:
+    """Progress of a collection whose blocks are ``block_order`` (the metadata's), by
+    :func:`trials_done`'s rule."""
+    done = {(t.block, t.gesture) for t in records(trials) if t.counts}
+    blocks = sum(1 for b, order in enumerate(block_order)
+                 if all((b, g) in done for g in order))
+    total = sum(len(order) for order in block_order)
+    return CollectionProgress(len(done), total, blocks, len(block_order))

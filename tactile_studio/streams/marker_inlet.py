@@ -24,8 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
-import numpy as np
-
+from tactile_studio.devices.ring import nearest_frame
 from tactile_studio.errors import DeviceNotFound
 from tactile_studio.foreign import marker_content
 from tactile_studio.streams.clock import measure_offset
@@ -35,7 +34,6 @@ from tactile_studio.terminal import shown
 FIND_TIMEOUT_S = 5.0
 PULL_S = 0.05
 WAIT_FOR_FRAME_S = 1.0   # a marker ahead of the frames gets the newest frame after this
-LOOKBACK = 8192          # frames searched back for a marker's frame
 # liblsl's channel_format codes (pylsl's cf_*)
 FORMAT_NAMES = {1: "float32", 2: "double64", 4: "int32", 5: "int16", 6: "int8", 7: "int64"}
 
@@ -128,24 +126,23 @@ class MarkerInlets:
         """Markers whose frame has arrived (or waited long enough) -> engine events."""
         if not self._pending:
             return
-        n = self.engine.frames
-        chunk = self.engine.ring.last(min(n, LOOKBACK, self.engine.ring.capacity)) if n else None
+        # every frame the ring keeps, read at once: a marker stamped before the first
+        # frame goes to frame 0 however late it arrives (the newest 8192 frames, read
+        # after the count, put one at frame 1, or at the window's first frame)
+        start, t = self.engine.ring.host_times()
         keep = []
         for host, detail, arrived in sorted(self._pending, key=lambda p: p[0]):
-            if chunk is None or not len(chunk):
+            if not len(t):
                 if final:
                     self.engine.add_event("marker", time=host, **detail)
                 else:
                     keep.append((host, detail, arrived))
                 continue
-            t = chunk.host_time
             ahead = host > t[-1]
             if ahead and not final and time.monotonic() - arrived < WAIT_FOR_FRAME_S:
                 keep.append((host, detail, arrived))
                 continue
-            i = int(np.searchsorted(t, host))
-            if i > 0 and (i == len(t) or host - t[i - 1] <= t[i] - host):
-                i -= 1
-            self.engine.add_event("marker", frame=chunk.start + min(i, len(t) - 1),
-                                  time=host, **detail)
+            self.engine.add_event("marker", frame=start + nearest_frame(t, host), time=host,
+                                  **detail)
         self._pending = keep
+

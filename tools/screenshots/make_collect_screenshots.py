@@ -5,7 +5,10 @@
 simulator's settings form), the participant screen prompting the next gesture, refusing
 another gesture's key, during a trial countdown and in a break, and the experimenter
 console waiting for the prompted gesture and with a flagged trial waiting for a
-decision. Works headless (QT_QPA_PLATFORM=offscreen); takes about 20 s.
+decision; then a pilot (a rehearsal: the console and the participant screen marked
+PILOT while a virtual participant performs), and the main window's device panel while a
+collection holds its simulator idle. Works headless (QT_QPA_PLATFORM=offscreen); takes
+about 40 s.
 """
 
 from __future__ import annotations
@@ -109,6 +112,9 @@ def main(argv: list[str] | None = None) -> int:
         trial(g)
         if snap().state == State.REVIEW:
             console.primary_action()
+    engine = console.engine  # the last touch relaxes off the skin (tau ~3 s) first
+    settled = engine.frames + round(15 * engine.nominal_rate_hz)
+    _pump(app, lambda: engine.frames >= settled)
     trial(gestures[6], perform=False)  # nobody touched: flagged and held for a decision
     dev.perform("Circular Stroke", duration_s=6.0)
     _settle(app, 1.0)
@@ -123,9 +129,74 @@ def main(argv: list[str] | None = None) -> int:
     _settle(app, 1.2)
     screen.grab().save(str(out / "collect-participant-break.png"))
     console.close()
-    for p in sorted(out.glob("collect-*.png")):
+    screen.close()
+    _pilot(app, out, tmp)
+    _held_panel(app, out, tmp)
+    for p in [*sorted(out.glob("collect-*.png")), out / "main-window-panel-collecting.png"]:
         print(p)
     return 0
+
+
+def _pilot(app: object, out: Path, tmp: Path) -> None:
+    """A rehearsal: a virtual participant performs, everything says PILOT."""
+    from tactile_studio.protocol.snapshot import State
+    from tactile_studio.ui.collect.console import CollectConsole
+
+    console = CollectConsole()
+    console.resize(*CONSOLE_SIZE)
+    console.show()
+    s = console.setup
+    s.participant.setText("P00")
+    s.out_dir.setText(str(tmp / "pilot"))
+    s.set_device("simulated", {"speed": "4", "seed": "3"})
+    s.blocks.setValue(1)
+    s.pilot.setChecked(True)
+    choice = s.choice()
+    choice.protocol = choice.protocol.with_overrides(free_play_s=0.0)
+    console.start_session(choice)
+    runner = console.runner
+    screen = console.participant
+    screen.resize(*PARTICIPANT_SIZE)
+    screen.show()
+    console.primary_action()  # Start: the experimenter's, as with a person
+    _pump(app, lambda: len(runner.snapshot().trials) >= 3
+          and runner.snapshot().state == State.WAITING, timeout=60.0)
+
+    def touched() -> bool:  # the virtual participant's touch is on the console's map
+        frame = console.live.latest()
+        return (runner.snapshot().state == State.RECORDING and frame is not None
+                and float(frame.normal.max()) > 3.0 and console.heatmap.image_data() is not None)
+
+    _pump(app, touched, timeout=60.0)
+    _settle(app, 0.05)
+    console.grab().save(str(out / "collect-console-pilot.png"))
+    screen.grab().save(str(out / "collect-participant-pilot.png"))
+    console.close()
+    screen.close()
+
+
+def _held_panel(app: object, out: Path, tmp: Path) -> None:
+    """The main window's device panel while a collection holds its simulator idle."""
+    from tactile_studio.ui.collect.app import open_console
+    from tactile_studio.ui.main_window import MainWindow
+
+    w = MainWindow(device="simulated", settings={"speed": "4"})
+    w.resize(1400, 860)
+    w.show()
+    w.panel.connect_device()
+    engine = w.controller.engine
+    _pump(app, lambda: engine.baseline is not None)
+    console = open_console(lambda: (engine, "simulated"))
+    s = console.setup
+    s.participant.setText("P02")
+    s.out_dir.setText(str(tmp / "held"))
+    console.start_session(s.choice())
+    _pump(app, lambda: not w.panel.form_box.fields["gesture"].widget.isEnabled())
+    _settle(app, 0.5)
+    w.panel.grab().save(str(out / "main-window-panel-collecting.png"))
+    console.close()
+    w.shutdown()
+    w.close()
 
 
 if __name__ == "__main__":

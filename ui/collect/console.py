@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
+    QSizePolicy,
     QSplitter,
     QStackedWidget,
     QVBoxLayout,
@@ -40,10 +41,17 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import LiveView
 from tactile_studio.live.meters import PaintPacer
-from tactile_studio.protocol.collect import OtherSensorRefused, open_session, resume_session
+from tactile_studio.protocol.collect import (
+    OtherSensorRefused,
+    can_perform,
+    open_session,
+    resume_session,
+)
+from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console_actions import ConsoleActions
 from tactile_studio.ui.collect.log import TextDialog, TrialLog
+from tactile_studio.ui.collect.paint import PILOT
 from tactile_studio.ui.collect.participant import ParticipantScreen
 from tactile_studio.ui.collect.setup import CollectSetup, SetupChoice
 from tactile_studio.ui.collect.view import participant_view, progress_text, state_label
@@ -80,6 +88,8 @@ class CollectConsole(ConsoleActions):
         self._closed_session_path: str | None = None
         self._dialog: TextDialog | None = None
         self.wellness_text = ""  # the sensor's last check, shown beside the file name
+        self.virtual: VirtualParticipant | None = None  # performs in a pilot on the simulator
+        self.pilot = False  # the open (or last) session is a rehearsal
         self._shown: Any = None  # the LiveFrame last drawn (LiveView caches per frame)
 
         self.setup = CollectSetup(settings if settings is not None else app_settings(),
@@ -118,8 +128,15 @@ class CollectConsole(ConsoleActions):
         mirror_box = QGroupBox("Participant screen (mirror)")
         mb = QVBoxLayout(mirror_box)
         mb.setContentsMargins(6, 6, 6, 6)
-        mb.addWidget(self.mirror)
+        mb.addWidget(self.mirror, 1)  # the box's room goes to the mirror, not around it
         mb.addWidget(self.mirror_hint)
+        # a rehearsal is said at the top of the page, in the participant screen's colour
+        self.pilot_banner = QLabel()
+        self.pilot_banner.setObjectName("pilot")
+        self.pilot_banner.setStyleSheet(
+            f"background: {PILOT.name()}; color: #1b1f2a; border-radius: 6px; padding: 8px;"
+            "font-weight: 700;")
+        self.pilot_banner.hide()
         self.state = QLabel()
         self.state.setStyleSheet("font-size: 17px; font-weight: 600;")
         self.progress = QProgressBar()
@@ -160,6 +177,13 @@ class CollectConsole(ConsoleActions):
         self.sound_notice.hide()
         self.hint_label = QLabel()
         self.hint_label.setStyleSheet("color: #c0392b;")
+        # lines that grow with what they say wrap in the pane's width instead of
+        # widening it (the state line pushed the splitter as the prompts changed)
+        for label in (self.pilot_banner, self.state, self.progress_label, self.file_label,
+                      self.touches_label, self.redo_banner, self.fault_banner,
+                      self.health_banner, self.sound_notice, self.hint_label):
+            label.setWordWrap(True)
+            label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
 
         b = self.buttons = {}
         self.shortcuts: dict[str, QShortcut] = {}
@@ -194,6 +218,7 @@ class CollectConsole(ConsoleActions):
         left = QWidget()
         lv = QVBoxLayout(left)
         lv.setContentsMargins(0, 0, 0, 0)
+        lv.addWidget(self.pilot_banner)
         lv.addWidget(self.heatmap, 1)
         lv.addWidget(self.state)
         lv.addWidget(self.progress)
@@ -212,7 +237,7 @@ class CollectConsole(ConsoleActions):
         right.addWidget(log_box)
         right.setSizes([540, 320])
 
-        page = QSplitter(Qt.Orientation.Horizontal)
+        page = self.page_splitter = QSplitter(Qt.Orientation.Horizontal)
         page.addWidget(left)
         page.addWidget(right)
         page.setSizes([560, 900])
@@ -272,7 +297,7 @@ class CollectConsole(ConsoleActions):
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health,
-            recorder=self.acquisition.start_recording),
+            recorder=self.acquisition.start_recording, pilot=choice.pilot),
             choice.device, choice.device_settings)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
@@ -325,13 +350,15 @@ class CollectConsole(ConsoleActions):
             return False
         self.runner = self.session.runner
         self.protocol = self.runner.protocol
+        self._start_pilot()
         self._sync_lsl()
         self.acquisition.start()
         self.live.attach(self.engine)
         self.live.virtual = self.heatmap.virtual
         self.heatmap.set_layout(self.engine.layout)
         self.touches_label.setText(self.session.touches)
-        self.file_label.setText(f"File: {self.session.path}"
+        path = Path(self.session.path)  # the name, then its folder: wraps between them
+        self.file_label.setText(f"File: {path.name}   in {path.parent}"
                                 + (f"   ·   {self.wellness_text}" if self.wellness_text else ""))
         self._closed_session_path = None
         if not self.beeper.has_audio:
@@ -341,11 +368,35 @@ class CollectConsole(ConsoleActions):
         self.tick()
         return True
 
+    def _start_pilot(self) -> None:
+        """A pilot says so (banner, title, the participant screen's frame); on the
+        simulated sensor a virtual participant performs what the screen prompts, in real
+        time, while the experimenter runs the session as with a person."""
+        pilot = self.pilot = bool(self.session.pilot)
+        self.virtual = None
+        if pilot and can_perform(self.engine):
+            self.virtual = VirtualParticipant(self.runner, self.engine.device,
+                                              self.session.participant, self.session.seed,
+                                              plan_ahead=False)
+            self.virtual.prepare()
+        who = ("a virtual participant performs what the screen prompts"
+               if self.virtual is not None else "you perform the gestures yourself")
+        self.pilot_banner.setText(
+            f"PILOT \u2013 a rehearsal: {who}. The file is marked pilot "
+            f"({self.session.path.name}); datasets, train and info's study leave it out.")
+        self.pilot_banner.setVisible(pilot)
+        self.setWindowTitle("Tactile Studio \u2014 collection session"
+                            + (" \u2014 PILOT" if pilot else ""))
+
     def close_session(self) -> str | None:
         """Stop the timer and close the file cleanly (finished trials are kept)."""
         self.timer.stop()
         self._stop_lsl()
         path = None
+        if self.virtual is not None:  # the simulator is itself again (its own style)
+            device = self.virtual.device
+            device.set_style(int(device.settings.get("style_seed", 0) or 0))
+            self.virtual = None
         if self.session is not None:
             path = str(self.session.path)
             self.session.close()
@@ -451,9 +502,12 @@ class CollectConsole(ConsoleActions):
             self.fault_banner.show()
         self.acquisition.check_health()  # a silent device is said (health_banner)
         self.runner.tick()
+        if self.virtual is not None and self.runner.state != "setup":
+            self.virtual.step()  # the experimenter starts the session, as with a person
         snap = self.runner.snapshot()
         self._ticks += 1
         view = participant_view(snap, self.protocol)
+        view.pilot = self.pilot  # until the next session: the Finished screen too
         self.participant.show_view(view)
         self.mirror.show_view(view)
         self._present(snap)

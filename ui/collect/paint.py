@@ -24,6 +24,7 @@ ACCENT = QColor("#5b9bff")
 ACTIVE = QColor("#ffb547")
 GOOD = QColor("#46c98b")
 WARN = QColor("#ff7a66")
+PILOT = QColor("#ff8c1a")  # a rehearsal's frame and tag (the console's pilot banner too)
 
 
 

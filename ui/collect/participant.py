@@ -35,6 +35,7 @@ from tactile_studio.ui.collect.paint import (
     GOOD,
     MUTED,
     PANEL,
+    PILOT,
     SURROUND,
     TEXT,
     WARN,
@@ -68,6 +69,7 @@ class ParticipantView:
     hint: str = ""                          # e.g. a refused key
     footer: str = ""
     prompt: Card | None = None              # the prompted gesture, drawn large (waiting)
+    pilot: bool = False                     # a rehearsal: framed and tagged PILOT
 
 
 
@@ -170,8 +172,9 @@ class ParticipantScreen(CardPainting, QWidget):
         v = self.view
         pad = 36 * u
         header_h = self._paint_header(p, QRectF(pad, pad * 0.6, w - 2 * pad, 64 * u), u)
+        tag_h = 44 * u if v.pilot else 0.0  # the pilot tag's room at the bottom
         body = QRectF(pad, pad * 0.6 + header_h + 18 * u, w - 2 * pad,
-                      h - (pad * 0.6 + header_h + 18 * u) - pad * 0.7)
+                      h - (pad * 0.6 + header_h + 18 * u) - pad * 0.7 - tag_h)
         hint_h = 0.0
         if v.hint or v.footer:
             one_line = QFontMetricsF(_font(30 * u, bold=True)).horizontalAdvance(v.hint or v.footer)
@@ -196,6 +199,8 @@ class ParticipantScreen(CardPainting, QWidget):
             self._paint_cards(p, grid, u, compact=v.mode != "waiting")
         else:
             self._paint_stage(p, body, u, big=True)
+        if v.pilot:
+            self._paint_pilot(p, w, h, u)
         if self._flash > 0:
             p.fillRect(QRectF(0, 0, w, h), QColor(255, 255, 255, int(200 * self._flash)))
         if self.mirror and self.hasFocus():  # keys typed now go to the session
@@ -203,6 +208,23 @@ class ParticipantScreen(CardPainting, QWidget):
             p.setBrush(Qt.BrushStyle.NoBrush)
             p.drawRect(QRectF(2, 2, w - 4, h - 4))
         p.end()
+
+    def _paint_pilot(self, p: QPainter, w: float, h: float, u: float) -> None:
+        """A rehearsal is never taken for a session: an orange frame and a tag on the
+        bottom edge, as PsychoPy's pilot mode marks its window."""
+        edge = max(3.0, 8 * u)
+        p.setPen(QPen(PILOT, edge))
+        p.setBrush(Qt.BrushStyle.NoBrush)
+        p.drawRect(QRectF(edge / 2, edge / 2, w - edge, h - edge))
+        text = "PILOT \u2013 rehearsal, not a participant's session"
+        p.setFont(_font(22 * u, bold=True))
+        tw = QFontMetricsF(p.font()).horizontalAdvance(text) + 36 * u
+        tag = QRectF((w - tw) / 2, h - edge - 40 * u, tw, 40 * u)
+        p.setPen(Qt.PenStyle.NoPen)
+        p.setBrush(PILOT)
+        p.drawRoundedRect(tag, 8 * u, 8 * u)
+        p.setPen(QColor("#1b1f2a"))
+        p.drawText(tag, Qt.AlignmentFlag.AlignCenter, text)
 
     def _paint_header(self, p: QPainter, r: QRectF, u: float) -> float:
         v = self.view

@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.paths import data_dir, make_out_dir
+from tactile_studio.paths import data_dir
 from tactile_studio.protocol.collect import device_differences, read_resume_info, resume_device
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
 from tactile_studio.ui.settings import get_json, set_json
@@ -71,6 +71,7 @@ class SetupChoice:
     device_settings: dict[str, Any] = field(default_factory=dict)
     hold_flagged: bool = True          # a flagged trial waits for Redo or Continue
     auto_continue: bool = False        # breaks end by themselves after their minimum
+    pilot: bool = False                # a rehearsal (protocol/collect.py: session_metadata)
 
 
 class CollectSetup(QWidget):
@@ -115,6 +116,9 @@ class CollectSetup(QWidget):
         out_row = QHBoxLayout()
         out_row.addWidget(self.out_dir, 1)
         out_row.addWidget(browse)
+        self.out_note = QLabel()  # a folder that does not exist: it will be made
+        self.out_note.setWordWrap(True)
+        self.out_note.setStyleSheet("color: #606770;")
         self.plugins = {name: cls for name, cls in available_plugins().items()
                         if not isinstance(cls, Exception) and name != "replay"}
         self.device = QComboBox()
@@ -148,6 +152,10 @@ class CollectSetup(QWidget):
         self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
+        self.pilot = QCheckBox("Pilot: rehearse the protocol (on the simulated sensor a "
+                               "virtual participant performs)")
+        self.pilot.setToolTip("The file is marked pilot and named PILOT_...; datasets, "
+                              "train and info's study leave it out unless the file is named")
         self.test_sound_button = QPushButton("Test sound")
         self.test_sound_button.setToolTip("Play the protocol's end-of-trial beep now")
         self.test_sound_button.clicked.connect(self.testSoundRequested)
@@ -179,12 +187,14 @@ class CollectSetup(QWidget):
         form.addRow("Blocks", self.blocks)
         form.addRow("Order seed", self.seed)
         form.addRow("Output folder", out_row)
+        form.addRow("", self.out_note)
         form.addRow("Device", self.device)
         form.addRow(self.device_form)
         form.addRow("", self.device_error)
         form.addRow("", self.other_sensor_info)
         form.setRowVisible(self.other_sensor_info, False)
         self.other_sensor_button.hide()
+        form.addRow("", self.pilot)
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
         form.addRow("Beep", sound_row)
@@ -210,6 +220,7 @@ class CollectSetup(QWidget):
         buttons.addWidget(self.continue_button)
         self.participant.textEdited.connect(self._clear_error)
         self.out_dir.textEdited.connect(self._clear_error)
+        self.out_dir.textChanged.connect(self._say_out_dir)
 
         card = QWidget()
         card.setMaximumWidth(760)
@@ -247,9 +258,10 @@ class CollectSetup(QWidget):
         self.resuming = on
         self.title.setText("Resume a collection session" if on else "New collection session")
         for widget in (self.protocol, self.protocol_info, self.participant, self.condition,
-                       self.blocks, self.seed):
+                       self.blocks, self.seed, self.pilot):
             self.form.setRowVisible(widget, not on)
         self._set_row_visible(self.out_dir, not on)
+        self._say_out_dir()
         self.form.setRowVisible(self.resume_info, on)
         self._set_row_visible(self.resume_file, on)
         self.start_button.setVisible(not on)
@@ -260,6 +272,10 @@ class CollectSetup(QWidget):
         self.start_button.setDefault(not on)
         self.error.setText("")
         self._check_other_sensor()
+
+    def _set_row_visible_widget(self, widget: QWidget, on: bool) -> None:
+        """Show or hide the row of a label (never in the resume form, which has no folder)."""
+        self.form.setRowVisible(widget, on and not self.resuming)
 
     def _set_row_visible(self, widget: QWidget, on: bool) -> None:
         """Show or hide the form row holding ``widget`` (also inside a row's layout)."""
@@ -337,6 +353,20 @@ class CollectSetup(QWidget):
 
     def _remember_dir(self, folder: Path) -> None:
         self.settings.setValue(KEY_LAST_DIR, str(folder))
+
+    def out_path(self) -> Path:
+        """The output folder the form names (the app's sessions folder when empty)."""
+        return Path(self.out_dir.text().strip() or default_sessions_dir()).expanduser()
+
+    def _say_out_dir(self, *_: object) -> None:
+        """Say, before anything is written, that a folder that does not exist will be
+        made (the rule of every output folder, ``paths.make_out_dir``): a mistyped one
+        shows here, not as a stray folder found later."""
+        out = self.out_path()
+        missing = not out.exists()
+        self.out_note.setText(f"{out} does not exist yet: it will be made when the "
+                              "session opens." if missing else "")
+        self._set_row_visible_widget(self.out_note, missing)
 
     def choose_out_dir(self) -> None:
         start = self.out_dir.text() or self._last_dir()
@@ -458,18 +488,17 @@ class CollectSetup(QWidget):
         participant = self.participant.text().strip()
         if not participant:
             raise UserError("enter a participant id (e.g. P01)")
-        out = Path(self.out_dir.text().strip() or default_sessions_dir()).expanduser()
-        if out == default_sessions_dir():
-            make_out_dir(out)  # the app's own sessions folder is made on first use
-        if not out.is_dir():
-            raise UserError(f"{out}: output folder does not exist")
+        out = self.out_path()  # made when the session opens, if it does not exist
+        if out.exists() and not out.is_dir():
+            raise UserError(f"{out}: not a folder; choose a folder for the sessions")
         p = load_protocol(self._protocol_source())
         if self.blocks.value() != p.blocks:
             p = p.with_overrides(blocks=self.blocks.value())
         device, dev_settings = self.device_choice()
         return SetupChoice(p, participant, out, self.condition.text().strip(),
                            self.seed.value(), device, dev_settings,
-                           self.hold_flagged.isChecked(), self.auto_continue.isChecked())
+                           self.hold_flagged.isChecked(), self.auto_continue.isChecked(),
+                           self.pilot.isChecked())
 
     def show_sound(self, text: str, ok: bool) -> None:
         """The result of "Test sound" beside its button."""
@@ -494,7 +523,7 @@ class CollectSetup(QWidget):
     def prefill(self, protocol: str | None = None, participant: str = "",
                 device: str | None = None, device_values: dict[str, str] | None = None,
                 out_dir: str | None = None, blocks: int | None = None,
-                seed: int | None = None, condition: str = "") -> None:
+                seed: int | None = None, condition: str = "", pilot: bool = False) -> None:
         """Fill the form (the ``collect`` command's options); it stays editable. A
         device that cannot run a session is a one-line UserError."""
         if device and self.device.findData(device) < 0:
@@ -518,6 +547,7 @@ class CollectSetup(QWidget):
             self.blocks.setValue(int(blocks))
         if seed is not None:
             self.seed.setValue(int(seed))
+        self.pilot.setChecked(pilot)
 
     def _on_start(self) -> None:
         try:

@@ -160,7 +160,10 @@ def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:
     status, flags."""
     t = TrialRecord.from_dict(trial)
     status = t.status.value
-    if t.reason:  # an ok trial's reason says which discarded trial it replaces
-        status += f" ({t.reason})"
+    why = [t.reason] if t.reason else []  # an ok trial's says which discarded one it replaces
+    if t.collected_again:
+        why.append("collected again")
+    if why:
+        status += f" ({'; '.join(why)})"
     return (str(t.index + 1), "practice" if t.block == -1 else str(t.block + 1), t.gesture, status,
             ", ".join(FLAG_TEXT.get(f, f) for f in t.flags))

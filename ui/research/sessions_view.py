@@ -130,16 +130,18 @@ class SessionsView(QWidget):
         self._show_problem_column()
         self._apply_filter()
         self.table.selectAll()
-        self._deselect_copies()
+        self._deselect_copies_and_pilots()
         self._selection_changed()
         self._start_checks()
 
-    def _deselect_copies(self) -> None:
-        """A resume backup or another copy of a listed recording starts unselected: the
-        selection is then what a run reads (selected anyway, it is counted once)."""
+    def _deselect_copies_and_pilots(self) -> None:
+        """A resume backup, another copy of a listed recording or a pilot session (a
+        rehearsal) starts unselected: the selection is then what a run reads, never mixed
+        with a rehearsal unless chosen by hand (a copy selected anyway is counted once)."""
         model = self.table.selectionModel()
         for r in range(self.table.rowCount()):
-            if self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)].left_out:
+            row = self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)]
+            if row.left_out or row.pilot:
                 model.select(self.table.model().index(r, 0),
                              model.SelectionFlag.Deselect | model.SelectionFlag.Rows)
 

@@ -45,13 +45,16 @@ class SessionRow:
     key: SessionKey | None = None  # its session and recording (storage.session_set)
     left_out: str = ""  # why a dataset of the whole listing skips it ("resume backup"...)
     kept_instead: str = ""  # the listed file read instead (its folder/name)
+    pilot: bool = False  # a rehearsal (storage/session_set.is_pilot): not selected by default
 
     @property
     def problem(self) -> str:
         """Why the file is not to be trusted as it is ("" when it is)."""
         from tactile_studio.storage.session_check import verdict_text
 
-        return self.error or (verdict_text(self.violations) if self.violations else "")
+        if self.error or self.violations:
+            return self.error or verdict_text(self.violations)
+        return "pilot (a rehearsal): select it to train on it" if self.pilot else ""
 
     @property
     def note(self) -> str:
@@ -77,7 +80,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
     can list a folder of long sessions at once."""
     from tactile_studio.storage.session import Session
     from tactile_studio.storage.session_check import check_session
-    from tactile_studio.storage.session_set import session_files_under
+    from tactile_studio.storage.session_set import is_pilot, session_files_under
 
     files: list[Path] = []
     for f in map(Path, folders):
@@ -94,6 +97,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
                 row.protocol = str(meta.get("protocol") or "")
                 row.sensor = s.layout.name
                 row.date = str(meta.get("created") or "")[:16].replace("T", " ")
+                row.pilot = is_pilot(meta)
                 counts: Counter[str] = Counter()
                 for t in s.trials:
                     status = t.get("status", "ok")
