@@ -34,6 +34,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.characterise import RunControl, run_characterisation
 from tactile_studio.characterise.folder import describe_run
+from tactile_studio.characterise.plan import Plan, plan_text
 from tactile_studio.characterise.prepare import (
     plan_fields,
     plugin_names,
@@ -45,12 +46,12 @@ from tactile_studio.characterise.run import check_sensor_request, save_calibrati
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.paths import data_dir
+from tactile_studio.sensor.characterise import parse_taxels
+from tactile_studio.sensor.layout import get_layout
 from tactile_studio.ui.settings import app_settings
 from tactile_studio.ui.write_faults import fault_text
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
-# the paper's 22,000-cycle repeatability test takes about 14 h: offered, not the default
-WIZARD_SEQUENCES = "normal,shear"
 KEY_PARENT = "characterise/parent_dir"  # where the last run folder was made
 
 
@@ -141,20 +142,27 @@ class PlanPage(QWizardPage):
         self.table.verticalHeader().hide()
         self.table.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
-        wizard_defaults = {"sequences": WIZARD_SEQUENCES}
         for i, (name, value) in enumerate(rows):
-            value = wizard_defaults.get(name, value)
             item = QTableWidgetItem(name)
             item.setFlags(item.flags() & ~Qt.ItemIsEditable)
             self.table.setItem(i, 0, item)
             self.table.setItem(i, 1, QTableWidgetItem(value))
         lay.addWidget(self.table)
         cycles = dict(rows)["cycles"]
-        note = QLabel(f"The paper's 'repeat' sequence ({int(cycles):,} cycles, many hours) is "
-                      "left out: add it to sequences for a repeatability run.")
+        note = QLabel(f"The paper's 'repeat' sequence ({int(cycles):,} cycles, about 11 h of "
+                      "stage time per taxel) is left out: add it to sequences, with the "
+                      "cycles you want, for a repeatability run.")
         note.setWordWrap(True)
         note.setStyleSheet("color: #606770;")
         lay.addWidget(note)
+        # what the plan does and how long it takes, kept current as it is edited
+        self.estimate = QLabel()
+        self.estimate.setWordWrap(True)
+        self.estimate.setStyleSheet("font-weight: bold")
+        lay.addWidget(self.estimate)
+        self.layout_for_count = None  # the device's layout, for 'all' (set when shown)
+        self.taxels.textChanged.connect(lambda _: self.update_estimate())
+        self.table.itemChanged.connect(lambda _: self.update_estimate())
         self.save_calibration = QCheckBox(
             "Save the calibration to the sensor's logbook (it becomes the active one)")
         self.save_calibration.setToolTip("The CLI's --save-calibration; needs a sensor id")
@@ -163,6 +171,25 @@ class PlanPage(QWizardPage):
         self.error.setStyleSheet("color: #b00020")
         self.error.setWordWrap(True)
         lay.addWidget(self.error)
+
+    def initializePage(self) -> None:  # noqa: N802 - Qt name
+        try:
+            device, settings = self.wizard().setup.instruments()[:2]
+            self.layout_for_count = create_device(device, settings_from_text(settings)).layout
+        except Exception:  # noqa: BLE001 - a prefill; validatePage reports real errors
+            self.layout_for_count = None
+        self.update_estimate()
+
+    def update_estimate(self) -> None:
+        """The plan in one line with its stage time (what the CLI prints as it starts)."""
+        try:
+            plan = Plan.with_overrides(self.params())
+            layout = self.layout_for_count or get_layout("shearsense-6x6")
+            n = len(parse_taxels(layout, self.taxels_text()))
+        except (UserError, ValueError) as exc:
+            self.estimate.setText(f"Takes: (not yet: {exc})")
+            return
+        self.estimate.setText(f"Takes: {plan_text(plan, n)}")
 
     def set_param(self, name: str, value: str) -> None:
         for i in range(self.table.rowCount()):

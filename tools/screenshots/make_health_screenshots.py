@@ -97,6 +97,7 @@ def main() -> int:
 
     c = CalibrationWizard("simulated", {"speed": 8, "seed": 21, "sensitivity_spread": 0.1})
     c.show()
+    c.setup.per_taxel.setChecked(True)
     c.setup.taxels.setText("B2,B5,E2,E5")
     app.processEvents()
     c.grab().save(str(HERE / "calibration-setup.png"))
