@@ -27,7 +27,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.estimate import estimate_text, simulated_speed
 from tactile_studio.health.report import write_report
 from tactile_studio.health.runner import HealthRun
-from tactile_studio.health.wellness import WellnessSpec
+from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
@@ -124,7 +124,8 @@ class WellnessSetupPage(DeviceSetupPage):
         self.form.addRow("Spots", self.spots)
         hint = QLabel("A 14 x 14 mm weight centred on each spot in turn. The check first "
                       "reads the unloaded sensor for 3 s, then asks for the weight on each "
-                      "spot, waits for it to settle, records and asks you to lift it.")
+                      "spot, waits for it to settle, records and asks you to lift it. "
+                      f"Ratios are judged {REFERENCE_RULE}.")
         hint.setWordWrap(True)
         self.form.addRow(hint)
         self.form.addRow("Takes", self.estimate)

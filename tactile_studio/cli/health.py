@@ -26,7 +26,7 @@ from tactile_studio.health.bench import Placer, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
 from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
-from tactile_studio.health.wellness import WellnessSpec, run_wellness
+from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.output_faults import (
     CALIBRATION_FILE,
@@ -48,7 +48,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print as JSON")
     p.set_defaults(func=cmd_sensor)
 
-    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots")
+    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots",
+                       description=f"Ratios are judged {REFERENCE_RULE}.")
     _device_args(p)
     p.add_argument("--weight-g", type=finite_float, required=True, help="the known weight, grams")
     p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
@@ -148,7 +149,7 @@ def cmd_wellness(args: argparse.Namespace) -> int:
         print(f"sensor {result['sensor']}: {result['verdict'].upper()} "
               f"(check #{result['check_id']})")
         print(f"  {result['tested']['line']}")
-        print(f"  reference: {result['judged_against']}")
+        print(f"  ratios against {result['judged_against']}")
         for s in result["spots"]:
             ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
             print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} "
