@@ -23,6 +23,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, replace_instead
 from tactile_studio.health.runner import HealthRun
+from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.ui.array_picture import SERIES_COLOURS
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
 from tactile_studio.ui.wellness_wizard import DeviceSetupPage
@@ -172,6 +173,8 @@ class CalibrationResultPage(QWizardPage):
             f"Calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}): "
             f"rms error median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
             "of range. It is now the sensor's active calibration.")
+        if spread_line(cal):
+            self.summary.setText(f"{self.summary.text()}\n{spread_line(cal)}")
         skipped = cal.get("skipped", [])
         fits = [f for f in cal["fits"] if f.get("from_calibration") is None]  # measured now
         if skipped:

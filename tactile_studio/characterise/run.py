@@ -31,6 +31,7 @@ from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.errors import UserError
 from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress, signals_deferred
+from tactile_studio.sensor.calibration import sensitivity_spread
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.sensor.wellness import parse_taxel
 from tactile_studio.storage.calibration_store import store_calibration
@@ -101,7 +102,7 @@ def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
             "source": "characterisation.json", "units": result["units"], "fits": fits,
             "gains": {t: round(median / v, 5) for t, v in sens.items()},
             "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms)),
-            "taxels": taxels}
+            **sensitivity_spread(list(sens.values())), "taxels": taxels}
 
 
 def check_sensor_request(sensor_id: str | None, plan: Plan, save: bool) -> str | None:

@@ -34,6 +34,7 @@ from tactile_studio.output_faults import (
     require_writable_file,
     stored_already,
 )
+from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
@@ -223,6 +224,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                "cv_pct_median": round(cal.get("cv_pct_median", float("nan")), 4),
                "cv_pct_max": round(cal.get("cv_pct_max", float("nan")), 4),
                "gains": cal["gains"],
+               "sensitivity_spread": cal.get("sensitivity_spread"),
+               "sensitivity_range": cal.get("sensitivity_range"),
                "skipped": cal["skipped"], "coverage": cal["coverage"],
                "replaced_calibration": cal["replaced_calibration"],
                "taxels": [{k: f.get(k) for k in ("taxel", "model", "rms_pct", "cv_pct",
@@ -234,6 +237,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return 0
     print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
     print(f"  {coverage_line(cal)}")
+    if spread_line(cal):
+        print(f"  {spread_line(cal)}")
     # the curve through the loads' means, and the error of a reading (cross-validated
     # over the frames): the first is 0 by construction for a 3-parameter curve, 3 loads
     print(f"  rms error of the curve: median {cal['rms_pct_median']:.2f}%, worst "
