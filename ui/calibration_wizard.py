@@ -173,8 +173,8 @@ class CalibrationResultPage(QWizardPage):
             f"Calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}): "
             f"rms error median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
             "of range. It is now the sensor's active calibration.")
-        if spread_line(cal):
-            self.summary.setText(f"{self.summary.text()}\n{spread_line(cal)}")
+        if spread_line(cal):  # how much the taxels differ, measured: under the headline
+            self.coverage.setText(f"{spread_line(cal)}\n{self.coverage.text()}")
         skipped = cal.get("skipped", [])
         fits = [f for f in cal["fits"] if f.get("from_calibration") is None]  # measured now
         if skipped:
