@@ -11,8 +11,8 @@ from tactile_studio.jobs import about
 
 SEQUENCES = ("normal", "shear", "repeat")
 # What a run measures unless told otherwise (the CLI and the wizard alike): the paper's
-# 22,000-cycle repeatability test takes about 14 h of stage time per taxel, so it is
-# asked for by name, with its number of cycles, never included by default.
+# 22,000-cycle repeatability test takes about 11 h of stage time per taxel (14 h in the
+# paper), so it is asked for by name, with its number of cycles, never by default.
 DEFAULT_SEQUENCES = ("normal", "shear")
 DIRECTIONS = ("+x", "-x", "+y", "-y")
 
