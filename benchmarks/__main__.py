@@ -15,12 +15,17 @@ def main(argv: list[str]) -> int:
                    if m.name.startswith("bench_"))
     if argv:
         names = [n for n in names if any(a in n for a in argv)]
+    from benchmarks.machine import stamp
+
     for name in names:
-        print(f"\n=== {name} ===", flush=True)
+        print(f"\n=== {name} === {stamp()}", flush=True)
         start = time.perf_counter()
         run = importlib.import_module(f"benchmarks.{name}").main
         # defaults, not this command line's benchmark names, for those that parse options
-        run([]) if inspect.signature(run).parameters else run()
+        # (a main(rows=100_000) takes its default: given [] it crashed, and `make bench`
+        # stopped at bench_import)
+        params = list(inspect.signature(run).parameters)
+        run([]) if params[:1] == ["argv"] else run()
         print(f"--- {name} took {time.perf_counter() - start:.1f} s", flush=True)
     return 0
 

@@ -50,6 +50,7 @@ def run(speed: float, blocks: int | None = None) -> None:
                 time.sleep(0.002)
         wall = time.perf_counter() - t0
         session.close()
+        streamed = engine.frames  # at speed 0 the simulator runs ahead of the runner
         engine.stop()
         with Session(session.path) as s:
             n, trials, frames = len(s.trials), s.trials, s.n_frames
@@ -57,7 +58,8 @@ def run(speed: float, blocks: int | None = None) -> None:
         ok = sum(t["status"] == "ok" for t in trials)
         flagged = sum(bool(t["flags"]) for t in trials)
         print(f"speed {speed:g}: {n} trials ({ok} ok, {flagged} flagged) in {wall:.1f} s wall, "
-              f"{frames} frames ({frames / 43.0 / 60:.1f} min of sensor time), {size:.1f} MB; "
+              f"{frames} frames in the file ({frames / 43.0 / 60:.1f} min of sensor time; "
+              f"{streamed} generated, the simulator running ahead), {size:.1f} MB; "
               f"key-press lag behind the stream: median {sorted(lags)[len(lags) // 2]} "
               f"frames, max {max(lags)}; replanned {vp.replanned}; trial-ending call "
               f"median {1e3 * sorted(saves)[len(saves) // 2]:.1f} ms, max "

@@ -1,6 +1,8 @@
 """Sensor health figures on the simulated sensor: how long a check and a calibration take
 (headless, speed 0), false alarms over seeds, recovered sensitivity and rms after
-calibration. Everything printed is measured here."""
+calibration, and the seconds per placed weight the wizards' estimates use
+(``health/estimate.py``; ``--real-time`` also measures them at the simulator's real
+time, what a bench takes: about 5 min). Everything printed is measured here."""
 
 from __future__ import annotations
 
@@ -23,8 +25,45 @@ def _engine(**settings):
 PLATE = (1000, 2000, 5000, 10000, 20000)
 
 
-def main() -> None:
+def per_placement(real_time: bool) -> None:
+    """Seconds per placed weight of each kind, through the wizards' own HealthRun: the
+    wall time at speed 0, and (``real_time``) the device time at speed 1."""
+    from tactile_studio.health.calibration import CalibrationSpec
+    from tactile_studio.health.estimate import FULL_SPEED_S, REAL_TIME_S
+    from tactile_studio.health.runner import HealthRun
+    from tactile_studio.health.wellness import WellnessSpec
+
+    kinds = {"plate": (CalibrationSpec("sim-0", PLATE, plate=True), 5),
+             "taxel": (CalibrationSpec("sim-0", (20, 50, 100, 200, 500), ("B2", "E5")), 10),
+             "spot": (WellnessSpec("sim-0", 200.0), 5)}
+    for kind, (spec, n) in kinds.items():
+        for speed in ((0.0, 1.0) if real_time else (0.0,)):
+            t = time.perf_counter()
+            run = HealthRun("simulated", {"speed": speed, "gesture": "idle"}, spec,
+                            auto=True).start()
+            run.join()
+            wall = time.perf_counter() - t
+            if run.error:
+                raise SystemExit(f"{kind}: {run.error}")
+            if speed == 0:
+                print(f"  {kind}: {n} placements at full speed {wall:.2f} s wall, "
+                      f"{wall / n:.2f} s each (estimate.FULL_SPEED_S {FULL_SPEED_S[kind]})")
+            else:
+                device_s = run.engine.frames / run.engine.nominal_rate_hz
+                print(f"  {kind}: {n} placements in real time {device_s:.1f} s, "
+                      f"{(device_s - 3.0) / n:.1f} s each after the 3 s rest "
+                      f"(estimate.REAL_TIME_S {REAL_TIME_S[kind]})")
+
+
+def main(argv: list[str] | None = None) -> None:
+    import argparse
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--real-time", action="store_true",
+                    help="also measure seconds per placement at real time (~5 min)")
+    args = ap.parse_args(argv)
     os.environ["TACTILE_STUDIO_DATA_DIR"] = tempfile.mkdtemp(prefix="ts-bench-health-")
+    print("seconds per placed weight (the wizards' estimates):")
+    per_placement(args.real_time)
     from tactile_studio.health.bench import SimulatedPlacer
     from tactile_studio.health.calibration import CalibrationSpec, run_calibration
     from tactile_studio.health.wellness import WellnessSpec, run_wellness
@@ -76,4 +115,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+    main(sys.argv[1:])

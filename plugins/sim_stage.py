@@ -73,6 +73,10 @@ class SimulatedStage(StagePlugin):
             raise InstrumentError(f"stage {self.name}: needs the simulated sensor "
                                   f"(--device simulated), not {getattr(device, 'name', device)!r}")
         self.bench = bench_for(sim, self.skin)
+        # the indenter is the only thing on the bench's skin: the simulated sensor's own
+        # virtual hand (its demo gestures) would press wherever it liked mid-measurement
+        if getattr(device, "settings", {}).get("gesture") != "idle":
+            device.set_gesture("idle")
         speed = float(getattr(device, "settings", {}).get("speed", 1.0))
         self.bench.lockstep(speed <= 0)
 

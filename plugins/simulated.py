@@ -17,6 +17,7 @@ import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
 from tactile_studio.errors import SettingsError, UserError
+from tactile_studio.sensor.calibration import sensitivity_spread
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 from tactile_studio.sensor.taxels import parse_taxel
 from tactile_studio.simulate import FAULTS, GESTURE_NAMES, SensorSimulator, SimConfig, weights
@@ -162,6 +163,10 @@ class SimulatedSensor(DevicePlugin):
     def info(self) -> dict[str, Any]:
         out = super().info()
         out["simulated"] = True
+        # the spread a calibration measures: the setting ``sensitivity_spread`` only adds
+        # to what the simulated sensor's own per-channel gains give (about 4-5% by default)
+        truth = [v for v in self.true_sensitivity() if v > 0]
+        out["true_sensitivity"] = sensitivity_spread(truth)
         return out
 
     # ---- virtual-participant controls (thread-safe) ----------------------------------

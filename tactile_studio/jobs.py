@@ -29,6 +29,19 @@ def no_progress(fraction: float, message: str = "") -> None:
     """The default progress callback: ignore."""
 
 
+def about(seconds: float) -> str:
+    """A duration as a person plans with it: "about 40 s", "about 3 min", "about 14 h"
+    (two significant units at most; estimates are never more precise than that)."""
+    s = max(0.0, float(seconds))
+    if s < 60:
+        return f"about {max(1, round(s))} s"
+    if s < 3600:
+        m, rest = divmod(round(s), 60)
+        return f"about {m} min" + (f" {rest} s" if m < 3 and rest else "")
+    h, m = divmod(round(s / 60), 60)
+    return f"about {h} h" + (f" {m} min" if h < 10 and m else "")
+
+
 class CancelToken:
     def __init__(self) -> None:
         self._event = threading.Event()

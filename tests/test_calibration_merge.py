@@ -79,6 +79,7 @@ def test_the_wizard_merges_by_default_and_can_replace_on_its_result_page(qtbot, 
     w = CalibrationWizard("simulated", {"speed": 0, "seed": 6})
     qtbot.addWidget(w)
     w.show()
+    w.setup.per_taxel.setChecked(True)  # plate is the default
     w.setup.taxels.setText("B2,E5")
     w.setup.out.setText(str(tmp_path / "cal.json"))
     w.next()

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise.analyse import drift_corrected
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, SettingsError, UserError
@@ -106,8 +107,10 @@ def test_bad_input_is_one_line_and_keeps_the_data(tmp_path, capsys, argv, messag
                  "--param", "settle_s=0.5", "--out", str(out), *argv])
     err = capsys.readouterr().err
     assert code == 1
-    # piped progress prints plain "label [ 0%] ..." lines; the error itself is one line
-    lines = [ln for ln in err.splitlines() if not ln.startswith("characterise [")]
+    # piped progress prints plain "label [ 0%] ..." lines, and a run that began says its
+    # plan ("characterise: 1 taxel(s) x normal: ..."); the error itself is one line
+    lines = [ln for ln in err.splitlines() if not ln.startswith(("characterise [",
+                                                                 "characterise: "))]
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in err
     if argv[0] in ("--stage-set", "--force-set"):
         saved = json.loads((out / "characterisation.json").read_text())
@@ -213,10 +216,11 @@ def test_derived_calibration_goes_to_the_logbook_and_maps_readings_to_kpa(tmp_pa
     cal = json.loads((out / "calibration.json").read_text())
     (fit,) = cal["fits"]
     assert fit["taxel"] == "B2" and fit["model"] == "two-range"
-    # the stored curve, applied as documented, turns the sensor's readings back into the
+    # the stored curve, applied as documented, turns the sensor's readings (less the
+    # baseline's drift over the staircase, which the analysis takes out) back into the
     # load cell's stress
     a, b, rb = fit["params"]
-    pts = json.loads((out / "raw" / "B2.json").read_text())["normal"]["points"]
+    pts = drift_corrected(json.loads((out / "raw" / "B2.json").read_text())["normal"])
     pts = [p for p in pts if p["phase"] in ("load", "unload")]
     r = np.array([p["normal"] for p in pts])
     kpa = np.array([p["pz"] for p in pts])

@@ -83,8 +83,8 @@ def test_calibration_wizard_to_the_end(qtbot, tmp_path, fault, plate):
     w = CalibrationWizard("simulated", settings)
     qtbot.addWidget(w)
     w.show()
+    (w.setup.plate if plate else w.setup.per_taxel).setChecked(True)
     w.setup.taxels.setText("B2,E5")
-    w.setup.plate.setChecked(plate)
     w.setup.out.setText(str(tmp_path / "cal.json"))
     w.next()
     page = w.run_page
@@ -117,6 +117,7 @@ def test_calibration_with_no_responding_taxel_stores_nothing(qtbot, tmp_path):
                                         "fault_taxel": parse_taxel(LAY, "C3")})
     qtbot.addWidget(w)
     w.show()
+    w.setup.per_taxel.setChecked(True)
     w.setup.taxels.setText("C3")
     w.setup.out.setText(str(tmp_path / "cal.json"))
     w.next()

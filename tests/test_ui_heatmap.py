@@ -1,5 +1,7 @@
-"""The live heatmap and strip chart as real widgets: stress below baseline, the arrow
-field, no per-frame scene items, hover, and the display's paint pacing.
+"""The live heatmap and strip chart as real widgets: stress below baseline, the colour
+range (issue 47: fixed at 0-10 kPa, a typical touch looked dark and a 30 kPa press
+saturated; now auto by default, said on the bar, never below 0-5 kPa), the arrow field,
+no per-frame scene items, hover, and the display's paint pacing.
 
 Offscreen Qt (tests/conftest.py). Frames are decoded by the core from raw counts, so a
 taxel whose counts rise above its baseline is what the sensor would really send.
@@ -16,6 +18,7 @@ from tactile_studio.live.meters import PaintPacer
 from tactile_studio.sensor import SHEARSENSE_6X6
 from tactile_studio.sensor.decode import FrameDecoder
 from tactile_studio.sensor.layout import CENTRE, X_NEG, X_POS, Y_NEG, Y_POS
+from tactile_studio.sensor.taxels import parse_taxel
 from tactile_studio.ui.arrow_field import ArrowField
 from tactile_studio.ui.heatmap import HeatmapView
 from tactile_studio.ui.main_window import MainWindow
@@ -85,6 +88,59 @@ def test_stress_below_baseline_shows_only_with_the_diverging_map(heat):
     assert lo < 0 < hi
     zero = int(heat.image.colors()[0, 0])
     assert min(zero >> 16 & 0xFF, zero >> 8 & 0xFF, zero & 0xFF) > 230
+
+
+# ---- the colour range ----
+def frame(**kpa: float) -> np.ndarray:
+    """A 6x6 normal-stress frame with a little noise and the named taxels loaded."""
+    normal = np.random.default_rng(0).normal(0.0, 0.08, (6, 6)).astype(np.float32)
+    for name, value in kpa.items():
+        r, c = LAY.taxel_rc(parse_taxel(LAY, name))
+        normal[r, c] = value
+    return normal
+
+
+def brightness(heat: HeatmapView, name: str) -> int:
+    r, c = LAY.taxel_rc(parse_taxel(LAY, name))
+    colour = int(heat.image.colors()[r, c])
+    return sum(colour >> s & 0xFF for s in (16, 8, 0))
+
+
+def test_auto_range_is_the_default_and_says_so(heat):
+    assert heat.fixed_max is None and heat.auto_range.isChecked()
+    assert not heat.max_spin.isEnabled()
+    assert heat.colorbar.axis.labelText == "Normal stress (kPa), auto range"
+
+
+def test_a_typical_touch_fills_the_scale_and_a_heavy_press_does_not_saturate(heat):
+    heat.set_frame(frame())  # idle: the floor keeps the noise dark
+    assert heat.levels() == (0.0, 5.0) and heat.max_spin.value() == 5.0
+    idle = brightness(heat, "C3")
+    heat.set_frame(frame(C3=4.0, C4=2.0))  # a typical touch (real people's peaks 3-13 kPa)
+    assert heat.levels() == (0.0, 5.0)
+    assert brightness(heat, "C3") > brightness(heat, "C4") > idle
+    assert brightness(heat, "C3") > 380  # viridis at 80% (412); on 0-10 it was 40% (304)
+    heat.set_frame(frame(C3=30.0, C4=20.0))  # a heavy press: a 0-30 scale, both readable
+    assert heat.levels() == (0.0, 30.0) and heat.max_spin.value() == 30.0
+    assert brightness(heat, "C3") > brightness(heat, "C4")
+    for _ in range(200):  # released: back to the floor, not below it
+        heat.set_frame(frame())
+    assert heat.levels() == (0.0, 5.0)
+
+
+def test_a_fixed_range_is_still_there_and_said(heat):
+    heat.auto_range.setChecked(False)
+    assert heat.max_spin.isEnabled() and heat.fixed_max == heat.max_spin.value()
+    heat.max_spin.setValue(40.0)
+    heat.set_frame(frame(C3=30.0))
+    assert heat.levels() == (0.0, 40.0)
+    assert heat.colorbar.axis.labelText == "Normal stress (kPa)"
+
+
+def test_the_main_window_opens_on_auto_range(qtbot):
+    w = MainWindow(device="simulated", settings={"gesture": "idle"}, persist=False)
+    qtbot.addWidget(w)
+    assert w.heatmap.fixed_max is None and w.heatmap.auto_range.isChecked()
 
 
 def _shear_frame(vectors: dict[tuple[int, int], tuple[float, float]]):

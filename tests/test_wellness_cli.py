@@ -58,7 +58,7 @@ def test_a_fail_exits_5_and_a_warn_4_after_printing_the_result(capsys):
     # nominal curve, and the result says what it was judged against
     code, out, err = wellness(capsys)
     assert code == EXIT_CHECK_WARN and "sensor sim-0: WARN" in out
-    assert "reference: the nominal curve" in out and "calibrate it first" in out
+    assert "ratios against the nominal curve" in out and "calibrate it first" in out
     assert len(err) == 1 and "wellness WARN" in err[0]
 
 
@@ -69,7 +69,7 @@ def test_the_readme_flow_calibrates_first_and_then_passes(capsys, tmp_path):
     capsys.readouterr()
     code, out, err = wellness(capsys)
     assert code == 0 and not err, out
-    assert "sensor sim-0: PASS" in out and "reference: calibration #1" in out
+    assert "sensor sim-0: PASS" in out and "ratios against calibration #1" in out
     # a dead taxel still fails against the calibration
     code, out, err = wellness(capsys, "--set", "fault=dead_taxel", "--set", "fault_taxel=14")
     assert code == EXIT_CHECK_FAIL and "C3: no response" in out

@@ -7,12 +7,13 @@ from typing import Any
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtWidgets import (
-    QCheckBox,
+    QButtonGroup,
     QHBoxLayout,
     QHeaderView,
     QLabel,
     QLineEdit,
     QPushButton,
+    QRadioButton,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -22,34 +23,84 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, replace_instead
 from tactile_studio.health.runner import HealthRun
+from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.ui.array_picture import SERIES_COLOURS
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
 from tactile_studio.ui.wellness_wizard import DeviceSetupPage
 
+PLATE_LOADS, TAXEL_LOADS = "1000,2000,5000,10000,20000", "20,50,100,200,500"
+
 
 class CalibrationSetupPage(DeviceSetupPage):
+    """Plate first, by default (equilibrate, then calibrate, as Tekscan's flow does: the
+    README's new-sensor recipe); a weight on each taxel is the other choice. Each
+    choice says how long it takes (per taxel on all 36: 180 placements, most of an
+    hour; it used to be the default, without a word)."""
+
     def __init__(self, device: str, settings: dict[str, Any]) -> None:
         super().__init__("Calibration: set up", device, settings)
-        self.loads = QLineEdit("20,50,100,200,500")
+        self.plate = QRadioButton("Plate over the whole array: equilibrate, then calibrate "
+                                  "every taxel at once")
+        self.per_taxel = QRadioButton("A weight on each taxel in turn")
+        self.plate_estimate, self.taxel_estimate = QLabel(""), QLabel("")
+        self.method = QButtonGroup(self)
+        for b, words in ((self.plate, self.plate_estimate),
+                         (self.per_taxel, self.taxel_estimate)):
+            self.method.addButton(b)
+            words.setWordWrap(True)
+            words.setStyleSheet("color: #555; margin-left: 22px")
+            box = QVBoxLayout()
+            box.setSpacing(0)
+            box.addWidget(b)
+            box.addWidget(words)
+            self.form.addRow("Method" if b is self.plate else "", box)
+        self.plate.setChecked(True)
+        self.loads = QLineEdit(PLATE_LOADS)
         self.form.addRow("Loads (g, increasing)", self.loads)
         self.taxels = QLineEdit("all")
+        self.taxels.setEnabled(False)
         self.form.addRow("Taxels", self.taxels)
-        self.plate = QCheckBox("Uniform plate over the whole array (equilibration)")
-        self.plate.toggled.connect(self._plate_toggled)
-        self.form.addRow("", self.plate)
         self.out = QLineEdit("")
         self.out.setPlaceholderText("optional: also write CAL.json here")
         self.form.addRow("Calibration file", self.out)
-        hint = QLabel("Each load is placed, left to settle, recorded and lifted; the next "
-                      "load waits until the skin has recovered. Give at least 3 loads in "
-                      "increasing order. A plate loads every taxel at once.")
+        hint = QLabel("Plate: a uniform plate over the whole array evens out the taxels' "
+                      "gains (equilibration) and calibrates all of them at once. Each load "
+                      "is placed, left to settle, recorded and lifted; the next load waits "
+                      "until the skin has recovered. Give at least 3 loads in increasing "
+                      "order.")
         hint.setWordWrap(True)
         self.form.addRow(hint)
+        self.form.addRow("Takes", self.estimate)
+        self.plate.toggled.connect(self._plate_toggled)
+        for edit in (self.loads, self.taxels):
+            edit.textChanged.connect(lambda _: self.update_estimate())
+        self.update_estimate()
 
     def _plate_toggled(self, on: bool) -> None:
         self.taxels.setEnabled(not on)
-        if on and self.loads.text() == "20,50,100,200,500":
-            self.loads.setText("1000,2000,5000,10000,20000")
+        if self.loads.text() in (PLATE_LOADS, TAXEL_LOADS):  # not one the user typed
+            self.loads.setText(PLATE_LOADS if on else TAXEL_LOADS)
+        self.update_estimate()
+
+    def _n_taxels(self) -> int:
+        text = self.taxels.text().strip()
+        if text.lower() in ("", "all"):
+            return self.n_taxels
+        return len([t for t in text.split(",") if t.strip()])
+
+    def update_estimate(self) -> None:
+        loads = max(1, len([v for v in self.loads.text().split(",") if v.strip()]))
+        nl = len([v for v in PLATE_LOADS.split(",")])
+        plate_loads = loads if self.plate.isChecked() else nl
+        taxel_loads = loads if self.per_taxel.isChecked() else nl
+        n = self._n_taxels() if self.per_taxel.isChecked() else self.n_taxels
+        self.plate_estimate.setText(f"{plate_loads} placements, all {self.n_taxels} taxels "
+                                    "under each: " + self.estimate_for("plate", plate_loads))
+        self.taxel_estimate.setText(f"{n} taxel{'s' if n != 1 else ''} x {taxel_loads} "
+                                    f"loads = {n * taxel_loads} placements: "
+                                    + self.estimate_for("taxel", n * taxel_loads))
+        chosen = self.plate_estimate if self.plate.isChecked() else self.taxel_estimate
+        self.estimate.setText(chosen.text().split(": ", 1)[1])
 
     def spec(self) -> CalibrationSpec:
         try:
@@ -122,6 +173,8 @@ class CalibrationResultPage(QWizardPage):
             f"Calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}): "
             f"rms error median {cal['rms_pct_median']:.2f}%, worst {cal['rms_pct_max']:.2f}% "
             "of range. It is now the sensor's active calibration.")
+        if spread_line(cal):  # how much the taxels differ, measured: under the headline
+            self.coverage.setText(f"{spread_line(cal)}\n{self.coverage.text()}")
         skipped = cal.get("skipped", [])
         fits = [f for f in cal["fits"] if f.get("from_calibration") is None]  # measured now
         if skipped:
@@ -153,5 +206,5 @@ class CalibrationWizard(HealthWizard):
 
     def _make_run(self) -> HealthRun:
         s = self.setup
-        return HealthRun(s.device, s.settings, s.spec(), auto=s.auto.isChecked(),
+        return HealthRun(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked(),
                          out=s.out.text().strip() or None)

@@ -6,14 +6,15 @@ It only presents tactile_studio.characterise: the run happens in a worker thread
 
 from __future__ import annotations
 
+import textwrap
 import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import pyqtgraph as pg
-from PySide6.QtCore import QObject, Qt, Signal
-from PySide6.QtGui import QPixmap
+from PySide6.QtCore import QObject, Qt, QUrl, Signal
+from PySide6.QtGui import QDesktopServices, QPixmap, QResizeEvent
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -25,6 +26,7 @@ from PySide6.QtWidgets import (
     QMessageBox,
     QProgressBar,
     QPushButton,
+    QSizePolicy,
     QTableWidget,
     QTableWidgetItem,
     QVBoxLayout,
@@ -34,6 +36,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.characterise import RunControl, run_characterisation
 from tactile_studio.characterise.folder import describe_run
+from tactile_studio.characterise.plan import Plan, plan_text
 from tactile_studio.characterise.prepare import (
     plan_fields,
     plugin_names,
@@ -45,12 +48,12 @@ from tactile_studio.characterise.run import check_sensor_request, save_calibrati
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.paths import data_dir
+from tactile_studio.sensor.characterise import parse_taxels
+from tactile_studio.sensor.layout import get_layout
 from tactile_studio.ui.settings import app_settings
 from tactile_studio.ui.write_faults import fault_text
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
-# the paper's 22,000-cycle repeatability test takes about 14 h: offered, not the default
-WIZARD_SEQUENCES = "normal,shear"
 KEY_PARENT = "characterise/parent_dir"  # where the last run folder was made
 
 
@@ -141,20 +144,27 @@ class PlanPage(QWizardPage):
         self.table.verticalHeader().hide()
         self.table.horizontalHeader().setSectionResizeMode(0, QHeaderView.ResizeToContents)
         self.table.horizontalHeader().setStretchLastSection(True)
-        wizard_defaults = {"sequences": WIZARD_SEQUENCES}
         for i, (name, value) in enumerate(rows):
-            value = wizard_defaults.get(name, value)
             item = QTableWidgetItem(name)
             item.setFlags(item.flags() & ~Qt.ItemIsEditable)
             self.table.setItem(i, 0, item)
             self.table.setItem(i, 1, QTableWidgetItem(value))
         lay.addWidget(self.table)
         cycles = dict(rows)["cycles"]
-        note = QLabel(f"The paper's 'repeat' sequence ({int(cycles):,} cycles, many hours) is "
-                      "left out: add it to sequences for a repeatability run.")
+        note = QLabel(f"The paper's 'repeat' sequence ({int(cycles):,} cycles, about 11 h of "
+                      "stage time per taxel) is left out: add it to sequences, with the "
+                      "cycles you want, for a repeatability run.")
         note.setWordWrap(True)
         note.setStyleSheet("color: #606770;")
         lay.addWidget(note)
+        # what the plan does and how long it takes, kept current as it is edited
+        self.estimate = QLabel()
+        self.estimate.setWordWrap(True)
+        self.estimate.setStyleSheet("font-weight: bold")
+        lay.addWidget(self.estimate)
+        self.layout_for_count = None  # the device's layout, for 'all' (set when shown)
+        self.taxels.textChanged.connect(lambda _: self.update_estimate())
+        self.table.itemChanged.connect(lambda _: self.update_estimate())
         self.save_calibration = QCheckBox(
             "Save the calibration to the sensor's logbook (it becomes the active one)")
         self.save_calibration.setToolTip("The CLI's --save-calibration; needs a sensor id")
@@ -163,6 +173,25 @@ class PlanPage(QWizardPage):
         self.error.setStyleSheet("color: #b00020")
         self.error.setWordWrap(True)
         lay.addWidget(self.error)
+
+    def initializePage(self) -> None:  # noqa: N802 - Qt name
+        try:
+            device, settings = self.wizard().setup.instruments()[:2]
+            self.layout_for_count = create_device(device, settings_from_text(settings)).layout
+        except Exception:  # noqa: BLE001 - a prefill; validatePage reports real errors
+            self.layout_for_count = None
+        self.update_estimate()
+
+    def update_estimate(self) -> None:
+        """The plan in one line with its stage time (what the CLI prints as it starts)."""
+        try:
+            plan = Plan.with_overrides(self.params())
+            layout = self.layout_for_count or get_layout("shearsense-6x6")
+            n = len(parse_taxels(layout, self.taxels_text()))
+        except (UserError, ValueError) as exc:
+            self.estimate.setText(f"Takes: (not yet: {exc})")
+            return
+        self.estimate.setText(f"Takes: {plan_text(plan, n)}")
 
     def set_param(self, name: str, value: str) -> None:
         for i in range(self.table.rowCount()):
@@ -257,40 +286,159 @@ class RunPage(QWizardPage):
         return self.finished_run
 
 
+class FittedPicture(QLabel):
+    """A picture scaled to the space it is given (aspect kept): the all-taxel maps grow
+    with the window (they were scaled once to 900 px and left half the page empty)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setAlignment(Qt.AlignCenter)
+        self.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Ignored)
+        self.setMinimumSize(240, 120)
+        self._picture = QPixmap()
+
+    def set_picture(self, picture: QPixmap) -> None:
+        self._picture = picture
+        self._fit()
+
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 - Qt name
+        super().resizeEvent(event)
+        self._fit()
+
+    def _fit(self) -> None:
+        if self._picture.isNull():
+            self.clear()
+            return
+        self.setPixmap(self._picture.scaled(self.size(), Qt.KeepAspectRatio,
+                                            Qt.SmoothTransformation))
+
+
+def header_text(key: str, width: int = 11) -> str:
+    """A column title wrapped to a few short lines, the unit on its own: the columns stay
+    as narrow as their numbers, so the table fits the page without scrolling sideways."""
+    title = column_title(key)
+    unit = ""
+    if title.endswith(")") and " (" in title:
+        title, unit = title[:-1].rsplit(" (", 1)
+    lines = textwrap.wrap(title, width, break_long_words=False)
+    lines += textwrap.wrap(f"({unit})", width, break_long_words=False) if unit else []
+    return "\n".join(lines)
+
+
 class ReportPage(QWizardPage):
+    """The run's summary with buttons to the files, the per-taxel table (as tall as its
+    rows, never wider than the page), and below it the all-taxel maps beside the page of
+    the taxel chosen in the table, both filling the rest of the page."""
+
     def __init__(self) -> None:
         super().__init__()
         self.setTitle("Report")
         lay = QVBoxLayout(self)
+        top = QHBoxLayout()
         self.summary = QLabel()
         self.summary.setWordWrap(True)
         self.summary.setTextInteractionFlags(Qt.TextSelectableByMouse)
-        lay.addWidget(self.summary)
+        top.addWidget(self.summary, 1)
+        self.open_report = QPushButton("Open report.html")
+        self.open_report.setToolTip("The full report (every taxel's figures) in the browser")
+        self.open_folder = QPushButton("Open folder")
+        for b in (self.open_report, self.open_folder):
+            b.setEnabled(False)
+            top.addWidget(b, 0, Qt.AlignTop)
+        self.open_report.clicked.connect(lambda: self._open("report.html"))
+        self.open_folder.clicked.connect(lambda: self._open(""))
+        lay.addLayout(top)
         self.table = QTableWidget(0, len(TABLE_KEYS) + 1)
-        # the unit on a second line: the columns stay as narrow as their numbers
-        self.table.setHorizontalHeaderLabels(
-            ["Taxel", *[column_title(k).replace(" (", "\n(") for k in TABLE_KEYS]])
+        self.table.setHorizontalHeaderLabels(["Taxel", *[header_text(k) for k in TABLE_KEYS]])
         self.table.verticalHeader().hide()
-        lay.addWidget(self.table, 1)
-        self.maps = QLabel()
-        self.maps.setAlignment(Qt.AlignCenter)
-        lay.addWidget(self.maps, 2)
+        header = self.table.horizontalHeader()
+        small = header.font()
+        small.setPointSizeF(small.pointSizeF() * 0.85)
+        small.setBold(False)
+        header.setFont(small)
+        header.setSectionResizeMode(QHeaderView.ResizeMode.Interactive)
+        header.setMinimumSectionSize(36)
+        self.table.setHorizontalScrollBarPolicy(Qt.ScrollBarAlwaysOff)
+        self.table.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+        lay.addWidget(self.table)
+        self.maps, self.taxel_page = FittedPicture(), FittedPicture()
+        self.taxel_title = QLabel("")
+        self.taxel_title.setAlignment(Qt.AlignCenter)
+        side = QVBoxLayout()
+        side.addWidget(self.taxel_title)
+        side.addWidget(self.taxel_page, 1)
+        pictures = QHBoxLayout()
+        pictures.addWidget(self.maps, 55)
+        pictures.addLayout(side, 45)
+        lay.addLayout(pictures, 1)
+        self.table.itemSelectionChanged.connect(self._show_taxel)
+        self.out: Path | None = None
+
+    def _show_taxel(self) -> None:
+        """The chosen row's page: its staircase and drags, fits and neighbours."""
+        rows = self.table.selectionModel().selectedRows() if self.table.selectionModel() else []
+        row = rows[0].row() if rows else 0
+        item = self.table.item(row, 0)
+        if item is None or self.out is None:
+            return
+        page = self.out / "figures" / f"{item.text()}.png"
+        self.taxel_title.setText(f"{item.text()} (choose a row for another taxel)")
+        self.taxel_page.set_picture(QPixmap(str(page)) if page.exists() else QPixmap())
+
+    def _open(self, name: str) -> bool:
+        if self.out is None:
+            return False
+        return QDesktopServices.openUrl(QUrl.fromLocalFile(str(self.out / name)))
+
+    def _fit_columns(self) -> None:
+        """Each column as wide as its header or numbers, the room left shared out: the
+        table is exactly as wide as the page (it scrolled sideways before)."""
+        t = self.table
+        t.resizeColumnsToContents()
+        widths = [t.columnWidth(c) for c in range(t.columnCount())]
+        free = t.viewport().width() - sum(widths)
+        if free > 0:
+            for c, w in enumerate(widths):
+                t.setColumnWidth(c, w + free // len(widths))
+
+    def resizeEvent(self, event: QResizeEvent) -> None:  # noqa: N802 - Qt name
+        super().resizeEvent(event)
+        self._fit_columns()
+
+    def _fit_table_height(self, max_rows: int = 12) -> None:
+        """As tall as its rows (up to ``max_rows``, then it scrolls): no empty grey box."""
+        t = self.table
+        rows = min(t.rowCount(), max_rows)
+        height = t.horizontalHeader().height() + 2 * t.frameWidth()
+        height += sum(t.rowHeight(r) for r in range(rows))
+        t.setFixedHeight(height + 2)
 
     def show_result(self, result: dict[str, Any] | None, error: str, out: Path) -> None:
         taxels = (result or {}).get("taxels", {})
+        self.out = out
         state = "complete" if result and result.get("complete") else f"stopped: {error}"
         self.summary.setText(f"Run {state}. {len(taxels)} taxel(s) characterised. Files in "
                              f"{out}: characterisation.json, calibration.json, session.h5, "
                              "report.html, figures/.")
+        self.open_report.setEnabled((out / "report.html").exists())
+        self.open_folder.setEnabled(out.is_dir())
         self.table.setRowCount(len(taxels))
         for r, (name, m) in enumerate(taxels.items()):
             self.table.setItem(r, 0, QTableWidgetItem(name))
             for c, key in enumerate(TABLE_KEYS, start=1):
-                self.table.setItem(r, c, QTableWidgetItem(format_value(key, m.get(key))))
-        self.table.resizeColumnsToContents()
+                item = QTableWidgetItem(format_value(key, m.get(key)))
+                item.setTextAlignment(Qt.AlignRight | Qt.AlignVCenter)
+                self.table.setItem(r, c, item)
+        self.table.resizeRowsToContents()
+        self._fit_columns()
+        self._fit_table_height()
+        self.table.setSelectionBehavior(QTableWidget.SelectRows)
+        if taxels:
+            self.table.selectRow(0)
+        self._show_taxel()
         maps = out / "figures" / "maps.png"
         if maps.exists():
-            self.maps.setPixmap(QPixmap(str(maps)).scaledToWidth(900, Qt.SmoothTransformation))
+            self.maps.set_picture(QPixmap(str(maps)))
 
 
 class CharacteriseWizard(QWizard):

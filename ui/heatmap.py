@@ -37,8 +37,8 @@ from tactile_studio.ui.heatmap_colors import (
     strip_colors,
 )
 from tactile_studio.ui.heatmap_controls import (
+    AUTO_FLOOR_KPA,
     DEFAULT_ARROW_SCALE,
-    DEFAULT_MAX_KPA,
     HeatmapControls,
 )
 from tactile_studio.ui.heatmap_pointer import CellPointer
@@ -73,11 +73,11 @@ class HeatmapView(CellPointer, QWidget):
         super().__init__(parent)
         self._units = "kPa"
         self._virtual = False
-        self._fixed_max: float | None = DEFAULT_MAX_KPA
-        self._auto_hi = 1.0
+        self._fixed_max: float | None = None  # auto range (said on the bar and the max box)
+        self._auto_hi = AUTO_FLOOR_KPA
         self._auto_lo = 0.0
         self._scheme = "sequential"
-        self._levels = (0.0, DEFAULT_MAX_KPA)
+        self._levels = (0.0, AUTO_FLOOR_KPA)
         self._arrow_scale = DEFAULT_ARROW_SCALE
         self._arrows_on = True
         self.arrow_min_kpa = 0.3  # the paper's smallest detectable shear: hide noise
@@ -106,10 +106,10 @@ class HeatmapView(CellPointer, QWidget):
             self.plot.addItem(item)
         self.cmap = pg.colormap.get(colormap)
         self.image = GridImage(self.cmap)
-        self.image.set_levels(0.0, DEFAULT_MAX_KPA)
+        self.image.set_levels(0.0, AUTO_FLOOR_KPA)
         self.plot.addItem(self.image)
         # the bar only shows the map and levels; the image is coloured by GridImage
-        self.colorbar = pg.ColorBarItem(values=(0.0, DEFAULT_MAX_KPA), colorMap=self.cmap,
+        self.colorbar = pg.ColorBarItem(values=(0.0, AUTO_FLOOR_KPA), colorMap=self.cmap,
                                         interactive=False,
                                         width=18, colorMapMenu=False)
         self.plot.layout.addItem(self.colorbar, 2, 5)  # right of the map
@@ -170,6 +170,8 @@ class HeatmapView(CellPointer, QWidget):
         self.max_spin.valueChanged.connect(self._on_range_controls)
         self.arrows_check.toggled.connect(self.set_arrows_visible)
         self.scale_spin.valueChanged.connect(self.set_arrow_scale)
+        self.max_spin.setEnabled(False)  # auto range first: the box shows where it is
+        self.max_spin.setValue(AUTO_FLOOR_KPA)
         return w
 
     def _on_virtual_toggled(self, on: bool) -> None:
@@ -179,7 +181,10 @@ class HeatmapView(CellPointer, QWidget):
 
     def _on_range_controls(self, *_: object) -> None:
         self.max_spin.setEnabled(not self.auto_range.isChecked())
-        self.set_range(None if self.auto_range.isChecked() else self.max_spin.value())
+        if self.auto_range.isChecked():
+            self.set_range(None)
+        else:  # fixing it: at what auto showed, or the user's value
+            self.set_range(self.max_spin.value())
 
     # ---- public API ----------------------------------------------------------------
     def set_layout(self, layout: Layout | None) -> None:
@@ -219,11 +224,16 @@ class HeatmapView(CellPointer, QWidget):
         self.auto_range.setChecked(fixed_max is None)
         self.auto_range.blockSignals(False)
         if fixed_max is not None:
-            self.max_spin.blockSignals(True)
-            self.max_spin.setValue(fixed_max)
-            self.max_spin.blockSignals(False)
+            self._show_max(fixed_max)
             self._apply_levels(self._lo_for(fixed_max), fixed_max)
         self.max_spin.setEnabled(fixed_max is not None)
+        self.colorbar.axis.setLabel(self._bar_label(), color=FOREGROUND)
+
+    def _show_max(self, value: float) -> None:
+        """The max box shows the range's top: the fixed one, or where auto is now."""
+        self.max_spin.blockSignals(True)
+        self.max_spin.setValue(value)
+        self.max_spin.blockSignals(False)
 
     def levels(self) -> tuple[float, float]:
         """The colour range (low, high) in the display's units."""
@@ -262,6 +272,8 @@ class HeatmapView(CellPointer, QWidget):
         if (lo, hi) == self._levels:
             return
         self._levels = (lo, hi)
+        if self._fixed_max is None:
+            self._show_max(hi)
         cmap = diverging_colormap(lo, hi) if self._scheme == "diverging" else self.cmap
         self.colorbar.setColorMap(cmap)
         self.colorbar.setLevels((lo, hi))
@@ -317,7 +329,7 @@ class HeatmapView(CellPointer, QWidget):
         self._data = normal
         if self._fixed_max is None and normal.size:
             # rise at once, fall slowly, in 1-2-5 steps: the scale does not flicker
-            self._auto_hi = max(1.0, float(np.nanmax(normal)), self._auto_hi * 0.97)
+            self._auto_hi = max(AUTO_FLOOR_KPA, float(np.nanmax(normal)), self._auto_hi * 0.97)
             self._auto_lo = min(0.0, float(np.nanmin(normal)), self._auto_lo * 0.97)
             hi = nice_ceil(self._auto_hi)
             self._apply_levels(self._auto_low(hi), hi)
@@ -336,7 +348,8 @@ class HeatmapView(CellPointer, QWidget):
 
     # ---- drawing helpers -----------------------------------------------------------
     def _bar_label(self) -> str:
-        return f"Normal stress ({self._units})"
+        auto = ", auto range" if self._fixed_max is None else ""
+        return f"Normal stress ({self._units}){auto}"
 
     def _cell_step(self, shape: tuple[int, ...]) -> float:
         lay = self._layout

@@ -31,11 +31,12 @@ def diverging_colormap(lo: float, hi: float) -> pg.ColorMap:
 
 
 def nice_ceil(x: float) -> float:
-    """The 1-2-5 value at or above ``x`` (auto ranges move in steps, not every frame)."""
+    """The 1-2-3-5 value at or above ``x`` (auto ranges move in steps, not every frame;
+    a 30 kPa press gets a 0-30 scale, not 0-50)."""
     if x <= 0:
         return 0.0
     mag = 10.0 ** math.floor(math.log10(x))
-    for m in (1.0, 2.0, 5.0, 10.0):
+    for m in (1.0, 2.0, 3.0, 5.0, 10.0):
         if m * mag >= x * (1 - 1e-9):
             return m * mag
     return 10.0 * mag

@@ -19,7 +19,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-DEFAULT_MAX_KPA = 10.0
+DEFAULT_MAX_KPA = 10.0  # the fixed range's first value when the user fixes it
+# Auto range is the default: it rises at once to the strongest press (a 30 kPa press gets
+# 0-30, not a saturated 0-10) and falls back after; never below this, so a typical touch
+# (real people's peaks: 3-13 kPa) fills the scale and an idle sensor's noise stays dark.
+AUTO_FLOOR_KPA = 5.0
 # Arrow length in taxel pitches per kPa (2 kPa of shear is one pitch long). The same in
 # both grids, so toggling physical/virtual does not change what an arrow means.
 DEFAULT_ARROW_SCALE = 0.5
@@ -47,7 +51,10 @@ class HeatmapControls(QWidget):
             group.addButton(b)
             row.addWidget(b)
         row.addSpacing(16)
-        self.auto_range = QCheckBox("Auto range")
+        self.auto_range = QCheckBox("Auto range", checked=True)
+        self.auto_range.setToolTip(
+            f"Follows the strongest press (in 1-2-3-5 steps), falls back after it; never "
+            f"below 0-{AUTO_FLOOR_KPA:g} kPa. Untick to fix the range at max.")
         row.addWidget(self.auto_range)
         row.addWidget(QLabel("max"))
         self.max_spin = QDoubleSpinBox(decimals=1, minimum=0.5, maximum=500.0,
@@ -105,4 +112,4 @@ class HeatmapControls(QWidget):
         self._place(event.size().width() < self._wide_width())
 
 
-__all__ = ["DEFAULT_ARROW_SCALE", "DEFAULT_MAX_KPA", "HeatmapControls"]
+__all__ = ["AUTO_FLOOR_KPA", "DEFAULT_ARROW_SCALE", "DEFAULT_MAX_KPA", "HeatmapControls"]

@@ -6,6 +6,8 @@ against hours of use, and the verdict timeline, before it ruins a participant's 
 
 from __future__ import annotations
 
+from itertools import groupby
+
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
@@ -25,7 +27,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.health.history import covers_text, sensor_history
+from tactile_studio.health.history import SensorHistory, covers_text, sensor_history
 from tactile_studio.storage.logbook import NOTE_KINDS, Logbook, age_text
 from tactile_studio.ui.array_picture import SERIES_COLOURS, VERDICT_COLOURS
 
@@ -45,15 +47,23 @@ class SensorsWindow(QWidget):
         self.facts = QLabel("")
         self.facts.setWordWrap(True)
         self.trend = pg.PlotWidget(background="w")
-        self.trend.setTitle("per-spot sensitivity (ratio to reference)", color="#333")
+        self.trend.setTitle("per-spot sensitivity: ratio to each check's reference", color="#333")
         self.trend.setLabel("bottom", "hours of use")
-        self.trend.setLabel("left", "ratio")
+        self.trend.setLabel("left", "ratio to reference")
         self.trend.addLegend(offset=(10, -10))  # bottom left: ratios start near 1
+        # what the plots show, for a reader (and the tests): segments of one spot against
+        # one reference, where the reference changed, and every check's square
+        self.segments: list[tuple[str, str, pg.PlotDataItem]] = []
+        self.reference_marks: list[tuple[float, str]] = []
+        self.verdict_points: list[tuple[float, float, int]] = []
+        self.reference_note = QLabel("")
+        self.reference_note.setWordWrap(True)
+        self.reference_note.setStyleSheet("color: #555")
         self.timeline = pg.PlotWidget(background="w")
         self.timeline.setTitle("check verdicts", color="#333")
         self.timeline.setLabel("bottom", "hours of use")
         self.timeline.getAxis("left").setTicks([[(0, "pass"), (1, "warn"), (2, "fail")]])
-        self.timeline.setYRange(-0.5, 2.5)
+        self.timeline.setYRange(-0.5, 2.8)  # room for the check numbers over "fail"
         self.timeline.setMaximumHeight(170)
         for plot in (self.trend, self.timeline):  # hours as hours: no "(x0.001)" prefix
             plot.getAxis("bottom").enableAutoSIPrefix(False)
@@ -77,18 +87,19 @@ class SensorsWindow(QWidget):
         grid.addWidget(self.title, 0, 0, 1, 2)
         grid.addWidget(self.facts, 1, 0, 1, 2)
         grid.addWidget(self.trend, 2, 0, 1, 2)
-        grid.addWidget(self.timeline, 3, 0, 1, 2)
-        grid.addWidget(QLabel("Calibrations"), 4, 0)
-        grid.addWidget(QLabel("Notes"), 4, 1)
-        grid.addWidget(self.calibrations, 5, 0)
-        grid.addWidget(self.notes, 5, 1)
+        grid.addWidget(self.reference_note, 3, 0, 1, 2)
+        grid.addWidget(self.timeline, 4, 0, 1, 2)
+        grid.addWidget(QLabel("Calibrations"), 5, 0)
+        grid.addWidget(QLabel("Notes"), 5, 1)
+        grid.addWidget(self.calibrations, 6, 0)
+        grid.addWidget(self.notes, 6, 1)
         note_row = QHBoxLayout()
         note_row.addWidget(self.note_kind)
         note_row.addWidget(self.note_text, 1)
         note_row.addWidget(self.add_note_button)
-        grid.addLayout(note_row, 6, 0, 1, 2)
+        grid.addLayout(note_row, 7, 0, 1, 2)
         grid.setRowStretch(2, 3)
-        grid.setRowStretch(5, 1)
+        grid.setRowStretch(6, 1)
         split = QSplitter(Qt.Orientation.Horizontal)
         split.addWidget(self.sensors)
         split.addWidget(right)
@@ -134,23 +145,16 @@ class SensorsWindow(QWidget):
         self.facts.setText(f"{s['hours']:.2f} h of use · last check {last} · active "
                            f"calibration {s['active_calibration'] or 'none'}{covers} · "
                            f"registered {s['created'][:10]}")
-        self.trend.clear()
-        self.trend.addLine(y=1.0, pen=pg.mkPen("#999", style=Qt.PenStyle.DashLine))
-        for i, (spot, (hours, ratios)) in enumerate(sorted(h.spot_series.items())):
-            colour = SERIES_COLOURS[i % len(SERIES_COLOURS)]
-            self.trend.plot(hours, ratios, pen=pg.mkPen(colour, width=2), symbol="o",
-                            symbolSize=7, symbolBrush=colour, name=spot)
-        self.timeline.clear()
-        for hours, verdict, _ in h.verdicts:
-            self.timeline.plot([hours], [_VERDICT_Y[verdict]], pen=None, symbol="s",
-                               symbolSize=12, symbolBrush=VERDICT_COLOURS[verdict])
+        self._draw_trend(h)
+        self._draw_verdicts(h)
         # hours of use start at 0 and span at least one hour: a new sensor's few minutes
         # showed as "(x0.001)" with negative ticks
         seen = [float(s["hours"] or 0)] + [float(v) for v, _, _ in h.verdicts]
         seen += [float(v) for hours, _ in h.spot_series.values() for v in hours]
         top = max(1.0, 1.1 * max(seen))
-        for plot in (self.trend, self.timeline):
-            plot.setXRange(0.0, top, padding=0)
+        for plot in (self.trend, self.timeline):  # a little room left of 0 h for marks
+            plot.setXRange(-top / 40, top, padding=0)
+        self._space_verdicts(top)
         self.calibrations.setRowCount(len(h.calibrations))
         for i, c in enumerate(h.calibrations):
             covers = covers_text(c)
@@ -162,6 +166,72 @@ class SensorsWindow(QWidget):
                 self.calibrations.setItem(i, j, item)
         self.notes.clear()
         self.notes.addItems([f"{n['at'][:10]} [{n['kind']}] {n['text']}" for n in h.notes])
+
+    def _draw_trend(self, h: SensorHistory) -> None:
+        """Each spot's ratios, one line per stretch against one reference (a calibration
+        resets the scale: joining across it drew a calibration as drift); ratios to the
+        nominal curve hollow and dashed; a labelled line where the reference changed."""
+        self.trend.clear()
+        self.segments, self.reference_marks = [], []
+        self.trend.addLine(y=1.0, pen=pg.mkPen("#999", style=Qt.PenStyle.DashLine))
+        for i, (spot, points) in enumerate(sorted(h.spot_points.items())):
+            colour = SERIES_COLOURS[i % len(SERIES_COLOURS)]
+            for k, (ref, run) in enumerate(groupby(points, key=lambda p: p.reference)):
+                run = list(run)
+                nominal = ref == "nominal"
+                item = self.trend.plot(
+                    [p.hours for p in run], [p.ratio for p in run],
+                    pen=pg.mkPen(colour, width=2, style=Qt.PenStyle.DashLine if nominal
+                                 else Qt.PenStyle.SolidLine),
+                    symbol="o", symbolSize=7, symbolPen=pg.mkPen(colour, width=2),
+                    symbolBrush=None if nominal else colour, name=spot if k == 0 else None)
+                self.segments.append((spot, ref, item))
+        for hours, check_id, words in h.reference_changes:
+            # a short label on the line; the words go under the plot (text over the
+            # lines hid the data and the legend)
+            line = pg.InfiniteLine(pos=hours, angle=90, movable=False,
+                                   pen=pg.mkPen("#7a5195", width=1, style=Qt.PenStyle.DotLine),
+                                   label=f"#{check_id}", labelOpts={
+                                       "position": 0.97, "color": "#7a5195",
+                                       "anchors": [(0, 0), (0, 0)]})
+            self.trend.addItem(line)
+            self.reference_marks.append((hours, words))
+        refs = sorted({ref for _, ref, _ in self.segments})
+        changes = "; ".join(f"check #{i} at {hours:g} h: {words}"
+                            for hours, i, words in h.reference_changes)
+        self.reference_note.setText(
+            ("Each ratio is against its check's reference (" + ", ".join(
+                "the nominal curve: hollow, dashed" if r == "nominal" else r for r in refs)
+             + "); a new reference starts a new line"
+             + (f". Reference changed (dotted lines): {changes}." if changes else "."))
+            if refs else "")
+
+    def _draw_verdicts(self, h: SensorHistory) -> None:
+        """A square per check, numbered; checks at the same hours (no recording between)
+        sit side by side instead of on top of each other."""
+        self.timeline.clear()
+        self.verdict_points = []
+        for hours, verdict, check_id in h.verdicts:
+            self.verdict_points.append((hours, float(_VERDICT_Y[verdict]), check_id))
+
+    def _space_verdicts(self, x_span: float) -> None:
+        """Draw the squares, spreading checks closer than a square's width apart."""
+        gap = x_span / 35.0
+        placed: list[tuple[float, float, int]] = []
+        for hours, y, check_id in self.verdict_points:
+            x = hours
+            while any(abs(x - px) < gap and py == y for px, py, _ in placed):
+                x += gap
+            placed.append((x, y, check_id))
+        self.verdict_points = placed
+        by_verdict = {v: k for k, v in _VERDICT_Y.items()}
+        for x, y, check_id in placed:
+            colour = VERDICT_COLOURS[by_verdict[int(y)]]
+            self.timeline.plot([x], [y], pen=None, symbol="s", symbolSize=12,
+                               symbolBrush=colour)
+            label = pg.TextItem(f"#{check_id}", color="#444", anchor=(0.5, 1.3))
+            label.setPos(x, y)
+            self.timeline.addItem(label)
 
     def show_problem(self, text: str | None) -> None:
         """One line above the lists (None hides it)."""

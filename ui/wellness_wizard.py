@@ -22,10 +22,12 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
+from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
+from tactile_studio.health.estimate import estimate_text, simulated_speed
 from tactile_studio.health.report import write_report
 from tactile_studio.health.runner import HealthRun
-from tactile_studio.health.wellness import WellnessSpec
+from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
@@ -49,24 +51,65 @@ def sensor_combo(current: str | None = None) -> QComboBox:
 
 
 class DeviceSetupPage(QWizardPage):
-    """Device, sensor and the 'simulated device places the weights' switch."""
+    """Device, sensor, the 'simulated device places the weights' switch and, on the
+    simulator, its speed: full speed by default (a wizard opened from the live view
+    took its real-time speed: 34 s for a check the CLI does in 3 s). ``estimate`` says
+    how long the procedure takes with the choices made (the pages keep it current)."""
+
+    SPEEDS = (("Full speed (seconds)", 0.0), ("Real time, as at the bench", 1.0))
 
     def __init__(self, title: str, device: str, settings: dict[str, Any]) -> None:
         super().__init__()
         self.setTitle(title)
         self.device, self.settings = device, dict(settings)
+        self.simulated = device == "simulated"
         self.form = QFormLayout(self)
-        self.device_label = QLabel(f"{device} "
-                                   + " ".join(f"{k}={v}" for k, v in self.settings.items()))
+        shown = {k: v for k, v in self.settings.items() if not (self.simulated and k == "speed")}
+        self.device_label = QLabel(f"{device} " + " ".join(f"{k}={v}" for k, v in shown.items()))
         self.device_label.setWordWrap(True)
         self.form.addRow("Device", self.device_label)
-        own = f"sim-{self.settings.get('seed', 0)}" if device == "simulated" else None
+        own = f"sim-{self.settings.get('seed', 0)}" if self.simulated else None
         self.sensor = sensor_combo(own)
         self.form.addRow("Sensor ID", self.sensor)
         self.auto = QCheckBox("The simulated device places the weights itself")
-        self.auto.setChecked(device == "simulated")
-        self.auto.setEnabled(device == "simulated")
+        self.auto.setChecked(self.simulated)
+        self.auto.setEnabled(self.simulated)
         self.form.addRow("", self.auto)
+        self.speed = QComboBox()
+        for label, value in self.SPEEDS:
+            self.speed.addItem(label, value)
+        live = simulated_speed(self.settings)
+        if live not in [v for _, v in self.SPEEDS]:
+            self.speed.addItem(f"As the live view (speed {live:g})", live)
+        self.speed.setToolTip("The simulator's speed for this procedure only (the live "
+                              "view keeps its own)")
+        self.speed.currentIndexChanged.connect(lambda _: self.update_estimate())
+        if self.simulated:
+            self.form.addRow("Simulator speed", self.speed)
+        self.estimate = QLabel("")
+        self.estimate.setWordWrap(True)
+        self.estimate.setStyleSheet("font-weight: bold")
+        try:  # "all" taxels in the estimates (nothing is opened: the run page does that)
+            self.n_taxels = create_device(device, self.settings).layout.n_taxels
+        except Exception:  # noqa: BLE001 - a prefill; the run page reports real errors
+            self.n_taxels = 36
+
+    @property
+    def full_speed(self) -> bool:
+        return self.simulated and float(self.speed.currentData()) <= 0
+
+    def run_settings(self) -> dict[str, Any]:
+        """The device settings the procedure opens its device with."""
+        if not self.simulated:
+            return dict(self.settings)
+        return {**self.settings, "speed": float(self.speed.currentData())}
+
+    def estimate_for(self, kind: str, n_placements: int) -> str:
+        busy = self.simulated and self.settings.get("gesture", "auto") != "idle"
+        return estimate_text(kind, n_placements, self.simulated, self.full_speed, busy)
+
+    def update_estimate(self) -> None:
+        """Subclasses: say in ``estimate`` how long the procedure takes."""
 
 
 class WellnessSetupPage(DeviceSetupPage):
@@ -81,9 +124,19 @@ class WellnessSetupPage(DeviceSetupPage):
         self.form.addRow("Spots", self.spots)
         hint = QLabel("A 14 x 14 mm weight centred on each spot in turn. The check first "
                       "reads the unloaded sensor for 3 s, then asks for the weight on each "
-                      "spot, waits for it to settle, records and asks you to lift it.")
+                      "spot, waits for it to settle, records and asks you to lift it. "
+                      f"Ratios are judged {REFERENCE_RULE}.")
         hint.setWordWrap(True)
         self.form.addRow(hint)
+        self.form.addRow("Takes", self.estimate)
+        self.spots.textChanged.connect(lambda _: self.update_estimate())
+        self.update_estimate()
+
+    def update_estimate(self) -> None:
+        spots = [s for s in self.spots.text().split(",") if s.strip()]
+        n = self.n_taxels if [s.strip().lower() for s in spots] == ["all"] else len(spots)
+        self.estimate.setText(f"{n} spot{'s' if n != 1 else ''} after a 3 s rest: "
+                              + self.estimate_for("spot", max(n, 1)))
 
     def spec(self) -> WellnessSpec:
         spots = tuple(s.strip() for s in self.spots.text().split(",") if s.strip())
@@ -170,4 +223,4 @@ class WellnessWizard(HealthWizard):
 
     def _make_run(self) -> HealthRun:
         s = self.setup
-        return HealthRun(s.device, s.settings, s.spec(), auto=s.auto.isChecked())
+        return HealthRun(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked())

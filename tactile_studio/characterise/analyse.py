@@ -28,8 +28,37 @@ def _nan_to_none(d: dict[str, Any]) -> dict[str, Any]:
     return {k: fix(v) for k, v in d.items()}
 
 
-def analyse_normal(data: dict[str, Any]) -> dict[str, Any]:
+def baseline_drift(t: Any, tare_t: float | None, zero_t: float | None,
+                   zero: float) -> np.ndarray:
+    """The baseline's drift at times ``t``: the sensor read zero at the tare (``tare_t``)
+    and ``zero`` on the settled, unloaded skin at ``zero_t``; linear between (the
+    sensor's wander is minutes long, a staircase or a run of cycles under two). Zeros
+    for an older run that did not record both."""
+    t = np.asarray(t, float)
+    if tare_t is None or zero_t is None or zero_t <= tare_t:
+        return np.zeros_like(t)
+    return (t - tare_t) / (zero_t - tare_t) * zero
+
+
+def drift_corrected(data: dict[str, Any]) -> list[dict[str, Any]]:
+    """The staircase's points less the baseline's drift over it (its zero after: the
+    "lifted" point, read on a settled skin)."""
     pts = data["points"]
+    lifted = [p for p in pts if p["phase"] == "lifted"]
+    if not lifted:
+        return pts
+    end = lifted[0]
+    out = []
+    for p in pts:
+        if p["phase"] in ("load", "unload"):
+            p = {**p, "normal": p["normal"] - float(baseline_drift(
+                p["t"], data.get("tare_t"), end["t"], end["normal"]))}
+        out.append(p)
+    return out
+
+
+def analyse_normal(data: dict[str, Any]) -> dict[str, Any]:
+    pts = drift_corrected(data)
     load = [p for p in pts if p["phase"] == "load"]
     unload = [p for p in pts if p["phase"] == "unload"]
     p_l = np.array([p["pz"] for p in load])
@@ -116,7 +145,11 @@ def analyse_shear(data: dict[str, Any], tau: float | None) -> dict[str, Any]:
 
 
 def analyse_repeat(data: dict[str, Any]) -> dict[str, Any]:
-    d, cv = drift(np.asarray(data["peaks"]))
+    peaks = np.asarray(data["peaks"], float)
+    if "t" in data:
+        peaks = peaks - baseline_drift(data["t"], data.get("tare_t"), data.get("zero_t"),
+                                       data.get("zero", 0.0))
+    d, cv = drift(peaks)
     return {"repeat_cycles": len(data["peaks"]), "repeat_drift": d, "repeat_cv": cv}
 
 

@@ -20,10 +20,13 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import IncompleteError
 from tactile_studio.instruments.contract import ForcePlugin, InstrumentError, StagePlugin
 from tactile_studio.jobs import CancelToken
-from tactile_studio.sensor.characterise import taxel_signals
+from tactile_studio.sensor.characterise import neighbours, still_moving, taxel_signals
+from tactile_studio.sensor.decode import relative_change
+from tactile_studio.sensor.layout import CENTRE
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 
 _KEEP_S = 120.0  # how much recent sensor/force history a measurement can look back on
+_STEADY_WINDOW_S = 3.0  # the stretch whose slope says whether the skin still moves
 
 
 @dataclass
@@ -37,6 +40,15 @@ class Reading:
     shear_y: np.ndarray
     force_n: np.ndarray  # (3,) fx, fy, fz
     stress_kpa: np.ndarray  # (3,) force over the indenter face
+
+
+@dataclass
+class Settled:
+    """One wait for a settled skin before a tare: how long, and whether it got there."""
+
+    taxel: str
+    waited_s: float
+    steady: bool
 
 
 class Lab:
@@ -60,6 +72,8 @@ class Lab:
         self._ff = np.empty((0, 3))
         self.baseline: np.ndarray | None = None
         self.on_point: Any = None  # callable(taxel name, point dict) for a live plot
+        self.on_settled: Any = None  # callable(Settled) after every settling wait
+        self.settles: list[Settled] = []  # this taxel's waits (the run resets it)
 
     # ---- journal ---------------------------------------------------------------------
     def event(self, kind: str, **detail: Any) -> None:
@@ -125,6 +139,33 @@ class Lab:
         self.force.tare()
         self._ft, self._ff = np.empty(0), np.empty((0, 3))
         self.event("char_tare")
+
+    def wait_steady(self, taxel: int, min_s: float, max_s: float, per_s: float) -> Settled:
+        """Wait ``min_s`` of lab time, then on until the skin under and around ``taxel``
+        has stopped moving (a previous press's viscoelastic residue, a previous taxel's
+        cycles): the centre channels of it and its neighbours change by less than
+        ``per_s`` (relative change per second) over the last few seconds. At most
+        ``max_s``; then it is measured anyway and the wait says it was not steady. Every
+        wait is journaled (``char_settled``) so a figure's history is on record."""
+        start = self.clock.now()
+        self.clock.sleep(min_s, self.cancel)
+        lay = self.layout
+        centres = [lay.channel(t, CENTRE) for t in (taxel, *neighbours(lay, taxel).values())]
+        window = min(_STEADY_WINDOW_S, max(min_s, 0.5))
+        while True:
+            now = self.clock.now()
+            t, raw = self.frames_between(now - window, now)
+            rel = relative_change(lay, raw, raw.astype(np.float64).mean(axis=0))[:, centres]
+            steady = not still_moving(t, rel, per_s).any()
+            if steady or now - start >= max_s:
+                break
+            self.clock.sleep(0.5, self.cancel)
+        done = Settled(lay.taxel_name(*lay.taxel_rc(taxel)), round(now - start, 2), steady)
+        self.event("char_settled", taxel=done.taxel, waited_s=done.waited_s, steady=steady)
+        self.settles.append(done)
+        if self.on_settled is not None:
+            self.on_settled(done)
+        return done
 
     def signals(self, t0: float, t1: float) -> tuple[np.ndarray, ...]:
         """(t, normal, shear_x, shear_y) per frame in [t0, t1), against the current tare."""

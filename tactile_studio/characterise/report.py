@@ -19,7 +19,7 @@ from tactile_studio.sensor.layout import Layout
 
 TABLE_KEYS = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
               "shear_sensitivity_x", "shear_sensitivity_y", "r2_shear", "crosstalk_max",
-              "relaxation_s", "hysteresis", "shear_offset", "repeat_drift")
+              "relaxation_s", "hysteresis", "shear_offset", "repeat_drift", "settle_wait_s")
 # what a lab notebook reads: (column title, unit, how the value is shown)
 _PCT = "pct"
 COLUMNS: dict[str, tuple[str, str, str]] = {
@@ -30,6 +30,7 @@ COLUMNS: dict[str, tuple[str, str, str]] = {
     "shear_sensitivity_y": ("Shear sensitivity y", "/kPa", "{:.4g}"),
     "r2_shear": ("Shear fit R² (worst direction)", "", "{:.3f}"),
     "crosstalk_max": ("Normal crosstalk, worst neighbour", "%", _PCT),
+    "settle_wait_s": ("Longest wait for a settled skin", "s", "{:.1f}"),
     "relaxation_s": ("Relaxation time constant", "s", "{:.2f}"),
     "hysteresis": ("Hysteresis", "% of loading area", _PCT),
     "shear_offset": ("Shear offset after release", "% of peak", _PCT),
@@ -207,10 +208,13 @@ def maps_figure(layout: Layout, taxels: dict[str, dict[str, Any]]):  # noqa: ANN
     import matplotlib as mpl
     from matplotlib.ticker import FormatStrFormatter
 
-    fig = _figure(14, 4.0)
+    # two by two: beside a taxel's page in the wizard, and as tall as it is wide in the
+    # report (a row of four was a strip a third as tall as the page was wide)
+    fig = _figure(9.0, 7.6)
     cols = [layout.taxel_name(0, c)[1:] for c in range(layout.cols)]
     rows = [layout.taxel_name(r, 0)[:-1] for r in range(layout.rows)]
-    for ax, (key, title) in zip(fig.subplots(1, len(MAPS)), MAPS):
+    grid_rows = (len(MAPS) + 1) // 2
+    for ax, (key, title) in zip(fig.subplots(grid_rows, 2).ravel(), MAPS):
         grid = np.full((layout.rows, layout.cols), np.nan)
         for r in range(layout.rows):
             for c in range(layout.cols):

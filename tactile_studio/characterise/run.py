@@ -21,7 +21,7 @@ import numpy as np
 from tactile_studio.characterise.analyse import analyse_taxel
 from tactile_studio.characterise.folder import check_out_dir, clear_run
 from tactile_studio.characterise.lab import Lab
-from tactile_studio.characterise.plan import Plan
+from tactile_studio.characterise.plan import Plan, plan_text
 from tactile_studio.characterise.sequences import (
     normal_sequence,
     repeat_sequence,
@@ -32,6 +32,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.file_claims import claim_folder, replace_whole
 from tactile_studio.instruments.contract import ForcePlugin, StagePlugin
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress, signals_deferred
+from tactile_studio.sensor.calibration import sensitivity_spread
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.sensor.wellness import parse_taxel
 from tactile_studio.storage.calibration_store import store_calibration
@@ -101,7 +102,7 @@ def calibration_from(result: dict[str, Any]) -> dict[str, Any]:
             "source": "characterisation.json", "units": result["units"], "fits": fits,
             "gains": {t: round(median / v, 5) for t, v in sens.items()},
             "rms_pct_median": float(np.median(rms)), "rms_pct_max": float(np.max(rms)),
-            "taxels": taxels}
+            **sensitivity_spread(list(sens.values())), "taxels": taxels}
 
 
 def check_sensor_request(sensor_id: str | None, plan: Plan, save: bool) -> str | None:
@@ -139,7 +140,8 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                          sensor_id: str | None = None, progress: ProgressFn = no_progress,
                          control: RunControl | None = None,
                          on_point: Any = None, on_taxel: Any = None,
-                         report: bool = True, overwrite: bool = False) -> dict[str, Any]:
+                         report: bool = True, overwrite: bool = False,
+                         on_start: Any = None) -> dict[str, Any]:
     """Characterise ``taxels`` and return the result dict (also in characterisation.json).
 
     The folder is claimed for the whole run (tactile_studio/file_claims.py): a second
@@ -149,8 +151,9 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     Raises Cancelled (after retracting and saving) when ``control`` is cancelled, and
     UserError subclasses for instrument problems, also after saving what was measured.
     ``on_point(taxel_name, point)`` sees every measured point (a live plot) and
-    ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends (both optional,
-    called from the calling thread).
+    ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends, and
+    ``on_start(line)`` what the run will do and how long it takes, once the instruments
+    are open and the stage has homed (all optional, called from the calling thread).
     ``report``: also write figures/ and report.html (for what was measured).
     ``overwrite``: a folder that holds an earlier run is refused (UserError) unless set;
     then that run's files are removed first, so two runs are never mixed.
@@ -158,13 +161,13 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     with claim_folder(out_dir, "characterisation folder"):
         return _characterise(device, stage, force, plan, taxels, Path(out_dir),
                              sensor_id, progress, control or RunControl(), on_point, on_taxel,
-                             report, overwrite)
+                             report, overwrite, on_start)
 
 
 def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, plan: Plan,
                   taxels: list[int], out_dir: Path, sensor_id: str | None,
                   progress: ProgressFn, control: RunControl, on_point: Any, on_taxel: Any,
-                  report: bool, overwrite: bool) -> dict[str, Any]:
+                  report: bool, overwrite: bool, on_start: Any) -> dict[str, Any]:
     check_out_dir(out_dir, overwrite)
     clear_run(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -192,6 +195,7 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, 
     try:
         stage.couple(device)
         force.couple(device, stage)
+        result["device"] = device.info()  # as coupled (the simulated bench idles its hand)
         area = float(stage.settings.get("indenter_mm", 14.0)) ** 2
         lab = Lab(device, stage, force, out_dir / "session.h5", area, control,
                   {"characterisation": {"plan": plan.to_dict(), "taxels": names,
@@ -202,6 +206,8 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, 
         lab.clock.sleep(0.5, control)
         stage.home()
         lab.event("char_homed")
+        if on_start is not None:
+            on_start(plan_text(plan, len(taxels)))
         for i, (taxel, name) in enumerate(zip(taxels, names)):
             if control.paused:
                 lab.retract()
@@ -216,8 +222,15 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, 
 
             def sub(done: float, msg: str, i: int = i, name: str = name) -> None:
                 progress((i + min(done, 1.0)) / len(taxels), f"{name}: {msg}")
+            lab.settles = []
             for k, seq in enumerate(seqs):
                 sub(k / len(seqs), seq)
+
+                def settled(s: Any, k: int = k, seq: str = seq) -> None:
+                    sub(k / len(seqs), f"{seq}: skin settled after {s.waited_s:.1f} s" if
+                        s.steady else f"{seq}: skin still moving after {s.waited_s:.0f} s "
+                        "(settle_max_s); measuring anyway")
+                lab.on_settled = settled
                 if seq == "normal":
                     data["normal"] = normal_sequence(lab, plan, taxel, x0, y0)
                 elif seq == "shear":
@@ -226,7 +239,7 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, 
                     data["repeat"] = repeat_sequence(
                         lab, plan, taxel, x0, y0,
                         lambda f, m, k=k: sub((k + f) / len(seqs), m))
-            result["taxels"][name] = analyse_taxel(data)
+            result["taxels"][name] = {**analyse_taxel(data), **settle_summary(lab.settles)}
             raw_by_taxel[name] = data
             _write_json(out_dir / "raw" / f"{name}.json", data)
             if on_taxel is not None:
@@ -251,6 +264,15 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, 
 
             write_report(out_dir, result, layout, raw_by_taxel)
     return result
+
+
+def settle_summary(settles: list[Any]) -> dict[str, Any]:
+    """A taxel's settling waits in its figures: the longest, and whether every sequence
+    began on a steady skin (a figure measured on a moving one is marked, not hidden)."""
+    if not settles:
+        return {}
+    return {"settle_wait_s": max(s.waited_s for s in settles),
+            "settled": all(s.steady for s in settles)}
 
 
 def _retract(stage: StagePlugin, lab: Lab | None, exc: BaseException) -> None:

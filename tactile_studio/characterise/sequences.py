@@ -35,9 +35,12 @@ def _point(lab: Lab, taxel: int, r: Reading, **extra: Any) -> dict[str, Any]:
     return p
 
 
-def lift_and_tare(lab: Lab, plan: Plan, x0: float, y0: float, z_above: float) -> None:
+def lift_and_tare(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float,
+                  z_above: float) -> None:
+    """Lift over the taxel, wait for a settled skin (at least ``settle_s``), then tare:
+    each sequence starts from the same state whatever came before it."""
     lab.move(x0, y0, z_above, plan.travel_speed_mm_s, plan.acceleration_mm_s2)
-    lab.clock.sleep(plan.settle_s, lab.cancel)
+    lab.wait_steady(taxel, plan.settle_s, plan.settle_max_s, plan.steady_per_s)
     lab.tare(min(1.0, plan.settle_s))
 
 
@@ -57,7 +60,8 @@ def find_load(lab: Lab, plan: Plan, z_start: float, kpa: float) -> float:
 
 def normal_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> dict[str, Any]:
     """Staircase 0 -> depth -> 0 (loading, unloading), then one step held for relaxation."""
-    lift_and_tare(lab, plan, x0, y0, plan.approach_mm)
+    lift_and_tare(lab, plan, taxel, x0, y0, plan.approach_mm)
+    t_tare = lab.clock.now()
     z_surface = find_load(lab, plan, plan.approach_mm, plan.contact_kpa) + plan.search_step_mm
     lab.move(z=z_surface, speed=plan.speed_mm_s)
     depths = np.linspace(0.0, plan.normal_depth_mm, plan.normal_steps + 1)
@@ -68,7 +72,10 @@ def normal_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> d
             r = lab.hold(plan.dwell_s, plan.window_s)
             points.append(_point(lab, taxel, r, sequence="normal", phase=phase, depth_mm=float(d)))
     lab.move(z=z_surface + plan.approach_mm, speed=plan.speed_mm_s)
-    pre = lab.hold(plan.settle_s, plan.window_s)  # local zero for the crosstalk ratios
+    # lifted on a settled skin: the zero at the staircase's end, against the tare at its
+    # start (the baseline's drift over it), and the local zero of the crosstalk ratios
+    lab.wait_steady(taxel, plan.settle_s, plan.settle_max_s, plan.steady_per_s)
+    pre = lab.read_window(lab.clock.now() - plan.window_s, lab.clock.now())
     points.append(_point(lab, taxel, pre, sequence="normal", phase="lifted", depth_mm=0.0))
     lab.move(z=z_surface - plan.normal_depth_mm, speed=plan.speed_mm_s,
              acceleration=plan.acceleration_mm_s2)
@@ -79,7 +86,7 @@ def normal_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> d
     points.append(_point(lab, taxel, end, sequence="normal", phase="relaxed",
                          depth_mm=plan.normal_depth_mm))
     lab.move(z=z_surface + plan.approach_mm, speed=plan.speed_mm_s)
-    return {"points": points, "z_surface": z_surface,
+    return {"points": points, "z_surface": z_surface, "tare_t": round(t_tare, 4),
             "relax_t": (t - t_start).tolist(), "relax_y": normal[:, taxel].tolist()}
 
 
@@ -90,7 +97,7 @@ def shear_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> di
     n = int(round(plan.shear_max_mm / plan.shear_step_mm))
     for name in plan.directions:
         axis, sign = _AXIS[name]
-        lift_and_tare(lab, plan, x0, y0, plan.approach_mm)
+        lift_and_tare(lab, plan, taxel, x0, y0, plan.approach_mm)
         if z_pre is None:
             z_pre = find_load(lab, plan, plan.approach_mm, plan.preload_kpa)
         else:
@@ -122,10 +129,13 @@ def shear_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float) -> di
 
 def repeat_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float,
                     progress: ProgressFn) -> dict[str, Any]:
-    """``cycles`` presses to ``cycle_depth_mm``; the peak of each for the drift."""
-    lift_and_tare(lab, plan, x0, y0, plan.approach_mm)
+    """``cycles`` presses to ``cycle_depth_mm``; the peak of each for the drift. Lifted
+    on a settled skin after the last, the sensor's zero says how far its baseline
+    drifted meanwhile (taken out of the peaks by the analysis)."""
+    lift_and_tare(lab, plan, taxel, x0, y0, plan.approach_mm)
+    t_tare = lab.clock.now()
     z_surface = find_load(lab, plan, plan.approach_mm, plan.contact_kpa) + plan.search_step_mm
-    peaks, loads = [], []
+    peaks, loads, times = [], [], []
     for c in range(plan.cycles):
         lab.move(z=z_surface - plan.cycle_depth_mm, speed=plan.speed_mm_s,
                  acceleration=plan.acceleration_mm_s2)
@@ -134,7 +144,11 @@ def repeat_sequence(lab: Lab, plan: Plan, taxel: int, x0: float, y0: float,
         lab.clock.sleep(plan.cycle_hold_s, lab.cancel)
         peaks.append(float(r.normal[taxel]))
         loads.append(float(r.stress_kpa[2]))
+        times.append(round(r.t1, 4))
         lab.event("char_cycle", cycle=c, peak=peaks[-1], pz=loads[-1])
         progress((c + 1) / plan.cycles, f"cycle {c + 1}/{plan.cycles}")
     lab.move(z=plan.approach_mm, speed=plan.speed_mm_s)
-    return {"peaks": peaks, "loads": loads}
+    lab.wait_steady(taxel, plan.settle_s, plan.settle_max_s, plan.steady_per_s)
+    zero = lab.read_window(lab.clock.now() - plan.window_s, lab.clock.now())
+    return {"peaks": peaks, "loads": loads, "t": times, "tare_t": round(t_tare, 4),
+            "zero_t": round(zero.t1, 4), "zero": float(zero.normal[taxel])}

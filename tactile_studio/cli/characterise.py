@@ -12,7 +12,13 @@ from pathlib import Path
 
 from tactile_studio.characterise import Plan, RunControl, run_characterisation
 from tactile_studio.characterise.folder import check_out_dir, describe_run
-from tactile_studio.characterise.plan import SEQUENCES
+from tactile_studio.characterise.plan import (
+    DEFAULT_SEQUENCES,
+    SEQUENCES,
+    parse_sequences,
+    sequence_lab_s,
+    stage_time_text,
+)
 from tactile_studio.characterise.run import check_sensor_request, save_calibration
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.registry import create_device, parse_set_options
@@ -41,10 +47,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--taxels", default=PAPER_TAXELS,
                    help="comma-separated taxel names or 'all' "
                         f"(default: the paper's {PAPER_TAXELS})")
-    p.add_argument("--sequence", default="all", choices=[*SEQUENCES, "all"],
-                   help="which sequence(s) to run (default all)")
+    p.add_argument("--sequence", default=",".join(DEFAULT_SEQUENCES), metavar="SEQ[,SEQ]",
+                   help=f"which sequence(s) to run: {', '.join(SEQUENCES)} or all, several "
+                        f"with commas (default {','.join(DEFAULT_SEQUENCES)}, as the wizard)")
     p.add_argument("--cycles", type=int, default=None,
-                   help="repeatability cycles (default: the paper's 22000)")
+                   help="repeatability cycles; required with repeat (the paper's 22000 take "
+                        "about 12 h of stage time per taxel)")
     p.add_argument("--sensor", default=None, help="sensor id for the report and calibration")
     p.add_argument("--save-calibration", action="store_true",
                    help="store the derived calibration in the sensor logbook as the sensor's "
@@ -93,9 +101,13 @@ def run(args: argparse.Namespace) -> int:
     params = parse_set_options(args.param)
     if args.cycles is not None:
         params["cycles"] = str(args.cycles)
-    if args.sequence != "all":
-        params["sequences"] = args.sequence
+    params["sequences"] = ",".join(parse_sequences(args.sequence))
     plan = Plan.with_overrides(params)
+    if "repeat" in plan.sequences and "cycles" not in params:
+        paper = Plan.with_overrides({"sequences": "repeat"})
+        raise UserError(f"--sequence {args.sequence}: repeat needs --cycles N: the paper's "
+                        f"{paper.cycles:,} cycles take " + stage_time_text(
+                            sequence_lab_s(paper, "repeat"), " per taxel"))
     device = create_device(args.device, parse_set_options(args.set))
     try:
         taxels = parse_taxels(device.layout, args.taxels)
@@ -114,7 +126,9 @@ def run(args: argparse.Namespace) -> int:
         with ctrl_c_cancels(control):
             result = run_characterisation(device, stage, force, plan, taxels, out,
                                           sensor_id=args.sensor, progress=progress,
-                                          control=control, overwrite=args.overwrite)
+                                          control=control, overwrite=args.overwrite,
+                                          on_start=lambda line: print(
+                                              f"characterise: {line}", file=sys.stderr))
     except Cancelled:
         raise Cancelled(f"characterisation cancelled: {_finished(out)}") from None
     except UserError as exc:

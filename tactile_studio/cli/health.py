@@ -26,7 +26,7 @@ from tactile_studio.health.bench import Placer, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
 from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
-from tactile_studio.health.wellness import WellnessSpec, run_wellness
+from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.output_faults import (
     CALIBRATION_FILE,
@@ -34,6 +34,7 @@ from tactile_studio.output_faults import (
     require_writable_file,
     stored_already,
 )
+from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
 from tactile_studio.storage.logbook import Logbook, age_text
 
@@ -48,7 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print as JSON")
     p.set_defaults(func=cmd_sensor)
 
-    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots")
+    p = sub.add_parser("wellness", help="check a sensor with a known weight on a few spots",
+                       description=f"Ratios are judged {REFERENCE_RULE}.")
     _device_args(p)
     p.add_argument("--weight-g", type=finite_float, required=True, help="the known weight, grams")
     p.add_argument("--spots", default=",".join(DEFAULT_SPOTS),
@@ -148,7 +150,7 @@ def cmd_wellness(args: argparse.Namespace) -> int:
         print(f"sensor {result['sensor']}: {result['verdict'].upper()} "
               f"(check #{result['check_id']})")
         print(f"  {result['tested']['line']}")
-        print(f"  reference: {result['judged_against']}")
+        print(f"  ratios against {result['judged_against']}")
         for s in result["spots"]:
             ratio = "-" if s["ratio"] is None else f"{s['ratio'] * 100:.0f}%"
             print(f"  {s['taxel']:<4} {s['normal_kpa']:7.2f} kPa  shear {s['shear_kpa']:5.2f} "
@@ -222,6 +224,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
                "cv_pct_median": round(cal.get("cv_pct_median", float("nan")), 4),
                "cv_pct_max": round(cal.get("cv_pct_max", float("nan")), 4),
                "gains": cal["gains"],
+               "sensitivity_spread": cal.get("sensitivity_spread"),
+               "sensitivity_range": cal.get("sensitivity_range"),
                "skipped": cal["skipped"], "coverage": cal["coverage"],
                "replaced_calibration": cal["replaced_calibration"],
                "taxels": [{k: f.get(k) for k in ("taxel", "model", "rms_pct", "cv_pct",
@@ -233,6 +237,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         return 0
     print(f"calibration #{cal['calibration_id']} of {cal['sensor']} ({cal['kind']}) -> {args.out}")
     print(f"  {coverage_line(cal)}")
+    if spread_line(cal):
+        print(f"  {spread_line(cal)}")
     # the curve through the loads' means, and the error of a reading (cross-validated
     # over the frames): the first is 0 by construction for a 3-parameter curve, 3 loads
     print(f"  rms error of the curve: median {cal['rms_pct_median']:.2f}%, worst "

@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.file_claims import written_whole
+from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
 from tactile_studio.sensor.wellness import channel_label, parse_taxel
 
@@ -145,6 +146,8 @@ def write_report(path: str | os.PathLike, title: str, result: dict[str, Any],
                      f"{esc(loads)} g; median rms "
                      f"{result['rms_pct_median']:.2f}% of range, worst "
                      f"{result['rms_pct_max']:.2f}%</p>")
+        if spread_line(result):
+            parts.append(f"<p>{esc(spread_line(result))}</p>")
         parts.extend(_figures_calibration(result))
     parts.append("</body></html>")
     page = "\n".join(parts)

@@ -57,30 +57,46 @@ def resolve_sensor(book: Logbook, device: Any, sensor: str, layout_name: str) ->
     return book.require(sensor)
 
 
+# The one rule for what a check's ratios are against, said by the CLI, the wizard, the
+# report and the docs alike. The calibration first: it is the engineer's statement of
+# how this sensor responds (a check before it no longer is); a spot it does not cover
+# falls to the next source, spot by spot.
+REFERENCE_RULE = ("each spot against the sensor's active calibration, else its first "
+                  "passing check with this weight, else the nominal curve")
+
+
 def reference_for(book: Logbook, sensor: str, spec: WellnessSpec,
                   layout: Layout) -> dict[str, Any]:
-    """The sensor's reference per spot: its first passing check with the same weight and
-    contact (and that check's rest baseline); for spots it did not load, what the active
-    calibration predicts; else nothing (the weight's nominal stress is used)."""
+    """The sensor's reference per spot, by :data:`REFERENCE_RULE`: what its active
+    calibration predicts for this weight; for spots it does not cover, its first passing
+    check with the same weight and contact; else nothing (the nominal curve). The rest
+    phase's baseline is that first passing check's. ``source`` says, per spot, which."""
     out: dict[str, Any] = {"check_id": None, "baseline": None, "spots": {},
-                           "calibration_id": None, "source": {}}
+                           "calibration_id": None, "source": {}, "active_calibration": None}
+    first: dict[str, Any] | None = None
     for check in book.checks(sensor):
         res = check["result"]
         if (check["verdict"] == PASS and res.get("weight_g") == spec.weight_g
                 and res.get("contact_mm") == spec.contact_mm):
-            out.update(check_id=check["id"], baseline=res.get("baseline"),
-                       spots={s["taxel"]: s["normal_kpa"] for s in res.get("spots", [])})
-            out["source"] = {t: f"check #{check['id']}" for t in out["spots"]}
+            first = check
+            out["baseline"] = res.get("baseline")
             break
-    cal_id = book.active_calibration(sensor)
+    cal_id = out["active_calibration"] = book.active_calibration(sensor)
+    fits = {}
     if cal_id is not None and layout.calibration is not None:
-        expected = stress_kpa(spec.weight_g, spec.contact_mm)
         fits = {f["taxel"]: f for f in book.calibration(cal_id).get("fits", [])}
-        for taxel in spec.spots:
-            if taxel not in out["spots"] and taxel in fits:
-                out["spots"][taxel] = expected_nominal_kpa(layout, fits[taxel], expected)
-                out["calibration_id"] = cal_id
-                out["source"][taxel] = f"calibration #{cal_id}"
+    expected = stress_kpa(spec.weight_g, spec.contact_mm)
+    checked = {s["taxel"]: s["normal_kpa"] for s in first["result"].get("spots", [])} \
+        if first is not None else {}
+    for taxel in spec.spots:
+        if taxel in fits:
+            out["spots"][taxel] = expected_nominal_kpa(layout, fits[taxel], expected)
+            out["calibration_id"] = cal_id
+            out["source"][taxel] = f"calibration #{cal_id}"
+        elif taxel in checked:
+            out["spots"][taxel] = checked[taxel]
+            out["check_id"] = first["id"]  # type: ignore[index]
+            out["source"][taxel] = f"check #{first['id']}"  # type: ignore[index]
     return out
 
 
@@ -120,8 +136,12 @@ def judged_against(ref: dict[str, Any], spots: tuple[str, ...]) -> str:
                          + ("them" if len(taxels) > 1 else "it")
                          + "; a healthy sensor may differ from it by some 10%: calibrate it "
                          "first for a reference of its own")
+        elif source.startswith("calibration"):
+            parts.append(f"{source}, the sensor's active calibration{which}")
         else:
-            parts.append(f"{source}{which}")
+            parts.append(f"{source}, its first passing check with this weight{which}"
+                         + ("" if len(groups) > 1 else " (no calibration covers "
+                            + ("them" if len(taxels) > 1 else "it") + ")"))
     return "; ".join(parts)
 
 
@@ -166,7 +186,9 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
         "judged_against": judged_against(ref, spec.spots),
         "weight_g": spec.weight_g,
         "contact_mm": spec.contact_mm, "expected_kpa": round(expected, 4),
-        "spots": [s.to_dict() for s in results],
+        "spots": [{**s.to_dict(), "reference": ref["source"].get(s.taxel, "nominal")}
+                  for s in results],
+        "active_calibration": ref["active_calibration"],
         "channels": {"dead": dead, "stuck": rest.stuck, "noisy": rest.noisy,
                      "saturated": rest.saturated},
         "rest": {"noise_counts_median": round(float(np.median(rest.noise)), 3),

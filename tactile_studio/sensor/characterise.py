@@ -152,6 +152,22 @@ def hysteresis(p_load: np.ndarray, y_load: np.ndarray, p_unload: np.ndarray,
     return float(np.trapezoid(yu - yl, grid)) / area if area > 0 else float("nan")
 
 
+def still_moving(t: np.ndarray, y: np.ndarray, per_s: float, k: float = 3.0) -> np.ndarray:
+    """Which columns of ``y`` (frames x signals, relative changes) still move: a fitted
+    slope over ``t`` steeper than ``per_s`` per second, and steeper than ``k`` standard
+    errors of that slope (noise alone must not keep a bench waiting: a slope is only
+    measurable down to a few standard errors)."""
+    t, y = np.asarray(t, float), np.asarray(y, float)
+    if len(t) < 3 or np.ptp(t) == 0:
+        return np.ones(y.shape[1], dtype=bool)
+    tc = t - t.mean()
+    sxx = float(tc @ tc)
+    slope = tc @ (y - y.mean(axis=0)) / sxx
+    resid = y - y.mean(axis=0) - np.outer(tc, slope)
+    se = np.sqrt((resid ** 2).sum(axis=0) / max(len(t) - 2, 1) / sxx)
+    return np.abs(slope) > np.maximum(per_s, k * se)
+
+
 def drift(peaks: np.ndarray) -> tuple[float, float]:
     """Repeatability: (relative change of the peak from the first to the last tenth of
     the cycles, coefficient of variation of the peaks)."""

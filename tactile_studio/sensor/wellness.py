@@ -232,8 +232,8 @@ def judge_spots(layout: Layout, spots: list[SpotResult],
                 th: Thresholds = Thresholds()) -> None:
     """Fill each spot's ratio, verdict, reasons and dead channels (in place).
 
-    Reference per spot: ``reference_kpa`` when the sensor has one (its first passing check
-    with the same weight, or its active calibration), else the weight's nominal stress.
+    Reference per spot: ``reference_kpa`` when the sensor has one (its active calibration,
+    else its first passing check with the same weight), else the weight's nominal stress.
     A channel is dead when it gives less than ``dead_ratio`` of the median response of the
     same-role channels on the other spots.
     """

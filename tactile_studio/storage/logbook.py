@@ -323,7 +323,9 @@ class Logbook:
         row = self._db.execute("SELECT created, layout, description FROM sensors WHERE id=?",
                                (sensor_id,)).fetchone()
         checks = [{k: v for k, v in c.items() if k != "result"} | {
-            "spots": c["result"].get("spots", []), "reasons": c["result"].get("reasons", [])}
+            k: c["result"].get(k, d) for k, d in (
+                ("spots", []), ("reasons", []), ("reference_check", None),
+                ("reference_calibration", None), ("active_calibration", None))}
             for c in self.checks(sensor_id)]
         return {**self.summary(sensor_id).to_dict(), "created": row[0], "layout": row[1],
                 "description": row[2], "checks": checks,

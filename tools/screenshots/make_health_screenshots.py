@@ -33,6 +33,11 @@ def _grab_phases(app, wizard, prefix: str, phases: tuple[str, ...]) -> None:
         wizard.grab().save(str(HERE / f"{prefix}-run-{phase}.png"))
 
 
+def live_speed(wizard) -> None:  # noqa: ANN001
+    """Run at the speed the wizard was opened with (the last choice), not full speed."""
+    wizard.setup.speed.setCurrentIndex(wizard.setup.speed.count() - 1)
+
+
 def main() -> int:
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
@@ -59,6 +64,13 @@ def main() -> int:
          "--out", os.path.join(os.environ["TACTILE_STUDIO_DATA_DIR"], "cal.json")])
     with Logbook() as book:
         book.add_note("sim-21", "E5 re-glued after the 20 h check", "repair")
+        book.add_usage("sim-21", 2 * 3600.0)
+    cli(base)  # after the repair, against the new calibration: a new line in the trend
+    s = SensorsWindow()  # the history as the CLI made it (the wizards below add to it)
+    s.show()
+    app.processEvents()
+    s.grab().save(str(HERE / "sensors-window.png"))
+    s.close()
 
     w = WellnessWizard("simulated", {"speed": 4, "seed": 21, "fault": "worn",
                                      "fault_taxel": 28})
@@ -66,6 +78,7 @@ def main() -> int:
     w.setup.spots.setText("B2,B5,E2,E5,C3")
     app.processEvents()
     w.grab().save(str(HERE / "wellness-setup.png"))
+    live_speed(w)  # slow enough to grab each phase
     w.next()
     _grab_phases(app, w, "wellness", ("rest", "place", "settling", "recording", "lift"))
     _wait(app, lambda: w.run_page.phase.text() == "Done")
@@ -89,6 +102,7 @@ def main() -> int:
         run.placer = WrongPlacer(run.device)
         return run
     m.run_page.make_run = misplacing
+    live_speed(m)
     m.show()
     m.next()
     _wait(app, lambda: m.run_page.picture.detected == "C4")
@@ -97,9 +111,11 @@ def main() -> int:
 
     c = CalibrationWizard("simulated", {"speed": 8, "seed": 21, "sensitivity_spread": 0.1})
     c.show()
-    c.setup.taxels.setText("B2,B5,E2,E5")
     app.processEvents()
-    c.grab().save(str(HERE / "calibration-setup.png"))
+    c.grab().save(str(HERE / "calibration-setup.png"))  # as it opens: plate first
+    c.setup.per_taxel.setChecked(True)
+    c.setup.taxels.setText("B2,B5,E2,E5")
+    live_speed(c)
     c.next()
     _grab_phases(app, c, "calibration", ("place", "settling"))
     _wait(app, lambda: c.run_page.phase.text() == "Done", timeout=600)
@@ -107,11 +123,6 @@ def main() -> int:
     app.processEvents()
     c.grab().save(str(HERE / "calibration-result.png"))
     c.done(0)
-
-    s = SensorsWindow()
-    s.show()
-    app.processEvents()
-    s.grab().save(str(HERE / "sensors-window.png"))
     return 0
 
 
