@@ -31,7 +31,8 @@ def collected(tmp_path, monkeypatch, capsys):
         book.add_calibration("sim-1", "plate", 0.3, {"fits": []})
     assert main(["collect", "--protocol", "shear9", "--participant", "P08", "--device",
                  "simulated", "--virtual-participant", "--speed", "0", "--blocks", "1",
-                 "--seed", "1", "--condition", "PILLOW", "--out", str(tmp_path / "data")]) == 0
+                 "--seed", "1", "--set", "seed=1", "--condition", "PILLOW",
+                 "--out", str(tmp_path / "data")]) == 0
     capsys.readouterr()
     (path,) = (tmp_path / "data").glob("*.h5")
     with Session(path) as s:
