@@ -75,4 +75,5 @@ def hold_frames(stream: FrameStream, cursor: Callable[[], int],
     hold = getattr(stream, "hold", None)
     if hold is None:
         return lambda: None
-    return hold(cursor, lead)
+    release: Callable[[], None] = hold(cursor, lead)
+    return release

@@ -23,7 +23,7 @@ from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
 
 
-def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
+def open_file_sink(engine: RecordableStream, path: str | os.PathLike[str],
                    metadata: dict[str, Any] | None = None, *, row_offset: int = 0,
                    base_counters: dict[str, Any] | None = None,
                    start: bool = True, overwrite: bool = False,
@@ -40,7 +40,7 @@ def open_file_sink(engine: RecordableStream, path: str | os.PathLike,
     return rec.start() if start else rec
 
 
-def _not_its_own_source(engine: RecordableStream, path: str | os.PathLike) -> None:
+def _not_its_own_source(engine: RecordableStream, path: str | os.PathLike[str]) -> None:
     """A replay recording over the very file it plays (``record --device replay --set
     path=s.h5 --out s.h5 --force``) would replace the recording with a copy of however
     much of it was played: refused in one line, the file untouched."""

@@ -159,7 +159,8 @@ def from_wire(data: dict[str, Any] | JobEvent) -> JobEvent:
     cls = _KINDS.get(str(kind.pop("type", "")))
     if cls is None:
         raise ValueError(f"not a job event: {data!r}")
-    return cls(**kind)
+    event: JobEvent = cls(**kind)
+    return event
 
 
 def is_final(event: JobEvent) -> bool:

@@ -14,11 +14,14 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from tactile_studio.jobs import CancelToken
+
+if TYPE_CHECKING:
+    from tactile_studio.learn.data.dataset import TrialDataset
 
 # every learner, network or baseline, comes in these sizes; full is the default
 PRESETS = ("full", "tiny")
@@ -35,7 +38,7 @@ class DataInfo:
     cell_pitch: float  # physical taxel pitches per grid cell (0.5 on the virtual grid)
 
     @classmethod
-    def of(cls, ds) -> DataInfo:
+    def of(cls, ds: TrialDataset) -> DataInfo:
         return cls(ds.n_classes, ds.n_channels, ds.grid_shape, tuple(ds.channel_names),
                    0.5 if ds.grid == "virtual" else 1.0)
 
@@ -91,7 +94,7 @@ class Fitted(Protocol):
         """(N, ...) normalised samples -> (N, n_classes) probabilities."""
         ...
 
-    def save(self, path: str | os.PathLike) -> None: ...
+    def save(self, path: str | os.PathLike[str]) -> None: ...
 
     # optional: ``adapted(x) -> Fitted``, the model adapted to one person's normalised
     # samples (``--adapt person``; torch models re-estimate batch norm). Without it a
@@ -119,7 +122,7 @@ class Learner(Protocol):
         """Raise a one-line UserError now if the options cannot work for this data."""
         ...
 
-    def samples(self, ds) -> Samples: ...
+    def samples(self, ds: TrialDataset) -> Samples: ...
 
     def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
                      reference: np.ndarray | None = None) -> np.ndarray:
@@ -142,7 +145,7 @@ class Learner(Protocol):
         is what ``norm_stats`` gave for them (a model may need the physical units back)."""
         ...
 
-    def load(self, path: str | os.PathLike, info: DataInfo) -> Fitted: ...
+    def load(self, path: str | os.PathLike[str], info: DataInfo) -> Fitted: ...
 
 
 # the members above, for naming what a non-conforming learner lacks
