@@ -112,19 +112,8 @@ def dev_sessions(verbose: bool = False) -> Path:
 
 def import_files(files: list[Path], out: Path) -> float:
     """``import shearsense FILES --out OUT`` as the CLI runs it; wall seconds."""
-    import lzma
-
     from tactile_studio.storage.importers.shearsense import import_shearsense_study
 
     start = time.perf_counter()
-    # until the importers read .csv.xz themselves: decompressed into a temporary folder
-    with tempfile.TemporaryDirectory(prefix="shearsense-dev-") as tmp:
-        plain = []
-        for f in files:
-            if f.name.endswith(".xz"):
-                dst = Path(tmp) / f.name[:-3]
-                dst.write_bytes(lzma.decompress(f.read_bytes()))
-                f = dst
-            plain.append(f)
-        import_shearsense_study(plain, out)
+    import_shearsense_study(files, out)
     return time.perf_counter() - start
