@@ -49,7 +49,8 @@ from tactile_studio.learn.experiments.experiment import (  # noqa: E402
     run_experiment,
 )
 
-COHORTS = (("easy", "FLAT"), ("real", "FLAT"), ("real", "PILLOW"), ("hard", "FLAT"))
+COHORTS = (("easy", "FLAT"), ("real", "FLAT"), ("real", "PILLOW"), ("people", "FLAT"),
+           ("hard", "FLAT"))
 
 
 def simulator_table(populations: int) -> None:
@@ -138,23 +139,24 @@ def _fmt_sds(parts: dict[str, float] | None) -> str:
     return " / ".join(f"{np.sqrt(parts[p]):.2f}" for p in vp.PARTS)
 
 
-def variance_split(populations: int) -> None:
+def variance_split(populations: int, difficulties: list[str]) -> None:
     t0 = time.perf_counter()
-    real = real_parts()
-    sim = simulated_parts(populations)
+    columns = {"real people": real_parts()}
+    for level in difficulties:
+        columns[f"sim {level}"] = simulated_parts(populations, difficulty=level)
     print(f"\nVariance split of the touch statistics (issue 45): person / gesture / "
           f"person x gesture / within; real = the development set's 2 s windows, sim = "
           f"mean of {populations} simulated populations (10 people, shear9, 4 blocks, "
-          f"difficulty real); {time.perf_counter() - t0:.0f} s")
+          f"flat); {time.perf_counter() - t0:.0f} s")
     print("shares, %:")
-    print(f"  {'statistic':22s} {'real':>22s}   {'simulator':>22s}")
+    print(f"  {'statistic':22s}" + "".join(f"{name:>24s}" for name in columns))
     for k in vp.STATS:
         unit = " (log)" if k in vp.LOG_OFFSET else ""
-        print(f"  {k + unit:22s} {_fmt_shares(real and real[k]):>22s}   "
-              f"{_fmt_shares(sim[k]):>22s}")
+        print(f"  {k + unit:22s}" + "".join(
+            f"{_fmt_shares(c and c[k]):>24s}" for c in columns.values()))
     print("standard deviation of each part (log units where marked; s; Hz):")
     for k in vp.STATS:
-        print(f"  {k:22s} {_fmt_sds(real and real[k]):>26s}   {_fmt_sds(sim[k]):>26s}")
+        print(f"  {k:22s}" + "".join(f"{_fmt_sds(c and c[k]):>28s}" for c in columns.values()))
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -163,12 +165,14 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--no-rf", action="store_true", help="the table only")
     p.add_argument("--variance-only", action="store_true", help="part 3 only")
     p.add_argument("--variance-populations", type=int, default=3)
+    p.add_argument("--variance-difficulties", default="real,people",
+                   help="simulated difficulties beside the real people (comma-separated)")
     args = p.parse_args(argv)
     if not args.variance_only:
         simulator_table(args.populations)
         if not args.no_rf:
             forest_by_difficulty()
-    variance_split(args.variance_populations)
+    variance_split(args.variance_populations, args.variance_difficulties.split(","))
 
 
 if __name__ == "__main__":
