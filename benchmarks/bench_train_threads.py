@@ -14,7 +14,7 @@ On a loaded machine two spinning threads burn CPU that the other thread waits fo
 (FINDINGS of issue 45, section 7: 22x the CPU per step). Skips where the set is absent.
 
 Run: nice -n 10 .venv/bin/python -m benchmarks.bench_train_threads [--model cnn1d]
-     [--epochs 2] [--repeats 2]
+     [--epochs 2] [--repeats 1]
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="bench_train_threads")
     ap.add_argument("--model", default="cnn1d")
     ap.add_argument("--epochs", type=int, default=2)
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=1)
     args = ap.parse_args(argv or [])
     if dev_set() is None:
         print(f"skipped: {skip_reason()}")
