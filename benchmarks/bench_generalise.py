@@ -17,7 +17,7 @@ Run: .venv/bin/python benchmarks/bench_generalise.py [--jobs N] [--rounds R]
        [--models rf cnn1d ...] [--preset full|tiny] [--epochs N] [--options]
        [--set KEY=VALUE ...] [--repeats N --blocks B] [--keep DIR] [--fuse W ...]
        [--participants N] [--adapt [person|person-condition]] [--surfaces FLAT PILLOW]
-       [--difficulty easy|real|hard] [--augment SPEC [--augment-copies N]]
+       [--difficulty easy|real|people|hard] [--augment SPEC [--augment-copies N]]
        [--extra-gestures NAME ...] [--first-person K]
 (--rounds R: each model's median over R rounds, every round listed;
 --options: the generalisation options of docs/learning/learners.md on top: augment all x2,

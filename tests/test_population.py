@@ -21,11 +21,19 @@ from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_ex
 from tactile_studio.sensor.decode import compute_baseline, decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate import SensorSimulator, SimConfig, Style, TrialParams
-from tactile_studio.simulate.population import DIFFICULTIES, person, population, trial_params
+from tactile_studio.simulate.population import (
+    DIFFICULTIES,
+    GESTURE_NAMES,
+    gesture_force,
+    person,
+    population,
+    trial_params,
+)
 
 
 def test_default_is_real_and_bad_settings_are_refused():
-    assert SimConfig().difficulty == "real" and set(DIFFICULTIES) == {"easy", "real", "hard"}
+    assert SimConfig().difficulty == "real" and set(DIFFICULTIES) == {"easy", "real", "hard",
+                                                                       "people"}
     with pytest.raises(UserError, match="difficulty"):
         SensorSimulator(difficulty="impossible")
     with pytest.raises(UserError, match="surface"):
@@ -49,6 +57,24 @@ def test_people_differ_more_at_higher_difficulty():
     who = person(7, population("real"))
     assert who == person(7, population("real"))  # fixed by the style seed
     assert 1 <= who.fingers <= 3 and 0.3 <= who.shear_gain <= 0.6
+
+
+def test_people_share_a_force_per_gesture_and_drag_each_gesture_their_own_way():
+    """``people`` (issue 45): on the five real people gestures differ ~2x in force and a
+    person's shear/normal balance depends on the gesture; ``real`` draws neither (its
+    people stay bit for bit as the suite pins them)."""
+    people, real = population("people"), population("real")
+    factors = [gesture_force(g, people) for g in GESTURE_NAMES]
+    assert np.std(np.log(factors)) > 0.3 and len(set(factors)) == len(factors)
+    assert all(gesture_force(g, real) == 1.0 for g in GESTURE_NAMES)
+    a, b = person(7, people), person(8, people)
+    assert set(a.drag) == set(GESTURE_NAMES) and a.drag != b.drag
+    assert person(7, real).drag == {}
+    # the gesture's factor reaches the performance's force (the same draw otherwise:
+    # what is left after the person's interpretation and the gesture's factor is equal)
+    left = [trial_params(np.random.default_rng(1), g, 7, 1.0, 1.0, "people").force
+            / a.interpretation[g][0] / gesture_force(g, people) for g in ("Poke", "Tickle")]
+    assert left[0] == pytest.approx(left[1], rel=1e-9)
 
 
 def _poke(**cfg) -> np.ndarray:
