@@ -255,7 +255,7 @@ def adjust(contacts: Contacts, style_seed: int, difficulty: str, surface: str,
     if pop.name != "easy" and c.n_patches:
         who = person(style_seed, pop)
         g = who.shear_gain * (1.0 - pop.shear_track)
-        drag = pop.press_drag * who.shear_gain / max(np.mean(pop.shear_gain), 1e-9)
+        drag = pop.press_drag * who.shear_gain / max(float(np.mean(pop.shear_gain)), 1e-9)
         if who.drag:  # this person's own drag in this gesture (issue 45)
             drag *= who.drag.get(gesture, 1.0)
             g *= who.drag.get(gesture, 1.0)

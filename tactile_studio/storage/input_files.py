@@ -9,6 +9,7 @@ import bz2
 import gzip
 import hashlib
 import lzma
+import os
 import threading
 import zlib
 from collections import Counter
@@ -54,13 +55,13 @@ def compression(path: str | Path) -> str:
     return found[0] if found else ""
 
 
-def plain_name(path: str | Path) -> str:
+def plain_name(path: str | os.PathLike[str]) -> str:
     """The file's name without an archive suffix: ``P08_FLAT.csv.xz`` -> ``P08_FLAT.csv``."""
     name = Path(path).name
     return name[:-len(Path(name).suffix)] if compression(name) else name
 
 
-def plain_stem(path: str | Path) -> str:
+def plain_stem(path: str | os.PathLike[str]) -> str:
     """The stem of :func:`plain_name`: ``P08_FLAT.csv.xz`` -> ``P08_FLAT`` (what an
     import names its output after, as for the uncompressed file)."""
     return Path(plain_name(path)).stem

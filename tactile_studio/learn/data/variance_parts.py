@@ -20,7 +20,6 @@ between soft and hard pressers).
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Any
 
 import numpy as np
 
@@ -98,6 +97,6 @@ def shares(parts: dict[str, float]) -> dict[str, float]:
     return {p: parts[p] / total for p in PARTS}
 
 
-def mean_parts(tables: Sequence[dict[str, dict[str, Any]]]) -> dict[str, dict[str, float]]:
+def mean_parts(tables: Sequence[dict[str, dict[str, float]]]) -> dict[str, dict[str, float]]:
     """Several populations' tables averaged part by part (variances, then SDs from them)."""
     return {k: {p: float(np.mean([t[k][p] for t in tables])) for p in PARTS} for k in STATS}

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import io
 import itertools
+import os
 import re
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -73,7 +74,7 @@ def _columns(path: Path, what: str, names: list[str], roles: dict[str, Sequence[
     return found, chans[0], chans[-1] + 1
 
 
-def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
+def read_table(path: str | os.PathLike[str], what: str, roles: Mapping[str, Sequence[str]],
                required: Sequence[str], headerless: Callable[[int], list[str] | None],
                n_channels: Sequence[int], progress: ProgressFn | None = None,
                cancel: CancelToken | None = None, digest: bool = False) -> Table:
