@@ -19,7 +19,12 @@ from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.cli.tables import table
 from tactile_studio.errors import UserError
-from tactile_studio.protocol.quality import QualitySettings, describe, trial_flags
+from tactile_studio.protocol.quality import (
+    QualitySettings,
+    describe,
+    quality_settings,
+    trial_flags,
+)
 from tactile_studio.protocol.trial_check import (
     DEFAULT_THRESHOLD,
     DEFAULT_TOP_K,
@@ -27,7 +32,7 @@ from tactile_studio.protocol.trial_check import (
     TrialChecker,
     unknown_gestures,
 )
-from tactile_studio.storage.protocol_file import Protocol
+from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trial_number
 
@@ -121,14 +126,22 @@ def cmd_qc(args: argparse.Namespace) -> int:
     return 0
 
 
+def session_protocol(s: Session) -> Protocol | None:
+    """The protocol a collection stored (its [quality] and forces), None for imports."""
+    try:
+        return protocol_from_dict(s.metadata["protocol_spec"], "protocol_spec",
+                                  check_images=False)
+    except (KeyError, UserError):
+        return None
+
+
 def session_rows(s: Session, path: Path, checks: Any) -> list[dict[str, Any]]:
     """One row per trial (practice and discarded ones left out) of session ``s``."""
     participant = str(s.metadata.get("participant") or path.stem)
     check = checks.for_participant(participant)
-    spec = s.metadata.get("protocol_spec") or {}
-    settings = QualitySettings(
-        min_contact_fraction=float(spec.get("min_contact_fraction", 0.03) or 0.03),
-        centre_fraction=float(spec.get("centre_fraction", 0.7) or 0.7))
+    protocol = session_protocol(s)
+    settings = quality_settings(protocol) if protocol else QualitySettings()
+    forces = {g.name: g.force for g in protocol.gestures} if protocol else {}
     rows = []
     for t in s.trials:
         if int(t.get("block", 0)) < 0 or t.get("status", "ok") == "discarded":
@@ -140,9 +153,9 @@ def session_rows(s: Session, path: Path, checks: Any) -> list[dict[str, Any]]:
         dev_t = s.column("device_time", start, stop)
         span = float(dev_t[-1] - dev_t[0])
         rate = (stop - start - 1) / span if span > 0 else 43.0
-        flags = trial_flags(s.layout, raw, base, device_time=dev_t, rate_hz=rate,
-                            settings=settings)
         prompted = str(t.get("gesture"))
+        flags = trial_flags(s.layout, raw, base, device_time=dev_t, rate_hz=rate,
+                            settings=settings, force=forces.get(prompted))
         v = check.check(s.layout, raw, base, rate, prompted)
         stored = v.stored("") if v is not None else None
         if v is not None and v.flagged:
