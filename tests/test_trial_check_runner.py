@@ -5,6 +5,7 @@ redo prompt and the trial-ended event; Redo and Keep are stored as the decision.
 from __future__ import annotations
 
 from pathlib import Path
+
 from check_fixtures import ContactShare
 from collect_fixtures import do_trial, make_rig, mini_protocol, start
 
