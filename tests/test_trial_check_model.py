@@ -100,3 +100,39 @@ def test_qc_refuses_sessions_that_share_no_gesture_with_the_model(run, tmp_path)
     assert proc.returncode == 1
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "share no gesture" in lines[0], proc.stderr
+
+
+def _forced_protocol(folder: Path) -> Path:
+    """shear9 with every gesture declared ``force = "natural"`` (and no images)."""
+    from tactile_studio.storage.protocol_file import load_protocol
+
+    folder.mkdir(parents=True, exist_ok=True)
+    lines = ['name = "force9"', "trial_s = 2.0", "blocks = 5", "free_play_s = 0.0"]
+    for g in load_protocol("shear9").gestures:
+        lines += ["[[gestures]]", f"name = {json.dumps(g.name)}", f'key = "{g.key}"',
+                  f"definition = {json.dumps(g.definition)}", 'force = "natural"']
+    path = folder / "force9.toml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_light_and_off_centre_trials_are_flagged_by_the_signal_checks(tmp_path):
+    proc = subprocess.run(
+        [EXE, "collect", "--protocol", str(_forced_protocol(tmp_path / "p")), "--participant",
+         "P01", "--device", "simulated", "--virtual-participant", "--speed", "0", "--out",
+         str(tmp_path / "out"), "--set", "light=0.3", "--set", "off_centre=0.3", "--set",
+         "difficulty=easy"],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
+        trials = [t for t in s.trials if t["block"] >= 0]
+    light = [t for t in trials if "; light" in t["performed"]]
+    off = [t for t in trials if "off centre" in t["performed"]]
+    assert len(light) >= 8 and len(off) >= 8
+    # too light: no contact at all, or under the natural force's range
+    assert sum(bool({"no_contact", "too_light"} & set(t["flags"])) for t in light) \
+        >= 0.85 * len(light)
+    assert sum("off_centre" in t["flags"] or "no_contact" in t["flags"] for t in off) \
+        >= 0.85 * len(off)
+    honest = [t for t in trials if ";" not in t["performed"]]
+    assert sum(bool(t["flags"]) for t in honest) <= 0.15 * len(honest)

@@ -54,7 +54,7 @@ FLAG_TEXT = {
 # a gesture's declared force -> the range of the trial's force (kPa) it may have. The real
 # corpus: 90th-percentile peak normal 6.65 kPa per person [2.88-12.97] (docs/trial-check.md)
 FORCE_RANGES_KPA: dict[str, tuple[float, float]] = {
-    "light": (0.0, 6.0), "natural": (2.0, 20.0), "heavy": (5.0, 60.0)}
+    "light": (0.0, 6.0), "natural": (2.0, 30.0), "heavy": (5.0, 60.0)}
 
 
 @dataclass(frozen=True)
@@ -116,7 +116,8 @@ def _load_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
     stress of a touched trial."""
     out: set[str] = set()
     normal = np.asarray(decode(layout, raw, baseline).normal, dtype=np.float64)  # (T, R, C)
-    if _dead_taxel(normal.max(axis=0), s.dead_share):
+    # pressed means above the noise: 3 kPa on a calibrated (kPa) sensor
+    if _dead_taxel(normal.max(axis=0), s.dead_share, 3.0 if layout.has_shear else 0.0):
         out.add("dead_taxel")
     if force in FORCE_RANGES_KPA and layout.has_shear:  # kPa: a calibrated shear sensor
         lo, hi = FORCE_RANGES_KPA[force]
@@ -133,11 +134,12 @@ def _load_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
     return out
 
 
-def _dead_taxel(peak: np.ndarray, share: float) -> bool:
+def _dead_taxel(peak: np.ndarray, share: float, pressed_min: float) -> bool:
     """A taxel whose peak stays under ``share`` of the mean peak of its pressed
-    4-neighbours (at least three of them, each clearly pressed)."""
+    4-neighbours (at least three of them, each clearly pressed: a quarter of the trial's
+    peak and at least ``pressed_min``)."""
     rows, cols = peak.shape
-    strong = 0.25 * float(peak.max())
+    strong = max(0.25 * float(peak.max()), pressed_min)
     if strong <= 0:
         return False
     for r in range(rows):

@@ -52,8 +52,8 @@ SIM_EQUIVALENT: dict[str, tuple[str | None, float, float]] = {
     "constant touch": ("Constant Touch", 1.0, 1.0), "scratch": ("Tickle", 1.2, 1.5),
     "tickle": ("Tickle", 1.0, 1.0), "no touch": (None, 0.0, 1.0),
 }
-LIGHT_FACTOR = 0.12   # a "too light" trial: this share of the person's usual force
-OFF_CENTRE_MM = 30.0  # an off-centre trial: this far from their spot along x and y
+LIGHT_FACTOR = 0.05   # a "too light" trial: this share of the person's usual force
+OFF_CENTRE_MM = 40.0  # an off-centre trial: this far from their spot along x and y
 _FALLBACK = ("Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
              "Circular Stroke", "Constant Touch", "Tickle")
 
