@@ -83,7 +83,8 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--folds", type=int, default=10, help="k for group-kfold")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None,
-                   help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
+                   help="CPU threads of the training (torch, OpenMP; default 1: more "
+                        "threads spin-wait on a busy machine, docs/learning/training-time.md)")
     p.add_argument("--window", dest="window_s", type=finite_float, default=None, metavar="SECONDS",
                    help="trials longer than 1.5 windows are cut into windows this long "
                         "(default: the protocol's trial length, else 2 s)")
