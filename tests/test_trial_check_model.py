@@ -136,3 +136,15 @@ def test_light_and_off_centre_trials_are_flagged_by_the_signal_checks(tmp_path):
         >= 0.85 * len(off)
     honest = [t for t in trials if ";" not in t["performed"]]
     assert sum(bool(t["flags"]) for t in honest) <= 0.15 * len(honest)
+
+
+def test_a_model_that_is_not_there_is_one_line_before_anything_is_recorded(tmp_path):
+    for cmd in (["collect", "--protocol", "shear9", "--participant", "P01",
+                 "--virtual-participant", "--out", str(tmp_path / "out"), "--qc-model"],
+                ["qc", str(tmp_path / "none.h5"), "--model"]):
+        proc = subprocess.run([EXE, *cmd, str(tmp_path / "no-run")], capture_output=True,
+                              text=True, timeout=120)
+        assert proc.returncode == 1
+        assert proc.stderr.strip().splitlines() == [
+            f"tactile-studio: error: {tmp_path / 'no-run'}: no such run folder or exported model"]
+    assert not (tmp_path / "out").exists()

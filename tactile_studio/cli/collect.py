@@ -172,10 +172,9 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
-    if getattr(args, "qc_model", None):  # checked now: a wrong model is one line here
-        qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold)
-        options.update(qc_model=str(Path(args.qc_model).resolve()), qc_top_k=args.qc_top_k,
-                       qc_threshold=args.qc_threshold)
+    if getattr(args, "qc_model", None):  # the console remembers its model per study
+        raise UserError("--qc-model checks a headless collection (--virtual-participant); "
+                        "the console chooses its check model in its setup")
     if getattr(args, "markers", None):
         options["markers"] = list(args.markers)  # the console's recording takes them in
     if getattr(args, "silence_warning", None) is not None:
