@@ -148,3 +148,18 @@ def test_a_model_that_is_not_there_is_one_line_before_anything_is_recorded(tmp_p
         assert proc.stderr.strip().splitlines() == [
             f"tactile-studio: error: {tmp_path / 'no-run'}: no such run folder or exported model"]
     assert not (tmp_path / "out").exists()
+
+
+def test_an_exported_model_checks_with_its_own_fold(run, tmp_path):
+    from tactile_studio.cli import main
+    from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
+
+    assert main(["export-model", str(run), "--format", "onnx"]) == 0
+    exported = sorted((run / "export").glob("*.onnx"))
+    last = exported[-1]  # r0-P04.onnx: the fold that left P04 out
+    check = ModelTrialCheck(last, participant="P01")
+    assert check.model.record["test_participants"] == ["P04"] and not check.out_of_fold
+    proc = subprocess.run([EXE, "qc", str(run.parent / "data" / "P02.h5"), "--model",
+                           str(last), "--json"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert {r["model"] for r in json.loads(proc.stdout)} == {check.describe()["model"]}
