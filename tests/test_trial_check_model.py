@@ -163,3 +163,18 @@ def test_an_exported_model_checks_with_its_own_fold(run, tmp_path):
                            str(last), "--json"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert {r["model"] for r in json.loads(proc.stdout)} == {check.describe()["model"]}
+
+
+def test_the_check_is_personalised_with_the_first_block(run, tmp_path):
+    proc = subprocess.run(
+        [EXE, "collect", "--protocol", "shear9", "--participant", "P08", "--device",
+         "simulated", "--virtual-participant", "--blocks", "2", "--speed", "0", "--out",
+         str(tmp_path), "--set", "difficulty=easy", "--qc-model", str(run),
+         "--qc-personalise"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "personalised with 9 trials of the first block" in proc.stderr
+    with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
+        events = [e for e in s.events if e["kind"] == "trial_check_personalised"]
+        models = {t["block"]: t["check"]["model"] for t in s.trials if t["block"] >= 0}
+    assert len(events) == 1 and events[0]["trials"] == 9
+    assert not models[0].endswith("own trials") and models[1].endswith("+9 own trials")

@@ -100,7 +100,8 @@ class ModelTrialCheck:
 
     def describe(self) -> dict[str, Any]:
         d = self.model.describe()
-        return {"model": f"{self.model.run.name}/{d['fold']}", "run": d["run"],
+        own = f"+{self.personalised_on} own trials" if self.personalised_on else ""
+        return {"model": f"{self.model.run.name}/{d['fold']}{own}", "run": d["run"],
                 "family": d["model"], "fold": d["fold"],
                 "version": str(self.model.record.get("version", "")),
                 "top_k": self.top_k, "threshold": self.threshold,
