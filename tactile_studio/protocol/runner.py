@@ -19,13 +19,15 @@ from collections.abc import Callable
 from typing import Any
 
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
+from tactile_studio.errors import UserError
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
-from tactile_studio.protocol.quality import QualitySettings, describe
+from tactile_studio.protocol.quality import describe, quality_settings
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
-from tactile_studio.protocol.trial_record import measure_trial
+from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker
+from tactile_studio.protocol.trial_record import TrialMeasure, measure_trial
 from tactile_studio.storage.protocol_file import Protocol
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
@@ -37,18 +39,25 @@ class CollectionRunner(RunnerInputs):
     def __init__(self, protocol: Protocol, engine: FrameStream, recorder: Recorder,
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                 hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None
-                 ) -> None:
+                 hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None,
+                 trial_check: TrialChecker | None = None,
+                 personalise_check: bool = False) -> None:
         self.protocol, self.engine, self.recorder = protocol, engine, recorder
         self.participant = participant
         self.orders = [list(o) for o in orders]
         self.clock: Clock = clock or time.monotonic
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
+        # the model check of each finished trial (protocol/trial_check.py), None: off
+        self.trial_check = trial_check
+        # personalise the check with the first block's trials when it ends (a checker
+        # with ``personalise``): their frames, kept until then, by trial index
+        self._shots: dict[int, tuple[Any, Any, str]] | None = (
+            {} if personalise_check and hasattr(trial_check, "personalise") else None)
+        self._shots_block: int | None = None
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
-        self.quality = QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
-                                       centre_fraction=protocol.centre_fraction)
+        self.quality = quality_settings(protocol)
         self._plan = BlockPlan(self.orders, list(practice or []), len(protocol.gestures),
                                protocol.break_every)
         self.records: list[TrialRecord] = []
@@ -214,15 +223,20 @@ class CollectionRunner(RunnerInputs):
         self._enter_block()
 
     def _enter_block(self) -> None:
+        if self._shots is not None and self._shots_block is not None \
+                and self.block > self._shots_block:
+            self._personalise_check()
         self._log("block_start", block=self.block)
         self._emit("block", block=self.block)
         self._set_state(State.BLOCK_START)
 
-    def _begin_trial(self, gesture: str, key: str, start: int) -> None:
+    def _begin_trial(self, gesture: str, key: str, start: int,
+                     performed: str | None = None) -> None:
         self.hint = ""
         self._redo_for = None
         self._current = {
             "gesture": gesture, "key": key, "block": self.block, "start": start,
+            "performed": performed,
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
             "event_cursor": self.engine.event_count,
         }
@@ -252,23 +266,61 @@ class CollectionRunner(RunnerInputs):
         n = self.trial_frames
         self.recorder.catch_up()  # the trial's rows into the file, and its losses counted
         m = measure_trial(self.engine, cur["start"], n, self.rate, self.quality,
-                          cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
+                          cur["event_cursor"], self.recorder.dropped - cur["dropped0"],
+                          self.protocol.gesture_by_name(cur["gesture"]).force)
         end = cur["end"]
         self._hold(lambda: end, keys_from=end)  # the next key may name any frame from here
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
         again = self._again_for.pop((cur["block"], cur["gesture"]), None)
+        check = None if practice else self._model_check(m, cur["gesture"])
+        flags = [*m.flags, MISMATCH_FLAG] if check and check["flagged"] else m.flags
         record = TrialRecord(
             index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
             key=cur["key"], start_sample=row0, end_sample=row0 + n,
             start_time=m.start_time, end_time=m.end_time,
             status=TrialStatus.DISCARDED if practice else TrialStatus.OK,
-            reason="practice" if practice else again, flags=tuple(m.flags))
+            reason="practice" if practice else again, flags=tuple(flags), check=check,
+            performed=cur.get("performed"))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
+        if self._shots is not None and not practice and m.raw is not None \
+                and self._shots_block in (None, record.block):
+            self._shots_block = record.block  # the first block this run collects
+            self._shots[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
+
+    def _model_check(self, m: TrialMeasure, prompted: str) -> dict[str, Any] | None:
+        """The trial's stored ``check`` by the model check (None: no check, no baseline,
+        or a gesture the model does not know). It runs here, at the tick that ends the
+        trial (the GUI's timer or the headless loop, never the acquisition thread), so
+        its verdict is on the trial the moment the trial is written."""
+        if self.trial_check is None or m.raw is None or self.engine.baseline is None:
+            return None
+        v = self.trial_check.check(self.engine.layout, m.raw, self.engine.baseline,
+                                   self.rate, prompted)
+        return None if v is None else v.stored(str(self.trial_check.describe()["model"]))
+
+    def _personalise_check(self) -> None:
+        """Fit the check to this participant with their first block's usable trials
+        (research decision 5: the few-shot route); a failure is an event and a hint, the
+        session goes on with the check as it was."""
+        shots, self._shots = self._shots or {}, None
+        usable = [shots[t.index] for t in self.records if t.index in shots and t.ok]
+        # it takes seconds: a stream that waits for its readers must not run a ring ahead
+        # meanwhile (the next trial's frames would be gone before its key names them)
+        self._hold(lambda: self._tick_frame, self._lead)
+        try:
+            n = self.trial_check.personalise(self.engine.layout, usable, self.rate)
+        except UserError as exc:
+            self._log("trial_check_personalised", trials=0, error=str(exc))
+            self._refuse(f"the check could not be personalised: {exc}")
+            return
+        model = str(self.trial_check.describe()["model"])
+        self._log("trial_check_personalised", trials=n, model=model)
+        self._emit("check_personalised", trials=n, model=model)
 
     def _drop_current(self) -> None:
         """Forget the running trial and let the stream go on without it."""
@@ -312,7 +364,8 @@ class CollectionRunner(RunnerInputs):
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
         self._redo_for = rec.index if rec.flagged else None
-        self._emit("trial_ended", trial=rec.to_dict())
+        self._emit("trial_ended", trial=rec.to_dict(), flags=list(rec.flags),
+                   reason=describe(list(rec.flags), rec.check))
 
     def _after_trial(self) -> None:
         if self._plan.remaining():
@@ -404,7 +457,7 @@ class CollectionRunner(RunnerInputs):
         t = next((t for t in self.records if t.index == self._redo_for), None)
         if t is None or not t.flagged:
             return ""
-        return f"Trial {t.index + 1} ({t.gesture}): {describe(list(t.flags))} - redo?"
+        return f"Trial {t.index + 1} ({t.gesture}): {describe(list(t.flags), t.check)} - redo?"
 
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:

@@ -79,6 +79,8 @@ class ExperimentConfig:
     threads: int | None = None           # CPU threads (None: experiment.TRAIN_THREADS, one)
     cache_dir: str | None = None
     use_cache: bool = True
+    # leave out trials the collection flagged (signal or model checks; issue 46)
+    exclude_flagged: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -339,7 +339,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                            config.device, model_spec)
     if dataset is None:
         ds = build_dataset(config.data, config.grid, config.channels, config.cache_dir,
-                           config.use_cache, lambda f, m: progress(0.05 * f, m), cancel)
+                           config.use_cache, lambda f, m: progress(0.05 * f, m), cancel,
+                           config.exclude_flagged)
     else:
         ds = dataset if config.channels in (None, dataset.channels) else \
             dataset.select(config.channels)

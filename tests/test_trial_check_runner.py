@@ -1,0 +1,74 @@
+"""The runner's model check (issue 46): each finished trial is scored by the session's
+TrialChecker; a flagged verdict adds ``model_mismatch`` with its reason to the trial, the
+redo prompt and the trial-ended event; Redo and Keep are stored as the decision."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from check_fixtures import ContactShare
+from collect_fixtures import do_trial, make_rig, mini_protocol, start
+
+from tactile_studio.protocol.randomise import block_orders
+from tactile_studio.protocol.trial_check import TrialChecker
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.trial_checks import check_problems
+
+
+def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -> None:
+    protocol = mini_protocol(3)
+    order = block_orders(protocol, "P01", 0)[0]
+    checker = ContactShare(protocol.gesture_names, unknown=order[-1])  # the block's last
+    assert isinstance(checker, TrialChecker)
+    rig = make_rig(tmp_path, protocol, hold_flagged=True, trial_check=checker)
+    r = rig.runner
+    ended: list[dict] = []
+    r.add_listener(lambda e: ended.append(e) if e["kind"] == "trial_ended" else None)
+    try:
+        start(rig)
+        g0 = r.snapshot().remaining[0]
+        t0 = do_trial(rig, g0, perform=False)
+        assert "model_mismatch" in t0["flags"]
+        assert t0["check"]["model"] == "contact-share" and t0["check"]["flagged"]
+        assert t0["check"]["reason"].startswith("looks like nothing (")
+        assert ended[-1]["flags"] == t0["flags"]
+        assert t0["check"]["reason"] in ended[-1]["reason"]
+        assert t0["check"]["reason"] in r.redo_prompt
+        assert r.redo_last()
+        t0_after = r.trials[0]
+        assert t0_after["status"] == "redone" and t0_after["decision"] == "redo"
+        t1 = do_trial(rig, g0)
+        assert "model_mismatch" not in t1["flags"] and not t1["check"]["flagged"]
+        # a flagged trial kept: Continue while the redo prompt asks
+        g = r.snapshot().remaining[0]
+        assert g in checker.known
+        t2 = do_trial(rig, g, perform=False)
+        assert "model_mismatch" in t2["flags"]
+        assert r.proceed()
+        kept = r.trials[-1]
+        assert kept["decision"] == "keep" and kept["flags"] == t2["flags"]
+    finally:
+        rig.close()
+    with Session(rig.session.path) as s:
+        assert s.metadata["trial_check"]["model"] == "contact-share"
+        assert s.metadata["trial_check"]["not_scored"] == [order[-1]]
+        assert [t.get("decision") for t in s.trials[:1]] == ["redo"]
+        assert s.trials[-1]["decision"] == "keep"
+        assert all(not check_problems(t) for t in s.trials)
+
+
+def test_unknown_gestures_are_not_scored(tmp_path: Path) -> None:
+    protocol = mini_protocol(3)
+    checker = ContactShare(protocol.gesture_names, unknown=protocol.gesture_names[0])
+    rig = make_rig(tmp_path, protocol, trial_check=checker)
+    r = rig.runner
+    try:
+        start(rig)
+        seen = []
+        for _ in range(3):
+            g = r.snapshot().remaining[0]
+            seen.append((g, do_trial(rig, g)))
+    finally:
+        rig.close()
+    for g, t in seen:
+        assert ("check" in t) == (g in checker.known)
