@@ -10,11 +10,13 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, QTimer
 from test_ui_collect import MINI, WAIT_MS, click, make_console, snap
 
 from tactile_studio.cli import main
+from tactile_studio.protocol.quality import QualitySettings
 from tactile_studio.protocol.snapshot import State
+from tactile_studio.sensor.decode import contact_taxels
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import select_sessions
 
@@ -43,6 +45,14 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
         "Touches: a virtual participant, on the simulated sensor"
     assert console.virtual is not None and snap(console).state == State.SETUP  # yours to start
     device = console.engine.device
+
+    def pause_after_the_fourth(event: dict) -> None:
+        # the experimenter's Pause as trial 4 ends (it takes effect after the trial): a
+        # poll of the state could miss the moment between trials on a loaded machine
+        if event["kind"] == "trial_ended" and event["trial"]["index"] == 3:
+            QTimer.singleShot(0, lambda: click(qtbot, console, "pause"))
+
+    console.runner.add_listener(pause_after_the_fourth)
     click(qtbot, console, "primary")  # Start
     paused = False
     deadline = time.monotonic() + 4 * WAIT_MS / 1000  # a safety net, never a timing check
@@ -51,9 +61,8 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
         now = snap(console)
         if now.state in (State.BREAK, State.REVIEW) and console.buttons["primary"].isEnabled():
             click(qtbot, console, "primary")  # (enabled by the console's own tick)
-        elif not paused and len(now.trials) == 4 and now.state == State.WAITING:
-            click(qtbot, console, "pause")  # a pause mid-block: it waits, then goes on
-            qtbot.waitUntil(lambda: snap(console).state == State.PAUSED, timeout=WAIT_MS)
+        elif not paused and now.state == State.PAUSED:  # a pause mid-block: it waits, goes on
+            assert len(now.trials) == 4 and now.paused_state == State.WAITING
             frames = console.engine.frames
             qtbot.waitUntil(lambda: console.engine.frames > frames + 40, timeout=WAIT_MS)
             click(qtbot, console, "pause")  # Resume
@@ -66,10 +75,20 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     with Session(path) as f:
         trials, meta = f.trials, f.metadata
     assert meta["pilot"] is True and len(trials) == 6
-    assert not any("no_contact" in t["flags"] for t in trials), trials  # someone touched
-    for t in trials:  # ...with the prompted gesture, during its trial (the ground truth)
-        middle = (t["start_sample"] + t["end_sample"]) // 2
+    for t in trials:  # someone touched, with the prompted gesture, during its trial
+        middle = (t["start_sample"] + t["end_sample"]) // 2  # (the simulator's ground truth)
         assert device.gesture_at(middle) == t["gesture"], t
+    # ...and a trial is flagged no_contact only if its own rows hold no contact: the
+    # participant reacts in real time, so which performances it draws depends on when it
+    # saw the prompt, and a short Tickle of this style is too light to register in ~4% of
+    # draws (a person's too), so "no trial flagged" was a lottery the load drew (the touch
+    # and its trial coincided, the rows held no contact)
+    with Session(path) as f:
+        for t in trials:
+            rows = f.raw(t["start_sample"], t["end_sample"])
+            touched = contact_taxels(console.engine.layout, rows, f.baseline(t["start_sample"]),
+                                     QualitySettings().contact_rel).any()
+            assert ("no_contact" in t["flags"]) == (not touched), t
     assert console.participant.view.pilot and console.pilot_banner.isVisibleTo(console)
 
 

@@ -108,6 +108,29 @@ def test_as_fast_as_possible_waits_for_the_recorder_instead_of_lapping_the_ring(
         assert len(seq) >= 3000 if device == "simulated" else len(seq) == len(raw)
 
 
+def test_a_file_ended_at_a_frame_keeps_its_frames_however_far_the_stream_runs_on(tmp_path):
+    """A collection ends its file at a frame (``end_at``) and lets the stream go; at
+    speed 0 the simulator then laps a 128-frame ring many times before the file closes.
+    The lap is after the file's end: no overrun of the file. Counted at every pull, it
+    was a loss twice over and cut the file to 0 rows (an aborted collection, under load)."""
+    engine = AcquisitionEngine(create_device("simulated", {"seed": "3", "speed": "0"}),
+                               capacity=128, baseline_frames=10)
+    rec = Recorder(engine, tmp_path / "ended.h5").start()
+    rec.end_at(100)
+    engine.start()
+    try:
+        wait_until(lambda: engine.frames > 100 + 10 * 128, 30.0, what="the stream to run on")
+        for _ in range(3):  # the polls of a loaded machine (the background one's too)
+            rec.catch_up()
+    finally:
+        engine.stop()
+        rec.stop()
+    with Session(tmp_path / "ended.h5") as c:
+        assert c.n_frames == 100 and np.array_equal(c.column("seq"), np.arange(100))
+        assert "overrun" not in [e["kind"] for e in c.events]
+        assert c.journal.counters["dropped"] == 0
+
+
 def test_a_real_time_device_is_not_held_back_by_a_slow_reader():
     # the counting device streams at its own pace: a hold cannot slow it, so a reader
     # that never reads loses frames (which it counts) while the device runs on

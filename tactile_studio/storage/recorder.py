@@ -385,25 +385,7 @@ class Recorder:
                 self.write_error = str(exc)
 
     def _drain_locked(self) -> None:
-        limit = None if self._end is None else max(0, self._end - self._cursor)
-        chunk = self.engine.read_since(self._cursor, limit)
-        if chunk.lost:
-            self._losses.append((chunk.start - chunk.lost, chunk.start, self.dropped))
-            self.dropped += chunk.lost
-            self.writer.add_event("overrun", lost=chunk.lost)
-        if len(chunk):
-            if self._segment is not None:
-                self._start_segment(float(chunk.device_time[0]))
-            device_time = chunk.device_time
-            if self.device_time_offset:
-                device_time = device_time + self.device_time_offset
-            self.writer.append_frames(chunk.raw, device_time, chunk.host_time,
-                                      chunk.seq, index=np.arange(chunk.start, chunk.stop))
-            self._cursor = chunk.stop
-            self.recorded += len(chunk)
-        if self._end is not None and self._cursor >= self._end:
-            self._release()  # the file is complete: a waiting device may run on
-            self._release = lambda: None
+        self._pull_frames()
         for event in self.engine.events_since(self._event_cursor):
             self._event_cursor += 1
             event = dict(event)
@@ -426,6 +408,41 @@ class Recorder:
             self.writer.set_counters(counters)
             self._counters_written = counters
         self.writer.flush()
+
+    def _pull_frames(self) -> None:
+        """The engine's new frames into the file, up to its end (``end_at``). Once the
+        file is complete nothing more is read: the ring lapping frames after the end is
+        no loss of this file. Read on, the lap was counted as an overrun at every poll
+        (the cursor stays at the end), and the doubled count moved the end's row back
+        to row 0: an aborted collection's file was cut to no frames under load."""
+        end = self._end
+        if end is None or self._cursor < end:
+            self._write_frames(end)
+        if end is not None and self._cursor >= end:
+            self._release()  # the file is complete: a waiting device may run on
+            self._release = lambda: None
+
+    def _write_frames(self, end: int | None) -> None:
+        """Write what the ring holds from the cursor (up to ``end``); a loss is counted
+        for the file's frames only."""
+        chunk = self.engine.read_since(self._cursor,
+                                       None if end is None else end - self._cursor)
+        if chunk.lost:
+            first_kept = chunk.start if end is None else min(chunk.start, end)
+            self._losses.append((self._cursor, chunk.start, self.dropped))
+            self.dropped += first_kept - self._cursor  # the file's frames only
+            self.writer.add_event("overrun", lost=first_kept - self._cursor)
+            self._cursor = first_kept
+        if len(chunk):
+            if self._segment is not None:
+                self._start_segment(float(chunk.device_time[0]))
+            device_time = chunk.device_time
+            if self.device_time_offset:
+                device_time = device_time + self.device_time_offset
+            self.writer.append_frames(chunk.raw, device_time, chunk.host_time,
+                                      chunk.seq, index=np.arange(chunk.start, chunk.stop))
+            self._cursor = chunk.stop
+            self.recorded += len(chunk)
 
     def _write_pending(self, final: bool) -> None:
         """Events at frames pulled by now (``final``: all, the stream has ended)."""
