@@ -172,7 +172,7 @@ def test_check_model_catches_a_cached_claim_the_network_cannot_keep():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [*BUILT_INS, "rf", "knn"])
+@pytest.mark.parametrize("name", [*BUILT_INS, "rf", "et", "knn"])
 def test_every_built_in_model_passes_check_model(name):
     observed = check_model(name)
     assert observed["samples"] >= 18  # 18 synthetic trials, windows give more samples

@@ -13,6 +13,9 @@ Two families, computed on one decoded trial ``(C, N, R, X)`` in physical units:
    (transversal / convergent / divergent / static) with the quantities it is decided
    from.
 
+3. **Touch and shear** (``touch=True``, the forest family's default since issue 45), see
+   :mod:`touch_features`: 122 values appended after the 115 above.
+
 Features depend only on the trial itself (no statistics across trials), so computing
 them before splitting leaks nothing.
 """
@@ -21,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from tactile_studio.learn.data.touch_features import NAMES as TOUCH_NAMES
+from tactile_studio.learn.data.touch_features import touch_features
 from tactile_studio.sensor.gesture_metrics import (  # noqa: F401 - part of this API
     MOVEMENT_TYPES,
     SPECTRAL_NAMES,
@@ -61,8 +66,11 @@ def _signals(x: np.ndarray, channel_names: list[str]) -> dict[str, np.ndarray]:
 
 
 def trial_features(x: np.ndarray, channel_names: list[str], rate: float,
-                   cell_pitch: float = 1.0) -> tuple[np.ndarray, list[str]]:
-    """The feature vector of one trial and the feature names."""
+                   cell_pitch: float = 1.0, touch: bool = False
+                   ) -> tuple[np.ndarray, list[str]]:
+    """The feature vector of one trial and the feature names (``touch``: the touch and
+    shear features appended, in the first 115's order so a model of the 115 reads the
+    first columns)."""
     values: list[float] = []
     names: list[str] = []
     for sig_name, sig in _signals(x, channel_names).items():
@@ -76,14 +84,19 @@ def trial_features(x: np.ndarray, channel_names: list[str], rate: float,
     for m in MOVEMENT_TYPES:
         values.append(1.0 if movement == m else 0.0)
         names.append(f"movement_{m}")
-    return np.nan_to_num(np.array(values, dtype=np.float64)), names
+    out = np.nan_to_num(np.array(values, dtype=np.float64))
+    if touch:
+        out = np.concatenate([out, touch_features(x, channel_names, rate)])
+        names += list(TOUCH_NAMES)
+    return out, names
 
 
 def feature_matrix(trials: list[np.ndarray], channel_names: list[str], rates: np.ndarray,
-                   cell_pitch: float = 1.0) -> tuple[np.ndarray, list[str]]:
+                   cell_pitch: float = 1.0, touch: bool = False
+                   ) -> tuple[np.ndarray, list[str]]:
     """(n_trials, n_features) for a list of trials, plus the feature names."""
     rows, names = [], []
     for x, rate in zip(trials, rates):
-        row, names = trial_features(x, channel_names, float(rate), cell_pitch)
+        row, names = trial_features(x, channel_names, float(rate), cell_pitch, touch)
         rows.append(row)
     return np.vstack(rows), names

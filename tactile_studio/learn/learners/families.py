@@ -207,7 +207,7 @@ class TorchFitted:
 
 
 class BaselineLearner:
-    """rf / knn on handcrafted trial features (learn/learners/baselines.py), saved as ONNX."""
+    """rf / et / knn on handcrafted trial features (learn/learners/baselines.py), saved as ONNX."""
 
     kind = "baseline"
     max_epochs = 1  # not trained by epochs
@@ -237,7 +237,8 @@ class BaselineLearner:
         from tactile_studio.learn.data.features import feature_matrix
 
         pitch = 0.5 if ds.grid == "virtual" else 1.0
-        x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch)
+        x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch,
+                              self.options.get("features") == "touch")
         return x, np.arange(len(ds.trials))
 
     def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
