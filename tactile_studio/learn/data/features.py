@@ -41,12 +41,16 @@ _STATS = ("mean", "std", "min", "max", "p10", "p25", "p50", "p75", "p90", "skew"
 _SPECTRAL = SPECTRAL_NAMES
 
 
-def _stats(sig: np.ndarray) -> list[float]:
-    mean, std = float(sig.mean()), float(sig.std())
-    z = (sig - mean) / std if std > 1e-12 else np.zeros_like(sig)
-    p = np.percentile(sig, [10, 25, 50, 75, 90])
-    return [mean, std, float(sig.min()), float(sig.max()), *map(float, p),
-            float((z ** 3).mean()), float((z ** 4).mean() - 3.0) if std > 1e-12 else 0.0]
+def _stats(sigs: np.ndarray) -> np.ndarray:
+    """(k, n) signals -> (k, 11) statistics (``_STATS``), all signals at once (live
+    inference computes these for every window: one pass instead of one per signal)."""
+    mean, std = sigs.mean(axis=1), sigs.std(axis=1)
+    ok = std > 1e-12
+    z = np.where(ok[:, None], (sigs - mean[:, None]) / np.where(ok, std, 1)[:, None], 0)
+    p = np.percentile(sigs, [10, 25, 50, 75, 90], axis=1)
+    z3 = z ** 3
+    return np.column_stack([mean, std, sigs.min(axis=1), sigs.max(axis=1), *p,
+                            z3.mean(axis=1), np.where(ok, (z3 * z).mean(axis=1) - 3.0, 0.0)])
 
 
 def _signals(x: np.ndarray, channel_names: list[str]) -> dict[str, np.ndarray]:
@@ -73,8 +77,10 @@ def trial_features(x: np.ndarray, channel_names: list[str], rate: float,
     first columns)."""
     values: list[float] = []
     names: list[str] = []
-    for sig_name, sig in _signals(x, channel_names).items():
-        values += _stats(sig) + _spectral(sig, rate)
+    signals = _signals(x, channel_names)
+    stats = _stats(np.stack(list(signals.values()))) if signals else []
+    for (sig_name, sig), row in zip(signals.items(), stats):
+        values += [*map(float, row), *_spectral(sig, rate)]
         names += [f"{sig_name}_{s}" for s in _STATS + _SPECTRAL]
     metrics = gesture_metrics(x, channel_names, rate, cell_pitch)
     movement = metrics.pop("movement")
