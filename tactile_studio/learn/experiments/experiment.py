@@ -48,7 +48,6 @@ from tactile_studio.learn.experiments.config import (  # noqa: F401 (its home, r
 )
 from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
-from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fused import (
@@ -266,16 +265,12 @@ def prepare_inputs(learner, ds: TrialDataset, config: ExperimentConfig):
 
 def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
     """Round ``round_``'s folds (seed ``config.seed + round_``), validation by
-    participant when ``config.val_by`` asks for it. rf / et / knn have no use for a
-    validation share (nothing stops early), so theirs trains with the rest: they fit on
-    all the training people's trials (before issue 45 they left 15% unused)."""
+    participant when ``config.val_by`` asks for it."""
     seed = config.seed + round_
     folds = make_folds(config.protocol, ds.labels, ds.participants, seed, config.folds,
                        config.heldout_fraction, config.val_fraction, config.split)
     if config.val_by == "participant":
         folds = [participant_val(f, ds.participants, config.val_fraction, seed) for f in folds]
-    if config.model in BASELINES:  # nothing stops early: the validation share trains too
-        folds = [replace(f, train=np.union1d(f.train, f.val), val=f.val[:0]) for f in folds]
     if config.shots:
         folds = with_shots(folds, ds.labels, tuple(sorted(config.shots)), seed)
     return folds
