@@ -114,5 +114,6 @@ def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, nam
     outputs = predictor.push_many(trial.transpose(1, 0, 2, 3))
     assert len(outputs) == 1
     np.testing.assert_allclose(outputs[0], model.predict_trial(trial, float(ds.rates[0])))
-    x_one, _ = feature_matrix([trial], ds.channel_names, ds.rates[:1])
+    x_one, _ = feature_matrix([trial], ds.channel_names, ds.rates[:1],
+                              touch=model.options["features"] == "touch")
     np.testing.assert_allclose(outputs[0], model.predict_proba(x_one)[0])

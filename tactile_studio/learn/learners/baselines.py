@@ -182,8 +182,9 @@ class BaselineModel:
 
         names = json.loads(self.metadata.get("channel_names", "[]"))
         pitch = float(self.metadata.get("cell_pitch", 1.0))
-        vec, _ = trial_features(trial, names, rate, pitch,
-                                self.options.get("features") == "touch")
+        # the file says which features it reads (its options; none: the 115 of old files)
+        touch = json.loads(self.metadata.get("options") or "{}").get("features") == "touch"
+        vec, _ = trial_features(trial, names, rate, pitch, touch)
         return self.predict_proba(vec[None])[0]
 
     # ---- persistence: the ONNX file itself -------------------------------------------
