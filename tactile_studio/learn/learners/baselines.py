@@ -234,18 +234,11 @@ class BaselineModel:
 
 
 def _estimator(name: str, o: dict[str, Any], n_train: int, seed: int) -> Any:
-    if name == "et":
-        from sklearn.ensemble import ExtraTreesClassifier
+    if name in ("rf", "et"):
+        from sklearn.ensemble import ExtraTreesClassifier, RandomForestClassifier
 
-        return ExtraTreesClassifier(
-            n_estimators=o["n_estimators"], max_depth=o["max_depth"] or None,
-            min_samples_leaf=o["min_samples_leaf"],
-            max_features=None if o["max_features"] == "all" else o["max_features"],
-            random_state=seed, n_jobs=1)
-    if name == "rf":
-        from sklearn.ensemble import RandomForestClassifier
-
-        return RandomForestClassifier(
+        forest = RandomForestClassifier if name == "rf" else ExtraTreesClassifier
+        return forest(
             n_estimators=o["n_estimators"], max_depth=o["max_depth"] or None,
             min_samples_leaf=o["min_samples_leaf"],
             max_features=None if o["max_features"] == "all" else o["max_features"],
