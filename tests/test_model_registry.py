@@ -97,7 +97,7 @@ def test_register_model_adds_a_name_everywhere_and_rejects_clashes(registered):
     assert "cnn1d_copy" not in MODELS
     with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*cnn1d"):
         get_model_spec("cnn1d_copy")
-    with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*rf, knn"):
+    with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*rf, et, knn"):
         make_learner("cnn1d_copy")
 
 

@@ -74,7 +74,11 @@ def trial_features(x: np.ndarray, channel_names: list[str], rate: float,
                    ) -> tuple[np.ndarray, list[str]]:
     """The feature vector of one trial and the feature names (``touch``: the touch and
     shear features appended, in the first 115's order so a model of the 115 reads the
-    first columns)."""
+    first columns). The rate is read to a micro-hertz: a trial's own rate and its
+    session's differ in the 13th digit, and a forest's float32 thresholds can fall
+    between the two readings of a rate-scaled feature (the live model then answered a
+    window otherwise than the evaluated one)."""
+    rate = round(float(rate), 6)
     values: list[float] = []
     names: list[str] = []
     signals = _signals(x, channel_names)
