@@ -42,6 +42,7 @@ def _splits(ds):
 
 @pytest.mark.parametrize("name,options", [
     ("rf", {"n_estimators": "40"}),
+    ("et", {"n_estimators": "40"}),
     ("knn", {}),  # distance-weighted, the preset
     ("knn", {"weights": "uniform", "n_neighbors": "3"}),
 ])
@@ -81,7 +82,7 @@ def test_damaged_model_file_is_a_one_line_error(tmp_path):
         BaselineModel.load(tmp_path / "nope.onnx", "rf", baseline_options("rf", "tiny", {}), 5)
 
 
-@pytest.mark.parametrize("name", ["rf", "knn"])
+@pytest.mark.parametrize("name", ["rf", "et", "knn"])
 def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, name):
     root, ds, _ = data
     cfg = ExperimentConfig(data=[str(root / "data")], model=name, protocol="lopo",
@@ -113,5 +114,6 @@ def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, nam
     outputs = predictor.push_many(trial.transpose(1, 0, 2, 3))
     assert len(outputs) == 1
     np.testing.assert_allclose(outputs[0], model.predict_trial(trial, float(ds.rates[0])))
-    x_one, _ = feature_matrix([trial], ds.channel_names, ds.rates[:1])
+    x_one, _ = feature_matrix([trial], ds.channel_names, ds.rates[:1],
+                              touch=model.options["features"] == "touch")
     np.testing.assert_allclose(outputs[0], model.predict_proba(x_one)[0])

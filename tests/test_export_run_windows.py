@@ -14,6 +14,7 @@ from tactile_studio.cli import main as cli_main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.export_run import export_run
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.baselines import BASELINES
 
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 
@@ -27,7 +28,7 @@ def data(tmp_path_factory):
 
 
 def _run(data, model: str, name: str, **kw):
-    torch_model = model not in ("rf", "knn")
+    torch_model = model not in BASELINES
     cfg = ExperimentConfig(data=[str(data / "data")], model=model, protocol="lopo",
                            preset="tiny", epochs=4 if torch_model else None,
                            cache_dir=str(data / "cache"), threads=1,

@@ -34,7 +34,7 @@ def runs(tmp_path_factory):
                                device="cpu", cache_dir=str(root / "cache"), overrides=overrides)
         return run_experiment(cfg, root / name)
 
-    return {"root": root, "rf": run("rf", "rf"), "net": run("cnn1d", "net"),
+    return {"root": root, "rf": run("rf", "rf", features="basic"), "net": run("cnn1d", "net"),
             "fused": run("cnn1d", "fused", rf_weight=0.3)}
 
 

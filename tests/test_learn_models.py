@@ -23,6 +23,7 @@ from tactile_studio.learn.evaluation.evaluate import rescore_run
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.experiments.job_events import Fold
 from tactile_studio.learn.experiments.runfolder import read_run
+from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.train import load_weights
 
@@ -48,10 +49,10 @@ def data(tmp_path_factory):
 
 
 def config(data, model, protocol, **kw):
-    overrides = {"lr": "0.01"} if model not in ("rf", "knn", "mts3d") else {}
+    overrides = {"lr": "0.01"} if model not in (*BASELINES, "mts3d") else {}
     if model == "cnn_transformer":
         overrides["view_stride"] = "9"  # fewer overlapping windows: 3x faster, same idea
-    epochs = None if model in ("rf", "knn") else 15
+    epochs = None if model in BASELINES else 15
     base = dict(data=[str(data / "data")], model=model, protocol=protocol, preset="tiny",
                 epochs=epochs, overrides=overrides, cache_dir=str(data / "cache"), seed=0)
     base.update(kw)
@@ -71,7 +72,8 @@ def trained(data, model, protocol):
 
 
 def test_registry_and_baselines_are_all_there():
-    assert {"cnn3d", "cnn_transformer", "cnn1d", "mts3d", "sefusion", "rf", "knn"} <= set(FAMILIES)
+    assert {"cnn3d", "cnn_transformer", "cnn1d", "mts3d", "sefusion",
+            "rf", "et", "knn"} <= set(FAMILIES)
 
 
 @pytest.mark.parametrize("protocol", ["lopo", "all-inclusive"])
@@ -103,7 +105,7 @@ def test_family_beats_chance_and_writes_run_folder(data, model, protocol):
     import matplotlib.image
 
     assert matplotlib.image.imread(out / "confusion_matrix.png").shape[0] > 400
-    if model not in ("rf", "knn"):
+    if model not in BASELINES:
         assert matplotlib.image.imread(out / "training_curves.png").shape[1] > 800
         rec = result.folds[0]
         assert rec["history"][0]["epoch"] == 1 and 1 <= rec["best_epoch"] <= 15

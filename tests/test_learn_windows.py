@@ -16,6 +16,7 @@ from tactile_studio.learn.data import windowing
 from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.evaluation.summary import headline
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.baselines import BASELINES
 
 GESTURES = ("Poke", "Circular Stroke", "Heavy Pat")
 
@@ -29,7 +30,7 @@ def data(tmp_path_factory):
 
 
 def _config(data, model, **kw):
-    torch_model = model not in ("rf", "knn")
+    torch_model = model not in BASELINES
     base = dict(data=[str(data / "data")], model=model, protocol="lopo", preset="tiny",
                 epochs=6 if torch_model else None, cache_dir=str(data / "cache"),
                 overrides={"lr": "0.01"} if torch_model else {}, threads=1)

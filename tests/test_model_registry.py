@@ -97,7 +97,7 @@ def test_register_model_adds_a_name_everywhere_and_rejects_clashes(registered):
     assert "cnn1d_copy" not in MODELS
     with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*cnn1d"):
         get_model_spec("cnn1d_copy")
-    with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*rf, knn"):
+    with pytest.raises(UserError, match=r"^unknown model 'cnn1d_copy' \(available: .*rf, et, knn"):
         make_learner("cnn1d_copy")
 
 
@@ -172,7 +172,7 @@ def test_check_model_catches_a_cached_claim_the_network_cannot_keep():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("name", [*BUILT_INS, "rf", "knn"])
+@pytest.mark.parametrize("name", [*BUILT_INS, "rf", "et", "knn"])
 def test_every_built_in_model_passes_check_model(name):
     observed = check_model(name)
     assert observed["samples"] >= 18  # 18 synthetic trials, windows give more samples

@@ -58,12 +58,15 @@ def _accuracy(model: WindowModel, layout, rate, windows, gestures) -> float:
     return float(np.mean([model.labels[p] == g for p, g in zip(probs.argmax(1), gestures)]))
 
 
-HOW = {"rf": "refit", "knn": "refit", "cnn1d": "fine-tuned"}
+HOW = {"rf": "refit", "et": "refit", "knn": "refit", "cnn1d": "fine-tuned"}
 
 
 @pytest.mark.parametrize("name,adapt,weight", [
     ("rf", "none", 0), ("knn", "none", 0),
     ("rf", "person", 0),  # features standardised per person: theirs by their own touches
+    # the default model (train without --model): extra-trees adapted per person and
+    # surface; live, the person's features are standardised by their own touches too
+    ("et", "person-condition", 0),
     pytest.param("cnn1d", "none", 0, marks=pytest.mark.slow),
     # a network fused with rf: the forest refit, the network fine-tuned, fused again
     pytest.param("cnn1d", "person", 0.5, marks=pytest.mark.slow)])
@@ -82,7 +85,7 @@ def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt,
         assert personal.per_gesture == k and personal.windows == 9 * k
         assert personal.how == ("refit and fine-tuned" if weight else HOW[name])
         assert personal.check is None  # no rounds given: nothing measured
-        assert (personal.reference is not None) == (adapt == "person")
+        assert (personal.reference is not None) == (adapt != "none")
         model.personalise(personal)
         gains.append(_accuracy(model, layout, rate, tw, tg) - before)
         model.forget_personalisation()

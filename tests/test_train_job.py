@@ -99,7 +99,7 @@ def test_model_settings_and_eta():
 
 
 @pytest.mark.parametrize("name", ["cnn3d", "cnn1d", "cnn_transformer", "mts3d", "sefusion",
-                                  "rf", "knn"])
+                                  "rf", "et", "knn"])
 def test_every_option_of_every_model_has_its_own_line_of_help(name):
     rows = model_settings(name, "tiny")
     assert rows and all(help_ and help_ != "model option" for _, _, help_ in rows), \

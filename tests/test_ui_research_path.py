@@ -87,7 +87,7 @@ def test_train_panel_names_its_run_folder_and_trains_without_one_typed(qtbot, se
     w.show()
     panel = w.train
     out = Path(panel.out.text())
-    assert out.parent == tmp_path / "data" / "runs" and out.name.startswith("cnn1d-")
+    assert out.parent == tmp_path / "data" / "runs" and out.name.startswith("et-")
     panel.model.setCurrentText("knn")  # the name the panel chose follows the model
     assert Path(panel.out.text()).name.startswith("knn-")
     picked = tmp_path / "mine"

@@ -45,6 +45,7 @@ def test_panels_hand_the_recipe_to_the_experiment_and_remember_it(qtbot, tmp_pat
     data = [str(tmp_path / "sessions")]
     train = TrainPanel(lambda: data, settings)
     qtbot.addWidget(train)
+    train.model.setCurrentText("cnn1d")  # a network: early stopping is part of its recipe
     train.out.setText(str(tmp_path / "run"))
     train.recipe.set_kwargs(CHANGED)
     assert train.recipe.kwargs() == CHANGED

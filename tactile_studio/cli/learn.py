@@ -11,6 +11,7 @@ from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.learn.learners.baselines import DEFAULT_MODEL
 from tactile_studio.learn.learners.contract import PRESETS
 from tactile_studio.learn.learners.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
 
@@ -55,9 +56,11 @@ def _add_data_options(p: argparse.ArgumentParser) -> None:
 
 def _add_train_options(p: argparse.ArgumentParser) -> None:
     _add_data_options(p)
-    p.add_argument("--model", required=True, metavar="NAME",
-                   help="cnn3d, cnn_transformer, cnn1d, mts3d, sefusion, rf, knn or a model "
-                        "a package registers (docs/models.md)")
+    p.add_argument("--model", default=DEFAULT_MODEL, metavar="NAME",
+                   help=f"{DEFAULT_MODEL} (default: extra-trees on touch and shear features, "
+                        "adapted per person and surface), rf, knn, cnn3d, cnn_transformer, "
+                        "cnn1d, mts3d, sefusion or a model a package registers "
+                        "(docs/models.md)")
     p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo",
                    help="evaluation protocol (default lopo)")
     p.add_argument("--shots", type=_shot_counts, default=(), metavar="K[,K...]",

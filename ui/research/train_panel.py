@@ -44,6 +44,7 @@ from tactile_studio.learn.experiments.train_job import (
     model_settings,
     trains_in_epochs,
 )
+from tactile_studio.learn.learners.baselines import DEFAULT_MODEL
 from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.paths import data_dir
@@ -94,7 +95,7 @@ class TrainPanel(JobPanel):
         for name, text in available_models().items():
             self.model.addItem(name)
             self.model.setItemData(self.model.count() - 1, text, 3)  # tooltip role
-        self.model.setCurrentText("cnn1d")
+        self.model.setCurrentText(DEFAULT_MODEL)
         self.preset = preset_combo()
         self.channels = QComboBox()
         self.channels.addItems(["both", "normal", "shear"])

@@ -69,18 +69,22 @@ class Personalised:
 def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
                 gestures: Sequence[str], rate: float, seed: int = 0,
                 dataset: Any = None, rounds: Sequence[int] | None = None,
-                progress: ProgressFn = no_progress, cancel: CancelToken | None = None
-                ) -> Personalised:
+                progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
+                calibration: Sequence[np.ndarray] | None = None) -> Personalised:
     """``model``'s fold model personalised with decoded windows (C, N, R, X) of one
     person, labelled ``gestures`` (names of the run's gestures). ``dataset``: the run's
     TrialDataset when the caller has it (else read from the run's data paths).
     ``rounds``: the prompt round of each window; with two or more, the result carries a
     :class:`HeldOutCheck` (one more fit per round; :func:`held_out_check` measures it
     apart). Always starts from the run's own fold model (a second personalisation
-    replaces the first)."""
+    replaces the first). ``calibration``: decoded windows of the person (unlabelled, e.g.
+    their whole session) whose statistics standardise their features in a run trained
+    with ``--adapt``, as ``train --shots`` standardises a held-out person by all their
+    windows; without it, by the labelled windows' own statistics."""
     cancel = cancel or CancelToken()
     x_p, owner, y_win, training = _inputs(model, layout, windows, gestures, rate, dataset,
                                           progress, cancel)
+    x_cal = None if calibration is None else model._samples(layout, list(calibration), rate)[0]
     per_gesture = int(min(np.bincount(y_win, minlength=len(model.labels))[np.unique(y_win)]))
     folds = _folds(rounds)
     fits = 1 + len(folds)
@@ -90,7 +94,7 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
         return lambda f, msg="": progress((i + f) / fits, f"{what}: {msg}" if msg else what)
 
     fitted, norm, reference, how = _fit(model, x_p, y_win[owner], training, seed,
-                                        part(0), cancel)
+                                        part(0), cancel, x_cal)
     check = None
     if folds:
         check = _held_out_check(model, x_p, owner, y_win, np.asarray(rounds), folds,
@@ -153,7 +157,8 @@ def _inputs(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
 
 def _fit(model: WindowModel, x_p: np.ndarray, y_p: np.ndarray,
          training: tuple[np.ndarray, np.ndarray] | None, seed: int, progress: ProgressFn,
-         cancel: CancelToken) -> tuple[Any, dict[str, Any], np.ndarray | None, str]:
+         cancel: CancelToken, x_cal: np.ndarray | None = None
+         ) -> tuple[Any, dict[str, Any], np.ndarray | None, str]:
     """(fitted, norm, reference, how): the run's fold model retrained with the person's
     samples ``x_p`` labelled ``y_p``: rf/knn refit on the fold's training samples plus
     theirs; a network's output layers fine-tuned on theirs; a fused model both, fused
@@ -161,7 +166,7 @@ def _fit(model: WindowModel, x_p: np.ndarray, y_p: np.ndarray,
     learner, info = model.learner, model.info
     reference = None
     if model.reads_person_features:  # the person's features standardised by their own
-        reference = person_columns(learner, x_p)
+        reference = person_columns(learner, x_p if x_cal is None else x_cal)
         x_p = learner.adapt_inputs(x_p, np.zeros(len(x_p)), reference)
     if learner.kind == "baseline":
         assert training is not None
@@ -247,7 +252,8 @@ def _held_out_check(model: WindowModel, x_p: np.ndarray, owner: np.ndarray,
 def fold_training_samples(model: WindowModel, dataset: Any = None
                           ) -> tuple[np.ndarray, np.ndarray]:
     """The samples (and labels) the fold model was trained on: the run's data, made into
-    model inputs as the run made them, of the fold's ``train`` trials."""
+    model inputs as the run made them, of the fold's ``train`` trials (a forest's, rf's
+    or a fused model's: and its ``val`` trials, BaselineLearner.fit)."""
     from tactile_studio.learn.data.dataset import build_dataset
     from tactile_studio.learn.experiments.experiment import prepare_inputs
 
@@ -263,6 +269,8 @@ def fold_training_samples(model: WindowModel, dataset: Any = None
         dataset = dataset.select(cfg.channels)
     ds, x, owner, *_ = prepare_inputs(model.learner, dataset, cfg)
     wanted = set(model.record.get("train") or [])
+    if model.learner.kind != "torch":  # a forest fits on the validation share too
+        wanted |= set(model.record.get("val") or [])
     idx = np.array([i for i, u in enumerate(ds.uids) if u in wanted], dtype=np.int64)
     if len(idx) < len(wanted):
         raise UserError(f"{model.run}: its data changed since training ({len(wanted) - len(idx)}"

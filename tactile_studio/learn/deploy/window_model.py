@@ -19,6 +19,7 @@ from tactile_studio.learn.data.dataset import TrialDataset
 from tactile_studio.learn.data.windowing import cut, window_spec
 from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.learn.experiments.runfolder import model_file, read_run
+from tactile_studio.learn.learners.baselines import legacy_options
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fused import (
     display_name,
@@ -50,8 +51,10 @@ class WindowModel:
         self.record = next((r for r in records if participant and r.get("round", 0) == round_
                             and participant in (r.get("test_participants") or [])),
                            records[0])
-        self.learner = make_learner(self.config.model, self.config.preset,
-                                    self.config.overrides, self.config.epochs, "cpu")
+        overrides = legacy_options(self.config.model, resolved.get("model"),
+                                   self.config.overrides)
+        self.learner = make_learner(self.config.model, self.config.preset, overrides,
+                                    self.config.epochs, "cpu")
         self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
         self.fitted = self.trained  # or adapted to one person by calibrate()
         self.run_trained = self.trained  # the run's own fold model (personalise() swaps)

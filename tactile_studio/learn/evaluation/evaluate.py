@@ -35,6 +35,7 @@ from tactile_studio.learn.experiments.experiment import (
     summarise,
 )
 from tactile_studio.learn.experiments.runfolder import model_file, read_run, write_json
+from tactile_studio.learn.learners.baselines import legacy_options
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.generalise import ADAPT
 from tactile_studio.output_faults import require_writable_folder
@@ -62,8 +63,9 @@ def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
                         f"({', '.join(labels)})")
     remap = np.array([labels.index(g) for g in ds.label_names], dtype=np.int64)
     ds = replace(ds, labels=remap[ds.labels], label_names=labels)
-    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
-                           device)
+    learner = make_learner(config.model, config.preset,
+                           legacy_options(config.model, resolved.get("model"), config.overrides),
+                           config.epochs, device)
     return config, resolved, records, ds, learner, info
 
 

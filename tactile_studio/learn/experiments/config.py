@@ -125,7 +125,7 @@ class ExperimentConfig:
             overrides = {**overrides, ADAPT_OPTION: 0}
         adapt = resolve_adapt(self.adapt, self.protocol,
                               replace(self, overrides=overrides).can_adapt,
-                              network=self.model not in BASELINES)
+                              network=self.model not in BASELINES, model=self.model)
         shots_by = self.shots_by
         if shots_by == "auto":  # join without shots: what a run before the setting did
             shots_by = NETWORK_SHOTS_BY if self.shots and not self.forest else "join"

@@ -69,8 +69,10 @@ def make_learner(name: str, preset: str = "full", overrides: dict[str, Any] | No
     overrides.pop(fused.ADAPT_OPTION, None)
     network = TorchLearner(spec, preset, overrides, epochs, device)
     if weight > 0:
-        return fused.FusedLearner(network, BaselineLearner("rf", preset, {}), weight,
-                                  forest_adapts)
+        # the fused forest keeps the 115 basic features: fusion was measured with them, and
+        # the forest files of earlier fused runs read them
+        return fused.FusedLearner(network, BaselineLearner("rf", preset, {"features": "basic"}),
+                                  weight, forest_adapts)
     return network
 
 
@@ -207,7 +209,7 @@ class TorchFitted:
 
 
 class BaselineLearner:
-    """rf / knn on handcrafted trial features (learn/learners/baselines.py), saved as ONNX."""
+    """rf / et / knn on handcrafted trial features (learn/learners/baselines.py), saved as ONNX."""
 
     kind = "baseline"
     max_epochs = 1  # not trained by epochs
@@ -237,7 +239,8 @@ class BaselineLearner:
         from tactile_studio.learn.data.features import feature_matrix
 
         pitch = 0.5 if ds.grid == "virtual" else 1.0
-        x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch)
+        x, _ = feature_matrix(ds.trials, ds.channel_names, ds.rates, pitch,
+                              self.options.get("features") == "touch")
         return x, np.arange(len(ds.trials))
 
     def adapt_inputs(self, x: np.ndarray, people: np.ndarray,
@@ -253,12 +256,16 @@ class BaselineLearner:
         return x
 
     def fit(self, info: DataInfo, train, val, seed, cancel, on_epoch, norm=None):
+        """Fits on ``train`` and ``val`` together: nothing stops a forest early, so the
+        validation share trains too (before issue 45 rf/knn left the fold's 15% unused;
+        a fused model's forest does the same)."""
         if cancel is not None:
             cancel.check()
         model = baselines.BaselineModel(self.name, self.options, info.n_classes)
         meta = {"channel_names": json.dumps(list(info.channel_names)),
                 "cell_pitch": str(info.cell_pitch)}
-        return model.fit(train[0], train[1], seed, meta), [], 0
+        x, y = np.concatenate([train[0], val[0]]), np.concatenate([train[1], val[1]])
+        return model.fit(x, y, seed, meta), [], 0
 
     def load(self, path, info: DataInfo) -> baselines.BaselineModel:
         if str(path).endswith(".safetensors"):

@@ -19,7 +19,7 @@ from tactile_studio.learn.models.spec import ModelSpec, check_preset
 from tactile_studio.registry import Registry
 
 GROUP = "tactile_studio.models"
-RESERVED = ("rf", "knn")  # the scikit-learn baselines (learn/learners/baselines.py)
+RESERVED = ("rf", "et", "knn")  # the scikit-learn baselines (learn/learners/baselines.py)
 NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
 
 
