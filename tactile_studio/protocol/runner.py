@@ -21,8 +21,9 @@ from typing import Any
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
+from tactile_studio.protocol.flag_summary import trial_reason
 from tactile_studio.protocol.progress import build_snapshot
-from tactile_studio.protocol.quality import QualitySettings, describe
+from tactile_studio.protocol.quality import QualitySettings
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
 from tactile_studio.protocol.trial_record import measure_trial
@@ -404,7 +405,7 @@ class CollectionRunner(RunnerInputs):
         t = next((t for t in self.records if t.index == self._redo_for), None)
         if t is None or not t.flagged:
             return ""
-        return f"Trial {t.index + 1} ({t.gesture}): {describe(list(t.flags))} - redo?"
+        return f"Trial {t.index + 1} ({t.gesture}): {trial_reason(t)} - redo?"
 
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:

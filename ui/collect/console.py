@@ -47,9 +47,11 @@ from tactile_studio.protocol.collect import (
     open_session,
     resume_session,
 )
+from tactile_studio.protocol.flag_summary import block_summary
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console_actions import ConsoleActions
+from tactile_studio.ui.collect.flag_banner import FlagBanner
 from tactile_studio.ui.collect.log import TextDialog, TrialLog
 from tactile_studio.ui.collect.paint import PILOT
 from tactile_studio.ui.collect.participant import ParticipantScreen
@@ -62,6 +64,7 @@ log = logging.getLogger(__name__)
 TICK_MS = 15
 DISPLAY_HZ = 1000.0 / (2 * TICK_MS)  # heatmap paints at most ~33 Hz (the main window: 60)
 ELLIPSIS = "\u2026"
+REDO_KEY, KEEP_KEY = "Ctrl+Z", "Ctrl+K"  # a flagged trial: Redo (as "Redo last"), Keep
 
 
 class CollectConsole(ConsoleActions):
@@ -149,11 +152,10 @@ class CollectConsole(ConsoleActions):
         self.touches_label = QLabel()  # who makes the touches (a simulator never by itself)
         self.touches_label.setStyleSheet("color: #606770;")
         self.touches_label.setWordWrap(True)
-        self.redo_banner = QLabel()
-        self.redo_banner.setWordWrap(True)
-        self.redo_banner.setStyleSheet(
-            "background: #ffe3b3; color: #6b4100; border-radius: 6px; padding: 8px;"
-            "font-weight: 600;")
+        # a flagged trial: its reason, Redo and Keep (keeps its room while hidden)
+        self.redo_banner = FlagBanner(REDO_KEY, KEEP_KEY)
+        self.redo_banner.redoRequested.connect(self.redo_last)
+        self.redo_banner.keepRequested.connect(self.keep_flagged)
         # the recording ended short (write failed, device lost, frames lost): its one line
         self.fault_banner = QLabel()
         self.fault_banner.setObjectName("recordingFault")
@@ -180,16 +182,23 @@ class CollectConsole(ConsoleActions):
         # lines that grow with what they say wrap in the pane's width instead of
         # widening it (the state line pushed the splitter as the prompts changed)
         for label in (self.pilot_banner, self.state, self.progress_label, self.file_label,
-                      self.touches_label, self.redo_banner, self.fault_banner,
+                      self.touches_label, self.fault_banner,
                       self.health_banner, self.sound_notice, self.hint_label):
             label.setWordWrap(True)
             label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        # a refusal or "Please redo it" comes and goes with every trial: its two lines
+        # stay reserved, so the page does not move under the experimenter's eyes
+        self.hint_label.setFixedHeight(2 * self.hint_label.fontMetrics().lineSpacing())
+        self.hint_label.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
+        hint_policy = self.hint_label.sizePolicy()
+        hint_policy.setRetainSizeWhenHidden(True)
+        self.hint_label.setSizePolicy(hint_policy)
 
         b = self.buttons = {}
         self.shortcuts: dict[str, QShortcut] = {}
         for name, text, key, slot in (
                 ("primary", "Start", "Ctrl+Return", self.primary_action),
-                ("redo", "Redo last", "Ctrl+Z", self.redo_last),
+                ("redo", "Redo last", REDO_KEY, self.redo_last),
                 ("discard", "Discard\u2026", "Ctrl+D", self.ask_discard),
                 ("pause", "Pause", "Ctrl+P", self.toggle_pause),
                 ("break", "Skip to break", "Ctrl+B", self.skip_to_break),
@@ -208,12 +217,23 @@ class CollectConsole(ConsoleActions):
         for i, name in enumerate(("primary", "redo", "discard", "pause", "break", "note",
                                   "screen", "end")):
             grid.addWidget(b[name], i // 2, i % 2)
+        self._shortcut(KEEP_KEY, self.redo_banner.keep)
 
         self.log = TrialLog()
         log_box = QGroupBox("Trials")
         lb = QVBoxLayout(log_box)
         lb.setContentsMargins(6, 6, 6, 6)
-        lb.addWidget(self.log)
+        lb.addWidget(self.log, 1)
+        # at each block's end, one line per gesture with flagged performances
+        self.block_summary = QLabel()
+        self.block_summary.setObjectName("blockSummary")
+        self.block_summary.setWordWrap(True)
+        self.block_summary.setTextFormat(Qt.TextFormat.PlainText)
+        self.block_summary.setStyleSheet(
+            "background: #fff4e0; color: #4e3b00; border-radius: 4px; padding: 4px;")
+        self.block_summary.hide()
+        lb.addWidget(self.block_summary)
+        self._summary_key: tuple = ()
 
         left = QWidget()
         lv = QVBoxLayout(left)
@@ -526,11 +546,11 @@ class CollectConsole(ConsoleActions):
         self.state.setText(state_label(snap))
         self.progress.setValue(int(round(1000 * (snap.progress or 0.0))))
         self.progress_label.setText(progress_text(snap))
-        self.redo_banner.setText(snap.redo_prompt)
-        self.redo_banner.setVisible(bool(snap.redo_prompt))
+        self.redo_banner.say(snap.redo_prompt)
         self.hint_label.setText(snap.hint)
         self.hint_label.setVisible(bool(snap.hint))
         self.log.set_trials(snap.trials)
+        self._show_block_summary(snap)
         live = snap.state not in ("finished", "aborted")
         b = self.buttons
         if snap.state == "setup":
@@ -545,3 +565,19 @@ class CollectConsole(ConsoleActions):
         b["pause"].setEnabled(live and snap.state != "setup")
         b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
         b["end"].setEnabled(live)
+
+    def _show_block_summary(self, snap: Any) -> None:
+        """After each block (a break, the next block, the end): per gesture, how many of
+        its performances so far were flagged and why; rebuilt only when that changes."""
+        done = snap.block if (not snap.remaining or snap.state in ("finished", "aborted")) \
+            else snap.block - 1
+        key = (done, self.log.signature)
+        if key == self._summary_key:
+            return
+        self._summary_key = key
+        lines = block_summary(snap.trials, done) if done >= 0 else []
+        title = f"After block {done + 1}: "
+        self.block_summary.setText(
+            (title + ("\n".join(lines) if len(lines) < 2 else "\n" + "\n".join(lines)))
+            if lines else (f"{title}no flagged trials" if done >= 0 else ""))
+        self.block_summary.setVisible(done >= 0)
