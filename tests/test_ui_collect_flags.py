@@ -85,6 +85,7 @@ def test_a_flagged_trial_is_redone_or_kept_from_the_banner_and_summed_up_per_blo
     qtbot.mouseClick(console.redo_banner.redo, Qt.MouseButton.LeftButton)
     s = snap(console)
     assert s.trials[0]["status"] == "redone" and s.prompted == g.name
+    assert s.trials[0]["decision"] == "redo"
     assert not console.redo_banner.isVisible() and console.log.flagged_rows() == []
     assert places(console) == before
 
@@ -95,6 +96,7 @@ def test_a_flagged_trial_is_redone_or_kept_from_the_banner_and_summed_up_per_blo
     qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
     kept = snap(console).trials[1]
     assert kept["status"] == "ok" and kept["flags"] == ["no_contact"]
+    assert kept["decision"] == "keep"
     assert not console.redo_banner.isVisible() and console.log.flagged_rows() == [1]
     assert places(console) == before
     assert console.block_summary.isHidden()  # block 1 is not over yet
@@ -114,23 +116,26 @@ def test_a_flagged_trial_is_redone_or_kept_from_the_banner_and_summed_up_per_blo
         trials = sess.trials
     assert [t["status"] for t in trials[:2]] == ["redone", "ok"]
     assert trials[1]["flags"] == ["no_contact"]
+    assert [t.get("decision") for t in trials[:2]] == ["redo", "keep"]
 
 
 def test_block_summary_counts_every_performance_and_names_what_a_model_saw():
     def t(i: int, block: int, gesture: str, flags: tuple = (), **extra) -> dict:
         return {"index": i, "block": block, "gesture": gesture, "status": "ok",
                 "flags": list(flags), **extra}
-    wide = {"predicted": "Wide Pinch", "reason": "looks like Wide Pinch (0.61); Twist 0.07"}
+    wide = {"model": "m", "p_prompted": 0.07, "rank": 4, "flagged": True,
+            "top": [["Wide Pinch", 0.61], ["Poke", 0.2], ["Tickle", 0.1]],
+            "reason": "looks like Wide Pinch (0.61); Twist 0.07"}
     trials = [t(0, -1, "Twist", ("no_contact",)),  # practice: left out
-              t(1, 0, "Twist", ("model_mismatch",), verdict=wide),
+              t(1, 0, "Twist", ("model_mismatch",), check=wide),
               t(2, 0, "Poke"),
-              t(3, 1, "Twist", ("model_mismatch", "off_centre"), verdict=wide),
+              t(3, 1, "Twist", ("model_mismatch", "off_centre"), check=wide),
               t(4, 1, "Poke"), t(5, 1, "Twist"), t(6, 2, "Twist", ("no_contact",))]
     trials[3]["status"] = "redone"  # a redo is one more performance, still counted
     assert block_summary(trials, 0) == ["Twist: 1 of 1 looks like Wide Pinch"]
     assert block_summary(trials, 1) == [
         "Twist: 2 of 3 look like Wide Pinch, 1 of 3 contact off the sensor centre"]
     assert block_summary(trials[2:3], 0) == []
-    assert trial_reason(trials[3]) == ("contact off the sensor centre, looks like Wide Pinch "
-                                       "(0.61); Twist 0.07")
+    assert trial_reason(trials[3]) == ("looks like Wide Pinch (0.61); Twist 0.07, "
+                                       "contact off the sensor centre")
     assert trial_reason(trials[2]) == ""

@@ -36,6 +36,7 @@ from tactile_studio.paths import make_out_dir
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, State
+from tactile_studio.protocol.trial_check import TrialChecker, unknown_gestures
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.protocol_file import Protocol, restored_protocol
 from tactile_studio.storage.recorder import Recorder
@@ -160,11 +161,13 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
                  wellness: dict[str, Any] | None = None,
                  recorder: RecorderFactory | None = None,
-                 pilot: bool = False) -> CollectionSession:
+                 pilot: bool = False, trial_check: TrialChecker | None = None
+                 ) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
     ``pilot``: a rehearsal (the file marked so and named ``PILOT_...``; see
-    :func:`session_metadata`).
+    :func:`session_metadata`). ``trial_check``: the model that checks each trial
+    (protocol/trial_check.py); its description is the metadata's ``trial_check``.
 
     ``engine`` may be started or not: opened before ``engine.start()`` (the start order
     of an AcquisitionSession) file rows equal engine frames; on a running stream the
@@ -179,6 +182,8 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
     if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
         meta["wellness"] = wellness
         meta["sensor_id"] = wellness.get("sensor_id") or None
+    if trial_check is not None:
+        meta["trial_check"] = check_metadata(trial_check, protocol)
     restore = quiet_simulator(engine)  # before the file: its settings say idle
     make = _factory(engine, recorder)
     try:
@@ -193,10 +198,17 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
         raise
     runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
-                              hold_flagged=hold_flagged)
+                              hold_flagged=hold_flagged, trial_check=trial_check)
     return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
                              touches=touch_source(engine, pilot=pilot),
                              restore_gesture=restore, pilot=pilot)
+
+
+def check_metadata(trial_check: TrialChecker, protocol: Protocol) -> dict[str, Any]:
+    """The session's ``trial_check`` metadata: the model's description and the protocol's
+    gestures it does not know (not scored)."""
+    return {**trial_check.describe(),
+            "not_scored": unknown_gestures(trial_check, protocol.gesture_names)}
 
 
 def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
@@ -371,7 +383,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
                    hold_flagged: bool = False,
                    recorder: RecorderFactory | None = None,
                    allow_other_sensor: str | None = None,
-                   protocol_at_hand: Protocol | None = None) -> CollectionSession:
+                   protocol_at_hand: Protocol | None = None,
+                   trial_check: TrialChecker | None = None) -> CollectionSession:
     """Continue a killed or closed session at the next trial of its stored order.
 
     Refused on another device or sensor than the file's, unless ``allow_other_sensor``
@@ -394,6 +407,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
         meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
         meta["session_id"] = old.session_id  # kept (derived once for files without one)
         meta["resumes"] = int(meta.get("resumes", 0)) + 1
+        if trial_check is not None:  # the check from here on (a trial keeps its model id)
+            meta["trial_check"] = check_metadata(trial_check, info["protocol"])
         if other:
             meta["other_sensor"] = [*meta.get("other_sensor", []),
                                     {"resume": meta["resumes"], "why": other, "note": note,
@@ -432,7 +447,8 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     runner = CollectionRunner(protocol, engine, rec, info["participant"],
                               meta["block_order"], practice=meta.get("practice_order", []),
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
-                              hold_flagged=hold_flagged, previous_trials=trials)
+                              hold_flagged=hold_flagged, previous_trials=trials,
+                              trial_check=trial_check)
     notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
     runner.notes = [line for line in str(notes).split("\n") if line]
     pilot = bool(meta.get("pilot"))  # a rehearsal stays one

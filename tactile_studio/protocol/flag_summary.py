@@ -4,7 +4,7 @@ block's end, one line per gesture ("Twist: 2 of 4 look like Wide Pinch").
 Qt-free wording over the trial records, so the console, the headless collection and a
 report say the same thing. A trial's reason is its signal flags in words
 (:data:`~tactile_studio.protocol.quality.FLAG_TEXT`) and, when a model checked it, the
-model's verdict ("looks like Wide Pinch (0.61); Twist 0.07").
+reason of its stored ``check`` ("looks like Wide Pinch (0.61); Twist 0.07").
 """
 
 from __future__ import annotations
@@ -14,35 +14,23 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAG_TEXT, describe
+from tactile_studio.storage.trial_checks import MISMATCH_FLAG
 from tactile_studio.storage.trials import TrialRecord, records
-
-MODEL_FLAG = "model_mismatch"  # the model's "does not look like the prompted gesture"
-
-
-def verdict_of(trial: TrialRecord) -> Mapping[str, Any]:
-    """The model's verdict stored with a trial ({} when no model checked it)."""
-    v = trial.extra.get("verdict")
-    return v if isinstance(v, Mapping) else {}
 
 
 def looks_like(trial: TrialRecord) -> str | None:
-    """The gesture a model took a flagged trial for (None: no model flag)."""
-    if MODEL_FLAG not in trial.flags:
+    """The gesture a model took a flagged trial for (None: no model flag): the most
+    likely gesture in its stored check other than the prompted one."""
+    if MISMATCH_FLAG not in trial.flags or not trial.check:
         return None
-    predicted = verdict_of(trial).get("predicted")
-    return str(predicted) if predicted else None
+    return next((str(g) for g, _p in trial.check.get("top") or () if g != trial.gesture), None)
 
 
 def trial_reason(trial: Mapping[str, Any] | TrialRecord) -> str:
     """Why a trial is flagged, read at a glance ("" when it is not): the signal flags in
-    words, then the model's reason."""
+    words, the model's flag as its reason (quality.describe, as the redo prompt)."""
     t = trial if isinstance(trial, TrialRecord) else TrialRecord.from_dict(trial)
-    signal = describe([f for f in t.flags if f != MODEL_FLAG])
-    parts = [signal] if signal else []
-    if MODEL_FLAG in t.flags:
-        reason = str(verdict_of(t).get("reason") or "")
-        parts.append(reason or FLAG_TEXT.get(MODEL_FLAG, "does not look like the gesture"))
-    return ", ".join(parts)
+    return describe(list(t.flags), t.check)
 
 
 def _what(flag_or_gesture: tuple[str, str], n: int) -> str:
@@ -69,10 +57,10 @@ def block_summary(trials: Iterable[Mapping[str, Any] | TrialRecord],
         other = looks_like(t)
         if other is not None:
             seen[("looks", other)] += 1
-        elif MODEL_FLAG in t.flags:
-            seen[("flag", MODEL_FLAG)] += 1
+        elif MISMATCH_FLAG in t.flags:
+            seen[("flag", MISMATCH_FLAG)] += 1
         for f in t.flags:
-            if f != MODEL_FLAG:
+            if f != MISMATCH_FLAG:
                 seen[("flag", f)] += 1
     lines = []
     for gesture, n in performed.items():

@@ -13,14 +13,18 @@ A flag is a reason for the experimenter to look again (and usually redo the tria
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from tactile_studio.sensor.decode import contact_taxels, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
+from tactile_studio.storage.trial_checks import MISMATCH_FLAG
 
-FLAGS = ("no_contact", "saturated", "stuck_channel", "dropped_frames", "gap", "off_centre")
+FLAGS = ("no_contact", "saturated", "stuck_channel", "dropped_frames", "gap", "off_centre",
+         "model_mismatch")
 FLAG_TEXT = {
     "no_contact": "no contact",
     "saturated": "saturated counts",
@@ -28,6 +32,7 @@ FLAG_TEXT = {
     "dropped_frames": "dropped frames",
     "gap": "a gap in the stream",
     "off_centre": "contact off the sensor centre",
+    "model_mismatch": "does not look like the prompted gesture",
 }
 
 
@@ -69,9 +74,14 @@ def trial_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray, *,
     return [f for f in FLAGS if f in flags]
 
 
-def describe(flags: list[str]) -> str:
-    """'no contact, a stuck channel' for prompts."""
-    return ", ".join(FLAG_TEXT.get(f, f) for f in flags)
+def describe(flags: list[str], check: Mapping[str, Any] | None = None) -> str:
+    """'no contact, a stuck channel' for prompts; with the trial's model ``check`` its
+    flag reads as the check's reason ("looks like Wide Pinch (0.61); Twist 0.07")."""
+    def text(f: str) -> str:
+        if f == MISMATCH_FLAG and check and check.get("reason"):
+            return str(check["reason"])
+        return FLAG_TEXT.get(f, f)
+    return ", ".join(text(f) for f in flags)
 
 
 def _saturated(layout: Layout, raw: np.ndarray) -> bool:

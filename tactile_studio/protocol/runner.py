@@ -21,12 +21,12 @@ from typing import Any
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
-from tactile_studio.protocol.flag_summary import trial_reason
 from tactile_studio.protocol.progress import build_snapshot
-from tactile_studio.protocol.quality import QualitySettings
+from tactile_studio.protocol.quality import QualitySettings, describe
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
-from tactile_studio.protocol.trial_record import measure_trial
+from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker
+from tactile_studio.protocol.trial_record import TrialMeasure, measure_trial
 from tactile_studio.storage.protocol_file import Protocol
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
@@ -38,14 +38,16 @@ class CollectionRunner(RunnerInputs):
     def __init__(self, protocol: Protocol, engine: FrameStream, recorder: Recorder,
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                 hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None
-                 ) -> None:
+                 hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None,
+                 trial_check: TrialChecker | None = None) -> None:
         self.protocol, self.engine, self.recorder = protocol, engine, recorder
         self.participant = participant
         self.orders = [list(o) for o in orders]
         self.clock: Clock = clock or time.monotonic
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
+        # the model check of each finished trial (protocol/trial_check.py), None: off
+        self.trial_check = trial_check
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
         self.quality = QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
@@ -219,11 +221,13 @@ class CollectionRunner(RunnerInputs):
         self._emit("block", block=self.block)
         self._set_state(State.BLOCK_START)
 
-    def _begin_trial(self, gesture: str, key: str, start: int) -> None:
+    def _begin_trial(self, gesture: str, key: str, start: int,
+                     performed: str | None = None) -> None:
         self.hint = ""
         self._redo_for = None
         self._current = {
             "gesture": gesture, "key": key, "block": self.block, "start": start,
+            "performed": performed,
             "end": start + self.trial_frames, "dropped0": self.recorder.dropped,
             "event_cursor": self.engine.event_count,
         }
@@ -259,17 +263,31 @@ class CollectionRunner(RunnerInputs):
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
         again = self._again_for.pop((cur["block"], cur["gesture"]), None)
+        check = None if practice else self._model_check(m, cur["gesture"])
+        flags = [*m.flags, MISMATCH_FLAG] if check and check["flagged"] else m.flags
         record = TrialRecord(
             index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
             key=cur["key"], start_sample=row0, end_sample=row0 + n,
             start_time=m.start_time, end_time=m.end_time,
             status=TrialStatus.DISCARDED if practice else TrialStatus.OK,
-            reason="practice" if practice else again, flags=tuple(m.flags))
+            reason="practice" if practice else again, flags=tuple(flags), check=check,
+            performed=cur.get("performed"))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
+
+    def _model_check(self, m: TrialMeasure, prompted: str) -> dict[str, Any] | None:
+        """The trial's stored ``check`` by the model check (None: no check, no baseline,
+        or a gesture the model does not know). It runs here, at the tick that ends the
+        trial (the GUI's timer or the headless loop, never the acquisition thread), so
+        its verdict is on the trial the moment the trial is written."""
+        if self.trial_check is None or m.raw is None or self.engine.baseline is None:
+            return None
+        v = self.trial_check.check(self.engine.layout, m.raw, self.engine.baseline,
+                                   self.rate, prompted)
+        return None if v is None else v.stored(str(self.trial_check.describe()["model"]))
 
     def _drop_current(self) -> None:
         """Forget the running trial and let the stream go on without it."""
@@ -313,7 +331,8 @@ class CollectionRunner(RunnerInputs):
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
         self._redo_for = rec.index if rec.flagged else None
-        self._emit("trial_ended", trial=rec.to_dict())
+        self._emit("trial_ended", trial=rec.to_dict(), flags=list(rec.flags),
+                   reason=describe(list(rec.flags), rec.check))
 
     def _after_trial(self) -> None:
         if self._plan.remaining():
@@ -405,7 +424,7 @@ class CollectionRunner(RunnerInputs):
         t = next((t for t in self.records if t.index == self._redo_for), None)
         if t is None or not t.flagged:
             return ""
-        return f"Trial {t.index + 1} ({t.gesture}): {trial_reason(t)} - redo?"
+        return f"Trial {t.index + 1} ({t.gesture}): {describe(list(t.flags), t.check)} - redo?"
 
     # ---- the snapshot --------------------------------------------------------------------
     def snapshot(self) -> RunnerSnapshot:

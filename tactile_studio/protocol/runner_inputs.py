@@ -29,10 +29,11 @@ class RunnerInputs:
         self.tick()
         return True
 
-    def key(self, k: str, at_frame: int | None = None) -> bool:
+    def key(self, k: str, at_frame: int | None = None, performed: str | None = None) -> bool:
         """The participant's key. With the protocol's ``order = "prompted"`` (default)
         only the prompted gesture's key starts a trial; with ``"free"`` the key of any
-        gesture of the block not done yet does."""
+        gesture of the block not done yet does. ``performed``: what a virtual participant
+        actually performs (its mistakes), stored on the trial."""
         if self.state not in State.KEY_STATES:
             return self._refuse(self._why_no_key())
         if self.state == State.REVIEW:
@@ -65,7 +66,7 @@ class RunnerInputs:
         start = newest if at_frame is None else int(at_frame)
         if start > newest or start < self._min_start:
             raise ValueError(f"trial start frame {start} outside {self._min_start}..{newest}")
-        self._begin_trial(gesture.name, gesture.key, start)
+        self._begin_trial(gesture.name, gesture.key, start, performed)
         return True
 
     def next_prompt(self) -> str:
@@ -92,7 +93,8 @@ class RunnerInputs:
             self._end_break()
             return True
         if self.state == State.REVIEW:
-            self._redo_for = None  # the experimenter kept the flagged trial
+            if self._redo_for is not None:
+                self.keep_flagged()  # the experimenter kept the flagged trial
             self._after_trial()
             return True
         return self._refuse(f"nothing to continue in state {self.state}")
@@ -114,7 +116,9 @@ class RunnerInputs:
             self._again_for[(last.block, last.gesture)] = (
                 f"collected again for trial {last.index + 1}")
         else:
-            self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None)
+            decided = {"decision": "redo"} if last.flagged else {}
+            self._update_trial(last, status=TrialStatus.REDONE, reason=reason or None,
+                               **decided)
         self._plan.reopen(last.block, last.gesture)
         self.hint = f"redo: {last.gesture} ({last.key})"
         if self.protocol.order == "prompted":  # the redone gesture is prompted next
@@ -123,6 +127,16 @@ class RunnerInputs:
             self._set_state(State.WAITING)
         elif self.state == State.PAUSED and self._paused_from in (State.BLOCK_START, State.REVIEW):
             self._paused_from = State.WAITING
+        return True
+
+    def keep_flagged(self) -> bool:
+        """The experimenter's Keep on the flagged trial the redo prompt asks about: its
+        flags stay on record with ``decision: keep``, the prompt goes."""
+        index, self._redo_for = self._redo_for, None
+        trial = next((t for t in self.records if t.index == index), None)
+        if trial is None or not trial.flagged:
+            return self._refuse("no flagged trial waits for a decision")
+        self._update_trial(trial, decision="keep")
         return True
 
     def can_collect_again(self, index: int) -> bool:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.quality import QualitySettings, trial_flags
 
@@ -13,6 +15,7 @@ class TrialMeasure:
     start_time: float  # device time of the first frame, s
     end_time: float    # device time just after the last frame, s
     flags: list[str]
+    raw: np.ndarray | None = None  # the trial's raw counts (T, channels) as the ring held them
 
 
 def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
@@ -37,4 +40,4 @@ def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
                             rate_hz=rate, lost_frames=lost, gap_events=gaps, settings=settings)
     t0 = float(dev_t[0]) if len(dev_t) else 0.0
     t1 = float(dev_t[-1]) + 1.0 / rate if len(dev_t) else 0.0
-    return TrialMeasure(round(t0, 6), round(t1, 6), flags)
+    return TrialMeasure(round(t0, 6), round(t1, 6), flags, raw)

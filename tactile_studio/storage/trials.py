@@ -34,6 +34,7 @@ def trial_number(index: int) -> int:
 
 _FIELDS = ("index", "block", "gesture", "key", "start_sample", "end_sample", "start_time",
            "end_time", "status", "reason", "flags")
+_OPTIONAL = ("check", "decision", "performed")
 
 
 @dataclass(frozen=True)
@@ -54,6 +55,12 @@ class TrialRecord:
     # a discarded trial whose gesture is collected again (a later trial replaces it):
     # discarded on record, but not counted as done (resume collects it if it is not yet)
     collected_again: bool = False
+    # issue 46 (storage/trial_checks.py), stored only when set: the model's verdict
+    # (``check``), the experimenter's ``decision`` on a flagged trial (redo / keep), and
+    # what a virtual participant actually ``performed`` (its mistakes)
+    check: Mapping[str, Any] | None = None
+    decision: str | None = None
+    performed: str | None = None
     extra: Mapping[str, Any] = field(default_factory=dict)  # importers' extra columns
 
     @classmethod
@@ -66,8 +73,10 @@ class TrialRecord:
         known["status"] = TrialStatus(known.get("status") or TrialStatus.OK)
         known["flags"] = tuple(known.get("flags") or ())
         again = bool(d.get("collected_again", False))
-        return cls(**known, collected_again=again,
-                   extra={k: v for k, v in d.items() if k not in (*_FIELDS, "collected_again")})
+        optional = {k: d[k] for k in _OPTIONAL if d.get(k) is not None}
+        return cls(**known, collected_again=again, **optional,
+                   extra={k: v for k, v in d.items()
+                          if k not in (*_FIELDS, *_OPTIONAL, "collected_again")})
 
     def to_dict(self) -> dict[str, Any]:
         """The file's form (plain strings and lists; the key order of the journal)."""
@@ -76,6 +85,9 @@ class TrialRecord:
         out["flags"] = list(self.flags)
         if self.collected_again:  # only then: the file's trials keep their columns
             out["collected_again"] = True
+        for k in _OPTIONAL:
+            if getattr(self, k) is not None:
+                out[k] = dict(self.check or {}) if k == "check" else getattr(self, k)
         out.update(self.extra)
         return out
 

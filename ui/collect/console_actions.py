@@ -47,7 +47,10 @@ class ConsoleActions(QMainWindow):
         session goes on (as Continue)."""
         if self.runner is None or not self.runner.snapshot().redo_prompt:
             return
-        self.runner.proceed()
+        if self.runner.held:  # Continue keeps it (decision keep) and goes on
+            self.runner.proceed()
+        else:
+            self.runner.keep_flagged()
         self.tick()
 
     def toggle_pause(self) -> None:

@@ -35,7 +35,7 @@ DIMMED_FG = QColor("#8a8f98")
 
 def _signature(trials: tuple[dict[str, Any], ...]) -> tuple:
     return tuple((t.get("index"), t.get("status"), t.get("reason"), tuple(t.get("flags") or ()),
-                  repr(t.get("verdict")), t.get("decision")) for t in trials)
+                  repr(t.get("check")), t.get("decision")) for t in trials)
 
 
 class TrialLog(QTableWidget):
