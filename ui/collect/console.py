@@ -317,7 +317,8 @@ class CollectConsole(ConsoleActions):
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health,
-            recorder=self.acquisition.start_recording, pilot=choice.pilot),
+            recorder=self.acquisition.start_recording, pilot=choice.pilot,
+            trial_check=choice.qc.checker(choice.participant)),
             choice.device, choice.device_settings)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
@@ -342,7 +343,9 @@ class CollectConsole(ConsoleActions):
             hold_flagged=hold, auto_continue=auto,
             recorder=self.acquisition.start_recording,
             allow_other_sensor=allow_other_sensor,
-            protocol_at_hand=self.setup.current_protocol()), device, dev_settings)
+            protocol_at_hand=self.setup.current_protocol(),
+            trial_check=self.setup.qc.choice().checker(self.setup.resume_participant())),
+            device, dev_settings)
 
     def ask_other_sensor_note(self, path: str) -> TextDialog:
         """"Resume on this other sensor…": why, then the resume on the form's device."""

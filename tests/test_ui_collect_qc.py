@@ -1,0 +1,120 @@
+"""The console's trial check with a real model: the setup takes a QC model (a run folder
+or a model exported from one), says which of the protocol's gestures it does not score,
+remembers it per study with its top-k and threshold, and the session scores each trial
+of a gesture the model knows (the verdict on the trial, the model in the metadata).
+
+A tiny rf run (leave-one-participant-out over two simulated people, Poke and Twist
+only; ~8 s) stands for a study's earlier participants; the mini3 protocol also has
+Tickle, which the model does not know.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from learn_fixtures import make_dataset_folder
+from PySide6.QtCore import QSettings, Qt
+from PySide6.QtWidgets import QFileDialog
+from test_ui_collect import MINI, WAIT_MS, do_trial, fill_device, make_console, snap, solid_png
+
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.protocol.snapshot import State
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
+from tactile_studio.ui.collect.qc_setup import DIALOG_KIND
+from tactile_studio.ui.collect.setup import CollectSetup
+from tactile_studio.ui.file_dialogs import start_folder
+
+
+@pytest.fixture(scope="module")
+def qc_run(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("qc")
+    make_dataset_folder(root / "data", participants=2, blocks=2, gestures=("Poke", "Twist"))
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+                           threads=1, cache_dir=str(root / "cache"))
+    run_experiment(cfg, root / "run")
+    return root / "run"
+
+
+@pytest.fixture
+def env(tmp_path, monkeypatch, qapp):
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    proto = tmp_path / "mini3.toml"
+    proto.write_text(MINI)
+    solid_png(tmp_path / "pics" / "poke.png", 60, 40)
+    (tmp_path / "data").mkdir()
+    return proto, tmp_path / "data"
+
+
+def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
+    """The "Run folder..." button and its dialog, as the experimenter picks the run."""
+    monkeypatch.setattr(QFileDialog, "getExistingDirectory",
+                        staticmethod(lambda *a, **k: str(run)))
+    qtbot.mouseClick(setup.qc.run_button, Qt.MouseButton.LeftButton)
+
+
+def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
+        qtbot, env, qc_run, monkeypatch, tmp_path):
+    proto, _ = env
+    settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
+    setup = CollectSetup(settings)
+    qtbot.addWidget(setup)
+    setup.set_protocol_file(str(proto))
+    qc = setup.qc
+    assert qc.path.text() == "" and "signal is still checked" in qc.info.text()
+    assert (qc.top_k.value(), qc.threshold.value()) == (DEFAULT_TOP_K, DEFAULT_THRESHOLD)
+    choose_run(qtbot, setup, qc_run, monkeypatch)
+    assert qc.path.text() == str(qc_run)
+    assert qc.info.text().endswith("scores 2 of the 3 gestures; not scored: Tickle")
+    qc.top_k.setValue(1)
+    # a file that is no model: one line, no model kept
+    monkeypatch.setattr(QFileDialog, "getOpenFileName",
+                        staticmethod(lambda *a, **k: (str(tmp_path / "gone.onnx"), "")))
+    qtbot.mouseClick(qc.file_button, Qt.MouseButton.LeftButton)
+    assert qc.path.text() == "" and "no such run folder or exported model" in qc.info.text()
+    choose_run(qtbot, setup, qc_run, monkeypatch)
+    # the next setup of this study has it back, with its settings; another study does not
+    again = CollectSetup(settings)
+    qtbot.addWidget(again)
+    again.set_protocol_file(str(proto))
+    assert again.qc.path.text() == str(qc_run) and again.qc.top_k.value() == 1
+    assert "not scored: Tickle" in again.qc.info.text()
+    again.protocol.setCurrentIndex(0)  # a built-in protocol: another study
+    assert again.qc.path.text() == ""
+    # the next chooser opens where this one was left: beside the run (the other runs)
+    assert start_folder(DIALOG_KIND) == str(qc_run.parent)
+
+
+def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(qtbot, env, qc_run,
+                                                                 monkeypatch):
+    proto, out = env
+    console = make_console(qtbot)
+    s = console.setup
+    s.set_protocol_file(str(proto))
+    s.blocks.setValue(1)
+    choose_run(qtbot, s, qc_run, monkeypatch)
+    qtbot.keyClicks(s.participant, "P01")  # a person of the run: its fold that never saw them
+    s.out_dir.setText(str(out))
+    fill_device(qtbot, console)
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = console.session.path
+    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+    for g in [x for x in snap(console).gestures if not x.done]:
+        nxt = snap(console)
+        g = next(x for x in nxt.gestures if x.name == nxt.prompted)
+        do_trial(qtbot, console, g.name, g.key)
+        if console.redo_banner.isVisible():  # flagged (by the model or the signal): kept
+            qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    with Session(path) as sess:
+        trials, meta = sess.trials, sess.metadata
+    check = meta["trial_check"]
+    assert check["model"] == "run/P01" and check["out_of_fold"] is True
+    assert check["not_scored"] == ["Tickle"] and check["top_k"] == DEFAULT_TOP_K
+    scored = {t["gesture"]: t.get("check") for t in trials}
+    assert scored["Tickle"] is None
+    for name in ("Poke", "Twist"):
+        assert scored[name]["model"] == "run/P01" and 1 <= scored[name]["rank"] <= 2
