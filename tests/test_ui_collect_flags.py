@@ -10,12 +10,17 @@ key pressed, nothing touched (``no_contact``).
 
 from __future__ import annotations
 
+import threading
+from dataclasses import replace
+
+import numpy as np
 from PySide6.QtCore import QRect, Qt
 from PySide6.QtWidgets import QWidget
 from test_ui_collect import (
     WAIT_MS,
     do_trial,
     env,  # noqa: F401 (the fixture)
+    fill_device,
     make_console,
     open_mini,
     snap,
@@ -24,9 +29,11 @@ from test_ui_collect_keys import press
 
 from tactile_studio.protocol.flag_summary import block_summary, trial_reason
 from tactile_studio.protocol.snapshot import State
+from tactile_studio.protocol.trial_check import verdict
 from tactile_studio.storage.session import Session
 from tactile_studio.ui.collect.console import CollectConsole
 from tactile_studio.ui.collect.log import FLAGGED_BG
+from tactile_studio.ui.collect.qc_setup import QcChoice
 
 FLAG_WORDS = ("flag", "no contact", "redo", "looks like", "keep")
 
@@ -139,3 +146,70 @@ def test_block_summary_counts_every_performance_and_names_what_a_model_saw():
     assert trial_reason(trials[3]) == ("looks like Wide Pinch (0.61); Twist 0.07, "
                                        "contact off the sensor centre")
     assert trial_reason(trials[2]) == ""
+
+
+class SlowModel:
+    """A TrialChecker of the test's own that answers only when the test lets it (as a
+    model that takes its time): every trial 'looks like nothing'. ``timed_out`` says
+    whether it had to give up waiting (it was asked on the thread that should let it go)."""
+
+    def __init__(self, gestures: list[str]) -> None:
+        self.known = frozenset(gestures)
+        self.go = threading.Event()
+        self.asked = threading.Event()
+        self.timed_out = False
+
+    def describe(self) -> dict:
+        return {"model": "slow", "version": "1", "top_k": 1, "threshold": 0.5}
+
+    def check(self, layout, raw, baseline, rate_hz, prompted):  # noqa: ANN001, ANN201
+        self.asked.set()
+        self.timed_out = not self.go.wait(timeout=5)
+        labels = [*sorted(self.known), "nothing"]
+        probs = np.full(len(labels), 0.0)
+        probs[labels.index(prompted)], probs[-1] = 0.1, 0.9
+        return verdict(labels, probs, prompted, top_k=1, threshold=0.5)
+
+
+def test_the_console_stays_live_while_the_model_thinks(qtbot, env):  # noqa: F811
+    proto, out = env
+    console = make_console(qtbot)
+    s = console.setup
+    s.set_protocol_file(str(proto))
+    s.blocks.setValue(1)
+    qtbot.keyClicks(s.participant, "P03")
+    s.out_dir.setText(str(out))
+    fill_device(qtbot, console)
+    model = SlowModel(console.setup.current_protocol().gesture_names)
+    assert console.start_session(replace(s.choice(), qc=QcChoice(ready=model)))
+    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+    g = first_prompted(console)
+    console.engine.device.perform(g.name, duration_s=1.0)
+    qtbot.keyClick(console.participant, g.key)
+    qtbot.waitUntil(lambda: len(snap(console).trials) == 1 and model.asked.is_set(),
+                    timeout=WAIT_MS)
+    # the model is thinking: the trial is on record, the console goes on ticking, and the
+    # held session takes no key until the verdict is in
+    ticks = console._ticks
+    qtbot.waitUntil(lambda: console._ticks > ticks + 3, timeout=WAIT_MS)
+    assert "model_mismatch" not in snap(console).trials[0]["flags"]
+    assert snap(console).state == State.REVIEW
+    nxt = next(x for x in snap(console).gestures if not x.done)
+    qtbot.keyClick(console.participant, nxt.key)
+    assert len(snap(console).trials) == 1 and console.runner.held
+    model.go.set()
+    qtbot.waitUntil(lambda: console.redo_banner.isVisible(), timeout=WAIT_MS)
+    assert not model.timed_out
+    assert console.redo_banner.text() == \
+        f"Trial 1 ({g.name}): looks like nothing (0.90); {g.name} 0.10 - redo?"
+    assert console.log.item(0, 4).text() == f"looks like nothing (0.90); {g.name} 0.10"
+    trial = snap(console).trials[0]
+    assert trial["check"]["model"] == "slow" and "model_mismatch" in trial["flags"]
+    qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    assert snap(console).trials[0]["decision"] == "keep"
+    path = console.session.path
+    console.close()
+    with Session(path) as sess:
+        stored = sess.trials[0]
+    assert stored["check"]["flagged"] and stored["decision"] == "keep"

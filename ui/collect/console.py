@@ -41,6 +41,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import LiveView
 from tactile_studio.live.meters import PaintPacer
+from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.collect import (
     OtherSensorRefused,
     can_perform,
@@ -318,8 +319,15 @@ class CollectConsole(ConsoleActions):
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health,
             recorder=self.acquisition.start_recording, pilot=choice.pilot,
-            trial_check=choice.qc.checker(choice.participant)),
+            trial_check=self._off_gui(choice.qc.checker(choice.participant))),
             choice.device, choice.device_settings)
+
+    @staticmethod
+    def _off_gui(checker: Any) -> BackgroundCheck | None:
+        """The model scores each trial on a worker thread, not in the timer's tick: the
+        heatmap and the buttons stay live while it thinks (its verdict joins the trial
+        at the first tick after)."""
+        return None if checker is None else BackgroundCheck(checker)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
         """The sensor of the chosen device (the shared live one when none is chosen)."""
@@ -344,7 +352,8 @@ class CollectConsole(ConsoleActions):
             recorder=self.acquisition.start_recording,
             allow_other_sensor=allow_other_sensor,
             protocol_at_hand=self.setup.current_protocol(),
-            trial_check=self.setup.qc.choice().checker(self.setup.resume_participant())),
+            trial_check=self._off_gui(
+                self.setup.qc.choice().checker(self.setup.resume_participant()))),
             device, dev_settings)
 
     def ask_other_sensor_note(self, path: str) -> TextDialog:
@@ -422,7 +431,10 @@ class CollectConsole(ConsoleActions):
             self.virtual = None
         if self.session is not None:
             path = str(self.session.path)
+            self.runner.take_verdict(wait_s=WAIT_S)  # a verdict on its way joins its trial
             self.session.close()
+            if isinstance(self.runner.trial_check, BackgroundCheck):
+                self.runner.trial_check.close()
             self.session = None
         self.acquisition.disconnect()  # stops the engine only if it is the session's own
         return path

@@ -44,10 +44,13 @@ class QcChoice:
     model: str | None = None
     top_k: int = DEFAULT_TOP_K
     threshold: float = DEFAULT_THRESHOLD
+    ready: Any = None  # a TrialChecker already built (a script's own): used as it is
 
     def checker(self, participant: str) -> Any:
         """The core's ModelTrialCheck for ``participant`` (None without a model); a model
         that cannot check is a one-line UserError."""
+        if self.ready is not None:
+            return self.ready
         if not self.model:
             return None
         from tactile_studio.learn.deploy.trial_check import ModelTrialCheck  # torch: at use
