@@ -66,7 +66,7 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     assert (qc.top_k.value(), qc.threshold.value()) == (DEFAULT_TOP_K, DEFAULT_THRESHOLD)
     choose_run(qtbot, setup, qc_run, monkeypatch)
     assert qc.path.text() == str(qc_run)
-    assert qc.info.text().endswith("scores 2 of the 3 gestures; not scored: Tickle")
+    assert qc.info.text() == "run (rf) scores 2 of the 3 gestures; not scored: Tickle"
     qc.top_k.setValue(1)
     # a file that is no model: one line, no model kept
     monkeypatch.setattr(QFileDialog, "getOpenFileName",

@@ -12,6 +12,7 @@ that never saw them).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from PySide6.QtCore import QSettings, Signal
@@ -81,14 +82,12 @@ class QcModelField(QWidget):
         self.clear_button.setToolTip("no model: the signal checks only")
         self.top_k = QSpinBox()
         self.top_k.setRange(1, 50)
-        self.top_k.setPrefix("top ")
         self.top_k.setToolTip("flag a trial when the prompted gesture is not among the "
                               "model's most likely k")
         self.threshold = QDoubleSpinBox()
         self.threshold.setRange(0.0, 1.0)
         self.threshold.setDecimals(2)
         self.threshold.setSingleStep(0.01)
-        self.threshold.setPrefix("p \u2265 ")
         self.threshold.setToolTip("or when the model's probability of the prompted gesture "
                                   "is below this")
         self.info = QLabel(NO_MODEL)
@@ -101,9 +100,10 @@ class QcModelField(QWidget):
             row.addWidget(w)
         settings_row = QHBoxLayout()
         settings_row.setContentsMargins(0, 0, 0, 0)
-        settings_row.addWidget(QLabel("Flag unless the prompted gesture is in the"))
+        settings_row.addWidget(QLabel("Flag a trial when the prompted gesture is not in the "
+                                      "model's top"))
         settings_row.addWidget(self.top_k)
-        settings_row.addWidget(QLabel("and"))
+        settings_row.addWidget(QLabel("or its probability is below"))
         settings_row.addWidget(self.threshold)
         settings_row.addStretch(1)
         box = QVBoxLayout(self)
@@ -179,11 +179,12 @@ class QcModelField(QWidget):
         return ok
 
     def _scores(self, about: dict[str, Any]) -> str:
-        """"rf run R (fold F) scores 8 of the 9 gestures; not scored: Tickle"."""
+        """"rf-earlier (rf) scores 8 of the 9 gestures; not scored: Tickle"."""
         known = self.known or frozenset()
         missing = [g for g in self._gestures if g not in known]
         n = len(self._gestures) - len(missing)
-        head = f"{about.get('family', 'model')} {about.get('model', '')}".strip()
+        run = Path(str(about.get("run") or about.get("model") or "the model")).name
+        head = f"{run} ({about['family']})" if about.get("family") else run
         if not self._gestures:
             return f"{head}: knows {', '.join(sorted(known))}"
         if not n:

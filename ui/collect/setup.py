@@ -70,7 +70,7 @@ class SetupChoice:
     seed: int = 0
     device: str | None = None          # None: use the console's shared live engine
     device_settings: dict[str, Any] = field(default_factory=dict)
-    hold_flagged: bool = True          # a flagged trial waits for Redo or Continue
+    hold_flagged: bool = True          # a flagged trial waits for Redo or Keep
     auto_continue: bool = False        # breaks end by themselves after their minimum
     pilot: bool = False                # a rehearsal (protocol/collect.py: session_metadata)
     qc: QcChoice = field(default_factory=QcChoice)  # the trial check's model, if any
@@ -151,7 +151,7 @@ class CollectSetup(QWidget):
             default = saved if self.device.findData(saved) >= 0 else DEFAULT_DEVICE
             self.device.setCurrentIndex(max(0, self.device.findData(default)))
         self._on_device_changed()
-        self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
+        self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Keep")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
         self.pilot = QCheckBox("Pilot: rehearse the protocol (on the simulated sensor a "

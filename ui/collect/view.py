@@ -132,7 +132,7 @@ def state_label(snap: Any) -> str:
         text += f" {_PAUSED_IN.get(snap.paused_state, '')}".rstrip()
         text += " — Resume (Ctrl+P) to go on"
     if snap.state == "trial_review" and snap.can_continue:
-        text = "Flagged trial: Redo last, or Continue to keep it"
+        text = "Flagged trial: Redo (Ctrl+Z) or Keep (Ctrl+K / Continue)"
     if snap.state == "break" and snap.can_continue:
         text += " \u2014 minimum over, Continue when ready"
     return text
