@@ -10,7 +10,15 @@ with the lowest and highest CV: ten people are a small sample), then each pooled
 divided by the real one (issue 37 asks 0.75-1.25).
 
 Part 2, rf (full preset) LOPO per difficulty: 10 people x 9 gestures x 4 repetitions.
+
+Part 3 (issue 45 item 5), the variance split: each touch statistic's variance split into
+person / gesture / person x gesture / within (learn/data/variance_parts.py) for the
+real development set (five people, 2 s windows of their 12 s performances, as the
+product cuts them; benchmarks/real_data.py, skipped with one line where it is absent)
+beside ``--variance-populations`` simulated populations of 10 x shear9 x 4 blocks
+(difficulty real, flat), as shares and as standard deviations of each part.
 Run: .venv/bin/python -m benchmarks population [--populations 8] [--no-rf]
+     [--variance-only] [--variance-populations 3]
 """
 
 from __future__ import annotations
@@ -21,11 +29,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder, make_virtual_population  # noqa: E402
 
+from tactile_studio.learn.data import variance_parts as vp  # noqa: E402
 from tactile_studio.learn.data.dataset import read_sessions  # noqa: E402
 from tactile_studio.learn.data.touch_stats import (  # noqa: E402
     format_table,
@@ -84,15 +95,81 @@ def forest_by_difficulty() -> None:
               f"(simulate+decode {made:.1f} s, rf LOPO {took:.1f} s)")
 
 
+def _rows(ds, windows: bool) -> tuple[list[dict[str, float]], list, list]:
+    from tactile_studio.learn.data.windowing import WindowSpec, cut
+
+    if windows:
+        ds, _ = cut(ds, WindowSpec(2.0, 0.5))
+    names = list(ds.channel_names)
+    rows = [vp.stats_of(x, names, float(r)) for x, r in zip(ds.trials, ds.rates)]
+    return rows, list(ds.participants), list(ds.labels)
+
+
+def real_parts() -> dict[str, dict[str, float]] | None:
+    """The development set's parts (2 s windows), or None (one line said) without it."""
+    from benchmarks.real_data import dev_sessions, dev_set, skip_reason
+
+    if dev_set() is None:
+        print(f"real development set: skipped: {skip_reason()}")
+        return None
+    return vp.parts_table(*_rows(read_sessions([dev_sessions()]).select(None), True))
+
+
+def simulated_parts(populations: int, **kw: object) -> dict[str, dict[str, float]]:
+    """The mean parts of ``populations`` simulated populations (10 x shear9 x 4 blocks)."""
+    tables = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(populations):
+            folder = Path(tmp) / f"pop{seed}"
+            make_virtual_population(folder, seed, blocks=4, **kw)
+            tables.append(vp.parts_table(*_rows(read_sessions([folder]).select(None), False)))
+    return vp.mean_parts(tables)
+
+
+def _fmt_shares(parts: dict[str, float] | None) -> str:
+    if parts is None:
+        return "-"
+    return " / ".join(f"{100 * v:3.0f}" for v in vp.shares(parts).values())
+
+
+def _fmt_sds(parts: dict[str, float] | None) -> str:
+    if parts is None:
+        return "-"
+    return " / ".join(f"{np.sqrt(parts[p]):.2f}" for p in vp.PARTS)
+
+
+def variance_split(populations: int) -> None:
+    t0 = time.perf_counter()
+    real = real_parts()
+    sim = simulated_parts(populations)
+    print(f"\nVariance split of the touch statistics (issue 45): person / gesture / "
+          f"person x gesture / within; real = the development set's 2 s windows, sim = "
+          f"mean of {populations} simulated populations (10 people, shear9, 4 blocks, "
+          f"difficulty real); {time.perf_counter() - t0:.0f} s")
+    print("shares, %:")
+    print(f"  {'statistic':22s} {'real':>22s}   {'simulator':>22s}")
+    for k in vp.STATS:
+        unit = " (log)" if k in vp.LOG_OFFSET else ""
+        print(f"  {k + unit:22s} {_fmt_shares(real and real[k]):>22s}   "
+              f"{_fmt_shares(sim[k]):>22s}")
+    print("standard deviation of each part (log units where marked; s; Hz):")
+    for k in vp.STATS:
+        print(f"  {k:22s} {_fmt_sds(real and real[k]):>26s}   {_fmt_sds(sim[k]):>26s}")
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--populations", type=int, default=8)
     p.add_argument("--no-rf", action="store_true", help="the table only")
+    p.add_argument("--variance-only", action="store_true", help="part 3 only")
+    p.add_argument("--variance-populations", type=int, default=3)
     args = p.parse_args(argv)
-    simulator_table(args.populations)
-    if not args.no_rf:
-        forest_by_difficulty()
+    if not args.variance_only:
+        simulator_table(args.populations)
+        if not args.no_rf:
+            forest_by_difficulty()
+    variance_split(args.variance_populations)
 
 
 if __name__ == "__main__":
-    main()
+    main(sys.argv[1:])

@@ -76,6 +76,16 @@ class SimulatedSensor(DevicePlugin):
                 "(relative std; calibration recovers it)", minimum=0.0, maximum=0.5,
                 label="Taxel sensitivity spread", unit="relative std",
                 advanced=True),
+        # a virtual participant's mistakes (protocol/virtual.py), for testing the checks
+        Setting("mistakes", "float", 0.0, "share of a virtual participant's trials where "
+                "it performs another gesture than the prompted one", minimum=0.0,
+                maximum=1.0, label="Wrong gestures", unit="share of trials", advanced=True),
+        Setting("light", "float", 0.0, "share of a virtual participant's trials performed "
+                "far too lightly", minimum=0.0, maximum=1.0, label="Too light",
+                unit="share of trials", advanced=True),
+        Setting("off_centre", "float", 0.0, "share of a virtual participant's trials "
+                "performed off the sensor's centre", minimum=0.0, maximum=1.0,
+                label="Off centre", unit="share of trials", advanced=True),
     )
 
     def __init__(self, **settings: Any) -> None:
@@ -171,14 +181,16 @@ class SimulatedSensor(DevicePlugin):
 
     # ---- virtual-participant controls (thread-safe) ----------------------------------
     def perform(self, gesture: str, duration_s: float = 2.0, intensity: float | None = None,
-                speed: float | None = None, at_frame: int | None = None) -> Trial:
-        """Start ``gesture`` at the next frame (or at simulated frame ``at_frame``).
+                speed: float | None = None, at_frame: int | None = None,
+                shift_mm: tuple[float, float] = (0.0, 0.0)) -> Trial:
+        """Start ``gesture`` at the next frame (or at simulated frame ``at_frame``),
+        ``shift_mm`` away from where the person usually touches.
 
         Returns the scheduled :class:`Trial` (its ``start`` is the first frame).
         Raises ValueError for an unknown gesture or a frame already generated.
         """
         with self._lock:
-            return self._sim.perform(gesture, duration_s, intensity, speed, at_frame)
+            return self._sim.perform(gesture, duration_s, intensity, speed, at_frame, shift_mm)
 
     def press(self, x_mm: float, y_mm: float, load_kpa: float, radius_mm: float = 5.0,
               shear_x: float = 0.0, shear_y: float = 0.0, duration_s: float = 2.0,

@@ -114,6 +114,18 @@ def sessions_written_pass_check(request):
     assert not failed, "session files fail `check`:\n" + "\n".join(failed)
 
 
+@pytest.fixture(scope="session")
+def dev_set():
+    """The real development set's folder (benchmarks/real_data.py: ``../shared`` beside
+    the repository, or ``$TACTILE_STUDIO_DEV_SET``); skips with one line where absent."""
+    from benchmarks.real_data import dev_set as find
+    from benchmarks.real_data import skip_reason
+    folder = find()
+    if folder is None:
+        pytest.skip(skip_reason())
+    return folder
+
+
 @pytest.fixture
 def wait_until():
     """The shared bounded wait (tests/waiting.py), for tests that prefer a fixture."""

@@ -110,7 +110,7 @@ def test_the_device_panel_says_the_simulator_is_idle_while_a_collection_uses_it(
             "Baseline drift (fraction of baseline)"
         assert form.form.labelForField(form.fields["rate"].widget).text() == "Frame rate (Hz)"
         assert "--set noise=" in form.fields["noise"].widget.toolTip()
-        assert form.more.text() == "More settings (11)" and not form.more.isChecked()
+        assert form.more.text() == "More settings (14)" and not form.more.isChecked()
         assert not form.fields["noise"].widget.isVisibleTo(w)  # folded: not the default set
         assert form.fields["rate"].widget.isVisibleTo(w)
         gesture = form.fields["gesture"]

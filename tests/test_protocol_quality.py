@@ -4,7 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from tactile_studio.protocol.quality import FLAGS, describe, in_centre, load_centroid, trial_flags
+from tactile_studio.protocol.quality import (
+    FLAG_TEXT,
+    FLAGS,
+    QualitySettings,
+    describe,
+    in_centre,
+    load_centroid,
+    trial_flags,
+)
 from tactile_studio.protocol.report import trial_table
 from tactile_studio.sensor.decode import compute_baseline
 from tactile_studio.sensor.layout import COST_8X8, SHEARSENSE_6X6
@@ -75,8 +83,10 @@ def test_flags_on_a_pressure_grid() -> None:
 
 def test_describe_and_trial_table() -> None:
     assert describe(["no_contact", "off_centre"]) == "no contact, contact off the sensor centre"
-    assert set(FLAGS) == {"no_contact", "saturated", "stuck_channel", "dropped_frames", "gap",
-                          "off_centre"}
+    assert set(FLAGS) == {"no_contact", "short_contact", "saturated", "stuck_channel",
+                          "dead_taxel", "dropped_frames", "gap", "off_centre", "too_light",
+                          "too_heavy", "release_overlap", "model_mismatch"}
+    assert set(FLAG_TEXT) == set(FLAGS)
     trials = [
         {"index": 0, "block": -1, "gesture": "Poke", "status": "discarded", "flags": []},
         {"index": 1, "block": 0, "gesture": "Twist", "status": "ok", "flags": []},
@@ -94,3 +104,37 @@ def test_describe_and_trial_table() -> None:
     assert "flags: no_contact 1, gap 1" in table
     assert "blocks: 2 (1..2)" in table and "practice trials: 1" in table
     assert trial_table([]) == "no trials"
+
+
+def test_the_issue_46_signal_checks_from_their_causes() -> None:
+    lay = SHEARSENSE_6X6
+    # a wide press over a taxel that reads nothing (the simulator's dead_taxel, C3)
+    raw, base, _ = _trial(None, press=(40.0, 40.0, 15.0, 25.0), fault="dead_taxel")
+    assert "dead_taxel" in trial_flags(lay, raw, base)
+    raw, base, _ = _trial(None, press=(40.0, 40.0, 15.0, 25.0))
+    assert "dead_taxel" not in trial_flags(lay, raw, base)
+    # force against the gesture's declared force
+    raw, base, _ = _trial(None, press=(40.0, 40.0, 2.0, 12.0))  # ~1.3 kPa at its peak
+    assert trial_flags(lay, raw, base, force="natural") == ["too_light"]
+    assert trial_flags(lay, raw, base, force="light") == []
+    assert trial_flags(lay, raw, base) == []  # no force declared: not checked
+    raw, base, _ = _trial(None, press=(40.0, 40.0, 40.0, 12.0))  # ~25 kPa
+    assert trial_flags(lay, raw, base, force="light") == ["too_heavy"]
+    assert trial_flags(lay, raw, base, force="natural") == []  # natural: up to 30 kPa
+    assert trial_flags(lay, raw, base, force="heavy") == []
+    # contact for a share of the trial below the protocol's setting
+    raw, base, _ = _trial("Poke")
+    short = QualitySettings(min_contact_share=0.9)
+    assert trial_flags(lay, raw, base, settings=short) == ["short_contact"]
+    assert trial_flags(lay, raw, base) == []
+
+
+def test_a_trial_begun_during_the_previous_release_is_flagged() -> None:
+    sim = SensorSimulator(gesture="idle", seed=3, difficulty="easy")
+    base = compute_baseline(sim.step(100))
+    sim.press(40.0, 40.0, 12.0, duration_s=1.0, at_frame=105)  # ends at frame 148
+    sim.step(45)  # the next trial's first frame: the press is letting go
+    sim.perform("Poke", 1.0, at_frame=165)  # and the trial's own gesture
+    raw = sim.step(N)
+    assert "release_overlap" in trial_flags(SHEARSENSE_6X6, raw, base)
+    assert "release_overlap" not in trial_flags(SHEARSENSE_6X6, *_trial("Heavy Pat")[:2])

@@ -104,3 +104,36 @@ def test_every_option_of_every_model_has_its_own_line_of_help(name):
     rows = model_settings(name, "tiny")
     assert rows and all(help_ and help_ != "model option" for _, _, help_ in rows), \
         [k for k, _, h in rows if h == "model option"]
+
+
+THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "OMP_WAIT_POLICY")
+
+
+@pytest.mark.slow
+def test_training_uses_one_thread_that_sleeps_by_default(data, tmp_path, monkeypatch):
+    """As a user starts it (no thread settings in the environment, no --threads), the
+    train panel's worker and ``tactile-studio train`` train with one torch thread and
+    OpenMP's passive wait: torch's default (one thread per core, spinning at barriers)
+    cost 22x the CPU per step on a loaded 2-core machine (issue 45, docs/learning).
+    Before: resolved.threads read torch 2 (the cores here) and no wait policy."""
+    import subprocess
+    import sys
+
+    for name in THREAD_VARS:  # the suite's one-thread settings (conftest) removed
+        monkeypatch.delenv(name, raising=False)
+    config = ExperimentConfig(data=[str(data / "data")], model="cnn1d", protocol="lopo",
+                              preset="tiny", epochs=1, cache_dir=str(data / "cache"),
+                              device="cpu")
+    job = TrainJob(config, tmp_path / "panel").start()
+    wait_until_finished(job)
+    assert job.finished.type == "done", job.finished
+    cli = tmp_path / "cli"
+    proc = subprocess.run(
+        [sys.executable, "-m", "tactile_studio", "train", "--data", str(data / "data"),
+         "--model", "cnn1d", "--preset", "tiny", "--epochs", "1", "--device", "cpu",
+         "--cache-dir", str(data / "cache"), "--out", str(cli)],
+        capture_output=True, text=True, timeout=240, env=dict(os.environ))
+    assert proc.returncode == 0, proc.stderr
+    for run in (tmp_path / "panel", cli):
+        threads = json.loads((run / "config.json").read_text())["resolved"]["threads"]
+        assert threads == {"torch": 1, "omp_wait_policy": "PASSIVE"}, (run, threads)

@@ -5,41 +5,14 @@ redo prompt and the trial-ended event; Redo and Keep are stored as the decision.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
-import numpy as np
+from check_fixtures import ContactShare
 from collect_fixtures import do_trial, make_rig, mini_protocol, start
 
 from tactile_studio.protocol.randomise import block_orders
-from tactile_studio.protocol.trial_check import TrialChecker, TrialVerdict, verdict
+from tactile_studio.protocol.trial_check import TrialChecker
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trial_checks import check_problems
-
-
-class ContactShare:
-    """A checker of the test's own that reads the trial's frames: a trial the sensor
-    was not touched in looks like 'nothing', so any prompted gesture is flagged; a
-    touched trial (10% of its frames) looks like its prompt. It stands for a model (the
-    real ones are tested in test_trial_check_model.py); tested here: the runner's side."""
-
-    def __init__(self, gestures: list[str], unknown: str) -> None:
-        self.known = frozenset(g for g in gestures if g != unknown)  # not scored
-        self.labels = [*sorted(self.known), "nothing"]
-        self.calls = 0
-
-    def describe(self) -> dict[str, Any]:
-        return {"model": "contact-share", "version": "1", "top_k": 1, "threshold": 0.5}
-
-    def check(self, layout, raw, baseline, rate_hz, prompted) -> TrialVerdict | None:  # noqa: ANN001
-        self.calls += 1
-        if prompted not in self.known:
-            return None
-        share = float((np.asarray(raw) < 0.985 * baseline).any(axis=1).mean())
-        touched = 0.9 if share >= 0.1 else 0.1
-        probs = np.full(len(self.labels), 0.0)
-        probs[self.labels.index(prompted)] = touched
-        probs[-1] = 1.0 - touched
-        return verdict(self.labels, probs, prompted, top_k=1, threshold=0.5)
 
 
 def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -> None:

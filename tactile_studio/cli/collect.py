@@ -18,6 +18,7 @@ from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
+from tactile_studio.cli.qc import add_qc_options, announce_check, qc_checker
 from tactile_studio.cli.recording_warnings import (
     add_silence_option,
     apply_silence_option,
@@ -80,6 +81,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--allow-other-sensor", metavar="NOTE",
                    help="resume although the device or sensor differs from the file's (the "
                         "note, why, is stored in the session)")
+    add_qc_options(p, "--qc-model", "check each trial as it ends with this model of "
+                   "earlier participants: a run folder or RUN/export/<fold>.onnx")
     add_lsl_option(p)
     add_markers_option(p)
     add_silence_option(p)
@@ -169,6 +172,9 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
+    if getattr(args, "qc_model", None):  # the console remembers its model per study
+        raise UserError("--qc-model checks a headless collection (--virtual-participant); "
+                        "the console chooses its check model in its setup")
     if getattr(args, "markers", None):
         options["markers"] = list(args.markers)  # the console's recording takes them in
     if getattr(args, "silence_warning", None) is not None:
@@ -202,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
+    check = qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold, participant)
     device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
@@ -213,7 +220,7 @@ def run(args: argparse.Namespace) -> int:
     if args.resume:
         session = resume_session(args.resume, engine, clock=clock,
                                  recorder=acq.start_recording,
-                                 allow_other_sensor=args.allow_other_sensor)
+                                 allow_other_sensor=args.allow_other_sensor, trial_check=check)
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
@@ -224,8 +231,11 @@ def run(args: argparse.Namespace) -> int:
         session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
                                condition=args.condition,
                                wellness=admit(status, args.wellness_override),
-                               recorder=acq.start_recording, pilot=args.pilot)
+                               recorder=acq.start_recording, pilot=args.pilot,
+                               trial_check=check)
         print(f"writing {session.path}", file=sys.stderr)
+    if check is not None:
+        announce_check(check, protocol, session.runner)
     vp = VirtualParticipant(session.runner, device, participant, seed)
     vp.prepare()
     try:

@@ -83,7 +83,8 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--folds", type=int, default=10, help="k for group-kfold")
     p.add_argument("--device", default="auto", help="auto, cpu or cuda")
     p.add_argument("--threads", type=int, default=None,
-                   help="torch CPU threads (1 is fastest for tiny models on a busy machine)")
+                   help="CPU threads of the training (torch, OpenMP; default 1: more "
+                        "threads spin-wait on a busy machine, docs/learning/training-time.md)")
     p.add_argument("--window", dest="window_s", type=finite_float, default=None, metavar="SECONDS",
                    help="trials longer than 1.5 windows are cut into windows this long "
                         "(default: the protocol's trial length, else 2 s)")
@@ -146,6 +147,7 @@ def _config(args: argparse.Namespace, channels: str | None):
         use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
         aggregate=args.aggregate, shots=tuple(getattr(args, "shots", ()) or ()),
         shots_by=getattr(args, "shots_by", "auto"),
+        exclude_flagged=bool(getattr(args, "exclude_flagged", False)),
         **generalisation_kwargs(args))
 
 
@@ -318,6 +320,9 @@ def register(subparsers) -> None:
                    help="channel set (default: every channel the data has)")
     p.add_argument("--out", required=True, metavar="RUN",
                    help="run folder (re-run with the same folder to resume)")
+    p.add_argument("--exclude-flagged", action="store_true",
+                   help="leave out trials stored with flags (signal checks, the model "
+                        "check); off by default; the run's config.json says which")
     p.set_defaults(func=cmd_train)
 
     p = subparsers.add_parser("evaluate", help="re-score a run from its saved weights")

@@ -1,14 +1,25 @@
 """Quality flags for one trial, computed from its raw frames when it ends.
 
-A flag is a reason for the experimenter to look again (and usually redo the trial):
+A flag is a reason for the experimenter to look again (and usually redo the trial); each
+has a text a person reads at a glance (FLAG_TEXT; docs/trial-check.md):
 
 * ``no_contact``  - the sensor was touched in fewer than ``min_contact_fraction`` of frames
   (at least one)
+* ``short_contact`` - touched, but in less than the protocol's ``min_contact_share`` of
+  the trial (off unless the protocol sets it: a poke is brief)
 * ``saturated``   - a count hit the end of its range (0 or 65535 for capacitance counts)
 * ``stuck_channel`` - a channel did not change at all while most others did
+* ``dead_taxel``  - a taxel read nothing while the taxels around it were pressed
 * ``dropped_frames`` - frames of the trial were lost between device and file
 * ``gap``         - the device's sequence numbers or clock jump inside the trial
 * ``off_centre``  - the load centroid lies outside the sensor's centre region
+* ``too_light`` / ``too_heavy`` - the trial's force (90th percentile over its touched
+  frames of the most loaded taxel's normal stress) outside the range of the force the
+  protocol declares for the gesture (``force = "light" | "natural" | "heavy"``)
+* ``release_overlap`` - the trial starts during a touch's release (loaded at its first
+  frame and unloading fast): the previous gesture was still ending
+* ``model_mismatch`` - the model check: it does not look like the prompted gesture
+  (protocol/trial_check.py; its reason names what it looked like)
 """
 
 from __future__ import annotations
@@ -19,21 +30,31 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.sensor.decode import contact_taxels, relative_change
+from tactile_studio.sensor.decode import contact_taxels, decode, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
 from tactile_studio.storage.trial_checks import MISMATCH_FLAG
 
-FLAGS = ("no_contact", "saturated", "stuck_channel", "dropped_frames", "gap", "off_centre",
+FLAGS = ("no_contact", "short_contact", "saturated", "stuck_channel", "dead_taxel",
+         "dropped_frames", "gap", "off_centre", "too_light", "too_heavy", "release_overlap",
          "model_mismatch")
 FLAG_TEXT = {
     "no_contact": "no contact",
+    "short_contact": "contact too short",
     "saturated": "saturated counts",
     "stuck_channel": "a stuck channel",
+    "dead_taxel": "a dead taxel",
     "dropped_frames": "dropped frames",
     "gap": "a gap in the stream",
     "off_centre": "contact off the sensor centre",
+    "too_light": "too light for the gesture",
+    "too_heavy": "too heavy for the gesture",
+    "release_overlap": "began during the previous touch's release",
     "model_mismatch": "does not look like the prompted gesture",
 }
+# a gesture's declared force -> the range of the trial's force (kPa) it may have. The real
+# corpus: 90th-percentile peak normal 6.65 kPa per person [2.88-12.97] (docs/trial-check.md)
+FORCE_RANGES_KPA: dict[str, tuple[float, float]] = {
+    "light": (0.0, 6.0), "natural": (2.0, 30.0), "heavy": (5.0, 60.0)}
 
 
 @dataclass(frozen=True)
@@ -43,13 +64,24 @@ class QualitySettings:
     gap_factor: float = 1.8        # a device-time step over gap_factor / rate is a gap
     moving_share: float = 0.5      # stuck needs at least this share of channels moving
     contact_rel: float = 0.015     # capacitance: a channel 1.5% under baseline is touched
+    min_contact_share: float = 0.0  # short_contact below this share of frames (0: off)
+    dead_share: float = 0.1        # dead: peak under this share of its pressed neighbours'
+
+
+def quality_settings(protocol: Any) -> QualitySettings:
+    """The settings a protocol (storage.protocol_file.Protocol) declares in [quality]."""
+    return QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
+                           centre_fraction=protocol.centre_fraction,
+                           min_contact_share=protocol.min_contact_share)
 
 
 def trial_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray, *,
                 device_time: np.ndarray | None = None, seq: np.ndarray | None = None,
                 rate_hz: float | None = None, lost_frames: int = 0, gap_events: int = 0,
-                settings: QualitySettings | None = None) -> list[str]:
-    """The flags of a trial's frames ``raw`` (T, n_channels), in the order of FLAGS."""
+                settings: QualitySettings | None = None, force: str | None = None
+                ) -> list[str]:
+    """The flags of a trial's frames ``raw`` (T, n_channels), in the order of FLAGS;
+    ``force``: the gesture's declared force (FORCE_RANGES_KPA), None: not checked."""
     s = settings or QualitySettings()
     raw = np.asarray(raw)
     flags: set[str] = set()
@@ -62,16 +94,62 @@ def trial_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray, *,
             flags.add("saturated")
         if _stuck(raw, s.moving_share):
             flags.add("stuck_channel")
-        touching = contact_taxels(layout, raw, baseline, s.contact_rel).any(axis=(1, 2))
+        contact = contact_taxels(layout, raw, baseline, s.contact_rel)
+        touching = contact.any(axis=(1, 2))
         if touching.sum() < max(1.0, s.min_contact_fraction * raw.shape[0]):
             flags.add("no_contact")
         else:
+            if touching.mean() < s.min_contact_share:
+                flags.add("short_contact")
             centroid = load_centroid(layout, raw, baseline, s.contact_rel)
             if centroid is not None and not in_centre(layout, centroid, s.centre_fraction):
                 flags.add("off_centre")
+            flags.update(_load_flags(layout, raw, baseline, touching, s, force))
     elif lost_frames == 0:
         flags.add("dropped_frames")  # nothing to judge: the frames are gone
     return [f for f in FLAGS if f in flags]
+
+
+def _load_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray,
+                touching: np.ndarray, s: QualitySettings, force: str | None) -> set[str]:
+    """dead_taxel, too_light / too_heavy and release_overlap, from the decoded normal
+    stress of a touched trial."""
+    out: set[str] = set()
+    normal = np.asarray(decode(layout, raw, baseline).normal, dtype=np.float64)  # (T, R, C)
+    # pressed means above the noise: 3 kPa on a calibrated (kPa) sensor
+    if _dead_taxel(normal.max(axis=0), s.dead_share, 3.0 if layout.has_shear else 0.0):
+        out.add("dead_taxel")
+    if force in FORCE_RANGES_KPA and layout.has_shear:  # kPa: a calibrated shear sensor
+        lo, hi = FORCE_RANGES_KPA[force]
+        level = float(np.percentile(normal.reshape(len(normal), -1).max(axis=1)[touching], 90))
+        if level < lo:
+            out.add("too_light")
+        elif level > hi:
+            out.add("too_heavy")
+    load = np.clip(normal, 0.0, None).sum(axis=(1, 2))
+    head = max(2, len(load) // 10)
+    if touching[0] and len(load) > head and load[0] > 0 and load[head] < 0.5 * load[0] \
+            and load[0] >= 0.2 * load.max():
+        out.add("release_overlap")
+    return out
+
+
+def _dead_taxel(peak: np.ndarray, share: float, pressed_min: float) -> bool:
+    """A taxel whose peak stays under ``share`` of the mean peak of its pressed
+    4-neighbours (at least three of them, each clearly pressed: a quarter of the trial's
+    peak and at least ``pressed_min``)."""
+    rows, cols = peak.shape
+    strong = max(0.25 * float(peak.max()), pressed_min)
+    if strong <= 0:
+        return False
+    for r in range(rows):
+        for c in range(cols):
+            near = [peak[i, j] for i, j in ((r - 1, c), (r + 1, c), (r, c - 1), (r, c + 1))
+                    if 0 <= i < rows and 0 <= j < cols]
+            pressed = [v for v in near if v >= strong]
+            if len(pressed) >= 3 and peak[r, c] < share * float(np.mean(pressed)):
+                return True
+    return False
 
 
 def describe(flags: list[str], check: Mapping[str, Any] | None = None) -> str:

@@ -23,7 +23,7 @@ from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
-from tactile_studio.protocol.quality import QualitySettings, describe
+from tactile_studio.protocol.quality import describe, quality_settings
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
 from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker
@@ -53,8 +53,7 @@ class CollectionRunner(RunnerInputs):
         self._pending: tuple[int, Any, float] | None = None
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
-        self.quality = QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
-                                       centre_fraction=protocol.centre_fraction)
+        self.quality = quality_settings(protocol)
         self._plan = BlockPlan(self.orders, list(practice or []), len(protocol.gestures),
                                protocol.break_every)
         self.records: list[TrialRecord] = []
@@ -265,7 +264,8 @@ class CollectionRunner(RunnerInputs):
         n = self.trial_frames
         self.recorder.catch_up()  # the trial's rows into the file, and its losses counted
         m = measure_trial(self.engine, cur["start"], n, self.rate, self.quality,
-                          cur["event_cursor"], self.recorder.dropped - cur["dropped0"])
+                          cur["event_cursor"], self.recorder.dropped - cur["dropped0"],
+                          self.protocol.gesture_by_name(cur["gesture"]).force)
         end = cur["end"]
         self._hold(lambda: end, keys_from=end)  # the next key may name any frame from here
         practice = cur["block"] < 0

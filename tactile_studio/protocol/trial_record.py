@@ -20,7 +20,7 @@ class TrialMeasure:
 
 def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
                   settings: QualitySettings, event_cursor: int = 0,
-                  recorder_lost: int = 0) -> TrialMeasure:
+                  recorder_lost: int = 0, force: str | None = None) -> TrialMeasure:
     """Frames ``start .. start+n`` (engine indices) judged for quality.
 
     Frames the ring no longer holds, and frames the recorder lost (``recorder_lost``),
@@ -37,7 +37,8 @@ def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
     flags: list[str] = []
     if engine.baseline is not None:
         flags = trial_flags(engine.layout, raw, engine.baseline, device_time=dev_t, seq=seq,
-                            rate_hz=rate, lost_frames=lost, gap_events=gaps, settings=settings)
+                            rate_hz=rate, lost_frames=lost, gap_events=gaps, settings=settings,
+                            force=force)
     t0 = float(dev_t[0]) if len(dev_t) else 0.0
     t1 = float(dev_t[-1]) + 1.0 / rate if len(dev_t) else 0.0
     return TrialMeasure(round(t0, 6), round(t1, 6), flags, raw)

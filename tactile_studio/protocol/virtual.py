@@ -15,6 +15,12 @@ The personal style (where on the sensor, how hard, how fast) is the simulator's
 ``style_seed``, derived from the participant id, so two virtual participants differ
 the way two people do.
 
+Its mistakes (for testing the trial checks, issue 46) are the simulated sensor's settings
+``mistakes``, ``light`` and ``off_centre``: the share of trials where it performs another
+gesture of the protocol than the prompted one, performs far too lightly, or off the
+sensor's centre. With any of them set, every trial records what it ``performed``:
+"Twist", "Wide Pinch; light", "Poke; off centre".
+
 In the console's pilot mode (``plan_ahead=False``) the experimenter drives the session
 (Start, Continue, pauses, redo) in real time: the participant plans nothing ahead; it
 reacts to what the screen prompts now, as a person would, and a plan the session moved
@@ -46,6 +52,8 @@ SIM_EQUIVALENT: dict[str, tuple[str | None, float, float]] = {
     "constant touch": ("Constant Touch", 1.0, 1.0), "scratch": ("Tickle", 1.2, 1.5),
     "tickle": ("Tickle", 1.0, 1.0), "no touch": (None, 0.0, 1.0),
 }
+LIGHT_FACTOR = 0.05   # a "too light" trial: this share of the person's usual force
+OFF_CENTRE_MM = 40.0  # an off-centre trial: this far from their spot along x and y
 _FALLBACK = ("Poke", "Wide Pinch", "Heavy Pat", "Twist", "Back & Forth Rub", "Isometric Rub",
              "Circular Stroke", "Constant Touch", "Tickle")
 
@@ -81,7 +89,8 @@ class VirtualParticipant:
         self.n = runner.trial_frames
         self.start_frame = runner.engine.baseline_frames + round(0.5 * self.rate)
         self._beep_frames = math.ceil(runner.protocol.beep_s * self.rate) + 1
-        self._plans: list[tuple[int, str, int]] = []  # (block, gesture, key frame) in order
+        # (block, gesture, key frame, what it performs) in order
+        self._plans: list[tuple[int, str, int, str | None]] = []
         self._free_until = 0  # frame where its current free-play touch ends (not planned ahead)
         self._count = 0
         self.replanned = 0  # plans that had to move because the stream overtook them
@@ -132,13 +141,41 @@ class VirtualParticipant:
         """Frames from the previous beep to the next key press: reading and reacting."""
         return round(self._rng(0x6A9, self._count).uniform(0.4, 1.1) * self.rate)
 
+    def _mistake(self, gesture: str) -> tuple[str, str | None, float, tuple[float, float]]:
+        """(the gesture it performs, ``performed`` as stored (None: no mistakes are set),
+        intensity factor, shift in mm): the simulator's ``mistakes`` / ``light`` /
+        ``off_centre`` shares of trials done wrong, drawn apart from the performance's own
+        draws (so a session without mistakes is the same as before they existed)."""
+        settings = getattr(self.device, "settings", None) or {}
+        shares = [float(settings.get(k) or 0.0) for k in ("mistakes", "light", "off_centre")]
+        if not any(shares):
+            return gesture, None, 1.0, (0.0, 0.0)
+        rng = self._rng(0x3157AE, self._count)
+        draws = rng.random(3)
+        done, how, factor, shift = gesture, [], 1.0, (0.0, 0.0)
+        if draws[0] < shares[0]:
+            own = sim_gesture(gesture)[0]
+            others = [g for g in self.runner.protocol.gesture_names
+                      if g != gesture and sim_gesture(g)[0] not in (own, None)]
+            if others:
+                done = others[int(rng.integers(len(others)))]
+        if draws[1] < shares[1]:
+            factor = LIGHT_FACTOR
+            how.append("light")
+        if draws[2] < shares[2]:
+            sx, sy = rng.choice([-1.0, 1.0], size=2)
+            shift = (float(sx) * OFF_CENTRE_MM, float(sy) * OFF_CENTRE_MM)
+            how.append("off centre")
+        return done, "; ".join([done, *how]), factor, shift
+
     def _plan(self, block: int, gesture: str, frame: int) -> int:
         """Schedule ``gesture`` on the simulator at ``frame`` (moved later if the stream
         already passed it) and remember it for the key press."""
+        done, performed, factor, shift = self._mistake(gesture)
         rng = self._rng(0x7E1A, self._count)
         self._count += 1
-        sim, inten, speed = sim_gesture(gesture)
-        inten *= float(rng.uniform(0.85, 1.15))
+        sim, inten, speed = sim_gesture(done)
+        inten *= factor * float(rng.uniform(0.85, 1.15))
         speed *= float(rng.uniform(0.9, 1.1))
         lead = int(rng.integers(-2, 3))  # the hand lands a little before or after the key
         for _ in range(100):
@@ -148,12 +185,13 @@ class VirtualParticipant:
                 self.replanned += 1
             try:
                 if sim is not None:
+                    how = {"shift_mm": shift} if shift != (0.0, 0.0) else {}
                     self.device.perform(sim, self.n / self.rate, inten, speed,
-                                        at_frame=frame + lead)
+                                        at_frame=frame + lead, **how)
                 break
             except ValueError:  # the stream overtook us between the check and the call
                 continue
-        self._plans.append((block, gesture, frame))
+        self._plans.append((block, gesture, frame, performed))
         return frame
 
     def _touch_any(self, rng: np.random.Generator, frame: int) -> bool:
@@ -192,11 +230,12 @@ class VirtualParticipant:
         if i is None:  # off the plan (a redo; in a pilot, every trial): do it now
             self._plan(block, gesture, self.device.next_frame + self._gap())
             i = len(self._plans) - 1
-        frame = self._plans[i][2]
+        frame, performed = self._plans[i][2:]
         if r.engine.frames - 1 < frame:
             return False  # not there yet
         del self._plans[i]
-        return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame)
+        return r.key(r.protocol.gesture_by_name(gesture).key, at_frame=frame,
+                     performed=performed)
 
     def _free_play(self) -> bool:
         """Not planned ahead (the console's pilot): a touch now and then in free play."""

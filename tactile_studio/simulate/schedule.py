@@ -44,6 +44,7 @@ class Trial:
     style_seed: int
     key: tuple[int, ...]
     press: tuple[float, ...] | None = None  # (x, y, radius, load, shear_x, shear_y, ramp_s)
+    shift_mm: tuple[float, float] = (0.0, 0.0)  # performed this far from where they touch
 
     @property
     def stop(self) -> int:
@@ -90,11 +91,14 @@ class Schedule:
 
     def add_trial(self, gesture: str, start: int, frames: int, intensity: float,
                   speed: float, style_seed: int,
-                  press: tuple[float, ...] | None = None) -> Trial:
-        """Schedule a gesture (or, with ``press``, a static calibration press)."""
+                  press: tuple[float, ...] | None = None,
+                  shift_mm: tuple[float, float] = (0.0, 0.0)) -> Trial:
+        """Schedule a gesture (or, with ``press``, a static calibration press);
+        ``shift_mm``: performed that far from the person's usual spot (off centre)."""
         name = PRESS if press is not None else canonical_gesture(gesture)
         trial = Trial(name, int(start), max(1, int(frames)), float(intensity), float(speed),
-                      int(style_seed), (1, int(start), len(self.trials)), press)
+                      int(style_seed), (1, int(start), len(self.trials)), press,
+                      (float(shift_mm[0]), float(shift_mm[1])))
         starts = [t.start for t in self.trials]
         self.trials.insert(bisect.bisect_right(starts, trial.start), trial)
         return trial

@@ -155,12 +155,14 @@ class SensorSimulator:
         return int(at_frame)
 
     def perform(self, gesture: str, duration_s: float = 2.0, intensity: float | None = None,
-                speed: float | None = None, at_frame: int | None = None) -> Trial:
-        """Perform ``gesture`` for ``duration_s`` from ``at_frame`` (default: the next frame)."""
+                speed: float | None = None, at_frame: int | None = None,
+                shift_mm: tuple[float, float] = (0.0, 0.0)) -> Trial:
+        """Perform ``gesture`` for ``duration_s`` from ``at_frame`` (default: the next frame),
+        ``shift_mm`` (x, y) away from where this person usually touches."""
         return self.schedule.add_trial(
             gesture, self._when(at_frame), round(duration_s * self.rate),
             self._intensity if intensity is None else float(intensity),
-            self._speed if speed is None else float(speed), self._style)
+            self._speed if speed is None else float(speed), self._style, shift_mm=shift_mm)
 
     def press(self, x_mm: float, y_mm: float, load_kpa: float, radius_mm: float = 5.0,
               shear_x: float = 0.0, shear_y: float = 0.0, duration_s: float = 2.0,
@@ -251,6 +253,9 @@ class SensorSimulator:
             params = population.trial_params(rng, trial.gesture, trial.style_seed,
                                              trial.intensity, trial.speed,
                                              self.config.difficulty)
+            if trial.shift_mm != (0.0, 0.0):
+                params = replace(params, cx=params.cx + trial.shift_mm[0],
+                                 cy=params.cy + trial.shift_mm[1])
             if len(self._params_cache) > 64:
                 self._params_cache.clear()
             self._params_cache[key] = params

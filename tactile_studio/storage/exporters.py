@@ -36,6 +36,7 @@ from tactile_studio.storage.shearsense import (
     parse_shearsense_name,
     write_shearsense_csv,
 )
+from tactile_studio.storage.trial_checks import CSV_COLUMNS, csv_fields
 from tactile_studio.storage.trials import TrialStatus, trial_number
 
 FORMATS = ("shearsense-csv", "npz", "csv-trials", "xdf")
@@ -43,6 +44,7 @@ GRIDS = ("auto", "virtual", "physical")
 TRIAL_COLUMNS = ["session", "participant", "condition", "protocol", "index", "block",
                  "gesture", "label", "key", "status", "reason", "flags", "start_sample",
                  "end_sample", "start_time", "end_time", "n_frames", "duration_s"]
+CHECKED = ("check", "decision", "performed")  # stored by the trial checks when set
 FEATURE_COLUMNS = ["peak_normal", "mean_normal", "mean_abs_shear", "contact_area",
                    "dominant_hz", "centroid_speed", "spread_change", "divergence", "curl",
                    "coherence", "movement"]
@@ -229,17 +231,21 @@ def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
         trials = selected_trials(s, all_trials)
         labels = gesture_labels(s)
         rate = 1.0 / frame_interval(s.column("device_time"), 1.0)
-        extra = sorted({k for t in trials for k in t} - set(TRIAL_COLUMNS) - {"flags"})
+        extra = sorted({k for t in trials for k in t} - set(TRIAL_COLUMNS) - {"flags"}
+                       - set(CHECKED))
+        # the trial checks (issue 46) as flat columns, when the session has any
+        checked = CSV_COLUMNS if any(k in t for t in trials for k in CHECKED) else []
         rows = []
         for i, t in enumerate(trials):
             if cancel is not None:
                 cancel.check()
-            rows.append({**trial_row(s, t, labels, rate), **{k: t.get(k, "") for k in extra}})
+            rows.append({**trial_row(s, t, labels, rate), **{k: t.get(k, "") for k in extra},
+                         **(csv_fields(t) if checked else {})})
             progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {trial_number(t['index'])}")
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="", encoding="utf-8") as fh:
-            w = csv.DictWriter(fh, fieldnames=TRIAL_COLUMNS + FEATURE_COLUMNS + extra)
+            w = csv.DictWriter(fh, fieldnames=TRIAL_COLUMNS + FEATURE_COLUMNS + checked + extra)
             w.writeheader()
             w.writerows(rows)
     write_through_part(out, write)

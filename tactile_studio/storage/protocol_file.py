@@ -49,6 +49,12 @@ class Gesture:
     # sessions store it: never the experimenter's own folders (older sessions stored an
     # absolute path, which still loads); ``Protocol.image_file`` finds the file
     image: str | None = None
+    # the force it is performed with, "light" | "natural" | "heavy" (None: not checked);
+    # a trial outside that range is flagged too_light / too_heavy (protocol/quality.py)
+    force: str | None = None
+
+
+FORCES = ("light", "natural", "heavy")
 
 
 @dataclass(frozen=True)
@@ -70,6 +76,7 @@ class Protocol:
     beep_s: float = 0.2
     min_contact_fraction: float = 0.03  # a light poke touches ~5-15% of a 2 s trial
     centre_fraction: float = 0.7
+    min_contact_share: float = 0.0  # [quality]: short_contact below this share (0: off)
     wellness_required: bool = False   # [wellness] required: a check before each participant
     wellness_max_age_h: float = 24.0  # [wellness] max_age_h: older checks are stale
     source: str = ""
@@ -177,7 +184,7 @@ def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protoco
     v.known(rnd, "randomisation.", {"mode", "seed"})
     v.known(brk, "breaks.", {"every_blocks", "min_s"})
     v.known(beep, "beep.", {"frequency_hz", "length_s"})
-    v.known(qual, "quality.", {"min_contact_fraction", "centre_fraction"})
+    v.known(qual, "quality.", {"min_contact_fraction", "centre_fraction", "min_contact_share"})
     flat = {k: raw[k] for k in ("name", "title", "description", "trial_s", "blocks",
                                 "free_play_s", "practice_trials", "order", "gestures")
             if k in raw}
@@ -186,6 +193,7 @@ def _parse_file(raw: dict[str, Any], label: str, folder: Path | None) -> Protoco
               ("beep", "frequency_hz"): "beep_hz", ("beep", "length_s"): "beep_s",
               ("quality", "min_contact_fraction"): "min_contact_fraction",
               ("quality", "centre_fraction"): "centre_fraction",
+              ("quality", "min_contact_share"): "min_contact_share",
               ("wellness", "required"): "wellness_required",
               ("wellness", "max_age_h"): "wellness_max_age_h"}
     tables = {"randomisation": rnd, "breaks": brk, "beep": beep, "quality": qual,
@@ -242,6 +250,7 @@ def protocol_from_dict(data: dict[str, Any], label: str, folder: Path | None = N
         min_contact_fraction=v.number(data, "min_contact_fraction", low=0.0, high=1.0,
                                       default=0.03),
         centre_fraction=v.number(data, "centre_fraction", low=0.05, high=1.0, default=0.7),
+        min_contact_share=v.number(data, "min_contact_share", low=0.0, high=1.0, default=0.0),
         wellness_required=_flag(v, data, "wellness_required"),
         wellness_max_age_h=v.number(data, "wellness_max_age_h", low=0.01, high=100_000.0,
                                     default=24.0),
@@ -287,7 +296,7 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
         where = f"gestures[{i}]"
         if not isinstance(item, dict):
             v.fail(where, "must be a table with name, key and definition")
-        v.known(item, f"{where}.", {"name", "key", "definition", "image"})
+        v.known(item, f"{where}.", {"name", "key", "definition", "image", "force"})
         gv = _Validator(v.label, prefix=f"{where}.")
         name = gv.text(item, "name")
         key = gv.text(item, "key")
@@ -306,7 +315,12 @@ def _gestures(v: _Validator, items: Any, folder: Path | None,
             image = gv.text(item, "image")
             if check_images:
                 image = _image_name(gv, image, folder)
-        out.append(Gesture(name, key, definition, image))
+        force = None
+        if item.get("force") is not None:
+            force = gv.text(item, "force")
+            if force not in FORCES:
+                gv.fail("force", f"unknown force {force!r} (use {', '.join(FORCES)})")
+        out.append(Gesture(name, key, definition, image, force))
     return tuple(out)
 
 

@@ -21,6 +21,7 @@ from tactile_studio.storage.segments import segment_starts, segmented_rate_hz
 from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 from tactile_studio.storage.session_recover import cut_short_rows, open_cut_short, written_rows
+from tactile_studio.storage.trial_checks import check_counts
 from tactile_studio.storage.trials import collection_progress
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
@@ -306,6 +307,8 @@ class Session:
             "gestures": self.gesture_order(),
             "unmapped_keys": list(self.metadata.get("unmapped_keys") or []),
             "trials": [_user_blocks(t) for t in self.trials],
+            # the trials' flags, model checks and decisions (storage/trial_checks.py)
+            "checks": check_counts(self.trials),
             # a collection's progress against its stored block orders (None otherwise)
             "collection": self.collection_progress(),
             "aux": [{"name": a.name, "type": a.type, "unit": a.unit, "rate_hz": a.rate_hz,

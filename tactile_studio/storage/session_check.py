@@ -20,6 +20,7 @@ import numpy as np
 from tactile_studio.devices.ring import nearest_frame
 from tactile_studio.storage.segments import is_segment_start, segment_starts
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trial_checks import check_problems
 from tactile_studio.storage.trials import TrialStatus
 
 STATUSES = {s.value for s in TrialStatus}
@@ -263,6 +264,7 @@ def _check_trials(s: Session, out: list[str]) -> list[dict[str, Any]]:
         st, et = t.get("start_time"), t.get("end_time")
         if isinstance(st, (int, float)) and isinstance(et, (int, float)) and et < st:
             out.append(f"{name}: ends ({_s(et)} s) before it starts ({_s(st)} s)")
+        out.extend(f"{name}: {p}" for p in check_problems(t))  # its model check, decision
         good.append(t)
     by_index = sorted(good, key=lambda t: int(t["index"]))
     # in order along the frames: no two trials share a row, and their times follow

@@ -26,10 +26,8 @@ Malformed rows are skipped and counted by kind:
 
 from __future__ import annotations
 
-import hashlib
 import os
 import re
-import threading
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,7 +36,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.storage.input_files import LineBlocks, check_input_file
+from tactile_studio.storage.input_files import InputFile, LineBlocks, plain_stem
 from tactile_studio.storage.shearsense_format import (
     HEADER,
     MALFORMED_KINDS,
@@ -91,7 +89,7 @@ def parse_shearsense_name(path: str | os.PathLike) -> tuple[str, str]:
     "FLAT", "PILLOW" or "" when the name has neither. Participant is "" when the name
     does not start with P and a number/id.
     """
-    stem = Path(path).stem
+    stem = plain_stem(path)
     m = re.match(r"[Pp](\d+|[A-Za-z0-9]+?)(?=$|[^A-Za-z0-9]|FLAT|PILLOW|flat|pillow)", stem)
     participant = f"P{m.group(1)}" if m else ""
     conds = re.findall(r"flat|pillow", stem, flags=re.IGNORECASE)
@@ -151,59 +149,29 @@ class _Rows:
         return np.concatenate(parts) if parts else empty
 
 
-class _FileHash:
-    """SHA-256 of a file computed by a thread beside the parse: hashlib releases the GIL,
-    and hashing the 150 MB of a real file alone takes ~0.2 s."""
-
-    def __init__(self, path: Path) -> None:
-        self._path = path
-        self._digest = hashlib.sha256()
-        self._error: OSError | None = None
-        self._thread = threading.Thread(target=self._run, args=(path,), daemon=True)
-        self._thread.start()
-
-    def _run(self, path: Path) -> None:
-        try:
-            with open(path, "rb") as fh:
-                for block in iter(lambda: fh.read(_BLOCK_BYTES), b""):
-                    self._digest.update(block)
-        except OSError as exc:
-            self._error = exc
-
-    def result(self) -> str:
-        self._thread.join()
-        if self._error is not None:
-            raise ShearSenseError(f"{self._path}: cannot be read ({self._error.strerror})")
-        return self._digest.hexdigest()
-
-
 def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = None,
                         cancel: CancelToken | None = None,
                         digest: bool = False) -> ShearSenseData:
     """Read a ShearSense CSV; malformed rows are skipped and counted by kind.
 
-    ``digest``: also hash the file's bytes (``sha256``; imports derive the session id
-    from it), in a thread beside the parse."""
+    ``path`` may be compressed (``.csv.xz``, ``.csv.gz``, ``.csv.bz2``: read as it is
+    decompressed, storage/input_files.InputFile). ``digest``: also hash the content
+    (``sha256``; imports derive the session id from it)."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, "a ShearSense CSV", ShearSenseError)
     rows = _Rows()
-    try:
-        fh = open(path, "rb")
-    except OSError as exc:
-        raise ShearSenseError(f"{path}: cannot be read ({exc.strerror})") from None
-    hasher = _FileHash(path) if digest else None
-    with fh:
-        lines = LineBlocks(fh, _BLOCK_BYTES)
+    with InputFile(path, "a ShearSense CSV", ShearSenseError, digest) as src:
+        lines = LineBlocks(src, _BLOCK_BYTES)
         _check_header(path, lines.first_line())
         for data in lines.blocks():
             if cancel is not None:
                 cancel.check()
             rows.add(data if data.endswith(b"\n") else data + b"\n")
-            progress(min(lines.done / size, 0.99), f"{path.name}: "
-                     f"{_megabytes(lines.done, size)}")
+            progress(min(src.done / src.size, 0.99), f"{path.name}: "
+                     f"{_megabytes(src.done, src.size)}")
         if lines.overlong:
             rows.kinds["long_row"] += lines.overlong
+        sha256 = src.sha256()
     raw = rows.joined("raw", np.empty((0, N_CHANNELS), dtype=np.uint16))
     times = rows.joined("times", np.empty(0))
     touched = rows.joined("touched", np.empty(0, dtype=bool))
@@ -223,5 +191,5 @@ def read_shearsense_csv(path: str | os.PathLike, progress: ProgressFn | None = N
         path=path, raw=raw, times=times, touched=touched, labels=labels,
         baseline=baseline.astype(np.float64),
         malformed_by_kind={k: int(rows.kinds[k]) for k in MALFORMED_KINDS if rows.kinds[k]},
-        baseline_from_row=baseline_from_row, sha256=hasher.result() if hasher else "",
+        baseline_from_row=baseline_from_row, sha256=sha256,
     )

@@ -99,3 +99,46 @@ def check_problems(trial: Mapping[str, Any]) -> list[str]:
         elif decision == "redo" and trial.get("status") not in ("redone", "discarded"):
             out.append("decision redo but the trial was not redone")
     return out
+
+
+def check_counts(trials: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    """What ``info`` says of a session's checks: trials flagged (practice left out), per
+    flag, those the model checked, and the experimenter's decisions."""
+    real = [t for t in trials if int(t.get("block", 0) or 0) >= 0]
+    flagged = [t for t in real if t.get("flags")]
+    by_flag: dict[str, int] = {}
+    for t in flagged:
+        for f in t.get("flags") or ():
+            by_flag[str(f)] = by_flag.get(str(f), 0) + 1
+    decisions = {d: sum(1 for t in flagged if t.get("decision") == d) for d in DECISIONS}
+    return {"flagged": len(flagged), "by_flag": by_flag,
+            "model_checked": sum(1 for t in real if t.get("check")),
+            "decisions": decisions,
+            "undecided": len(flagged) - sum(decisions.values())}
+
+
+def counts_line(counts: Mapping[str, Any]) -> str:
+    """"3 flagged (model_mismatch 2, no_contact 1); redo 2, keep 1; 40 checked by the
+    model" for ``info``."""
+    per = ", ".join(f"{f} {n}" for f, n in sorted(counts["by_flag"].items()))
+    d = counts["decisions"]
+    text = f"{counts['flagged']} flagged" + (f" ({per})" if per else "")
+    text += f"; redo {d['redo']}, keep {d['keep']}, undecided {counts['undecided']}"
+    if counts["model_checked"]:
+        text += f"; {counts['model_checked']} checked by the model"
+    return text
+
+
+CSV_COLUMNS = ["check_model", "p_prompted", "rank", "predicted", "check_reason", "decision",
+               "performed"]
+
+
+def csv_fields(trial: Mapping[str, Any]) -> dict[str, Any]:
+    """A trial's check, decision and performed gesture as flat CSV columns (empty when
+    not stored)."""
+    c = trial.get("check") if isinstance(trial.get("check"), Mapping) else {}
+    top = c.get("top") or []
+    return {"check_model": c.get("model", ""), "p_prompted": c.get("p_prompted", ""),
+            "rank": c.get("rank", ""), "predicted": top[0][0] if top else "",
+            "check_reason": c.get("reason", ""), "decision": trial.get("decision") or "",
+            "performed": trial.get("performed") or ""}

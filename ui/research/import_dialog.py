@@ -26,7 +26,7 @@ class ImportDialog(ImportDialogBase):
     FILE_NOUN = "CSV files"
     ADD_TEXT = "Add CSV files…"
     FILE_KIND = "import_csv"
-    FILE_FILTER = "ShearSense CSV (*.csv);;All files (*)"
+    FILE_FILTER = "ShearSense CSV (*.csv *.csv.xz *.csv.gz *.csv.bz2);;All files (*)"
     IDLE_TEXT = "Add the CSV files to import."
     SIZE = (760, 560)
 

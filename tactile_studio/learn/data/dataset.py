@@ -236,10 +236,13 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
 def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
                   channels: str | None = None, cache_dir: str | os.PathLike | None = None,
                   use_cache: bool = True, progress: ProgressFn = no_progress,
-                  cancel: CancelToken | None = None) -> TrialDataset:
+                  cancel: CancelToken | None = None,
+                  exclude_flagged: bool = False) -> TrialDataset:
     """The dataset for ``paths``, from the disk cache when its inputs are unchanged.
 
     The cache holds every decoded channel, so switching ``channels`` reuses it.
+    ``exclude_flagged``: trials with quality or model-check flags left out (``train
+    --exclude-flagged``); the cache holds them all either way.
     """
     chosen = select_sessions(paths)
     key = cache.dataset_key(chosen.files, grid)
@@ -255,7 +258,24 @@ def build_dataset(paths: Sequence[str | os.PathLike], grid: str = "physical",
         progress(1.0, "dataset from cache")
     ds.fingerprint = key
     ds.skipped = list(chosen.skipped)
+    if exclude_flagged:
+        ds = _without_flagged(ds, chosen)
     return ds.select(channels)
+
+
+def _without_flagged(ds: TrialDataset, chosen: SessionSet) -> TrialDataset:
+    """``ds`` without the trials stored with flags (their uids, ``rel#index``)."""
+    flagged: set[str] = set()
+    for path in chosen.files:
+        rel = path.relative_to(chosen.root).as_posix() if chosen.root else path.name
+        with Session(path) as s:
+            flagged.update(f"{rel}#{int(t['index'])}" for t in s.trials if t.get("flags"))
+    keep = [i for i, u in enumerate(ds.uids) if u not in flagged]
+    if not keep:
+        raise UserError("--exclude-flagged: every trial of the data is flagged")
+    out = ds.subset(keep) if len(keep) < len(ds) else ds
+    out.fingerprint, out.skipped = ds.fingerprint, ds.skipped
+    return out
 
 
 __all__ = ["CHANNEL_SETS", "GRIDS", "TrialDataset", "build_dataset",

@@ -255,7 +255,7 @@ def fold_training_samples(model: WindowModel, dataset: Any = None
     if dataset is None:
         try:
             dataset = build_dataset(cfg.data, cfg.grid, cfg.channels, cfg.cache_dir,
-                                    cfg.use_cache)
+                                    cfg.use_cache, exclude_flagged=cfg.exclude_flagged)
         except UserError as exc:
             raise UserError(f"{model.run}: its training data cannot be read to refit "
                             f"with the person's touches ({exc})") from None

@@ -112,3 +112,24 @@ class ModelTrialCheck:
         self.model.personalise(result)
         self.personalised_on = len(own)
         return len(own)
+
+
+class RunChecks:
+    """One :class:`ModelTrialCheck` per participant over one run (``qc``): each person is
+    checked by the fold that never saw them when the run has one (out of fold), else by
+    the run's model (the first fold, or the exported one)."""
+
+    def __init__(self, path: str | os.PathLike, top_k: int = DEFAULT_TOP_K,
+                 threshold: float = DEFAULT_THRESHOLD) -> None:
+        self.path, self.top_k, self.threshold = Path(path), top_k, threshold
+        self._by: dict[str, ModelTrialCheck] = {}
+        self.default = self.for_participant(None)
+        self.known = self.default.known
+
+    def for_participant(self, participant: str | None) -> ModelTrialCheck:
+        key = participant or ""
+        if key not in self._by:
+            check = ModelTrialCheck(self.path, self.top_k, self.threshold, participant)
+            # a fold that saw them is no better than the run's own model: share it
+            self._by[key] = check if (check.out_of_fold or not self._by) else self._by[""]
+        return self._by[key]

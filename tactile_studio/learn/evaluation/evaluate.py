@@ -50,7 +50,8 @@ def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
     info = DataInfo.from_dict(resolved["data_info"])
     labels = list(resolved["dataset"]["labels"])
     ds = build_dataset(data or config.data, config.grid, config.channels,
-                       cache_dir or config.cache_dir, config.use_cache, progress, cancel)
+                       cache_dir or config.cache_dir, config.use_cache, progress, cancel,
+                       config.exclude_flagged)
     if ds.grid_shape != tuple(info.grid) or ds.n_channels != info.in_channels:
         raise UserError(f"the data ({ds.layout}, {ds.grid_shape[0]}x{ds.grid_shape[1]}, "
                         f"{ds.n_channels} channels) does not fit the run's models "

@@ -76,9 +76,11 @@ class ExperimentConfig:
     # auto: NETWORK_SHOTS_BY for a network, join for rf / knn / fused (resolved())
     shots_by: str = "auto"
     device: str = "auto"
-    threads: int | None = None           # torch CPU threads (None: torch's default)
+    threads: int | None = None           # CPU threads (None: experiment.TRAIN_THREADS, one)
     cache_dir: str | None = None
     use_cache: bool = True
+    # leave out trials the collection flagged (signal or model checks; issue 46)
+    exclude_flagged: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import os
 import platform
+import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager, nullcontext
@@ -48,6 +49,7 @@ from tactile_studio.learn.experiments.config import (  # noqa: F401 (its home, r
 )
 from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
+from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fused import (
@@ -296,24 +298,39 @@ def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = Non
     with faults:
         # one writer per run folder: claimed before any data is read, for the whole run
         held = claim_folder(out, "run folder") if out is not None else nullcontext()
-        with held, _torch_threads(config.threads):
+        with held, _torch_threads(config.threads, config.model not in BASELINES):
             return _run(config, out, progress, cancel, listener, model_spec, dataset)
 
 
-@contextmanager
-def _torch_threads(n: int | None) -> Iterator[None]:
-    """Use ``n`` torch CPU threads for the duration (the setting is process-wide)."""
-    if not n:
-        yield
-        return
-    import torch
+# CPU threads of one training process unless asked (``--threads``): one. Measured on the
+# 2-core machine (benchmarks/bench_train_threads.py, FINDINGS section 7): torch's default
+# (two OpenMP threads) on a loaded machine spin-waits at every parallel region's barrier
+# for a sibling the scheduler has parked, 22x the CPU and ~12x the wall time per step of
+# one thread; a cnn1d fold on real data took 7-9 min instead of under one.
+TRAIN_THREADS = 1
 
-    previous = torch.get_num_threads()
-    torch.set_num_threads(n)
+
+@contextmanager
+def _torch_threads(n: int | None, torch_too: bool = True) -> Iterator[None]:
+    """Use ``n`` CPU threads (None: :data:`TRAIN_THREADS`) for the duration: torch's
+    intra-op threads (``torch_too``: not imported for rf/knn) and the OpenMP / BLAS
+    pools of numpy and scikit-learn (threadpoolctl; HistGradientBoosting's OpenMP has the
+    same spin-wait trap). Process-wide settings, restored afterwards."""
+    from threadpoolctl import threadpool_limits
+
+    n = n or TRAIN_THREADS
+    torch = None
+    if torch_too:
+        import torch
+    previous = torch.get_num_threads() if torch is not None else 0
+    if torch is not None:
+        torch.set_num_threads(n)
     try:
-        yield
+        with threadpool_limits(limits=n):
+            yield
     finally:
-        torch.set_num_threads(previous)
+        if torch is not None:
+            torch.set_num_threads(previous)
 
 
 def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToken,
@@ -322,7 +339,8 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                            config.device, model_spec)
     if dataset is None:
         ds = build_dataset(config.data, config.grid, config.channels, config.cache_dir,
-                           config.use_cache, lambda f, m: progress(0.05 * f, m), cancel)
+                           config.use_cache, lambda f, m: progress(0.05 * f, m), cancel,
+                           config.exclude_flagged)
     else:
         ds = dataset if config.channels in (None, dataset.channels) else \
             dataset.select(config.channels)
@@ -337,6 +355,10 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
         header["data_trials"] = len(ds)
     resolved = {"model": learner.describe(), "data_info": info.to_dict(),
                 "dataset": ds.summary(), "versions": _versions(),
+                # the CPU threads the folds train with (what a run's times depend on)
+                "threads": {"torch": sys.modules["torch"].get_num_threads()
+                            if "torch" in sys.modules else None,
+                            "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "")},
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
     folder = RunFolder(out) if out is not None else None
     if folder is not None:

@@ -48,7 +48,7 @@ from tactile_studio.storage.importers._common import (
     write_session,
 )
 from tactile_studio.storage.importers.table import Table, read_table
-from tactile_studio.storage.input_files import file_sha256
+from tactile_studio.storage.input_files import plain_stem
 from tactile_studio.storage.trials import TrialRecord
 
 # The corpora's own numbering. CoST's README numbers its gestures alphabetically: 1 grab,
@@ -102,11 +102,11 @@ def _haart_headerless(n: int) -> list[str] | None:
 
 
 def read_dataset(spec: DatasetSpec, path: str | os.PathLike, progress: ProgressFn | None = None,
-                 cancel: CancelToken | None = None) -> Table:
+                 cancel: CancelToken | None = None, digest: bool = False) -> Table:
     headerless = _cost_headerless if spec is COST else _haart_headerless
     n_channels = (64,) if spec is COST else (64, 100)
     table = read_table(path, spec.what, spec.roles, ("subject", "gesture"), headerless,
-                       n_channels, progress, cancel)
+                       n_channels, progress, cancel, digest)
     if table.channels.shape[1] == 100:  # full HAART 10x10: keep the 8x8 centre
         n = table.n_rows
         table.channels = np.ascontiguousarray(
@@ -189,14 +189,14 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     progress = progress or no_progress
     if not out_dir.is_dir():
         raise UserError(f"{out_dir}: output folder does not exist")
-    table = read_dataset(spec, path, slice_progress(progress, 0.0, 0.5), cancel)
+    table = read_dataset(spec, path, slice_progress(progress, 0.0, 0.5), cancel, digest=True)
     bounds = capture_bounds(table, spec)
     protocol = load_protocol_or_none(spec.protocol)
     name_of, gestures = _gesture_namer(spec, protocol)
     keys = {g.name: g.key for g in protocol.gestures} if protocol is not None else {}
     subjects = table.meta["subject"]
     order = list(dict.fromkeys(subjects[s] for s, _ in bounds))
-    prefix = spec.name if spec is COST else f"{spec.name}_{path.stem}"
+    prefix = spec.name if spec is COST else f"{spec.name}_{plain_stem(path)}"
     people = {s: _participant_of(path, s) for s in order}
     # two subjects alike ("1" and "1.0" are both P01) never write one file twice
     outputs = dict(zip(order, distinct_paths(
@@ -204,7 +204,7 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
     check_outputs(list(outputs.values()), force)
     extra = [r for r in ("variant", "substrate", "cover") if r in table.meta]
     malformed = sum(table.malformed_by_kind.values())
-    sha = file_sha256(path)
+    sha = table.sha256  # of the content: a .csv and its .csv.xz are one source
 
     def job(subject: str):  # noqa: ANN202
         mine = [(s, e) for s, e in bounds if subjects[s] == subject]
@@ -260,7 +260,7 @@ def import_haart(paths: list[str | os.PathLike] | str | os.PathLike, out_dir: st
     if isinstance(paths, (str, os.PathLike)):
         paths = [paths]
     # a/training.csv and b/training.csv both make haart_training_P01.h5 ...
-    refuse_shared_outputs([(Path(p), Path(out_dir) / f"{HAART.name}_{Path(p).stem}_"
+    refuse_shared_outputs([(Path(p), Path(out_dir) / f"{HAART.name}_{plain_stem(p)}_"
                                         "<participant>.h5") for p in paths])
     progress = progress or no_progress
     out: list[Path] = []

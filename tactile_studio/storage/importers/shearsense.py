@@ -30,6 +30,7 @@ from tactile_studio.storage.importers.maps import (
     normalise_participant,
     participant_map,
 )
+from tactile_studio.storage.input_files import plain_stem
 from tactile_studio.storage.protocol_file import list_protocols
 from tactile_studio.storage.segments import segmented_rate_hz
 from tactile_studio.storage.shearsense import (
@@ -125,7 +126,8 @@ def shearsense_trials(data: ShearSenseData, protocol: Any = None,
 
 
 def session_name(csv: Path) -> str:
-    return f"{csv.stem}.h5"
+    """``P08_x_FLAT.csv`` and ``P08_x_FLAT.csv.xz`` alike -> ``P08_x_FLAT.h5``."""
+    return f"{plain_stem(csv)}.h5"
 
 
 def file_participant(csv: Path, participant_map: dict[str, str] | None = None
@@ -133,9 +135,9 @@ def file_participant(csv: Path, participant_map: dict[str, str] | None = None
     """(as spelled in the file name, participant id): normalised (case, zero padding)
     and then mapped; the file's stem when its name names no participant."""
     spelled = parse_shearsense_name(csv)[0]
-    base = normalise_participant(spelled) if spelled else csv.stem
+    base = normalise_participant(spelled) if spelled else plain_stem(csv)
     pid = (participant_map or {}).get(normalise_participant(base), base)
-    return spelled or csv.stem, pid
+    return spelled or plain_stem(csv), pid
 
 
 def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,

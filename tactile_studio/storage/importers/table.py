@@ -21,7 +21,7 @@ import numpy as np
 
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.storage.importers._common import ImportFormatError, norm_name
-from tactile_studio.storage.input_files import LineBlocks, check_input_file
+from tactile_studio.storage.input_files import InputFile, LineBlocks
 
 _CHANNEL = re.compile(r"^(?:ch|channel|c|taxel|sensor)?(\d+)$")
 _BLOCK_BYTES = 4 << 20
@@ -34,6 +34,7 @@ class Table:
     channels: np.ndarray              # (N, C) float32
     malformed_by_kind: dict[str, int] = field(default_factory=dict)
     header: list[str] | None = None
+    sha256: str = ""  # of the content (decompressed), when read with ``digest``
 
     @property
     def n_rows(self) -> int:
@@ -75,13 +76,13 @@ def _columns(path: Path, what: str, names: list[str], roles: dict[str, Sequence[
 def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
                required: Sequence[str], headerless: Callable[[int], list[str] | None],
                n_channels: Sequence[int], progress: ProgressFn | None = None,
-               cancel: CancelToken | None = None) -> Table:
-    """Read a dataset table; see the module docstring. ``what`` names the format."""
+               cancel: CancelToken | None = None, digest: bool = False) -> Table:
+    """Read a dataset table; see the module docstring. ``what`` names the format; the
+    file may be compressed (storage/input_files.InputFile); ``digest``: hash its content."""
     path = Path(path)
     progress = progress or no_progress
-    size = check_input_file(path, f"a {what} CSV", ImportFormatError)
-    with open(path, "rb") as fh:
-        lines = LineBlocks(fh, _BLOCK_BYTES)
+    with InputFile(path, f"a {what} CSV", ImportFormatError, digest) as src:
+        lines = LineBlocks(src, _BLOCK_BYTES)
         first = lines.first_line()
         text = first.decode("utf-8", errors="replace").lstrip("\ufeff").strip()
         if not text:
@@ -114,15 +115,16 @@ def read_table(path: str | Path, what: str, roles: dict[str, Sequence[str]],
                 for r, v in rows[0].items():
                     metas[r].append(v)
                 chans.append(rows[1])
-            progress(min(lines.done / max(size, 1), 1.0),
-                     f"{path.name}: {lines.done >> 20} MB read")
+            progress(min(src.done / max(src.size, 1), 1.0),
+                     f"{path.name}: {src.done >> 20} MB read")
         if lines.overlong:
             kinds["long_row"] += lines.overlong
+        sha256 = src.sha256()
     if not chans:
         raise ImportFormatError(f"{path}: {what} CSV has no readable rows "
                                 f"({sum(kinds.values())} malformed)")
     return Table(path, {r: np.concatenate(v) for r, v in metas.items()},
-                 np.concatenate(chans), dict(kinds), header)
+                 np.concatenate(chans), dict(kinds), header, sha256)
 
 
 def _parse_lines(data: bytes, ncols: int, cols: dict[str, int], c0: int, c1: int,

@@ -1,0 +1,174 @@
+"""``tactile-studio qc``: the trial checks of issue 46, post hoc, over recorded sessions;
+and the model-check options ``collect --qc-model`` shares with it.
+
+Per trial: the signal checks (protocol/quality.py) and the model check (the prompted
+gesture not among the model's top k, or its probability below the threshold;
+storage/trial_checks.py), with the fold of a leave-one-participant-out run that never saw
+the trial's participant (out of fold). Exit 0 whether or not trials are flagged; 1 when
+the model and the sessions share no gesture. docs/trial-check.md.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from tactile_studio.cli.argtypes import finite_float
+from tactile_studio.cli.json_output import print_json
+from tactile_studio.cli.tables import table
+from tactile_studio.errors import UserError
+from tactile_studio.protocol.quality import (
+    QualitySettings,
+    describe,
+    quality_settings,
+    trial_flags,
+)
+from tactile_studio.protocol.trial_check import (
+    DEFAULT_THRESHOLD,
+    DEFAULT_TOP_K,
+    MISMATCH_FLAG,
+    TrialChecker,
+    unknown_gestures,
+)
+from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
+from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import trial_number
+
+
+def add_qc_options(p: argparse.ArgumentParser, model_flag: str, help_text: str,
+                   required: bool = False) -> None:
+    """The model and its two settings (``--qc-top-k``/``--top-k``...)."""
+    prefix = "--qc-" if model_flag.startswith("--qc") else "--"
+    p.add_argument(model_flag, metavar="RUN|MODEL", required=required, help=help_text)
+    p.add_argument(f"{prefix}top-k", type=int, default=DEFAULT_TOP_K, metavar="K",
+                   help=f"flag when the prompted gesture is not among the model's top K "
+                        f"(default {DEFAULT_TOP_K})")
+    p.add_argument(f"{prefix}threshold", type=finite_float, default=DEFAULT_THRESHOLD,
+                   metavar="P", help=f"flag when the model's probability of the prompted "
+                                     f"gesture is below P (default {DEFAULT_THRESHOLD:g})")
+
+
+def qc_checker(model: str | None, top_k: int, threshold: float,
+               participant: str | None = None) -> TrialChecker | None:
+    """The model check of ``--qc-model`` (None without one); a wrong model is one line."""
+    if not model:
+        return None
+    from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
+
+    return ModelTrialCheck(model, top_k, threshold, participant)
+
+
+def announce_check(check: TrialChecker, protocol: Protocol, runner: Any) -> None:
+    """Say which model checks the trials and which gestures it does not score, and
+    print each flagged trial as it ends (headless collection)."""
+    d = check.describe()
+    print(f"trial check: {d.get('model')} (flag when not in the top {d.get('top_k')} or "
+          f"p < {d.get('threshold')})", file=sys.stderr)
+    unknown = unknown_gestures(check, protocol.gesture_names)
+    if unknown:
+        print(f"trial check: not scored (the model does not know them): "
+              f"{', '.join(unknown)}", file=sys.stderr)
+
+    def flagged(event: dict[str, Any]) -> None:
+        if event["kind"] == "trial_ended" and event.get("flags"):
+            t = event["trial"]
+            print(f"\ntrial {trial_number(t['index'])} ({t['gesture']}): {event['reason']}",
+                  file=sys.stderr)
+
+    runner.add_listener(flagged)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "qc", help="check recorded trials: signal checks and a model of other participants",
+        description="Check every trial of the sessions as the collection checks them when "
+                    "they end: signal checks (no contact, saturation, a stuck channel, off "
+                    "centre...) and a model: flagged when the prompted gesture is not among "
+                    "the model's top K or its probability is below P. A leave-one-"
+                    "participant-out run checks each participant with the fold that never "
+                    "saw them. Exit 0 whether or not trials are flagged; 1 when the model "
+                    "and the sessions share no gesture.")
+    p.add_argument("session", nargs="+", help="session file(s) (.h5), imports included")
+    add_qc_options(p, "--model", "a run folder (LOPO: out of fold) or RUN/export/<fold>.onnx",
+                   required=True)
+    p.add_argument("--json", action="store_true",
+                   help="print one object per trial as a JSON list")
+    p.set_defaults(func=cmd_qc)
+
+
+def cmd_qc(args: argparse.Namespace) -> int:
+    from tactile_studio.learn.deploy.trial_check import RunChecks
+
+    checks = RunChecks(args.model, args.top_k, args.threshold)
+    rows: list[dict[str, Any]] = []
+    shared = False
+    for path in args.session:
+        with Session(path) as s:
+            gestures = {str(t.get("gesture")) for t in s.trials if t.get("gesture")}
+            shared = shared or bool(gestures & checks.known)
+            rows.extend(session_rows(s, Path(path), checks))
+    if not shared:
+        raise UserError(f"{args.model}: the model knows {', '.join(sorted(checks.known))}; "
+                        "the sessions share no gesture with it")
+    if args.json:
+        print_json(rows)
+        return 0
+    table(["file", "trial", "participant", "prompted", "predicted", "p", "rank", "flags"],
+          [[Path(r["file"]).name, r["trial"], r["participant"], r["prompted"],
+            r["predicted"] or "-", "-" if r["p_prompted"] is None else f"{r['p_prompted']:.2f}",
+            r["rank"] or "-", "; ".join(r["reasons"]) or "ok"] for r in rows],
+          right=("trial", "p", "rank"))
+    n_flag = sum(1 for r in rows if r["flags"])
+    print(f"{n_flag} of {len(rows)} trials flagged ({checks.default.describe()['model']}, "
+          f"top {args.top_k}, p < {args.threshold:g})", file=sys.stderr)
+    return 0
+
+
+def session_protocol(s: Session) -> Protocol | None:
+    """The protocol a collection stored (its [quality] and forces), None for imports."""
+    try:
+        return protocol_from_dict(s.metadata["protocol_spec"], "protocol_spec",
+                                  check_images=False)
+    except (KeyError, UserError):
+        return None
+
+
+def session_rows(s: Session, path: Path, checks: Any) -> list[dict[str, Any]]:
+    """One row per trial (practice and discarded ones left out) of session ``s``."""
+    participant = str(s.metadata.get("participant") or path.stem)
+    check = checks.for_participant(participant)
+    protocol = session_protocol(s)
+    settings = quality_settings(protocol) if protocol else QualitySettings()
+    forces = {g.name: g.force for g in protocol.gestures} if protocol else {}
+    rows = []
+    for t in s.trials:
+        if int(t.get("block", 0)) < 0 or t.get("status", "ok") == "discarded":
+            continue
+        start, stop = max(0, int(t["start_sample"])), min(int(t["end_sample"]), s.n_frames)
+        if stop - start < 2:
+            continue
+        raw, base = s.raw(start, stop), s.baseline(start)
+        dev_t = s.column("device_time", start, stop)
+        span = float(dev_t[-1] - dev_t[0])
+        rate = (stop - start - 1) / span if span > 0 else 43.0
+        prompted = str(t.get("gesture"))
+        flags = trial_flags(s.layout, raw, base, device_time=dev_t, rate_hz=rate,
+                            settings=settings, force=forces.get(prompted))
+        v = check.check(s.layout, raw, base, rate, prompted)
+        stored = v.stored("") if v is not None else None
+        if v is not None and v.flagged:
+            flags.append(MISMATCH_FLAG)
+        rows.append({
+            "file": str(path), "trial": trial_number(t["index"]), "participant": participant,
+            "prompted": prompted, "predicted": v.top[0][0] if v else None,
+            "p_prompted": None if v is None else round(v.p_prompted, 4),
+            "rank": None if v is None else v.rank, "flags": flags,
+            "reasons": [describe([f], stored) for f in flags],
+            "out_of_fold": check.out_of_fold, "model": check.describe()["model"],
+            "status": t.get("status", "ok")})
+    return rows
+
+
+__all__ = ["add_qc_options", "announce_check", "cmd_qc", "qc_checker"]
