@@ -118,3 +118,23 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(qtbot, env, qc_r
     assert scored["Tickle"] is None
     for name in ("Poke", "Twist"):
         assert scored[name]["model"] == "run/P01" and 1 <= scored[name]["rank"] <= 2
+
+
+def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):
+    from tactile_studio.cli import build_parser
+    from tactile_studio.cli.collect import console_options
+    from tactile_studio.errors import UserError
+    from tactile_studio.ui.collect.app import build_console
+
+    proto, out = env
+    base = ["collect", "--protocol", str(proto), "--participant", "P01", "--out", str(out)]
+    args = build_parser().parse_args([*base, "--qc-model", str(qc_run), "--qc-top-k", "2"])
+    console = build_console(**console_options(args))
+    qtbot.addWidget(console)
+    qc = console.setup.qc
+    assert qc.path.text() == str(qc_run) and qc.top_k.value() == 2
+    assert qc.info.text() == "run (rf) scores 2 of the 3 gestures; not scored: Tickle"
+    assert console.setup.choice().qc.model == str(qc_run)
+    args = build_parser().parse_args([*base, "--qc-model", str(out / "no-run")])
+    with pytest.raises(UserError, match="no such run folder or exported model"):
+        console_options(args)

@@ -194,6 +194,12 @@ class QcModelField(QWidget):
         return (f"{head} scores {scored} {len(self._gestures)} gestures"
                 + (f"; not scored: {', '.join(missing)}" if missing else ""))
 
+    def prefill(self, model: str, top_k: int = DEFAULT_TOP_K,
+                threshold: float = DEFAULT_THRESHOLD) -> bool:
+        """The ``collect --qc-model`` options (remembered for the study, as if chosen)."""
+        self._set_settings(top_k, threshold)
+        return self.set_model(model)
+
     def choice(self) -> QcChoice:
         return QcChoice(self.path.text() or None, self.top_k.value(),
                         round(self.threshold.value(), 4))
