@@ -1,6 +1,7 @@
 """The research workspace filters trials by flag: the session player lists all trials,
 the flagged ones, or one flag's (each flagged trial says why, the model's reason too),
-and the sessions view can list only the sessions with flagged trials.
+the sessions view can list only the sessions with flagged trials, and the Train tab
+can leave flagged trials out (train --exclude-flagged).
 
 The session is a real collection (the simulated sensor, the runner, a model check of
 the test's own that flags a trial nobody touched as 'looks like nothing'), so the flags
@@ -20,6 +21,7 @@ from tactile_studio.playback import ANY_FLAG
 from tactile_studio.protocol.trial_check import TrialVerdict, verdict
 from tactile_studio.ui.research.player import SessionPlayer
 from tactile_studio.ui.research.sessions_view import COLUMNS, SessionsView
+from tactile_studio.ui.research.train_panel import TrainPanel
 
 
 class TouchedOrNot:
@@ -107,3 +109,15 @@ def test_the_sessions_view_can_list_only_sessions_with_flagged_trials(qtbot, rec
     qtbot.mouseClick(view.only_flagged, Qt.MouseButton.LeftButton)
     assert shown() == ["P01"]
     view.stop_checks(wait_s=5)
+
+
+def test_the_train_tab_can_leave_flagged_trials_out(qtbot, recorded, tmp_path, monkeypatch):
+    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
+    path = str(next((recorded / "flagged").glob("*.h5")))
+    panel = TrainPanel(lambda: [path])
+    qtbot.addWidget(panel)
+    assert not panel.exclude_flagged.isChecked()  # off by default, as train's option
+    assert panel.config().exclude_flagged is False
+    panel.exclude_flagged.setChecked(True)
+    assert panel.config().exclude_flagged is True
+    assert "exclude-flagged" in panel.exclude_flagged.toolTip()
