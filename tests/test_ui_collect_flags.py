@@ -14,13 +14,13 @@ import threading
 from dataclasses import replace
 
 import numpy as np
+from console_helpers import fill_setup
 from PySide6.QtCore import QRect, Qt
 from PySide6.QtWidgets import QWidget
 from test_ui_collect import (
     WAIT_MS,
     do_trial,
     env,  # noqa: F401 (the fixture)
-    fill_device,
     make_console,
     open_mini,
     snap,
@@ -175,11 +175,7 @@ def test_the_console_stays_live_while_the_model_thinks(qtbot, env):  # noqa: F81
     proto, out = env
     console = make_console(qtbot)
     s = console.setup
-    s.set_protocol_file(str(proto))
-    s.blocks.setValue(1)
-    qtbot.keyClicks(s.participant, "P03")
-    s.out_dir.setText(str(out))
-    fill_device(qtbot, console)
+    fill_setup(qtbot, console, proto, out, "P03", blocks=1)
     model = SlowModel(console.setup.current_protocol().gesture_names)
     assert console.start_session(replace(s.choice(), qc=QcChoice(ready=model)))
     qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)

@@ -13,10 +13,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from console_helpers import fill_setup
 from learn_fixtures import make_dataset_folder
 from PySide6.QtCore import QSettings, Qt
 from PySide6.QtWidgets import QFileDialog
-from test_ui_collect import MINI, WAIT_MS, do_trial, fill_device, make_console, snap, solid_png
+from test_ui_collect import WAIT_MS, do_trial, env, make_console, snap  # noqa: F401 (env)
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.protocol.snapshot import State
@@ -49,16 +50,6 @@ def qc_run3(tmp_path_factory) -> Path:
     return root / "run"
 
 
-@pytest.fixture
-def env(tmp_path, monkeypatch, qapp):
-    monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
-    proto = tmp_path / "mini3.toml"
-    proto.write_text(MINI)
-    solid_png(tmp_path / "pics" / "poke.png", 60, 40)
-    (tmp_path / "data").mkdir()
-    return proto, tmp_path / "data"
-
-
 def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
     """The "Run folder..." button and its dialog, as the experimenter picks the run."""
     monkeypatch.setattr(QFileDialog, "getExistingDirectory",
@@ -67,7 +58,7 @@ def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
 
 
 def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
-        qtbot, env, qc_run, monkeypatch, tmp_path):
+        qtbot, env, qc_run, monkeypatch, tmp_path):  # noqa: F811 (env)
     proto, _ = env
     settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
     setup = CollectSetup(settings)
@@ -98,17 +89,14 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     assert start_folder(DIALOG_KIND) == str(qc_run.parent)
 
 
-def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(qtbot, env, qc_run,
-                                                                 monkeypatch):
+def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
+        qtbot, env, qc_run, monkeypatch):  # noqa: F811 (env)
     proto, out = env
     console = make_console(qtbot)
     s = console.setup
-    s.set_protocol_file(str(proto))
-    s.blocks.setValue(1)
+    # P01, a person of the run: its fold that never saw them checks the trials
+    fill_setup(qtbot, console, proto, out, "P01", blocks=1)
     choose_run(qtbot, s, qc_run, monkeypatch)
-    qtbot.keyClicks(s.participant, "P01")  # a person of the run: its fold that never saw them
-    s.out_dir.setText(str(out))
-    fill_device(qtbot, console)
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert s.error.text() == "" and console.stack.currentIndex() == 1
     path = console.session.path
@@ -132,7 +120,7 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(qtbot, env, qc_r
         assert scored[name]["model"] == "run/P01" and 1 <= scored[name]["rank"] <= 2
 
 
-def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):
+def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):  # noqa: F811 (env)
     from tactile_studio.cli import build_parser
     from tactile_studio.cli.collect import console_options
     from tactile_studio.errors import UserError
@@ -153,7 +141,7 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
 
 
 def test_a_pilot_with_mistakes_flags_them_redo_collects_again_and_keep_is_stored(
-        qtbot, env, qc_run3, monkeypatch):
+        qtbot, env, qc_run3, monkeypatch):  # noqa: F811 (env)
     """The console's pilot: a virtual participant performs another gesture than the
     prompted one in 80% of its trials (the simulator's "Wrong gestures"); the model of
     earlier (simulated) people flags them; the experimenter redoes the first and keeps
@@ -161,15 +149,11 @@ def test_a_pilot_with_mistakes_flags_them_redo_collects_again_and_keep_is_stored
     proto, out = env
     console = make_console(qtbot)
     s = console.setup
-    s.set_protocol_file(str(proto))
-    s.blocks.setValue(2)
+    fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run3, monkeypatch)
     assert s.qc.info.text() == "run (rf) scores all 3 gestures"
     s.qc.top_k.setValue(1)  # of three gestures, the top 3 is all of them
-    qtbot.keyClicks(s.participant, "P01")
-    s.out_dir.setText(str(out))
     s.pilot.setChecked(True)
-    fill_device(qtbot, console)
     editor = s.device_form.fields["mistakes"].editor
     editor.clear()
     qtbot.keyClicks(editor, "0.8")
@@ -180,7 +164,10 @@ def test_a_pilot_with_mistakes_flags_them_redo_collects_again_and_keep_is_stored
     qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)  # Start
     decided: dict[str, int] = {}
     while True:  # the experimenter: Redo the first mistake flagged, Keep the others
-        qtbot.waitUntil(lambda: runner.held or runner.state in State.DONE
+        # held with its verdict in: the banner asks (held while the verdict is on its
+        # way, it does not yet)
+        qtbot.waitUntil(lambda: runner.held and console.redo_banner.isVisible()
+                        or runner.state in State.DONE
                         or runner.state == State.BREAK and snap(console).can_continue,
                         timeout=WAIT_MS)
         if runner.state in State.DONE:

@@ -18,26 +18,14 @@ from __future__ import annotations
 import os
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from make_collect_screenshots import _pump, _settle  # noqa: E402 (beside this script)
+
 CONSOLE_SIZE = (1500, 900)
 MISTAKES = {"Twist": "Wide Pinch", "Poke": "Heavy Pat"}  # prompted -> what was performed
-
-
-def _pump(app: object, until: Callable[[], bool], timeout: float = 30.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not until():
-        app.processEvents()  # type: ignore[attr-defined]
-        time.sleep(0.005)
-        if time.monotonic() > deadline:
-            raise TimeoutError("screenshot session did not reach the expected state")
-
-
-def _settle(app: object, seconds: float) -> None:
-    _pump(app, lambda t=time.monotonic() + seconds: time.monotonic() > t)
 
 
 def _train(tmp: Path) -> Path:
