@@ -148,3 +148,33 @@ def test_a_model_that_is_not_there_is_one_line_before_anything_is_recorded(tmp_p
         assert proc.stderr.strip().splitlines() == [
             f"tactile-studio: error: {tmp_path / 'no-run'}: no such run folder or exported model"]
     assert not (tmp_path / "out").exists()
+
+
+def test_an_exported_model_checks_with_its_own_fold(run, tmp_path):
+    from tactile_studio.cli import main
+    from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
+
+    assert main(["export-model", str(run), "--format", "onnx"]) == 0
+    exported = sorted((run / "export").glob("*.onnx"))
+    last = exported[-1]  # r0-P04.onnx: the fold that left P04 out
+    check = ModelTrialCheck(last, participant="P01")
+    assert check.model.record["test_participants"] == ["P04"] and not check.out_of_fold
+    proc = subprocess.run([EXE, "qc", str(run.parent / "data" / "P02.h5"), "--model",
+                           str(last), "--json"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert {r["model"] for r in json.loads(proc.stdout)} == {check.describe()["model"]}
+
+
+def test_the_check_is_personalised_with_the_first_block(run, tmp_path):
+    proc = subprocess.run(
+        [EXE, "collect", "--protocol", "shear9", "--participant", "P08", "--device",
+         "simulated", "--virtual-participant", "--blocks", "2", "--speed", "0", "--out",
+         str(tmp_path), "--set", "difficulty=easy", "--qc-model", str(run),
+         "--qc-personalise"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "personalised with 9 trials of the first block" in proc.stderr
+    with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
+        events = [e for e in s.events if e["kind"] == "trial_check_personalised"]
+        models = {t["block"]: t["check"]["model"] for t in s.trials if t["block"] >= 0}
+    assert len(events) == 1 and events[0]["trials"] == 9
+    assert not models[0].endswith("own trials") and models[1].endswith("+9 own trials")

@@ -36,7 +36,7 @@ def test_info_counts_flags_checks_and_decisions(recorded, capsys):
     assert counts["model_checked"] == 3  # the block's last gesture is not scored
     assert main(["info", str(recorded)]) == 0
     out = capsys.readouterr().out
-    assert "flags:" in out and "redo 1, keep 1" in out and "3 checked by the model" in out
+    assert "decisions: redo 1, keep 1, undecided" in out and "3 checked by the model" in out
     assert "model_mismatch 2" in out
 
 

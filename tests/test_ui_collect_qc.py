@@ -138,6 +138,9 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     args = build_parser().parse_args([*base, "--qc-model", str(out / "no-run")])
     with pytest.raises(UserError, match="no such run folder or exported model"):
         console_options(args)
+    args = build_parser().parse_args([*base, "--qc-model", str(qc_run), "--qc-personalise"])
+    with pytest.raises(UserError, match="the console does not personalise yet"):
+        console_options(args)
 
 
 def test_a_pilot_with_mistakes_flags_them_redo_collects_again_and_keep_is_stored(

@@ -83,6 +83,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "note, why, is stored in the session)")
     add_qc_options(p, "--qc-model", "check each trial as it ends with this model of "
                    "earlier participants: a run folder or RUN/export/<fold>.onnx")
+    p.add_argument("--qc-personalise", action="store_true",
+                   help="after the first block, fit the check to the participant with their "
+                        "own trials of it (the few-shot route)")
     add_lsl_option(p)
     add_markers_option(p)
     add_silence_option(p)
@@ -172,6 +175,9 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
+    if getattr(args, "qc_personalise", False):  # not silently dropped
+        raise UserError("--qc-personalise personalises a headless collection's check "
+                        "(--virtual-participant); the console does not personalise yet")
     if getattr(args, "qc_model", None):  # the setup's trial check, pre-filled (checked
         # here: a model that cannot check is one line before any window opens)
         qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold)
@@ -211,6 +217,8 @@ def run(args: argparse.Namespace) -> int:
         protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
     check = qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold, participant)
+    if args.qc_personalise and check is None:
+        raise UserError("--qc-personalise needs --qc-model")
     device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
@@ -234,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
                                condition=args.condition,
                                wellness=admit(status, args.wellness_override),
                                recorder=acq.start_recording, pilot=args.pilot,
-                               trial_check=check)
+                               trial_check=check, personalise_check=args.qc_personalise)
         print(f"writing {session.path}", file=sys.stderr)
     if check is not None:
         announce_check(check, protocol, session.runner)

@@ -72,6 +72,9 @@ def announce_check(check: TrialChecker, protocol: Protocol, runner: Any) -> None
               f"{', '.join(unknown)}", file=sys.stderr)
 
     def flagged(event: dict[str, Any]) -> None:
+        if event["kind"] == "check_personalised":
+            print(f"\ntrial check: personalised with {event['trials']} trials of the first "
+                  f"block ({event['model']})", file=sys.stderr)
         if event["kind"] == "trial_ended" and event.get("flags"):
             t = event["trial"]
             print(f"\ntrial {trial_number(t['index'])} ({t['gesture']}): {event['reason']}",

@@ -28,7 +28,6 @@ from tactile_studio.paths import make_out_dir
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.logbook import check_sensor_id
 from tactile_studio.storage.session import Session, measured_rate_hz
-from tactile_studio.storage.trial_checks import counts_line
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
 
@@ -292,8 +291,6 @@ def cmd_info(args: argparse.Namespace) -> int:
     lines.extend(_marker_lines(summary["events"], summary["rate_hz"]))
     if summary["trials"]:
         lines.append(f"trials:     {len(summary['trials'])}")
-        if summary["checks"]["flagged"] or summary["checks"]["model_checked"]:
-            lines.append(f"flags:      {counts_line(summary['checks'])}")
         lines.append(table)
     tables.fields(lines)
     return 0

@@ -161,13 +161,14 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
                  hold_flagged: bool = False, path: str | os.PathLike | None = None,
                  wellness: dict[str, Any] | None = None,
                  recorder: RecorderFactory | None = None,
-                 pilot: bool = False, trial_check: TrialChecker | None = None
-                 ) -> CollectionSession:
+                 pilot: bool = False, trial_check: TrialChecker | None = None,
+                 personalise_check: bool = False) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
     ``pilot``: a rehearsal (the file marked so and named ``PILOT_...``; see
     :func:`session_metadata`). ``trial_check``: the model that checks each trial
-    (protocol/trial_check.py); its description is the metadata's ``trial_check``.
+    (protocol/trial_check.py); its description is the metadata's ``trial_check``;
+    ``personalise_check``: fit it to the participant with their first block's trials.
 
     ``engine`` may be started or not: opened before ``engine.start()`` (the start order
     of an AcquisitionSession) file rows equal engine frames; on a running stream the
@@ -198,7 +199,8 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
         raise
     runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
                               beeper=beeper, clock=clock, auto_continue=auto_continue,
-                              hold_flagged=hold_flagged, trial_check=trial_check)
+                              hold_flagged=hold_flagged, trial_check=trial_check,
+                              personalise_check=personalise_check)
     return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
                              touches=touch_source(engine, pilot=pilot),
                              restore_gesture=restore, pilot=pilot)

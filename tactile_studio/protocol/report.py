@@ -6,6 +6,7 @@ from collections import Counter
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAGS
+from tactile_studio.storage.trial_checks import check_counts, counts_line
 from tactile_studio.storage.trials import TrialStatus, records
 
 STATUSES = tuple(s.value for s in TrialStatus)  # ok, redone, discarded
@@ -42,6 +43,9 @@ def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None)
     if flags:
         known = [f for f in FLAGS if f in flags] + sorted(set(flags) - set(FLAGS))
         lines.append("flags: " + ", ".join(f"{f} {flags[f]}" for f in known))
+    decided = counts_line(check_counts(trials))  # the experimenter's answers, the model's
+    if decided:
+        lines.append(decided)
     blocks = sorted({t.block for t in real})
     if blocks:
         lines.append(f"blocks: {len(blocks)} ({blocks[0] + 1}..{blocks[-1] + 1})")

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from typing import Any
 
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
+from tactile_studio.errors import UserError
 from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
@@ -40,7 +41,8 @@ class CollectionRunner(RunnerInputs):
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
                  beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                  hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None,
-                 trial_check: TrialChecker | None = None) -> None:
+                 trial_check: TrialChecker | None = None,
+                 personalise_check: bool = False) -> None:
         self.protocol, self.engine, self.recorder = protocol, engine, recorder
         self.participant = participant
         self.orders = [list(o) for o in orders]
@@ -51,6 +53,11 @@ class CollectionRunner(RunnerInputs):
         # a BackgroundCheck scores off this thread: (trial index, its future, since)
         self.trial_check = trial_check
         self._pending: tuple[int, Any, float] | None = None
+        # personalise the check with the first block's trials when it ends (a checker
+        # with ``personalise``): their frames, kept until then, by trial index
+        self._shots: dict[int, tuple[Any, Any, str]] | None = (
+            {} if personalise_check and hasattr(trial_check, "personalise") else None)
+        self._shots_block: int | None = None
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
         self.quality = quality_settings(protocol)
@@ -224,6 +231,9 @@ class CollectionRunner(RunnerInputs):
         self._enter_block()
 
     def _enter_block(self) -> None:
+        if self._shots is not None and self._shots_block is not None \
+                and self.block > self._shots_block:
+            self._personalise_check()
         self._log("block_start", block=self.block)
         self._emit("block", block=self.block)
         self._set_state(State.BLOCK_START)
@@ -290,6 +300,10 @@ class CollectionRunner(RunnerInputs):
             self._pending = (record.index, self.trial_check.submit(
                 self.engine.layout, m.raw, self.engine.baseline, self.rate, cur["gesture"]),
                 self.clock())
+        if self._shots is not None and not practice and m.raw is not None \
+                and self._shots_block in (None, record.block):
+            self._shots_block = record.block  # the first block this run collects
+            self._shots[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
 
     def _model_check(self, m: TrialMeasure, prompted: str) -> dict[str, Any] | None:
         """The trial's stored ``check`` by the model check (None: no check, no baseline,
@@ -332,6 +346,25 @@ class CollectionRunner(RunnerInputs):
         if (new.flagged and self._current is None and self.records[-1].index == index
                 and self.state not in State.DONE):
             self._redo_for = index
+
+    def _personalise_check(self) -> None:
+        """Fit the check to this participant with their first block's usable trials
+        (research decision 5: the few-shot route); a failure is an event and a hint, the
+        session goes on with the check as it was."""
+        shots, self._shots = self._shots or {}, None
+        usable = [shots[t.index] for t in self.records if t.index in shots and t.ok]
+        # it takes seconds: a stream that waits for its readers must not run a ring ahead
+        # meanwhile (the next trial's frames would be gone before its key names them)
+        self._hold(lambda: self._tick_frame, self._lead)
+        try:
+            n = self.trial_check.personalise(self.engine.layout, usable, self.rate)
+        except UserError as exc:
+            self._log("trial_check_personalised", trials=0, error=str(exc))
+            self._refuse(f"the check could not be personalised: {exc}")
+            return
+        model = str(self.trial_check.describe()["model"])
+        self._log("trial_check_personalised", trials=n, model=model)
+        self._emit("check_personalised", trials=n, model=model)
 
     def _drop_current(self) -> None:
         """Forget the running trial and let the stream go on without it."""

@@ -118,12 +118,12 @@ def check_counts(trials: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
 
 
 def counts_line(counts: Mapping[str, Any]) -> str:
-    """"3 flagged (model_mismatch 2, no_contact 1); redo 2, keep 1; 40 checked by the
-    model" for ``info``."""
-    per = ", ".join(f"{f} {n}" for f, n in sorted(counts["by_flag"].items()))
+    """"decisions: redo 2, keep 1, undecided 0; 40 checked by the model" for ``info``'s
+    trial table ("" when nothing was flagged nor checked)."""
+    if not counts["flagged"] and not counts["model_checked"]:
+        return ""
     d = counts["decisions"]
-    text = f"{counts['flagged']} flagged" + (f" ({per})" if per else "")
-    text += f"; redo {d['redo']}, keep {d['keep']}, undecided {counts['undecided']}"
+    text = f"decisions: redo {d['redo']}, keep {d['keep']}, undecided {counts['undecided']}"
     if counts["model_checked"]:
         text += f"; {counts['model_checked']} checked by the model"
     return text

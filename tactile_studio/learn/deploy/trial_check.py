@@ -14,6 +14,7 @@ person's own labelled trials, after their first block (research decision 5).
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
+from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.trial_checks import (
     DEFAULT_THRESHOLD,
@@ -48,6 +50,28 @@ def run_and_fold(path: str | os.PathLike) -> tuple[Path, str | None]:
                     "(RUN/export/<fold>.onnx)")
 
 
+def _export_name(record: dict[str, Any]) -> str:
+    """The stem export-model gives a fold's file: ``r<round>-<fold name>``."""
+    safe = re.sub(r"[^A-Za-z0-9_.-]", "_", str(record.get("name")))
+    return f"r{record.get('round', 0)}-{safe}"
+
+
+def _fold_of(run: Path, fold: str | None, participant: str | None) -> tuple[str | None, int]:
+    """(participant, round) that make WindowModel load the wanted fold: the one that never
+    saw ``participant`` (it picks that itself), else the fold named ``fold`` (through one
+    of its test participants), else the first."""
+    if fold is None:
+        return participant, 0
+    _, records = read_run(run)
+    rec = next((r for r in records if fold in (r.get("name"), _export_name(r))), None)
+    if rec is None:
+        raise UserError(f"{run}: the run has no fold {fold}")
+    if participant and participant in (rec.get("test_participants") or []):
+        return participant, int(rec.get("round", 0))
+    tested = rec.get("test_participants") or [None]
+    return tested[0], int(rec.get("round", 0))
+
+
 class ModelTrialCheck:
     """A run's model judging whether each trial looks like its prompted gesture."""
 
@@ -61,7 +85,7 @@ class ModelTrialCheck:
         self.top_k, self.threshold = int(top_k), float(threshold)
         self.participant = participant
         run, fold = run_and_fold(path)
-        self.model = WindowModel(run, participant, fold=fold)
+        self.model = WindowModel(run, *_fold_of(run, fold, participant))
         if self.model.needs_calibration:
             raise UserError(f"{run}: trained with --adapt {self.model.config.adapt} and no "
                             "view as trained; it cannot check a new person's trials")
@@ -76,7 +100,8 @@ class ModelTrialCheck:
 
     def describe(self) -> dict[str, Any]:
         d = self.model.describe()
-        return {"model": f"{self.model.run.name}/{d['fold']}", "run": d["run"],
+        own = f"+{self.personalised_on} own trials" if self.personalised_on else ""
+        return {"model": f"{self.model.run.name}/{d['fold']}{own}", "run": d["run"],
                 "family": d["model"], "fold": d["fold"],
                 "version": str(self.model.record.get("version", "")),
                 "top_k": self.top_k, "threshold": self.threshold,

@@ -33,9 +33,9 @@ PREDICTION_HOP_S = 0.25  # live inference predicts its newest window this often;
 
 class WindowModel:
     def __init__(self, run: str | os.PathLike, participant: str | None = None,
-                 round_: int = 0, fold: str | None = None) -> None:
+                 round_: int = 0) -> None:
         """Loads the fold model of round ``round_`` that did not see ``participant``
-        (else the fold named ``fold``, else the first fold)."""
+        (else the first fold)."""
         self.run = Path(run)
         cfg, records = read_run(run)
         try:
@@ -49,10 +49,7 @@ class WindowModel:
                             "the resolved data description)") from None
         self.record = next((r for r in records if participant and r.get("round", 0) == round_
                             and participant in (r.get("test_participants") or [])),
-                           None) or next((r for r in records if fold and r.get("name") == fold),
-                                         records[0])
-        if fold and not participant and self.record.get("name") != fold:
-            raise UserError(f"{run}: the run has no fold {fold}")
+                           records[0])
         self.learner = make_learner(self.config.model, self.config.preset,
                                     self.config.overrides, self.config.epochs, "cpu")
         self.trained = self.learner.load(model_file(self.record["_dir"]), self.info)
