@@ -29,3 +29,18 @@ def open_console_session(qtbot, console, out_dir: Path, participant: str,  # noq
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert s.error.text() == "" and console.stack.currentIndex() == 1, s.error.text()
     return Path(console.session.path)
+
+
+def fill_setup(qtbot, console, protocol_file: Path, out_dir: Path, participant: str,  # noqa: ANN001
+               blocks: int) -> None:
+    """The setup form of a shown ``console``: a protocol file, its first ``blocks``, the
+    participant typed in, the folder, and test_ui_collect's simulated device (8x real
+    time, idle); "Open session" is left to the test."""
+    from test_ui_collect import fill_device
+
+    s = console.setup
+    s.set_protocol_file(str(protocol_file))
+    s.blocks.setValue(blocks)
+    qtbot.keyClicks(s.participant, participant)
+    s.out_dir.setText(str(out_dir))
+    fill_device(qtbot, console)

@@ -53,11 +53,12 @@ def test_every_train_setting_round_trips(qtbot, tmp_path):
         p.epochs.setValue(7)
         p.shots.setText("0,1,2")
         p.out.setText(str(run))
+        p.exclude_flagged.setChecked(True)
         _recipe(p)
 
     names = {f"research/train/{k}" for k in ("model", "preset", "channels", "grid", "protocol",
                                              "adapt", "rounds", "epochs", "shots", "shots_by",
-                                             "out", "recipe")}
+                                             "out", "recipe", "exclude_flagged")}
     _round_trip(qtbot, lambda s: TrainPanel(lambda: [], s), vary, tmp_path, names)
 
 

@@ -12,9 +12,27 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.protocol.flag_summary import trial_reason
+from tactile_studio.protocol.quality import FLAG_TEXT, FLAGS
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import TrialStatus, trial_number
+
+ANY_FLAG = "*"  # the player's "flagged (any reason)" filter
+
+
+def flag_filters(trials: list[TrialSpan]) -> list[tuple[str, str | None]]:
+    """The player's trial filters for a session: all, flagged (any), then each flag its
+    trials carry, in words, with counts: ("no contact (3)", "no_contact")."""
+    flagged = [t for t in trials if t.flags]
+    out: list[tuple[str, str | None]] = [(f"All trials ({len(trials)})", None),
+                                         (f"Flagged ({len(flagged)})", ANY_FLAG)]
+    present = {f for t in flagged for f in t.flags}
+    for f in [*FLAGS, *sorted(present - set(FLAGS))]:
+        if f in present:
+            n = sum(f in t.flags for t in trials)
+            out.append((f"{FLAG_TEXT.get(f, f)} ({n})", f))
+    return out
 
 
 @dataclass
@@ -25,6 +43,12 @@ class TrialSpan:
     start: int
     end: int
     flags: list[str] = field(default_factory=list)
+    reason: str = ""  # why it is flagged, in words (protocol/flag_summary.trial_reason)
+
+    def shows(self, flag: str | None) -> bool:
+        """True when the player's flag filter ``flag`` keeps this trial: None all trials,
+        ``ANY_FLAG`` any flagged one, else trials with that flag."""
+        return flag is None or (bool(self.flags) if flag == ANY_FLAG else flag in self.flags)
 
     @property
     def number(self) -> int:
@@ -89,7 +113,8 @@ class SessionPlayback:
         self.trials = sorted(
             (TrialSpan(int(tr.get("index", k)), str(tr.get("gesture") or ""),
                        str(tr.get("status", TrialStatus.OK.value)), max(0, int(tr["start_sample"])),
-                       min(self.n_frames, int(tr["end_sample"])), list(tr.get("flags") or []))
+                       min(self.n_frames, int(tr["end_sample"])), list(tr.get("flags") or []),
+                       trial_reason(tr))
              for k, tr in enumerate(s.trials) if "start_sample" in tr),
             key=lambda sp: sp.start)
         self.events = [self._event(e) for e in s.events]

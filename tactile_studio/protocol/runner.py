@@ -20,6 +20,7 @@ from typing import Any
 
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
 from tactile_studio.errors import UserError
+from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
@@ -48,8 +49,10 @@ class CollectionRunner(RunnerInputs):
         self.clock: Clock = clock or time.monotonic
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
-        # the model check of each finished trial (protocol/trial_check.py), None: off
+        # the model check of each finished trial (protocol/trial_check.py), None: off;
+        # a BackgroundCheck scores off this thread: (trial index, its future, since)
         self.trial_check = trial_check
+        self._pending: tuple[int, Any, float] | None = None
         # personalise the check with the first block's trials when it ends (a checker
         # with ``personalise``): their frames, kept until then, by trial index
         self._shots: dict[int, tuple[Any, Any, str]] | None = (
@@ -156,6 +159,7 @@ class CollectionRunner(RunnerInputs):
     def tick(self) -> None:
         """Advance whatever is due now; cheap, call it often."""
         self._tick_frame = self.engine.frames
+        self.take_verdict()
         s = self.state
         if s == State.SETUP:
             if self._start_requested:
@@ -186,7 +190,11 @@ class CollectionRunner(RunnerInputs):
                 self._end_break()
 
     def _held(self) -> bool:
-        return bool(self.hold_flagged and self.records and self.records[-1].flagged)
+        if not self.hold_flagged:
+            return False
+        if self._pending is not None and self.clock() - self._pending[2] < self.trial_check.wait_s:
+            return True  # its verdict is on its way: the next key waits for it
+        return bool(self.records and self.records[-1].flagged)
 
     # ---- transitions ---------------------------------------------------------------------
     def _start_session(self) -> None:
@@ -273,7 +281,8 @@ class CollectionRunner(RunnerInputs):
         practice = cur["block"] < 0
         row0 = self.recorder.row_of(cur["start"])  # now that the recorder is past it
         again = self._again_for.pop((cur["block"], cur["gesture"]), None)
-        check = None if practice else self._model_check(m, cur["gesture"])
+        later = not practice and self._checks_later(m)
+        check = None if practice or later else self._model_check(m, cur["gesture"])
         flags = [*m.flags, MISMATCH_FLAG] if check and check["flagged"] else m.flags
         record = TrialRecord(
             index=self._next_index(), block=cur["block"], gesture=cur["gesture"],
@@ -287,6 +296,10 @@ class CollectionRunner(RunnerInputs):
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
+        if later:
+            self._pending = (record.index, self.trial_check.submit(
+                self.engine.layout, m.raw, self.engine.baseline, self.rate, cur["gesture"]),
+                self.clock())
         if self._shots is not None and not practice and m.raw is not None \
                 and self._shots_block in (None, record.block):
             self._shots_block = record.block  # the first block this run collects
@@ -302,6 +315,37 @@ class CollectionRunner(RunnerInputs):
         v = self.trial_check.check(self.engine.layout, m.raw, self.engine.baseline,
                                    self.rate, prompted)
         return None if v is None else v.stored(str(self.trial_check.describe()["model"]))
+
+    def _checks_later(self, m: TrialMeasure) -> bool:
+        return (isinstance(self.trial_check, BackgroundCheck) and m.raw is not None
+                and self.engine.baseline is not None)
+
+    def take_verdict(self, wait_s: float = 0.0) -> None:
+        """A BackgroundCheck's verdict joins its trial (``check``, ``model_mismatch``) at
+        the first tick after the model answered (``wait_s``: wait that long for it, as the
+        session ends); the redo prompt asks about it while it is still the last trial."""
+        if self._pending is None:
+            return
+        index, future, _since = self._pending
+        if not future.done() and wait_s <= 0:
+            return
+        try:
+            v = future.result(timeout=wait_s or None)
+        except TimeoutError:
+            return
+        finally:
+            if future.done():
+                self._pending = None
+        trial = next((t for t in self.records if t.index == index), None)
+        if v is None or trial is None:
+            return
+        changes: dict[str, Any] = {"check": v.stored(str(self.trial_check.describe()["model"]))}
+        if v.flagged:
+            changes["flags"] = [*trial.flags, MISMATCH_FLAG]
+        new = self._update_trial(trial, **changes)
+        if (new.flagged and self._current is None and self.records[-1].index == index
+                and self.state not in State.DONE):
+            self._redo_for = index
 
     def _personalise_check(self) -> None:
         """Fit the check to this participant with their first block's usable trials
@@ -418,6 +462,7 @@ class CollectionRunner(RunnerInputs):
         self._set_state(State.PAUSED)
 
     def _finish(self) -> None:
+        self.take_verdict(wait_s=WAIT_S)  # the last trial's verdict is in the file
         self._log("session_end", trials=len(self.records))
         self._end_file_here()
         self.recorder.flush()

@@ -7,6 +7,7 @@ transitions they trigger live in :mod:`tactile_studio.protocol.runner`.
 
 from __future__ import annotations
 
+from tactile_studio.protocol.background_check import WAIT_S
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.storage.trials import TrialStatus
 
@@ -234,6 +235,7 @@ class RunnerInputs:
         if self._current is not None:
             self._log("trial_dropped", gesture=self._current["gesture"], reason="aborted")
             self._drop_current()
+        self.take_verdict(wait_s=WAIT_S)  # the last trial's verdict is in the file
         self._log("abort", trials=len(self.records))
         self._end_file_here()
         self.recorder.flush()

@@ -68,10 +68,12 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
                   seed: int | None = None, condition: str = "",
                   resume: str | os.PathLike | None = None, lsl: bool = False,
                   markers: list[str] | None = None,
-                  silence_warning_s: float | None = None, pilot: bool = False) -> CollectConsole:
+                  silence_warning_s: float | None = None, pilot: bool = False,
+                  qc: dict[str, Any] | None = None) -> CollectConsole:
     """A shown console with its setup form pre-filled (or resuming ``resume``);
     ``markers``: LSL marker streams its recording takes in (acquisition/marker_recording.py);
-    ``silence_warning_s``: how long the device may be silent before it is said.
+    ``silence_warning_s``: how long the device may be silent before it is said;
+    ``qc``: the setup's trial check (``model``, ``top_k``, ``threshold``: ``--qc-model``).
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
@@ -86,6 +88,8 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
             None if protocol is None else str(protocol), participant, device,
             {k: _text(v) for k, v in (device_settings or {}).items()},
             None if out_dir is None else str(out_dir), blocks, seed, condition, pilot)
+        if qc:
+            console.setup.qc.prefill(**qc)
     except UserError:
         console.close()
         console.deleteLater()
@@ -104,14 +108,15 @@ def run_console(protocol: str | os.PathLike | None = None, participant: str = ""
                 seed: int | None = None, condition: str = "",
                 resume: str | os.PathLike | None = None, lsl: bool = False,
                 markers: list[str] | None = None,
-                silence_warning_s: float | None = None, pilot: bool = False) -> int:
+                silence_warning_s: float | None = None, pilot: bool = False,
+                qc: dict[str, Any] | None = None) -> int:
     """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
     from tactile_studio.ui.application import ensure_app
 
     app = ensure_app()
     console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
                             seed, condition, resume, lsl=lsl, markers=markers,
-                            silence_warning_s=silence_warning_s, pilot=pilot)
+                            silence_warning_s=silence_warning_s, pilot=pilot, qc=qc)
     # held until the window is closed (and deleted), also if the loop ends first
     _RUNNING.append(console)
     console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))

@@ -41,15 +41,18 @@ from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.live import LiveView
 from tactile_studio.live.meters import PaintPacer
+from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.collect import (
     OtherSensorRefused,
     can_perform,
     open_session,
     resume_session,
 )
+from tactile_studio.protocol.flag_summary import block_summary
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console_actions import ConsoleActions
+from tactile_studio.ui.collect.flag_banner import FlagBanner
 from tactile_studio.ui.collect.log import TextDialog, TrialLog
 from tactile_studio.ui.collect.paint import PILOT
 from tactile_studio.ui.collect.participant import ParticipantScreen
@@ -62,6 +65,7 @@ log = logging.getLogger(__name__)
 TICK_MS = 15
 DISPLAY_HZ = 1000.0 / (2 * TICK_MS)  # heatmap paints at most ~33 Hz (the main window: 60)
 ELLIPSIS = "\u2026"
+REDO_KEY, KEEP_KEY = "Ctrl+Z", "Ctrl+K"  # a flagged trial: Redo (as "Redo last"), Keep
 
 
 class CollectConsole(ConsoleActions):
@@ -149,11 +153,10 @@ class CollectConsole(ConsoleActions):
         self.touches_label = QLabel()  # who makes the touches (a simulator never by itself)
         self.touches_label.setStyleSheet("color: #606770;")
         self.touches_label.setWordWrap(True)
-        self.redo_banner = QLabel()
-        self.redo_banner.setWordWrap(True)
-        self.redo_banner.setStyleSheet(
-            "background: #ffe3b3; color: #6b4100; border-radius: 6px; padding: 8px;"
-            "font-weight: 600;")
+        # a flagged trial: its reason, Redo and Keep (keeps its room while hidden)
+        self.redo_banner = FlagBanner(REDO_KEY, KEEP_KEY)
+        self.redo_banner.redoRequested.connect(self.redo_last)
+        self.redo_banner.keepRequested.connect(self.keep_flagged)
         # the recording ended short (write failed, device lost, frames lost): its one line
         self.fault_banner = QLabel()
         self.fault_banner.setObjectName("recordingFault")
@@ -180,16 +183,23 @@ class CollectConsole(ConsoleActions):
         # lines that grow with what they say wrap in the pane's width instead of
         # widening it (the state line pushed the splitter as the prompts changed)
         for label in (self.pilot_banner, self.state, self.progress_label, self.file_label,
-                      self.touches_label, self.redo_banner, self.fault_banner,
+                      self.touches_label, self.fault_banner,
                       self.health_banner, self.sound_notice, self.hint_label):
             label.setWordWrap(True)
             label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Preferred)
+        # a refusal or "Please redo it" comes and goes with every trial: its two lines
+        # stay reserved, so the page does not move under the experimenter's eyes
+        self.hint_label.setFixedHeight(2 * self.hint_label.fontMetrics().lineSpacing())
+        self.hint_label.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
+        hint_policy = self.hint_label.sizePolicy()
+        hint_policy.setRetainSizeWhenHidden(True)
+        self.hint_label.setSizePolicy(hint_policy)
 
         b = self.buttons = {}
         self.shortcuts: dict[str, QShortcut] = {}
         for name, text, key, slot in (
                 ("primary", "Start", "Ctrl+Return", self.primary_action),
-                ("redo", "Redo last", "Ctrl+Z", self.redo_last),
+                ("redo", "Redo last", REDO_KEY, self.redo_last),
                 ("discard", "Discard\u2026", "Ctrl+D", self.ask_discard),
                 ("pause", "Pause", "Ctrl+P", self.toggle_pause),
                 ("break", "Skip to break", "Ctrl+B", self.skip_to_break),
@@ -208,12 +218,23 @@ class CollectConsole(ConsoleActions):
         for i, name in enumerate(("primary", "redo", "discard", "pause", "break", "note",
                                   "screen", "end")):
             grid.addWidget(b[name], i // 2, i % 2)
+        self._shortcut(KEEP_KEY, self.redo_banner.keep)
 
         self.log = TrialLog()
         log_box = QGroupBox("Trials")
         lb = QVBoxLayout(log_box)
         lb.setContentsMargins(6, 6, 6, 6)
-        lb.addWidget(self.log)
+        lb.addWidget(self.log, 1)
+        # at each block's end, one line per gesture with flagged performances
+        self.block_summary = QLabel()
+        self.block_summary.setObjectName("blockSummary")
+        self.block_summary.setWordWrap(True)
+        self.block_summary.setTextFormat(Qt.TextFormat.PlainText)
+        self.block_summary.setStyleSheet(
+            "background: #fff4e0; color: #4e3b00; border-radius: 4px; padding: 4px;")
+        self.block_summary.hide()
+        lb.addWidget(self.block_summary)
+        self._summary_key: tuple = ()
 
         left = QWidget()
         lv = QVBoxLayout(left)
@@ -297,8 +318,16 @@ class CollectConsole(ConsoleActions):
             out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health,
-            recorder=self.acquisition.start_recording, pilot=choice.pilot),
+            recorder=self.acquisition.start_recording, pilot=choice.pilot,
+            trial_check=self._off_gui(choice.qc.checker(choice.participant))),
             choice.device, choice.device_settings)
+
+    @staticmethod
+    def _off_gui(checker: Any) -> BackgroundCheck | None:
+        """The model scores each trial on a worker thread, not in the timer's tick: the
+        heatmap and the buttons stay live while it thinks (its verdict joins the trial
+        at the first tick after)."""
+        return None if checker is None else BackgroundCheck(checker)
 
     def _sensor_id(self, choice: SetupChoice) -> str | None:
         """The sensor of the chosen device (the shared live one when none is chosen)."""
@@ -322,7 +351,10 @@ class CollectConsole(ConsoleActions):
             hold_flagged=hold, auto_continue=auto,
             recorder=self.acquisition.start_recording,
             allow_other_sensor=allow_other_sensor,
-            protocol_at_hand=self.setup.current_protocol()), device, dev_settings)
+            protocol_at_hand=self.setup.current_protocol(),
+            trial_check=self._off_gui(
+                self.setup.qc.choice().checker(self.setup.resume_participant()))),
+            device, dev_settings)
 
     def ask_other_sensor_note(self, path: str) -> TextDialog:
         """"Resume on this other sensor…": why, then the resume on the form's device."""
@@ -399,7 +431,10 @@ class CollectConsole(ConsoleActions):
             self.virtual = None
         if self.session is not None:
             path = str(self.session.path)
+            self.runner.take_verdict(wait_s=WAIT_S)  # a verdict on its way joins its trial
             self.session.close()
+            if isinstance(self.runner.trial_check, BackgroundCheck):
+                self.runner.trial_check.close()
             self.session = None
         self.acquisition.disconnect()  # stops the engine only if it is the session's own
         return path
@@ -526,11 +561,11 @@ class CollectConsole(ConsoleActions):
         self.state.setText(state_label(snap))
         self.progress.setValue(int(round(1000 * (snap.progress or 0.0))))
         self.progress_label.setText(progress_text(snap))
-        self.redo_banner.setText(snap.redo_prompt)
-        self.redo_banner.setVisible(bool(snap.redo_prompt))
+        self.redo_banner.say(snap.redo_prompt)
         self.hint_label.setText(snap.hint)
         self.hint_label.setVisible(bool(snap.hint))
         self.log.set_trials(snap.trials)
+        self._show_block_summary(snap)
         live = snap.state not in ("finished", "aborted")
         b = self.buttons
         if snap.state == "setup":
@@ -545,3 +580,19 @@ class CollectConsole(ConsoleActions):
         b["pause"].setEnabled(live and snap.state != "setup")
         b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
         b["end"].setEnabled(live)
+
+    def _show_block_summary(self, snap: Any) -> None:
+        """After each block (a break, the next block, the end): per gesture, how many of
+        its performances so far were flagged and why; rebuilt only when that changes."""
+        done = snap.block if (not snap.remaining or snap.state in ("finished", "aborted")) \
+            else snap.block - 1
+        key = (done, self.log.signature)
+        if key == self._summary_key:
+            return
+        self._summary_key = key
+        lines = block_summary(snap.trials, done) if done >= 0 else []
+        title = f"After block {done + 1}: "
+        self.block_summary.setText(
+            (title + ("\n".join(lines) if len(lines) < 2 else "\n" + "\n".join(lines)))
+            if lines else (f"{title}no flagged trials" if done >= 0 else ""))
+        self.block_summary.setVisible(done >= 0)

@@ -42,6 +42,17 @@ class ConsoleActions(QMainWindow):
             self.runner.redo_last()
             self.tick()
 
+    def keep_flagged(self) -> None:
+        """The banner's Keep: the flagged trial stays, its flag on record; a held
+        session goes on (as Continue)."""
+        if self.runner is None or not self.runner.snapshot().redo_prompt:
+            return
+        if self.runner.held:  # Continue keeps it (decision keep) and goes on
+            self.runner.proceed()
+        else:
+            self.runner.keep_flagged()
+        self.tick()
+
     def toggle_pause(self) -> None:
         if self.runner is None:
             return

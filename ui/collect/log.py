@@ -34,8 +34,8 @@ DIMMED_FG = QColor("#8a8f98")
 
 
 def _signature(trials: tuple[dict[str, Any], ...]) -> tuple:
-    return tuple((t.get("index"), t.get("status"), t.get("reason"), tuple(t.get("flags") or ()))
-                 for t in trials)
+    return tuple((t.get("index"), t.get("status"), t.get("reason"), tuple(t.get("flags") or ()),
+                  repr(t.get("check")), t.get("decision")) for t in trials)
 
 
 class TrialLog(QTableWidget):
@@ -95,6 +95,11 @@ class TrialLog(QTableWidget):
         if grew:
             self.scrollToBottom()
         return True
+
+    @property
+    def signature(self) -> tuple:
+        """What the rows show (changes exactly when a row would)."""
+        return self._sig
 
     def selected_index(self) -> int | None:
         """The trial index of the selected row, or None."""

@@ -37,6 +37,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.paths import data_dir
 from tactile_studio.protocol.collect import device_differences, read_resume_info, resume_device
 from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
+from tactile_studio.ui.collect.qc_setup import QcChoice, QcModelField
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
 
@@ -69,9 +70,10 @@ class SetupChoice:
     seed: int = 0
     device: str | None = None          # None: use the console's shared live engine
     device_settings: dict[str, Any] = field(default_factory=dict)
-    hold_flagged: bool = True          # a flagged trial waits for Redo or Continue
+    hold_flagged: bool = True          # a flagged trial waits for Redo or Keep
     auto_continue: bool = False        # breaks end by themselves after their minimum
     pilot: bool = False                # a rehearsal (protocol/collect.py: session_metadata)
+    qc: QcChoice = field(default_factory=QcChoice)  # the trial check's model, if any
 
 
 class CollectSetup(QWidget):
@@ -149,13 +151,14 @@ class CollectSetup(QWidget):
             default = saved if self.device.findData(saved) >= 0 else DEFAULT_DEVICE
             self.device.setCurrentIndex(max(0, self.device.findData(default)))
         self._on_device_changed()
-        self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Continue")
+        self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Keep")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
         self.pilot = QCheckBox("Pilot: rehearse the protocol (on the simulated sensor a "
                                "virtual participant performs)")
         self.pilot.setToolTip("The file is marked pilot and named PILOT_...; datasets, "
                               "train and info's study leave it out unless the file is named")
+        self.qc = QcModelField(settings)
         self.test_sound_button = QPushButton("Test sound")
         self.test_sound_button.setToolTip("Play the protocol's end-of-trial beep now")
         self.test_sound_button.clicked.connect(self.testSoundRequested)
@@ -197,6 +200,7 @@ class CollectSetup(QWidget):
         form.addRow("", self.pilot)
         form.addRow("", self.hold_flagged)
         form.addRow("", self.auto_continue)
+        form.addRow("Trial check", self.qc)
         form.addRow("Beep", sound_row)
 
         self.error = QLabel()
@@ -286,6 +290,12 @@ class CollectSetup(QWidget):
                 self.form.setRowVisible(row, on)
                 return
 
+    def resume_participant(self) -> str:
+        """The participant of the file being resumed ("" when unknown): the trial check
+        uses the fold that never saw them."""
+        info = self._resume_info if self.resume_path() == self._device_file else None
+        return str((info or {}).get("participant") or "")
+
     def resume_path(self) -> str:
         """The resume form's file ("" when none)."""
         path = self.resume_file.text().strip()
@@ -336,6 +346,7 @@ class CollectSetup(QWidget):
             self.error.setText(str(exc))
             return
         self.error.setText("")
+        self.qc.set_study(p.name, p.gesture_names)  # its model, remembered per study
         self.blocks.setMaximum(p.blocks)  # its first N blocks; never more than it has
         self.blocks.setValue(p.blocks)
         self.seed.setValue(p.seed)
@@ -498,7 +509,7 @@ class CollectSetup(QWidget):
         return SetupChoice(p, participant, out, self.condition.text().strip(),
                            self.seed.value(), device, dev_settings,
                            self.hold_flagged.isChecked(), self.auto_continue.isChecked(),
-                           self.pilot.isChecked())
+                           self.pilot.isChecked(), self.qc.choice())
 
     def show_sound(self, text: str, ok: bool) -> None:
         """The result of "Test sound" beside its button."""

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Any
 
-from tactile_studio.protocol.quality import FLAG_TEXT
+from tactile_studio.protocol.flag_summary import trial_reason
 from tactile_studio.storage.trials import TrialRecord
 from tactile_studio.ui.collect.participant import Card, ParticipantView
 
@@ -132,7 +132,7 @@ def state_label(snap: Any) -> str:
         text += f" {_PAUSED_IN.get(snap.paused_state, '')}".rstrip()
         text += " — Resume (Ctrl+P) to go on"
     if snap.state == "trial_review" and snap.can_continue:
-        text = "Flagged trial: Redo last, or Continue to keep it"
+        text = "Flagged trial: Redo (Ctrl+Z) or Keep (Ctrl+K / Continue)"
     if snap.state == "break" and snap.can_continue:
         text += " \u2014 minimum over, Continue when ready"
     return text
@@ -166,4 +166,4 @@ def trial_row(trial: dict[str, Any]) -> tuple[str, str, str, str, str]:
     if why:
         status += f" ({'; '.join(why)})"
     return (str(t.index + 1), "practice" if t.block == -1 else str(t.block + 1), t.gesture, status,
-            ", ".join(FLAG_TEXT.get(f, f) for f in t.flags))
+            trial_reason(t))

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from PySide6.QtCore import QSettings
-from PySide6.QtWidgets import QComboBox, QLineEdit, QSpinBox
+from PySide6.QtWidgets import QCheckBox, QComboBox, QLineEdit, QSpinBox
 
 from tactile_studio.ui.settings import get_json, restore_data, restore_text, set_json
 
@@ -59,6 +59,11 @@ class BoundSettings:
         """A whole number, stored as JSON text."""
         self.add(key, box.value, lambda s, k: set_json(s, k, box.value()),
                  lambda s, k: box.setValue(int(get_json(s, k, default))))
+
+    def check(self, key: str, box: QCheckBox) -> None:
+        """A checkbox, stored as JSON true/false (off by default)."""
+        self.add(key, box.isChecked, lambda s, k: set_json(s, k, box.isChecked()),
+                 lambda s, k: box.setChecked(bool(get_json(s, k, False))))
 
     def text(self, key: str, edit: QLineEdit) -> None:
         """A line of text, stored stripped."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from PySide6.QtCore import QTimer, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -19,7 +19,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.playback import PlayClock, SessionPlayback, session_history
+from tactile_studio.playback import PlayClock, SessionPlayback, flag_filters, session_history
 from tactile_studio.playback.chart import ChartWindow
 from tactile_studio.storage.session_check import check_file, verdict_text
 from tactile_studio.ui.heatmap import HeatmapView, strip_colors
@@ -55,6 +55,10 @@ class SessionPlayer(QWidget):
         self.speed.setCurrentIndex(SPEEDS.index(1.0))
         self.trial_box = QComboBox()
         self.trial_box.setMinimumContentsLength(22)
+        # which trials the list offers: all, the flagged ones, or one flag's
+        self.flag_filter = QComboBox()
+        self.flag_filter.setToolTip("list only the flagged trials (quality flags and the "
+                                    "model's check), or those of one flag")
         self.loop = QCheckBox("Loop trial")
         self.position = QLabel("no session")
         self.prediction = QLabel("")
@@ -78,7 +82,7 @@ class SessionPlayer(QWidget):
         head.addWidget(self.check_button)
         bar = QHBoxLayout()
         for w in (self.play_button, self.back_button, self.next_button, QLabel("Speed"),
-                  self.speed, QLabel("Trial"), self.trial_box, self.loop):
+                  self.speed, QLabel("Trial"), self.flag_filter, self.trial_box, self.loop):
             bar.addWidget(w)
         bar.addStretch(1)
         bar.addWidget(self.position)
@@ -101,6 +105,7 @@ class SessionPlayer(QWidget):
         self.next_button.clicked.connect(lambda: self.step(1))
         self.speed.currentIndexChanged.connect(self._speed_changed)
         self.trial_box.activated.connect(self._trial_chosen)
+        self.flag_filter.activated.connect(lambda _k: self._list_trials(jump=True))
         self.loop.toggled.connect(self._loop_changed)
         self.timeline.seekRequested.connect(self.seek)
         self.heatmap.virtualChanged.connect(lambda _on: self.show_frame())
@@ -124,9 +129,10 @@ class SessionPlayer(QWidget):
         self.window = ChartWindow(self.strip.seconds, pb.duration)
         self.heatmap.set_layout(pb.layout)
         self.timeline.set_playback(pb)
-        self.trial_box.clear()
-        for t in pb.trials:
-            self.trial_box.addItem(f"{t.number}: {t.gesture} ({t.status})", t.index)
+        self.flag_filter.clear()
+        for text, flag in flag_filters(pb.trials):
+            self.flag_filter.addItem(text, flag)
+        self._list_trials()
         # chart the two most-loaded taxels of the session to start with
         peak = np.abs(pb.frame(int(np.argmax(np.abs(pb.raw - pb.raw[0]).sum(axis=1))))[0])
         order = np.argsort(-peak.ravel())[:2]
@@ -136,6 +142,31 @@ class SessionPlayer(QWidget):
         self.seek(0)
         self.check()
         return True
+
+    def set_flag_filter(self, flag: str | None) -> None:
+        """List only the trials ``flag`` keeps (None: all; ``ANY_FLAG``: any flagged) and
+        go to the first of them."""
+        self.flag_filter.setCurrentIndex(max(0, self.flag_filter.findData(flag)))
+        self._list_trials(jump=True)
+
+    def _list_trials(self, jump: bool = False) -> None:
+        """The trial list under the flag filter; a flagged trial says why."""
+        if self.pb is None:
+            return
+        flag = self.flag_filter.currentData()
+        self.trial_box.clear()
+        for t in self.pb.trials:
+            if t.shows(flag):
+                why = f" — {t.reason}" if t.reason else ""
+                self.trial_box.addItem(f"{t.number}: {t.gesture} ({t.status}){why}", t.index)
+                self.trial_box.setItemData(self.trial_box.count() - 1, t.reason or None,
+                                           Qt.ItemDataRole.ToolTipRole)
+        if jump and self.trial_box.count():
+            self.jump_to_trial(int(self.trial_box.itemData(0)))
+
+    def listed_trials(self) -> list[int]:
+        """The trial indices the list offers now."""
+        return [int(self.trial_box.itemData(k)) for k in range(self.trial_box.count())]
 
     def check(self) -> list[str] | None:
         """Check the open file (``session_check``, what ``tactile-studio check`` runs) and

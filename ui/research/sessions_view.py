@@ -12,6 +12,7 @@ from pathlib import Path
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
+    QCheckBox,
     QHBoxLayout,
     QLabel,
     QLineEdit,
@@ -71,6 +72,10 @@ class SessionsView(QWidget):
         import_csv.setToolTip("the old collection software's ShearSense CSVs, as sessions")
         self.filter = QLineEdit()
         self.filter.setPlaceholderText("filter: participant, condition, protocol, sensor…")
+        self.only_flagged = QCheckBox("With flagged trials")
+        self.only_flagged.setToolTip("list only the sessions with flagged trials (quality "
+                                     "flags or the model's check); the player lists a "
+                                     "session's flagged trials")
         self.table = make_table(COLUMNS)
         self.table.setSortingEnabled(True)
         self.summary = QLabel("Add a folder of session files.")
@@ -80,6 +85,7 @@ class SessionsView(QWidget):
         top.addWidget(import_csv)
         top.addWidget(QLabel("Filter"))
         top.addWidget(self.filter, 1)
+        top.addWidget(self.only_flagged)
         lay = QVBoxLayout(self)
         lay.addLayout(top)
         lay.addWidget(self.table, 1)
@@ -88,6 +94,7 @@ class SessionsView(QWidget):
         clear.clicked.connect(lambda: self.set_folders([]))
         import_csv.clicked.connect(self.importRequested.emit)
         self.filter.textChanged.connect(self._apply_filter)
+        self.only_flagged.toggled.connect(self._apply_filter)
         self.table.itemSelectionChanged.connect(self._selection_changed)
         self.settings = app_settings()
         # the folders of the last run of the app, those that still exist
@@ -241,7 +248,8 @@ class SessionsView(QWidget):
         text = self.filter.text()
         for r in range(self.table.rowCount()):
             row = self.rows[self.table.item(r, 0).data(Qt.ItemDataRole.UserRole)]
-            self.table.setRowHidden(r, not row.matches(text))
+            self.table.setRowHidden(r, not row.matches(text)
+                                    or (self.only_flagged.isChecked() and not row.flagged))
 
     def selected(self) -> list[SessionRow]:
         rows = sorted({i.row() for i in self.table.selectedIndexes()

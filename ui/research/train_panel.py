@@ -12,6 +12,7 @@ from typing import Any
 import pyqtgraph as pg
 from PySide6.QtCore import QSettings, Signal
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFormLayout,
     QHBoxLayout,
@@ -129,6 +130,11 @@ class TrainPanel(JobPanel):
             "output layers fine-tuned on each K's shots, as live calibration does. auto: "
             "fine-tune for a network (as good on the simulator, half the time), join for "
             "rf, knn and a network fused with rf")
+        self.exclude_flagged = QCheckBox("leave out trials the collection flagged")
+        self.exclude_flagged.setToolTip(
+            "train --exclude-flagged: trials with a quality flag (no contact, saturated, a "
+            "stuck channel, off-centre...) or a model check's flag are left out of training "
+            "and testing (the run's config says so); off: every ok trial is used")
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.out.setToolTip("Named from the model and the time, under the runs folder "
@@ -151,7 +157,8 @@ class TrainPanel(JobPanel):
                          ("Evaluation", self.protocol), ("Rounds", self.rounds),
                          ("Epochs", self.epochs), ("Test people", self.adapt),
                          ("Shots per gesture of\nthe held-out person", self.shots),
-                         ("Shots reach the model", self.shots_by)):
+                         ("Shots reach the model", self.shots_by),
+                         ("Flagged trials", self.exclude_flagged)):
             form.addRow(label, w)
         form.addRow("Run folder", out_row)
         self.start_button = QPushButton("Train")
@@ -228,6 +235,7 @@ class TrainPanel(JobPanel):
         b.text("shots", self.shots)
         b.combo_data("shots_by", self.shots_by, "auto")
         b.text("out", self.out)
+        b.check("exclude_flagged", self.exclude_flagged)
         b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
         return b
 
@@ -299,7 +307,7 @@ class TrainPanel(JobPanel):
             overrides=self.overrides(), threads=1,
             device="cpu", adapt=self.adapt.currentData(), shots=self.shot_counts(),
             shots_by=self.shots_by.currentData() if self.epoch_model else "auto",
-            **recipe)
+            exclude_flagged=self.exclude_flagged.isChecked(), **recipe)
 
     def shot_counts(self) -> tuple[int, ...]:
         """The K of few-shot personalisation ("0,1,2"), () when off or not offered."""

@@ -1,0 +1,51 @@
+"""A trial check that runs beside the runner, not in it: :class:`BackgroundCheck`.
+
+The runner scores a finished trial at the tick that ends it. In the console that tick is
+the GUI's timer, so a model that takes 50-300 ms (a forest's features, a CNN on CPU) froze
+the heatmap and the buttons for that long at every beep. Wrapped in a BackgroundCheck the
+same checker scores the trial on one worker thread: the trial is written at once with its
+signal flags, the verdict joins it (``check``, ``model_mismatch``) at the first tick after
+the model answers, and a held session waits for it (at most ``wait_s``) before the next
+key is taken. Headless collection keeps the plain checker (nothing to keep responsive).
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Any
+
+import numpy as np
+
+from tactile_studio.protocol.trial_check import TrialChecker, TrialVerdict
+from tactile_studio.sensor.layout import Layout
+
+WAIT_S = 2.0  # a held trial waits this long for its verdict, then the session goes on
+
+
+class BackgroundCheck:
+    """``checker`` on a worker thread (a TrialChecker itself: ``check`` still answers
+    in the caller's thread, for whoever wants to wait)."""
+
+    def __init__(self, checker: TrialChecker, wait_s: float = WAIT_S) -> None:
+        self.checker = checker
+        self.known = checker.known
+        self.wait_s = float(wait_s)
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="trial-check")
+
+    def describe(self) -> dict[str, Any]:
+        return self.checker.describe()
+
+    def check(self, layout: Layout, raw: np.ndarray, baseline: np.ndarray, rate_hz: float,
+              prompted: str) -> TrialVerdict | None:
+        return self.checker.check(layout, raw, baseline, rate_hz, prompted)
+
+    def submit(self, layout: Layout, raw: np.ndarray, baseline: np.ndarray, rate_hz: float,
+               prompted: str) -> Future:
+        """Score a trial on the worker (copies of the frames: the ring moves on)."""
+        return self._pool.submit(self.checker.check, layout, np.array(raw), np.array(baseline),
+                                 rate_hz, prompted)
+
+    def close(self) -> None:
+        """Let the worker end after the check it is running (none is lost: the runner
+        waits for a pending verdict before the session ends)."""
+        self._pool.shutdown(wait=False, cancel_futures=False)
