@@ -13,7 +13,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
@@ -35,6 +35,10 @@ from tactile_studio.protocol.trial_check import (
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trial_number
+
+if TYPE_CHECKING:
+    from tactile_studio.learn.deploy.trial_check import RunChecks
+    from tactile_studio.protocol.runner import CollectionRunner
 
 
 def add_qc_options(p: argparse.ArgumentParser, model_flag: str, help_text: str,
@@ -60,7 +64,7 @@ def qc_checker(model: str | None, top_k: int, threshold: float,
     return ModelTrialCheck(model, top_k, threshold, participant)
 
 
-def announce_check(check: TrialChecker, protocol: Protocol, runner: Any) -> None:
+def announce_check(check: TrialChecker, protocol: Protocol, runner: CollectionRunner) -> None:
     """Say which model checks the trials and which gestures it does not score, and
     print each flagged trial as it ends (headless collection)."""
     d = check.describe()
@@ -138,7 +142,7 @@ def session_protocol(s: Session) -> Protocol | None:
         return None
 
 
-def session_rows(s: Session, path: Path, checks: Any) -> list[dict[str, Any]]:
+def session_rows(s: Session, path: Path, checks: RunChecks) -> list[dict[str, Any]]:
     """One row per trial (practice and discarded ones left out) of session ``s``."""
     participant = str(s.metadata.get("participant") or path.stem)
     check = checks.for_participant(participant)

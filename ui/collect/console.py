@@ -49,6 +49,8 @@ from tactile_studio.protocol.collect import (
     resume_session,
 )
 from tactile_studio.protocol.flag_summary import block_summary
+from tactile_studio.protocol.snapshot import RunnerSnapshot
+from tactile_studio.protocol.trial_check import TrialChecker
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console_actions import ConsoleActions
@@ -323,7 +325,7 @@ class CollectConsole(ConsoleActions):
             choice.device, choice.device_settings)
 
     @staticmethod
-    def _off_gui(checker: Any) -> BackgroundCheck | None:
+    def _off_gui(checker: TrialChecker | None) -> BackgroundCheck | None:
         """The model scores each trial on a worker thread, not in the timer's tick: the
         heatmap and the buttons stay live while it thinks (its verdict joins the trial
         at the first tick after)."""
@@ -581,7 +583,7 @@ class CollectConsole(ConsoleActions):
         b["break"].setEnabled(live and snap.state not in ("setup", "break", "free_play"))
         b["end"].setEnabled(live)
 
-    def _show_block_summary(self, snap: Any) -> None:
+    def _show_block_summary(self, snap: RunnerSnapshot) -> None:
         """After each block (a break, the next block, the end): per gesture, how many of
         its performances so far were flagged and why; rebuilt only when that changes."""
         done = snap.block if (not snap.remaining or snap.state in ("finished", "aborted")) \

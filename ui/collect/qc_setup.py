@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
+from tactile_studio.protocol.trial_check import TrialChecker
 from tactile_studio.storage.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.settings import get_json, set_json
@@ -45,9 +46,9 @@ class QcChoice:
     model: str | None = None
     top_k: int = DEFAULT_TOP_K
     threshold: float = DEFAULT_THRESHOLD
-    ready: Any = None  # a TrialChecker already built (a script's own): used as it is
+    ready: TrialChecker | None = None  # already built (a script's own): used as it is
 
-    def checker(self, participant: str) -> Any:
+    def checker(self, participant: str) -> TrialChecker | None:
         """The core's ModelTrialCheck for ``participant`` (None without a model); a model
         that cannot check is a one-line UserError."""
         if self.ready is not None:
@@ -128,7 +129,7 @@ class QcModelField(QWidget):
                            saved.get("threshold", DEFAULT_THRESHOLD))
         self.set_model(saved.get("model") or None, remember=False)
 
-    def _set_settings(self, top_k: Any, threshold: Any) -> None:
+    def _set_settings(self, top_k: object, threshold: object) -> None:
         for w, v in ((self.top_k, top_k), (self.threshold, threshold)):
             w.blockSignals(True)
             try:
