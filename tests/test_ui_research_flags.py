@@ -75,10 +75,13 @@ def test_the_player_lists_all_flagged_or_one_flags_trials_with_their_reason(qtbo
     trials = player.pb.trials
     flagged = [t.index for t in trials if t.flags]
     model = [t.index for t in trials if "model_mismatch" in t.flags]
+    # a light Poke now and then reads as no contact on the simulator (and so to the
+    # test's model): the expected lists come from the stored flags, not a fixed count
+    none = [t.index for t in trials if "no_contact" in t.flags]
     assert trials[0].flags == ["no_contact", "model_mismatch"] and len(trials) == 3
     assert 1 not in flagged  # a touched trial that looks like its gesture
     labels = [player.flag_filter.itemText(k) for k in range(player.flag_filter.count())]
-    assert labels == ["All trials (3)", f"Flagged ({len(flagged)})", "no contact (1)",
+    assert labels == ["All trials (3)", f"Flagged ({len(flagged)})", f"no contact ({len(none)})",
                       f"does not look like the prompted gesture ({len(model)})"]
     assert player.listed_trials() == [0, 1, 2]
     player.set_flag_filter(ANY_FLAG)
@@ -89,7 +92,7 @@ def test_the_player_lists_all_flagged_or_one_flags_trials_with_their_reason(qtbo
     assert text == (f"1: {gesture} (ok) \u2014 no contact, looks like nothing (0.80); "
                     f"{gesture} 0.20")
     player.set_flag_filter("no_contact")
-    assert player.listed_trials() == [0]
+    assert player.listed_trials() == none and none[0] == 0
     player.set_flag_filter("model_mismatch")
     assert player.listed_trials() == model
     player.set_flag_filter(None)
