@@ -14,6 +14,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.collect import open_session
 from tactile_studio.protocol.runner import State, StreamClock
+from tactile_studio.protocol.runner_events import TrialStarted
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
@@ -32,8 +33,8 @@ def run(speed: float, blocks: int | None = None) -> None:
         lags: list[int] = []
         saves: list[float] = []
         session.runner.add_listener(
-            lambda e: lags.append(engine.frames - e["start_frame"])
-            if e["kind"] == "trial_started" else None)
+            lambda e: lags.append(engine.frames - e.start_frame)
+            if isinstance(e, TrialStarted) else None)
         t0 = time.perf_counter()
         engine.start()
         while session.runner.state not in State.DONE:

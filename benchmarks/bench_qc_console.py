@@ -24,6 +24,8 @@ import time
 from pathlib import Path
 from statistics import median
 
+from tactile_studio.protocol.runner_events import TrialEnded
+
 ROOT = Path(__file__).resolve().parents[1]
 MISTAKE = {"Twist": "Wide Pinch", "Poke": "Heavy Pat", "Tickle": "Wide Pinch",
            "Circular Stroke": "Back & Forth Rub"}
@@ -72,8 +74,8 @@ def session(run: Path, blocks: int, sync: bool, out: Path) -> dict:
     runner, dev = console.runner, console.engine.device
     ended: dict[int, float] = {}
     shown: dict[int, float] = {}
-    runner.add_listener(lambda e: ended.setdefault(e["trial"]["index"], time.perf_counter())
-                        if e["kind"] == "trial_ended" else None)
+    runner.add_listener(lambda e: ended.setdefault(e.trial["index"], time.perf_counter())
+                        if isinstance(e, TrialEnded) else None)
     stall = 0.0
 
     def pump(until, timeout: float = 60.0) -> None:  # noqa: ANN001

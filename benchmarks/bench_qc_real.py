@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks.real_data import dev_sessions, dev_set, skip_reason
+from tactile_studio.protocol.runner_events import RunnerEvent, TrialEnded
 
 SETTINGS = ((3, 0.10), (3, 0.05), (2, 0.10), (1, 0.0))  # (top k, threshold); first: default
 
@@ -160,9 +161,9 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
                                trial_check=check)
         runner = session.runner
 
-        def on(event: dict[str, Any]) -> None:
-            if event["kind"] == "trial_ended":  # the verdict is on the trial written
-                i = event["trial"]["index"]
+        def on(event: RunnerEvent) -> None:
+            if isinstance(event, TrialEnded):  # the verdict is on the trial written
+                i = event.trial["index"]
                 seen.append(time.perf_counter() - ended_at.get(i, time.perf_counter()))
 
         runner.add_listener(on)

@@ -8,12 +8,21 @@ from pathlib import Path
 from waiting import wait_until
 
 from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition.events import (
+    KINDS,
+    AcquisitionEvent,
+    Connected,
+    Disconnected,
+    RecordingStarted,
+    RecordingStopped,
+    StateChanged,
+)
 from tactile_studio.acquisition.sinks import FILE, OUTLET, Sink
 from tactile_studio.storage.session import Session
 
 
-def _events(session: AcquisitionSession) -> list[dict]:
-    seen: list[dict] = []
+def _events(session: AcquisitionSession) -> list[AcquisitionEvent]:
+    seen: list[AcquisitionEvent] = []
     session.add_listener(seen.append)
     return seen
 
@@ -30,13 +39,31 @@ def test_start_order_puts_the_first_frame_and_the_connect_event_in_the_file(tmp_
         wait_until(lambda: (s.poll(), not s.recording)[1], what="the frame limit")
     finally:
         s.close()
-    assert [e["kind"] for e in seen][:3] == ["recording_started", "connected", "state"]
-    stopped = [e for e in seen if e["kind"] == "recording_stopped"]
-    assert [e["reason"] for e in stopped] == ["limit"]
+    assert [type(e) for e in seen][:3] == [RecordingStarted, Connected, StateChanged]
+    stopped = [e for e in seen if isinstance(e, RecordingStopped)]
+    assert [e.reason for e in stopped] == ["limit"]
     with Session(tmp_path / "a.h5") as f:
         assert f.n_frames >= 120
         assert int(f.column("index", 0, 1)[0]) == 0  # row 0 is the engine's frame 0
         assert "connect" in [e["kind"] for e in f.events]
+
+
+def test_every_event_a_session_sends_is_a_declared_type(tmp_path: Path) -> None:
+    """Connect, record, stop on a limit, disconnect: each event the listeners hear is one
+    of acquisition/events.py's types (a dict or an undeclared kind fails here)."""
+    s = AcquisitionSession()
+    seen = _events(s)
+    engine = s.connect("simulated", {"rate": "400", "speed": "4"})
+    try:
+        s.start_recording(tmp_path / "k.h5")
+        wait_until(lambda: engine.frames > 100, what="100 frames")
+        s.stop_recording_after(frames=50)
+        wait_until(lambda: (s.poll(), not s.recording)[1], what="the frame limit")
+    finally:
+        s.close()
+    assert seen and all(isinstance(e, KINDS) for e in seen), seen
+    assert {type(e) for e in seen} >= {Connected, StateChanged, RecordingStarted,
+                                        RecordingStopped, Disconnected}
 
 
 def test_the_recording_stops_itself_when_the_stream_ends(tmp_path: Path) -> None:
@@ -54,7 +81,7 @@ def test_the_recording_stops_itself_when_the_stream_ends(tmp_path: Path) -> None
         wait_until(lambda: (s.poll(), not s.recording)[1], what="the replay to end")
     finally:
         s.close()
-    assert [e["reason"] for e in seen if e["kind"] == "recording_stopped"] == ["device"]
+    assert [e.reason for e in seen if isinstance(e, RecordingStopped)] == ["device"]
     assert s.status().state == "finished" and s.status().recording is None
     with Session(tmp_path / "copy.h5") as f:
         assert f.closed_cleanly and f.n_frames > 0
@@ -85,7 +112,7 @@ def test_a_recorder_closed_by_its_collection_is_released_on_poll(tmp_path: Path)
         rec.stop()  # as CollectionSession.close() does
         s.poll()
         assert not s.recording
-        assert [e["reason"] for e in seen if e["kind"] == "recording_stopped"] == ["requested"]
+        assert [e.reason for e in seen if isinstance(e, RecordingStopped)] == ["requested"]
     finally:
         s.close()
 

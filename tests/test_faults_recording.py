@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from waiting import wait_until
 
+from tactile_studio.acquisition.events import RecordingStopped
 from tactile_studio.acquisition.outcome import recording_outcome
 from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
@@ -193,8 +194,8 @@ def test_frames_the_recorder_lost_are_in_the_final_line_and_make_it_incomplete(t
     assert rec.dropped > 0 and outcome is not None and not outcome.complete
     assert outcome.exit_code == EXIT_INCOMPLETE
     assert f"{rec.dropped} frames lost" in outcome.line and str(out) in outcome.line
-    stopped = [e for e in seen if e["kind"] == "recording_stopped"]
-    assert stopped and stopped[0]["message"] == outcome.line
+    stopped = [e for e in seen if isinstance(e, RecordingStopped)]
+    assert stopped and stopped[0].message == outcome.line
 
 
 def test_the_outcome_of_a_complete_recording_is_the_usual_line():

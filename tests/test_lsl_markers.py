@@ -14,6 +14,7 @@ import pytest
 from lsl_fixtures import WAIT_S, unique
 from waiting import wait_until
 
+from tactile_studio.acquisition.events import Health
 from tactile_studio.cli import main
 from tactile_studio.storage import Session
 
@@ -139,8 +140,8 @@ def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_pa
     from tactile_studio.errors import UserError
 
     session = AcquisitionSession()
-    heard: list[dict] = []
-    session.add_listener(lambda e: heard.append(e) if e["kind"] == "health" else None)
+    heard: list[Health] = []
+    session.add_listener(lambda e: heard.append(e) if isinstance(e, Health) else None)
     session.open("simulated", {"rate": RATE})
     session.marker_streams = (unique("missing"),)
     session.start()
@@ -172,8 +173,8 @@ def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_pa
             session.poll()
             time.sleep(0.05)
         pusher.join(WAIT_S)
-        assert heard and heard[0]["silent"] and f"marker stream '{name}' disappeared" \
-            in heard[0]["message"]
+        assert heard and heard[0].silent and f"marker stream '{name}' disappeared" \
+            in heard[0].message
         session.stop_recording()
     finally:
         session.close()

@@ -15,6 +15,7 @@ from test_ui_collect import MINI, WAIT_MS, click, make_console, snap
 
 from tactile_studio.cli import main
 from tactile_studio.protocol.quality import QualitySettings
+from tactile_studio.protocol.runner_events import RunnerEvent, TrialEnded
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.sensor.decode import contact_taxels
 from tactile_studio.storage.session import Session
@@ -46,10 +47,10 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     assert console.virtual is not None and snap(console).state == State.SETUP  # yours to start
     device = console.engine.device
 
-    def pause_after_the_fourth(event: dict) -> None:
+    def pause_after_the_fourth(event: RunnerEvent) -> None:
         # the experimenter's Pause as trial 4 ends (it takes effect after the trial): a
         # poll of the state could miss the moment between trials on a loaded machine
-        if event["kind"] == "trial_ended" and event["trial"]["index"] == 3:
+        if isinstance(event, TrialEnded) and event.trial["index"] == 3:
             QTimer.singleShot(0, lambda: click(qtbot, console, "pause"))
 
     console.runner.add_listener(pause_after_the_fourth)

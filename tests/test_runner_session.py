@@ -17,6 +17,7 @@ from collect_fixtures import (
 )
 
 from tactile_studio.cli import main
+from tactile_studio.protocol.runner_events import TrialStarted
 from tactile_studio.storage.protocol_file import load_protocol
 from tactile_studio.storage.session import Session
 
@@ -315,7 +316,7 @@ def test_practice_then_blocks_and_other_gesture_sets(tmp_path: Path) -> None:
     rig = make_rig(tmp_path, protocol, "P11", speed=80.0)
     seen_practice = []
     rig.runner.add_listener(lambda e: seen_practice.append(rig.runner.snapshot().practice)
-                            if e["kind"] == "trial_started" else None)
+                            if isinstance(e, TrialStarted) else None)
     run_virtual_participant(rig, "P11", seed=2)
     trials = rig.runner.trials
     assert seen_practice == [True, True] + [False] * 7

@@ -12,6 +12,7 @@ import numpy as np
 from serial_helpers import received_all
 from waiting import wait_until
 
+from tactile_studio.acquisition.events import Health
 from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.storage import Session
@@ -34,7 +35,7 @@ def test_a_device_gone_silent_while_recording_is_said_once_and_recorded(tmp_path
     session = AcquisitionSession(clock=clock)
     session.silence_warning_s = 1.5
     heard: list[str] = []
-    session.add_listener(lambda e: heard.append(e["message"]) if e["kind"] == "health" else None)
+    session.add_listener(lambda e: heard.append(e.message) if isinstance(e, Health) else None)
     try:
         session.open("serial", {"port": emu.port})
         session.start_recording(tmp_path / "s.h5")

@@ -10,6 +10,7 @@ from check_fixtures import ContactShare
 from collect_fixtures import do_trial, make_rig, mini_protocol, start
 
 from tactile_studio.protocol.randomise import block_orders
+from tactile_studio.protocol.runner_events import TrialEnded
 from tactile_studio.protocol.trial_check import TrialChecker
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trial_checks import check_problems
@@ -22,8 +23,8 @@ def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -
     assert isinstance(checker, TrialChecker)
     rig = make_rig(tmp_path, protocol, hold_flagged=True, trial_check=checker)
     r = rig.runner
-    ended: list[dict] = []
-    r.add_listener(lambda e: ended.append(e) if e["kind"] == "trial_ended" else None)
+    ended: list[TrialEnded] = []
+    r.add_listener(lambda e: ended.append(e) if isinstance(e, TrialEnded) else None)
     try:
         start(rig)
         g0 = r.snapshot().remaining[0]
@@ -31,8 +32,8 @@ def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -
         assert "model_mismatch" in t0["flags"]
         assert t0["check"]["model"] == "contact-share" and t0["check"]["flagged"]
         assert t0["check"]["reason"].startswith("looks like nothing (")
-        assert ended[-1]["flags"] == t0["flags"]
-        assert t0["check"]["reason"] in ended[-1]["reason"]
+        assert list(ended[-1].flags) == t0["flags"]
+        assert t0["check"]["reason"] in ended[-1].reason
         assert t0["check"]["reason"] in r.redo_prompt
         assert r.redo_last()
         t0_after = r.trials[0]

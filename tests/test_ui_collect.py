@@ -14,6 +14,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor, QImage
 from PySide6.QtWidgets import QFileDialog
 
+from tactile_studio.protocol.runner_events import StateChanged
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.protocol.tone import tone_pcm, tone_samples
 from tactile_studio.storage.session import Session
@@ -176,7 +177,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert s.error.text() == "" and console.stack.currentIndex() == 1
     path = console.session.path
     states: list[str] = []
-    console.runner.add_listener(lambda e: e["kind"] == "state" and states.append(e["state"]))
+    console.runner.add_listener(lambda e: isinstance(e, StateChanged) and states.append(e.state))
     assert console.participant.view.mode == "setup"
     click(qtbot, console, "screen")
     assert console.participant.isVisible()

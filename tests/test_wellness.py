@@ -11,6 +11,7 @@ from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import Cancelled
 from tactile_studio.health.bench import SimulatedPlacer, Timing
+from tactile_studio.health.events import KINDS, Misplaced, SpotMeasured
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken
 from tactile_studio.plugins.simulated import SimulatedSensor
@@ -122,9 +123,9 @@ class _WrongPlacer(SimulatedPlacer):
 def test_weight_on_the_wrong_taxel_stores_nothing():
     events = []
     with pytest.raises(Exception, match="the weight is on C4, not on B2; nothing was stored"):
-        check(placer_cls=_WrongPlacer, seed=1, on_event=lambda k, i: events.append((k, i)))
-    assert ("misplaced",
-            {"at": "C4", "prompt": "The weight is on C4, not on B2: move it"}) in events
+        check(placer_cls=_WrongPlacer, seed=1, on_event=events.append)
+    assert Misplaced("C4", "The weight is on C4, not on B2: move it") in events
+    assert all(isinstance(e, KINDS) for e in events), events
     with Logbook() as book:
         assert book.checks("sim-1") == []
 
@@ -132,8 +133,8 @@ def test_weight_on_the_wrong_taxel_stores_nothing():
 def test_cancelled_check_stores_nothing():
     token = CancelToken()
 
-    def cancel_after_first_spot(kind, info):
-        if kind == "spot":
+    def cancel_after_first_spot(event):
+        if isinstance(event, SpotMeasured):
             token.cancel()
     with pytest.raises(Cancelled):
         check(seed=2, cancel=token, on_event=cancel_after_first_spot)
@@ -212,3 +213,18 @@ def test_a_sensor_varying_like_real_ones_passes_once_calibrated(seed, tmp_path):
     assert result["verdict"] == "pass", result["reasons"]
     assert result["reference_calibration"] is not None
     assert all(0.9 < s["ratio"] < 1.1 for s in result["spots"])
+
+
+def test_every_event_of_a_health_run_is_a_declared_type():
+    """A whole check through HealthRun (as the wizard runs it): each event it queues is
+    one of health/events.py's types, the bench's steps and the run's own alike."""
+    from tactile_studio.health.events import CheckDone, Phase, Progress
+    from tactile_studio.health.runner import HealthRun
+
+    run = HealthRun("simulated", {"speed": 0, "difficulty": "easy", "seed": 3},
+                    WellnessSpec("sim-3", 200.0, ("B2",)), auto=True).start()
+    assert run.join(120), "the check did not end"
+    seen = run.events()
+    assert run.error is None, run.error
+    assert seen and all(isinstance(e, KINDS) for e in seen), seen
+    assert {Phase, SpotMeasured, Progress, CheckDone} <= {type(e) for e in seen}

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.acquisition import AcquisitionSession, LiveStatus
+from tactile_studio.acquisition.events import AcquisitionEvent, RecordingStarted, RecordingStopped
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
@@ -270,23 +271,22 @@ class DevicePanel(QWidget):
     def stop_recording(self) -> str | None:
         return self.controller.stop_recording()
 
-    def _on_session_event(self, event: dict[str, Any]) -> None:
+    def _on_session_event(self, event: AcquisitionEvent) -> None:
         """The session started or stopped a recording (asked here, or on its own: the
         stream ended, a limit was reached)."""
-        kind = event["kind"]
-        if kind == "recording_started":
+        if isinstance(event, RecordingStarted):
             self.record_button.setChecked(True)
             self.record_button.setText("Stop recording")
-            self.recordingChanged.emit(event["path"])
-        elif kind == "recording_stopped":
+            self.recordingChanged.emit(event.path)
+        elif isinstance(event, RecordingStopped):
             self.record_button.setChecked(False)
             self.record_button.setText("Record…")
             self.recordingChanged.emit("")
-            if event["reason"] != "disconnect":
-                self.record_label.setText(f"Saved {event['path']}")
+            if event.reason != "disconnect":
+                self.record_label.setText(f"Saved {event.path}")
                 self.record_label.show()
-            if event.get("message"):  # incomplete: write failed, device lost, frames lost
-                self.show_error(event["message"])
+            if event.message:  # incomplete: write failed, device lost, frames lost
+                self.show_error(event.message)
 
     # ---- Lab Streaming Layer ------------------------------------------------------------
     def _build_lsl_row(self) -> QWidget:

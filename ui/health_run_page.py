@@ -16,6 +16,15 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
+from tactile_studio.health.events import (
+    Failed,
+    LogbookReplaced,
+    Misplaced,
+    Phase,
+    Progress,
+    SpotMeasured,
+    Warned,
+)
 from tactile_studio.health.runner import HealthRun
 from tactile_studio.ui.array_picture import ArrayPicture
 
@@ -114,31 +123,30 @@ class HealthRunPage(QWizardPage):
         if run is None:
             return
         for ev in run.events():
-            info = ev.info
-            if ev.kind == "phase":
-                self.phase.setText(PHASE_TITLES.get(info["phase"], info["phase"]))
-                self.prompt.setText(info.get("prompt", ""))
-                taxel = info.get("taxel")
-                target = taxel if taxel and len(taxel) <= 3 else None
-                self.picture.mark(target=target, detected=None)
-                self.placed_button.setEnabled(info["phase"] == "place" and not run.placer.confirmed)
-            elif ev.kind == "misplaced":
-                self.prompt.setText(info["prompt"])
-                self.picture.mark(target=self.picture.target, detected=info["at"])
-            elif ev.kind == "warning":
-                self.status.setText(info["message"])
-            elif ev.kind == "logbook":
-                self.notice.setText(info["message"])
-                self.notice.show()
-            elif ev.kind == "spot":
-                verdicts = dict(self.picture.verdicts)
-                verdicts[info["taxel"]] = "measured"  # judged at the end
-                self.picture.mark(target=None, verdicts=verdicts)
-            elif ev.kind == "progress":
-                self.progress.setValue(int(info["fraction"] * 1000))
-                self.status.setText(info["message"])
-            elif ev.kind == "error":
-                self._failed(info["message"])
+            match ev:
+                case Phase(phase=phase, prompt=prompt, taxel=taxel):
+                    self.phase.setText(PHASE_TITLES.get(phase, phase))
+                    self.prompt.setText(prompt)
+                    target = taxel if taxel and len(taxel) <= 3 else None
+                    self.picture.mark(target=target, detected=None)
+                    self.placed_button.setEnabled(phase == "place" and not run.placer.confirmed)
+                case Misplaced(at=at, prompt=prompt):
+                    self.prompt.setText(prompt)
+                    self.picture.mark(target=self.picture.target, detected=at)
+                case Warned(message=message):
+                    self.status.setText(message)
+                case LogbookReplaced(message=message):
+                    self.notice.setText(message)
+                    self.notice.show()
+                case SpotMeasured(taxel=taxel):
+                    verdicts = dict(self.picture.verdicts)
+                    verdicts[taxel] = "measured"  # judged at the end
+                    self.picture.mark(target=None, verdicts=verdicts)
+                case Progress(fraction=fraction, message=message):
+                    self.progress.setValue(int(fraction * 1000))
+                    self.status.setText(message)
+                case Failed(message=message):
+                    self._failed(message)
         if not run.running:
             self.timer.stop()
             self.cancel_button.setEnabled(False)

@@ -2,11 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 from PySide6.QtWidgets import QLabel, QStatusBar, QWidget
 
-from tactile_studio.acquisition import LiveStatus
+from tactile_studio.acquisition import AcquisitionSession, LiveStatus
+from tactile_studio.acquisition.events import (
+    AcquisitionEvent,
+    Health,
+    RecordingStarted,
+    RecordingStopped,
+)
 
 
 class LiveStatusBar(QStatusBar):
@@ -43,23 +47,24 @@ class LiveStatusBar(QStatusBar):
         for w in (self.remote, self.rate, self.fps, self.malformed, self.dropped, self.latency):
             self.addPermanentWidget(w)
 
-    def follow(self, session: Any) -> None:
+    def follow(self, session: AcquisitionSession) -> None:
         """Show ``session``'s stream-health warnings (acquisition/stream_health.py) until the
         device sends again or the next recording starts, and a recording that ended short
         of what was asked (red, its one line) until the next one starts."""
-        def on_event(event: dict[str, Any]) -> None:
-            if event["kind"] == "health":
-                self.warning.setText(f"\u26a0 {event['message']}")
-                self.warning.setToolTip(event["message"])
-                self.warning.setVisible(bool(event.get("silent")))
-            elif event["kind"] == "recording_started":
-                self.warning.hide()
-                self.fault.hide()
-            elif event["kind"] == "recording_stopped" and event.get("message"):
-                self.warning.hide()
-                self.fault.setText(f"\u26a0 {event['message']}")
-                self.fault.setToolTip(event["message"])
-                self.fault.show()
+        def on_event(event: AcquisitionEvent) -> None:
+            match event:
+                case Health(message=message, silent=silent):
+                    self.warning.setText(f"\u26a0 {message}")
+                    self.warning.setToolTip(message)
+                    self.warning.setVisible(silent)
+                case RecordingStarted():
+                    self.warning.hide()
+                    self.fault.hide()
+                case RecordingStopped(message=message) if message:
+                    self.warning.hide()
+                    self.fault.setText(f"\u26a0 {message}")
+                    self.fault.setToolTip(message)
+                    self.fault.show()
         session.add_listener(on_event)
 
     def set_remote(self, text: str, tip: str = "") -> None:

@@ -31,6 +31,16 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from tactile_studio.acquisition.events import (
+    AcquisitionEvent,
+    Connected,
+    Disconnected,
+    Health,
+    Listener,
+    RecordingStarted,
+    RecordingStopped,
+    StateChanged,
+)
 from tactile_studio.acquisition.marker_recording import MarkerRecording
 from tactile_studio.acquisition.outcome import RecordingOutcome, outcome_of
 from tactile_studio.acquisition.sinks import FILE, OUTLET, PUBLISHING, LslPublishing, SinkList
@@ -43,19 +53,16 @@ from tactile_studio.errors import UserError
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.recorder import Recorder
 
-Listener = Callable[[dict[str, Any]], None]
-
 
 class AcquisitionSession:
     """Device, engine, recorder and outlets of one acquisition (see the module doc).
 
-    Events (``add_listener``; dicts with a ``kind``), all emitted on the caller's thread:
-    ``connected`` (device), ``disconnected``, ``state`` (state: the engine's new
-    state, seen by :meth:`poll`), ``recording_started`` (path), ``recording_stopped``
-    (path, reason: ``requested``, ``limit``, ``device`` or ``write_error``; ``outcome``:
-    the :class:`~tactile_studio.acquisition.outcome.RecordingOutcome`, ``message``: its one line
-    when the recording is incomplete, else "") and ``health`` (message: the
-    device went silent while recording, or came back; acquisition/stream_health.py).
+    Events (``add_listener``), all emitted on the caller's thread, are declared once in
+    :mod:`tactile_studio.acquisition.events`: :class:`Connected`, :class:`Disconnected`,
+    :class:`StateChanged` (seen by :meth:`poll`), :class:`RecordingStarted`,
+    :class:`RecordingStopped` (with its reason and
+    :class:`~tactile_studio.acquisition.outcome.RecordingOutcome`) and :class:`Health`
+    (the device went silent while recording, or came back).
     """
 
     #: a recording warns (event ``health``) when the device is silent this long
@@ -96,8 +103,7 @@ class AcquisitionSession:
         self._listeners.append(fn)
         return lambda: fn in self._listeners and self._listeners.remove(fn)
 
-    def _emit(self, kind: str, **data: Any) -> None:
-        event = {"kind": kind, **data}
+    def _emit(self, event: AcquisitionEvent) -> None:
         for fn in list(self._listeners):
             fn(event)
 
@@ -133,7 +139,7 @@ class AcquisitionSession:
             raise RuntimeError("open a device before starting the session")
         if self._owns_engine and self.engine.state == EngineState.IDLE:
             self.engine.start()
-            self._emit("connected", device=self.device_name)
+            self._emit(Connected(self.device_name))
         return self.engine
 
     def connect(self, name: str, settings: dict[str, Any] | None = None) -> AcquisitionEngine:
@@ -156,7 +162,7 @@ class AcquisitionSession:
         self.stop_recording(reason)
         self._release_lsl()
         if engine is not None and owned:
-            self._emit("disconnected", device=self.device_name)
+            self._emit(Disconnected(self.device_name))
 
     close = disconnect
 
@@ -199,7 +205,7 @@ class AcquisitionSession:
             except UserError:  # a named stream is missing: no recording, no empty file
                 self.stop_recording("requested", discard=True)
                 raise
-        self._emit("recording_started", path=str(path))
+        self._emit(RecordingStarted(str(path)))
         return self.recorder
 
     def stop_recording_after(self, seconds: float | None = None, frames: int | None = None,
@@ -229,9 +235,9 @@ class AcquisitionSession:
         self.outcome = outcome_of(rec, eng.reconnect_attempts if eng is not None else None)
         if rec.write_error:
             reason = "write_error"
-        self._emit("recording_stopped", path=str(rec.path), reason=reason,
-                   message="" if self.outcome.complete else self.outcome.line,
-                   outcome=self.outcome)
+        self._emit(RecordingStopped(str(rec.path), reason,
+                                    "" if self.outcome.complete else self.outcome.line,
+                                    self.outcome))
         return str(rec.path)
 
     @property
@@ -255,9 +261,9 @@ class AcquisitionSession:
         if self.recorder is None:
             return
         for message in health.check() if health is not None else []:
-            self._emit("health", message=message, silent=health.silent)
+            self._emit(Health(message, health.silent))
         for message in self._markers.messages() if self._markers is not None else []:
-            self._emit("health", message=message, silent=True)
+            self._emit(Health(message, True))
 
     def poll(self) -> None:
         """Notice engine state changes and stop a recording that is due: its limit is
@@ -267,7 +273,7 @@ class AcquisitionSession:
             return
         if eng.state != self._seen_state:
             self._seen_state = eng.state
-            self._emit("state", state=eng.state)
+            self._emit(StateChanged(EngineState(eng.state)))
         rec = self.recorder
         if rec is None:
             return

@@ -24,6 +24,7 @@ from tactile_studio.errors import (
 )
 from tactile_studio.health.bench import Placer, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
+from tactile_studio.health.events import EventFn, HealthEvent, Misplaced, Phase, Warned
 from tactile_studio.health.history import covers_text
 from tactile_studio.health.report import write_report
 from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec, run_wellness
@@ -98,11 +99,13 @@ def _start(args: argparse.Namespace) -> tuple[AcquisitionEngine, Placer]:
     return engine, placer
 
 
-def _prompter(quiet: bool):
-    def on_event(kind: str, info: dict[str, Any]) -> None:
-        if not quiet and kind in ("phase", "misplaced", "warning"):
-            text = info.get("prompt") or info.get("message", "")
-            print(f"\n{text}", file=sys.stderr)
+def _prompter(quiet: bool) -> EventFn:
+    def on_event(event: HealthEvent) -> None:
+        if quiet:
+            return
+        match event:
+            case Phase(prompt=text) | Misplaced(prompt=text) | Warned(message=text):
+                print(f"\n{text}", file=sys.stderr)
     return on_event
 
 

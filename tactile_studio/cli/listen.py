@@ -7,6 +7,7 @@ import argparse
 import sys
 import time
 
+from tactile_studio.acquisition.events import AcquisitionEvent, RecordingStarted, RecordingStopped
 from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.recording_warnings import (
@@ -103,11 +104,11 @@ def _echo(text: str) -> str:
     return printable(cut, keep="")
 
 
-def _report(event: dict, incomplete: list[str]) -> None:
-    if event["kind"] == "recording_started":
-        print(f"recording {printable(event['path'], keep='')}", flush=True)
-    elif event["kind"] == "recording_stopped":
-        print(f"wrote {printable(event['path'], keep='')} ({event['reason']})", flush=True)
-        if event.get("message"):
-            incomplete.append(event["message"])
-            print(printable(event["message"], keep=""), file=sys.stderr, flush=True)
+def _report(event: AcquisitionEvent, incomplete: list[str]) -> None:
+    if isinstance(event, RecordingStarted):
+        print(f"recording {printable(event.path, keep='')}", flush=True)
+    elif isinstance(event, RecordingStopped):
+        print(f"wrote {printable(event.path, keep='')} ({event.reason})", flush=True)
+        if event.message:
+            incomplete.append(event.message)
+            print(printable(event.message, keep=""), file=sys.stderr, flush=True)

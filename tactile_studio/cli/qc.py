@@ -25,6 +25,7 @@ from tactile_studio.protocol.quality import (
     quality_settings,
     trial_flags,
 )
+from tactile_studio.protocol.runner_events import CheckPersonalised, RunnerEvent, TrialEnded
 from tactile_studio.protocol.trial_check import (
     DEFAULT_THRESHOLD,
     DEFAULT_TOP_K,
@@ -75,13 +76,13 @@ def announce_check(check: TrialChecker, protocol: Protocol, runner: CollectionRu
         print(f"trial check: not scored (the model does not know them): "
               f"{', '.join(unknown)}", file=sys.stderr)
 
-    def flagged(event: dict[str, Any]) -> None:
-        if event["kind"] == "check_personalised":
-            print(f"\ntrial check: personalised with {event['trials']} trials of the first "
-                  f"block ({event['model']})", file=sys.stderr)
-        if event["kind"] == "trial_ended" and event.get("flags"):
-            t = event["trial"]
-            print(f"\ntrial {trial_number(t['index'])} ({t['gesture']}): {event['reason']}",
+    def flagged(event: RunnerEvent) -> None:
+        if isinstance(event, CheckPersonalised):
+            print(f"\ntrial check: personalised with {event.trials} trials of the first "
+                  f"block ({event.model})", file=sys.stderr)
+        if isinstance(event, TrialEnded) and event.flags:
+            t = event.trial
+            print(f"\ntrial {trial_number(t['index'])} ({t['gesture']}): {event.reason}",
                   file=sys.stderr)
 
     runner.add_listener(flagged)

@@ -19,10 +19,11 @@ import numpy as np
 
 from tactile_studio.devices.engine import ERROR, FINISHED, STOPPED, AcquisitionEngine
 from tactile_studio.errors import Cancelled, DeviceError, UserError
+from tactile_studio.health.events import HealthEvent, Misplaced, Phase, Warned
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.wellness import contact_taxel, is_settled, normal_map, taxel_label
 
-EventFn = Callable[[str, dict[str, Any]], None]
+EventFn = Callable[[HealthEvent], None]  # health/events.py: what a follower is told
 
 
 class WeightNotDetected(UserError):
@@ -141,7 +142,7 @@ class Bench:
         self.placer = placer or Placer()
         self.timing = timing
         self.cancel = cancel or CancelToken()
-        self.on_event = on_event or (lambda kind, info: None)
+        self.on_event: EventFn = on_event or (lambda event: None)
         self.rate = engine.nominal_rate_hz
         self.baseline: np.ndarray | None = None
         self._cursor = engine.frames
@@ -165,8 +166,8 @@ class Bench:
     def frames(self, seconds: float) -> int:
         return max(1, int(round(seconds * self.rate)))
 
-    def emit(self, kind: str, **info: Any) -> None:
-        self.on_event(kind, info)
+    def emit(self, event: HealthEvent) -> None:
+        self.on_event(event)
 
     def confirm_placed(self) -> None:
         """The person says the weight is on although the sensor does not see it."""
@@ -221,8 +222,8 @@ class Bench:
         start = self.placer.prepare()
         if start is not None:
             self._skip_before = start
-        self.emit("phase", phase="rest", prompt=f"Hands off: reading noise and baseline for "
-                                                f"{self.timing.rest_s:g} s")
+        self.emit(Phase("rest", f"Hands off: reading noise and baseline for "
+                                f"{self.timing.rest_s:g} s"))
         raw = self.take(self.frames(self.timing.rest_s))
         self.baseline = raw.mean(axis=0)
         return raw
@@ -237,9 +238,9 @@ class Bench:
         self._confirm.clear()
         seq0 = self.placer.place(mass_g, taxel_label(lay, taxel) if taxel is not None else None,
                                  contact_mm)
-        self.emit("phase", phase="place", taxel=where, prompt=f"Place {mass_g:g} g on {where}")
+        self.emit(Phase("place", f"Place {mass_g:g} g on {where}", where))
         level = self._wait_placed(taxel, expected_kpa, seq0)
-        self.emit("phase", phase="settle", taxel=where, prompt="Hold still: settling")
+        self.emit(Phase("settle", "Hold still: settling", where))
         series = list(level)
         settled_after = None
         while settled_after is None:
@@ -251,9 +252,8 @@ class Bench:
                 settled_after = n
             elif n >= self.frames(t.settle_max_s):
                 settled_after = n
-                self.emit("warning", message=f"{where}: did not settle within "
-                                             f"{t.settle_max_s:g} s")
-        self.emit("phase", phase="record", taxel=where, prompt="Recording")
+                self.emit(Warned(f"{where}: did not settle within {t.settle_max_s:g} s"))
+        self.emit(Phase("record", "Recording", where))
         recorded = self.take(self.frames(t.record_s))
         held = float(np.mean(self._level(recorded, taxel)))
         settled = float(np.mean(series[-self.frames(0.5):]))
@@ -302,9 +302,9 @@ class Bench:
                 return list(self._level(raw, taxel)[-3:])
             if at is not None and at != taxel and at != told:
                 told = at
-                self.emit("misplaced", at=taxel_label(lay, at),
-                          prompt=f"The weight is on {taxel_label(lay, at)}, not on "
-                                 f"{taxel_label(lay, taxel)}: move it")
+                self.emit(Misplaced(taxel_label(lay, at),
+                                    f"The weight is on {taxel_label(lay, at)}, not on "
+                                    f"{taxel_label(lay, taxel)}: move it"))
             seen += counted
             if self._confirm.is_set() and at is None:
                 return [0.0]
@@ -345,7 +345,7 @@ class Bench:
     def _lift(self, taxel: int | None, held: float, where: str, recover: float) -> None:
         """Wait until the load is off and the response has recovered to ``recover`` x."""
         seq0 = self.placer.lift()
-        self.emit("phase", phase="lift", taxel=where, prompt=f"Lift the weight off {where}")
+        self.emit(Phase("lift", f"Lift the weight off {where}", where))
         limit, seen = self.frames(self.timing.lift_timeout_s), 0
         window = self.frames(1.0 if recover >= 0.1 else 3.0)
         recent = np.zeros(0)

@@ -20,6 +20,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.file_claims import written_whole
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
+from tactile_studio.health.events import CalibrationDone, Warned
 from tactile_studio.health.wellness import resolve_sensor
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.output_faults import (
@@ -100,7 +101,7 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
             fits.append(fit_taxel(lay, t, kpa, samples[i]))
         except CalibrationError as exc:  # a dead taxel must not sink the other 35
             skipped.append({"taxel": taxel_label(lay, t), "reason": str(exc)})
-            bench.emit("warning", message=f"not calibrated: {exc}")
+            bench.emit(Warned(f"not calibrated: {exc}"))
     if not fits:
         raise CalibrationError(f"no taxel could be calibrated ({skipped[0]['reason']}); "
                                "nothing was stored")
@@ -115,7 +116,7 @@ def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
                             "in the logbook (active)"):
             _write_atomic(Path(out), data)
     progress(1.0, f"rms {data['rms_pct_max']:.2f}% of range")
-    bench.emit("done", calibration_id=data["calibration_id"])
+    bench.emit(CalibrationDone(int(data["calibration_id"])))
     return data
 
 

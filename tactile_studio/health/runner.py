@@ -10,7 +10,6 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-from dataclasses import dataclass
 from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
@@ -18,16 +17,11 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.bench import Bench, Placer, SimulatedPlacer, Timing
 from tactile_studio.health.calibration import CalibrationSpec, run_calibration
+from tactile_studio.health.events import Failed, HealthEvent, LogbookReplaced, Progress
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken
 from tactile_studio.output_faults import fault_line
 from tactile_studio.storage.logbook import Logbook
-
-
-@dataclass
-class Event:
-    kind: str      # phase | misplaced | warning | logbook | spot | progress | done | error
-    info: dict[str, Any]
 
 
 class HealthRun:
@@ -44,7 +38,7 @@ class HealthRun:
         self.fraction = 0.0
         self.engine: AcquisitionEngine | None = None
         self._bench: Bench | None = None
-        self._events: queue.Queue[Event] = queue.Queue()
+        self._events: queue.Queue[HealthEvent] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="health-run", daemon=True)
 
     def start(self) -> HealthRun:
@@ -66,9 +60,9 @@ class HealthRun:
         if self._bench is not None:
             self._bench.confirm_placed()
 
-    def events(self) -> list[Event]:
+    def events(self) -> list[HealthEvent]:
         """Everything that happened since the last call (never blocks)."""
-        out = []
+        out: list[HealthEvent] = []
         while True:
             try:
                 out.append(self._events.get_nowait())
@@ -76,12 +70,12 @@ class HealthRun:
                 return out
 
     # ---- the thread ------------------------------------------------------------------
-    def _emit(self, kind: str, info: dict[str, Any]) -> None:
-        self._events.put(Event(kind, dict(info)))
+    def _emit(self, event: HealthEvent) -> None:
+        self._events.put(event)
 
     def _progress(self, fraction: float, message: str) -> None:
         self.fraction = fraction
-        self._emit("progress", {"fraction": fraction, "message": message})
+        self._emit(Progress(fraction, message))
 
     def _run(self) -> None:
         engine = self.engine = AcquisitionEngine(self.device)
@@ -89,7 +83,7 @@ class HealthRun:
             # what is measured is stored: a damaged logbook is set aside first, said here
             with Logbook(on_damage="replace") as book:
                 if book.notice:
-                    self._emit("logbook", {"message": book.notice})
+                    self._emit(LogbookReplaced(book.notice))
             engine.start()
             if not engine.wait_frames(1, timeout=10.0):
                 raise UserError(engine.error or f"device {self.device.name}: no frames in 10 s")
@@ -103,15 +97,15 @@ class HealthRun:
                                               progress=self._progress, bench=self._bench)
         except Cancelled:
             self.error = "cancelled: nothing was stored"
-            self._emit("error", {"message": self.error})
+            self._emit(Failed(self.error))
         except UserError as exc:
             self.error = str(exc)
-            self._emit("error", {"message": self.error})
+            self._emit(Failed(self.error))
         except Exception as exc:  # a bug: keep the traceback in the log, tell the user
             line = fault_line(exc)  # ... unless the place cannot be written: one line
             if line is None:
                 logging.getLogger(__name__).exception("health procedure failed")
             self.error = line or f"internal error: {type(exc).__name__}: {exc}"
-            self._emit("error", {"message": self.error})
+            self._emit(Failed(self.error))
         finally:
             engine.stop()

@@ -16,6 +16,7 @@ import numpy as np
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
+from tactile_studio.health.events import CheckDone, SpotMeasured
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.sensor.calibration import expected_nominal_kpa
 from tactile_studio.sensor.layout import Layout
@@ -174,7 +175,7 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
         spot = measure_spot(lay, raw, bench.baseline, taxel, expected)
         spot.reference_kpa = ref["spots"].get(spot.taxel)
         results.append(spot)
-        bench.emit("spot", taxel=spot.taxel, normal_kpa=spot.normal_kpa)
+        bench.emit(SpotMeasured(spot.taxel, spot.normal_kpa))
     judge_spots(lay, results, thresholds)
     dead = sorted(set(rest.dead) | {c for s in results for c in s.dead_channels})
     reasons = [words for _, words in rest.reasons] + [r for s in results for r in s.reasons]
@@ -207,5 +208,5 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
         with Logbook() as book:
             result["check_id"] = book.add_check(sensor, result)
     progress(1.0, f"verdict {verdict}")
-    bench.emit("done", verdict=verdict, check_id=result["check_id"])
+    bench.emit(CheckDone(verdict, result["check_id"]))
     return result

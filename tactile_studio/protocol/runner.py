@@ -25,6 +25,18 @@ from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
 from tactile_studio.protocol.quality import describe, quality_settings
+from tactile_studio.protocol.runner_events import (
+    Beep,
+    BlockStarted,
+    CheckPersonalised,
+    Refused,
+    RunnerEvent,
+    RunnerListener,
+    StateChanged,
+    TrialEnded,
+    TrialStarted,
+    TrialUpdated,
+)
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
 from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker
@@ -70,7 +82,7 @@ class CollectionRunner(RunnerInputs):
         self._redo_for: int | None = None  # the flagged trial the redo prompt asks about
         self.beeps = 0
         self.free_play_s = protocol.free_play_s
-        self._listeners: list[Callable[[dict[str, Any]], None]] = []
+        self._listeners: list[RunnerListener] = []
         self._start_requested = False
         self._current: dict[str, Any] | None = None
         self._release_hold: Callable[[], None] = lambda: None
@@ -105,11 +117,11 @@ class CollectionRunner(RunnerInputs):
         return [t.to_dict() for t in self.records]
 
     # ---- listeners ---------------------------------------------------------------------
-    def add_listener(self, fn: Callable[[dict[str, Any]], None]) -> None:
+    def add_listener(self, fn: RunnerListener) -> None:
+        """Call ``fn(event)`` for every event (protocol/runner_events.py)."""
         self._listeners.append(fn)
 
-    def _emit(self, kind: str, **data: Any) -> None:
-        event = {"kind": kind, **data}
+    def _emit(self, event: RunnerEvent) -> None:
         for fn in list(self._listeners):
             fn(event)
 
@@ -117,11 +129,11 @@ class CollectionRunner(RunnerInputs):
         if state != self.state:
             self.state = state
             self._hold_for(state)
-            self._emit("state", state=state)
+            self._emit(StateChanged(state))
 
     def _refuse(self, hint: str) -> bool:
         self.hint = hint
-        self._emit("hint", text=hint)
+        self._emit(Refused(hint))
         return False
 
     def _log(self, kind: str, **detail: Any) -> None:
@@ -235,7 +247,7 @@ class CollectionRunner(RunnerInputs):
                 and self.block > self._shots_block:
             self._personalise_check()
         self._log("block_start", block=self.block)
-        self._emit("block", block=self.block)
+        self._emit(BlockStarted(self.block))
         self._set_state(State.BLOCK_START)
 
     def _begin_trial(self, gesture: str, key: str, start: int,
@@ -253,7 +265,7 @@ class CollectionRunner(RunnerInputs):
         self._hold(lambda: start, self._lead)
         self._trial_starts.append(self.clock())
         self._set_state(State.RECORDING)
-        self._emit("trial_started", gesture=gesture, key=key, start_frame=start)
+        self._emit(TrialStarted(gesture, key, start))
         self._check_recording()
 
     def _check_recording(self) -> None:
@@ -364,7 +376,7 @@ class CollectionRunner(RunnerInputs):
             return
         model = str(self.trial_check.describe()["model"])
         self._log("trial_check_personalised", trials=n, model=model)
-        self._emit("check_personalised", trials=n, model=model)
+        self._emit(CheckPersonalised(n, model))
 
     def _drop_current(self) -> None:
         """Forget the running trial and let the stream go on without it."""
@@ -408,8 +420,8 @@ class CollectionRunner(RunnerInputs):
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
         self._redo_for = rec.index if rec.flagged else None
-        self._emit("trial_ended", trial=rec.to_dict(), flags=list(rec.flags),
-                   reason=describe(list(rec.flags), rec.check))
+        self._emit(TrialEnded(rec.to_dict(), tuple(rec.flags),
+                              describe(list(rec.flags), rec.check)))
 
     def _after_trial(self) -> None:
         if self._plan.remaining():
@@ -483,13 +495,13 @@ class CollectionRunner(RunnerInputs):
         if self._beeper is not None:
             play = getattr(self._beeper, "play", self._beeper)
             play(hz, length)
-        self._emit("beep", frequency_hz=hz, length_s=length)
+        self._emit(Beep(hz, length))
 
     def _update_trial(self, trial: TrialRecord, **changes: Any) -> TrialRecord:
         new = trial.with_changes(**changes)
         self.records[self.records.index(trial)] = new
         self.recorder.update_trial(trial.index, **changes)
-        self._emit("trial_updated", trial=new.to_dict())
+        self._emit(TrialUpdated(new.to_dict()))
         return new
 
     @property

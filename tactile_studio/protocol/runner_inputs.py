@@ -8,6 +8,7 @@ transitions they trigger live in :mod:`tactile_studio.protocol.runner`.
 from __future__ import annotations
 
 from tactile_studio.protocol.background_check import WAIT_S
+from tactile_studio.protocol.runner_events import NoteAdded
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.storage.trials import TrialStatus
 
@@ -224,7 +225,7 @@ class RunnerInputs:
         self.notes.append(text)
         last = self.records[-1].index if self.records else None
         self.recorder.add_note(text, after_trial=last)
-        self._emit("note", text=text)
+        self._emit(NoteAdded(text))
         return True
 
     def abort(self) -> bool:

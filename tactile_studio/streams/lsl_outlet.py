@@ -33,7 +33,13 @@ from tactile_studio.streams.lsl_meta import (
     frame_stream_info,
     stable_source_id,
 )
-from tactile_studio.streams.markers import engine_marker, prediction_marker, runner_marker, to_json
+from tactile_studio.streams.markers import (
+    RecordedEvent,
+    engine_marker,
+    prediction_marker,
+    runner_marker,
+    to_json,
+)
 
 CLOCK_EVENT = "lsl_clock"
 CLOCK_TOLERANCE_S = 0.0005  # a re-measured offset that moved more than this is written
@@ -111,7 +117,7 @@ class LslStreamer:
         started: list[int | None] = [None]
         attached = [True]
 
-        def on_event(event: dict[str, Any]) -> None:
+        def on_event(event: RecordedEvent) -> None:
             if not (self.running and attached[0]):
                 return
             marker = runner_marker(event)

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -48,10 +48,17 @@ def engine_marker(event: dict[str, Any]) -> dict[str, Any] | None:
     return {"kind": event["kind"], "source": "engine", "frame": event.get("frame"), **detail}
 
 
-def runner_marker(event: dict[str, Any]) -> dict[str, Any]:
+class RecordedEvent(Protocol):
+    """A typed event with a plain form (protocol/runner_events.py; protocol is a layer above
+    streams, so the marker stream knows the runner's events by their plain form only)."""
+
+    def to_record(self) -> dict[str, Any]: ...
+
+
+def runner_marker(event: RecordedEvent) -> dict[str, Any]:
     """A collection-runner event (``CollectionRunner.add_listener``) as a marker."""
-    kind = event["kind"]
-    detail = {k: v for k, v in event.items() if k != "kind"}
+    detail = event.to_record()
+    kind = detail.pop("kind")
     if kind == "trial_started":
         detail["frame"] = detail.pop("start_frame", None)
     elif kind in ("trial_ended", "trial_updated"):

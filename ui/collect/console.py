@@ -36,6 +36,12 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.acquisition import AcquisitionEngine, AcquisitionSession
+from tactile_studio.acquisition.events import (
+    AcquisitionEvent,
+    Health,
+    RecordingStarted,
+    RecordingStopped,
+)
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
@@ -513,19 +519,19 @@ class CollectConsole(ConsoleActions):
         self.acquisition.set_lsl(False)
 
     # ---- the timer ----------------------------------------------------------------------
-    def _on_acquisition_event(self, event: dict[str, Any]) -> None:
+    def _on_acquisition_event(self, event: AcquisitionEvent) -> None:
         """How the recording ended (acquisition/outcome.py): a banner when it is incomplete;
         a device silent while recording, or back (acquisition/stream_health.py): another."""
-        if event["kind"] == "recording_started":
-            self.fault_banner.hide()
-            self.health_banner.hide()
-        elif event["kind"] == "health":  # the all-clear stays: the file has a gap there
-            self.health_banner.setText(("\u26a0 " if event.get("silent") else "")
-                                       + event["message"])
-            self.health_banner.show()
-        elif event["kind"] == "recording_stopped" and event.get("message"):
-            self.fault_banner.setText(f"\u26a0 {event['message']}")
-            self.fault_banner.show()
+        match event:
+            case RecordingStarted():
+                self.fault_banner.hide()
+                self.health_banner.hide()
+            case Health():  # the all-clear stays: the file has a gap there
+                self.health_banner.setText(("\u26a0 " if event.silent else "") + event.message)
+                self.health_banner.show()
+            case RecordingStopped(message=message) if message:
+                self.fault_banner.setText(f"\u26a0 {message}")
+                self.fault_banner.show()
 
     def tick(self) -> None:
         """Advance the runner and present its snapshot (called every TICK_MS)."""
