@@ -8,6 +8,7 @@ from plugin_fixtures import CountingDevice
 from waiting import wait_until
 
 from tactile_studio.devices.engine import ERROR, FINISHED, RUNNING, AcquisitionEngine
+from tactile_studio.devices.engine_events import KINDS, EngineEvent, LslClockStopped, LslMarker
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.devices.ring import RingBuffer
 from tactile_studio.errors import SettingsError
@@ -116,3 +117,27 @@ def test_settings_are_validated_with_named_errors():
     assert parse_set_options(["a=1", "b = x=y"]) == {"a": "1", "b": "x=y"}
     with pytest.raises(SettingsError, match="key=value"):
         parse_set_options(["novalue"])
+
+
+def test_the_journal_holds_only_declared_kinds_in_the_file_form():
+    """Sequence gaps, a tare, a crash: every journal entry is a kind declared in
+    devices/engine_events.py, in the form a session file stores (time, frame, kind, then
+    the detail in its declared order); an undeclared event is refused."""
+    eng = AcquisitionEngine(CountingDevice(frames=0, skip_every=50, crash_at=120))
+    eng.start()
+    wait(lambda: eng.state == ERROR)
+    with pytest.raises(TypeError, match="not a declared engine event"):
+        eng.add_event(EngineEvent())
+    entries = eng.events_since(0)
+    assert {e["kind"] for e in entries} <= {k.kind for k in KINDS}
+    assert {"connect", "gap", "tare", "error"} <= {e["kind"] for e in entries}
+    gap = next(e for e in entries if e["kind"] == "gap")
+    assert list(gap) == ["time", "frame", "kind", "missing", "after_seq"]
+    assert gap["frame"] == 50 and gap["after_seq"] == 49
+    marker = eng.add_event(LslMarker("a | b", "cues", 12.5, 0.25, -3.0, ("a", "b")), frame=7,
+                           at=99.0)
+    assert marker == {"time": 99.0, "frame": 7, "kind": "marker", "text": "a | b",
+                      "channels": ["a", "b"], "stream": "cues", "lsl_time": 12.5,
+                      "time_correction": 0.25, "offset_s": -3.0, "source": "lsl"}
+    assert list(eng.add_event(LslClockStopped("x"))) == ["time", "frame", "kind", "streaming",
+                                                         "frame_stream"]

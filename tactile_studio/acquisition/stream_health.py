@@ -17,6 +17,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from tactile_studio.devices.engine_events import StreamResumed, StreamSilent
+
 DEFAULT_SILENCE_S = 2.0
 
 
@@ -45,8 +47,8 @@ class StreamHealth:
                 gap = now - self._since
                 # at the first frame that came back, not at the newest: a batch (an LSL
                 # chunk, a backlog) may have brought many since
-                self.engine.add_event("stream_resumed", frame=first_new, device=self.name,
-                                      silent_s=round(gap, 3))
+                self.engine.add_event(StreamResumed(self.name, round(gap, 3)),
+                                      frame=first_new)
                 out.append(f"{self.name} is sending frames again after {gap:.1f} s of silence")
                 self.silent = False
             self._since = now
@@ -54,8 +56,7 @@ class StreamHealth:
         if self._armed and not self.silent and now - self._since >= self.threshold_s:
             self.silent = True
             state = str(getattr(self.engine, "state", ""))
-            self.engine.add_event("stream_silent", device=self.name,
-                                  seconds=self.threshold_s, state=state)
+            self.engine.add_event(StreamSilent(self.name, self.threshold_s, state))
             return [f"{self.name} sent no frames for {self.threshold_s:g} s ({state}); "
                     "the recording goes on"]
         return []

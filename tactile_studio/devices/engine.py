@@ -3,7 +3,8 @@
 Consumers never get pushed to; they pull (newest frame for the live view, everything
 since a cursor for the recorder). The engine keeps the counters every report needs:
 frames, malformed input by kind, device sequence gaps, reconnects, and an append-only
-event list (connect, disconnect, reconnect, gap, tare, marker, error).
+event list, the journal (connect, disconnect, reconnect, gap, tare, marker, error...: the
+kinds are declared once in :mod:`tactile_studio.devices.engine_events`).
 """
 
 from __future__ import annotations
@@ -19,6 +20,19 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.devices.contract import DevicePlugin
+from tactile_studio.devices.engine_events import (
+    KINDS,
+    Connected,
+    ConnectionLost,
+    DeviceFailed,
+    Disconnected,
+    EngineEvent,
+    Finished,
+    Reconnected,
+    ReconnectGap,
+    SequenceGap,
+    Tared,
+)
 from tactile_studio.devices.ring import FrameChunk, RingBuffer
 from tactile_studio.errors import DeviceError, DeviceLost
 from tactile_studio.sensor.decode import compute_baseline
@@ -70,7 +84,8 @@ class AcquisitionEngine:
         self.reconnects = 0
         self.reconnect_attempts = 0
         self.baseline: np.ndarray | None = None
-        self._events: list[dict[str, Any]] = []
+        self._events: list[dict[str, Any]] = []  # the journal, in the file's form
+        self._lost_reason: str | None = None  # why the device was last lost
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -163,11 +178,18 @@ class AcquisitionEngine:
         return max(0, min(lead - (written - cursor()) for cursor, lead in holds))
 
     # ---- events and tare -------------------------------------------------------------
-    def add_event(self, kind: str, **detail: Any) -> dict[str, Any]:
-        event = {"time": time.time(), "frame": self.ring.written, "kind": kind, **detail}
+    def add_event(self, event: EngineEvent, *, frame: int | None = None,
+                  at: float | None = None) -> dict[str, Any]:
+        """Append ``event`` (one of devices/engine_events.py's kinds) to the journal at
+        ``frame`` (default: the next frame) and host time ``at`` (default: now); returns
+        its journal entry, the form a session file stores."""
+        if type(event) not in KINDS:
+            raise TypeError(f"not a declared engine event: {event!r}")
+        entry = event.record(time.time() if at is None else at,
+                             self.ring.written if frame is None else frame)
         with self._lock:
-            self._events.append(event)
-        return event
+            self._events.append(entry)
+        return entry
 
     def events_since(self, cursor: int) -> list[dict[str, Any]]:
         with self._lock:
@@ -183,8 +205,8 @@ class AcquisitionEngine:
         if self.state != RECONNECTING:
             return None
         with self._lock:
-            lost = [e for e in self._events if e["kind"] == "disconnect" and "reason" in e]
-        return str(lost[-1]["reason"]) if lost else "disconnected"
+            lost = self._lost_reason
+        return lost or "disconnected"
 
     def tare(self, n: int | None = None) -> None:
         """Take a new baseline from the next ``n`` frames (default: baseline_frames)."""
@@ -202,8 +224,7 @@ class AcquisitionEngine:
         self.baseline = compute_baseline(chunk.raw, self._tare_n)
         with self._lock:
             self._tare_from = None
-        self.add_event("tare", first_frame=chunk.start, frames=len(chunk),
-                       baseline=[float(v) for v in self.baseline])
+        self.add_event(Tared(chunk.start, len(chunk), [float(v) for v in self.baseline]))
 
     # ---- pull API --------------------------------------------------------------------
     def latest(self) -> FrameChunk | None:
@@ -253,7 +274,7 @@ class AcquisitionEngine:
             self._fail(exc, "open")
             return
         self.state = RUNNING
-        self.add_event("connect", device=dev.name)
+        self.add_event(Connected(dev.name))
         try:
             while not self._stop.is_set():
                 room = min(self.read_chunk, self._room())
@@ -272,7 +293,7 @@ class AcquisitionEngine:
                 if dev.finished:
                     self._maybe_finish_tare()
                     self.state = FINISHED
-                    self.add_event("finished")
+                    self.add_event(Finished())
                     return
         except Exception as exc:
             self._fail(exc, "read")
@@ -282,7 +303,7 @@ class AcquisitionEngine:
             except Exception:
                 pass
             if self.state not in (ERROR, FINISHED):
-                self.add_event("disconnect", device=dev.name)
+                self.add_event(Disconnected(dev.name))
 
     def _ingest(self, batch: Any) -> None:
         if batch.malformed:
@@ -311,14 +332,15 @@ class AcquisitionEngine:
             self.missing_frames += missing
             # at the frame after the jump (not the batch's first): the time between the
             # two is the missing frames', which a measured rate leaves out
-            self.add_event("gap", frame=self.ring.written + int(pos) + first,
-                           missing=missing, after_seq=int(full[pos]))
+            self.add_event(SequenceGap(missing, int(full[pos])),
+                           frame=self.ring.written + int(pos) + first)
         self._last_seq = int(seq[-1])
 
     def _reconnect(self, exc: Exception) -> bool:
         lost_at = time.time()
         self.state = RECONNECTING
-        self.add_event("disconnect", reason=str(exc))
+        self._lost_reason = str(exc)
+        self.add_event(ConnectionLost(str(exc)))
         attempt = 0
         while not self._stop.is_set():
             delay = RECONNECT_BACKOFF_S[min(attempt, len(RECONNECT_BACKOFF_S) - 1)]
@@ -334,8 +356,8 @@ class AcquisitionEngine:
             self.state = RUNNING
             gap_s = round(time.time() - lost_at, 3)
             self.gaps += 1
-            self.add_event("gap", seconds=gap_s, cause="reconnect")
-            self.add_event("reconnect", gap_s=gap_s, attempts=attempt)
+            self.add_event(ReconnectGap(gap_s))
+            self.add_event(Reconnected(gap_s, attempt))
             return True
         return False
 
@@ -344,4 +366,4 @@ class AcquisitionEngine:
             logging.getLogger(__name__).error("device plugin failed", exc_info=exc)
         self.error = str(exc) if isinstance(exc, DeviceError) else f"{type(exc).__name__}: {exc}"
         self.state = ERROR
-        self.add_event("error", during=during, message=self.error)
+        self.add_event(DeviceFailed(during, self.error))

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.engine_events import LslClock, LslClockStopped
 from tactile_studio.streams.clock import ClockOffset, measure_offset
 from tactile_studio.streams.lsl_lib import load_pylsl
 from tactile_studio.streams.lsl_meta import (
@@ -41,7 +42,6 @@ from tactile_studio.streams.markers import (
     to_json,
 )
 
-CLOCK_EVENT = "lsl_clock"
 CLOCK_TOLERANCE_S = 0.0005  # a re-measured offset that moved more than this is written
 MAX_CHUNK = 8192
 STOP_GRACE_S = 0.2
@@ -102,7 +102,7 @@ class LslStreamer:
         self._stop.set()
         self._thread.join(5.0)
         self._drain()
-        self.engine.add_event(CLOCK_EVENT, streaming=False, frame_stream=self.name)
+        self.engine.add_event(LslClockStopped(self.name))
         if self.has_consumers():
             time.sleep(STOP_GRACE_S)  # let connected recipients take the last chunk
         self.frame_outlet = self.marker_outlet = None  # liblsl closes them when freed
@@ -235,10 +235,11 @@ class LslStreamer:
     def _clock_event(self, from_frame: int, streaming: bool) -> None:
         o: ClockOffset = self.offset
         self.engine.add_event(
-            CLOCK_EVENT, frame=from_frame, streaming=streaming, offset_s=o.offset_s,
-            uncertainty_s=o.uncertainty_s, measured_host_time=o.host_time,
-            measured_lsl_time=o.lsl_time, content=self.content, frame_stream=self.name,
-            frame_source_id=self.source_id, marker_stream=self.marker_name)
+            LslClock(streaming=streaming, offset_s=o.offset_s, uncertainty_s=o.uncertainty_s,
+                     measured_host_time=o.host_time, measured_lsl_time=o.lsl_time,
+                     content=self.content, frame_stream=self.name,
+                     frame_source_id=self.source_id, marker_stream=self.marker_name),
+            frame=from_frame)
 
 
 # ---- one streamer per engine, shared by the live window and the collection console ---------

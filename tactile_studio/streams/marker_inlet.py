@@ -24,6 +24,7 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from tactile_studio.devices.engine_events import LslMarker, MarkerStreamLost, MarkerStreamOpened
 from tactile_studio.devices.ring import nearest_frame
 from tactile_studio.errors import DeviceNotFound
 from tactile_studio.foreign import marker_content
@@ -70,11 +71,10 @@ class MarkerInlets:
                 raise DeviceNotFound(f"lsl: marker stream '{shown(name)}' went away while "
                                      "connecting to it") from None
             info = strings[0]
-            engine.add_event("marker_stream", stream=name, source_id=info.source_id(),
-                             hostname=info.hostname(), time_correction=correction,
-                             offset_s=self.offset.offset_s)
+            engine.add_event(MarkerStreamOpened(name, info.source_id(), info.hostname(),
+                                                correction, self.offset.offset_s))
             self.inlets.append((name, inlet, correction))
-        self._pending: list[tuple[float, dict[str, Any], float]] = []
+        self._pending: list[tuple[float, LslMarker, float]] = []
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="lsl-markers", daemon=True)
         self._thread.start()
@@ -110,15 +110,17 @@ class MarkerInlets:
                 self.inlets[k] = (name, inlet, correction)
             for sample, ts in zip(samples, stamps):
                 lsl_time = float(ts) + correction
-                detail = {**marker_content(sample), "stream": name, "lsl_time": lsl_time,
-                          "time_correction": correction, "offset_s": self.offset.offset_s,
-                          "source": "lsl"}
-                self._pending.append((self.offset.to_host(lsl_time), detail, time.monotonic()))
+                content = marker_content(sample)
+                channels = content.get("channels")
+                marker = LslMarker(content["text"], name, lsl_time, correction,
+                                   self.offset.offset_s,
+                                   None if channels is None else tuple(channels))
+                self._pending.append((self.offset.to_host(lsl_time), marker, time.monotonic()))
                 self.received += 1
 
     def _lost(self, name: str) -> None:
         self.lost.append(name)
-        self.engine.add_event("marker_stream_lost", stream=name)
+        self.engine.add_event(MarkerStreamLost(name))
         self.on_problem(f"lsl: marker stream '{shown(name)}' disappeared (its sender stopped); "
                         "later markers from it are not recorded")
 
@@ -131,18 +133,17 @@ class MarkerInlets:
         # after the count, put one at frame 1, or at the window's first frame)
         start, t = self.engine.ring.host_times()
         keep = []
-        for host, detail, arrived in sorted(self._pending, key=lambda p: p[0]):
+        for host, marker, arrived in sorted(self._pending, key=lambda p: p[0]):
             if not len(t):
                 if final:
-                    self.engine.add_event("marker", time=host, **detail)
+                    self.engine.add_event(marker, at=host)
                 else:
-                    keep.append((host, detail, arrived))
+                    keep.append((host, marker, arrived))
                 continue
             ahead = host > t[-1]
             if ahead and not final and time.monotonic() - arrived < WAIT_FOR_FRAME_S:
-                keep.append((host, detail, arrived))
+                keep.append((host, marker, arrived))
                 continue
-            self.engine.add_event("marker", frame=start + nearest_frame(t, host), time=host,
-                                  **detail)
+            self.engine.add_event(marker, frame=start + nearest_frame(t, host), at=host)
         self._pending = keep
 

@@ -40,6 +40,7 @@ import traceback
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.devices.engine_events import Marker
 from tactile_studio.errors import UserError
 from tactile_studio.output_faults import fault_line
 from tactile_studio.streams.remote_names import (
@@ -221,7 +222,7 @@ class RemoteControl:
                 raise CommandError("mark needs a text, e.g. mark stimulus_on")
             if s.engine is None:
                 raise CommandError("no device is streaming")
-            s.engine.add_event("marker", text=rest, source="remote")
+            s.engine.add_event(Marker(rest, "remote"))
             return "OK"
         return None
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tactile_studio.devices.engine_events import Prediction
 from tactile_studio.learn.deploy.window_model import PREDICTION_HOP_S, WindowModel
 from tactile_studio.sensor.decode import contact_taxels
 
@@ -242,8 +243,7 @@ class LiveInference:
         self.latest = pred
         self.count += 1
         if self.recording() and top3[0][0] != self._last_top:
-            eng.add_event("prediction", gesture=top3[0][0], probability=round(top3[0][1], 4),
-                          run=self.model.name)
+            eng.add_event(Prediction(top3[0][0], round(top3[0][1], 4), self.model.name))
         self._last_top = top3[0][0]
         return pred
 
