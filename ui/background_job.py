@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 import traceback
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from PySide6.QtCore import QObject, QTimer, Signal
@@ -33,7 +34,8 @@ class BackgroundJob(QObject):
         self._fn = fn
         self._lock = threading.Lock()
         self._progress: tuple[float, str] | None = None
-        self._outcome: tuple[str, Any] | None = None
+        # how the job ended: the signal to emit, on the GUI thread (set by the worker)
+        self._outcome: Callable[[], None] | None = None
         self._thread = threading.Thread(target=self._run, name="background-job", daemon=True)
         self._timer = QTimer(self)
         self._timer.setInterval(100)
@@ -63,16 +65,17 @@ class BackgroundJob(QObject):
 
     def _run(self) -> None:
         try:
-            outcome: tuple[str, Any] = ("done", self._fn(self._report, self.token))
+            outcome: Callable[[], None] = partial(self.finished.emit,
+                                                  self._fn(self._report, self.token))
         except Cancelled:
-            outcome = ("cancelled", None)
+            outcome = self.cancelled.emit
         except UserError as exc:
-            outcome = ("failed", str(exc))
+            outcome = partial(self.failed.emit, str(exc))
         except Exception as exc:  # a bug: the traceback goes where developers look
             line = fault_line(exc)  # ... unless the place cannot be written: one line
             if line is None:
                 traceback.print_exc()
-            outcome = ("failed", line or f"{type(exc).__name__}: {exc}")
+            outcome = partial(self.failed.emit, line or f"{type(exc).__name__}: {exc}")
         with self._lock:
             self._outcome = outcome
 
@@ -87,10 +90,4 @@ class BackgroundJob(QObject):
         if outcome is None:
             return
         self._timer.stop()
-        kind, value = outcome
-        if kind == "done":
-            self.finished.emit(value)
-        elif kind == "cancelled":
-            self.cancelled.emit()
-        else:
-            self.failed.emit(value)
+        outcome()
