@@ -2,10 +2,11 @@
 
 Types are checked two ways. The public seams (the device, instrument, model and sink
 contracts; job, engine, acquisition, runner and health events; trial records: ``SEAMS``)
-pass ``mypy --strict`` with no error at all. Everything else is ratcheted: the count of ``Any`` in function signatures (bare
-``Any``, and any annotation that contains it), of mypy errors over the whole house, of
-functions taking 10 or more parameters and of functions over 80 lines are printed, and
-the check fails when one rises above the figure recorded in ``house_ratchet.json``.
+pass ``mypy --strict`` with no error at all. Everything else is ratcheted: the count of
+``Any`` in function signatures (bare ``Any``, and any annotation that contains it), of
+mypy errors over the whole house, of functions taking 10 or more parameters and of
+functions over 80 lines are printed, and the check fails when one rises above the figure
+recorded in ``house_ratchet.json``.
 When a figure falls, ``--update`` records the lower one (it never records a higher one).
 
     python tools/house_ratchet.py            # print, fail (exit 1) on a rise

@@ -20,7 +20,7 @@ import collections
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.engine_events import LslClock, LslClockStopped
@@ -41,6 +41,14 @@ from tactile_studio.streams.markers import (
     runner_marker,
     to_json,
 )
+
+
+class EventSource(Protocol):
+    """What :meth:`LslStreamer.attach_runner` needs of a collection runner (protocol is a
+    layer above streams): listeners for its typed events."""
+
+    def add_listener(self, fn: Callable[[RecordedEvent], None]) -> None: ...
+
 
 CLOCK_TOLERANCE_S = 0.0005  # a re-measured offset that moved more than this is written
 MAX_CHUNK = 8192
@@ -108,7 +116,7 @@ class LslStreamer:
         self.frame_outlet = self.marker_outlet = None  # liblsl closes them when freed
 
     # ---- markers from elsewhere ----------------------------------------------------------
-    def attach_runner(self, runner: Any) -> Callable[[], None]:
+    def attach_runner(self, runner: EventSource) -> Callable[[], None]:
         """Forward a CollectionRunner's events (trials, beeps, keys, redo...) as markers;
         returns a function that stops forwarding.
 
