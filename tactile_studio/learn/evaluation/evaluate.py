@@ -36,7 +36,6 @@ from tactile_studio.learn.experiments.experiment import (
 )
 from tactile_studio.learn.experiments.runfolder import model_file, read_run, write_json
 from tactile_studio.learn.learners.baselines import legacy_options
-from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.generalise import ADAPT
 from tactile_studio.output_faults import require_writable_folder
@@ -51,7 +50,7 @@ class RunData(NamedTuple):
     resolved: dict[str, Any]
     records: list[dict[str, Any]]
     ds: TrialDataset
-    learner: Learner
+    learner: Any  # a family's learner: a fused one has more than the Learner contract
     info: DataInfo
 
 

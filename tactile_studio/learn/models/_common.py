@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, fields, replace
 from typing import Protocol, TypeVar
 
@@ -502,7 +502,7 @@ class Hyperparameters(Protocol):
 H = TypeVar("H", bound=Hyperparameters)
 
 
-def hyperparameters(cls: type[H], options: Mapping[str, object]) -> tuple[int, H]:
+def hyperparameters(cls: Callable[..., H], options: Mapping[str, object]) -> tuple[int, H]:
     """(members, ``cls``) from a preset's resolved options (``resolve_options``): the
     recipe's keys go into its :class:`Recipe`, the rest are ``cls``'s own fields. The
     options are what run folders and exported models store, so they stay the one
