@@ -13,7 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tactile_studio.characterise import Plan, run_characterisation
+from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
 from tactile_studio.devices.registry import create_device
 from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
@@ -31,8 +31,8 @@ def main() -> None:
     taxels = parse_taxels(dev.layout, "all")
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        result = run_characterisation(dev, stage, force, Plan(sequences=("normal", "shear")),
-                                      taxels, Path(tmp), report=False)
+        result = run_characterisation(dev, stage, force, CharacterisationRequest(
+            Plan(sequences=("normal", "shear")), taxels, Path(tmp), report=False))
         run_s = time.perf_counter() - start
         from tactile_studio.characterise.report import write_report
 

@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> None:
     os.environ["TACTILE_STUDIO_DATA_DIR"] = tempfile.mkdtemp(prefix="ts-bench-health-")
     print("seconds per placed weight (the wizards' estimates):")
     per_placement(args.real_time)
-    from tactile_studio.health.bench import SimulatedPlacer
+    from tactile_studio.health.bench import Bench, SimulatedPlacer
     from tactile_studio.health.calibration import CalibrationSpec, run_calibration
     from tactile_studio.health.wellness import WellnessSpec, run_wellness
 
@@ -81,8 +81,8 @@ def main(argv: list[str] | None = None) -> None:
                 engine.stop()
             dev, engine = _engine(seed=seed)
             t = time.perf_counter()
-            res = run_wellness(engine, WellnessSpec(dev.sensor_id(), 200.0),
-                               SimulatedPlacer(dev))
+            res = run_wellness(Bench(engine, SimulatedPlacer(dev)),
+                               WellnessSpec(dev.sensor_id(), 200.0))
             times.append(time.perf_counter() - t)
             engine.stop()
             false_alarms += res["verdict"] != "pass"

@@ -9,7 +9,7 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
-from tactile_studio.health.bench import SimulatedPlacer
+from tactile_studio.health.bench import Bench, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, decode_session, run_calibration
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.sensor.calibration import CalibrationError, check_loads, fit_taxel
@@ -169,8 +169,8 @@ def test_wellness_uses_the_active_calibration_as_reference():
         engine = AcquisitionEngine(dev)
         engine.start()
         try:
-            return run_wellness(engine, WellnessSpec("sim-8", 200.0, spots),
-                                SimulatedPlacer(dev), store=False), dev
+            return run_wellness(Bench(engine, SimulatedPlacer(dev)),
+                                WellnessSpec("sim-8", 200.0, spots), store=False), dev
         finally:
             engine.stop()
     before, dev = check()

@@ -9,7 +9,12 @@ import threading
 import numpy as np
 import pytest
 
-from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise import (
+    CharacterisationRequest,
+    Plan,
+    RunControl,
+    run_characterisation,
+)
 from tactile_studio.characterise.analyse import drift_corrected
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
@@ -48,8 +53,8 @@ def test_analysis_recovers_the_simulators_true_parameters_within_10_percent(tmp_
     stage, force = SimulatedStage(), SimulatedForce()
     layout = dev.layout
     taxels = parse_taxels(layout, "B2,A1")
-    result = run_characterisation(dev, stage, force, Plan(sequences=("normal", "shear")),
-                                  taxels, tmp_path)
+    result = run_characterisation(dev, stage, force, CharacterisationRequest(
+        Plan(sequences=("normal", "shear")), taxels, tmp_path))
     assert result["complete"]
     for t in taxels:
         name = layout.taxel_name(*layout.taxel_rc(t))
@@ -124,7 +129,8 @@ def test_soft_limit_abort_retracts_the_stage_first(tmp_path):
     dev = sim_device()
     stage = SimulatedStage(floor_z=-0.3)
     with pytest.raises(SoftLimitError):
-        run_characterisation(dev, stage, SimulatedForce(), QUICK, [7], tmp_path)
+        run_characterisation(dev, stage, SimulatedForce(),
+                             CharacterisationRequest(QUICK, [7], tmp_path))
     # the last stage record is the retract to the safe height, after the refused move
     moves = events(tmp_path / "session.h5", "stage")
     assert moves[-1]["z"] == pytest.approx(stage.settings["safe_z"])
@@ -144,8 +150,9 @@ def test_abort_keeps_finished_taxels_and_pause_resumes_with_the_next(tmp_path):
             control.cancel()
     taxels = parse_taxels(sim_device().layout, "B2,B3,C3")
     with pytest.raises(Cancelled):
-        run_characterisation(sim_device(), SimulatedStage(), SimulatedForce(), QUICK, taxels,
-                             tmp_path, progress=progress, control=control)
+        run_characterisation(sim_device(), SimulatedStage(), SimulatedForce(),
+                             CharacterisationRequest(QUICK, taxels, tmp_path),
+                             progress=progress, control=control)
     saved = json.loads((tmp_path / "characterisation.json").read_text())
     assert list(saved["taxels"]) == ["B2", "B3"] and saved["aborted"]
     assert any(m.startswith("paused before B3") for m in seen)
@@ -189,8 +196,8 @@ def test_all_taxels_are_mapped(tmp_path):
     dev = sim_device()
     plan = Plan(sequences=("normal",), dwell_s=0.3, normal_steps=4, relax_hold_s=0.5,
                 settle_s=0.3, window_s=0.1)
-    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), plan,
-                                  parse_taxels(dev.layout, "all"), tmp_path, report=False)
+    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), CharacterisationRequest(
+        plan, parse_taxels(dev.layout, "all"), tmp_path, report=False))
     assert len(result["taxels"]) == 36
     fig = maps_figure(dev.layout, result["taxels"])
     maps = dict(zip((k for k, _ in MAPS),
@@ -246,8 +253,8 @@ def test_a_second_ctrl_c_mid_taxel_still_lifts_the_indenter_and_saves(tmp_path):
     taxels = parse_taxels(sim_device().layout, "B2,C3")
     stage = SimulatedStage()
     with pytest.raises(KeyboardInterrupt):
-        run_characterisation(sim_device(), stage, SimulatedForce(), QUICK, taxels, tmp_path,
-                             progress=progress)
+        run_characterisation(sim_device(), stage, SimulatedForce(),
+                             CharacterisationRequest(QUICK, taxels, tmp_path), progress=progress)
     retracts = [e for e in events(tmp_path / "session.h5", "stage") if e.get("retract")]
     assert retracts and events(tmp_path / "session.h5", "char_aborted")
     saved = json.loads((tmp_path / "characterisation.json").read_text())

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from tactile_studio.characterise import Plan, run_characterisation
+from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
 from tactile_studio.devices.registry import create_device
 from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
@@ -30,9 +30,8 @@ def characterise(order: str, tmp_path, cycles: int = 20) -> dict:
     # the simulator as it comes (its demo gestures on), as the commands ran it
     dev = create_device("simulated", {"speed": 0})
     out = tmp_path / order.replace(",", "-") / str(cycles)
-    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(),
-                                  Plan(**{**PLAN, "cycles": cycles}),
-                                  parse_taxels(dev.layout, order), out, report=False)
+    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), CharacterisationRequest(
+        Plan(**{**PLAN, "cycles": cycles}), parse_taxels(dev.layout, order), out, report=False))
     assert result["device"]["settings"]["gesture"] == "idle"  # the bench's hand is off
     with Session(out / "session.h5") as s:
         waits = [e for e in s.events if e["kind"] == "char_settled"]

@@ -8,7 +8,7 @@ import json
 
 import pytest
 
-from tactile_studio.characterise import Plan, run_characterisation
+from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
 from tactile_studio.plugins.sim_force import SimulatedForce
@@ -67,7 +67,7 @@ def test_the_stage_time_estimate_is_the_simulated_bench_within_10_percent(tmp_pa
     from tactile_studio.characterise.plan import plan_lab_s
     dev = create_device("simulated", {"speed": 0})
     plan = Plan(sequences=sequences, cycles=30)
-    run_characterisation(dev, SimulatedStage(), SimulatedForce(), plan, [7], tmp_path,
-                         report=False)
+    run_characterisation(dev, SimulatedStage(), SimulatedForce(),
+                         CharacterisationRequest(plan, [7], tmp_path, report=False))
     lab_s = dev.simulator.frame / dev.simulator.rate
     assert plan_lab_s(plan, 1) == pytest.approx(lab_s, rel=0.10)

@@ -19,7 +19,7 @@ from tactile_studio.devices import (
     check_plugin,
     plugin_class,
 )
-from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
+from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.plugins import ble_device
 from tactile_studio.sensor.layout import grid_layout
 from tactile_studio.storage.shearsense import write_shearsense_csv
@@ -61,7 +61,7 @@ def test_replay_of_a_small_csv(tmp_path):
 
 def test_serial_against_the_pty_emulator(tmp_path):
     raw = np.random.default_rng(1).integers(0, 65535, size=(400, 180)).astype(np.uint16)
-    emu = SerialEmulator(array_source(raw), rate_hz=300, corrupt=0.1, seed=2,
+    emu = SerialEmulator(array_source(raw), rate_hz=300, corruption=Corruption(0.1, seed=2),
                          link=tmp_path / "port", reader_grace=0.05)
     emu.open()
     emu.start()

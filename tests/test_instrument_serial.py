@@ -265,7 +265,7 @@ def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp
     the stage retracts and the session keeps what was recorded."""
     import json
 
-    from tactile_studio.characterise import Plan, run_characterisation
+    from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
     from tactile_studio.devices.registry import create_device
     from tactile_studio.storage.session import Session
 
@@ -278,7 +278,8 @@ def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp
     stage = GcodeStage(port=printer.port, command_timeout_s=5)
     force = SerialForce(port=spring.port, silence_s=0.5)
     try:
-        result = run_characterisation(device, stage, force, plan, [0], tmp_path / "ok")
+        result = run_characterisation(device, stage, force,
+                                      CharacterisationRequest(plan, [0], tmp_path / "ok"))
         points = json.loads((tmp_path / "ok" / "raw" / "A1.json").read_text())["normal"]["points"]
         loads = [p["pz"] for p in points if p["phase"] == "load"]
         assert result["complete"] and result["clock"] == "host_time"
@@ -296,7 +297,8 @@ def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp
                 spring.unplug()
 
         with pytest.raises(InstrumentError, match="force serial: .*(disconnected|no data)"):
-            run_characterisation(device, stage, force, plan, [0, 1], tmp_path / "cut",
+            run_characterisation(device, stage, force,
+                                 CharacterisationRequest(plan, [0, 1], tmp_path / "cut"),
                                  on_point=unplug_in_the_second_taxel)
         assert printer.position()[2] == pytest.approx(25.0, abs=1e-3)  # retracted
         with Session(tmp_path / "cut" / "session.h5") as s:

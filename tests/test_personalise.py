@@ -12,7 +12,11 @@ from learn_fixtures import make_dataset_folder, write_participant
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.learn.deploy.personalise import held_out_check, personalise
+from tactile_studio.learn.deploy.personalise import (
+    LabelledTouches,
+    held_out_check,
+    personalise,
+)
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.playback import SessionPlayback
@@ -80,8 +84,9 @@ def test_labelled_touches_of_a_new_person_lift_their_accuracy(root, name, adapt,
     gains = []
     for k in (1, 2):
         shots = [i for i, b in enumerate(blocks) if b < k]  # K performances per gesture
-        personal = personalise(model, layout, [windows[i] for i in shots],
-                               [gestures[i] for i in shots], rate, seed=0)
+        personal = personalise(model, LabelledTouches(layout, [windows[i] for i in shots],
+                                                      [gestures[i] for i in shots], rate),
+                               seed=0)
         assert personal.per_gesture == k and personal.windows == 9 * k
         assert personal.how == ("refit and fine-tuned" if weight else HOW[name])
         assert personal.check is None  # no rounds given: nothing measured
@@ -97,22 +102,22 @@ def test_refused_in_one_line(root):
     model = WindowModel(_run(root, "rf"))
     layout, rate, windows, gestures, _ = _new_person(model, root / "new.h5")
     with pytest.raises(UserError, match="no gesture Wave"):
-        personalise(model, layout, windows[:2], ["Wave", gestures[1]], rate)
+        personalise(model, LabelledTouches(layout, windows[:2], ["Wave", gestures[1]], rate))
     with pytest.raises(UserError, match="none were recorded"):
-        personalise(model, layout, [], [], rate)
+        personalise(model, LabelledTouches(layout, [], [], rate))
     # the run's data gone: the fold's training windows cannot be read again
     model.config.data = [str(root / "gone")]
     model.config.use_cache = False
     with pytest.raises(UserError, match="training data cannot be read"):
-        personalise(model, layout, windows[:9], gestures[:9], rate)
+        personalise(model, LabelledTouches(layout, windows[:9], gestures[:9], rate))
 
 
 def test_a_fused_model_personalises_both_parts_and_keeps_its_weight(root):
     model = WindowModel(_run(root, "cnn1d", "person", 0.5))
     layout, rate, windows, gestures, blocks = _new_person(model, root / "new.h5")
     shots = [i for i, b in enumerate(blocks) if b < 1]
-    personal = personalise(model, layout, [windows[i] for i in shots],
-                           [gestures[i] for i in shots], rate, seed=0)
+    personal = personalise(model, LabelledTouches(layout, [windows[i] for i in shots],
+                                                  [gestures[i] for i in shots], rate), seed=0)
     run_fused, fused = model.run_trained, personal.fitted
     assert fused.weight == run_fused.weight == 0.5 and personal.how == "refit and fine-tuned"
     assert fused.forest is not run_fused.forest  # refit, as rf alone is
@@ -133,7 +138,7 @@ def test_two_rounds_of_touches_carry_a_measured_held_out_check(root):
     w, g, rounds = [windows[i] for i in shots], [gestures[i] for i in shots], \
         [blocks[i] for i in shots]
     seen = []
-    personal = personalise(model, layout, w, g, rate, seed=0, rounds=rounds,
+    personal = personalise(model, LabelledTouches(layout, w, g, rate, rounds), seed=0,
                            progress=lambda f, msg="": seen.append(f))
     check = personal.check
     assert check is not None and check.touches == 18 and check.rounds == 2
@@ -142,7 +147,8 @@ def test_two_rounds_of_touches_carry_a_measured_held_out_check(root):
     for r in (0, 1):
         learn = [i for i, b in enumerate(rounds) if b != r]
         test = [i for i, b in enumerate(rounds) if b == r]
-        one = personalise(model, layout, [w[i] for i in learn], [g[i] for i in learn], rate)
+        one = personalise(model, LabelledTouches(layout, [w[i] for i in learn],
+                                                 [g[i] for i in learn], rate))
         model.personalise(one)
         probs = model.predict_windows(layout, [w[i] for i in test], rate)
         hits += [model.labels[p] == g[i] for p, i in zip(probs.argmax(1), test)]
@@ -150,13 +156,14 @@ def test_two_rounds_of_touches_carry_a_measured_held_out_check(root):
     assert check.after == pytest.approx(np.mean(hits))
     assert check.before == pytest.approx(_accuracy(model, layout, rate, w, g))
     # measured apart (the dialog's second job, once the personalised model is in use)
-    assert held_out_check(model, layout, w, g, rounds, rate) == check
+    assert held_out_check(model, LabelledTouches(layout, w, g, rate, rounds)) == check
     # one round: nothing left to check on
     first = [i for i, b in enumerate(rounds) if b == 0]
-    assert personalise(model, layout, [w[i] for i in first], [g[i] for i in first], rate,
-                       rounds=[0] * len(first)).check is None
+    assert personalise(model, LabelledTouches(layout, [w[i] for i in first],
+                                              [g[i] for i in first], rate,
+                                              [0] * len(first))).check is None
     # cancelled: nothing comes back
     token = CancelToken()
     token.cancel()
     with pytest.raises(Cancelled):
-        personalise(model, layout, w, g, rate, rounds=rounds, cancel=token)
+        personalise(model, LabelledTouches(layout, w, g, rate, rounds), cancel=token)

@@ -7,6 +7,7 @@ import numpy as np
 from tactile_studio.protocol.quality import (
     FLAG_TEXT,
     FLAGS,
+    FrameTiming,
     QualitySettings,
     describe,
     in_centre,
@@ -36,8 +37,8 @@ def _trial(gesture: str | None = "Twist", press: tuple | None = None, **cfg) -> 
 def test_a_good_gesture_has_no_flags() -> None:
     for gesture in ("Poke", "Twist", "Tickle", "Constant Touch"):
         raw, base, seq = _trial(gesture)
-        assert trial_flags(SHEARSENSE_6X6, raw, base, seq=seq, device_time=seq / 43.0,
-                           rate_hz=43.0) == [], gesture
+        timing = FrameTiming(seq / 43.0, seq, 43.0)
+        assert trial_flags(SHEARSENSE_6X6, raw, base, timing=timing) == [], gesture
 
 
 def test_each_flag_from_its_cause() -> None:
@@ -54,12 +55,12 @@ def test_each_flag_from_its_cause() -> None:
     assert trial_flags(lay, hot, base) == ["saturated"]
     jumped = seq.copy()
     jumped[50:] += 3
-    assert trial_flags(lay, raw, base, seq=jumped) == ["gap"]
+    assert trial_flags(lay, raw, base, timing=FrameTiming(seq=jumped)) == ["gap"]
     t = seq / 43.0
     t[60:] += 0.5
-    assert trial_flags(lay, raw, base, device_time=t, rate_hz=43.0) == ["gap"]
-    assert trial_flags(lay, raw, base, gap_events=1) == ["gap"]
-    assert trial_flags(lay, raw, base, lost_frames=4) == ["dropped_frames"]
+    assert trial_flags(lay, raw, base, timing=FrameTiming(t, rate_hz=43.0)) == ["gap"]
+    assert trial_flags(lay, raw, base, timing=FrameTiming(gap_events=1)) == ["gap"]
+    assert trial_flags(lay, raw, base, timing=FrameTiming(lost_frames=4)) == ["dropped_frames"]
     assert trial_flags(lay, raw[:0], base) == ["dropped_frames"]
     raw, base, _ = _trial(None, press=(4.0, 40.0, 20.0))  # left edge, middle row
     assert trial_flags(lay, raw, base) == ["off_centre"]

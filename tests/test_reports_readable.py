@@ -12,7 +12,7 @@ import re
 import numpy as np
 import pytest
 
-from tactile_studio.characterise import Plan, run_characterisation
+from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
 from tactile_studio.characterise.report import _map_scale, maps_figure, pct
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
@@ -34,8 +34,8 @@ def data_dir(tmp_path, monkeypatch):
 
 def test_the_characterisation_report_reads_like_a_lab_notebook(tmp_path):
     dev = create_device("simulated", {"speed": "0", "gesture": "idle", "seed": "3"})
-    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), QUICK,
-                                  parse_taxels(LAY, "B2,B5,E2"), tmp_path, sensor_id="S-1")
+    result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), CharacterisationRequest(
+        QUICK, parse_taxels(LAY, "B2,B5,E2"), tmp_path, sensor_id="S-1"))
     page = (tmp_path / "report.html").read_text()
     assert not RAW_KEY.search(page) and not DICT_REPR.search(page)
     assert "<th>Breakpoint (kPa)</th>" in page and "Normal crosstalk, worst neighbour (%)" in page

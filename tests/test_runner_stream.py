@@ -13,7 +13,7 @@ from collect_fixtures import ManualClock, mini_protocol
 
 from tactile_studio.devices.frame_stream import FrameStream, RecordableStream
 from tactile_studio.devices.ring import FrameChunk
-from tactile_studio.protocol.runner import CollectionRunner
+from tactile_studio.protocol.runner import CollectionRunner, RunnerOptions
 from tactile_studio.sensor import SHEARSENSE_6X6
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
@@ -83,7 +83,8 @@ def _rig(tmp_path: Path, capacity: int = 1 << 16):
     recorder = Recorder(stream, tmp_path / "s.h5", {"source": "collect"})
     clock = ManualClock()
     names = [g.name for g in protocol.gestures]
-    runner = CollectionRunner(protocol, stream, recorder, "P01", [names], clock=clock)
+    runner = CollectionRunner(protocol, stream, recorder, "P01", [names],
+                              options=RunnerOptions(clock=clock))
     return stream, recorder, runner, clock
 
 

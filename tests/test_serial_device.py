@@ -13,7 +13,7 @@ from tactile_studio.cli import main
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.devices.engine import ERROR, RECONNECTING, RUNNING
 from tactile_studio.devices.line_decoder import KINDS
-from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
+from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.errors import DeviceLost, DeviceNotFound, SettingsError
 from tactile_studio.storage import Recorder, Session
 
@@ -28,7 +28,8 @@ def source(seed: int = 0, n: int = 997):
 
 @pytest.fixture
 def emulator(tmp_path):
-    emu = SerialEmulator(source(), rate_hz=500, corrupt=0.3, seed=7, link=tmp_path / "port",
+    emu = SerialEmulator(source(), rate_hz=500, corruption=Corruption(0.3, seed=7),
+                         link=tmp_path / "port",
                          keep_sent=True, reader_grace=0.05)
     emu.open()
     yield emu
@@ -99,7 +100,7 @@ def test_a_vanished_port_is_noticed_while_silent(emulator):
 
 
 def test_garbage_at_the_wrong_baud_rate_is_a_one_line_error(tmp_path):
-    emu = SerialEmulator(source(), rate_hz=2000, corrupt=1.0, kinds=["undecodable"],
+    emu = SerialEmulator(source(), rate_hz=2000, corruption=Corruption(1.0, ["undecodable"]),
                          link=tmp_path / "port", reader_grace=0.05)
     emu.open()
     engine = AcquisitionEngine(create_device("serial", {"port": emu.port}))

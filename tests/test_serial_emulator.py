@@ -17,7 +17,7 @@ from waiting import wait_until
 
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.devices.line_decoder import KINDS, LineDecoder
-from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
+from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Recorder, Session, SessionWriter
@@ -75,7 +75,7 @@ def test_nothing_is_written_without_a_reader(tmp_path):
 
 
 def test_report_is_exact_for_a_plain_reader(tmp_path):
-    emu = SerialEmulator(ramp_source(), corrupt=0.5, seed=3, link=tmp_path / "port",
+    emu = SerialEmulator(ramp_source(), corruption=Corruption(0.5, seed=3), link=tmp_path / "port",
                          trailing_comma=False, keep_sent=True, reader_grace=0.05)
     emu.open()
     try:
@@ -99,11 +99,11 @@ def test_report_is_exact_for_a_plain_reader(tmp_path):
 
 def test_bad_options_are_user_errors():
     with pytest.raises(UserError):
-        SerialEmulator(ramp_source(), corrupt=1.5)
+        SerialEmulator(ramp_source(), corruption=Corruption(1.5))
     with pytest.raises(UserError):
         SerialEmulator(ramp_source(), rate_hz=0)
     with pytest.raises(UserError):
-        SerialEmulator(ramp_source(), kinds=["bogus"])
+        SerialEmulator(ramp_source(), corruption=Corruption(kinds=["bogus"]))
     with pytest.raises(UserError):
         load_source("/no/such/file.h5")
 

@@ -205,7 +205,7 @@ def test_an_adapted_runs_output_layers_are_fine_tuned_on_what_its_test_sees():
     import torch
 
     from tactile_studio.learn.learners.families import TorchFitted
-    from tactile_studio.learn.learners.fine_tune import fine_tune_head
+    from tactile_studio.learn.learners.fine_tune import FineTuning, fine_tune_head
     from tactile_studio.learn.models import MODELS
 
     torch.manual_seed(0)
@@ -217,13 +217,13 @@ def test_an_adapted_runs_output_layers_are_fine_tuned_on_what_its_test_sees():
     def norms(f) -> list[torch.Tensor]:
         return [b for n, b in f.model.named_buffers() if n.endswith("running_mean")]
 
-    tuned = fine_tune_head(fitted, shots, labels, 3, steps=5, adapt_to=person)
+    tuned = fine_tune_head(fitted, shots, labels, 3, tuning=FineTuning(steps=5), adapt_to=person)
     adapted = fitted.adapted(person)
     assert norms(tuned) and all(torch.equal(a, b) for a, b in zip(norms(tuned), norms(adapted)))
     assert not all(torch.equal(a, b) for a, b in zip(norms(tuned), norms(fitted)))
     assert np.allclose(tuned.adapted(person).predict_proba(person),
                        tuned.predict_proba(person), atol=1e-5)
-    plain = fine_tune_head(fitted, shots, labels, 3, steps=5)
+    plain = fine_tune_head(fitted, shots, labels, 3, tuning=FineTuning(steps=5))
     assert all(torch.equal(a, b) for a, b in zip(norms(plain), norms(fitted)))
 
 

@@ -11,7 +11,11 @@ import torch
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.data import views
-from tactile_studio.learn.deploy.streaming import StreamingPredictor, frames_from_raw
+from tactile_studio.learn.deploy.streaming import (
+    InputNorm,
+    StreamingPredictor,
+    frames_from_raw,
+)
 from tactile_studio.learn.models import MODELS
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, get_layout
 
@@ -44,7 +48,7 @@ def test_cnn_transformer_stream_equals_full_forward_and_runs_the_cnn_once_per_fr
     rng = np.random.default_rng(3)
     stream = rng.normal(size=(40, 3, 6, 6)).astype(np.float32)
     mean, std = np.array([0.5, -0.2, 0.1]), np.array([2.0, 1.0, 0.5])
-    predictor = StreamingPredictor(model, view, mean=mean, std=std)
+    predictor = StreamingPredictor(model, view, norm=InputNorm(mean, std))
     assert predictor.cached
     outputs = []
     for i, frame in enumerate(stream):

@@ -168,7 +168,7 @@ def test_live_personalisation_joins_the_shots_as_train_shots_does(tmp_path):
     the same rows. Given the same shots and the person's session as calibration, both
     predict the person's other performances alike."""
     from tactile_studio.learn.data.dataset import build_dataset
-    from tactile_studio.learn.deploy.personalise import personalise
+    from tactile_studio.learn.deploy.personalise import LabelledTouches, personalise
     from tactile_studio.learn.deploy.window_model import WindowModel
     from tactile_studio.playback import SessionPlayback
 
@@ -189,9 +189,9 @@ def test_live_personalisation_joins_the_shots_as_train_shots_does(tmp_path):
     layout = pb.layout
     pb.close()
     rate = float(ds.rates[session[0]])
-    personal = personalise(model, layout, [ds.trials[i] for i in shots],
-                           [ds.label_names[ds.labels[i]] for i in shots], rate,
-                           seed=k1["seed"], dataset=ds,
+    touches = LabelledTouches(layout, [ds.trials[i] for i in shots],
+                              [ds.label_names[ds.labels[i]] for i in shots], rate)
+    personal = personalise(model, touches, seed=k1["seed"], dataset=ds,
                            calibration=[ds.trials[i] for i in session])
     assert personal.how == "refit" and personal.reference is not None
     model.personalise(personal)

@@ -119,7 +119,7 @@ def answer_next_box(qtbot, button, seen: list[str]) -> None:
 def test_a_folder_holding_a_run_is_replaced_only_when_the_user_says_yes(qtbot, wizard, tmp_path):
     from PySide6.QtWidgets import QMessageBox
 
-    from tactile_studio.characterise import Plan, run_characterisation
+    from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
     from tactile_studio.devices.registry import create_device
     from tactile_studio.plugins.sim_force import SimulatedForce
     from tactile_studio.plugins.sim_stage import SimulatedStage
@@ -127,10 +127,9 @@ def test_a_folder_holding_a_run_is_replaced_only_when_the_user_says_yes(qtbot, w
 
     out = tmp_path / "run"
     dev = create_device("simulated", {"speed": 0, "gesture": "idle"})
-    run_characterisation(dev, SimulatedStage(), SimulatedForce(),
-                         Plan(sequences=("normal",), dwell_s=0.5, normal_steps=4,
-                              settle_s=0.5, window_s=0.2), parse_taxels(dev.layout, "B2,B3"), out,
-                         report=False)
+    run_characterisation(dev, SimulatedStage(), SimulatedForce(), CharacterisationRequest(
+        Plan(sequences=("normal",), dwell_s=0.5, normal_steps=4, settle_s=0.5, window_s=0.2),
+        parse_taxels(dev.layout, "B2,B3"), out, report=False))
     w, seen = wizard, []
     answer_next_box(qtbot, QMessageBox.StandardButton.No, seen)
     w.next()

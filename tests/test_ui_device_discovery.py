@@ -14,7 +14,7 @@ from PySide6.QtCore import Qt
 
 from tactile_studio.acquisition import LiveStatus, format_malformed
 from tactile_studio.devices.discovery import list_serial_ports
-from tactile_studio.devices.serial_emulator import SerialEmulator
+from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
 from tactile_studio.plugins import ble_device
 from tactile_studio.storage.frame_sources import simulated_source
 from tactile_studio.ui.device_discovery import DiscoverField
@@ -114,8 +114,9 @@ def test_ble_scan_without_an_adapter_shows_one_line_error(qtbot, window, monkeyp
 
 def test_serial_emulator_typed_port_connects_counts_bad_lines_and_reconnects(
         qtbot, window, tmp_path):
-    emu = SerialEmulator(simulated_source(seed=3, rate=200.0), rate_hz=200, corrupt=0.25,
-                         seed=11, link=tmp_path / "port", reader_grace=0.05)
+    emu = SerialEmulator(simulated_source(seed=3, rate=200.0), rate_hz=200,
+                         corruption=Corruption(0.25, seed=11), link=tmp_path / "port",
+                         reader_grace=0.05)
     emu.open()
     try:
         w = window

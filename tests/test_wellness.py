@@ -10,7 +10,7 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import Cancelled
-from tactile_studio.health.bench import SimulatedPlacer, Timing
+from tactile_studio.health.bench import Bench, SimulatedPlacer, Timing
 from tactile_studio.health.events import KINDS, Misplaced, SpotMeasured
 from tactile_studio.health.wellness import WellnessSpec, run_wellness
 from tactile_studio.jobs import CancelToken
@@ -36,8 +36,8 @@ def check(spots=DEFAULT_SPOTS, placer_cls=SimulatedPlacer, cancel=None, on_event
     engine = AcquisitionEngine(dev)
     engine.start()
     try:
-        result = run_wellness(engine, WellnessSpec(dev.sensor_id(), 200.0, tuple(spots)),
-                              placer_cls(dev), cancel=cancel, on_event=on_event)
+        bench = Bench(engine, placer_cls(dev), cancel=cancel, on_event=on_event)
+        result = run_wellness(bench, WellnessSpec(dev.sensor_id(), 200.0, tuple(spots)))
     finally:
         engine.stop()
     return result, dev
@@ -154,7 +154,7 @@ def test_device_that_stops_mid_check_is_a_clear_error(tmp_path):
     engine.start()
     with pytest.raises(Exception, match=r"device replay stopped during the check \(finished\); "
                                         "nothing was stored"):
-        run_wellness(engine, WellnessSpec("bench-1", 200.0), timing=Timing(rest_s=600))
+        run_wellness(Bench(engine, timing=Timing(rest_s=600)), WellnessSpec("bench-1", 200.0))
     engine.stop()
     with Logbook() as book:
         assert book.checks("bench-1") == []

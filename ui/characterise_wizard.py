@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
-from tactile_studio.characterise import RunControl, run_characterisation
+from tactile_studio.characterise import CharacterisationRequest, RunControl, run_characterisation
 from tactile_studio.characterise.folder import describe_run
 from tactile_studio.characterise.plan import Plan, plan_text
 from tactile_studio.characterise.prepare import (
@@ -525,10 +525,11 @@ class CharacteriseWizard(QWizard):
             result, error = None, ""
             try:
                 result = run_characterisation(
-                    p.device, p.stage, p.force, p.plan, p.taxels, out, sensor_id=sensor,
+                    p.device, p.stage, p.force,
+                    CharacterisationRequest(p.plan, p.taxels, out, sensor_id=sensor,
+                                            overwrite=overwrite),
                     progress=lambda f, m: bridge.progress.emit(f, m), control=self.control,
-                    on_point=lambda name, pt: bridge.point.emit(name, pt),
-                    overwrite=overwrite)
+                    on_point=lambda name, pt: bridge.point.emit(name, pt))
             except (UserError, Cancelled) as exc:
                 error = str(exc) or "aborted"
             except Exception as exc:  # the folder cannot be written: one line; a bug keeps

@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -135,14 +136,28 @@ def save_calibration(sensor_id: str, calibration: dict[str, Any],
         return int(stored["calibration_id"])
 
 
+@dataclass(frozen=True)
+class CharacterisationRequest:
+    """What the user asked a characterisation for: ``plan`` on ``taxels`` (indices)
+    into ``out_dir``, the sensor's logbook id (``sensor_id``), whether to write the
+    report (``report``) and whether an earlier run in the folder may go (``overwrite``)."""
+
+    plan: Plan
+    taxels: list[int]
+    out_dir: Path
+    sensor_id: str | None = None
+    report: bool = True
+    overwrite: bool = False
+
+
 def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
-                         plan: Plan, taxels: list[int], out_dir: Path, *,
-                         sensor_id: str | None = None, progress: ProgressFn = no_progress,
+                         request: CharacterisationRequest, *,
+                         progress: ProgressFn = no_progress,
                          control: RunControl | None = None,
                          on_point: Any = None, on_taxel: Any = None,
-                         report: bool = True, overwrite: bool = False,
                          on_start: Any = None) -> dict[str, Any]:
-    """Characterise ``taxels`` and return the result dict (also in characterisation.json).
+    """Characterise ``request.taxels`` and return the result dict (also in
+    characterisation.json).
 
     The folder is claimed for the whole run (tactile_studio/file_claims.py): a second
     run into it is refused in one line before it clears or writes anything (with
@@ -154,20 +169,20 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
     ``on_taxel(taxel_name, metrics)`` each taxel's metrics as it ends, and
     ``on_start(line)`` what the run will do and how long it takes, once the instruments
     are open and the stage has homed (all optional, called from the calling thread).
-    ``report``: also write figures/ and report.html (for what was measured).
-    ``overwrite``: a folder that holds an earlier run is refused (UserError) unless set;
-    then that run's files are removed first, so two runs are never mixed.
+    ``request.report``: also write figures/ and report.html (for what was measured).
+    ``request.overwrite``: a folder that holds an earlier run is refused (UserError)
+    unless set; then that run's files are removed first, so two runs are never mixed.
     """
-    with claim_folder(out_dir, "characterisation folder"):
-        return _characterise(device, stage, force, plan, taxels, Path(out_dir),
-                             sensor_id, progress, control or RunControl(), on_point, on_taxel,
-                             report, overwrite, on_start)
+    with claim_folder(request.out_dir, "characterisation folder"):
+        return _characterise(device, stage, force, request, progress,
+                             control or RunControl(), on_point, on_taxel, on_start)
 
 
-def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, plan: Plan,
-                  taxels: list[int], out_dir: Path, sensor_id: str | None,
-                  progress: ProgressFn, control: RunControl, on_point: Any, on_taxel: Any,
-                  report: bool, overwrite: bool, on_start: Any) -> dict[str, Any]:
+def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
+                  request: CharacterisationRequest, progress: ProgressFn, control: RunControl,
+                  on_point: Any, on_taxel: Any, on_start: Any) -> dict[str, Any]:
+    plan, taxels, out_dir = request.plan, request.taxels, Path(request.out_dir)
+    sensor_id, report, overwrite = request.sensor_id, request.report, request.overwrite
     check_out_dir(out_dir, overwrite)
     clear_run(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,12 @@ import json
 import sys
 from pathlib import Path
 
-from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise import (
+    CharacterisationRequest,
+    Plan,
+    RunControl,
+    run_characterisation,
+)
 from tactile_studio.characterise.folder import check_out_dir, describe_run
 from tactile_studio.characterise.plan import (
     DEFAULT_SEQUENCES,
@@ -124,9 +129,10 @@ def run(args: argparse.Namespace) -> int:
     progress = TerminalProgress("characterise")
     try:
         with ctrl_c_cancels(control):
-            result = run_characterisation(device, stage, force, plan, taxels, out,
-                                          sensor_id=args.sensor, progress=progress,
-                                          control=control, overwrite=args.overwrite,
+            request = CharacterisationRequest(plan, taxels, out, sensor_id=args.sensor,
+                                              overwrite=args.overwrite)
+            result = run_characterisation(device, stage, force, request, progress=progress,
+                                          control=control,
                                           on_start=lambda line: print(
                                               f"characterise: {line}", file=sys.stderr))
     except Cancelled:

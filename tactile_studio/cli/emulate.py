@@ -19,7 +19,7 @@ import time
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.line_decoder import KINDS
-from tactile_studio.devices.serial_emulator import SerialEmulator
+from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.storage.frame_sources import load_source
@@ -66,9 +66,9 @@ def cmd_emulate_serial(args: argparse.Namespace) -> int:
     source, rate = load_source(args.source, args.seed, args.rate)
     if args.link and os.path.exists(args.link) and not os.path.islink(args.link):
         raise UserError(f"--link {args.link}: exists and is not a symlink")
-    emu = SerialEmulator(source, rate_hz=rate, corrupt=args.corrupt, seed=args.seed,
-                         link=args.link, trailing_comma=not args.no_trailing_comma,
-                         kinds=kinds)
+    emu = SerialEmulator(source, rate_hz=rate,
+                         corruption=Corruption(args.corrupt, kinds, args.seed),
+                         link=args.link, trailing_comma=not args.no_trailing_comma)
     path = emu.open()
     where = f"{path} (link {args.link})" if args.link else path
     print(f"serial emulator on {where}: {rate:g} lines/s, corrupt {args.corrupt:g}, "

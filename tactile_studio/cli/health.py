@@ -22,7 +22,7 @@ from tactile_studio.errors import (
     IncompleteError,
     UserError,
 )
-from tactile_studio.health.bench import Placer, SimulatedPlacer
+from tactile_studio.health.bench import Bench, Placer, SimulatedPlacer
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, run_calibration
 from tactile_studio.health.events import EventFn, HealthEvent, Misplaced, Phase, Warned
 from tactile_studio.health.history import covers_text
@@ -135,8 +135,8 @@ def cmd_wellness(args: argparse.Namespace) -> int:
     token = CancelToken()
     try:
         with ctrl_c_cancels(token), _nothing_stored(f"wellness check of {args.sensor}"):
-            result = run_wellness(engine, spec, placer, progress=TerminalProgress("wellness"),
-                                  cancel=token, on_event=_prompter(args.auto))
+            bench = Bench(engine, placer, cancel=token, on_event=_prompter(args.auto))
+            result = run_wellness(bench, spec, progress=TerminalProgress("wellness"))
     except BaseException:
         print(file=sys.stderr)  # end the progress line before the error
         raise

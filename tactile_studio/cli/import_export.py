@@ -109,10 +109,10 @@ def cmd_import(args: argparse.Namespace) -> int:
                                                   args.participant_map, bar, token,
                                                   args.force, done)
         elif args.import_format == "xdf":
-            from tactile_studio.storage.importers.xdf import import_xdf
+            from tactile_studio.storage.importers.xdf import XdfChoice, import_xdf
 
-            out = import_xdf(args.files, args.out, args.participant, args.stream, args.layout,
-                             bar, token, args.force, done, said)
+            choice = XdfChoice(args.participant, args.stream, args.layout)
+            out = import_xdf(args.files, args.out, choice, bar, token, args.force, done, said)
         elif args.import_format == "cost":
             out = import_cost(args.files[0], args.out, bar, token, args.force, done)
         else:

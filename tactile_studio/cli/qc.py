@@ -20,6 +20,7 @@ from tactile_studio.cli.json_output import print_json
 from tactile_studio.cli.tables import table
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.quality import (
+    FrameTiming,
     QualitySettings,
     describe,
     quality_settings,
@@ -162,7 +163,7 @@ def session_rows(s: Session, path: Path, checks: RunChecks) -> list[dict[str, An
         span = float(dev_t[-1] - dev_t[0])
         rate = (stop - start - 1) / span if span > 0 else 43.0
         prompted = str(t.get("gesture"))
-        flags = trial_flags(s.layout, raw, base, device_time=dev_t, rate_hz=rate,
+        flags = trial_flags(s.layout, raw, base, timing=FrameTiming(dev_t, rate_hz=rate),
                             settings=settings, force=forces.get(prompted))
         v = check.check(s.layout, raw, base, rate, prompted)
         stored = v.stored("") if v is not None else None

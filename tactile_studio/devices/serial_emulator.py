@@ -25,6 +25,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -94,21 +95,31 @@ def corrupt_line(kind: str, frames: np.ndarray, rng: np.random.Generator,
     return b",".join(fields) + tail + b"\r\n"
 
 
-class SerialEmulator:
-    """Streams frames into a pty, with malformed lines injected at ``corrupt`` fraction.
+@dataclass(frozen=True)
+class Corruption:
+    """The malformed lines an emulator injects: ``fraction`` of the lines, spread evenly
+    (at random, from ``seed``) over ``kinds`` (line_decoder.KINDS)."""
 
-    ``corrupt`` is the fraction of lines that are malformed, spread evenly (at random)
-    over ``kinds``. ``keep_sent`` keeps a copy of every good frame written, for tests.
+    fraction: float = 0.0
+    kinds: Iterable[str] = KINDS
+    seed: int = 0
+
+
+class SerialEmulator:
+    """Streams frames into a pty, with malformed lines injected as ``corruption`` says.
+
+    ``keep_sent`` keeps a copy of every good frame written, for tests.
     Nothing is written while no program has the port open (a reader flushes what was
     queued before it opened, which would make the counts lie), so the emulator pauses
     instead; ``reader_grace`` is how long a new reader gets to set the port up.
     """
 
-    def __init__(self, source: FrameSource, rate_hz: float = 44.0, corrupt: float = 0.0,
-                 seed: int = 0, link: str | os.PathLike | None = None,
-                 trailing_comma: bool = True, kinds: Iterable[str] = KINDS,
+    def __init__(self, source: FrameSource, rate_hz: float = 44.0,
+                 corruption: Corruption = Corruption(),
+                 link: str | os.PathLike | None = None, trailing_comma: bool = True,
                  keep_sent: bool = False, max_value: int = 65535,
                  reader_grace: float = 0.2) -> None:
+        corrupt, kinds, seed = corruption.fraction, corruption.kinds, corruption.seed
         if not 0.0 <= corrupt <= 1.0:
             raise UserError(f"--corrupt must be a fraction from 0 to 1, got {corrupt}")
         if rate_hz <= 0:

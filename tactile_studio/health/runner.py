@@ -90,8 +90,7 @@ class HealthRun:
             self._bench = Bench(engine, self.placer, self.timing, self.cancel_token,
                                 self._emit)
             if isinstance(self.spec, WellnessSpec):
-                self.result = run_wellness(engine, self.spec, progress=self._progress,
-                                           bench=self._bench)
+                self.result = run_wellness(self._bench, self.spec, progress=self._progress)
             else:
                 self.result = run_calibration(engine, self.spec, self.out,
                                               progress=self._progress, bench=self._bench)

@@ -13,11 +13,10 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
-from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
+from tactile_studio.health.bench import Bench
 from tactile_studio.health.events import CheckDone, SpotMeasured
-from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.jobs import ProgressFn, no_progress
 from tactile_studio.sensor.calibration import expected_nominal_kpa
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.sensor.wellness import (
@@ -146,12 +145,11 @@ def judged_against(ref: dict[str, Any], spots: tuple[str, ...]) -> str:
     return "; ".join(parts)
 
 
-def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer | None = None,
-                 timing: Timing = Timing(), thresholds: Thresholds = Thresholds(),
-                 progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
-                 on_event: EventFn | None = None, store: bool = True,
-                 bench: Bench | None = None) -> dict[str, Any]:
-    """Run a whole check on a started engine; returns the result (with ``check_id``)."""
+def run_wellness(bench: Bench, spec: WellnessSpec, thresholds: Thresholds = Thresholds(),
+                 progress: ProgressFn = no_progress, store: bool = True) -> dict[str, Any]:
+    """Run a whole check on ``bench`` (a started engine, its placer, timing, cancel token
+    and event sink); returns the result (with ``check_id``)."""
+    engine = bench.engine
     lay = engine.layout
     if not lay.has_shear or lay.calibration is None:
         raise UserError(f"wellness checks need a calibrated shear+normal sensor, not {lay.name}")
@@ -162,7 +160,6 @@ def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer |
     with Logbook(on_damage="replace") as book:
         sensor = resolve_sensor(book, engine.device, spec.sensor, lay.name)
         ref = reference_for(book, sensor, spec, lay)
-    bench = bench or Bench(engine, placer, timing, cancel, on_event)
     steps = 1 + len(spots)
     progress(0.0, "rest")
     rest_raw = bench.rest()

@@ -35,7 +35,7 @@ from tactile_studio.participant_id import PARTICIPANT_RE, check_participant  # n
 from tactile_studio.paths import make_out_dir
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
-from tactile_studio.protocol.runner import Clock, CollectionRunner, State
+from tactile_studio.protocol.runner import Clock, CollectionRunner, RunnerOptions, State
 from tactile_studio.protocol.trial_check import TrialChecker, unknown_gestures
 from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.protocol_file import Protocol, restored_protocol
@@ -197,10 +197,10 @@ def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine
         if restore is not None:
             engine.device.set_gesture(restore)
         raise
+    options = RunnerOptions(beeper, clock, auto_continue, hold_flagged, trial_check,
+                            personalise_check)
     runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
-                              beeper=beeper, clock=clock, auto_continue=auto_continue,
-                              hold_flagged=hold_flagged, trial_check=trial_check,
-                              personalise_check=personalise_check)
+                              options=options)
     return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
                              touches=touch_source(engine, pilot=pilot),
                              restore_gesture=restore, pilot=pilot)
@@ -448,9 +448,9 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
     protocol = info["protocol"]
     runner = CollectionRunner(protocol, engine, rec, info["participant"],
                               meta["block_order"], practice=meta.get("practice_order", []),
-                              beeper=beeper, clock=clock, auto_continue=auto_continue,
-                              hold_flagged=hold_flagged, previous_trials=trials,
-                              trial_check=trial_check)
+                              previous_trials=trials,
+                              options=RunnerOptions(beeper, clock, auto_continue, hold_flagged,
+                                                    trial_check))
     notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
     runner.notes = [line for line in str(notes).split("\n") if line]
     pilot = bool(meta.get("pilot"))  # a rehearsal stays one

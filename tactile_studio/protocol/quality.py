@@ -78,19 +78,31 @@ def quality_settings(protocol: Protocol) -> QualitySettings:
                            min_contact_share=protocol.min_contact_share)
 
 
+@dataclass(frozen=True)
+class FrameTiming:
+    """What the link says about a trial's frames: their device times and sequence
+    numbers (None: not known), the nominal rate, frames the link lost and gap events
+    the recording logged inside the trial. Left empty, no gap is looked for."""
+
+    device_time: np.ndarray | None = None
+    seq: np.ndarray | None = None
+    rate_hz: float | None = None
+    lost_frames: int = 0
+    gap_events: int = 0
+
+
 def trial_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray, *,
-                device_time: np.ndarray | None = None, seq: np.ndarray | None = None,
-                rate_hz: float | None = None, lost_frames: int = 0, gap_events: int = 0,
-                settings: QualitySettings | None = None, force: str | None = None
-                ) -> list[str]:
+                timing: FrameTiming = FrameTiming(), settings: QualitySettings | None = None,
+                force: str | None = None) -> list[str]:
     """The flags of a trial's frames ``raw`` (T, n_channels), in the order of FLAGS;
     ``force``: the gesture's declared force (FORCE_RANGES_KPA), None: not checked."""
     s = settings or QualitySettings()
     raw = np.asarray(raw)
     flags: set[str] = set()
-    if lost_frames > 0:
+    if timing.lost_frames > 0:
         flags.add("dropped_frames")
-    if gap_events > 0 or _has_gap(device_time, seq, rate_hz, s.gap_factor):
+    if timing.gap_events > 0 or _has_gap(timing.device_time, timing.seq, timing.rate_hz,
+                                         s.gap_factor):
         flags.add("gap")
     if raw.ndim == 2 and raw.shape[0] > 0:
         if _saturated(layout, raw):
@@ -108,7 +120,7 @@ def trial_flags(layout: Layout, raw: np.ndarray, baseline: np.ndarray, *,
             if centroid is not None and not in_centre(layout, centroid, s.centre_fraction):
                 flags.add("off_centre")
             flags.update(_load_flags(layout, raw, baseline, touching, s, force))
-    elif lost_frames == 0:
+    elif timing.lost_frames == 0:
         flags.add("dropped_frames")  # nothing to judge: the frames are gone
     return [f for f in FLAGS if f in flags]
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
@@ -46,15 +47,32 @@ from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
 
 
+@dataclass(frozen=True)
+class RunnerOptions:
+    """How a collection runs, apart from what it collects: the ``beeper`` (None: silent)
+    and ``clock`` (None: the monotonic clock), whether trials follow each other without
+    a key (``auto_continue``), whether a flagged trial waits for the redo answer
+    (``hold_flagged``), the model check of each finished trial (``trial_check``, None:
+    off) and whether the first block's trials personalise it (``personalise_check``)."""
+
+    beeper: Any = None
+    clock: Clock | None = None
+    auto_continue: bool = True
+    hold_flagged: bool = False
+    trial_check: TrialChecker | None = None
+    personalise_check: bool = False
+
+
 class CollectionRunner(RunnerInputs):
     """Runs one participant through a protocol's blocks (see the module docstring)."""
 
     def __init__(self, protocol: Protocol, engine: FrameStream, recorder: Recorder,
                  participant: str, orders: list[list[str]], *, practice: list[str] | None = None,
-                 beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                 hold_flagged: bool = False, previous_trials: list[dict[str, Any]] | None = None,
-                 trial_check: TrialChecker | None = None,
-                 personalise_check: bool = False) -> None:
+                 previous_trials: list[dict[str, Any]] | None = None,
+                 options: RunnerOptions = RunnerOptions()) -> None:
+        beeper, clock, trial_check = options.beeper, options.clock, options.trial_check
+        auto_continue, hold_flagged = options.auto_continue, options.hold_flagged
+        personalise_check = options.personalise_check
         self.protocol, self.engine, self.recorder = protocol, engine, recorder
         self.participant = participant
         self.orders = [list(o) for o in orders]

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from tactile_studio.devices.frame_stream import FrameStream
-from tactile_studio.protocol.quality import QualitySettings, trial_flags
+from tactile_studio.protocol.quality import FrameTiming, QualitySettings, trial_flags
 
 
 @dataclass(frozen=True)
@@ -36,9 +36,9 @@ def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
                if e.get("kind") == "gap" and start < int(e.get("frame", -1)) < end)
     flags: list[str] = []
     if engine.baseline is not None:
-        flags = trial_flags(engine.layout, raw, engine.baseline, device_time=dev_t, seq=seq,
-                            rate_hz=rate, lost_frames=lost, gap_events=gaps, settings=settings,
-                            force=force)
+        timing = FrameTiming(dev_t, seq, rate, lost, gaps)
+        flags = trial_flags(engine.layout, raw, engine.baseline, timing=timing,
+                            settings=settings, force=force)
     t0 = float(dev_t[0]) if len(dev_t) else 0.0
     t1 = float(dev_t[-1]) + 1.0 / rate if len(dev_t) else 0.0
     return TrialMeasure(round(t0, 6), round(t1, 6), flags, raw)

@@ -24,7 +24,7 @@ HERE = (Path(__file__).resolve().parents[2] / "docs" / "screenshots")
 def main(out: str = str(HERE / "main-window-serial.png")) -> int:
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
-    from tactile_studio.devices.serial_emulator import SerialEmulator
+    from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
     from tactile_studio.storage.frame_sources import simulated_source
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.main_window import MainWindow, wait_for
@@ -34,8 +34,8 @@ def main(out: str = str(HERE / "main-window-serial.png")) -> int:
         link = Path(tempfile.gettempdir()) / "ts-port"  # short, as a user would type it
         if os.path.lexists(link):
             link = Path(tmp) / "ts-port"
-        emu = SerialEmulator(simulated_source(seed=1), rate_hz=44, corrupt=0.05, seed=5,
-                             link=link, kinds=("short", "non_numeric", "long"))
+        emu = SerialEmulator(simulated_source(seed=1), rate_hz=44, link=link,
+                             corruption=Corruption(0.05, ("short", "non_numeric", "long"), 5))
         emu.open()
         emu.start()
         w = MainWindow(device="serial", settings={"port": emu.port}, connect=True,

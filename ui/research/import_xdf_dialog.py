@@ -10,7 +10,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QFormLayout, QLineEdit, QWidget
 
-from tactile_studio.storage.importers.xdf import XdfReport, import_xdf
+from tactile_studio.storage.importers.xdf import XdfChoice, XdfReport, import_xdf
 from tactile_studio.ui.research.import_base import ImportDialogBase, ImportJob
 
 
@@ -46,13 +46,12 @@ class XdfImportDialog(ImportDialogBase):
     def make_job(self, files: list[str], out: str, force: bool,
                  written: Callable[[Path], None]) -> ImportJob:
         Path(out).mkdir(parents=True, exist_ok=True)
-        participant = self.participant.text().strip() or None
-        stream = self.stream.text().strip() or None
-        layout = self.layout_name.text().strip() or None
+        choice = XdfChoice(self.participant.text().strip() or None,
+                           self.stream.text().strip() or None,
+                           self.layout_name.text().strip() or None)
         self.said = XdfReport()
         return lambda progress, cancel: import_xdf(
-            files, out, participant, stream, layout, progress, cancel, force, written,
-            self.said)
+            files, out, choice, progress, cancel, force, written, self.said)
 
     def finished_text(self, out: str, result: Any) -> str:
         return (f"Imported {len(result)} session(s) into {out}; they are listed in the "

@@ -44,7 +44,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.data.windowing import AGGREGATES
-from tactile_studio.learn.evaluation.evaluate import load_run_data
+from tactile_studio.learn.evaluation.evaluate import RunData, load_run_data
 from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import prepare_inputs
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
@@ -77,9 +77,9 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         raise UserError(f"unknown aggregate {aggregate!r} (available: {', '.join(AGGREGATES)})")
     if threads:
         torch.set_num_threads(threads)
-    config, resolved, records, ds, learner, info = load_run_data(
-        run, data, cache_dir, device="cpu", progress=lambda f, m: progress(0.2 * f, m),
-        cancel=cancel)
+    loaded = load_run_data(run, data, cache_dir, device="cpu",
+                           progress=lambda f, m: progress(0.2 * f, m), cancel=cancel)
+    config, resolved, records, ds, learner, info = loaded
     how = aggregate or config.aggregate
     fused_run = learner.kind == "fused"  # a network + rf (learn/learners/fused.py)
     if fused_run and fmt != "onnx":
@@ -89,8 +89,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         if fmt != "onnx":
             raise UserError(f"model '{config.model}' is a scikit-learn baseline: it exports "
                             "as onnx only (int8 is for torch models)")
-        return _export_baseline(run, config, resolved, records, ds, learner, info, progress,
-                                cancel, tolerance, threads, how)
+        return _export_baseline(run, loaded, progress, cancel, tolerance, how)
     if "onnx" not in learner.facts.export:
         raise UserError(f"model '{config.model}' declares no ONNX export "
                         f"(it exports as: {', '.join(learner.facts.export) or 'nothing'})")
@@ -163,14 +162,16 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
     return report
 
 
-def _export_baseline(run, config, resolved, records, ds, learner, info, progress,  # noqa: ANN001
-                     cancel, tolerance: float, threads: int, how: str) -> dict[str, Any]:
+def _export_baseline(run: str | os.PathLike, loaded: RunData, progress: ProgressFn,
+                     cancel: CancelToken | None, tolerance: float, how: str
+                     ) -> dict[str, Any]:
     """rf / knn folds are ONNX files already: copy each to ``RUN/export/<fold>.onnx`` with
     the run's metadata, run it with onnxruntime on the fold's test trials and compare with
     the probabilities recorded when the fold was trained (the "torch" fields of the report
     hold that reference for these models)."""
     from tactile_studio.learn.learners.baselines import BaselineModel
 
+    config, resolved, records, ds, learner, info = loaded
     ds, x, owner, index = _windows(learner, ds, config)
     out_dir = Path(run) / "export"
     folds, scored = [], []

@@ -41,6 +41,32 @@ from tactile_studio.learn.learners.fused import FusedFitted, person_columns
 from tactile_studio.sensor.layout import Layout
 
 
+@dataclass(frozen=True)
+class LabelledTouches:
+    """One person's labelled touches a model is personalised with: decoded windows
+    (C, N, R, X) recorded on ``layout`` at ``rate`` Hz, each labelled with one of the
+    run's gesture names; ``rounds``: the prompt round of each window (None: one round,
+    nothing to hold out)."""
+
+    layout: Layout
+    windows: Sequence[np.ndarray]
+    gestures: Sequence[str]
+    rate: float
+    rounds: Sequence[int] | None = None
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """The touches as model inputs: the samples ``x``, each sample's window (``owner``),
+    each window's class (``labels``) and, for a forest to refit, the fold's training
+    samples and labels (else None)."""
+
+    x: np.ndarray
+    owner: np.ndarray
+    labels: np.ndarray
+    training: Any
+
+
 @dataclass
 class HeldOutCheck:
     """The person's own prompted touches, each predicted by a model that did not see it:
@@ -66,15 +92,13 @@ class Personalised:
     check: HeldOutCheck | None = None  # measured on their touches when K >= 2
 
 
-def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
-                gestures: Sequence[str], rate: float, seed: int = 0,
-                dataset: Any = None, rounds: Sequence[int] | None = None,
-                progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
+def personalise(model: WindowModel, touches: LabelledTouches, seed: int = 0,
+                dataset: Any = None, progress: ProgressFn = no_progress,
+                cancel: CancelToken | None = None,
                 calibration: Sequence[np.ndarray] | None = None) -> Personalised:
-    """``model``'s fold model personalised with decoded windows (C, N, R, X) of one
-    person, labelled ``gestures`` (names of the run's gestures). ``dataset``: the run's
-    TrialDataset when the caller has it (else read from the run's data paths).
-    ``rounds``: the prompt round of each window; with two or more, the result carries a
+    """``model``'s fold model personalised with one person's ``touches``. ``dataset``:
+    the run's TrialDataset when the caller has it (else read from the run's data paths).
+    With two or more ``touches.rounds``, the result carries a
     :class:`HeldOutCheck` (one more fit per round; :func:`held_out_check` measures it
     apart). Always starts from the run's own fold model (a second personalisation
     replaces the first). ``calibration``: decoded windows of the person (unlabelled, e.g.
@@ -82,11 +106,12 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
     with ``--adapt``, as ``train --shots`` standardises a held-out person by all their
     windows; without it, by the labelled windows' own statistics."""
     cancel = cancel or CancelToken()
-    x_p, owner, y_win, training = _inputs(model, layout, windows, gestures, rate, dataset,
-                                          progress, cancel)
-    x_cal = None if calibration is None else model._samples(layout, list(calibration), rate)[0]
+    prepared = _inputs(model, touches, dataset, progress, cancel)
+    x_p, owner, y_win, training = prepared.x, prepared.owner, prepared.labels, prepared.training
+    x_cal = None if calibration is None else model._samples(
+        touches.layout, list(calibration), touches.rate)[0]
     per_gesture = int(min(np.bincount(y_win, minlength=len(model.labels))[np.unique(y_win)]))
-    folds = _folds(rounds)
+    folds = _folds(touches.rounds)
     fits = 1 + len(folds)
 
     def part(i: int) -> ProgressFn:  # fit i of ``fits``, its messages saying which
@@ -97,34 +122,33 @@ def personalise(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray
                                         part(0), cancel, x_cal)
     check = None
     if folds:
-        check = _held_out_check(model, x_p, owner, y_win, np.asarray(rounds), folds,
-                                training, seed, part, cancel)
+        check = _held_out_check(model, prepared, np.asarray(touches.rounds), folds, seed,
+                                part, cancel)
     cancel.check()  # cancelled while the last step ran: nothing changes
     progress(1.0, "personalised")
-    return Personalised(fitted, norm, reference, how, len(windows), per_gesture, check)
+    return Personalised(fitted, norm, reference, how, len(touches.windows), per_gesture,
+                        check)
 
 
-def held_out_check(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
-                   gestures: Sequence[str], rounds: Sequence[int], rate: float,
-                   seed: int = 0, dataset: Any = None, progress: ProgressFn = no_progress,
+def held_out_check(model: WindowModel, touches: LabelledTouches, seed: int = 0,
+                   dataset: Any = None, progress: ProgressFn = no_progress,
                    cancel: CancelToken | None = None) -> HeldOutCheck | None:
     """The :class:`HeldOutCheck` of personalising with these windows (None with fewer
     than two rounds: nothing to test on), measured apart from :func:`personalise` so a
     caller can use the personalised model while it runs."""
     cancel = cancel or CancelToken()
-    folds = _folds(rounds)
+    folds = _folds(touches.rounds)
     if not folds:
         return None
-    x_p, owner, y_win, training = _inputs(model, layout, windows, gestures, rate, dataset,
-                                          progress, cancel)
+    prepared = _inputs(model, touches, dataset, progress, cancel)
 
     def part(i: int) -> ProgressFn:
         what = f"held-out check {i} of {len(folds)}"
         return lambda f, msg="": progress((i - 1 + f) / len(folds),
                                           f"{what}: {msg}" if msg else what)
 
-    check = _held_out_check(model, x_p, owner, y_win, np.asarray(rounds), folds, training,
-                            seed, part, cancel)
+    check = _held_out_check(model, prepared, np.asarray(touches.rounds), folds, seed, part,
+                            cancel)
     cancel.check()
     progress(1.0, "measured")
     return check
@@ -135,24 +159,23 @@ def _folds(rounds: Sequence[int] | None) -> list[int]:
     return sorted(set(rounds)) if rounds is not None and len(set(rounds)) >= 2 else []
 
 
-def _inputs(model: WindowModel, layout: Layout, windows: Sequence[np.ndarray],
-            gestures: Sequence[str], rate: float, dataset: Any, progress: ProgressFn,
-            cancel: CancelToken) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
-    """(the person's samples, their window per sample, each window's class, the fold's
-    training samples and labels for a forest to refit, else None); one-line refusals."""
+def _inputs(model: WindowModel, touches: LabelledTouches, dataset: Any, progress: ProgressFn,
+            cancel: CancelToken) -> _Prepared:
+    """``touches`` as the model's inputs; one-line refusals."""
+    windows, gestures = touches.windows, touches.gestures
     if len(windows) != len(gestures) or not len(windows):
         raise UserError("personalisation needs labelled windows: none were recorded")
     unknown = sorted(set(gestures) - set(model.labels))
     if unknown:
         raise UserError(f"{model.run}: the run has no gesture {', '.join(unknown)}")
     y_win = np.array([model.labels.index(g) for g in gestures], dtype=np.int64)
-    x_p, owner = model._samples(layout, list(windows), rate)
+    x_p, owner = model._samples(touches.layout, list(windows), touches.rate)
     training = None
     if model.learner.kind != "torch":  # the forest is refit with the fold's training
         progress(0.0, "reading the run's training windows…")
         training = fold_training_samples(model, dataset)
         cancel.check()
-    return x_p, owner, y_win, training
+    return _Prepared(x_p, owner, y_win, training)
 
 
 def _fit(model: WindowModel, x_p: np.ndarray, y_p: np.ndarray,
@@ -212,13 +235,13 @@ def predict_personalised(model: WindowModel, fitted: Any, norm: dict[str, Any],
     return probs / np.maximum(np.bincount(owner, minlength=n)[:, None], 1)
 
 
-def _held_out_check(model: WindowModel, x_p: np.ndarray, owner: np.ndarray,
-                    y_win: np.ndarray, rounds: np.ndarray, folds: list[int],
-                    training: Any, seed: int, part: Any, cancel: CancelToken
+def _held_out_check(model: WindowModel, prepared: _Prepared, rounds: np.ndarray,
+                    folds: list[int], seed: int, part: Any, cancel: CancelToken
                     ) -> HeldOutCheck:
     """Each round's touches predicted by the model personalised with the other rounds'
     touches (a round none of whose touches is left to learn from is not tested), and by
     the run's model as trained."""
+    x_p, owner, y_win, training = prepared.x, prepared.owner, prepared.labels, prepared.training
     hits_after, tested = [], []
     for i, r in enumerate(folds, start=1):
         test_win = np.flatnonzero(rounds == r)

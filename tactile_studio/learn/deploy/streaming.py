@@ -16,6 +16,8 @@ turned into its handcrafted feature vector and classified.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import torch
 from torch import nn
@@ -67,13 +69,22 @@ class _FrameCNN(nn.Module):
         return self.model.frame_features(frames)
 
 
+@dataclass(frozen=True)
+class InputNorm:
+    """How a run z-scored its inputs: per-channel ``mean`` and ``std`` (a fold
+    record's ``norm``), applied to every frame before the model sees it."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+
 class StreamingPredictor:
     """Push frames one at a time; get softmax probabilities for the newest full window.
 
     ``view`` is the model's ViewSpec. For "windows" models the window is ``view.frames``
     frames; for the others ``window`` (default ``view.frames``) raw frames are buffered and
-    converted to the view on each prediction. ``mean``/``std`` (per channel, from the
-    training set) z-score incoming frames; omit them if frames are already z-scored.
+    converted to the view on each prediction. ``norm`` (per channel, from the training
+    set) z-scores incoming frames; omit it if frames are already z-scored.
     ``hop`` predicts every ``hop`` frames (1 = on every frame once the window is full).
     ``backend="onnx"`` runs the same computation with onnxruntime (exported from the
     model at the first frame; several times faster than torch for one frame on a CPU);
@@ -93,8 +104,7 @@ class StreamingPredictor:
         view: ViewSpec,
         *,
         window: int | None = None,
-        mean: np.ndarray | None = None,
-        std: np.ndarray | None = None,
+        norm: InputNorm | None = None,
         hop: int = 1,
         backend: str = "torch",
         threads: int = 1,
@@ -122,8 +132,8 @@ class StreamingPredictor:
         if self.window < 1 or hop < 1:
             raise UserError("streaming window and hop must be at least 1 frame")
         self.hop, self.backend, self.threads = hop, backend, threads
-        self.mean = None if mean is None else np.asarray(mean, np.float32).reshape(-1, 1, 1)
-        self.std = None if std is None else np.asarray(std, np.float32).reshape(-1, 1, 1)
+        self.mean = None if norm is None else np.asarray(norm.mean, np.float32).reshape(-1, 1, 1)
+        self.std = None if norm is None else np.asarray(norm.std, np.float32).reshape(-1, 1, 1)
         self.cached = not self.features and view.kind == "windows" and streaming.cached
         # the statistics head of a cached model reads the window's frames: keep them too
         self.keeps_frames = self.cached and needs_window(model)

@@ -12,6 +12,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.deploy.personalise import (
     HeldOutCheck,
+    LabelledTouches,
     Personalised,
     held_out_check,
     personalise,
@@ -130,7 +131,7 @@ class TouchPrompts:
         """The run's model personalised with the answered prompts (no check: see
         :meth:`held_out_check`, which the dialog runs once the model is in use)."""
         windows, gestures, rate = self.labelled()
-        return personalise(self.model, layout, windows, gestures, rate, seed,
+        return personalise(self.model, LabelledTouches(layout, windows, gestures, rate), seed,
                            progress=progress, cancel=cancel)
 
     def held_out_check(self, layout: Layout, seed: int = 0,
@@ -138,5 +139,5 @@ class TouchPrompts:
                        cancel: CancelToken | None = None) -> HeldOutCheck | None:
         """The answered prompts' held-out check (None with fewer than two rounds)."""
         windows, gestures, rate = self.labelled()
-        return held_out_check(self.model, layout, windows, gestures, self.rounds(), rate,
-                              seed, progress=progress, cancel=cancel)
+        touches = LabelledTouches(layout, windows, gestures, rate, self.rounds())
+        return held_out_check(self.model, touches, seed, progress=progress, cancel=cancel)

@@ -126,14 +126,14 @@ class ModelTrialCheck:
         """Fit the check to one person with their labelled trials ``(raw, baseline,
         gesture)`` (their first block): the few-shot route. Gestures the model does not
         know are left out. Returns the number of trials used."""
-        from tactile_studio.learn.deploy.personalise import personalise
+        from tactile_studio.learn.deploy.personalise import LabelledTouches, personalise
 
         own = [(r, b, g) for r, b, g in trials if g in self.known and len(r) >= 2]
         if not own:
             raise UserError("no trial of a gesture the check knows to personalise it with")
         windows = [self.model.decode(layout, np.asarray(r), np.asarray(b)) for r, b, _ in own]
-        result = personalise(self.model, layout, windows, [g for _, _, g in own],
-                             float(rate_hz), seed)
+        touches = LabelledTouches(layout, windows, [g for _, _, g in own], float(rate_hz))
+        result = personalise(self.model, touches, seed)
         self.model.personalise(result)
         self.personalised_on = len(own)
         return len(own)

@@ -173,13 +173,13 @@ class WindowModel:
         return self.learner.facts.sliding
 
     def streaming_predictor(self):
-        from tactile_studio.learn.deploy.streaming import StreamingPredictor
+        from tactile_studio.learn.deploy.streaming import InputNorm, StreamingPredictor
         from tactile_studio.learn.models import Streaming
 
         facts, norm = self.learner.facts, self.norm
         # hop far beyond any stream: frames are only pushed, predict() is called per step
-        return StreamingPredictor(self.fitted.model, self.learner.view, mean=norm["mean"],
-                                  std=norm["std"], hop=1 << 30,
+        return StreamingPredictor(self.fitted.model, self.learner.view,
+                                  norm=InputNorm(norm["mean"], norm["std"]), hop=1 << 30,
                                   streaming=Streaming(facts.sliding, facts.cached))
 
     def channels_of(self, frames: np.ndarray, layout: Layout) -> np.ndarray:

@@ -17,13 +17,13 @@ from __future__ import annotations
 import os
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
-from tactile_studio.learn.data.dataset import build_dataset
+from tactile_studio.learn.data.dataset import TrialDataset, build_dataset
 from tactile_studio.learn.data.trialinfo import load_trial_table
 from tactile_studio.learn.evaluation.summary import headline
 from tactile_studio.learn.experiments.experiment import (
@@ -41,10 +41,24 @@ from tactile_studio.learn.learners.generalise import ADAPT
 from tactile_studio.output_faults import require_writable_folder
 
 
+class RunData(NamedTuple):
+    """A run folder read back with its data: its config, its resolved description
+    (config.json's ``resolved``), its fold records, the dataset with the run's label
+    indices, the learner and the data facts. A tuple, so callers unpack what they use."""
+
+    config: ExperimentConfig
+    resolved: dict[str, Any]
+    records: list[dict[str, Any]]
+    ds: TrialDataset
+    learner: Any  # a family's learner: a fused one has more than the Learner contract
+    info: DataInfo
+
+
 def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
                   cache_dir: str | None = None, device: str = "auto",
-                  progress: ProgressFn = no_progress, cancel: CancelToken | None = None):
-    """(config, resolved, fold records, dataset with run-label indices, learner, info)."""
+                  progress: ProgressFn = no_progress, cancel: CancelToken | None = None
+                  ) -> RunData:
+    """The run folder ``run`` and its data (``data`` instead of the run's own paths)."""
     cfg_json, records = read_run(run)
     config = ExperimentConfig.from_dict(cfg_json["config"])
     resolved = cfg_json["resolved"]
@@ -66,7 +80,7 @@ def load_run_data(run: str | os.PathLike, data: list[str] | None = None,
     learner = make_learner(config.model, config.preset,
                            legacy_options(config.model, resolved.get("model"), config.overrides),
                            config.epochs, device)
-    return config, resolved, records, ds, learner, info
+    return RunData(config, resolved, records, ds, learner, info)
 
 
 def _other_recordings(run: str | os.PathLike, ds: Any, index: dict[str, int],

@@ -47,6 +47,7 @@ from tactile_studio.learn.experiments.config import (  # noqa: F401 (its home, r
     SHOTS_BY,
     ExperimentConfig,
 )
+from tactile_studio.learn.experiments.fold_plan import FoldPlan
 from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
@@ -60,7 +61,6 @@ from tactile_studio.learn.learners.fused import (
 )
 from tactile_studio.learn.learners.generalise import (
     ADAPT_PHRASE,
-    Moments,
     adapt_groups,
     augmenter,
     balanced_index,
@@ -134,12 +134,12 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
             "probs": np.round(probs, 5).tolist()}
 
 
-def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
-                fold, round_: int, k: int, seed: int, cancel: CancelToken,
-                on_epoch: Callable[[dict[str, Any]], None], extra: Any = None,
-                balance: bool = False, people: np.ndarray | None = None,
-                moments: Moments | None = None) -> tuple[dict[str, Any], Any]:
+def _train_fold(plan: FoldPlan, info: DataInfo, cancel: CancelToken,
+                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[dict[str, Any], Any]:
     t0 = time.perf_counter()
+    learner, ds, x, owner, fold, seed = (plan.learner, plan.ds, plan.x, plan.owner, plan.fold,
+                                         plan.seed)
+    extra, balance, people, moments = plan.extra, plan.balance, plan.people, plan.moments
     tr, va = np.isin(owner, fold.train), np.isin(owner, fold.val)
     y = ds.labels
     x_tr, y_tr = x[tr], y[owner[tr]]
@@ -154,19 +154,19 @@ def _train_fold(learner, info: DataInfo, ds: TrialDataset, x: np.ndarray, owner:
         info, (learner.apply_norm(x_tr, stats), y_tr),
         (learner.apply_norm(x[va], stats), y[owner[va]]), seed, cancel, on_epoch, norm=stats)
     cancel.check()
-    rec = _fold_record(learner, ds, x, owner, fold, round_, k, seed, fitted, stats, history,
-                       best, people, t0)
+    rec = _fold_record(plan, fitted, stats, history, best, t0)
     if moments is not None and people is not None:  # a forest's view as trained
         rec["as_trained"] = pooled_reference(moments, np.unique(people[tr])).tolist()
     return rec, fitted
 
 
-def _fold_record(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray, fold,
-                 round_: int, k: int, seed: int, fitted: Any, stats: dict[str, Any],
-                 history: list[dict[str, Any]], best: Any, people: np.ndarray | None,
-                 t0: float) -> dict[str, Any]:
+def _fold_record(plan: FoldPlan, fitted: Any, stats: dict[str, Any],
+                 history: list[dict[str, Any]], best: Any, t0: float) -> dict[str, Any]:
     """A finished fold as runfolder saves it: its trials, normalisation, training curve
     and the test (and held-out) predictions of ``fitted``."""
+    learner, ds, x, owner, fold, people = (plan.learner, plan.ds, plan.x, plan.owner,
+                                           plan.fold, plan.people)
+    round_, k, seed = plan.round_, plan.k, plan.seed
     y = ds.labels
     uid = np.array(ds.uids)
     rec = {
@@ -197,15 +197,16 @@ def _without_shots(fold, participants: np.ndarray):
                    train=np.setdiff1d(fold.train, shot_trials(fold, participants)))
 
 
-def _fine_tune_fold(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray, fold,
-                    round_: int, k: int, seed: int, base: tuple[Any, dict[str, Any]],
-                    cancel: CancelToken, people: np.ndarray | None
+def _fine_tune_fold(plan: FoldPlan, base: tuple[Any, dict[str, Any]], cancel: CancelToken
                     ) -> tuple[dict[str, Any], Any]:
     """``--shots-by fine-tune``: the fold's K = 0 model (``base``: fitted, its
     normalisation) with its output layers fine-tuned on the windows of the fold's shot
     performances, as live calibration does (learners/fine_tune.py); tested on the same
     trials as K = 0. No training curve (history empty)."""
     t0 = time.perf_counter()
+    learner, ds, x, owner, fold, people = (plan.learner, plan.ds, plan.x, plan.owner,
+                                           plan.fold, plan.people)
+    seed = plan.seed
     fitted0, stats = base
     sel = np.isin(owner, shot_trials(fold, ds.participants))
     test = np.isin(owner, fold.test)
@@ -217,8 +218,7 @@ def _fine_tune_fold(learner, ds: TrialDataset, x: np.ndarray, owner: np.ndarray,
                             ds.labels[owner[sel]], ds.n_classes, seed, cancel=cancel,
                             adapt_to=adapt_to)
     cancel.check()
-    rec = _fold_record(learner, ds, x, owner, fold, round_, k, seed, fitted, stats, [],
-                       None, people, t0)
+    rec = _fold_record(plan, fitted, stats, [], None, t0)
     rec["fine_tuned_windows"] = int(sel.sum())
     return rec, fitted
 
@@ -399,23 +399,21 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                         listener(Epoch.of(r, k, len(folds), fold.name, e))
 
                     people = adapt_people(config, ds, owner)
+                    plan = FoldPlan(learner, ds, x, owner, fold, r, k, seed, people, extra,
+                                    config.balance, moments)
                     zero_fold = _without_shots(fold, ds.participants)
                     name = f"{r} {zero_fold.name}"
                     if fine and fold.shots and name != base_name:  # K = 0 not trained here
                         progress(0.05 + 0.92 * done / total_units, f"{where} training K = 0")
-                        zero, fitted0 = _train_fold(
-                            learner, info, ds, x, owner, zero_fold, r, k, seed, cancel,
-                            on_epoch, extra, config.balance, people, moments)
+                        zero, fitted0 = _train_fold(replace(plan, fold=zero_fold), info,
+                                                    cancel, on_epoch)
                         base_name, base = name, (fitted0, zero["norm"])
                     if fine and fold.shots:
                         progress(0.05 + 0.92 * done / total_units, f"{where} fine-tuning")
-                        rec, fitted = _fine_tune_fold(learner, ds, x, owner, fold, r, k, seed,
-                                                      base, cancel, people)
+                        rec, fitted = _fine_tune_fold(plan, base, cancel)
                     else:
                         progress(0.05 + 0.92 * done / total_units, f"{where} training")
-                        rec, fitted = _train_fold(learner, info, ds, x, owner, fold, r, k,
-                                                  seed, cancel, on_epoch, extra,
-                                                  config.balance, people, moments)
+                        rec, fitted = _train_fold(plan, info, cancel, on_epoch)
                         if fine:  # K = 0: the model each K of this fold fine-tunes
                             base_name, base = name, (fitted, rec["norm"])
                     if folder is not None:

@@ -47,6 +47,7 @@ from tactile_studio.learn.experiments.experiment import (
     run_title,
     summarise,
 )
+from tactile_studio.learn.experiments.fold_plan import FoldPlan
 from tactile_studio.learn.experiments.job_events import Plan, Task
 from tactile_studio.learn.experiments.runfolder import (
     FOLD,
@@ -100,9 +101,9 @@ def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, A
         info = DataInfo.of(ds)
         folds = folds_for(cfg, ds, round_)
         ds, x, owner, _, _, extra, moments = prepare_inputs(learner, ds, cfg)
-        rec, fitted = _train_fold(learner, info, ds, x, owner, folds[fold], round_, fold,
-                                  cfg.seed + round_, CancelToken(), lambda e: None, extra,
-                                  cfg.balance, adapt_people(cfg, ds, owner), moments)
+        plan = FoldPlan(learner, ds, x, owner, folds[fold], round_, fold, cfg.seed + round_,
+                        adapt_people(cfg, ds, owner), extra, cfg.balance, moments)
+        rec, fitted = _train_fold(plan, info, CancelToken(), lambda e: None)
     name = getattr(fitted, "file_name", WEIGHTS)
     with tempfile.TemporaryDirectory() as tmp:  # every file the model saves (fused: two)
         fitted.save(Path(tmp) / name)

@@ -16,6 +16,7 @@ performances, 0.41 as trained): output layers K=1 0.52, K=2 0.70; every layer 0.
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -27,8 +28,17 @@ FINE_TUNE_STEPS = 150
 FINE_TUNE_LR = 3e-3
 
 
+@dataclass(frozen=True)
+class FineTuning:
+    """How long and how fast the output layers learn (Adam ``steps`` full-batch steps
+    at ``lr``): the measured defaults above unless a test or study asks otherwise."""
+
+    steps: int = FINE_TUNE_STEPS
+    lr: float = FINE_TUNE_LR
+
+
 def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
-                   seed: int = 0, steps: int = FINE_TUNE_STEPS, lr: float = FINE_TUNE_LR,
+                   seed: int = 0, tuning: FineTuning = FineTuning(),
                    progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
                    adapt_to: np.ndarray | None = None) -> Any:
     """A copy of a network whose output layers (every linear or convolution layer with
@@ -60,7 +70,8 @@ def fine_tune_head(fitted: Any, x: np.ndarray, y: np.ndarray, n_classes: int,
     params = [p for m in heads for p in m.parameters()]
     for p in params:
         p.requires_grad_(True)
-    opt = torch.optim.Adam(params, lr=lr)
+    steps = tuning.steps
+    opt = torch.optim.Adam(params, lr=tuning.lr)
     xt = torch.from_numpy(np.ascontiguousarray(x, dtype=np.float32))
     yt = torch.from_numpy(np.asarray(y, dtype=np.int64))
     for step in range(steps):

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, fields, replace
+from typing import Protocol, TypeVar
 
 import torch
 from torch import nn
@@ -342,6 +344,37 @@ def random_mirror_index(x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     return x, index
 
 
+@dataclass(frozen=True)
+class NetworkInput:
+    """What the data gives a network: classes, input channels, frames of the view and
+    grid (rows, cols). The dataset decides these, not the user's options."""
+
+    n_classes: int
+    in_channels: int
+    frames: int
+    grid: tuple[int, int]
+
+
+@dataclass(frozen=True)
+class Recipe:
+    """The generalisation recipe's options (:data:`RECIPE_HELP`) every network takes
+    beside its architecture: one object so a network's hyperparameters carry it whole."""
+
+    stats: bool = False
+    stats_hidden: int = 16
+    mirror: bool = False
+    branch_dropout: float = 0.0
+    gesture: bool = False
+
+    def alone(self) -> Recipe:
+        """The recipe of an extra ensemble member: the first model's forward adds the
+        statistics head and mirrors for all of them."""
+        return replace(self, stats=False, mirror=False, branch_dropout=0.0)
+
+
+RECIPE_KEYS = tuple(f.name for f in fields(Recipe))
+
+
 # options every model's full recipe adds (tiny presets keep them off)
 RECIPE_HELP = {
     "stats": "add a late-fusion head over window statistics (what the random forest uses)",
@@ -369,15 +402,14 @@ class RecipeModel(nn.Module):
     mirror: bool = False
     branch_dropout: float = 0.0
 
-    def attach_recipe(self, in_channels: int, frames: int, n_classes: int, stats: bool,
-                      stats_hidden: int, mirror: bool, dropout: float,
-                      branch_dropout: float = 0.0, gesture: bool = False,
+    def attach_recipe(self, data: NetworkInput, recipe: Recipe, dropout: float,
                       window_s: float = 2.0) -> None:
         """``window_s``: the seconds a window spans (the gesture metrics' time unit)."""
-        self.mirror = bool(mirror)
-        self.branch_dropout = float(branch_dropout) if stats else 0.0
-        self.stats = (StatisticsHead(in_channels, frames, n_classes, stats_hidden, dropout,
-                                     gesture, window_s) if stats else None)
+        self.mirror = bool(recipe.mirror)
+        self.branch_dropout = float(recipe.branch_dropout) if recipe.stats else 0.0
+        self.stats = (StatisticsHead(data.in_channels, data.frames, data.n_classes,
+                                     recipe.stats_hidden, dropout, recipe.gesture, window_s)
+                      if recipe.stats else None)
         self.others = nn.ModuleList()
 
     def set_input_norm(self, mean, std, cell_pitch: float = 1.0) -> None:
@@ -460,13 +492,35 @@ class RecipeModel(nn.Module):
         return loss, logits.mean(0)
 
 
-def build_members(cls: type[RecipeModel], members: int, **kwargs: object) -> RecipeModel:
-    """``cls(**kwargs)`` with ``members - 1`` more copies of its network, built one after
+class Hyperparameters(Protocol):
+    """A network's hyperparameters object: its architecture options and its recipe."""
+
+    @property
+    def recipe(self) -> Recipe: ...
+
+
+H = TypeVar("H", bound=Hyperparameters)
+
+
+def hyperparameters(cls: Callable[..., H], options: Mapping[str, object]) -> tuple[int, H]:
+    """(members, ``cls``) from a preset's resolved options (``resolve_options``): the
+    recipe's keys go into its :class:`Recipe`, the rest are ``cls``'s own fields. The
+    options are what run folders and exported models store, so they stay the one
+    on-disk form; the object is only how a network is built from them."""
+    opts = dict(options)
+    members = int(opts.pop("members", 1))  # type: ignore[call-overload]
+    recipe = Recipe(**{k: opts.pop(k) for k in RECIPE_KEYS if k in opts})  # type: ignore[arg-type]
+    return members, cls(**opts, recipe=recipe)
+
+
+def build_members(cls: type[RecipeModel], members: int, data: NetworkInput,
+                  hp: Hyperparameters) -> RecipeModel:
+    """``cls(data, hp)`` with ``members - 1`` more copies of its network, built one after
     the other (so initialised differently) without a statistics head or mirroring of
     their own: the first model's forward fuses and mirrors them all."""
-    model = cls(**kwargs)
-    plain = {**kwargs, "stats": False, "mirror": False, "branch_dropout": 0.0}
-    model.others.extend(cls(**plain) for _ in range(members - 1))
+    model = cls(data, hp)  # type: ignore[call-arg]
+    plain = replace(hp, recipe=hp.recipe.alone())  # type: ignore[type-var]
+    model.others.extend(cls(data, plain) for _ in range(members - 1))  # type: ignore[call-arg]
     if model.stats is not None:
         model.stats.add_members(members - 1)
     return model

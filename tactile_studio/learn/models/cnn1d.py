@@ -19,6 +19,8 @@ averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 
@@ -26,9 +28,12 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
+    NetworkInput,
+    Recipe,
     RecipeModel,
     build_members,
     check_io,
+    hyperparameters,
     resolve_options,
 )
 
@@ -65,15 +70,24 @@ RECIPE = {"full": {"label_smoothing": 0.1, "schedule": "cosine", "warmup": 2, "c
           "tiny": {}}
 
 
+@dataclass(frozen=True)
+class CNN1DHyperparameters:
+    """The options of :data:`OPTIONS` (``members`` aside) as the network takes them."""
+
+    filters: int
+    kernel: int
+    layers: int
+    dropout: float
+    recipe: Recipe = Recipe()
+
+
 class CNN1D(RecipeModel):
-    def __init__(self, n_classes: int, in_features: int, frames: int,
-                 filters: int, kernel: int, layers: int, dropout: float, stats: bool = False,
-                 stats_hidden: int = 16, mirror: bool = False, branch_dropout: float = 0.0,
-                 gesture: bool = False,
-                 in_channels: int = 1) -> None:
+    def __init__(self, data: NetworkInput, hp: CNN1DHyperparameters) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout, gesture)
+        self.attach_recipe(data, hp.recipe, hp.dropout)
+        filters, kernel, layers, dropout = hp.filters, hp.kernel, hp.layers, hp.dropout
+        frames, n_classes = data.frames, data.n_classes
+        in_features = data.in_channels * data.grid[0] * data.grid[1]  # taxels as channels
         body: list[nn.Module] = [nn.Conv1d(in_features, filters, 1)]
         length = frames
         for _ in range(layers):
@@ -103,10 +117,9 @@ def build(
     check_io("cnn1d", n_classes, in_channels, grid)
     frames = frames or VIEWS[preset].frames
     opts = resolve_options("cnn1d", preset, OPTIONS, overrides)
-    features = in_channels * grid[0] * grid[1]
-    model = build_members(CNN1D, opts.pop("members"), n_classes=n_classes,  # type: ignore[arg-type]
-                          in_features=features, frames=frames, in_channels=in_channels,
-                          **opts)
+    members, hp = hyperparameters(CNN1DHyperparameters, opts)
+    data = NetworkInput(n_classes, in_channels, frames, (grid[0], grid[1]))
+    model = build_members(CNN1D, members, data, hp)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

@@ -13,6 +13,8 @@ averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 
@@ -20,9 +22,12 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
+    NetworkInput,
+    Recipe,
     RecipeModel,
     build_members,
     check_io,
+    hyperparameters,
     resolve_options,
 )
 
@@ -87,27 +92,26 @@ def _block(cin: int, cout: int, kernel, stride=1, padding=0) -> nn.Sequential:
     )
 
 
+@dataclass(frozen=True)
+class CNN3DHyperparameters:
+    """The options of :data:`OPTIONS` (``members`` aside) as the network takes them."""
+
+    filters: tuple[int, ...]
+    temporal_kernel: int
+    temporal_stride: int
+    dense: int
+    dropout: float
+    recipe: Recipe = Recipe()
+
+
 class CNN3D(RecipeModel):
-    def __init__(
-        self,
-        n_classes: int,
-        in_channels: int,
-        filters: tuple[int, ...],
-        temporal_kernel: int,
-        temporal_stride: int,
-        dense: int,
-        dropout: float,
-        stats: bool = False,
-        stats_hidden: int = 16,
-        mirror: bool = False,
-        branch_dropout: float = 0.0, gesture: bool = False,
-        frames: int = 86,
-    ) -> None:
+    def __init__(self, data: NetworkInput, hp: CNN3DHyperparameters) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout, gesture)
-        self.temporal_kernel = temporal_kernel
-        layers = [_block(in_channels, filters[0], (temporal_kernel, 1, 1), (temporal_stride, 1, 1))]
+        self.attach_recipe(data, hp.recipe, hp.dropout)
+        self.temporal_kernel = hp.temporal_kernel
+        filters, dense, dropout, n_classes = hp.filters, hp.dense, hp.dropout, data.n_classes
+        layers = [_block(data.in_channels, filters[0], (hp.temporal_kernel, 1, 1),
+                         (hp.temporal_stride, 1, 1))]
         for cin, cout in zip(filters[:-1], filters[1:]):
             layers.append(_block(cin, cout, 3, padding=1))
         self.features = nn.Sequential(*layers)
@@ -135,8 +139,9 @@ def build(
             f"model 'cnn3d': temporal_kernel={opts['temporal_kernel']} is longer than the "
             f"{frames}-frame view"
         )
-    model = build_members(CNN3D, opts.pop("members"), n_classes=n_classes,  # type: ignore[arg-type]
-                          in_channels=in_channels, frames=frames, **opts)
+    members, hp = hyperparameters(CNN3DHyperparameters, opts)
+    data = NetworkInput(n_classes, in_channels, frames, (grid[0], grid[1]))
+    model = build_members(CNN3D, members, data, hp)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

@@ -29,6 +29,8 @@ beside the embeddings, ``needs_window``) for the statistics head.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 
@@ -36,10 +38,13 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, Streaming, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
+    NetworkInput,
     PositionalEncoding,
+    Recipe,
     RecipeModel,
     build_members,
     check_io,
+    hyperparameters,
     mirror_images,
     resolve_options,
     transformer_encoder,
@@ -151,24 +156,35 @@ class FrameCNN(nn.Module):
         return self.embed(self.convs(frames))
 
 
+@dataclass(frozen=True)
+class CNNTransformerHyperparameters:
+    """The options of :data:`OPTIONS` (``members`` aside) as the network takes them."""
+
+    filters: tuple[int, ...]
+    dense: int
+    d_model: int
+    heads: int
+    layers: int
+    ff: int
+    dropout: float
+    recipe: Recipe = Recipe()
+
+
 class CNNTransformer(RecipeModel):
     # train.fit trains it with channels-last conv weights: the per-frame CNN's steps take
     # ~10% less CPU that way (no dropout acts on its feature maps, so nothing else changes)
     train_memory_format = torch.channels_last
 
-    def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int], filters,
-                 dense: int, d_model: int, heads: int, layers: int, ff: int, dropout: float,
-                 mirror: bool = False, stats: bool = False, stats_hidden: int = 16,
-                 branch_dropout: float = 0.0, gesture: bool = False, frames: int = 27):
+    def __init__(self, data: NetworkInput, hp: CNNTransformerHyperparameters) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout, gesture,
-                           window_s=frames / 43.0)  # windows of the sensor's ~43 Hz frames
-        self.d_model = d_model
-        self.frame_cnn = FrameCNN(in_channels, grid, filters, dense, d_model, dropout)
-        self.positions = PositionalEncoding(d_model)
-        self.encoder = transformer_encoder(d_model, heads, layers, ff, dropout)
-        self.classifier = nn.Linear(d_model, n_classes)
+        self.attach_recipe(data, hp.recipe, hp.dropout,
+                           window_s=data.frames / 43.0)  # windows of the sensor's ~43 Hz frames
+        self.d_model = hp.d_model
+        self.frame_cnn = FrameCNN(data.in_channels, data.grid, hp.filters, hp.dense,
+                                  hp.d_model, hp.dropout)
+        self.positions = PositionalEncoding(hp.d_model)
+        self.encoder = transformer_encoder(hp.d_model, hp.heads, hp.layers, hp.ff, hp.dropout)
+        self.classifier = nn.Linear(hp.d_model, data.n_classes)
 
     @property
     def needs_window(self) -> bool:
@@ -224,9 +240,9 @@ def build(
     if len(opts["filters"]) != 4:  # type: ignore[arg-type]
         raise UserError("model 'cnn_transformer': filters needs 4 values, "
                         "e.g. filters=64,128,256,512")
-    model = build_members(CNNTransformer, opts.pop("members"),  # type: ignore[arg-type]
-                          n_classes=n_classes, in_channels=in_channels, grid=tuple(grid),
-                          frames=frames, **opts)
+    members, hp = hyperparameters(CNNTransformerHyperparameters, opts)
+    data = NetworkInput(n_classes, in_channels, frames, (grid[0], grid[1]))
+    model = build_members(CNNTransformer, members, data, hp)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

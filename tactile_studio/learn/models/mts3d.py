@@ -18,6 +18,8 @@ resampled 32 frames scored the same as gradient-adaptive ones, docs/learning/fig
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -26,9 +28,12 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
+    NetworkInput,
+    Recipe,
     RecipeModel,
     build_members,
     check_io,
+    hyperparameters,
     resolve_options,
 )
 from tactile_studio.learn.models.attention import Dropout
@@ -111,21 +116,28 @@ class Backbone(nn.Module):
         return self.stages(self.stem(x)).mean(dim=(2, 3, 4))
 
 
+@dataclass(frozen=True)
+class MTS3DHyperparameters:
+    """The options of :data:`OPTIONS` (``members`` aside) as the network takes them."""
+
+    widths: tuple[int, ...]
+    blocks: tuple[int, ...]
+    scales: tuple[int, ...]
+    dropout: float
+    recipe: Recipe = Recipe()
+
+
 class MTS3D(RecipeModel):
     # train.fit trains it with channels-last weights: oneDNN's 3-D convolutions take ~30%
     # less CPU per training step that way (evaluation is faster in the usual layout)
     train_memory_format = torch.channels_last_3d
 
-    def __init__(self, n_classes: int, in_channels: int, widths, blocks, scales,
-                 dropout: float, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, branch_dropout: float = 0.0, gesture: bool = False,
-                 frames: int = 32) -> None:
+    def __init__(self, data: NetworkInput, hp: MTS3DHyperparameters) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror, dropout,
-                           branch_dropout, gesture)
-        self.scales = tuple(scales)
-        self.backbone = Backbone(in_channels, widths, blocks, dropout)
-        self.classifier = nn.Linear(widths[-1], n_classes)
+        self.attach_recipe(data, hp.recipe, hp.dropout)
+        self.scales = tuple(hp.scales)
+        self.backbone = Backbone(data.in_channels, hp.widths, hp.blocks, hp.dropout)
+        self.classifier = nn.Linear(hp.widths[-1], data.n_classes)
 
     def network_logits(self, x: torch.Tensor) -> torch.Tensor:
         fused = None
@@ -149,8 +161,9 @@ def build(
         raise UserError("model 'mts3d': widths and blocks need the same number of stages")
     if len(opts["widths"]) < 2:  # type: ignore[arg-type]
         raise UserError("model 'mts3d': needs at least 2 stages")
-    model = build_members(MTS3D, opts.pop("members"), n_classes=n_classes,  # type: ignore[arg-type]
-                          in_channels=in_channels, frames=frames, **opts)
+    members, hp = hyperparameters(MTS3DHyperparameters, opts)
+    data = NetworkInput(n_classes, in_channels, frames, (grid[0], grid[1]))
+    model = build_members(MTS3D, members, data, hp)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

@@ -18,16 +18,21 @@ averaging, branch dropout, cosine budget); the paper's network is ``PAPER``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import torch
 from torch import nn
 
 from tactile_studio.learn.models import ModelSpec, TrainDefaults, ViewSpec
 from tactile_studio.learn.models._common import (
     RECIPE_HELP,
+    NetworkInput,
     PositionalEncoding,
+    Recipe,
     RecipeModel,
     build_members,
     check_io,
+    hyperparameters,
     resolve_options,
     transformer_encoder,
 )
@@ -102,13 +107,32 @@ class SqueezeExcite(nn.Module):
         return x * self.gate(x.mean(dim=2)).unsqueeze(2)
 
 
+@dataclass(frozen=True)
+class SEFusionHyperparameters:
+    """The options of :data:`OPTIONS` (``members`` aside) as the network takes them;
+    a :class:`Tower` reads the architecture's."""
+
+    fusion: str
+    filters: int
+    kernel: int
+    blocks: int
+    se_reduction: int
+    d_model: int
+    heads: int
+    layers: int
+    ff: int
+    hidden: int
+    dropout: float
+    recipe: Recipe = Recipe()
+
+
 class Tower(nn.Module):
     """Branches (one per input group) -> concat -> SE -> Transformer -> MLP head."""
 
-    def __init__(self, groups: list[int], n_classes: int, filters: int, kernel: int,
-                 blocks: int, se_reduction: int, d_model: int, heads: int, layers: int,
-                 ff: int, hidden: int, dropout: float) -> None:
+    def __init__(self, groups: list[int], n_classes: int, hp: SEFusionHyperparameters) -> None:
         super().__init__()
+        filters, kernel, blocks, dropout = hp.filters, hp.kernel, hp.blocks, hp.dropout
+        d_model, hidden = hp.d_model, hp.hidden
         self.branches = nn.ModuleList()
         for cin in groups:
             mods = []
@@ -118,10 +142,10 @@ class Tower(nn.Module):
                                            pool=i < blocks - 1))
             self.branches.append(nn.Sequential(*mods))
         width = filters * len(groups)
-        self.se = SqueezeExcite(width, se_reduction)
+        self.se = SqueezeExcite(width, hp.se_reduction)
         self.project = nn.Linear(width, d_model)
         self.positions = PositionalEncoding(d_model)
-        self.encoder = transformer_encoder(d_model, heads, layers, ff, dropout)
+        self.encoder = transformer_encoder(d_model, hp.heads, hp.layers, hp.ff, dropout)
         self.head = nn.Sequential(
             nn.Linear(d_model, hidden), nn.ReLU(inplace=True), nn.Dropout(dropout),
             nn.Linear(hidden, n_classes),
@@ -136,25 +160,22 @@ class Tower(nn.Module):
 
 
 class SEFusion(RecipeModel):
-    def __init__(self, n_classes: int, in_channels: int, grid: tuple[int, int],
-                 fusion: str, frames: int = 86, stats: bool = False, stats_hidden: int = 16,
-                 mirror: bool = False, branch_dropout: float = 0.0, gesture: bool = False,
-                 **opts) -> None:
+    def __init__(self, data: NetworkInput, hp: SEFusionHyperparameters) -> None:
         super().__init__()
-        self.attach_recipe(in_channels, frames, n_classes, stats, stats_hidden, mirror,
-                           float(opts.get("dropout", 0.0)), branch_dropout, gesture)
-        taxels = grid[0] * grid[1]
+        self.attach_recipe(data, hp.recipe, float(hp.dropout))
+        taxels = data.grid[0] * data.grid[1]
+        n_classes, in_channels, fusion = data.n_classes, data.in_channels, hp.fusion
         self.fusion = fusion
         # channel 0 is normal when shear channels follow it; 1 channel = normal/pressure,
         # 2 channels = shear only: a single modality.
         self.split = in_channels == 3
         if self.split and fusion == "mid":
-            self.towers = nn.ModuleList([Tower([taxels, 2 * taxels], n_classes, **opts)])
+            self.towers = nn.ModuleList([Tower([taxels, 2 * taxels], n_classes, hp)])
         elif self.split and fusion == "late":
-            self.towers = nn.ModuleList([Tower([taxels], n_classes, **opts),
-                                         Tower([2 * taxels], n_classes, **opts)])
+            self.towers = nn.ModuleList([Tower([taxels], n_classes, hp),
+                                         Tower([2 * taxels], n_classes, hp)])
         else:
-            self.towers = nn.ModuleList([Tower([in_channels * taxels], n_classes, **opts)])
+            self.towers = nn.ModuleList([Tower([in_channels * taxels], n_classes, hp)])
 
     def network_logits(self, x: torch.Tensor) -> torch.Tensor:
         b, c, t, r, s = x.shape
@@ -174,9 +195,9 @@ def build(
     check_io("sefusion", n_classes, in_channels, grid)
     frames = frames or VIEWS[preset].frames
     opts = resolve_options("sefusion", preset, OPTIONS, overrides, CHOICES)
-    model = build_members(SEFusion, opts.pop("members"),  # type: ignore[arg-type]
-                          n_classes=n_classes,
-                          in_channels=in_channels, grid=tuple(grid), frames=frames, **opts)
+    members, hp = hyperparameters(SEFusionHyperparameters, opts)
+    data = NetworkInput(n_classes, in_channels, frames, (grid[0], grid[1]))
+    model = build_members(SEFusion, members, data, hp)
     model.train_recipe = RECIPE[preset]
     model.input_shape = (in_channels, frames, *grid)
     return model

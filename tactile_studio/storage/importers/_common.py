@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -149,42 +150,53 @@ def import_writer(path: Path, layout: Layout, device_info: dict[str, Any],
                          overwrite=overwrite, staged=True)
 
 
-def write_session(path: Path, layout: Layout, device_info: dict[str, Any],
-                  metadata: dict[str, Any], raw: np.ndarray, times: np.ndarray,
-                  baseline: np.ndarray | None, trials: list[dict[str, Any]],
-                  counters: dict[str, Any] | None = None,
-                  progress: ProgressFn | None = None,
-                  cancel: CancelToken | None = None,
-                  events: Sequence[tuple[str, int, float, dict[str, Any]]] = (),
-                  baselines: Sequence[tuple[int, Sequence[float]]] = (),
-                  aux: list[AuxSignal] | None = None, overwrite: bool = False) -> Path:
-    """Write one complete session (``events``: (kind, row, time, detail); ``baseline``
-    in force from row 0, ``baselines`` (row, values) from their rows; ``aux``: other
-    instruments' signals); a cancelled,
-    failed or killed write leaves nothing at ``path`` (:func:`import_writer`), and no
-    frames write no file (``NoFramesError``)."""
+@dataclass(frozen=True)
+class ImportedSession:
+    """Everything an importer read for one session, as :func:`write_session` writes it:
+    the frames (``raw`` on ``times``) in ``layout``, the device and session metadata, the
+    trials; ``baseline`` in force from row 0, ``baselines`` (row, values) from their rows;
+    ``events``: (kind, row, time, detail); ``aux``: other instruments' signals."""
+
+    layout: Layout
+    device_info: dict[str, Any]
+    metadata: dict[str, Any]
+    raw: np.ndarray
+    times: np.ndarray
+    trials: list[dict[str, Any]]
+    baseline: np.ndarray | None = None
+    counters: dict[str, Any] | None = None
+    events: Sequence[tuple[str, int, float, dict[str, Any]]] = ()
+    baselines: Sequence[tuple[int, Sequence[float]]] = ()
+    aux: list[AuxSignal] | None = None
+
+
+def write_session(path: Path, session: ImportedSession, progress: ProgressFn | None = None,
+                  cancel: CancelToken | None = None, overwrite: bool = False) -> Path:
+    """Write one complete session; a cancelled, failed or killed write leaves nothing at
+    ``path`` (:func:`import_writer`), and no frames write no file (``NoFramesError``)."""
     progress = progress or no_progress
-    n = int(raw.shape[0])
+    s = session
+    n = int(s.raw.shape[0])
     if n == 0:
         raise NoFramesError(f"{path.name}: no frames to write, nothing imported")
-    writer = import_writer(path, layout, device_info, metadata, overwrite, aux)
+    writer = import_writer(path, s.layout, s.device_info, s.metadata, overwrite, s.aux)
     try:
-        if baseline is not None:
-            writer.add_baseline(np.asarray(baseline, dtype=np.float64), 0)
-        for row, values in baselines:
+        if s.baseline is not None:
+            writer.add_baseline(np.asarray(s.baseline, dtype=np.float64), 0)
+        for row, values in s.baselines:
             writer.add_baseline(np.asarray(values, dtype=np.float64), row)
-        if counters:
-            writer.set_counters(counters)
-        append_in_chunks(writer, raw, times, path.name, progress, cancel)
-        for kind, row, t_s, detail in events:
+        if s.counters:
+            writer.set_counters(s.counters)
+        append_in_chunks(writer, s.raw, s.times, path.name, progress, cancel)
+        for kind, row, t_s, detail in s.events:
             writer.add_event(kind, row, t_s, **detail)
-        for t in trials:
+        for t in s.trials:
             writer.add_trial(t)
         close_complete(writer)
     except BaseException:
         _discard(writer, path)
         raise
-    progress(1.0, f"{path.name}: {n} frames, {len(trials)} trials")
+    progress(1.0, f"{path.name}: {n} frames, {len(s.trials)} trials")
     return path
 
 

@@ -36,6 +36,7 @@ from tactile_studio.participant_id import PARTICIPANT_RE
 from tactile_studio.sensor.layout import COST_8X8, HAART_8X8, Layout
 from tactile_studio.storage.file_names import shown_name
 from tactile_studio.storage.importers._common import (
+    ImportedSession,
     check_outputs,
     distinct_paths,
     import_session_id,
@@ -235,11 +236,12 @@ def import_dataset(spec: DatasetSpec, path: str | os.PathLike, out_dir: str | os
         }
         device = {"plugin": "import", "format": spec.name, "file": str(path),
                   "rate_hz": spec.rate_hz}
-        return lambda p: write_session(
-            outputs[subject], spec.layout, device, metadata, table.channels[rows], times,
-            np.zeros(spec.layout.n_channels), trials,
-            counters={"malformed_by_kind": dict(table.malformed_by_kind)},
-            progress=p, cancel=cancel, overwrite=force)
+        session = ImportedSession(
+            spec.layout, device, metadata, table.channels[rows], times, trials,
+            baseline=np.zeros(spec.layout.n_channels),
+            counters={"malformed_by_kind": dict(table.malformed_by_kind)})
+        return lambda p: write_session(outputs[subject], session, progress=p, cancel=cancel,
+                                       overwrite=force)
 
     return run_jobs([job(s) for s in order], progress, 0.5, 1.0, on_done)
 

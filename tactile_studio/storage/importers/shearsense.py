@@ -12,6 +12,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.paths import make_out_dir
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage.importers._common import (
+    ImportedSession,
     NoFramesError,
     check_outputs,
     frame_interval,
@@ -185,9 +186,10 @@ def import_shearsense_file(csv: str | os.PathLike, out: str | os.PathLike,
     device = {"plugin": "import", "format": "shearsense-csv", "file": str(csv),
               "rate_hz": round(segmented_rate_hz(data.times, [g[1] for g in gaps])
                                or RATE_HZ, 3)}
-    write_session(out, SHEARSENSE_6X6, device, metadata, data.raw, data.times, data.baseline,
-                  trials, counters={"malformed_by_kind": dict(data.malformed_by_kind)},
-                  progress=slice_progress(progress, 0.7, 1.0), cancel=cancel, events=gaps,
+    session = ImportedSession(SHEARSENSE_6X6, device, metadata, data.raw, data.times, trials,
+                              baseline=data.baseline, events=gaps,
+                              counters={"malformed_by_kind": dict(data.malformed_by_kind)})
+    write_session(out, session, progress=slice_progress(progress, 0.7, 1.0), cancel=cancel,
                   overwrite=force)
     if report is not None:
         report.key_names, report.custom_keys = names, custom

@@ -61,7 +61,11 @@ from tactile_studio.storage.importers.xdf_info import (
     tactile_layout,
     text,
 )
-from tactile_studio.storage.importers.xdf_session import XdfReport, session_job
+from tactile_studio.storage.importers.xdf_session import (
+    XdfReport,
+    XdfStreamSource,
+    session_job,
+)
 from tactile_studio.storage.input_files import check_input_file, file_sha256
 from tactile_studio.storage.xdf_scan import XdfScan, checked_file, scan_xdf
 from tactile_studio.terminal import shown
@@ -122,6 +126,17 @@ def _output_name(path: Path, s: dict[str, Any], several: bool) -> str:
     return f"{path.stem}_{file_part(stream_name(s))}.h5" if several else f"{path.stem}.h5"
 
 
+@dataclass(frozen=True)
+class XdfChoice:
+    """What the user chose for the files' sessions: the ``participant`` recorded (None:
+    the file's own), the tactile ``stream`` by name and the ``layout`` its channels
+    follow (None: found from the file's headers)."""
+
+    participant: str | None = None
+    stream: str | None = None
+    layout: str | None = None
+
+
 @dataclass
 class _FilePlan:
     """One file's sessions, planned from its headers: (stream id, layout, output)."""
@@ -133,11 +148,11 @@ class _FilePlan:
     sha: str
 
 
-def _plan(path: Path, scan: XdfScan, out_dir: Path, participant: str | None,
-          stream: str | None, layout: str | None, said: XdfReport,
+def _plan(path: Path, scan: XdfScan, out_dir: Path, choice: XdfChoice, said: XdfReport,
           strict: bool) -> _FilePlan:
     """Which streams of ``path`` become which sessions (module doc), from its headers;
     a tactile stream without samples is listed in ``said.skipped`` (``strict``: raised)."""
+    participant, stream, layout = choice.participant, choice.stream, choice.layout
     headers = [{"info": {**d.info, "stream_id": d.id}} for d in scan.streams.values()]
     refused = scan.refused_name(stream) if stream else ""
     if refused:
@@ -201,8 +216,9 @@ def _file_jobs(plan: _FilePlan, said: XdfReport, cancel: CancelToken | None,
                        and text(x["info"], "channel_format") != "string"
                        and len(x["time_stamps"])]
                 names = {stream_name(x) for x in streams if x["info"]["stream_id"] in chosen}
-                write = session_job(plan.path, out, plan.sha, s, lay, strings, aux,
-                                    plan.meta, names, said, cancel, force)
+                source = XdfStreamSource(plan.path, plan.sha, plan.meta, s, lay, strings,
+                                         aux, names)
+                write = session_job(source, out, said, cancel, force)
                 return write(progress)
             finally:
                 if k == len(plan.sessions) - 1:
@@ -214,8 +230,7 @@ def _file_jobs(plan: _FilePlan, said: XdfReport, cancel: CancelToken | None,
 
 
 def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
-               participant: str | None = None, stream: str | None = None,
-               layout: str | None = None, progress: ProgressFn | None = None,
+               choice: XdfChoice = XdfChoice(), progress: ProgressFn | None = None,
                cancel: CancelToken | None = None, force: bool = False,
                on_done: Callable[[Path], None] | None = None,
                report: XdfReport | None = None) -> list[Path]:
@@ -233,8 +248,8 @@ def import_xdf(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike,
     sources: list[tuple[Path, Path]] = []  # (input, output) of every file
     for k, p in enumerate(paths):
         path = Path(p)
-        plan = _plan(path, scan_input(path), Path(out_dir), participant, stream, layout,
-                     said, strict=report is None)
+        plan = _plan(path, scan_input(path), Path(out_dir), choice, said,
+                     strict=report is None)
         progress(0.1 * (k + 1) / len(paths), f"{path.name}: {len(plan.sessions)} "
                                               "tactile stream(s)")
         sources += [(path, out) for _, _, out in plan.sessions]

@@ -18,6 +18,7 @@ from tactile_studio.jobs import CancelToken, ProgressFn
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.importers._common import (
+    ImportedSession,
     NoFramesError,
     import_session_id,
     write_session,
@@ -124,11 +125,30 @@ def _marker_stream_is_ours(m: dict[str, Any], frame_stream: str,
     return True
 
 
-def session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
-                 others: list[dict[str, Any]], aux: list[AuxSignal], meta: dict[str, Any],
-                 tactile_names: set[str], report: XdfReport,
-                 cancel: CancelToken | None, force: bool = False
-                 ) -> Callable[[ProgressFn], Path]:
+@dataclass(frozen=True)
+class XdfStreamSource:
+    """One tactile stream of an XDF file and what its session takes from the rest of
+    the file: the file (``path``, its ``sha``, the file-wide ``meta``), the stream as
+    pyxdf read it and its layout, the file's string streams (``markers``), the other
+    instruments' signals (``aux``) and the names of the tactile streams imported."""
+
+    path: Path
+    sha: str
+    meta: dict[str, Any]
+    stream: dict[str, Any]
+    layout: Layout
+    markers: list[dict[str, Any]]
+    aux: list[AuxSignal]
+    tactile_names: set[str]
+
+
+def session_job(source: XdfStreamSource, out: Path, report: XdfReport,
+                cancel: CancelToken | None, force: bool = False
+                ) -> Callable[[ProgressFn], Path]:
+    """The job writing ``source``'s session to ``out``; what cannot be imported whole
+    is said in ``report`` now, before any job runs."""
+    path, sha, s, lay, meta = source.path, source.sha, source.stream, source.layout, source.meta
+    others, aux, tactile_names = source.markers, source.aux, source.tactile_names
     name = stream_name(s)
     frames = _Frames.of(s, lay)
     said = f"{path}: stream '{shown(name)}'"
@@ -177,9 +197,10 @@ def session_job(path: Path, out: Path, sha: str, s: dict[str, Any], lay: Layout,
         gaps = [("gap", a, float(times[a]), {"cause": "xdf",
                                               "seconds": round(float(times[a] - times[a - 1]), 6)})
                 for a in _unnamed_breaks(segments, markers.events) if 0 < a < n]
-        return write_session(out, lay, device, metadata, frames.raw, times, None, trials,
-                             {"malformed_by_kind": dict(frames.left_out)}
-                             if frames.left_out else None, progress, cancel,
-                             gaps + markers.events, markers.baselines, aux, overwrite=force)
+        session = ImportedSession(
+            lay, device, metadata, frames.raw, times, trials,
+            counters={"malformed_by_kind": dict(frames.left_out)} if frames.left_out else None,
+            events=gaps + markers.events, baselines=markers.baselines, aux=aux)
+        return write_session(out, session, progress, cancel, overwrite=force)
 
     return job
