@@ -9,15 +9,19 @@ import threading
 import numpy as np
 import pytest
 
-from tactile_studio.characterise import Plan, RunControl, run_characterisation
+from tactile_studio.characterise import (
+    Plan,
+    RunControl,
+    check_force,
+    check_stage,
+    run_characterisation,
+)
 from tactile_studio.characterise.analyse import drift_corrected
 from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, SettingsError, UserError
 from tactile_studio.instruments import (
     SoftLimitError,
-    check_force,
-    check_stage,
     create_force,
     create_stage,
 )

@@ -2,7 +2,7 @@
 
 A sink is small (:class:`Sink`): ``start()`` sets it up, ``event(kind, **detail)``
 takes an application event, ``stop()`` closes it, once, writing its end. The HDF5
-recorder (storage/recorder.py, opened by storage/file_sink.py), the device's LSL
+recorder (storage/recorder.py, opened by acquisition/file_sink.py), the device's LSL
 publishing and the marker inlets of a recording are sinks.
 
 Frames are not handed to sinks: each pulls them (and the engine's own events) from the

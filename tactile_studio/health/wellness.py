@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.errors import UserError
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
@@ -145,7 +145,7 @@ def judged_against(ref: dict[str, Any], spots: tuple[str, ...]) -> str:
     return "; ".join(parts)
 
 
-def run_wellness(engine: AcquisitionEngine, spec: WellnessSpec, placer: Placer | None = None,
+def run_wellness(engine: LiveStream, spec: WellnessSpec, placer: Placer | None = None,
                  timing: Timing = Timing(), thresholds: Thresholds = Thresholds(),
                  progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
                  on_event: EventFn | None = None, store: bool = True,

@@ -4,12 +4,14 @@ Like :func:`tactile_studio.devices.check_plugin`, each drives the plugin the way
 characterisation procedure does and raises one :class:`InstrumentCheckError` listing
 every problem found::
 
-    from tactile_studio.instruments import check_stage
+    from tactile_studio.characterise import check_stage
     def test_my_stage():
         check_stage(MyStage, {"port": "..."})
 
 ``device`` (optional) is the sensor device to couple to (the simulated instruments
-need the simulated sensor); it is streamed by an acquisition engine during the check.
+need the simulated sensor); it is streamed (``open_stream``) during the check. That is
+why the checks live here, above acquisition, and not beside the contracts in
+``instruments/``, which sits below the recording and may not open a stream.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.errors import UserError
 from tactile_studio.instruments.contract import ForcePlugin, ForceSamples, StagePlugin
 from tactile_studio.plugin_settings import Setting
@@ -59,14 +62,10 @@ def _check_class(cls: type, base: type, problems: list[str]) -> None:
 
 
 class _Streaming:
-    """Streams ``device`` with an acquisition engine while instruments are checked."""
+    """Streams ``device`` while instruments are checked (their clock may be its own)."""
 
     def __init__(self, device: Any) -> None:
-        self.engine = None
-        if device is not None:
-            from tactile_studio.devices.engine import AcquisitionEngine
-
-            self.engine = AcquisitionEngine(device)
+        self.engine = None if device is None else open_stream(device)
 
     def __enter__(self) -> _Streaming:
         if self.engine is not None:
