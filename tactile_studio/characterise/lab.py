@@ -1,8 +1,8 @@
 """The lab during a run: sensor stream, load-cell stream and journal on one clock.
 
 :class:`Lab` owns the device's stream (``open_stream``) and the recorder (one session
-file), pulls the sensor frames and the load-cell samples it needs for each measurement, and journals
-every stage move, load-cell batch and measured point into the session (see
+file), pulls the sensor frames and the load-cell samples it needs for each measurement,
+and journals every stage move, load-cell batch and measured point into the session (see
 docs/session-format.md, "Characterisation records").
 """
 
