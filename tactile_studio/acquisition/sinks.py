@@ -22,6 +22,8 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
+from tactile_studio.devices.frame_stream import LiveStream
+
 #: stop ranks: lower stops first (the stop order: engine, outlets, file, publishing)
 OUTLET, FILE, PUBLISHING = 0, 1, 2
 
@@ -45,7 +47,7 @@ class LslPublishing:
     """The device's LSL outlets as a sink: the one streamer per engine, shared with
     every other user of that engine (streams/lsl_outlet.py counts them)."""
 
-    def __init__(self, engine: Any) -> None:
+    def __init__(self, engine: LiveStream) -> None:
         self.engine = engine
         self.streamer: Any = None
 
