@@ -337,9 +337,11 @@ class AcquisitionSession:
         return self.lsl_error or ""
 
     def _start_lsl(self) -> None:
-        if self.lsl is None or self.lsl.engine is not self.engine:
+        engine = self.engine
+        assert engine is not None, "publishing on LSL needs a device"  # callers check
+        if self.lsl is None or self.lsl.engine is not engine:
             self._release_lsl()
-            self.sinks.add(LslPublishing(self.engine).start(), PUBLISHING)
+            self.sinks.add(LslPublishing(engine).start(), PUBLISHING)
 
     def _sync_lsl_quietly(self) -> None:
         self._release_lsl()
