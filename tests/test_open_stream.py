@@ -39,6 +39,27 @@ def test_only_open_stream_makes_an_engine() -> None:
     assert [m.split(":")[0] for m in makers] == [SEAM], makers
 
 
+def _engine_importers(repo: Path = REPO) -> list[str]:
+    """Product files outside acquisition/ and devices/ that import the engine's class
+    by name from anywhere (``from tactile_studio.devices import AcquisitionEngine``
+    passes the import contract, which watches the module ``devices.engine``)."""
+    found = []
+    for room in ("tactile_studio", "ui", "plugins"):
+        for path in sorted((repo / room).rglob("*.py")):
+            rel = path.relative_to(repo).as_posix()
+            if rel.startswith(("tactile_studio/acquisition/", "tactile_studio/devices/")):
+                continue
+            for node in ast.walk(ast.parse(path.read_text(), rel)):
+                if isinstance(node, ast.ImportFrom) and any(
+                        a.name == "AcquisitionEngine" for a in node.names):
+                    found.append(f"{rel}:{node.lineno}")
+    return found
+
+
+def test_nothing_above_acquisition_names_the_engine_class() -> None:
+    assert _engine_importers() == []
+
+
 def test_the_engine_is_not_re_exported_above_devices() -> None:
     """Holders get the engine from open_stream, never by importing its class: the
     packages above devices do not hand the class out."""
