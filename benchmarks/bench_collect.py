@@ -10,9 +10,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.plugins.simulated import SimulatedSensor
-from tactile_studio.protocol.collect import open_session
+from tactile_studio.protocol.collect import CollectionSettings, open_session
 from tactile_studio.protocol.runner import State, StreamClock
 from tactile_studio.protocol.runner_events import TrialStarted
 from tactile_studio.protocol.virtual import VirtualParticipant
@@ -26,8 +26,9 @@ def run(speed: float, blocks: int | None = None) -> None:
         protocol = protocol.with_overrides(blocks=blocks)
     with tempfile.TemporaryDirectory() as tmp:
         device = SimulatedSensor(speed=speed, gesture="idle")
-        engine = AcquisitionEngine(device, capacity=1 << 18 if speed == 0 else 1 << 16)
-        session = open_session(protocol, "P01", engine, Path(tmp), clock=StreamClock(engine))
+        engine = open_stream(device, capacity=1 << 18 if speed == 0 else 1 << 16)
+        session = open_session(CollectionSettings(protocol, "P01", Path(tmp)), engine,
+                               clock=StreamClock(engine))
         vp = VirtualParticipant(session.runner, device, "P01")
         vp.prepare()
         lags: list[int] = []

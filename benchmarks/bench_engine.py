@@ -13,8 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from tactile_studio.devices.engine import AcquisitionEngine
-from tactile_studio.devices.registry import create_device
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
 
@@ -22,7 +21,7 @@ from tactile_studio.storage.session import Session
 def run(settings: dict, seconds: float) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.h5"
-        engine = AcquisitionEngine(create_device("simulated", settings), capacity=1 << 17)
+        engine = open_stream("simulated", settings, capacity=1 << 17)
         recorder = Recorder(engine, path).start()
         engine.start()
         engine.wait_frames(1)

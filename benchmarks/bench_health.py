@@ -14,10 +14,10 @@ import numpy as np
 
 
 def _engine(**settings):
-    from tactile_studio.devices.engine import AcquisitionEngine
+    from tactile_studio.acquisition.open_stream import open_stream
     from tactile_studio.plugins.simulated import SimulatedSensor
     dev = SimulatedSensor(speed=0, gesture="idle", **settings)
-    engine = AcquisitionEngine(dev)
+    engine = open_stream(dev)
     engine.start()
     return dev, engine
 

@@ -50,15 +50,14 @@ def _inlet_counter(source_id: str, counts: dict, stop: threading.Event) -> None:
 
 
 def run(settings: dict, seconds: float, decoded: bool) -> dict:
-    from tactile_studio.devices.engine import AcquisitionEngine
-    from tactile_studio.devices.registry import create_device
+    from tactile_studio.acquisition.open_stream import open_stream
     from tactile_studio.storage.recorder import Recorder
     from tactile_studio.storage.session import Session
     from tactile_studio.streams.lsl_outlet import LslStreamer
 
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.h5"
-        engine = AcquisitionEngine(create_device("simulated", settings), capacity=1 << 17)
+        engine = open_stream("simulated", settings, capacity=1 << 17)
         recorder = Recorder(engine, path).start()
         lsl = LslStreamer(engine, decoded=decoded, name=f"bench-{os.getpid()}").start()
         counts, stop = {"received": 0, "connected": False}, threading.Event()

@@ -142,10 +142,10 @@ def figures(labels: list[str], scored: list[dict[str, Any]], unit: str, seeds: i
 def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
     """A real-time collection (simulated sensor at 43 Hz, virtual participant) checked by
     the run's model: seconds from each trial's end to its verdict on the trial."""
-    from tactile_studio.devices.engine import AcquisitionEngine
+    from tactile_studio.acquisition.open_stream import open_stream
     from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
     from tactile_studio.plugins.simulated import SimulatedSensor
-    from tactile_studio.protocol.collect import open_session
+    from tactile_studio.protocol.collect import CollectionSettings, open_session
     from tactile_studio.protocol.runner import StreamClock
     from tactile_studio.protocol.virtual import VirtualParticipant
     from tactile_studio.storage.protocol_file import load_protocol
@@ -155,10 +155,10 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
     ended_at: dict[int, float] = {}
     protocol = load_protocol("shear9").with_overrides(blocks=blocks, free_play_s=0.0)
     device = SimulatedSensor(speed=1.0, gesture="idle", seed=1)
-    engine = AcquisitionEngine(device)
+    engine = open_stream(device)
     with tempfile.TemporaryDirectory() as tmp:
-        session = open_session(protocol, "P90", engine, tmp, clock=StreamClock(engine),
-                               trial_check=check)
+        session = open_session(CollectionSettings(protocol, "P90", tmp, trial_check=check),
+                               engine, clock=StreamClock(engine))
         runner = session.runner
 
         def on(event: RunnerEvent) -> None:

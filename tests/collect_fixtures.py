@@ -10,7 +10,12 @@ from typing import Any
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
-from tactile_studio.protocol.collect import CollectionSession, open_session, resume_session
+from tactile_studio.protocol.collect import (
+    CollectionSession,
+    CollectionSettings,
+    open_session,
+    resume_session,
+)
 from tactile_studio.protocol.runner import StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.storage.protocol_file import Protocol, load_protocol
@@ -76,8 +81,8 @@ def make_rig(tmp_path: Path, protocol: Protocol, participant: str = "P01", *, sp
     if resume is not None:
         session = resume_session(resume, engine, beeper=beeps, clock=clk, **options)
     else:
-        session = open_session(protocol, participant, engine, tmp_path, seed=seed, beeper=beeps,
-                               clock=clk, **options)
+        session = open_session(CollectionSettings(protocol, participant, tmp_path, seed=seed,
+                                                  **options), engine, beeper=beeps, clock=clk)
     engine.start()
     return Rig(session, device, engine, beeps, clk)
 

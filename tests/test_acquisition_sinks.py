@@ -20,6 +20,7 @@ from lsl_fixtures import Collector, unique
 from waiting import wait_until
 
 from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition.file_sink import close_file_sink, open_file_sink
 from tactile_studio.acquisition.marker_recording import MarkerRecording
 from tactile_studio.acquisition.sinks import LslPublishing, Sink
 from tactile_studio.characterise.lab import Lab
@@ -27,7 +28,6 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.jobs import CancelToken
 from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
-from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.logbook import Logbook
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
@@ -139,7 +139,7 @@ def test_only_the_file_sink_makes_a_recorder() -> None:
                for p in (repo / room).rglob("*.py")]
     makers = sorted(str(p.relative_to(repo)) for p in sources
                     if p.name != "recorder.py" and "Recorder(" in p.read_text())
-    assert makers == ["tactile_studio/storage/file_sink.py"]
+    assert makers == ["tactile_studio/acquisition/file_sink.py"]
 
 
 LEFT_OPEN = textwrap.dedent("""

@@ -13,6 +13,8 @@ from tactile_studio.characterise import (
     CharacterisationRequest,
     Plan,
     RunControl,
+    check_force,
+    check_stage,
     run_characterisation,
 )
 from tactile_studio.characterise.analyse import drift_corrected
@@ -21,8 +23,6 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, SettingsError, UserError
 from tactile_studio.instruments import (
     SoftLimitError,
-    check_force,
-    check_stage,
     create_force,
     create_stage,
 )

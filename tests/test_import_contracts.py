@@ -40,6 +40,9 @@ def test_only_ui_is_left_out_of_the_qt_ban(contracts):
     plugins = {m.removeprefix("tactile_studio.") for m in
                contracts["plugins are reached only through entry points"]["source_modules"]}
     assert plugins == tops - {"plugins"}
+    engine = {m.removeprefix("tactile_studio.") for m in
+              contracts["only acquisition opens a stream"]["source_modules"]}
+    assert engine == tops - {"acquisition", "devices"}
     # the declared exceptions are the CLI's GUI launchers, nothing else
     for line in contracts["only ui imports Qt"]["ignore_imports"]:
         importer, imported = line.split(" -> ")
@@ -57,8 +60,9 @@ PLANTED = {
     ("plugins", "bad_qt.py"): "import pyqtgraph\n",
     # the collection screens reaching into the research workspace
     ("ui", "collect", "bad_research.py"): "import tactile_studio.ui.research.player\n",
-    # a widget building its own engine instead of asking the session
+    # a widget, and a core room, building their own engine instead of opening a stream
     ("ui", "bad_engine.py"): "from tactile_studio.devices.engine import AcquisitionEngine\n",
+    ("health", "bad_engine.py"): "import tactile_studio.devices.engine\n",
     # the core naming a plugin instead of finding it through its entry point
     ("live", "bad_plugin.py"): "import tactile_studio.plugins.simulated\n",
 }
@@ -78,5 +82,6 @@ def test_a_planted_import_breaks_the_contracts(tmp_path):
                  "tactile_studio.plugins.bad_qt -> pyqtgraph",
                  "tactile_studio.ui.collect.bad_research -> tactile_studio.ui.research.player",
                  "tactile_studio.ui.bad_engine -> tactile_studio.devices.engine",
+                 "tactile_studio.health.bad_engine -> tactile_studio.devices.engine",
                  "tactile_studio.live.bad_plugin -> tactile_studio.plugins.simulated"):
         assert line in out, line

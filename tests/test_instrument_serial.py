@@ -12,7 +12,8 @@ import time
 import numpy as np
 import pytest
 
-from tactile_studio.instruments import InstrumentError, SoftLimitError, check_force, check_stage
+from tactile_studio.characterise import check_force, check_stage
+from tactile_studio.instruments import InstrumentError, SoftLimitError
 from tactile_studio.instruments.loadcell_emulator import LoadCellEmulator
 from tactile_studio.instruments.printer_emulator import PrinterEmulator
 from tactile_studio.plugins.gcode_stage import GcodeStage

@@ -23,7 +23,7 @@ from waiting import wait_until
 from tactile_studio.cli import main
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.file_claims import FileBusy, NameTaken, first_free
-from tactile_studio.protocol.collect import open_session, resume_session
+from tactile_studio.protocol.collect import CollectionSettings, open_session, resume_session
 from tactile_studio.protocol.runner import StreamClock
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.storage import Session, SessionWriter
@@ -146,7 +146,7 @@ def _engine(seed: int = 0) -> AcquisitionEngine:
 
 def test_a_resume_while_another_resume_of_the_file_runs_is_refused(tmp_path):
     engines = [_engine(), _engine()]
-    first = open_session(mini_protocol(), "P01", engines[0], tmp_path,
+    first = open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), engines[0],
                          clock=StreamClock(engines[0]))
     engines[0].start()
     wait_until(lambda: first.recorder.rows_written >= 20, what="frames")
@@ -173,7 +173,8 @@ def test_a_resume_while_another_resume_of_the_file_runs_is_refused(tmp_path):
 
 def test_a_backup_name_taken_meanwhile_is_never_overwritten(tmp_path):
     engine = _engine()
-    first = open_session(mini_protocol(), "P01", engine, tmp_path, clock=StreamClock(engine))
+    first = open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), engine,
+                         clock=StreamClock(engine))
     first.close()
     path = first.path
     (tmp_path / f"{path.stem}.bak-1.h5").write_bytes(b"someone's copy")
@@ -196,7 +197,8 @@ def test_a_name_the_program_picks_moves_on_while_it_is_taken_or_claimed(tmp_path
 
 def test_two_collections_into_one_folder_each_get_their_own_file(tmp_path):
     engines = [_engine(), _engine(1)]
-    sessions = [open_session(mini_protocol(), "P01", e, tmp_path, clock=StreamClock(e))
+    sessions = [open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), e,
+                             clock=StreamClock(e))
                 for e in engines]
     for s in sessions:
         s.close()

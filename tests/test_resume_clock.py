@@ -276,7 +276,7 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
 
     from tactile_studio.devices import AcquisitionEngine, create_device
     from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-    from tactile_studio.protocol.collect import open_session, resume_session
+    from tactile_studio.protocol.collect import CollectionSettings, open_session, resume_session
     from tactile_studio.protocol.runner import StreamClock
 
     emu = SerialEmulator(array_source(np.full((997, 180), 30000, dtype=np.uint16)),
@@ -287,8 +287,8 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
     def run(resume: Path | None = None) -> Path:
         engine = AcquisitionEngine(create_device("serial", {"port": emu.port}))
         session = (resume_session(resume, engine, clock=StreamClock(engine)) if resume
-                   else open_session(mini_protocol(), "P01", engine, tmp_path,
-                                     clock=StreamClock(engine)))
+                   else open_session(CollectionSettings(mini_protocol(), "P01", tmp_path),
+                                     engine, clock=StreamClock(engine)))
         first = session.recorder.row_offset
         try:
             engine.start()

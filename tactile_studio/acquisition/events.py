@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from tactile_studio.acquisition.outcome import RecordingOutcome
-from tactile_studio.devices.engine import EngineState
+from tactile_studio.devices.frame_stream import EngineState
 
 
 @dataclass(frozen=True)

@@ -9,13 +9,15 @@ import queue
 from collections.abc import Sequence
 from typing import Any
 
+from tactile_studio.devices.frame_stream import LiveStream
+
 
 class MarkerRecording:
     """Marker inlets for one recording, a sink (acquisition/sinks.py): they open (and
     refuse a stream that is not there) when made, feed the engine, stop with the
     recording; the session's own events are not theirs to record (the file has them)."""
 
-    def __init__(self, engine: Any, names: Sequence[str]) -> None:
+    def __init__(self, engine: LiveStream, names: Sequence[str]) -> None:
         from tactile_studio.streams.marker_inlet import MarkerInlets
 
         self._problems: queue.SimpleQueue[str] = queue.SimpleQueue()

@@ -41,16 +41,17 @@ from tactile_studio.acquisition.events import (
     RecordingStopped,
     StateChanged,
 )
+from tactile_studio.acquisition.file_sink import close_file_sink, open_file_sink
 from tactile_studio.acquisition.marker_recording import MarkerRecording
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.acquisition.outcome import RecordingOutcome, outcome_of
 from tactile_studio.acquisition.sinks import FILE, OUTLET, PUBLISHING, LslPublishing, SinkList
 from tactile_studio.acquisition.status import LiveStatus
 from tactile_studio.acquisition.stream_health import DEFAULT_SILENCE_S, StreamHealth
 from tactile_studio.devices.contract import DevicePlugin
-from tactile_studio.devices.engine import ERROR, AcquisitionEngine, EngineState
+from tactile_studio.devices.frame_stream import ERROR, EngineState, LiveStream
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
-from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.recorder import Recorder
 
 
@@ -78,7 +79,7 @@ class AcquisitionSession:
         # (stopping a recording must not freeze the window)
         self.compress_in_background = compress_in_background
         self.clock = clock
-        self.engine: AcquisitionEngine | None = None
+        self.engine: LiveStream | None = None
         self.recorder: Recorder | None = None
         self.device_name: str | None = None
         self.settings: dict[str, Any] = {}
@@ -108,23 +109,23 @@ class AcquisitionSession:
             fn(event)
 
     # ---- the device and its engine -------------------------------------------------------
-    def open(self, name: str, settings: dict[str, Any] | None = None) -> AcquisitionEngine:
+    def open(self, name: str, settings: dict[str, Any] | None = None) -> LiveStream:
         """Make device ``name`` and its engine, not started yet (step 1). Bad settings
         raise SettingsError at once; failing to open shows later as the ``error`` state."""
         device = create_device(name, settings or {})
         return self.use_device(device, name)
 
-    def use_device(self, device: DevicePlugin, name: str | None = None) -> AcquisitionEngine:
+    def use_device(self, device: DevicePlugin, name: str | None = None) -> LiveStream:
         """Like :meth:`open` for a device made elsewhere (a CLI that checks it first)."""
         self.disconnect()
         self.device_name = name or device.name
         self.settings = dict(device.settings)
-        self.engine = AcquisitionEngine(device, capacity=self.capacity)
+        self.engine = open_stream(device, capacity=self.capacity)
         self._owns_engine = True
         self._seen_state = None
         return self.engine
 
-    def share(self, engine: AcquisitionEngine, name: str | None = None) -> AcquisitionEngine:
+    def share(self, engine: LiveStream, name: str | None = None) -> LiveStream:
         """Acquire from an engine someone else owns (and keeps running after us)."""
         self.disconnect()
         self.engine, self.device_name = engine, name
@@ -132,7 +133,7 @@ class AcquisitionSession:
         self._seen_state = None
         return engine
 
-    def start(self) -> AcquisitionEngine:
+    def start(self) -> LiveStream:
         """Start the engine (step 4): after the recorder and outlets that want its first
         frames and its connect event."""
         if self.engine is None:
@@ -142,7 +143,7 @@ class AcquisitionSession:
             self._emit(Connected(self.device_name))
         return self.engine
 
-    def connect(self, name: str, settings: dict[str, Any] | None = None) -> AcquisitionEngine:
+    def connect(self, name: str, settings: dict[str, Any] | None = None) -> LiveStream:
         """Open, publish on LSL if wanted, and start: the live screen's Connect."""
         self.open(name, settings)
         self._sync_lsl_quietly()  # before start: the connect event is a marker too
@@ -228,7 +229,7 @@ class AcquisitionSession:
             return None
         self._close_outlets()  # an outlet's last markers go into the file too
         # idempotent: a collection session may have closed it already; the hours of
-        # use are booked with it (storage/file_sink.py), never by the file writer
+        # use are booked with it (acquisition/file_sink.py), never by the file writer
         self.sinks.remove(rec)
         close_file_sink(rec, discard=discard)
         eng = self.engine
@@ -342,9 +343,11 @@ class AcquisitionSession:
         return self.lsl_error or ""
 
     def _start_lsl(self) -> None:
-        if self.lsl is None or self.lsl.engine is not self.engine:
+        engine = self.engine
+        assert engine is not None, "publishing on LSL needs a device"  # callers check
+        if self.lsl is None or self.lsl.engine is not engine:
             self._release_lsl()
-            self.sinks.add(LslPublishing(self.engine).start(), PUBLISHING)
+            self.sinks.add(LslPublishing(engine).start(), PUBLISHING)
 
     def _sync_lsl_quietly(self) -> None:
         self._release_lsl()

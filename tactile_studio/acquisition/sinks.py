@@ -2,7 +2,7 @@
 
 A sink is small (:class:`Sink`): ``start()`` sets it up, ``event(kind, **detail)``
 takes an application event, ``stop()`` closes it, once, writing its end. The HDF5
-recorder (storage/recorder.py, opened by storage/file_sink.py), the device's LSL
+recorder (storage/recorder.py, opened by acquisition/file_sink.py), the device's LSL
 publishing and the marker inlets of a recording are sinks.
 
 Frames are not handed to sinks: each pulls them (and the engine's own events) from the
@@ -21,6 +21,8 @@ recording).
 from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
+
+from tactile_studio.devices.frame_stream import LiveStream
 
 #: stop ranks: lower stops first (the stop order: engine, outlets, file, publishing)
 OUTLET, FILE, PUBLISHING = 0, 1, 2
@@ -45,7 +47,7 @@ class LslPublishing:
     """The device's LSL outlets as a sink: the one streamer per engine, shared with
     every other user of that engine (streams/lsl_outlet.py counts them)."""
 
-    def __init__(self, engine: Any) -> None:
+    def __init__(self, engine: LiveStream) -> None:
         self.engine = engine
         self.streamer: Any = None
 

@@ -15,9 +15,9 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import Any
 
 from tactile_studio.devices.engine_events import StreamResumed, StreamSilent
+from tactile_studio.devices.frame_stream import LiveStream
 
 DEFAULT_SILENCE_S = 2.0
 
@@ -25,7 +25,7 @@ DEFAULT_SILENCE_S = 2.0
 class StreamHealth:
     """Watches ``engine``'s frame count (see the module docstring)."""
 
-    def __init__(self, engine: Any, name: str | None = None,
+    def __init__(self, engine: LiveStream, name: str | None = None,
                  threshold_s: float = DEFAULT_SILENCE_S,
                  clock: Callable[[], float] = time.monotonic) -> None:
         self.engine = engine

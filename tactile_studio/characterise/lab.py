@@ -1,8 +1,8 @@
 """The lab during a run: sensor stream, load-cell stream and journal on one clock.
 
-:class:`Lab` owns the acquisition engine and the recorder (one session file), pulls the
-sensor frames and the load-cell samples it needs for each measurement, and journals
-every stage move, load-cell batch and measured point into the session (see
+:class:`Lab` owns the device's stream (``open_stream``) and the recorder (one session
+file), pulls the sensor frames and the load-cell samples it needs for each measurement,
+and journals every stage move, load-cell batch and measured point into the session (see
 docs/session-format.md, "Characterisation records").
 """
 
@@ -15,15 +15,15 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.acquisition.file_sink import close_file_sink, open_file_sink
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.devices.contract import DevicePlugin
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import IncompleteError
 from tactile_studio.instruments.contract import ForcePlugin, InstrumentError, StagePlugin
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.characterise import neighbours, still_moving, taxel_signals
 from tactile_studio.sensor.decode import relative_change
 from tactile_studio.sensor.layout import CENTRE
-from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 
 _KEEP_S = 120.0  # how much recent sensor/force history a measurement can look back on
 _STEADY_WINDOW_S = 3.0  # the stretch whose slope says whether the skin still moves
@@ -61,7 +61,7 @@ class Lab:
         self.layout = device.layout
         self.area_mm2 = indenter_area_mm2
         self.clock = stage.clock()
-        self.engine = AcquisitionEngine(device)
+        self.engine = open_stream(device)
         self.engine.start()
         self.recorder = open_file_sink(self.engine, session_path, {
             **metadata, "characterisation_clock": self.clock.name})

@@ -25,7 +25,7 @@ from tactile_studio.cli.recording_warnings import (
     watch_health,
 )
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
-from tactile_studio.devices.engine import ERROR, AcquisitionEngine
+from tactile_studio.devices.frame_stream import ERROR, LiveStream
 from tactile_studio.devices.registry import create_device, parse_set_options, plugin_class
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.gate import admit, wellness_status
@@ -33,6 +33,7 @@ from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
 from tactile_studio.protocol.collect import (
     CollectionSession,
+    CollectionSettings,
     check_participant,
     open_session,
     read_resume_info,
@@ -228,8 +229,7 @@ def run(args: argparse.Namespace) -> int:
     engine = acq.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:
-        session = resume_session(args.resume, engine, clock=clock,
-                                 recorder=acq.start_recording,
+        session = resume_session(args.resume, acq, clock=clock,
                                  allow_other_sensor=args.allow_other_sensor, trial_check=check)
         print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
@@ -238,11 +238,10 @@ def run(args: argparse.Namespace) -> int:
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
         print(status.text(), file=sys.stderr)
-        session = open_session(protocol, participant, engine, out, seed=seed, clock=clock,
-                               condition=args.condition,
-                               wellness=admit(status, args.wellness_override),
-                               recorder=acq.start_recording, pilot=args.pilot,
-                               trial_check=check, personalise_check=args.qc_personalise)
+        session = open_session(CollectionSettings(
+            protocol, participant, out, seed=seed, condition=args.condition,
+            wellness=admit(status, args.wellness_override), pilot=args.pilot,
+            trial_check=check, personalise_check=args.qc_personalise), acq, clock=clock)
         print(f"writing {session.path}", file=sys.stderr)
     if check is not None:
         announce_check(check, protocol, session.runner)
@@ -267,7 +266,7 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _drive(session: CollectionSession, vp: VirtualParticipant, engine: AcquisitionEngine,
+def _drive(session: CollectionSession, vp: VirtualParticipant, engine: LiveStream,
            acq: AcquisitionSession) -> None:
     runner = session.runner
     progress = TerminalProgress(f"collect {session.participant}")

@@ -9,9 +9,10 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import (
     EXIT_CHECK_FAIL,
@@ -88,10 +89,10 @@ def _split(text: str) -> list[str]:
     return [t.strip() for t in text.split(",") if t.strip()]
 
 
-def _start(args: argparse.Namespace) -> tuple[AcquisitionEngine, Placer]:
+def _start(args: argparse.Namespace) -> tuple[LiveStream, Placer]:
     device = create_device(args.device, parse_set_options(args.set))
     placer = SimulatedPlacer(device) if args.auto else Placer()
-    engine = AcquisitionEngine(device)
+    engine = open_stream(device)
     engine.start()
     if not engine.wait_frames(1, timeout=10.0):
         engine.stop()

@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from tactile_studio.cli.recording_warnings import warn
+from tactile_studio.devices.frame_stream import LiveStream
 
 MARKERS_HELP = ("record the markers of this LSL marker stream (by name; repeatable), each "
                 "as an event at the frame its timestamp falls on, e.g. PsychoPy's")
@@ -18,7 +19,7 @@ def add_markers_option(parser: argparse.ArgumentParser) -> None:
                         help=MARKERS_HELP)
 
 
-def start_markers(engine: Any, names: list[str] | None) -> Any:
+def start_markers(engine: LiveStream, names: list[str] | None) -> Any:
     """Inlets on ``names`` feeding ``engine`` (hand them to ``session.add_outlet``, which
     stops them before the file closes); a stream not found is a one-line error."""
     from tactile_studio.streams.marker_inlet import MarkerInlets

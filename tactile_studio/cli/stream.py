@@ -8,9 +8,10 @@ import sys
 import time
 from typing import Any
 
+from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.cli.argtypes import finite_float
-from tactile_studio.devices.engine import ERROR, FINISHED, AcquisitionEngine
-from tactile_studio.devices.registry import create_device, parse_set_options
+from tactile_studio.devices.frame_stream import ERROR, FINISHED, LiveStream
+from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
 from tactile_studio.terminal import printable, raw_stream
@@ -30,7 +31,7 @@ def add_lsl_wait_option(parser: argparse.ArgumentParser) -> None:
                              "recipient (e.g. LabRecorder) to open the streams (default 0)")
 
 
-def start_lsl(engine: AcquisitionEngine, decoded: bool = False, name: str | None = None,
+def start_lsl(engine: LiveStream, decoded: bool = False, name: str | None = None,
               wait_s: float = 0.0) -> Any:
     """A started LslStreamer on ``engine`` (LslUnavailable, one line, without liblsl);
     waits up to ``wait_s`` for a recipient so nothing from the start is missed."""
@@ -72,7 +73,7 @@ def cmd_stream(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     if args.name is not None and not args.name.strip():
         raise UserError("--name must not be empty")
-    engine = AcquisitionEngine(create_device(args.device, parse_set_options(args.set)))
+    engine = open_stream(args.device, parse_set_options(args.set))
     streamer = start_lsl(engine, decoded=args.decoded, name=args.name, wait_s=args.lsl_wait)
     engine.start()
     token = CancelToken()

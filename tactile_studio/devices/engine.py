@@ -14,7 +14,6 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable
-from enum import StrEnum
 from typing import Any
 
 import numpy as np
@@ -33,36 +32,20 @@ from tactile_studio.devices.engine_events import (
     SequenceGap,
     Tared,
 )
+from tactile_studio.devices.frame_stream import (  # noqa: F401 (the states, named here too)
+    CONNECTING,
+    ERROR,
+    FINISHED,
+    IDLE,
+    RECONNECTING,
+    RUNNING,
+    STOPPED,
+    EngineState,
+)
 from tactile_studio.devices.ring import FrameChunk, RingBuffer
 from tactile_studio.errors import DeviceError, DeviceLost
 from tactile_studio.sensor.decode import compute_baseline
 
-
-class EngineState(StrEnum):
-    """Where the engine is (strings, so they print and compare as their values)."""
-
-    IDLE = "idle"
-    CONNECTING = "connecting"
-    RUNNING = "running"
-    RECONNECTING = "reconnecting"
-    FINISHED = "finished"
-    STOPPED = "stopped"
-    ERROR = "error"
-
-    @property
-    def is_live(self) -> bool:
-        """Streaming or trying to (frames may still arrive)."""
-        return self in (EngineState.CONNECTING, EngineState.RUNNING, EngineState.RECONNECTING)
-
-    @property
-    def is_over(self) -> bool:
-        """Ended for good: finished, stopped or failed."""
-        return self in (EngineState.FINISHED, EngineState.STOPPED, EngineState.ERROR)
-
-
-IDLE, CONNECTING, RUNNING, RECONNECTING, FINISHED, STOPPED, ERROR = (
-    EngineState.IDLE, EngineState.CONNECTING, EngineState.RUNNING, EngineState.RECONNECTING,
-    EngineState.FINISHED, EngineState.STOPPED, EngineState.ERROR)
 RECONNECT_BACKOFF_S = (0.1, 0.2, 0.5, 1.0, 2.0)
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import ERROR, FINISHED, STOPPED, AcquisitionEngine
+from tactile_studio.devices.frame_stream import ERROR, FINISHED, STOPPED, LiveStream
 from tactile_studio.errors import Cancelled, DeviceError, UserError
 from tactile_studio.health.events import HealthEvent, Misplaced, Phase, Warned
 from tactile_studio.jobs import CancelToken
@@ -135,7 +135,7 @@ class SimulatedPlacer(Placer):
 class Bench:
     """Frames from an engine, read in order, and the load steps over them."""
 
-    def __init__(self, engine: AcquisitionEngine, placer: Placer | None = None,
+    def __init__(self, engine: LiveStream, placer: Placer | None = None,
                  timing: Timing = Timing(), cancel: CancelToken | None = None,
                  on_event: EventFn | None = None) -> None:
         self.engine, self.layout = engine, engine.layout

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.errors import UserError
 from tactile_studio.file_claims import written_whole
 from tactile_studio.health.bench import Bench, EventFn, Placer, Timing
@@ -57,7 +57,7 @@ class CalibrationSpec:
     replace: bool = False                   # drop the active calibration's other taxels
 
 
-def run_calibration(engine: AcquisitionEngine, spec: CalibrationSpec,
+def run_calibration(engine: LiveStream, spec: CalibrationSpec,
                     out: str | os.PathLike | None = None, placer: Placer | None = None,
                     timing: Timing = Timing(), progress: ProgressFn = no_progress,
                     cancel: CancelToken | None = None, on_event: EventFn | None = None,

@@ -12,7 +12,8 @@ import queue
 import threading
 from typing import Any
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.acquisition.open_stream import open_stream
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.health.bench import Bench, Placer, SimulatedPlacer, Timing
@@ -36,7 +37,7 @@ class HealthRun:
         self.result: dict[str, Any] | None = None
         self.error: str | None = None
         self.fraction = 0.0
-        self.engine: AcquisitionEngine | None = None
+        self.engine: LiveStream | None = None
         self._bench: Bench | None = None
         self._events: queue.Queue[HealthEvent] = queue.Queue()
         self._thread = threading.Thread(target=self._run, name="health-run", daemon=True)
@@ -78,7 +79,7 @@ class HealthRun:
         self._emit(Progress(fraction, message))
 
     def _run(self) -> None:
-        engine = self.engine = AcquisitionEngine(self.device)
+        engine = self.engine = open_stream(self.device)
         try:
             # what is measured is stored: a damaged logbook is set aside first, said here
             with Logbook(on_damage="replace") as book:

@@ -2,11 +2,11 @@
 
 Contracts in :mod:`.contract`, discovery through the ``tactile_studio.stages`` and
 ``tactile_studio.forces`` entry-point groups (or ``register_stage`` / ``register_force``)
-in :mod:`.registry`, conformance checks
-for plugin authors in :mod:`.conformance`. See docs/characterisation.md.
+in :mod:`.registry`. The conformance checks for plugin authors (``check_stage``,
+``check_force``) stream the sensor, so they live above acquisition, in
+:mod:`tactile_studio.characterise`. See docs/characterisation.md.
 """
 
-from tactile_studio.instruments.conformance import InstrumentCheckError, check_force, check_stage
 from tactile_studio.instruments.contract import (
     ForcePlugin,
     ForceSamples,
@@ -24,7 +24,7 @@ from tactile_studio.instruments.registry import (
 )
 
 __all__ = [
-    "ForcePlugin", "ForceSamples", "InstrumentCheckError", "InstrumentError", "LabClock",
-    "SoftLimitError", "StagePlugin", "available", "check_force", "check_stage", "create_force",
-    "create_stage", "register_force", "register_stage",
+    "ForcePlugin", "ForceSamples", "InstrumentError", "LabClock", "SoftLimitError",
+    "StagePlugin", "available", "create_force", "create_stage", "register_force",
+    "register_stage",
 ]

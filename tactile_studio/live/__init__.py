@@ -8,8 +8,8 @@ The code lives in focused modules of this package; their public names are export
   :class:`History`, :func:`parse_taxel_name`);
 - the acquisition itself (device, engine, recording, LSL) is
   :mod:`tactile_studio.acquisition` (:class:`AcquisitionSession`, the widgets' only way
-  to it); :class:`AcquisitionEngine`, the engine it hands out, is re-exported here for
-  the views that hold one;
+  to it); the views hold the stream it hands out by the
+  :class:`~tactile_studio.devices.frame_stream.LiveStream` protocol;
 - :mod:`tactile_studio.live.meters`: :class:`RateMeter` (display fps) and
   :class:`LatencyMeter` (device-to-paint latency);
 - :mod:`tactile_studio.live.discovery`: :func:`run_discovery`, the device panel's "Scan".
@@ -17,7 +17,6 @@ The code lives in focused modules of this package; their public names are export
 
 from __future__ import annotations
 
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.live.discovery import (
     discover_is_instant,
     discover_setting,
@@ -36,7 +35,7 @@ from tactile_studio.live.view import (
 )
 
 __all__ = [
-    "QUANTITIES", "QUANTITY_LABELS", "AcquisitionEngine", "CellReadout", "History",
+    "QUANTITIES", "QUANTITY_LABELS", "CellReadout", "History",
     "LatencyMeter", "LiveFrame", "LiveView", "RateMeter", "discover_is_instant",
     "discover_setting", "discover_settings", "parse_taxel_name", "run_discovery",
 ]

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.sensor.decode import FrameDecoder, compute_baseline
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.sensor.taxels import parse_taxel
@@ -182,17 +182,17 @@ class LiveView:
     1000 frames a second.
     """
 
-    def __init__(self, engine: AcquisitionEngine | None = None, virtual: bool = False,
+    def __init__(self, engine: LiveStream | None = None, virtual: bool = False,
                  history_s: float = 10.0, max_points: int = 1000) -> None:
         self.virtual = virtual
         self.history_s = history_s
         self.max_points = max_points
-        self.engine: AcquisitionEngine | None = None
+        self.engine: LiveStream | None = None
         self._cache_key: tuple | None = None
         self._cache: LiveFrame | None = None
         self.attach(engine)
 
-    def attach(self, engine: AcquisitionEngine | None) -> None:
+    def attach(self, engine: LiveStream | None) -> None:
         """Show another engine (or none); forgets everything decoded so far."""
         self.engine = engine
         self._cache_key, self._cache = None, None

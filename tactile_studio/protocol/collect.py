@@ -1,7 +1,10 @@
-"""Opening and resuming collection sessions: engine + recorder + runner, Qt-free.
+"""Opening and resuming collection sessions: a runner over the acquisition seam, Qt-free.
 
 Both the GUI and ``tactile-studio collect`` use these, so a session file looks the same
-whoever ran it.
+whoever ran it. A collection is not a second way to assemble a recording: its file is
+the :class:`~tactile_studio.acquisition.session.AcquisitionSession`'s recording
+(``start_recording``, the steps the main window uses); a caller holding only a stream
+gets a session of its own that shares it.
 
 Resume: a session file whose writer was killed cannot be reopened for writing (HDF5's
 SWMR "open for write" flag stays set), and appending to a file in place risks the very
@@ -27,7 +30,9 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.devices.engine import AcquisitionEngine, EngineState
+from tactile_studio.acquisition.file_sink import close_file_sink
+from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.devices.frame_stream import EngineState, LiveStream
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
 from tactile_studio.file_claims import first_free
@@ -37,16 +42,12 @@ from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
 from tactile_studio.protocol.runner import Clock, CollectionRunner, RunnerOptions, State
 from tactile_studio.protocol.trial_check import TrialChecker, unknown_gestures
-from tactile_studio.storage.file_sink import close_file_sink, open_file_sink
 from tactile_studio.storage.protocol_file import Protocol, restored_protocol
 from tactile_studio.storage.recorder import Recorder
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.trials import trials_done
 
 COPY_CHUNK = 8192
-# How a collection makes its recorder: ``(path, metadata, *, row_offset, base_counters,
-# start) -> Recorder``; an AcquisitionSession's ``start_recording`` is one.
-RecorderFactory = Callable[..., Recorder]
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
 
 
@@ -57,7 +58,7 @@ class CollectionSession:
 
     runner: CollectionRunner
     recorder: Recorder
-    engine: AcquisitionEngine
+    engine: LiveStream
     path: Path
     protocol: Protocol
     participant: str
@@ -97,7 +98,7 @@ class CollectionSession:
             self.restore_gesture = None
 
 
-def quiet_simulator(engine: AcquisitionEngine) -> str | None:
+def quiet_simulator(engine: LiveStream) -> str | None:
     """A simulated device performing by itself (its demo cycle, gesture ``auto``, or a
     scripted gesture) goes idle from the next frame: a collection records the
     participant's touches only, never the simulator's own. Returns the mode it had (to go
@@ -110,7 +111,7 @@ def quiet_simulator(engine: AcquisitionEngine) -> str | None:
     return mode
 
 
-def touch_source(engine: AcquisitionEngine, virtual: bool = False, pilot: bool = False) -> str:
+def touch_source(engine: LiveStream, virtual: bool = False, pilot: bool = False) -> str:
     """Who makes the touches a collection records, as the console shows it."""
     if virtual or (pilot and can_perform(engine)):
         return "Touches: a virtual participant, on the simulated sensor"
@@ -123,7 +124,7 @@ def touch_source(engine: AcquisitionEngine, virtual: bool = False, pilot: bool =
     return f"Touches: the sensor ({engine.device_info().get('plugin') or 'device'})"
 
 
-def can_perform(engine: AcquisitionEngine) -> bool:
+def can_perform(engine: LiveStream) -> bool:
     """The device is a simulator a virtual participant can perform on."""
     return hasattr(engine.device, "perform")
 
@@ -155,55 +156,87 @@ def session_metadata(protocol: Protocol, participant: str, seed: int, orders: li
     }
 
 
-def open_session(protocol: Protocol, participant: str, engine: AcquisitionEngine,
-                 out_dir: str | os.PathLike, *, seed: int = 0, condition: str = "",
-                 beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                 hold_flagged: bool = False, path: str | os.PathLike | None = None,
-                 wellness: dict[str, Any] | None = None,
-                 recorder: RecorderFactory | None = None,
-                 pilot: bool = False, trial_check: TrialChecker | None = None,
-                 personalise_check: bool = False) -> CollectionSession:
+@dataclass(frozen=True)
+class CollectionSettings:
+    """What a new collection is (who, which protocol, where) and how its runner goes:
+    the setup form's choices, ``collect``'s options, a test's few."""
+
+    protocol: Protocol
+    participant: str
+    out_dir: str | os.PathLike[str]
+    seed: int = 0
+    condition: str = ""
+    auto_continue: bool = True
+    hold_flagged: bool = False
+    #: the caller's file name (refused if taken or being written); default: a new name
+    path: str | os.PathLike[str] | None = None
+    #: the sensor's health at the start (tactile_studio.health.gate), kept in the file
+    wellness: dict[str, Any] | None = None
+    #: a rehearsal: the file marked so and named ``PILOT_...`` (see session_metadata)
+    pilot: bool = False
+    #: the model that checks each trial (protocol/trial_check.py); its description is
+    #: the metadata's ``trial_check``
+    trial_check: TrialChecker | None = None
+    #: fit the check to the participant with their first block's trials
+    personalise_check: bool = False
+
+
+def acquisition_of(source: AcquisitionSession | LiveStream) -> AcquisitionSession:
+    """The acquisition session a collection records through: the caller's, or, for a
+    bare stream (a test's, a benchmark's), one of its own that shares it (and never
+    starts or stops it)."""
+    if isinstance(source, AcquisitionSession):
+        if source.engine is None:
+            raise RuntimeError("open a device on the acquisition session before collecting")
+        return source
+    acquisition = AcquisitionSession()
+    acquisition.share(source)
+    return acquisition
+
+
+def open_session(settings: CollectionSettings, source: AcquisitionSession | LiveStream, *,
+                 beeper: Any = None, clock: Clock | None = None) -> CollectionSession:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
-    ``pilot``: a rehearsal (the file marked so and named ``PILOT_...``; see
-    :func:`session_metadata`). ``trial_check``: the model that checks each trial
-    (protocol/trial_check.py); its description is the metadata's ``trial_check``;
-    ``personalise_check``: fit it to the participant with their first block's trials.
-
-    ``engine`` may be started or not: opened before ``engine.start()`` (the start order
-    of an AcquisitionSession) file rows equal engine frames; on a running stream the
-    file begins now. ``recorder`` makes the recorder (an AcquisitionSession's
-    ``start_recording``, so the session knows about the recording); default: a plain one.
+    ``source``: the acquisition session (its recording is the collection's file) or a
+    bare stream (:func:`acquisition_of`). Its stream may be started or not: the file
+    opened before ``start()`` (the start order of an AcquisitionSession) has rows equal
+    to stream frames; on a running stream the file begins now.
     """
-    participant = check_participant(participant)
-    out = make_out_dir(out_dir)  # a missing folder is made: the rule of every output
-    orders = block_orders(protocol, participant, seed)
-    practice = practice_order(protocol, participant, seed)
-    meta = session_metadata(protocol, participant, seed, orders, practice, condition, pilot)
-    if wellness is not None:  # the sensor's health at the start (tactile_studio.health.gate)
-        meta["wellness"] = wellness
-        meta["sensor_id"] = wellness.get("sensor_id") or None
-    if trial_check is not None:
-        meta["trial_check"] = check_metadata(trial_check, protocol)
+    s = settings
+    acquisition = acquisition_of(source)
+    engine = acquisition.engine
+    assert engine is not None  # acquisition_of says so
+    participant = check_participant(s.participant)
+    out = make_out_dir(s.out_dir)  # a missing folder is made: the rule of every output
+    orders = block_orders(s.protocol, participant, s.seed)
+    practice = practice_order(s.protocol, participant, s.seed)
+    meta = session_metadata(s.protocol, participant, s.seed, orders, practice, s.condition,
+                            s.pilot)
+    if s.wellness is not None:  # the sensor's health at the start
+        meta["wellness"] = s.wellness
+        meta["sensor_id"] = s.wellness.get("sensor_id") or None
+    if s.trial_check is not None:
+        meta["trial_check"] = check_metadata(s.trial_check, s.protocol)
     restore = quiet_simulator(engine)  # before the file: its settings say idle
-    make = _factory(engine, recorder)
     try:
-        if path is not None:  # the caller's name: refused if taken or being written
-            rec = make(Path(path), meta)
+        if s.path is not None:  # the caller's name: refused if taken or being written
+            rec = acquisition.start_recording(Path(s.path), meta)
         else:
-            rec = first_free(session_names(out, participant, protocol, pilot),
-                             lambda p: make(p, meta))
+            rec = first_free(session_names(out, participant, s.protocol, s.pilot),
+                             lambda p: acquisition.start_recording(p, meta))
     except BaseException:
         if restore is not None:
             engine.device.set_gesture(restore)
         raise
-    options = RunnerOptions(beeper, clock, auto_continue, hold_flagged, trial_check,
-                            personalise_check)
-    runner = CollectionRunner(protocol, engine, rec, participant, orders, practice=practice,
+    options = RunnerOptions(beeper=beeper, clock=clock, auto_continue=s.auto_continue,
+                            hold_flagged=s.hold_flagged, trial_check=s.trial_check,
+                            personalise_check=s.personalise_check)
+    runner = CollectionRunner(s.protocol, engine, rec, participant, orders, practice=practice,
                               options=options)
-    return CollectionSession(runner, rec, engine, Path(rec.path), protocol, participant, seed,
-                             touches=touch_source(engine, pilot=pilot),
-                             restore_gesture=restore, pilot=pilot)
+    return CollectionSession(runner, rec, engine, Path(rec.path), s.protocol, participant,
+                             s.seed, touches=touch_source(engine, pilot=s.pilot),
+                             restore_gesture=restore, pilot=s.pilot)
 
 
 def check_metadata(trial_check: TrialChecker, protocol: Protocol) -> dict[str, Any]:
@@ -211,20 +244,6 @@ def check_metadata(trial_check: TrialChecker, protocol: Protocol) -> dict[str, A
     gestures it does not know (not scored)."""
     return {**trial_check.describe(),
             "not_scored": unknown_gestures(trial_check, protocol.gesture_names)}
-
-
-def _factory(engine: AcquisitionEngine, make: RecorderFactory | None) -> RecorderFactory:
-    if make is not None:
-        return make
-
-    def plain(path: Path, metadata: dict[str, Any], *, row_offset: int = 0,
-              base_counters: dict[str, Any] | None = None, start: bool = True,
-              overwrite: bool = False, staged: bool = False) -> Recorder:
-        return open_file_sink(engine, path, metadata, row_offset=row_offset,
-                              base_counters=base_counters, start=start,
-                              overwrite=overwrite, staged=staged)
-
-    return plain
 
 
 def read_resume_info(path: str | os.PathLike,
@@ -291,7 +310,7 @@ class OtherSensorRefused(UserError):
                          "with --allow-other-sensor NOTE)")
 
 
-def other_sensor(info: dict[str, Any], engine: AcquisitionEngine) -> str | None:
+def other_sensor(info: dict[str, Any], engine: LiveStream) -> str | None:
     """Why ``engine`` is not the device and sensor the file was recorded with (another
     plugin, another frame rate, another sensor ID such as the simulator's seed), or None
     when it is. A sensor an earlier resume went on to with a note is the file's too: the
@@ -380,19 +399,21 @@ def last_device_time(old: Session) -> float | None:
     return last if np.isfinite(last) else None
 
 
-def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper: Any = None,
-                   clock: Clock | None = None, auto_continue: bool = True,
+def resume_session(path: str | os.PathLike, source: AcquisitionSession | LiveStream, *,
+                   beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
                    hold_flagged: bool = False,
-                   recorder: RecorderFactory | None = None,
                    allow_other_sensor: str | None = None,
                    protocol_at_hand: Protocol | None = None,
                    trial_check: TrialChecker | None = None) -> CollectionSession:
     """Continue a killed or closed session at the next trial of its stored order.
 
     Refused on another device or sensor than the file's, unless ``allow_other_sensor``
-    gives the reason (stored as a note and in the metadata). ``protocol_at_hand``: see
-    ``read_resume_info``."""
+    gives the reason (stored as a note and in the metadata). ``source``: as for
+    :func:`open_session`. ``protocol_at_hand``: see ``read_resume_info``."""
     path = Path(path)
+    acquisition = acquisition_of(source)
+    engine = acquisition.engine
+    assert engine is not None  # acquisition_of says so
     info = read_resume_info(path, protocol_at_hand)
     if info["trials_done"] >= info["trials_total"]:
         raise UserError(f"{path}: session is complete ({info['trials_done']} trials); "
@@ -420,9 +441,9 @@ def resume_session(path: str | os.PathLike, engine: AcquisitionEngine, *, beeper
         after = last_device_time(old)
         # the file is claimed here (a recording or another resume of it is refused
         # before anything is copied); the copy is staged beside it until published
-        rec = _factory(engine, recorder)(path, meta, row_offset=n,
-                                         base_counters=old.journal.counters, start=False,
-                                         overwrite=True, staged=True)
+        rec = acquisition.start_recording(path, meta, row_offset=n,
+                                          base_counters=old.journal.counters, start=False,
+                                          overwrite=True, staged=True)
         try:
             trials = rec.copy_earlier(old, COPY_CHUNK)
         except BaseException:

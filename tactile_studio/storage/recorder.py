@@ -97,7 +97,7 @@ class Recorder:
         # written with the first frame (begin_segment)
         self._segment: tuple[float | None, float, dict[str, Any]] | None = None
         # called once, after the file is closed, however it stops (its owner, the exit
-        # hook): the file sink books the hours of use there (storage/file_sink.py)
+        # hook): the file sink books the hours of use there (acquisition/file_sink.py)
         self._on_stop: list[Callable[[Recorder], None]] = []
         self._closed = False
         _OPEN.add(self)

@@ -2,7 +2,7 @@
 
 The recorder writes a file and nothing else; every recording (the acquisition session,
 a collection without one, the characterisation lab) is opened through
-storage/file_sink.py, which looks the sensor up before it starts (:func:`sensor_metadata`)
+acquisition/file_sink.py, which looks the sensor up before it starts (:func:`sensor_metadata`)
 and books its hours of use when it stops, however it stops (:func:`book_usage`). A damaged or
 unwritable logbook never stops a recording: it is
 said once and the file is recorded anyway.

@@ -22,8 +22,8 @@ import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
-from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.engine_events import LslClock, LslClockStopped
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.streams.clock import ClockOffset, measure_offset
 from tactile_studio.streams.lsl_lib import load_pylsl
 from tactile_studio.streams.lsl_meta import (
@@ -58,7 +58,7 @@ STOP_GRACE_S = 0.2
 class LslStreamer:
     """Frame + marker outlets over ``engine`` (see the module docstring)."""
 
-    def __init__(self, engine: AcquisitionEngine, decoded: bool = False,
+    def __init__(self, engine: LiveStream, decoded: bool = False,
                  name: str | None = None, poll_s: float = 0.02,
                  clock_check_s: float = 10.0,
                  host_clock: Callable[[], float] = time.time) -> None:
@@ -255,7 +255,7 @@ _SHARED: dict[int, list[Any]] = {}
 _SHARED_LOCK = threading.Lock()
 
 
-def acquire_streamer(engine: AcquisitionEngine, decoded: bool = False) -> LslStreamer:
+def acquire_streamer(engine: LiveStream, decoded: bool = False) -> LslStreamer:
     """The running streamer of ``engine`` (started if none); pair with release_streamer."""
     with _SHARED_LOCK:
         entry = _SHARED.get(id(engine))

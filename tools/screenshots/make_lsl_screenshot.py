@@ -20,14 +20,13 @@ def main() -> int:
     os.environ.setdefault("LSLAPICFG", str(HERE.parent.parent / "tests" / "lsl_api.cfg"))
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     os.environ["TACTILE_STUDIO_SETTINGS"] = os.path.join(tempfile.mkdtemp(), "settings.ini")
-    from tactile_studio.devices.engine import AcquisitionEngine
-    from tactile_studio.devices.registry import create_device
+    from tactile_studio.acquisition.open_stream import open_stream
     from tactile_studio.streams.lsl_outlet import LslStreamer
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.main_window import MainWindow, wait_for
 
     ensure_app()
-    engine = AcquisitionEngine(create_device("simulated", {"rate": 43, "gesture": "Twist"}))
+    engine = open_stream("simulated", {"rate": 43, "gesture": "Twist"})
     streamer = LslStreamer(engine, name="Lab-sensor").start()
     engine.start()
     w = MainWindow(device="lsl", settings={"name": "Lab-sensor"}, persist=False)

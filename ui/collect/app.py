@@ -17,11 +17,12 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QMenu, QWidget
 
-from tactile_studio.acquisition import AcquisitionEngine, AcquisitionSession
+from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.errors import UserError
 from tactile_studio.ui.collect.console import CollectConsole
 
-LiveSource = Callable[[], tuple[AcquisitionEngine | None, str | None]]
+LiveSource = Callable[[], tuple[LiveStream | None, str | None]]
 _RUNNING: list[CollectConsole] = []  # consoles opened by run_console
 
 

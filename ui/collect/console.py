@@ -35,13 +35,14 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.acquisition import AcquisitionEngine, AcquisitionSession
+from tactile_studio.acquisition import AcquisitionSession
 from tactile_studio.acquisition.events import (
     AcquisitionEvent,
     Health,
     RecordingStarted,
     RecordingStopped,
 )
+from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.gate import admit, wellness_status
@@ -49,6 +50,7 @@ from tactile_studio.live import LiveView
 from tactile_studio.live.meters import PaintPacer
 from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
 from tactile_studio.protocol.collect import (
+    CollectionSettings,
     OtherSensorRefused,
     can_perform,
     open_session,
@@ -80,7 +82,7 @@ class CollectConsole(ConsoleActions):
     """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
     given); ``engine`` is a live engine it may share (the setup's "live device")."""
 
-    def __init__(self, engine: AcquisitionEngine | None = None, live_device: str | None = None,
+    def __init__(self, engine: LiveStream | None = None, live_device: str | None = None,
                  settings: QSettings | None = None, beeper: QtBeeper | None = None,
                  clock: Any = None, parent: QWidget | None = None,
                  acquisition: AcquisitionSession | None = None) -> None:
@@ -288,11 +290,11 @@ class CollectConsole(ConsoleActions):
 
     # ---- opening and closing sessions ---------------------------------------------------
     @property
-    def engine(self) -> AcquisitionEngine | None:
+    def engine(self) -> LiveStream | None:
         """The engine of the open (or last) session."""
         return self.acquisition.engine
 
-    def _engine_for(self, device: str | None, dev_settings: dict[str, Any]) -> AcquisitionEngine:
+    def _engine_for(self, device: str | None, dev_settings: dict[str, Any]) -> LiveStream:
         """Step 1 of the session's start order: the device, opened but not started."""
         if device is None:
             if self.shared_engine is None:
@@ -321,13 +323,12 @@ class CollectConsole(ConsoleActions):
             self._open_dialog(dlg)
             return False
         health = admit(status, override_note)
-        return self._open(lambda eng: open_session(
-            choice.protocol, participant=choice.participant, engine=eng,
-            out_dir=choice.out_dir, seed=choice.seed, condition=choice.condition,
-            beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
-            auto_continue=choice.auto_continue, wellness=health,
-            recorder=self.acquisition.start_recording, pilot=choice.pilot,
+        return self._open(lambda: open_session(CollectionSettings(
+            choice.protocol, participant=choice.participant, out_dir=choice.out_dir,
+            seed=choice.seed, condition=choice.condition, hold_flagged=choice.hold_flagged,
+            auto_continue=choice.auto_continue, wellness=health, pilot=choice.pilot,
             trial_check=self._off_gui(choice.qc.checker(choice.participant))),
+            self.acquisition, beeper=self.beeper, clock=self.clock),
             choice.device, choice.device_settings)
 
     @staticmethod
@@ -354,10 +355,9 @@ class CollectConsole(ConsoleActions):
         except UserError as exc:
             self.setup.show_error(str(exc))
             return False
-        return self._open(lambda eng: resume_session(
-            Path(path), engine=eng, beeper=self.beeper, clock=self.clock,
+        return self._open(lambda: resume_session(
+            Path(path), self.acquisition, beeper=self.beeper, clock=self.clock,
             hold_flagged=hold, auto_continue=auto,
-            recorder=self.acquisition.start_recording,
             allow_other_sensor=allow_other_sensor,
             protocol_at_hand=self.setup.current_protocol(),
             trial_check=self._off_gui(
@@ -377,8 +377,8 @@ class CollectConsole(ConsoleActions):
     def _open(self, make: Any, device: str | None, dev_settings: dict[str, Any]) -> bool:
         self.close_session()
         try:  # the session's start order: device, recorder (the file), LSL, then start
-            engine = self._engine_for(device, dev_settings)
-            self.session = make(engine)
+            self._engine_for(device, dev_settings)
+            self.session = make()
         except OtherSensorRefused as exc:  # offered: resume on it, saying why
             self.setup.show_error(f"{exc.path.name}: {exc.why}.")
             self.setup.offer_other_sensor(exc.why)

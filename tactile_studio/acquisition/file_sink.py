@@ -1,15 +1,12 @@
 """The HDF5 file as a sink: the one way anything opens and closes a recording's file.
 
-The acquisition session, a collection run without one (protocol/collect.py) and the
-characterisation lab all record through :func:`open_file_sink` and
+The acquisition session (and through it every collection, protocol/collect.py) and the
+characterisation lab record through :func:`open_file_sink` and
 :func:`close_file_sink`, so every recording is told about its sensor the same way
 (:func:`~tactile_studio.storage.sensor_book.sensor_metadata`, before the first row) and
 books its hours of use exactly once however it ends: its owner's stop, or the exit hook
 closing a file left open (the recorder's on-stop callback;
 :func:`~tactile_studio.storage.sensor_book.book_usage` guards "once").
-
-It lives in storage, below acquisition, protocol and characterise, because those three
-may not import each other (the layers in pyproject.toml).
 """
 
 from __future__ import annotations

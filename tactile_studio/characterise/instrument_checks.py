@@ -4,12 +4,14 @@ Like :func:`tactile_studio.devices.check_plugin`, each drives the plugin the way
 characterisation procedure does and raises one :class:`InstrumentCheckError` listing
 every problem found::
 
-    from tactile_studio.instruments import check_stage
+    from tactile_studio.characterise import check_stage
     def test_my_stage():
         check_stage(MyStage, {"port": "..."})
 
 ``device`` (optional) is the sensor device to couple to (the simulated instruments
-need the simulated sensor); it is streamed by an acquisition engine during the check.
+need the simulated sensor); it is streamed (``open_stream``) during the check. That is
+why the checks live here, above acquisition, and not beside the contracts in
+``instruments/``, which sits below the recording and may not open a stream.
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.acquisition.open_stream import open_stream
+from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.errors import UserError
 from tactile_studio.instruments.contract import ForcePlugin, ForceSamples, StagePlugin
 from tactile_studio.plugin_settings import Setting
@@ -58,15 +62,21 @@ def _check_class(cls: type, base: type, problems: list[str]) -> None:
             problems.append(f"setting {s.name!r}: its default does not validate ({exc})")
 
 
+def _close_twice(instrument: StagePlugin | ForcePlugin, problems: list[str]) -> None:
+    """close() must be safe to call twice: the second is what an exit hook does."""
+    for _ in range(2):
+        try:
+            instrument.close()
+        except Exception as exc:
+            problems.append(f"close() raised {exc!r} (must be safe twice)")
+            break
+
+
 class _Streaming:
-    """Streams ``device`` with an acquisition engine while instruments are checked."""
+    """Streams ``device`` while instruments are checked (their clock may be its own)."""
 
-    def __init__(self, device: Any) -> None:
-        self.engine = None
-        if device is not None:
-            from tactile_studio.devices.engine import AcquisitionEngine
-
-            self.engine = AcquisitionEngine(device)
+    def __init__(self, device: DevicePlugin | None) -> None:
+        self.engine = None if device is None else open_stream(device)
 
     def __enter__(self) -> _Streaming:
         if self.engine is not None:
@@ -78,8 +88,8 @@ class _Streaming:
             self.engine.stop()
 
 
-def check_stage(cls: type, settings: Mapping[str, Any] | None = None, *, device: Any = None,
-                move_mm: float = 1.0) -> dict[str, Any]:
+def check_stage(cls: type, settings: Mapping[str, Any] | None = None, *,
+                device: DevicePlugin | None = None, move_mm: float = 1.0) -> dict[str, Any]:
     """Construct, open, couple, home, move by ``move_mm`` in x and z, wait, read the
     position, move back, retract, close twice. Returns the positions observed."""
     problems: list[str] = []
@@ -114,19 +124,15 @@ def check_stage(cls: type, settings: Mapping[str, Any] | None = None, *, device:
         except Exception as exc:
             problems.append(f"driving the stage failed: {exc!r}")
         finally:
-            for _ in range(2):
-                try:
-                    stage.close()
-                except Exception as exc:
-                    problems.append(f"close() raised {exc!r} (must be safe twice)")
-                    break
+            _close_twice(stage, problems)
     if problems:
         raise InstrumentCheckError(cls.name, problems)
     return observed
 
 
-def check_force(cls: type, settings: Mapping[str, Any] | None = None, *, device: Any = None,
-                stage: Any = None, samples: int = 5, timeout_s: float = 5.0) -> dict[str, Any]:
+def check_force(cls: type, settings: Mapping[str, Any] | None = None, *,
+                device: DevicePlugin | None = None, stage: StagePlugin | None = None,
+                samples: int = 5, timeout_s: float = 5.0) -> dict[str, Any]:
     """Construct, open, couple, tare, read until ``samples`` arrive (bounded), check their
     shape and times, close twice. ``stage`` (already coupled) advances a simulated clock."""
     problems: list[str] = []
@@ -167,12 +173,7 @@ def check_force(cls: type, settings: Mapping[str, Any] | None = None, *, device:
         except Exception as exc:
             problems.append(f"driving the force reference failed: {exc!r}")
         finally:
-            for _ in range(2):
-                try:
-                    force.close()
-                except Exception as exc:
-                    problems.append(f"close() raised {exc!r} (must be safe twice)")
-                    break
+            _close_twice(force, problems)
     if problems:
         raise InstrumentCheckError(cls.name, problems)
     return {"samples": sum(len(s) for s in got)}
