@@ -20,6 +20,7 @@ from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.errors import SessionFileError
 from tactile_studio.storage import Recorder, Session, SessionWriter
+from tactile_studio.storage.trials import TrialRecord, TrialStatus
 
 TESTS = Path(__file__).parent
 
@@ -46,9 +47,11 @@ def test_round_trip_of_frames_journal_and_readable_copies(tmp_path):
         assert s.n_frames == 200 and s.layout.name == "grid-2x2"
         assert np.array_equal(s.raw(5, 7), np.arange(20, 28, dtype=np.float32).reshape(2, 4))
         assert s.metadata["participant"] == "P07" and s.metadata["notes"] == "calm"
-        assert s.trials == [{"index": 0, "block": 0, "gesture": "Poke", "key": "p",
-                             "start_sample": 10, "end_sample": 60, "status": "discarded",
-                             "flags": [], "reason": "sneezed"}]
+        stored = [{"index": 0, "block": 0, "gesture": "Poke", "key": "p", "start_sample": 10,
+                   "end_sample": 60, "status": "discarded", "flags": [], "reason": "sneezed"}]
+        assert s.journal.trials == stored  # the file's form, as written
+        assert s.trials == [TrialRecord.from_dict(stored[0])]  # read typed, in one place
+        assert s.trials[0].status == TrialStatus.DISCARDED and not s.trials[0].usable
         summary = s.summary()
         assert s.closed_cleanly
         assert np.allclose(s.baseline(100), np.arange(40, dtype=np.float32).reshape(10, 4).mean(0))
