@@ -57,8 +57,8 @@ def _written(path: Path) -> tuple[list, list]:
     with Session(path) as s:
         events = [(e["kind"], e.get("block"), e["frame"]) for e in s.events
                   if e["kind"] in RUNNER_EVENTS]
-        trials = [(t["index"], t["block"], t["gesture"], t["start_sample"], t["end_sample"],
-                   t["status"]) for t in s.trials]
+        trials = [(t.index, t.block, t.gesture, t.start_sample, t.end_sample,
+                   t.status) for t in s.trials]
     return events, trials
 
 

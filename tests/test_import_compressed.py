@@ -127,4 +127,4 @@ def test_real_development_files_import_compressed(dev_set, tmp_path):
             assert s.metadata["participant"].startswith("P")
             assert s.metadata["condition"] in source.name
             assert len(s.trials) == 1 and s.n_frames > 400  # one ~12 s performance
-            assert s.trials[0]["gesture"]
+            assert s.trials[0].gesture

@@ -148,15 +148,15 @@ def test_shearsense_import_makes_a_session_with_trials_and_malformed_counts(tmp_
         summary = s.summary()
         assert summary["malformed_by_kind"] == {"short_row": 1, "merged_number": 1}
         trials = s.trials
-    assert [t["gesture"] for t in trials] == [shear9.gesture_by_key("r").name,
+    assert [t.gesture for t in trials] == [shear9.gesture_by_key("r").name,
                                              shear9.gesture_by_key("p").name, "z"]
-    assert [t["key"] for t in trials] == ["r", "p", "z"]
-    assert [t["block"] for t in trials] == [0, 1, 2] and [t["index"] for t in trials] == [0, 1, 2]
+    assert [t.key for t in trials] == ["r", "p", "z"]
+    assert [t.block for t in trials] == [0, 1, 2] and [t.index for t in trials] == [0, 1, 2]
     for t in trials:
-        run = data.labels[t["start_sample"]:t["end_sample"]]
-        assert len(run) == 86 and (run == ord(t["key"])).all() and t["status"] == "ok"
-        assert data.labels[t["start_sample"] - 1] == 0 and data.labels[t["end_sample"]] == 0
-        assert t["start_time"] == data.times[t["start_sample"]]
+        run = data.labels[t.start_sample:t.end_sample]
+        assert len(run) == 86 and (run == ord(t.key)).all() and t.status == "ok"
+        assert data.labels[t.start_sample - 1] == 0 and data.labels[t.end_sample] == 0
+        assert t.start_time == data.times[t.start_sample]
 
 
 def test_info_on_a_folder_has_a_row_per_imported_file_with_what_to_check(tmp_path, capsys):
@@ -257,14 +257,14 @@ def test_cost_import_one_session_per_subject_one_trial_per_capture(tmp_path, cap
         assert s.layout.name == "cost-8x8" and s.n_frames == 45
         assert s.summary()["rate_hz"] == pytest.approx(135.0)
         np.testing.assert_array_equal(s.raw(), channels[:45].astype(np.float32))
-        assert [(t["gesture"], t["variant"], t["block"], t["end_sample"] - t["start_sample"])
+        assert [(t.gesture, t.extra["variant"], t.block, t.end_sample - t.start_sample)
                 for t in s.trials] == [("grab", "normal", 0, 20), ("grab", "normal", 1, 15),
                                        ("tickle", "gentle", 0, 10)]
         assert s.metadata["participant"] == "P01" and s.metadata["source"] == "import:cost"
         assert s.metadata["gestures"] == COST_NAMES
         assert s.summary()["malformed_by_kind"] == {"short_row": 1, "unparsable": 1}
     with Session(tmp_path / "cost_P02.h5") as s:
-        assert [t["gesture"] for t in s.trials] == ["pinch"] and s.n_frames == 12
+        assert [t.gesture for t in s.trials] == ["pinch"] and s.n_frames == 12
 
 
 def test_haart_train_and_test_files_map_subjects_gestures_and_captures(tmp_path, capsys):
@@ -274,16 +274,16 @@ def test_haart_train_and_test_files_map_subjects_gestures_and_captures(tmp_path,
     names = load_protocol("haart7").gesture_names
     with Session(tmp_path / "haart_training_P01.h5") as s:
         assert s.layout.name == "haart-8x8" and s.n_frames == 1296
-        assert [(t["gesture"], t["end_sample"] - t["start_sample"], t["block"]) for t in s.trials] \
+        assert [(t.gesture, t.end_sample - t.start_sample, t.block) for t in s.trials] \
             == [("stroke", 432, 0), ("stroke", 432, 1), (names[1], 432, 0)]
         assert s.metadata["participant"] == "P01" and s.metadata["covers"] == ["none"]
         assert s.summary()["rate_hz"] == pytest.approx(54.0)
     with Session(tmp_path / "haart_training_P02.h5") as s:
-        assert [(t["gesture"], t["flags"]) for t in s.trials] == [
+        assert [(t.gesture, list(t.flags)) for t in s.trials] == [
             ("constant", []), ("constant", ["short_capture"])]
     with Session(tmp_path / "haart_testWITHLABELS_P09.h5") as s:
-        assert [t["gesture"] for t in s.trials] == ["pat", "tickle"]
-        assert all(t["gesture"] in names for t in s.trials)
+        assert [t.gesture for t in s.trials] == ["pat", "tickle"]
+        assert all(t.gesture in names for t in s.trials)
 
 
 def test_haart_without_header_reads_columns_by_position(tmp_path):
@@ -294,7 +294,7 @@ def test_haart_without_header_reads_columns_by_position(tmp_path):
     path.write_text("\n".join(rows))
     (out,) = import_haart(path, tmp_path)
     with Session(out) as s:
-        assert s.metadata["participant"] == "P03" and [t["gesture"] for t in s.trials] == ["rub"]
+        assert s.metadata["participant"] == "P03" and [t.gesture for t in s.trials] == ["rub"]
 
 
 # ---- exporters ---------------------------------------------------------------------------
@@ -415,8 +415,8 @@ def test_a_virtual_participants_session_exported_as_shearsense_csv_imports_with_
         assert main(["import", "shearsense", str(folder / "csv" / "P01_lab_FLAT.csv"),
                      "--out", str(folder / "back"), *extra]) == 0
         with Session(h5) as made, Session(folder / "back" / "P01_lab_FLAT.h5") as back:
-            assert [t["gesture"] for t in back.trials] == [t["gesture"] for t in made.trials]
-            assert sorted(t["gesture"] for t in back.trials) == sorted(gestures)
+            assert [t.gesture for t in back.trials] == [t.gesture for t in made.trials]
+            assert sorted(t.gesture for t in back.trials) == sorted(gestures)
             assert back.metadata.get("unmapped_keys") in (None, [])
     capsys.readouterr()
 

@@ -57,7 +57,7 @@ def test_a_classic_mac_csv_reads_as_its_windows_twin(tmp_path, capsys):
     assert code == EXIT_OK, err
     with Session(out / "P01_a_FLAT.h5") as a, Session(out / "P02_a_FLAT.h5") as b:
         np.testing.assert_array_equal(a.raw(), b.raw())
-        assert [t["gesture"] for t in a.trials] == [t["gesture"] for t in b.trials]
+        assert [t.gesture for t in a.trials] == [t.gesture for t in b.trials]
 
 
 def _one_gib() -> None:

@@ -36,7 +36,7 @@ def _import(capsys, tmp_path, files, *extra):
     people = {}
     for f in files:
         with Session(out / f"{f.stem}.h5") as s:
-            people[f.name] = (s.metadata["participant"], [t["gesture"] for t in s.trials],
+            people[f.name] = (s.metadata["participant"], [t.gesture for t in s.trials],
                               s.metadata["unmapped_keys"])
     return stdout, people
 

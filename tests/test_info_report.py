@@ -55,7 +55,7 @@ def test_blocks_are_one_based_in_info_json_npz_and_csv(tmp_path, capsys):
     assert [t["block"] for t in js["trials"]] == [0, 1, 1, 1, 2]
     assert [e["block"] for e in js["events"] if e["kind"] == "block_start"] == [1]
     with Session(path) as s:  # the journal keeps the runner's numbering
-        assert [t["block"] for t in s.trials] == [-1, 0, 0, 0, 1]
+        assert [t.block for t in s.trials] == [-1, 0, 0, 0, 1]
     text = _info(capsys, path)
     assert "blocks: 2 (1..2)" in text and "practice trials: 1" in text
 

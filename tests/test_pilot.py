@@ -77,8 +77,8 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
         trials, meta = f.trials, f.metadata
     assert meta["pilot"] is True and len(trials) == 6
     for t in trials:  # someone touched, with the prompted gesture, during its trial
-        middle = (t["start_sample"] + t["end_sample"]) // 2  # (the simulator's ground truth)
-        assert device.gesture_at(middle) == t["gesture"], t
+        middle = (t.start_sample + t.end_sample) // 2  # (the simulator's ground truth)
+        assert device.gesture_at(middle) == t.gesture, t
     # ...and a trial is flagged no_contact only if its own rows hold no contact: the
     # participant reacts in real time, so which performances it draws depends on when it
     # saw the prompt, and a short Tickle of this style is too light to register in ~4% of
@@ -86,10 +86,10 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     # and its trial coincided, the rows held no contact)
     with Session(path) as f:
         for t in trials:
-            rows = f.raw(t["start_sample"], t["end_sample"])
-            touched = contact_taxels(console.engine.layout, rows, f.baseline(t["start_sample"]),
+            rows = f.raw(t.start_sample, t.end_sample)
+            touched = contact_taxels(console.engine.layout, rows, f.baseline(t.start_sample),
                                      QualitySettings().contact_rel).any()
-            assert ("no_contact" in t["flags"]) == (not touched), t
+            assert ("no_contact" in t.flags) == (not touched), t
     assert console.participant.view.pilot and console.pilot_banner.isVisibleTo(console)
 
 

@@ -25,7 +25,7 @@ WAIT_S = 60.0  # safety net only
 def _ok_trials(path: Path) -> int:
     try:
         with Session(path) as s:
-            return sum(1 for t in s.trials if t["status"] == "ok")
+            return sum(1 for t in s.trials if t.status == "ok")
     except SessionFileError:  # between creating the file and its first flush
         return 0
 
@@ -73,7 +73,7 @@ def test_resume_continues_the_device_clock_and_refuses_another_sensor(
     with Session(path) as s:
         dev = s.column("device_time")
         resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
-        starts = [t["start_time"] for t in s.trials]
+        starts = [t.start_time for t in s.trials]
         rate = 1.0 / s.metadata["device"]["nominal_rate_hz"]
         tares = [e for e in s.events if e["kind"] == "tare"]
     # the resumed run's clock goes on one frame period after the old file's last frame

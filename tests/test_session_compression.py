@@ -41,7 +41,7 @@ def test_closed_session_is_compressed_with_chunks_sized_to_the_data(tmp_path):
         assert np.array_equal(s.raw(), raw)
         assert np.array_equal(s.column("device_time"), t)
         assert np.array_equal(s.column("seq"), np.arange(1300))
-        assert s.metadata["participant"] == "P01" and s.trials[0]["end_sample"] == 91
+        assert s.metadata["participant"] == "P01" and s.trials[0].end_sample == 91
 
 
 def test_an_empty_session_closes_and_opens(tmp_path):

@@ -20,6 +20,7 @@ from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.errors import SessionFileError
 from tactile_studio.storage import Recorder, Session, SessionWriter
+from tactile_studio.storage.trials import TrialRecord, TrialStatus
 
 TESTS = Path(__file__).parent
 
@@ -46,9 +47,11 @@ def test_round_trip_of_frames_journal_and_readable_copies(tmp_path):
         assert s.n_frames == 200 and s.layout.name == "grid-2x2"
         assert np.array_equal(s.raw(5, 7), np.arange(20, 28, dtype=np.float32).reshape(2, 4))
         assert s.metadata["participant"] == "P07" and s.metadata["notes"] == "calm"
-        assert s.trials == [{"index": 0, "block": 0, "gesture": "Poke", "key": "p",
-                             "start_sample": 10, "end_sample": 60, "status": "discarded",
-                             "flags": [], "reason": "sneezed"}]
+        stored = [{"index": 0, "block": 0, "gesture": "Poke", "key": "p", "start_sample": 10,
+                   "end_sample": 60, "status": "discarded", "flags": [], "reason": "sneezed"}]
+        assert s.journal.trials == stored  # the file's form, as written
+        assert s.trials == [TrialRecord.from_dict(stored[0])]  # read typed, in one place
+        assert s.trials[0].status == TrialStatus.DISCARDED and not s.trials[0].usable
         summary = s.summary()
         assert s.closed_cleanly
         assert np.allclose(s.baseline(100), np.arange(40, dtype=np.float32).reshape(10, 4).mean(0))
@@ -154,6 +157,54 @@ def test_bad_files_give_one_line_errors(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert err.startswith("tactile-studio: error:") and "\n" not in err
         assert "Traceback" not in err and bad.name in err
+
+
+def test_older_trials_read_typed_and_their_file_form_is_unchanged(tmp_path, capsys):
+    """Trials as older writers and importers stored them (no status, key or flags, an
+    importer's own column) read as records with their extra column kept; info --json,
+    the dataset's uids and check see the file as before."""
+    from tactile_studio.learn.data.trialinfo import session_trial_table
+    from tactile_studio.storage.session_check import check_file
+
+    p = tmp_path / "old.h5"
+    w = SessionWriter(p, LAYOUT, {"plugin": "counting"},
+                      {"participant": "P01", "gestures": ["Twist", "Poke"]})
+    raw = np.arange(400, dtype=np.float32).reshape(100, 4)
+    t = np.arange(100) / 100.0
+    w.append_frames(raw, t, t + 1000.0, np.arange(100))
+    old = [{"index": 0, "block": 0, "gesture": "Poke", "start_sample": 5, "end_sample": 40,
+            "variant": "gentle"},
+           {"index": 1, "block": 0, "gesture": "Stroke", "start_sample": 50,
+            "end_sample": 90, "status": "discarded"}]
+    for trial in old:
+        w.add_trial(trial)
+    w.close()
+    assert check_file(p).ok
+    with Session(p) as s:
+        assert s.journal.trials == old
+        first, second = s.trials
+        assert first.usable and first.status == TrialStatus.OK and first.key is None
+        assert first.extra == {"variant": "gentle"} and not second.usable
+        assert s.gesture_order() == ["Twist", "Poke", "Stroke"]
+    assert list(session_trial_table([p])) == ["old.h5#0"]
+    assert main(["info", str(p), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["trials"] == [{**o, "block": 1} for o in old]
+
+
+@pytest.mark.damaged_files
+def test_a_trial_the_record_cannot_read_is_one_line_naming_file_and_trial(tmp_path, capsys):
+    p = tmp_path / "odd.h5"
+    w = SessionWriter(p, LAYOUT, {"plugin": "counting"}, {"participant": "P01"})
+    w.append_frames(np.zeros((20, 4), np.float32), np.arange(20) / 100.0, np.arange(20) + 0.0)
+    w.add_trial({"index": 3, "block": 0, "gesture": "Poke", "start_sample": 2,
+                 "end_sample": 9, "status": "maybe"})
+    w.close()
+    assert main(["info", str(p)]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("tactile-studio: error:") and "\n" not in err
+    assert "odd.h5: trial 3:" in err and "maybe" in err and "Traceback" not in err
+    assert main(["check", str(p)]) == 5  # still names what is wrong
+    assert "status 'maybe'" in capsys.readouterr().out
 
 
 def test_info_json_has_the_documented_keys(tmp_path, capsys):

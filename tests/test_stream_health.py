@@ -134,7 +134,7 @@ def test_headless_collect_says_a_silent_stream_and_records_it(tmp_path, capsys):
     with Session(captured.out.strip().splitlines()[-1]) as s:
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
         assert silent and silent[0]["seconds"] == 0.03
-        assert [t["status"] for t in s.trials] == ["ok"]
+        assert [t.status for t in s.trials] == ["ok"]
 
 
 def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatch):

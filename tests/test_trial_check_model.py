@@ -14,6 +14,7 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.storage.session import Session
+from tactile_studio.storage.trials import TrialRecord
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
 
@@ -40,36 +41,35 @@ def _collect(out: Path, *extra: str) -> tuple[subprocess.CompletedProcess, Path]
     return proc, Path(proc.stdout.strip().splitlines()[-1])
 
 
-def _mistakes(trials: list[dict]) -> list[dict]:
-    return [t for t in trials if t.get("performed") and
-            t["performed"].split("; ")[0] != t["gesture"]]
+def _mistakes(trials: list[TrialRecord]) -> list[TrialRecord]:
+    return [t for t in trials if t.performed and t.performed.split("; ")[0] != t.gesture]
 
 
 def test_headless_collection_flags_the_virtual_participants_mistakes(run, tmp_path):
     proc, path = _collect(tmp_path / "on", "--qc-model", str(run))
     assert f"trial check: {run.name}/" in proc.stderr
     with Session(path) as s:
-        trials = [t for t in s.trials if t["block"] >= 0]
+        trials = [t for t in s.trials if t.block >= 0]
         meta = s.metadata["trial_check"]
     wrong = _mistakes(trials)
     assert len(wrong) >= 5, "the share of mistakes did not reach the file"
-    caught = [t for t in wrong if "model_mismatch" in t["flags"]]
-    assert len(caught) >= 0.9 * len(wrong), [(t["gesture"], t["check"]) for t in wrong]
+    caught = [t for t in wrong if "model_mismatch" in t.flags]
+    assert len(caught) >= 0.9 * len(wrong), [(t.gesture, t.check) for t in wrong]
     honest = [t for t in trials if t not in wrong]
-    assert sum("model_mismatch" in t["flags"] for t in honest) <= 0.25 * len(honest)
+    assert sum("model_mismatch" in t.flags for t in honest) <= 0.25 * len(honest)
     assert meta["top_k"] == 3 and meta["not_scored"] == []
-    assert all(t["check"]["model"] == meta["model"] for t in trials)
+    assert all(t.check["model"] == meta["model"] for t in trials)
     for t in caught:  # the reason names what it looked like
-        assert t["check"]["reason"].startswith("looks like ")
-        assert t["gesture"] in t["check"]["reason"]
+        assert t.check["reason"].startswith("looks like ")
+        assert t.gesture in t.check["reason"]
 
 
 def test_without_the_check_no_mistake_is_flagged(tmp_path):
     _, path = _collect(tmp_path / "off")
     with Session(path) as s:
-        wrong = _mistakes([t for t in s.trials if t["block"] >= 0])
-    assert wrong and not any("model_mismatch" in t["flags"] for t in wrong)
-    assert not any("check" in t for t in wrong)
+        wrong = _mistakes([t for t in s.trials if t.block >= 0])
+    assert wrong and not any("model_mismatch" in t.flags for t in wrong)
+    assert not any(t.check for t in wrong)
 
 
 def test_qc_checks_recorded_sessions_out_of_fold(run, tmp_path):
@@ -125,17 +125,17 @@ def test_light_and_off_centre_trials_are_flagged_by_the_signal_checks(tmp_path):
         capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
-        trials = [t for t in s.trials if t["block"] >= 0]
-    light = [t for t in trials if "; light" in t["performed"]]
-    off = [t for t in trials if "off centre" in t["performed"]]
+        trials = [t for t in s.trials if t.block >= 0]
+    light = [t for t in trials if "; light" in t.performed]
+    off = [t for t in trials if "off centre" in t.performed]
     assert len(light) >= 8 and len(off) >= 8
     # too light: no contact at all, or under the natural force's range
-    assert sum(bool({"no_contact", "too_light"} & set(t["flags"])) for t in light) \
+    assert sum(bool({"no_contact", "too_light"} & set(t.flags)) for t in light) \
         >= 0.85 * len(light)
-    assert sum("off_centre" in t["flags"] or "no_contact" in t["flags"] for t in off) \
+    assert sum("off_centre" in t.flags or "no_contact" in t.flags for t in off) \
         >= 0.85 * len(off)
-    honest = [t for t in trials if ";" not in t["performed"]]
-    assert sum(bool(t["flags"]) for t in honest) <= 0.15 * len(honest)
+    honest = [t for t in trials if ";" not in t.performed]
+    assert sum(bool(t.flags) for t in honest) <= 0.15 * len(honest)
 
 
 def test_a_model_that_is_not_there_is_one_line_before_anything_is_recorded(tmp_path):
@@ -175,6 +175,6 @@ def test_the_check_is_personalised_with_the_first_block(run, tmp_path):
     assert "personalised with 9 trials of the first block" in proc.stderr
     with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
         events = [e for e in s.events if e["kind"] == "trial_check_personalised"]
-        models = {t["block"]: t["check"]["model"] for t in s.trials if t["block"] >= 0}
+        models = {t.block: t.check["model"] for t in s.trials if t.block >= 0}
     assert len(events) == 1 and events[0]["trials"] == 9
     assert not models[0].endswith("own trials") and models[1].endswith("+9 own trials")

@@ -92,7 +92,7 @@ def test_train_exclude_flagged_leaves_flagged_trials_out(tmp_path):
     with Session(path) as s:
         first = s.trials[0]
     write_participant(path, "P01", 101, gestures, blocks=2, extra_trials=[
-        {**first, "index": 0, "flags": ["no_contact"]}])
+        {**first.to_dict(), "index": 0, "flags": ["no_contact"]}])
 
     def trained(name: str, exclude: bool) -> dict:
         cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", protocol="lopo",

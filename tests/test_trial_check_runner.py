@@ -53,9 +53,9 @@ def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -
     with Session(rig.session.path) as s:
         assert s.metadata["trial_check"]["model"] == "contact-share"
         assert s.metadata["trial_check"]["not_scored"] == [order[-1]]
-        assert [t.get("decision") for t in s.trials[:1]] == ["redo"]
-        assert s.trials[-1]["decision"] == "keep"
-        assert all(not check_problems(t) for t in s.trials)
+        assert [t.decision for t in s.trials[:1]] == ["redo"]
+        assert s.trials[-1].decision == "keep"
+        assert all(not check_problems(t) for t in s.journal.trials)  # the file's form
 
 
 def test_unknown_gestures_are_not_scored(tmp_path: Path) -> None:

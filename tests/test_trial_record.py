@@ -3,9 +3,18 @@ imported records (missing fields, extra columns) read, and progress counts one w
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import pytest
 
-from tactile_studio.storage.trials import TrialRecord, TrialStatus, records, trials_done
+from tactile_studio.storage.trials import (
+    TrialRecord,
+    TrialStatus,
+    label_order,
+    records,
+    trials_done,
+)
 
 FULL = {"index": 3, "block": 1, "gesture": "Twist", "key": "t", "start_sample": 120,
         "end_sample": 420, "start_time": 1.2, "end_time": 4.2, "status": "redone",
@@ -52,3 +61,36 @@ def test_trials_done_counts_each_block_gesture_once() -> None:
 def test_an_unknown_status_is_refused() -> None:
     with pytest.raises(ValueError):
         TrialRecord.from_dict({**FULL, "status": "maybe"})
+
+
+def test_usable_and_uid_are_the_records() -> None:
+    ok = TrialRecord.from_dict({"index": 7, "block": 0, "gesture": "Poke", "start_sample": 0,
+                                "end_sample": 5})  # an older record: no status means ok
+    assert ok.usable and ok.uid("P01/a.h5") == "P01/a.h5#7"
+    assert ok.with_changes(flags=["no_contact"]).usable  # flags do not take it out
+    assert not ok.with_changes(status="redone").usable
+    assert not ok.with_changes(status="discarded").usable
+    assert not TrialRecord.from_dict({**FULL, "status": "ok", "gesture": None}).usable
+    assert TrialRecord.from_dict({**FULL, "gesture": None}).gesture == ""
+
+
+def test_the_label_order_is_the_protocols_then_the_others_sorted() -> None:
+    metas = [{"gestures": ["Twist", {"name": "Poke"}, "", None]}, {"gestures": ["Stroke"]},
+             {}]
+    seen = ["Zap", "Poke", "Abc", "Stroke"]
+    assert label_order(metas, seen) == ["Twist", "Poke", "Stroke", "Abc", "Zap"]
+    # a dataset's classes: only gestures some trial names
+    assert label_order(metas, seen, keep_unseen=False) == ["Poke", "Stroke", "Abc", "Zap"]
+    assert label_order([], []) == []
+
+
+def test_usable_is_not_recoded_outside_the_record() -> None:
+    """The rule "a usable trial" (status ok, a gesture) lives in TrialRecord.usable/.ok:
+    no module reads a trial's status with the file's default again."""
+    root = Path(__file__).resolve().parents[1]
+    recoded = re.compile(r"""\.get\(\s*["']status["']\s*,\s*(["']ok["']|TrialStatus\.OK)""")
+    found = [f"{p.relative_to(root)}:{n}"
+             for pkg in ("tactile_studio", "ui", "plugins") for p in (root / pkg).rglob("*.py")
+             for n, line in enumerate(p.read_text(encoding="utf-8").splitlines(), 1)
+             if recoded.search(line)]
+    assert found == []

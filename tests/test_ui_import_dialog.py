@@ -60,7 +60,7 @@ def test_import_from_the_workspace_names_gestures_and_lists_the_sessions(window,
     assert "participants: P01, P02, P1 -> P01" in summary
     assert "key 'z' (code 122) has no gesture name" in summary
     with Session(out / "P1_PILLOW.h5") as s:
-        assert [t["gesture"] for t in s.trials] == ["rub", "pat", "z"]
+        assert [t.gesture for t in s.trials] == ["rub", "pat", "z"]
         assert s.metadata["participant"] == "P01" and s.metadata["condition"] == "PILLOW"
     # the imported folder is in the Sessions tab, ready to train on
     assert window.tabs.currentWidget() is window.sessions

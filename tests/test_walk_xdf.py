@@ -18,7 +18,7 @@ from tactile_studio.storage.session_check import check_file
 
 
 def _rows(s: Session) -> list[tuple]:
-    return [(t["gesture"], t["start_sample"], t["end_sample"], t["status"]) for t in s.trials]
+    return [(t.gesture, t.start_sample, t.end_sample, t.status) for t in s.trials]
 
 
 def _events(s: Session) -> list[tuple]:

@@ -244,14 +244,14 @@ def test_our_own_xdf_imports_back_with_trials_events_and_aux(tmp_path, capsys):
         assert b.metadata["participant"] == "P03"
         t = b.column("host_time")
         assert t[201] - t[199] > 3.0          # the reconnect gap is still there
-        assert [(x["gesture"], x["status"], x["start_sample"], x["end_sample"], x["block"])
-                for x in b.trials] == [(x["gesture"], x["status"], x["start_sample"],
-                                        x["end_sample"], x["block"]) for x in a.trials]
+        assert [(x.gesture, x.status, x.start_sample, x.end_sample, x.block)
+                for x in b.trials] == [(x.gesture, x.status, x.start_sample,
+                                        x.end_sample, x.block) for x in a.trials]
         assert {"disconnect", "gap"} <= {e["kind"] for e in b.events}
         # end_time is the device time just after a trial's last frame, as collected
         dev = b.column("device_time")
-        assert [(x["start_time"], x["end_time"]) for x in b.trials] == [
-            (dev[x["start_sample"]], dev[x["end_sample"]]) for x in b.trials]
+        assert [(x.start_time, x.end_time) for x in b.trials] == [
+            (dev[x.start_sample], dev[x.end_sample]) for x in b.trials]
         (aux,) = b.aux_signals()
         assert aux.name == "EDA-1" and aux.values.shape == (120, 1)
 

@@ -1,12 +1,12 @@
 """The house's figures that may only fall: `make lint` runs this.
 
 Types are checked two ways. The public seams (the device, instrument, model and sink
-contracts; job, engine, acquisition, runner and health events; trial records: ``SEAMS``)
-pass ``mypy --strict`` with no error at all. Everything else is ratcheted: the count of
-``Any`` in function signatures (bare ``Any``, and any annotation that contains it), of
-mypy errors over the whole house, of functions taking 10 or more parameters and of
-functions over 80 lines are printed, and the check fails when one rises above the figure
-recorded in ``house_ratchet.json``.
+contracts; job, engine, acquisition, runner and health events; trial records and fold
+predictions: ``SEAMS``) pass ``mypy --strict`` with no error at all. Everything else is
+ratcheted: the count of ``Any`` in function signatures (bare ``Any``, and any annotation
+that contains it), of mypy errors over the whole house, of functions taking 10 or more
+parameters and of functions over 80 lines are printed, and the check fails when one rises
+above the figure recorded in ``house_ratchet.json``.
 When a figure falls, ``--update`` records the lower one (it never records a higher one).
 
     python tools/house_ratchet.py            # print, fail (exit 1) on a rise
@@ -34,6 +34,7 @@ SEAMS = (
     "tactile_studio/protocol/trial_record.py", "tactile_studio/storage/trials.py",
     "tactile_studio/devices/engine_events.py", "tactile_studio/acquisition/events.py",
     "tactile_studio/protocol/runner_events.py", "tactile_studio/health/events.py",
+    "tactile_studio/learn/learners/fold_predictions.py",
 )
 MANY_PARAMS = 10
 LONG_LINES = 80

@@ -36,7 +36,7 @@ from tactile_studio.protocol.trial_check import (
 )
 from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import trial_number
+from tactile_studio.storage.trials import TrialStatus, trial_number
 
 if TYPE_CHECKING:
     from tactile_studio.learn.deploy.trial_check import RunChecks
@@ -115,7 +115,7 @@ def cmd_qc(args: argparse.Namespace) -> int:
     shared = False
     for path in args.session:
         with Session(path) as s:
-            gestures = {str(t.get("gesture")) for t in s.trials if t.get("gesture")}
+            gestures = {t.gesture for t in s.trials if t.gesture}
             shared = shared or bool(gestures & checks.known)
             rows.extend(session_rows(s, Path(path), checks))
     if not shared:
@@ -153,16 +153,16 @@ def session_rows(s: Session, path: Path, checks: RunChecks) -> list[dict[str, An
     forces = {g.name: g.force for g in protocol.gestures} if protocol else {}
     rows = []
     for t in s.trials:
-        if int(t.get("block", 0)) < 0 or t.get("status", "ok") == "discarded":
+        if t.practice or t.status == TrialStatus.DISCARDED:
             continue
-        start, stop = max(0, int(t["start_sample"])), min(int(t["end_sample"]), s.n_frames)
+        start, stop = max(0, t.start_sample), min(t.end_sample, s.n_frames)
         if stop - start < 2:
             continue
         raw, base = s.raw(start, stop), s.baseline(start)
         dev_t = s.column("device_time", start, stop)
         span = float(dev_t[-1] - dev_t[0])
         rate = (stop - start - 1) / span if span > 0 else 43.0
-        prompted = str(t.get("gesture"))
+        prompted = t.gesture
         flags = trial_flags(s.layout, raw, base, timing=FrameTiming(dev_t, rate_hz=rate),
                             settings=settings, force=forces.get(prompted))
         v = check.check(s.layout, raw, base, rate, prompted)
@@ -170,13 +170,13 @@ def session_rows(s: Session, path: Path, checks: RunChecks) -> list[dict[str, An
         if v is not None and v.flagged:
             flags.append(MISMATCH_FLAG)
         rows.append({
-            "file": str(path), "trial": trial_number(t["index"]), "participant": participant,
+            "file": str(path), "trial": trial_number(t.index), "participant": participant,
             "prompted": prompted, "predicted": v.top[0][0] if v else None,
             "p_prompted": None if v is None else round(v.p_prompted, 4),
             "rank": None if v is None else v.rank, "flags": flags,
             "reasons": [describe([f], stored) for f in flags],
             "out_of_fold": check.out_of_fold, "model": check.describe()["model"],
-            "status": t.get("status", "ok")})
+            "status": t.status.value})
     return rows
 
 

@@ -28,6 +28,7 @@ from tactile_studio.paths import make_out_dir
 from tactile_studio.storage.aux_signals import AuxSignal
 from tactile_studio.storage.logbook import check_sensor_id
 from tactile_studio.storage.session import Session, measured_rate_hz
+from tactile_studio.storage.trials import TrialRecord
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
 
@@ -173,6 +174,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
         try:
             with Session(f) as s:
                 summary = s.summary()
+                ok_trials = [t for t in s.trials if t.ok]
         except UserError as exc:
             bad += 1
             rows.append((name, "", "", "", "", "", "", "", f"unreadable: {exc}"))
@@ -180,12 +182,12 @@ def _info_files(paths: list[str], as_json: bool) -> int:
             continue
         summaries.append(summary)
         meta, trials = summary["metadata"], summary["trials"]
-        ok = sum(1 for t in trials if t.get("status") == "ok")
+        ok = len(ok_trials)
         pilot = is_pilot(meta)  # a rehearsal: no one's data, left out of the study
         pilots += pilot
         if f not in backups and not pilot:  # a resume backup repeats its session's trials
             entry = (meta.get("participant") or "", meta.get("condition") or "",
-                     Counter(t.get("gesture") for t in trials if t.get("status") == "ok"))
+                     Counter(t.gesture for t in ok_trials))
             sid = str(summary.get("session_id"))
             if sid not in counted:  # a copy of a session counts once (the fuller one)
                 counted[sid] = len(study)
@@ -233,8 +235,8 @@ def _closed_text(summary: dict[str, Any]) -> str:
     return "NOT cleanly (recovered)"
 
 
-def _trial_table(trials: list[dict[str, Any]], gestures: list[str]) -> str:
-    """Trials per gesture in the protocol's order (``trials`` as in the journal)."""
+def _trial_table(trials: list[TrialRecord], gestures: list[str]) -> str:
+    """Trials per gesture in the protocol's order."""
     from tactile_studio.protocol.report import trial_table
     return trial_table(trials, gestures)
 

@@ -16,7 +16,7 @@ from tactile_studio.protocol.flag_summary import trial_reason
 from tactile_studio.protocol.quality import FLAG_TEXT, FLAGS
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import TrialStatus, trial_number
+from tactile_studio.storage.trials import trial_number
 
 ANY_FLAG = "*"  # the player's "flagged (any reason)" filter
 
@@ -111,11 +111,9 @@ class SessionPlayback:
         self.times = t - t[0]
         self.raw = s.raw()
         self.trials = sorted(
-            (TrialSpan(int(tr.get("index", k)), str(tr.get("gesture") or ""),
-                       str(tr.get("status", TrialStatus.OK.value)), max(0, int(tr["start_sample"])),
-                       min(self.n_frames, int(tr["end_sample"])), list(tr.get("flags") or []),
-                       trial_reason(tr))
-             for k, tr in enumerate(s.trials) if "start_sample" in tr),
+            (TrialSpan(tr.index, tr.gesture, tr.status.value, max(0, tr.start_sample),
+                       min(self.n_frames, tr.end_sample), list(tr.flags), trial_reason(tr))
+             for tr in s.trials),
             key=lambda sp: sp.start)
         self.events = [self._event(e) for e in s.events]
         self.metadata = s.metadata

@@ -3,16 +3,18 @@
 from __future__ import annotations
 
 from collections import Counter
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAGS
 from tactile_studio.storage.trial_checks import check_counts, counts_line
-from tactile_studio.storage.trials import TrialStatus, records
+from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
 
 STATUSES = tuple(s.value for s in TrialStatus)  # ok, redone, discarded
 
 
-def trial_table(trials: list[dict[str, Any]], gestures: list[str] | None = None) -> str:
+def trial_table(trials: Sequence[Mapping[str, Any] | TrialRecord],
+                gestures: list[str] | None = None) -> str:
     """Trials per gesture by status, plus how many were flagged and why.
 
     ``gestures`` (the session's ordered label set) fixes the row order; gestures only

@@ -37,7 +37,7 @@ from tactile_studio.storage.shearsense import (
     write_shearsense_csv,
 )
 from tactile_studio.storage.trial_checks import CSV_COLUMNS, csv_fields
-from tactile_studio.storage.trials import TrialStatus, trial_number
+from tactile_studio.storage.trials import TrialRecord, trial_number
 
 FORMATS = ("shearsense-csv", "npz", "csv-trials", "xdf")
 GRIDS = ("auto", "virtual", "physical")
@@ -50,22 +50,16 @@ FEATURE_COLUMNS = ["peak_normal", "mean_normal", "mean_abs_shear", "contact_area
                    "coherence", "movement"]
 
 
-def selected_trials(session: Session, all_trials: bool = False) -> list[dict[str, Any]]:
+def selected_trials(session: Session, all_trials: bool = False) -> list[TrialRecord]:
     """The trials to export: ``ok`` ones, or all of them, cut to the frames on disk."""
     out = []
     for t in session.trials:
-        if not all_trials and t.get("status") != TrialStatus.OK:
+        if not all_trials and not t.ok:
             continue
-        s, e = int(t["start_sample"]), min(int(t["end_sample"]), session.n_frames)
+        s, e = t.start_sample, min(t.end_sample, session.n_frames)
         if e > s >= 0:
-            out.append({**t, "start_sample": s, "end_sample": e})
+            out.append(t.with_changes(start_sample=s, end_sample=e))
     return out
-
-
-def gesture_labels(session: Session) -> list[str]:
-    """The session's ordered label set (metadata ``gestures``, else sorted trial gestures)."""
-    names = list(session.metadata.get("gestures") or [])
-    return names + sorted({str(t.get("gesture")) for t in session.trials} - set(names))
 
 
 def _slug(text: str) -> str:
@@ -103,11 +97,11 @@ def export_shearsense_csv(path: str | os.PathLike, out_dir: str | os.PathLike,
         check_outputs([out], force)
         labels = np.zeros(s.n_frames, dtype=np.int64)
         for t in selected_trials(s, all_trials):
-            key = str(t.get("key") or "")
+            key = str(t.key or "")
             if len(key) != 1:
-                raise UserError(f"{s.path}: trial {trial_number(t['index'])} has no one-letter key "
+                raise UserError(f"{s.path}: trial {trial_number(t.index)} has no one-letter key "
                                 f"({key!r}); the ShearSense CSV labels rows by key")
-            labels[t["start_sample"]:t["end_sample"]] = ord(key)
+            labels[t.start_sample:t.end_sample] = ord(key)
         raw, baseline = s.raw(), s.baseline(0)
         times = _frame_times(s)
     shown = naming_the_file(progress)
@@ -123,7 +117,7 @@ def shearsense_status_note(path: str | os.PathLike, all_trials: bool) -> str | N
         return None
     with Session(path) as s:
         trials = selected_trials(s, all_trials=True)
-    other = Counter(str(t.get("status")) for t in trials if t.get("status") != TrialStatus.OK)
+    other = Counter(t.status.value for t in trials if not t.ok)
     if not other:
         return None
     kinds = ", ".join(f"{n} {status}" for status, n in sorted(other.items()))
@@ -132,9 +126,9 @@ def shearsense_status_note(path: str | os.PathLike, all_trials: bool) -> str | N
 
 
 # ---- NPZ per trial -------------------------------------------------------------------
-def trial_stack(s: Session, trial: dict[str, Any], virtual: bool) -> np.ndarray:
+def trial_stack(s: Session, trial: TrialRecord, virtual: bool) -> np.ndarray:
     """(3, T, R, C) float32 normal, shear x, shear y of one trial (zeros for no shear)."""
-    a, b = trial["start_sample"], trial["end_sample"]
+    a, b = trial.start_sample, trial.end_sample
     return decode(s.layout, s.raw(a, b), s.baseline(a), virtual=virtual).stack()
 
 
@@ -156,24 +150,24 @@ def export_npz(path: str | os.PathLike, out_dir: str | os.PathLike, all_trials: 
     with Session(path) as s:
         virtual = grid == "virtual" or (grid == "auto" and s.layout.has_shear)
         trials = selected_trials(s, all_trials)
-        names = [out_dir / f"{s.path.stem}_t{int(t['index']):04d}_{_slug(str(t['gesture']))}.npz"
+        names = [out_dir / f"{s.path.stem}_t{t.index:04d}_{_slug(t.gesture)}.npz"
                  for t in trials]
         check_outputs(names, force)
-        labels = gesture_labels(s)
+        labels = s.gesture_order()
         meta = s.metadata
         rate = 1.0 / frame_interval(s.column("device_time"), 1.0)
         for i, (t, name) in enumerate(zip(trials, names)):
             if cancel is not None:
                 cancel.check()
             x = trial_stack(s, t, virtual)
-            gesture = str(t["gesture"])
+            gesture = t.gesture
             fields = dict(
                 x=x, label=np.int64(labels.index(gesture)), gesture=np.str_(gesture),
                 participant=np.str_(meta.get("participant") or ""),
                 condition=np.str_(meta.get("condition") or ""),
-                index=np.int64(t["index"]), block=np.int64(user_block(t.get("block", -1))),
-                status=np.str_(t.get("status", "")), key=np.str_(t.get("key") or ""),
-                start_sample=np.int64(t["start_sample"]), end_sample=np.int64(t["end_sample"]),
+                index=np.int64(t.index), block=np.int64(user_block(t.block)),
+                status=np.str_(t.status.value), key=np.str_(t.key or ""),
+                start_sample=np.int64(t.start_sample), end_sample=np.int64(t.end_sample),
                 gestures=np.array(labels, dtype=str), session=np.str_(s.path.name),
                 channels=np.array(["normal", "shear_x", "shear_y"]), units=np.str_(s.layout.units),
                 grid=np.str_("virtual" if virtual else "physical"), rate_hz=np.float64(rate))
@@ -191,10 +185,10 @@ def _savez(tmp: Path, fields: dict[str, Any]) -> None:
 
 
 # ---- tidy per-trial CSV --------------------------------------------------------------
-def trial_row(s: Session, t: dict[str, Any], labels: list[str], rate: float) -> dict[str, Any]:
+def trial_row(s: Session, t: TrialRecord, labels: list[str], rate: float) -> dict[str, Any]:
     """One trial's metadata and summary features (physical grid, layout units)."""
-    frames = s.raw(t["start_sample"], t["end_sample"])
-    dec = decode(s.layout, frames, s.baseline(t["start_sample"]), virtual=False)
+    frames = s.raw(t.start_sample, t.end_sample)
+    dec = decode(s.layout, frames, s.baseline(t.start_sample), virtual=False)
     if dec.shear_x is not None:
         x, names = dec.stack(), ["normal", "shear_x", "shear_y"]
     else:
@@ -204,13 +198,13 @@ def trial_row(s: Session, t: dict[str, Any], labels: list[str], rate: float) -> 
     row: dict[str, Any] = {
         "session": s.path.name, "participant": meta.get("participant", ""),
         "condition": meta.get("condition", ""), "protocol": meta.get("protocol", ""),
-        "index": t["index"], "block": user_block(t.get("block", -1)),
-        "gesture": t["gesture"],
-        "label": labels.index(str(t["gesture"])), "key": t.get("key", ""),
-        "status": t.get("status", ""), "reason": t.get("reason") or "",
-        "flags": ";".join(t.get("flags") or []), "start_sample": t["start_sample"],
-        "end_sample": t["end_sample"], "start_time": t.get("start_time", ""),
-        "end_time": t.get("end_time", ""), "n_frames": len(frames),
+        "index": t.index, "block": user_block(t.block),
+        "gesture": t.gesture,
+        "label": labels.index(t.gesture), "key": t.key,
+        "status": t.status.value, "reason": t.reason or "",
+        "flags": ";".join(t.flags), "start_sample": t.start_sample,
+        "end_sample": t.end_sample, "start_time": t.start_time,
+        "end_time": t.end_time, "n_frames": len(frames),
         "duration_s": round(len(frames) / rate, 6),
         "peak_normal": float(dec.normal.max()) if len(frames) else 0.0,
     }
@@ -229,19 +223,20 @@ def export_csv_trials(path: str | os.PathLike, out_dir: str | os.PathLike,
         out = Path(out_dir) / f"{s.path.stem}_trials.csv"
         check_outputs([out], force)
         trials = selected_trials(s, all_trials)
-        labels = gesture_labels(s)
+        labels = s.gesture_order()
         rate = 1.0 / frame_interval(s.column("device_time"), 1.0)
-        extra = sorted({k for t in trials for k in t} - set(TRIAL_COLUMNS) - {"flags"}
+        stored = [t.to_dict() for t in trials]  # its columns: importers' extra ones too
+        extra = sorted({k for t in stored for k in t} - set(TRIAL_COLUMNS) - {"flags"}
                        - set(CHECKED))
         # the trial checks (issue 46) as flat columns, when the session has any
-        checked = CSV_COLUMNS if any(k in t for t in trials for k in CHECKED) else []
+        checked = CSV_COLUMNS if any(k in t for t in stored for k in CHECKED) else []
         rows = []
-        for i, t in enumerate(trials):
+        for i, (t, d) in enumerate(zip(trials, stored)):
             if cancel is not None:
                 cancel.check()
-            rows.append({**trial_row(s, t, labels, rate), **{k: t.get(k, "") for k in extra},
-                         **(csv_fields(t) if checked else {})})
-            progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {trial_number(t['index'])}")
+            rows.append({**trial_row(s, t, labels, rate), **{k: d.get(k, "") for k in extra},
+                         **(csv_fields(d) if checked else {})})
+            progress(min((i + 1) / max(len(trials), 1), 0.99), f"trial {trial_number(t.index)}")
 
     def write(tmp: Path) -> None:
         with open(tmp, "w", newline="", encoding="utf-8") as fh:

@@ -154,7 +154,7 @@ class Recorder:
                 e = dict(event)
                 kind, frame, t = e.pop("kind"), e.pop("frame", None), e.pop("time", None)
                 w.add_event(kind, frame=frame, time_s=t, **e)
-            trials = [dict(t) for t in old.trials]
+            trials = [dict(t) for t in old.journal.trials]  # copied as stored
             for t in trials:
                 w.add_trial(t)
             if old.journal.counters:

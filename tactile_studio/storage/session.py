@@ -22,7 +22,7 @@ from tactile_studio.storage.session_compress import read_rows
 from tactile_studio.storage.session_format import FORMAT, Journal, read_journal  # noqa: F401
 from tactile_studio.storage.session_recover import cut_short_rows, open_cut_short, written_rows
 from tactile_studio.storage.trial_checks import check_counts
-from tactile_studio.storage.trials import collection_progress
+from tactile_studio.storage.trials import TrialRecord, collection_progress, label_order
 
 # Namespace of the derived session ids (uuid5): imports and files from before ids existed.
 SESSION_ID_NAMESPACE = uuid.UUID("6f1d7c52-3a7e-4b8e-9f59-2c1b1e0a7d11")
@@ -146,6 +146,7 @@ class Session:
         else:
             check_stored(f, self.path)  # claims backed by stored data, before any read
         self.journal = read_journal(f)
+        self._trials: list[TrialRecord] | None = None
         self.schema_version = int(f.attrs.get("schema_version", 0))
         cols = [f["frames/raw"].shape[0]] + [
             f[f"frames/{n}"].shape[0] for n in ("device_time", "host_time", "seq", "index")]
@@ -181,8 +182,20 @@ class Session:
         return self.journal.events
 
     @property
-    def trials(self) -> list[dict[str, Any]]:
-        return self.journal.trials
+    def trials(self) -> list[TrialRecord]:
+        """The trials as typed records (``journal.trials`` keeps the file's own dicts, for
+        what checks or copies the file form)."""
+        if self._trials is None:
+            read = []
+            for t in self.journal.trials:
+                try:
+                    read.append(TrialRecord.from_dict(t))
+                except (TypeError, ValueError) as exc:  # `check` names each problem
+                    raise SessionFileError(f"{self.path}: trial {t.get('index', '?')}: {exc}"
+                                           " (tactile-studio check names what is wrong)"
+                                           ) from None
+            self._trials = read
+        return self._trials
 
     @property
     def session_id(self) -> str:
@@ -306,7 +319,7 @@ class Session:
             "participant": self.metadata.get("participant"),
             "gestures": self.gesture_order(),
             "unmapped_keys": list(self.metadata.get("unmapped_keys") or []),
-            "trials": [_user_blocks(t) for t in self.trials],
+            "trials": [_user_blocks(t) for t in self.journal.trials],
             # the trials' flags, model checks and decisions (storage/trial_checks.py)
             "checks": check_counts(self.trials),
             # a collection's progress against its stored block orders (None otherwise)
@@ -343,9 +356,4 @@ class Session:
     def gesture_order(self) -> list[str]:
         """The session's label order: the protocol's (metadata ``gestures``), then any
         other gesture its trials name, sorted."""
-        names: list[str] = []
-        for g in self.metadata.get("gestures") or []:
-            g = g.get("name", "") if isinstance(g, dict) else g
-            if g and str(g) not in names:
-                names.append(str(g))
-        return names + sorted({str(t.get("gesture")) for t in self.trials} - set(names))
+        return label_order([self.metadata], (t.gesture for t in self.trials))

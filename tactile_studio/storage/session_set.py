@@ -27,7 +27,6 @@ from typing import Any
 from tactile_studio.errors import UserError
 from tactile_studio.storage.file_guards import not_regular
 from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import records
 
 BACKUP_RE = re.compile(r"\.bak-\d+$")
 PILOT = "pilot session"
@@ -48,6 +47,10 @@ class SessionSet:
 
     def describe_skipped(self) -> str:
         return describe_skipped(self.skipped)
+
+    def name(self, path: Path) -> str:
+        """``path`` as trial uids name its session: relative to the set's root."""
+        return path.relative_to(self.root).as_posix() if self.root else path.name
 
 
 def describe_skipped(skipped: list[dict[str, Any]]) -> str:
@@ -143,7 +146,7 @@ def session_key(path: Path, s: Session) -> SessionKey:
     backup, then a recording made here over an import of it (an export re-imported keeps
     no protocol, blocks or sensor), then a cleanly closed one, more ok trials, more
     frames, the newest."""
-    ok = sum(1 for t in records(s.trials) if t.ok)
+    ok = sum(1 for t in s.trials if t.ok)
     made_here = not str(s.metadata.get("source") or "").startswith("import")
     return SessionKey(path, s.session_id, s.recording,
                       (not is_resume_backup(path), made_here, s.closed_cleanly, ok,

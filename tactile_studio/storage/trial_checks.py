@@ -11,11 +11,13 @@ trial looked like, "looks like Wide Pinch (0.61); Twist 0.07" (docs/trial-check.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from tactile_studio.storage.trials import TrialRecord, records
 
 MISMATCH_FLAG = "model_mismatch"
 DECISIONS = ("redo", "keep")
@@ -101,18 +103,18 @@ def check_problems(trial: Mapping[str, Any]) -> list[str]:
     return out
 
 
-def check_counts(trials: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+def check_counts(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> dict[str, Any]:
     """What ``info`` says of a session's checks: trials flagged (practice left out), per
     flag, those the model checked, and the experimenter's decisions."""
-    real = [t for t in trials if int(t.get("block", 0) or 0) >= 0]
-    flagged = [t for t in real if t.get("flags")]
+    real = [t for t in records(trials) if not t.practice]
+    flagged = [t for t in real if t.flags]
     by_flag: dict[str, int] = {}
     for t in flagged:
-        for f in t.get("flags") or ():
+        for f in t.flags:
             by_flag[str(f)] = by_flag.get(str(f), 0) + 1
-    decisions = {d: sum(1 for t in flagged if t.get("decision") == d) for d in DECISIONS}
+    decisions = {d: sum(1 for t in flagged if t.decision == d) for d in DECISIONS}
     return {"flagged": len(flagged), "by_flag": by_flag,
-            "model_checked": sum(1 for t in real if t.get("check")),
+            "model_checked": sum(1 for t in real if t.check),
             "decisions": decisions,
             "undecided": len(flagged) - sum(decisions.values())}
 

@@ -69,7 +69,7 @@ class TrialRecord:
         known = {k: d[k] for k in _FIELDS if k in d}
         known["index"] = int(known.get("index", 0))
         known["block"] = int(known.get("block", 0))
-        known["gesture"] = str(known.get("gesture", ""))
+        known["gesture"] = str(known.get("gesture") or "")
         known["status"] = TrialStatus(known.get("status") or TrialStatus.OK)
         known["flags"] = tuple(known.get("flags") or ())
         again = bool(d.get("collected_again", False))
@@ -107,6 +107,17 @@ class TrialRecord:
         return self.status == TrialStatus.OK
 
     @property
+    def usable(self) -> bool:
+        """Goes into a dataset (and a run's trial table): ``ok`` and naming a gesture.
+        Flags do not take a trial out; ``train --exclude-flagged`` does that."""
+        return self.ok and bool(self.gesture)
+
+    def uid(self, session: str) -> str:
+        """The trial's id among a set of sessions (a dataset's ``uids``, a run's
+        ``trials.json``): ``session`` is the file's path relative to the set's root."""
+        return f"{session}#{self.index}"
+
+    @property
     def flagged(self) -> bool:
         """An ``ok`` trial with quality flags: the experimenter may want it redone."""
         return self.ok and bool(self.flags)
@@ -122,6 +133,22 @@ class TrialRecord:
 def records(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> list[TrialRecord]:
     """Trials in either form as records."""
     return [t if isinstance(t, TrialRecord) else TrialRecord.from_dict(t) for t in trials]
+
+
+def label_order(metadata: Iterable[Mapping[str, Any]], seen: Iterable[str],
+                keep_unseen: bool = True) -> list[str]:
+    """Gesture names in label order: the protocol's (each metadata's ``gestures``, names or
+    ``{"name": ...}``), then any other gesture in ``seen``, sorted. ``keep_unseen=False``
+    leaves out protocol gestures no trial names (a dataset's classes)."""
+    order: list[str] = []
+    for meta in metadata:
+        for g in meta.get("gestures") or []:
+            name = g.get("name", "") if isinstance(g, Mapping) else g
+            if name and str(name) not in order:
+                order.append(str(name))
+    gestures = set(seen)
+    names = order if keep_unseen else [g for g in order if g in gestures]
+    return names + sorted(gestures - set(names))
 
 
 def trials_done(trials: Iterable[Mapping[str, Any] | TrialRecord]) -> int:

@@ -186,7 +186,7 @@ def session_markers(s: Session, host: np.ndarray, index: np.ndarray,
             if recorded is not None and e.get("time"):
                 t = float(_on_clock(np.array([t]), recorded, host)[0])
         out.append((t, marker))
-    for t in s.trials:
+    for t in s.journal.trials:  # the file's columns, importers' extra ones too
         a, b = int(t["start_sample"]), min(int(t["end_sample"]), n)
         if not n or b <= a:
             continue

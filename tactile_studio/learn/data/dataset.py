@@ -24,6 +24,7 @@ from tactile_studio.learn.data import cache
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import SessionSet, describe_skipped, select_sessions
+from tactile_studio.storage.trials import TrialRecord, label_order
 
 GRIDS = ("physical", "virtual")
 CHANNEL_SETS = ("normal", "shear", "both")
@@ -142,7 +143,7 @@ def find_session_files(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], 
     return chosen.files, chosen.root
 
 
-def _trial_rate(session: Session, trial: dict, start: int, stop: int) -> float:
+def _trial_rate(session: Session, trial: TrialRecord, start: int, stop: int) -> float:
     """Frames per second of one trial from the device clock, else the trial's times."""
     n = stop - start
     if n >= 2:
@@ -150,23 +151,8 @@ def _trial_rate(session: Session, trial: dict, start: int, stop: int) -> float:
         span = float(t[-1] - t[0])
         if span > 0:
             return (n - 1) / span
-    span = float(trial.get("end_time", 0) or 0) - float(trial.get("start_time", 0) or 0)
+    span = float(trial.end_time or 0) - float(trial.start_time or 0)
     return n / span if span > 0 and n > 0 else DEFAULT_RATE_HZ
-
-
-def _label_order(sessions_meta: list[dict], gestures_seen: list[str]) -> list[str]:
-    """Protocol order first (the sessions' ``gestures`` metadata), then any others sorted."""
-    order: list[str] = []
-    for meta in sessions_meta:
-        for g in meta.get("gestures") or []:
-            if isinstance(g, dict):
-                g = g.get("name", "")
-            if g and g not in order:
-                order.append(str(g))
-    seen = set(gestures_seen)
-    labels = [g for g in order if g in seen]
-    labels += sorted(seen - set(labels))
-    return labels
 
 
 def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
@@ -179,7 +165,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
     if grid not in GRIDS:
         raise UserError(f"unknown grid {grid!r} (available: {', '.join(GRIDS)})")
     chosen = chosen or select_sessions(paths)
-    files, root = chosen.files, chosen.root
+    files = chosen.files
     virtual = grid == "virtual"
     layout_name: str | None = None
     first_file: Path | None = None
@@ -200,29 +186,29 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
             metas.append(meta)
             participant = str(meta.get("participant") or path.stem)
             condition = str(meta.get("condition") or "")
-            ok = [t for t in s.trials if t.get("status", "ok") == "ok" and t.get("gesture")]
+            ok = [t for t in s.trials if t.usable]
             if not ok:
                 continue
             raw = s.raw()
-            rel = path.relative_to(root).as_posix() if root else path.name
+            rel = chosen.name(path)
             for t in ok:
-                start = max(0, int(t["start_sample"]))
-                stop = min(int(t["end_sample"]), s.n_frames)
+                start = max(0, t.start_sample)
+                stop = min(t.end_sample, s.n_frames)
                 if stop - start < 1:
                     continue
                 frames = decode(s.layout, raw[start:stop], s.baseline(start), virtual=virtual)
                 stack = frames.stack() if s.layout.has_shear else frames.normal[None]
                 trials.append(np.ascontiguousarray(stack, dtype=np.float32))
-                gestures.append(str(t["gesture"]))
+                gestures.append(t.gesture)
                 participants.append(participant)
                 conditions.append(condition)
-                uids.append(f"{rel}#{int(t['index'])}")
+                uids.append(t.uid(rel))
                 rates.append(_trial_rate(s, t, start, stop))
     progress(1.0, f"decoded {len(trials)} trials of {len(files)} session(s)")
     if not trials:
         where = ", ".join(str(p) for p in paths)
         raise UserError(f"{where}: no trials with status ok in {len(files)} session file(s)")
-    label_names = _label_order(metas, gestures)
+    label_names = label_order(metas, gestures, keep_unseen=False)
     lengths = {float((m.get("protocol_spec") or {}).get("trial_s") or 0) for m in metas}
     index = {g: i for i, g in enumerate(label_names)}
     return TrialDataset(
@@ -267,9 +253,8 @@ def _without_flagged(ds: TrialDataset, chosen: SessionSet) -> TrialDataset:
     """``ds`` without the trials stored with flags (their uids, ``rel#index``)."""
     flagged: set[str] = set()
     for path in chosen.files:
-        rel = path.relative_to(chosen.root).as_posix() if chosen.root else path.name
         with Session(path) as s:
-            flagged.update(f"{rel}#{int(t['index'])}" for t in s.trials if t.get("flags"))
+            flagged.update(t.uid(chosen.name(path)) for t in s.trials if t.flags)
     keep = [i for i, u in enumerate(ds.uids) if u not in flagged]
     if not keep:
         raise UserError("--exclude-flagged: every trial of the data is flagged")

@@ -23,25 +23,25 @@ TRIALS = "trials.json"
 def session_trial_table(paths: Sequence[str | os.PathLike]) -> dict[str, dict[str, Any]]:
     """uid -> identity of every ``ok`` trial in the session files, keyed as the dataset's
     ``uids`` are (session path relative to the common root + ``#`` + trial index)."""
-    from tactile_studio.learn.data.dataset import find_session_files
     from tactile_studio.storage.session import Session
+    from tactile_studio.storage.session_set import select_sessions
 
-    files, root = find_session_files(paths)
+    chosen = select_sessions(paths)
     table: dict[str, dict[str, Any]] = {}
-    for path in files:
+    for path in chosen.files:
         with Session(path) as s:
             meta = s.metadata
             participant = str(meta.get("participant") or path.stem)
-            rel = path.relative_to(root).as_posix() if root else path.name
+            rel = chosen.name(path)
             for t in s.trials:
-                if t.get("status", "ok") != "ok" or not t.get("gesture"):
+                if not t.usable:
                     continue
-                uid = f"{rel}#{int(t['index'])}"
+                uid = t.uid(rel)
                 table[uid] = {
                     "uid": uid, "participant": participant, "session": rel,
-                    "path": str(path), "trial": int(t["index"]), "gesture": str(t["gesture"]),
+                    "path": str(path), "trial": t.index, "gesture": t.gesture,
                     "condition": str(meta.get("condition") or ""),
-                    "start_sample": int(t["start_sample"]), "end_sample": int(t["end_sample"]),
+                    "start_sample": t.start_sample, "end_sample": t.end_sample,
                 }
     return table
 

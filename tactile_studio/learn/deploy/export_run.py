@@ -48,6 +48,7 @@ from tactile_studio.learn.evaluation.evaluate import RunData, load_run_data
 from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import prepare_inputs
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 from tactile_studio.learn.learners.fused import (
     RF_FILE,
     display_name,
@@ -187,8 +188,7 @@ def _export_baseline(run: str | os.PathLike, loaded: RunData, progress: Progress
                                   "norm": json.dumps({})})
         exported = BaselineModel.load(path, learner.name, learner.options, info.n_classes)
         got = exported.predict_proba(x[mask])
-        p = rec["predictions"]
-        ref = np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1)
+        ref = FoldPredictions.from_dict(rec["predictions"]).probs
         if len(ref) != len(got):
             raise UserError(f"fold {rec['name']}: the data gives {len(got)} test windows, "
                             f"the run recorded {len(ref)}")
@@ -271,9 +271,8 @@ def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarr
             got: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
     """Two fold records (reference, exported) in the run's layout, for ``summarise``."""
     def one(probs: np.ndarray) -> dict[str, Any]:
-        return {**rec, "heldout_predictions": None,
-                "predictions": {"owner": owner.tolist(), "y_true": y.tolist(),
-                                "probs": np.asarray(probs, dtype=np.float64).tolist()}}
+        p = FoldPredictions(owner, y, np.asarray(probs, dtype=np.float64))
+        return {**rec, "heldout_predictions": None, "predictions": p.to_dict()}
     return one(ref), one(got)
 
 
@@ -300,8 +299,8 @@ def _report(model: str, fmt: str, folds: list[dict[str, Any]],
     for entry, (ref, got) in zip(folds, scored):
         r = summarise([ref], labels, windowed, header, True)
         g = summarise([got], labels, windowed, header, True)
-        before = np.asarray(ref["predictions"]["probs"]).argmax(axis=1) if entry["n"] else []
-        after = np.asarray(got["predictions"]["probs"]).argmax(axis=1) if entry["n"] else []
+        before = FoldPredictions.from_dict(ref["predictions"]).y_pred
+        after = FoldPredictions.from_dict(got["predictions"]).y_pred
         entry.update(n_trials=r["n_trials"], accuracy_torch=r["accuracy"],
                      accuracy_export=g["accuracy"], trial_accuracy_torch=r["trial_accuracy"],
                      trial_accuracy_export=g["trial_accuracy"],

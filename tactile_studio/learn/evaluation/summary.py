@@ -9,6 +9,7 @@ import numpy as np
 
 from tactile_studio.learn.data.windowing import aggregate as aggregate_trials
 from tactile_studio.learn.evaluation import metrics as M
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 
 TRIAL_KEYS = ("accuracy", "balanced_accuracy", "f1_macro", "kappa", "confusion_matrix",
               "confusion_counts", "per_class_accuracy")
@@ -32,10 +33,8 @@ def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels:
 
 def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
                  key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
-    p = rec[key]
-    return _sample_metrics(np.asarray(p["y_true"], dtype=np.int64),
-                           np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), -1),
-                           np.asarray(p["owner"]), labels, windowed, aggregate)
+    p = FoldPredictions.from_dict(rec[key])
+    return _sample_metrics(p.y_true, p.probs, p.owner, labels, windowed, aggregate)
 
 
 def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
@@ -44,10 +43,10 @@ def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
     per fold so votes never mix folds)."""
     ys, ps, os_ = [], [], []
     for i, rec in enumerate(records):
-        p = rec[key]
-        ys.append(np.asarray(p["y_true"], dtype=np.int64))
-        ps.append(np.asarray(p["probs"], dtype=np.float64).reshape(len(p["y_true"]), len(labels)))
-        os_.append(np.asarray(p["owner"], dtype=np.int64) + i * 10_000_000)
+        p = FoldPredictions.from_dict(rec[key])
+        ys.append(p.y_true)
+        ps.append(p.class_probs(len(labels)))
+        os_.append(p.owner + i * 10_000_000)
     return _sample_metrics(np.concatenate(ys), np.concatenate(ps), np.concatenate(os_),
                            labels, windowed, aggregate)
 

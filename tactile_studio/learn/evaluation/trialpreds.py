@@ -20,6 +20,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.data.trialinfo import load_trial_table
 from tactile_studio.learn.data.windowing import aggregate
 from tactile_studio.learn.experiments.runfolder import read_run
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 from tactile_studio.storage.trials import trial_number
 
 
@@ -85,12 +86,11 @@ class RunPredictions:
 
 def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]],
                 how: str = "mean") -> list[TrialPrediction]:
-    p = rec["predictions"]
-    owner = np.asarray(p["owner"], dtype=np.int64)
+    p = FoldPredictions.from_dict(rec["predictions"])
+    owner = p.owner
     if not len(owner):
         return []
-    probs = np.asarray(p["probs"], dtype=np.float64).reshape(len(owner), len(labels))
-    y = np.asarray(p["y_true"], dtype=np.int64)
+    probs, y = p.class_probs(len(labels)), p.y_true
     trials, predicted = aggregate(owner, probs, how)
     _, inverse = np.unique(owner, return_inverse=True)
     mean = np.zeros((len(trials), len(labels)))
@@ -123,7 +123,7 @@ def load_predictions(run: str | os.PathLike, data: list[str] | None = None) -> R
     try:
         labels = list(cfg["resolved"]["dataset"]["labels"])
         for rec in records:
-            rec["predictions"]["owner"]  # noqa: B018 - layout check
+            FoldPredictions.from_dict(rec["predictions"])  # layout check
     except (KeyError, TypeError):
         raise UserError(f"{run}: not a run folder of this version (config.json or fold.json "
                         "lacks labels/predictions)") from None

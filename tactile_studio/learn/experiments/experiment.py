@@ -53,6 +53,7 @@ from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 from tactile_studio.learn.learners.fused import (
     display_name,
     person_columns,
@@ -130,8 +131,7 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
             if probs.shape[1] == 0:
                 probs = np.zeros((len(xt), part.shape[1]), dtype=np.float32)
             probs[rows] = part
-    return {"owner": owner[mask].tolist(), "y_true": labels[owner[mask]].tolist(),
-            "probs": np.round(probs, 5).tolist()}
+    return FoldPredictions.of_samples(owner[mask], labels, probs).to_dict()
 
 
 def _train_fold(plan: FoldPlan, info: DataInfo, cancel: CancelToken,

@@ -58,6 +58,7 @@ from tactile_studio.learn.experiments.runfolder import (
     write_json,
 )
 from tactile_studio.learn.learners.families import DataInfo, make_learner
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 from tactile_studio.learn.learners.fused import display_name
 
 SweepListener = Callable[[Plan | Task], None]
@@ -284,12 +285,10 @@ def _save_fold(run: RunFolder, rec: dict[str, Any], model: dict[str, Any] | None
 
 def _accuracy(rec: dict[str, Any]) -> float | None:
     """A finished fold's per-window test accuracy (for the progress display)."""
-    p = rec.get("predictions") or {}
-    y, probs = p.get("y_true") or [], p.get("probs") or []
-    if not y:
+    if not rec.get("predictions"):
         return None
-    hits = sum(int(max(range(len(row)), key=row.__getitem__) == t) for t, row in zip(y, probs))
-    return hits / len(y)
+    p = FoldPredictions.from_dict(rec["predictions"])
+    return float((p.y_pred == p.y_true).mean()) if len(p) else None
 
 
 def read_json_roundtrip(value: Any) -> Any:

@@ -24,6 +24,7 @@ from tactile_studio.storage.session_set import (
     is_resume_backup,
     session_key,
 )
+from tactile_studio.storage.trials import TrialStatus
 
 
 @dataclass
@@ -100,12 +101,11 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
                 row.pilot = is_pilot(meta)
                 counts: Counter[str] = Counter()
                 for t in s.trials:
-                    status = t.get("status", "ok")
-                    if status == "ok" and t.get("gesture"):
-                        counts[str(t["gesture"])] += 1
+                    if t.usable:
+                        counts[t.gesture] += 1
                         row.ok += 1
-                    row.discarded += status == "discarded"
-                    row.flagged += bool(t.get("flags"))
+                    row.discarded += t.status == TrialStatus.DISCARDED
+                    row.flagged += bool(t.flags)
                 row.per_gesture = dict(counts)
                 if check:
                     row.violations, row.checked = check_session(s), True
