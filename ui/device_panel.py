@@ -58,7 +58,18 @@ class DevicePanel(QWidget):
         controller.add_listener(self._on_session_event)
         self.plugins = available_plugins()
         self._form_error: str | None = None
+        self._build_device_choice()
+        self._build_settings()
+        buttons = self._build_buttons()
+        self._build_state_lines()
+        self._build_layout(buttons)
+        self._rebuild_form()
+        self._update_buttons(LiveStatus(None, "disconnected", None))
 
+    # ---- the panel's parts, top to bottom -----------------------------------------------
+    def _build_device_choice(self) -> None:
+        """Every device plugin (one that failed to load shown greyed, its error as the
+        tip) and the chosen one's description."""
         self.device_box = QComboBox()
         for name, cls in self.plugins.items():
             if isinstance(cls, Exception):
@@ -75,6 +86,8 @@ class DevicePanel(QWidget):
         self.description.setWordWrap(True)
         self.description.setObjectName("hint")
 
+    def _build_settings(self) -> None:
+        """The device's settings form, the settings it holds, the sensor id, the error."""
         self.form_box = SettingsForm("Settings")
         self.form_box.changed.connect(self._validate)
         # a setting the device changed while connected (a collection session quiets the
@@ -93,6 +106,8 @@ class DevicePanel(QWidget):
         self.error_label.setSizePolicy(QSizePolicy.Policy.Ignored, QSizePolicy.Policy.Fixed)
         self.error_label.hide()
 
+    def _build_buttons(self) -> tuple[QHBoxLayout, QHBoxLayout]:
+        """Connect and Disconnect; Tare and Record."""
         self.connect_button = QPushButton("Connect")
         self.connect_button.setObjectName("primary")
         self.connect_button.clicked.connect(self.connect_device)
@@ -110,7 +125,10 @@ class DevicePanel(QWidget):
         buttons2 = QHBoxLayout()
         for b in (self.tare_button, self.record_button):
             buttons2.addWidget(b)
+        return buttons, buttons2
 
+    def _build_state_lines(self) -> None:
+        """The connection's state, its detail and the recording's line."""
         self.state_label = QLabel("disconnected")
         self.state_label.setObjectName("state")
         self.detail_label = QLabel()
@@ -121,6 +139,7 @@ class DevicePanel(QWidget):
         self.record_label.setObjectName("recording")
         self.record_label.hide()
 
+    def _build_layout(self, buttons: tuple[QHBoxLayout, QHBoxLayout]) -> None:
         box = QVBoxLayout(self)
         box.addWidget(self.device_box)
         box.addWidget(self.description)
@@ -128,16 +147,14 @@ class DevicePanel(QWidget):
         box.addWidget(self.held_label)
         box.addWidget(self.sensor_box)
         box.addWidget(self.error_label)
-        box.addLayout(buttons)
-        box.addLayout(buttons2)
+        box.addLayout(buttons[0])
+        box.addLayout(buttons[1])
         box.addWidget(self._build_lsl_row())
         box.addSpacing(8)
         box.addWidget(self.state_label)
         box.addWidget(self.detail_label)
         box.addWidget(self.record_label)
         box.addStretch(1)
-        self._rebuild_form()
-        self._update_buttons(LiveStatus(None, "disconnected", None))
 
     # ---- the form --------------------------------------------------------------------
     def plugin(self) -> type[DevicePlugin] | None:

@@ -85,7 +85,13 @@ class HeatmapView(CellPointer, QWidget):
         self._hover = (-1, -1)
         self._layout: Layout | None = None
         self._data: np.ndarray | None = None
+        self._build_plot(colormap)
+        self._build_layout(controls)
 
+    # ---- the view's parts ----------------------------------------------------------
+    def _build_plot(self, colormap: str) -> None:
+        """The map: the plot, its row and column labels, the image and its colour bar,
+        the arrows, the marks and the hover box."""
         self.view = _PaintNotifyingView()
         self.view.setBackground(BACKGROUND)
         self.view.painted.connect(self.painted)
@@ -131,6 +137,8 @@ class HeatmapView(CellPointer, QWidget):
         self.view.scene().sigMouseMoved.connect(self._on_mouse_moved)
         self.view.scene().sigMouseClicked.connect(self._on_mouse_clicked)
 
+    def _build_layout(self, controls: bool) -> None:
+        """The controls above the map; the readout and the colour map's box below."""
         self.readout = QLabel(" ")
         self.readout.setObjectName("readout")
         self.readout.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)

@@ -11,11 +11,25 @@ from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
+from tactile_studio.learn.choices import (
+    AGGREGATES,
+    BASELINES,
+    CHANNEL_SETS,
+    EXPORT_FORMATS,
+    GRIDS,
+    PROTOCOLS,
+    SHOTS_BY,
+)
 from tactile_studio.learn.learners.baselines import DEFAULT_MODEL
 from tactile_studio.learn.learners.contract import PRESETS
-from tactile_studio.learn.learners.generalise import ADAPT, ADAPT_AUTO, ADAPT_CHOICES, ADAPT_PHRASE
+from tactile_studio.learn.learners.generalise import (
+    ADAPT,
+    ADAPT_AUTO,
+    ADAPT_CHOICES,
+    ADAPT_PHRASE,
+    VAL_BY,
+)
 
-PROTOCOL_CHOICES = ("all-inclusive", "lopo", "group-kfold")
 PRESET_HELP = ("full (default): each model's recipe for unseen people; tiny: the "
                "CPU-test size, under rf on hard virtual people (docs/learning/figures.md)")
 
@@ -46,7 +60,7 @@ def _fold_rows(bar: TerminalProgress):  # noqa: ANN202
 def _add_data_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--data", nargs="+", required=True, metavar="PATH",
                    help="folder(s) searched recursively for *.h5 sessions, or session files")
-    p.add_argument("--grid", choices=("physical", "virtual"), default="physical",
+    p.add_argument("--grid", choices=GRIDS, default=GRIDS[0],
                    help="physical taxels or the virtual (2R-1)x(2C-1) grid")
     p.add_argument("--cache-dir", default=None,
                    help="dataset cache (default: $TACTILE_STUDIO_CACHE_DIR, else the "
@@ -58,17 +72,18 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
     _add_data_options(p)
     p.add_argument("--model", default=DEFAULT_MODEL, metavar="NAME",
                    help=f"{DEFAULT_MODEL} (default: extra-trees on touch and shear features, "
-                        "adapted per person and surface), rf, knn, cnn3d, cnn_transformer, "
-                        "cnn1d, mts3d, sefusion or a model a package registers "
-                        "(docs/models.md)")
-    p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo",
-                   help="evaluation protocol (default lopo)")
+                        "adapted per person and surface), "
+                        + ", ".join(n for n in BASELINES if n != DEFAULT_MODEL)
+                        + ", a network of docs/models.md (cnn1d, cnn3d...) or a model a "
+                          "package registers")
+    p.add_argument("--eval", dest="protocol", choices=PROTOCOLS, default=PROTOCOLS[0],
+                   help=f"evaluation protocol (default {PROTOCOLS[0]})")
     p.add_argument("--shots", type=_shot_counts, default=(), metavar="K[,K...]",
                    help="few-shot personalisation under lopo/group-kfold: each held-out "
                         "person once per K, with K labelled performances per gesture of "
                         "theirs in the training and the rest tested (e.g. 0,1,2: the curve "
                         "over K in metrics.json; windows of a performance never split)")
-    p.add_argument("--shots-by", dest="shots_by", choices=("auto", "join", "fine-tune"),
+    p.add_argument("--shots-by", dest="shots_by", choices=SHOTS_BY,
                    default="auto",
                    help="how the shots reach the model: join (they join the training, one "
                         "training per K) or fine-tune (networks only: the fold is trained "
@@ -93,7 +108,7 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                         "(default: the protocol's trial length, else 2 s)")
     p.add_argument("--overlap", dest="window_overlap", type=finite_float, default=0.5,
                    help="share of a window overlapping the next (default 0.5)")
-    p.add_argument("--aggregate", choices=("mean", "vote"), default="mean",
+    p.add_argument("--aggregate", choices=AGGREGATES, default=AGGREGATES[0],
                    help="trial prediction from its windows: mean probability or majority vote")
     add_generalisation_options(p)
 
@@ -121,7 +136,7 @@ def add_generalisation_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--participant-norm", action="store_true",
                    help="scale each participant's normal and shear to a typical person")
     p.add_argument("--balance", action="store_true", help="repeat rarer classes when training")
-    p.add_argument("--val-by", choices=("trial", "participant"), default="trial",
+    p.add_argument("--val-by", choices=VAL_BY, default=VAL_BY[0],
                    help="early stopping on training trials or on whole training participants")
     p.add_argument("--adapt", choices=ADAPT_CHOICES, default=ADAPT_AUTO,
                    help="person: meet each test person on their own terms, from their own "
@@ -319,7 +334,7 @@ def cmd_export(args: argparse.Namespace) -> int:
 def register(subparsers) -> None:
     p = subparsers.add_parser("train", help="train and evaluate a gesture model on session files")
     _add_train_options(p)
-    p.add_argument("--channels", choices=("normal", "shear", "both"), default=None,
+    p.add_argument("--channels", choices=CHANNEL_SETS, default=None,
                    help="channel set (default: every channel the data has)")
     p.add_argument("--out", required=True, metavar="RUN",
                    help="run folder (re-run with the same folder to resume)")
@@ -342,7 +357,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("ablate", help="compare channel sets normal / shear / both")
     _add_train_options(p)
     p.add_argument("--channels", dest="channel_sets", nargs="+",
-                   choices=("normal", "shear", "both"), default=["normal", "shear", "both"])
+                   choices=CHANNEL_SETS, default=list(CHANNEL_SETS))
     p.add_argument("--out", default=None, metavar="DIR",
                    help="keep one run folder per channel set under DIR")
     p.set_defaults(func=cmd_ablate)
@@ -350,7 +365,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser("export-model", help="export a run's models to ONNX or int8 ONNX")
     p.add_argument("run", metavar="RUN")
     # checked by export_run, so a wrong value is the usual one-line error
-    p.add_argument("--format", required=True, metavar="onnx|int8",
+    p.add_argument("--format", required=True, metavar="|".join(EXPORT_FORMATS),
                    help="onnx: RUN/export/<fold>.onnx; int8: RUN/export/<fold>.int8.onnx")
     p.add_argument("--data", nargs="+", default=None, metavar="PATH")
     p.add_argument("--cache-dir", default=None)

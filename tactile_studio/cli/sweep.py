@@ -10,7 +10,6 @@ from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.learn import (
     PRESET_HELP,
     PRESETS,
-    PROTOCOL_CHOICES,
     _add_data_options,
     _Bar,
     add_generalisation_options,
@@ -18,6 +17,7 @@ from tactile_studio.cli.learn import (
 )
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
+from tactile_studio.learn.choices import AGGREGATES, CHANNEL_SETS, EXECUTORS, PROTOCOLS
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -57,9 +57,9 @@ def register(subparsers) -> None:
     _add_data_options(p)
     p.add_argument("--models", nargs="+", required=True, metavar="NAME")
     p.add_argument("--channels", nargs="+", default=["all"],
-                   choices=("normal", "shear", "both", "all"),
+                   choices=(*CHANNEL_SETS, "all"),
                    help="channel sets (default all: every channel the data has)")
-    p.add_argument("--eval", dest="protocol", choices=PROTOCOL_CHOICES, default="lopo")
+    p.add_argument("--eval", dest="protocol", choices=PROTOCOLS, default=PROTOCOLS[0])
     p.add_argument("--rounds", type=int, default=1)
     p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
     p.add_argument("--epochs", type=int, default=None)
@@ -69,10 +69,10 @@ def register(subparsers) -> None:
     p.add_argument("--folds", type=int, default=10, help="k for group-kfold")
     p.add_argument("--device", default="cpu", help="cpu or cuda (cuda tasks ask Ray for a GPU)")
     p.add_argument("--window", dest="window_s", type=finite_float, default=None, metavar="SECONDS")
-    p.add_argument("--aggregate", choices=("mean", "vote"), default="mean")
+    p.add_argument("--aggregate", choices=AGGREGATES, default=AGGREGATES[0])
     add_generalisation_options(p)
     p.add_argument("--out", default=None, metavar="DIR", help="results and finished tasks")
-    p.add_argument("--executor", choices=("local", "ray"), default="local")
+    p.add_argument("--executor", choices=EXECUTORS, default=EXECUTORS[0])
     p.add_argument("--jobs", type=int, default=None,
                    help="worker processes / local Ray CPUs (default: the number of cores)")
     p.add_argument("--address", default=None, metavar="HOST:PORT",

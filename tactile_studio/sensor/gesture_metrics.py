@@ -73,7 +73,7 @@ def gesture_metrics(x: np.ndarray, channel_names: list[str], rate: float,
     sx, sy = ch.get("shear_x"), ch.get("shear_y")
     mag = np.hypot(sx, sy) if sx is not None and sy is not None else None
     load = np.clip(normal, 0, None) if normal is not None else mag
-    n, rows, cols = load.shape
+    n = load.shape[0]
     thr = max(0.1 * float(load.max()), 1e-9)
     contact = load > thr
     weight = np.where(contact, load, 0.0)
@@ -86,42 +86,60 @@ def gesture_metrics(x: np.ndarray, channel_names: list[str], rate: float,
         out["mean_abs_shear"] = float(mag[contact].mean()) if contact.any() else 0.0
     out["contact_area"] = float(contact[active].mean()) if active.any() else 0.0
     out["dominant_hz"] = dominant_frequency(total, rate)
+    speed, spread, spread_abs = _centroid_motion(weight, total, active, rate, cell_pitch)
+    out["centroid_speed"], out["spread_change"] = speed, spread
+    if mag is not None:
+        out.update(_shear_field(sx, sy, weight, contact, float(out["mean_abs_shear"]),
+                                cell_pitch))
+    out["movement"] = movement_type(spread, spread_abs, speed)
+    return out
 
+
+def _centroid_motion(weight: np.ndarray, total: np.ndarray, active: np.ndarray, rate: float,
+                     cell_pitch: float) -> tuple[float, float, float]:
+    """Over the active frames: the load centroid's speed (pitch/s), the relative and the
+    absolute change of the contact's radius of gyration (first third to last third);
+    zeros with fewer than 3 active frames."""
+    rows, cols = weight.shape[1:]
     yy, xx = np.mgrid[0:rows, 0:cols].astype(np.float64) * cell_pitch
     w, wt = weight[active], total[active]
-    out["centroid_speed"] = out["spread_change"] = 0.0
-    spread_abs = 0.0
-    if len(w) >= 3:
-        cy = (w * yy).sum(axis=(1, 2)) / wt
-        cx = (w * xx).sum(axis=(1, 2)) / wt
-        gyr = np.sqrt((w * ((yy - cy[:, None, None]) ** 2 + (xx - cx[:, None, None]) ** 2))
-                      .sum(axis=(1, 2)) / wt)
-        frames = np.flatnonzero(active)
-        duration = max((frames[-1] - frames[0]) / rate, 1.0 / rate)
-        step = np.hypot(np.diff(cx), np.diff(cy))[np.diff(frames) == 1]
-        out["centroid_speed"] = float(step.sum() / duration)
-        third = max(1, len(gyr) // 3)
-        first, last = gyr[:third].mean(), gyr[-third:].mean()
-        out["spread_change"] = float((last - first) / max(first, last, 1e-9))
-        spread_abs = float(abs(last - first))
-    if mag is not None:
-        div = np.gradient(sx, cell_pitch, axis=2) + np.gradient(sy, cell_pitch, axis=1)
-        curl = np.gradient(sy, cell_pitch, axis=2) - np.gradient(sx, cell_pitch, axis=1)
-        wsum = weight.sum()
-        scale = max(float(out["mean_abs_shear"]), 1e-9)
-        out["divergence"] = float((div * weight).sum() / wsum / scale) if wsum > 0 else 0.0
-        out["curl"] = float((curl * weight).sum() / wsum / scale) if wsum > 0 else 0.0
-        vx = float(sx[contact].mean()) if contact.any() else 0.0
-        vy = float(sy[contact].mean()) if contact.any() else 0.0
-        out["coherence"] = float(np.hypot(vx, vy) / scale)
-    spread = float(out["spread_change"])
+    if len(w) < 3:
+        return 0.0, 0.0, 0.0
+    cy = (w * yy).sum(axis=(1, 2)) / wt
+    cx = (w * xx).sum(axis=(1, 2)) / wt
+    gyr = np.sqrt((w * ((yy - cy[:, None, None]) ** 2 + (xx - cx[:, None, None]) ** 2))
+                  .sum(axis=(1, 2)) / wt)
+    frames = np.flatnonzero(active)
+    duration = max((frames[-1] - frames[0]) / rate, 1.0 / rate)
+    step = np.hypot(np.diff(cx), np.diff(cy))[np.diff(frames) == 1]
+    third = max(1, len(gyr) // 3)
+    first, last = gyr[:third].mean(), gyr[-third:].mean()
+    return (float(step.sum() / duration), float((last - first) / max(first, last, 1e-9)),
+            float(abs(last - first)))
+
+
+def _shear_field(sx: np.ndarray, sy: np.ndarray, weight: np.ndarray, contact: np.ndarray,
+                 mean_abs_shear: float, cell_pitch: float) -> dict[str, float]:
+    """Contact-weighted divergence and curl of the shear field, and its coherence, each
+    relative to the mean |shear|."""
+    div = np.gradient(sx, cell_pitch, axis=2) + np.gradient(sy, cell_pitch, axis=1)
+    curl = np.gradient(sy, cell_pitch, axis=2) - np.gradient(sx, cell_pitch, axis=1)
+    wsum = weight.sum()
+    scale = max(mean_abs_shear, 1e-9)
+    vx = float(sx[contact].mean()) if contact.any() else 0.0
+    vy = float(sy[contact].mean()) if contact.any() else 0.0
+    return {"divergence": float((div * weight).sum() / wsum / scale) if wsum > 0 else 0.0,
+            "curl": float((curl * weight).sum() / wsum / scale) if wsum > 0 else 0.0,
+            "coherence": float(np.hypot(vx, vy) / scale)}
+
+
+def movement_type(spread: float, spread_abs: float, speed: float) -> str:
+    """convergent / divergent by the contact's spread, else transversal by the centroid's
+    speed, else static (thresholds above; see gesture_metrics)."""
     if spread < -SPREAD_THRESHOLD and spread_abs >= SPREAD_MIN_PITCH:
-        movement = "convergent"
-    elif spread > SPREAD_THRESHOLD and spread_abs >= SPREAD_MIN_PITCH:
-        movement = "divergent"
-    elif float(out["centroid_speed"]) > TRAVEL_THRESHOLD:
-        movement = "transversal"
-    else:
-        movement = "static"
-    out["movement"] = movement
-    return out
+        return "convergent"
+    if spread > SPREAD_THRESHOLD and spread_abs >= SPREAD_MIN_PITCH:
+        return "divergent"
+    if speed > TRAVEL_THRESHOLD:
+        return "transversal"
+    return "static"

@@ -130,6 +130,30 @@ class SessionWriter:
         self._lock = threading.RLock()
         if self.path.parent and not self.path.parent.exists():
             raise SessionFileError(f"{self.path}: folder {self.path.parent} does not exist")
+        self._open(staged)
+        self._create_datasets(aux or [])
+        self._n = 0
+        self._last_flush = time.monotonic()
+        self._closed = False
+        self.failed: str | None = None
+        self.failed_errno: int | None = None
+        self.metadata: dict[str, Any] = {
+            "session_id": str(uuid.uuid4()),  # callers (resume, imports) may pass their own
+            "schema_version": SCHEMA_VERSION,
+            "app_version": __version__,
+            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "layout": layout.to_dict(),
+            "device": device_info,
+            "notes": "",
+        }
+        self.metadata.update(metadata or {})
+        self._record({"type": "metadata", "update": self.metadata})
+        self.flush()
+
+    def _open(self, staged: bool) -> None:
+        """Claim the name and create the HDF5 file (at a temporary name when ``staged``);
+        a refusal is one line (SessionFileError, NameTaken) and the claim let go."""
+        overwrite = self.overwrite
         wait_for_compression(self.path)  # this process's earlier recording lets go first
         try:
             self._claim = claim(self.path, "session file")
@@ -159,7 +183,12 @@ class SessionWriter:
         except BaseException:
             self._claim.release()
             raise
-        f, c = self._f, layout.n_channels
+
+    def _create_datasets(self, aux: list[AuxSignal]) -> None:
+        """The file's attributes, the frame, column and journal datasets and the
+        auxiliary signals; then SWMR, so a reader can follow the recording."""
+        f, layout = self._f, self.layout
+        c = layout.n_channels
         f.attrs["format"] = FORMAT
         f.attrs["schema_version"] = SCHEMA_VERSION
         f.attrs["app_version"] = __version__
@@ -176,25 +205,8 @@ class SessionWriter:
         }
         self._journal = f.create_dataset("journal", (0,), maxshape=(None,), dtype="u1",
                                          chunks=(16384,))
-        write_aux(f, aux or [])
+        write_aux(f, aux)
         f.swmr_mode = True
-        self._n = 0
-        self._last_flush = time.monotonic()
-        self._closed = False
-        self.failed: str | None = None
-        self.failed_errno: int | None = None
-        self.metadata: dict[str, Any] = {
-            "session_id": str(uuid.uuid4()),  # callers (resume, imports) may pass their own
-            "schema_version": SCHEMA_VERSION,
-            "app_version": __version__,
-            "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            "layout": layout.to_dict(),
-            "device": device_info,
-            "notes": "",
-        }
-        self.metadata.update(metadata or {})
-        self._record({"type": "metadata", "update": self.metadata})
-        self.flush()
 
     def publish(self) -> None:
         """A staged file appears at its name now, open and recording on (a resume: the

@@ -178,21 +178,7 @@ def parse_block(data: bytes, kinds: Counter, fast_decimals: bool = True) -> np.n
     # Fields the word arithmetic cannot take are read exactly: more than 8 digits
     # (merged or zero-padded) and, on the reference path, any decimal point.
     flat = values.reshape(-1)
-    dots = np.flatnonzero(isdot)
-    if len(dots):
-        cell = np.minimum(np.searchsorted(ends, dots), len(ends) - 1)
-        mine = (starts[cell] <= dots) & (ends[cell] > dots)    # dots of kept rows
-        cell, dots = cell[mine], dots[mine]
-        bad[cell[1:][cell[1:] == cell[:-1]] // N_FIELDS] = True    # two in one field
-        bad[cell[dot0[cell]] // N_FIELDS] = True                    # another beside ".0"
-        if fast_decimals:
-            slow = _decimals(buf, flat, cell, dots, starts, ends)
-            if len(exact):  # rare: long fields; those with a point are handled above
-                exact = exact[~np.isin(exact, cell)]
-            if len(slow):
-                exact = np.union1d(exact, slow)
-        else:
-            exact = np.union1d(exact, cell)
+    exact = _point_fields(buf, isdot, flat, bad, dot0, exact, starts, ends, fast_decimals)
     exact = exact[exact % N_FIELDS != 0]        # times are all read exactly below
     flat = values.reshape(-1)
     for fi in exact.tolist():
@@ -201,6 +187,35 @@ def parse_block(data: bytes, kinds: Counter, fast_decimals: bool = True) -> np.n
     values[:, 0] = _times(b, s[:, 0], n[:, 0], bad)
     bad |= np.isnan(values[:, 0])
     bad[exact[np.isnan(flat[exact])] // N_FIELDS] = True
+    return _good_rows(values, bad, kinds)
+
+
+def _point_fields(buf: bytes, isdot: np.ndarray, flat: np.ndarray, bad: np.ndarray,
+                  dot0: np.ndarray, exact: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+                  fast_decimals: bool) -> np.ndarray:
+    """The fields to read exactly, given the decimal points left in kept rows (``isdot``):
+    a row with two points in a field, or one beside a ".0" already read, is marked
+    ``bad``; other points are read by ``_decimals`` (or all exactly, the reference)."""
+    dots = np.flatnonzero(isdot)
+    if not len(dots):
+        return exact
+    cell = np.minimum(np.searchsorted(ends, dots), len(ends) - 1)
+    mine = (starts[cell] <= dots) & (ends[cell] > dots)    # dots of kept rows
+    cell, dots = cell[mine], dots[mine]
+    bad[cell[1:][cell[1:] == cell[:-1]] // N_FIELDS] = True    # two in one field
+    bad[cell[dot0[cell]] // N_FIELDS] = True                    # another beside ".0"
+    if not fast_decimals:
+        return np.union1d(exact, cell)
+    slow = _decimals(buf, flat, cell, dots, starts, ends)
+    if len(exact):  # rare: long fields; those with a point are handled above
+        exact = exact[~np.isin(exact, cell)]
+    if len(slow):
+        exact = np.union1d(exact, slow)
+    return exact
+
+
+def _good_rows(values: np.ndarray, bad: np.ndarray, kinds: Counter) -> np.ndarray:
+    """The rows that parsed, with sane counts and label; the others counted by kind."""
     ok_rows = ~bad
     channels = values[:, 1:N_CHANNELS + 1]
     merged = (channels > MAX_COUNT).any(axis=1) & ok_rows

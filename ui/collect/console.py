@@ -78,6 +78,15 @@ ELLIPSIS = "\u2026"
 REDO_KEY, KEEP_KEY = "Ctrl+Z", "Ctrl+K"  # a flagged trial: Redo (as "Redo last"), Keep
 
 
+def _banner(name: str, style: str) -> QLabel:
+    """A coloured line that shows only when it has something to say."""
+    label = QLabel()
+    label.setObjectName(name)
+    label.setStyleSheet(style)
+    label.hide()
+    return label
+
+
 class CollectConsole(ConsoleActions):
     """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
     given); ``engine`` is a live engine it may share (the setup's "live device")."""
@@ -131,6 +140,40 @@ class CollectConsole(ConsoleActions):
 
     # ---- layout -----------------------------------------------------------------------
     def _build_session_page(self) -> QWidget:
+        """The live map, its status lines and the buttons on the left; the participant
+        screen's mirror above the trial log on the right."""
+        mirror_box = self._build_mirror_box()
+        self._build_status_lines()
+        grid = self._build_buttons()
+        log_box = self._build_log_box()
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.setContentsMargins(0, 0, 0, 0)
+        lv.addWidget(self.pilot_banner)
+        lv.addWidget(self.heatmap, 1)
+        for line in (self.state, self.progress, self.progress_label, self.file_label,
+                     self.touches_label, self.fault_banner, self.health_banner,
+                     self.redo_banner, self.sound_notice, self.hint_label):
+            lv.addWidget(line)
+        lv.addLayout(grid)
+        lv.addWidget(self._build_lsl_toggle())
+        right = QSplitter(Qt.Orientation.Vertical)
+        right.addWidget(mirror_box)
+        right.addWidget(log_box)
+        right.setSizes([540, 320])
+
+        page = self.page_splitter = QSplitter(Qt.Orientation.Horizontal)
+        page.addWidget(left)
+        page.addWidget(right)
+        page.setSizes([560, 900])
+        outer = QWidget()
+        h = QHBoxLayout(outer)
+        h.setContentsMargins(6, 6, 6, 6)
+        h.addWidget(page)
+        return outer
+
+    def _build_mirror_box(self) -> QGroupBox:
+        """The live map (made first) and the participant screen's mirror in its box."""
         self.heatmap = HeatmapView()
         self.heatmap.virtualChanged.connect(self._on_virtual)
         self.mirror = ParticipantScreen(mirror=True)
@@ -144,13 +187,13 @@ class CollectConsole(ConsoleActions):
         mb.setContentsMargins(6, 6, 6, 6)
         mb.addWidget(self.mirror, 1)  # the box's room goes to the mirror, not around it
         mb.addWidget(self.mirror_hint)
+        return mirror_box
+
+    def _build_status_lines(self) -> None:
+        """The lines under the map: the banners, state, progress, file and hint."""
         # a rehearsal is said at the top of the page, in the participant screen's colour
-        self.pilot_banner = QLabel()
-        self.pilot_banner.setObjectName("pilot")
-        self.pilot_banner.setStyleSheet(
-            f"background: {PILOT.name()}; color: #1b1f2a; border-radius: 6px; padding: 8px;"
-            "font-weight: 700;")
-        self.pilot_banner.hide()
+        self.pilot_banner = _banner("pilot", f"background: {PILOT.name()}; color: #1b1f2a; "
+                                    "border-radius: 6px; padding: 8px;font-weight: 700;")
         self.state = QLabel()
         self.state.setStyleSheet("font-size: 17px; font-weight: 600;")
         self.progress = QProgressBar()
@@ -162,32 +205,19 @@ class CollectConsole(ConsoleActions):
         self.file_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.touches_label = QLabel()  # who makes the touches (a simulator never by itself)
         self.touches_label.setStyleSheet("color: #606770;")
-        self.touches_label.setWordWrap(True)
         # a flagged trial: its reason, Redo and Keep (keeps its room while hidden)
         self.redo_banner = FlagBanner(REDO_KEY, KEEP_KEY)
         self.redo_banner.redoRequested.connect(self.redo_last)
         self.redo_banner.keepRequested.connect(self.keep_flagged)
         # the recording ended short (write failed, device lost, frames lost): its one line
-        self.fault_banner = QLabel()
-        self.fault_banner.setObjectName("recordingFault")
-        self.fault_banner.setWordWrap(True)
-        self.fault_banner.setStyleSheet(
-            "background: #c62828; color: white; border-radius: 6px; padding: 8px;"
-            "font-weight: 600;")
-        self.fault_banner.hide()
+        self.fault_banner = _banner("recordingFault", "background: #c62828; color: white; "
+                                    "border-radius: 6px; padding: 8px;font-weight: 600;")
         # the device went silent while recording (or came back): the recording goes on
-        self.health_banner = QLabel()
-        self.health_banner.setObjectName("streamHealth")
-        self.health_banner.setWordWrap(True)
-        self.health_banner.setStyleSheet(
-            "background: #ffe082; color: #4e3b00; border-radius: 6px; padding: 8px;"
-            "font-weight: 600;")
-        self.health_banner.hide()
-        self.sound_notice = QLabel()  # said once: no speaker, the screen flashes instead
-        self.sound_notice.setWordWrap(True)
-        self.sound_notice.setStyleSheet(
-            "background: #fdecea; color: #8a1c12; border-radius: 6px; padding: 6px;")
-        self.sound_notice.hide()
+        self.health_banner = _banner("streamHealth", "background: #ffe082; color: #4e3b00; "
+                                     "border-radius: 6px; padding: 8px;font-weight: 600;")
+        # said once: no speaker, the screen flashes instead
+        self.sound_notice = _banner("", "background: #fdecea; color: #8a1c12; "
+                                    "border-radius: 6px; padding: 6px;")
         self.hint_label = QLabel()
         self.hint_label.setStyleSheet("color: #c0392b;")
         # lines that grow with what they say wrap in the pane's width instead of
@@ -205,6 +235,8 @@ class CollectConsole(ConsoleActions):
         hint_policy.setRetainSizeWhenHidden(True)
         self.hint_label.setSizePolicy(hint_policy)
 
+    def _build_buttons(self) -> QGridLayout:
+        """The experimenter's buttons in two columns, each with its window shortcut."""
         b = self.buttons = {}
         self.shortcuts: dict[str, QShortcut] = {}
         for name, text, key, slot in (
@@ -229,54 +261,22 @@ class CollectConsole(ConsoleActions):
                                   "screen", "end")):
             grid.addWidget(b[name], i // 2, i % 2)
         self._shortcut(KEEP_KEY, self.redo_banner.keep)
+        return grid
 
+    def _build_log_box(self) -> QGroupBox:
+        """The trial log; at a block's end, a line per gesture with flagged performances."""
         self.log = TrialLog()
         log_box = QGroupBox("Trials")
         lb = QVBoxLayout(log_box)
         lb.setContentsMargins(6, 6, 6, 6)
         lb.addWidget(self.log, 1)
-        # at each block's end, one line per gesture with flagged performances
-        self.block_summary = QLabel()
-        self.block_summary.setObjectName("blockSummary")
+        self.block_summary = _banner("blockSummary", "background: #fff4e0; color: #4e3b00; "
+                                     "border-radius: 4px; padding: 4px;")
         self.block_summary.setWordWrap(True)
         self.block_summary.setTextFormat(Qt.TextFormat.PlainText)
-        self.block_summary.setStyleSheet(
-            "background: #fff4e0; color: #4e3b00; border-radius: 4px; padding: 4px;")
-        self.block_summary.hide()
         lb.addWidget(self.block_summary)
         self._summary_key: tuple = ()
-
-        left = QWidget()
-        lv = QVBoxLayout(left)
-        lv.setContentsMargins(0, 0, 0, 0)
-        lv.addWidget(self.pilot_banner)
-        lv.addWidget(self.heatmap, 1)
-        lv.addWidget(self.state)
-        lv.addWidget(self.progress)
-        lv.addWidget(self.progress_label)
-        lv.addWidget(self.file_label)
-        lv.addWidget(self.touches_label)
-        lv.addWidget(self.fault_banner)
-        lv.addWidget(self.health_banner)
-        lv.addWidget(self.redo_banner)
-        lv.addWidget(self.sound_notice)
-        lv.addWidget(self.hint_label)
-        lv.addLayout(grid)
-        lv.addWidget(self._build_lsl_toggle())
-        right = QSplitter(Qt.Orientation.Vertical)
-        right.addWidget(mirror_box)
-        right.addWidget(log_box)
-        right.setSizes([540, 320])
-
-        page = self.page_splitter = QSplitter(Qt.Orientation.Horizontal)
-        page.addWidget(left)
-        page.addWidget(right)
-        page.setSizes([560, 900])
-        outer = QWidget()
-        h = QHBoxLayout(outer)
-        h.setContentsMargins(6, 6, 6, 6)
-        h.addWidget(page)
-        return outer
+        return log_box
 
     def _shortcut(self, key: str, button: QPushButton) -> QShortcut:
         """``key`` clicks ``button`` whenever it is enabled, whatever its label says

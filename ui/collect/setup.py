@@ -59,6 +59,22 @@ def default_sessions_dir() -> Path:
     return data_dir() / "sessions"
 
 
+def _wrapped(style: str, text: str = "") -> QLabel:
+    """A word-wrapped line of the form in its colour (notes grey, errors red)."""
+    label = QLabel(text)
+    label.setWordWrap(True)
+    label.setStyleSheet(style)
+    return label
+
+
+def _row(first: QWidget, second: QWidget, wide: int = 0) -> QHBoxLayout:
+    """Two widgets side by side, the ``wide``-th taking the room."""
+    row = QHBoxLayout()
+    row.addWidget(first, 1 - wide)
+    row.addWidget(second, wide)
+    return row
+
+
 @dataclass
 class SetupChoice:
     """Everything needed to open a session (protocol already loaded and overridden)."""
@@ -93,16 +109,24 @@ class CollectSetup(QWidget):
         self._resume_info: dict[str, Any] | None = None  # that file's read_resume_info
         self.other_sensor_why: str | None = None  # why the device is not the file's
         self.resuming = False
-        self.title = title = QLabel("New collection session")
-        title.setStyleSheet("font-size: 20px; font-weight: 600;")
+        out_row = self._build_session_fields()
+        self._build_device_fields(live_device)
+        sound_row = self._build_options()
+        resume_row = self._build_resume_fields()
+        self._build_form(resume_row, out_row, sound_row)
+        self._build_page(self._build_buttons())
+        self._restore_protocol()
 
+    # ---- the form's parts, top to bottom ---------------------------------------------
+    def _build_session_fields(self) -> QHBoxLayout:
+        """Title, protocol, participant, condition, blocks, seed, the output folder's row."""
+        self.title = QLabel("New collection session")
+        self.title.setStyleSheet("font-size: 20px; font-weight: 600;")
         self.protocol = QComboBox()
         for name in list_protocols():
             self.protocol.addItem(name, name)
         self.protocol.addItem(_FROM_FILE, None)
-        self.protocol_info = QLabel()
-        self.protocol_info.setWordWrap(True)
-        self.protocol_info.setStyleSheet("color: #606770;")
+        self.protocol_info = _wrapped("color: #606770;")
         self.participant = QLineEdit()
         self.participant.setPlaceholderText("e.g. P01")
         self.participant.setValidator(QRegularExpressionValidator(r"[A-Za-z0-9_\-]{0,32}"))
@@ -112,15 +136,16 @@ class CollectSetup(QWidget):
         self.blocks.setRange(1, 999)
         self.seed = QSpinBox()
         self.seed.setRange(0, 2**31 - 1)
-        self.out_dir = QLineEdit(str(settings.value(KEY_OUT_DIR) or default_sessions_dir()))
+        self.out_dir = QLineEdit(str(self.settings.value(KEY_OUT_DIR)
+                                     or default_sessions_dir()))
         browse = QPushButton("Browse\u2026")
         browse.clicked.connect(self.choose_out_dir)
-        out_row = QHBoxLayout()
-        out_row.addWidget(self.out_dir, 1)
-        out_row.addWidget(browse)
-        self.out_note = QLabel()  # a folder that does not exist: it will be made
-        self.out_note.setWordWrap(True)
-        self.out_note.setStyleSheet("color: #606770;")
+        out_row = _row(self.out_dir, browse)
+        self.out_note = _wrapped("color: #606770;")  # a folder that does not exist: made
+        return out_row
+
+    def _build_device_fields(self, live_device: str | None) -> None:
+        """The device (the live one first), its settings form, resuming on another sensor."""
         self.plugins = {name: cls for name, cls in available_plugins().items()
                         if not isinstance(cls, Exception) and name != "replay"}
         self.device = QComboBox()
@@ -131,14 +156,10 @@ class CollectSetup(QWidget):
         self.device_form = SettingsForm("Device settings")
         self.device_form.changed.connect(self._check_device)
         self.device_form.changed.connect(self._check_other_sensor)
-        self.device_error = QLabel()
-        self.device_error.setWordWrap(True)
-        self.device_error.setStyleSheet("color: #c0392b;")
+        self.device_error = _wrapped("color: #c0392b;")
         self.device_error.hide()
         # a resume on another device or sensor than the file's: said, and chosen explicitly
-        self.other_sensor_info = QLabel()
-        self.other_sensor_info.setWordWrap(True)
-        self.other_sensor_info.setStyleSheet("color: #a15c00; font-weight: 600;")
+        self.other_sensor_info = _wrapped("color: #a15c00; font-weight: 600;")
         self.other_sensor_button = QPushButton("Resume on this other sensor\u2026")
         self.other_sensor_button.setToolTip(
             "continue the session on the device chosen here, not the file's; asks why "
@@ -146,11 +167,14 @@ class CollectSetup(QWidget):
         self.other_sensor_button.clicked.connect(
             lambda: self.otherSensorRequested.emit(self.resume_path()))
         self.device.currentIndexChanged.connect(self._on_device_changed)
-        saved = settings.value(KEY_DEVICE)
+        saved = self.settings.value(KEY_DEVICE)
         if not live_device:
             default = saved if self.device.findData(saved) >= 0 else DEFAULT_DEVICE
             self.device.setCurrentIndex(max(0, self.device.findData(default)))
         self._on_device_changed()
+
+    def _build_options(self) -> QHBoxLayout:
+        """Pilot, hold-flagged, auto-continue, trial check; returns the beep's row."""
         self.hold_flagged = QCheckBox("Hold a flagged trial until I choose Redo or Keep")
         self.hold_flagged.setChecked(True)
         self.auto_continue = QCheckBox("End breaks automatically after their minimum")
@@ -158,28 +182,29 @@ class CollectSetup(QWidget):
                                "virtual participant performs)")
         self.pilot.setToolTip("The file is marked pilot and named PILOT_...; datasets, "
                               "train and info's study leave it out unless the file is named")
-        self.qc = QcModelField(settings)
+        self.qc = QcModelField(self.settings)
         self.test_sound_button = QPushButton("Test sound")
         self.test_sound_button.setToolTip("Play the protocol's end-of-trial beep now")
         self.test_sound_button.clicked.connect(self.testSoundRequested)
         self.sound_result = QLabel()
         self.sound_result.setWordWrap(True)
-        sound_row = QHBoxLayout()
-        sound_row.addWidget(self.test_sound_button)
-        sound_row.addWidget(self.sound_result, 1)
+        return _row(self.test_sound_button, self.sound_result, wide=1)
 
+    def _build_resume_fields(self) -> QHBoxLayout:
+        """The resume form's file line and what it keeps; returns the file's row."""
         self.resume_file = QLineEdit()
         self.resume_file.setPlaceholderText("the session file to continue (.h5)")
         resume_browse = QPushButton("Browse\u2026")
         resume_browse.clicked.connect(self.choose_resume_file)
-        resume_row = QHBoxLayout()
-        resume_row.addWidget(self.resume_file, 1)
-        resume_row.addWidget(resume_browse)
-        self.resume_info = QLabel("The protocol, participant, blocks and order come from the "
-                                  "file; the session continues at its next trial.")
-        self.resume_info.setWordWrap(True)
-        self.resume_info.setStyleSheet("color: #606770;")
+        resume_row = _row(self.resume_file, resume_browse)
+        self.resume_info = _wrapped("color: #606770;", "The protocol, participant, blocks "
+                                    "and order come from the file; the session continues "
+                                    "at its next trial.")
+        return resume_row
 
+    def _build_form(self, resume_row: QHBoxLayout, out_row: QHBoxLayout,
+                    sound_row: QHBoxLayout) -> None:
+        """One form for both modes: ``set_resume_mode`` shows the rows of one."""
         self.form = form = QFormLayout()
         form.addRow("Session file", resume_row)
         form.addRow("", self.resume_info)
@@ -203,9 +228,9 @@ class CollectSetup(QWidget):
         form.addRow("Trial check", self.qc)
         form.addRow("Beep", sound_row)
 
-        self.error = QLabel()
-        self.error.setWordWrap(True)
-        self.error.setStyleSheet("color: #c0392b; font-weight: 600;")
+    def _build_buttons(self) -> QHBoxLayout:
+        """The error line and the row of buttons below the form (both modes')."""
+        self.error = _wrapped("color: #c0392b; font-weight: 600;")
         self.start_button = QPushButton("Open session")
         self.start_button.setDefault(True)
         self.start_button.clicked.connect(self._on_start)
@@ -225,13 +250,16 @@ class CollectSetup(QWidget):
         self.participant.textEdited.connect(self._clear_error)
         self.out_dir.textEdited.connect(self._clear_error)
         self.out_dir.textChanged.connect(self._say_out_dir)
+        return buttons
 
+    def _build_page(self, buttons: QHBoxLayout) -> None:
+        """The form in a card of bounded width, centred on the page."""
         card = QWidget()
         card.setMaximumWidth(760)
         inner = QVBoxLayout(card)
-        inner.addWidget(title)
+        inner.addWidget(self.title)
         inner.addSpacing(8)
-        inner.addLayout(form)
+        inner.addLayout(self.form)
         inner.addWidget(self.error)
         inner.addSpacing(8)
         inner.addLayout(buttons)
@@ -244,6 +272,9 @@ class CollectSetup(QWidget):
         box.addLayout(row)
         box.addStretch(2)
 
+    def _restore_protocol(self) -> None:
+        """The last session's protocol (or protocol file), then the new-session form."""
+        settings = self.settings
         self.protocol.currentIndexChanged.connect(self._on_protocol_changed)
         saved_p = settings.value(KEY_PROTOCOL) or DEFAULT_PROTOCOL
         saved_file = str(settings.value(KEY_PROTOCOL_FILE) or "")

@@ -4,8 +4,37 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox
 
+from tactile_studio.learn.choices import CHANNEL_SETS, GRIDS, PROTOCOLS
 from tactile_studio.learn.learners.contract import PRESETS
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO, ADAPT_PHRASE
+
+# train --shots-by's values (learn/choices.py SHOTS_BY) said in the panel's words
+SHOTS_BY_TEXT = {"auto": "auto: fine-tune a network, refit rf / knn",
+                 "join": "join the training (one training per K)",
+                 "fine-tune": "fine-tune the output layers (networks)"}
+# sweep --executor's values (learn/choices.py EXECUTORS) said in the panel's words
+EXECUTOR_TEXT = {"local": "Local worker processes", "ray": "Ray cluster"}
+
+
+def protocol_combo() -> QComboBox:
+    """"Evaluation": the splits of learn/choices.py, the default (lopo) first."""
+    combo = QComboBox()
+    combo.addItems(list(PROTOCOLS))
+    return combo
+
+
+def channels_combo() -> QComboBox:
+    """"Channels": every channel ("both") first, the panel's default, then the others."""
+    combo = QComboBox()
+    combo.addItems(sorted(CHANNEL_SETS, key=lambda c: c != "both"))
+    return combo
+
+
+def grid_combo() -> QComboBox:
+    """"Grid": the sensor's taxels (the default) or the virtual grid."""
+    combo = QComboBox()
+    combo.addItems(list(GRIDS))
+    return combo
 
 
 def adapt_combo() -> QComboBox:

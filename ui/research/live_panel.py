@@ -48,6 +48,15 @@ class LiveInferencePanel(QWidget):
         self.model: WindowModel | None = None
         self.inference: LiveInference | None = None
         self.settings = app_settings()
+        self.dialog: PersonaliseDialog | None = None
+        self._build_buttons()
+        self._build_labels()
+        self._build_layout(self._build_prediction_rows())
+        self._connect()
+
+    # ---- the panel's parts ------------------------------------------------------------
+    def _build_buttons(self) -> None:
+        """Load run, Calibrate to person, Forget personalisation, Adapt as they touch."""
         self.load_button = QPushButton("Load run…")
         self.calibrate_button = QPushButton("Calibrate to person…")
         self.calibrate_button.setToolTip(
@@ -61,7 +70,6 @@ class LiveInferencePanel(QWidget):
         self.calibrate_button.setEnabled(False)
         self.forget_button = QPushButton("Forget personalisation")
         self.forget_button.setEnabled(False)
-        self.dialog: PersonaliseDialog | None = None
         self.running_box = QCheckBox("Adapt as they touch")
         self.running_box.setToolTip(
             "A run trained with --adapt meets the participant with the statistics of their "
@@ -75,6 +83,9 @@ class LiveInferencePanel(QWidget):
             "participant must vary their gestures.")
         self.running_box.setEnabled(False)
         self.running_box.setChecked(self.settings.value(RUNNING_KEY, True, type=bool))
+
+    def _build_labels(self) -> None:
+        """The run's line, the calibration's lines and the smoothing."""
         self.run_label = QLabel("no run loaded")
         self.run_label.setWordWrap(True)
         self.calibration_label = QLabel("")
@@ -87,6 +98,9 @@ class LiveInferencePanel(QWidget):
         self.smoothing.setRange(1, 50)
         self.smoothing.setValue(4)
         self.smoothing.setSuffix(" predictions")
+
+    def _build_prediction_rows(self) -> QGridLayout:
+        """The three most likely gestures, the first larger, each with its bar."""
         self.rows: list[tuple[QLabel, QProgressBar]] = []
         grid = QGridLayout()
         for i in range(3):
@@ -101,6 +115,10 @@ class LiveInferencePanel(QWidget):
             grid.addWidget(name, i, 0)
             grid.addWidget(bar, i, 1)
             self.rows.append((name, bar))
+        return grid
+
+    def _build_layout(self, grid: QGridLayout) -> None:
+        """The buttons, the lines, the predictions, the latency and the message."""
         self.latency = QLabel("latency —")
         self.message = QLabel("")
         self.message.setWordWrap(True)
@@ -128,6 +146,8 @@ class LiveInferencePanel(QWidget):
         lay.addWidget(self.latency)
         lay.addWidget(self.message)
         lay.addStretch(1)
+
+    def _connect(self) -> None:
         self.timer = QTimer(self)
         self.timer.setInterval(100)
         self.timer.timeout.connect(self.refresh)

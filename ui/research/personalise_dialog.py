@@ -55,6 +55,30 @@ class PersonaliseDialog(QDialog):
         self.job: BackgroundJob | None = None
         self.job_kind = ""  # "retrain" or "check"
         self._layout: Any = None
+        top = self._build_top(model, calibrate)
+        intro = QLabel(f"The participant performs each of the {len(model.labels)} gestures "
+                       f"of {model.name} when asked; "
+                       f"{display_name(model.config.model, model.config.overrides)} is then "
+                       "retrained with their touches.")
+        intro.setWordWrap(True)
+        self._build_prompt()
+        buttons = self._build_buttons()
+        lay = QVBoxLayout(self)
+        lay.addWidget(intro)
+        lay.addLayout(top)
+        lay.addWidget(self.prompt)
+        lay.addWidget(self.state)
+        lay.addWidget(self.progress)
+        lay.addLayout(buttons)
+        self._connect()
+        self._buttons()
+        self.resize(600, 300)
+
+    # ---- the dialog's parts -------------------------------------------------------------
+    def _build_top(self, model: WindowModel,
+                   calibrate: Callable[[str], tuple[bool, str]] | None) -> QHBoxLayout:
+        """K, Start, and "From an earlier recording…" (only for a run that reads a
+        person's feature statistics)."""
         self.k = QSpinBox()
         self.k.setRange(1, 2)
         self.k.setValue(2)
@@ -73,11 +97,16 @@ class PersonaliseDialog(QDialog):
             "before; no labels used), as --adapt person met each test person" if reads else
             "Only for an rf/knn (or fused) run trained with --adapt: it reads features "
             "standardised by each person's statistics. Prompted touches personalise any run.")
-        intro = QLabel(f"The participant performs each of the {len(model.labels)} gestures "
-                       f"of {model.name} when asked; "
-                       f"{display_name(model.config.model, model.config.overrides)} is then "
-                       "retrained with their touches.")
-        intro.setWordWrap(True)
+        top = QHBoxLayout()
+        top.addWidget(QLabel("K"))
+        top.addWidget(self.k)
+        top.addWidget(self.start_button)
+        top.addStretch(1)
+        top.addWidget(self.recording_button)
+        return top
+
+    def _build_prompt(self) -> None:
+        """The prompt (large), the state's lines and the progress."""
         self.prompt = QLabel("Pick K and press Start.")
         f = self.prompt.font()
         f.setPointSize(f.pointSize() + 6)
@@ -92,6 +121,9 @@ class PersonaliseDialog(QDialog):
         self.state.setAlignment(Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignTop)
         self.state.setMinimumHeight(4 * self.state.fontMetrics().lineSpacing())
         self.progress = QProgressBar()
+
+    def _build_buttons(self) -> QHBoxLayout:
+        """Skip, Redo last, Retrain (shown after a cancelled or failed one), Cancel."""
         self.skip_button = QPushButton("Skip")
         self.skip_button.setToolTip("leave this gesture out (it keeps the run's training)")
         self.redo_button = QPushButton("Redo last")
@@ -101,24 +133,14 @@ class PersonaliseDialog(QDialog):
                                        "cancelled or failed retraining)")
         self.retrain_button.hide()
         self.cancel_button = QPushButton("Cancel")
-        top = QHBoxLayout()
-        top.addWidget(QLabel("K"))
-        top.addWidget(self.k)
-        top.addWidget(self.start_button)
-        top.addStretch(1)
-        top.addWidget(self.recording_button)
         buttons = QHBoxLayout()
         for b in (self.skip_button, self.redo_button, self.retrain_button):
             buttons.addWidget(b)
         buttons.addStretch(1)
         buttons.addWidget(self.cancel_button)
-        lay = QVBoxLayout(self)
-        lay.addWidget(intro)
-        lay.addLayout(top)
-        lay.addWidget(self.prompt)
-        lay.addWidget(self.state)
-        lay.addWidget(self.progress)
-        lay.addLayout(buttons)
+        return buttons
+
+    def _connect(self) -> None:
         self.timer = QTimer(self)
         self.timer.setInterval(50)
         self.timer.timeout.connect(self.poll)
@@ -128,8 +150,6 @@ class PersonaliseDialog(QDialog):
         self.redo_button.clicked.connect(self.redo)
         self.retrain_button.clicked.connect(self.retrain)
         self.cancel_button.clicked.connect(self.cancel)
-        self._buttons()
-        self.resize(600, 300)
 
     @property
     def retraining(self) -> bool:

@@ -31,6 +31,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import CHANNEL_SETS, EXECUTORS
 from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.learn.experiments.job_events import (
     Cancelled,
@@ -45,7 +46,12 @@ from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.ui.file_dialogs import ask_folder, remember
 from tactile_studio.ui.research.bound_settings import BoundSettings
-from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.choices import (
+    EXECUTOR_TEXT,
+    adapt_combo,
+    preset_combo,
+    protocol_combo,
+)
 from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import RecipeForm
 from tactile_studio.ui.research.tables import fill_row, make_table
@@ -56,7 +62,6 @@ from tactile_studio.ui.settings import (
 RESULT_COLUMNS = ["model", "channels", "folds", "accuracy", "trial acc.", "macro F1",
                   "bal. acc.", "kappa", "train s"]
 TASK_COLUMNS = ["task", "model", "channels", "fold accuracy", "train s"]
-CHANNEL_SETS = ("normal", "shear", "both")
 KEY = "research/sweep/"
 
 
@@ -85,6 +90,25 @@ class SweepPanel(JobPanel):
         self.settings = settings or app_settings()
         self.job: SweepJob | None = None
         self.rows: list[dict[str, Any]] = []
+        split = QSplitter()
+        split.addWidget(self._build_setup_side(self._build_models_and_channels()))
+        split.addWidget(self._build_results_side())
+        split.setSizes([380, 820])
+        QVBoxLayout(self).addWidget(split)
+        self.start_button.clicked.connect(self.start)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.browse.clicked.connect(self._browse)
+        self.executor.currentIndexChanged.connect(self._executor_changed)
+        self.results.cellDoubleClicked.connect(self._open_row)
+        self.bound = self._bind_settings()
+        self._load_settings()
+        self._executor_changed()
+        self._set_running(False)
+
+    # --- the tab's parts -----------------------------------------------------------------
+    def _build_models_and_channels(self) -> QHBoxLayout:
+        """The models to tick (every one the pipeline accepts); returns the row of
+        channel-set boxes."""
         self.models = QListWidget()
         for name, text in available_models().items():
             item = QListWidgetItem(name)
@@ -100,9 +124,13 @@ class SweepPanel(JobPanel):
         for box in self.channel_boxes.values():
             channels.addWidget(box)
         channels.addStretch(1)
+        return channels
+
+    def _build_setup_side(self, channels: QHBoxLayout) -> QWidget:
+        """The left side: the form (models, channels, training, executor, folder) and
+        the buttons."""
         self.preset = preset_combo()
-        self.protocol = QComboBox()
-        self.protocol.addItems(["lopo", "group-kfold", "all-inclusive"])
+        self.protocol = protocol_combo()
         self.rounds = QSpinBox()
         self.rounds.setRange(1, 20)
         self.epochs = QSpinBox()
@@ -110,30 +138,15 @@ class SweepPanel(JobPanel):
         self.epochs.setSpecialValueText("model default")
         self.adapt = adapt_combo()
         self.recipe = RecipeForm()
-        self.executor = QComboBox()
-        self.executor.addItem("Local worker processes", "local")
-        self.executor.addItem("Ray cluster", "ray")
-        self.jobs = QSpinBox()
-        self.jobs.setRange(1, 512)
-        self.jobs.setToolTip("worker processes (local) or CPUs of a local Ray instance")
-        self.address = QLineEdit()
-        self.address.setPlaceholderText("HOST:PORT (empty: a local Ray instance)")
-        self.out = QLineEdit()
-        self.out.setPlaceholderText("sweep folder (re-use it to continue a sweep)")
-        self.browse = QPushButton("Browse…")
-        out_row = QHBoxLayout()
-        out_row.addWidget(self.out, 1)
-        out_row.addWidget(self.browse)
+        executor_row = self._build_executor()
         form = QFormLayout()
         form.addRow("Models", self.models)
         form.addRow("Channel sets", channels)
         for label, w in (("Preset", self.preset), ("Evaluation", self.protocol),
                          ("Rounds", self.rounds), ("Epochs", self.epochs),
-                         ("Test people", self.adapt), ("Executor", self.executor),
-                         ("Jobs", self.jobs),
-                         ("Ray address", self.address)):
+                         ("Test people", self.adapt), *executor_row):
             form.addRow(label, w)
-        form.addRow("Sweep folder", out_row)
+        form.addRow("Sweep folder", self._build_sweep_folder())
         form.addRow(self.recipe)
         self.start_button = QPushButton("Start sweep")
         self.cancel_button = QPushButton("Cancel")
@@ -145,6 +158,32 @@ class SweepPanel(JobPanel):
         ll.addLayout(form)
         ll.addLayout(buttons)
         ll.addStretch(1)
+        return left
+
+    def _build_executor(self) -> tuple[tuple[str, QWidget], ...]:
+        """Where the tasks run (sweep --executor, --jobs, --address): the form's rows."""
+        self.executor = QComboBox()
+        for name in EXECUTORS:
+            self.executor.addItem(EXECUTOR_TEXT[name], name)
+        self.jobs = QSpinBox()
+        self.jobs.setRange(1, 512)
+        self.jobs.setToolTip("worker processes (local) or CPUs of a local Ray instance")
+        self.address = QLineEdit()
+        self.address.setPlaceholderText("HOST:PORT (empty: a local Ray instance)")
+        return (("Executor", self.executor), ("Jobs", self.jobs),
+                ("Ray address", self.address))
+
+    def _build_sweep_folder(self) -> QHBoxLayout:
+        self.out = QLineEdit()
+        self.out.setPlaceholderText("sweep folder (re-use it to continue a sweep)")
+        self.browse = QPushButton("Browse…")
+        out_row = QHBoxLayout()
+        out_row.addWidget(self.out, 1)
+        out_row.addWidget(self.browse)
+        return out_row
+
+    def _build_results_side(self) -> QWidget:
+        """The right side: progress, the results table and the finished tasks."""
         self.progress = QProgressBar()
         self.counts = QLabel("")
         self.status = QLabel("Pick sessions in the Sessions tab, tick models and channel "
@@ -165,20 +204,7 @@ class SweepPanel(JobPanel):
         rl.addWidget(self.results, 3)
         rl.addWidget(QLabel("Finished tasks (newest first)"))
         rl.addWidget(self.tasks, 2)
-        split = QSplitter()
-        split.addWidget(left)
-        split.addWidget(right)
-        split.setSizes([380, 820])
-        QVBoxLayout(self).addWidget(split)
-        self.start_button.clicked.connect(self.start)
-        self.cancel_button.clicked.connect(self.cancel)
-        self.browse.clicked.connect(self._browse)
-        self.executor.currentIndexChanged.connect(self._executor_changed)
-        self.results.cellDoubleClicked.connect(self._open_row)
-        self.bound = self._bind_settings()
-        self._load_settings()
-        self._executor_changed()
-        self._set_running(False)
+        return right
 
     # --- choices -------------------------------------------------------------------------
     def checked_models(self) -> list[str]:

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import CHANNEL_SETS, SHOTS_BY
 from tactile_studio.learn.data.splits import parse_shot_counts
 from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.learn.experiments.job_events import (
@@ -51,7 +52,14 @@ from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.paths import data_dir
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.bound_settings import BoundSettings
-from tactile_studio.ui.research.choices import adapt_combo, preset_combo
+from tactile_studio.ui.research.choices import (
+    SHOTS_BY_TEXT,
+    adapt_combo,
+    channels_combo,
+    grid_combo,
+    preset_combo,
+    protocol_combo,
+)
 from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import DEFAULTS as RECIPE_DEFAULTS
 from tactile_studio.ui.research.recipe_form import RecipeForm
@@ -92,24 +100,42 @@ class TrainPanel(JobPanel):
         self.curves: dict[tuple[str, int, int], Any] = {}
         self.history: dict[tuple[str, int, int], tuple[list[float], list[float]]] = {}
         self.fold_rows: dict[tuple[str, int, int], int] = {}
+        self._build_run_choices()
+        self._build_shot_choices()
+        out_row = self._build_run_folder()
+        split = QSplitter()
+        split.addWidget(self._build_setup_side(out_row))
+        split.addWidget(self._build_results_side())
+        split.setSizes([430, 800])
+        QVBoxLayout(self).addWidget(split)
+        self._connect()
+        self.bound = self._bind_settings()
+        self._load_settings()
+        self.fill_options()
+        self._protocol_changed()
+        self._set_running(False)
+
+    # --- the tab's parts -----------------------------------------------------------------
+    def _build_run_choices(self) -> None:
+        """Model, preset, channels, grid, evaluation, rounds, epochs, test people."""
         self.model = QComboBox()
         for name, text in available_models().items():
             self.model.addItem(name)
             self.model.setItemData(self.model.count() - 1, text, 3)  # tooltip role
         self.model.setCurrentText(DEFAULT_MODEL)
         self.preset = preset_combo()
-        self.channels = QComboBox()
-        self.channels.addItems(["both", "normal", "shear"])
-        self.grid = QComboBox()
-        self.grid.addItems(["physical", "virtual"])
-        self.protocol = QComboBox()
-        self.protocol.addItems(["lopo", "group-kfold", "all-inclusive"])
+        self.channels = channels_combo()
+        self.grid = grid_combo()
+        self.protocol = protocol_combo()
         self.rounds = QSpinBox()
         self.rounds.setRange(1, 20)
         self.epochs = QSpinBox()
         self.epochs.setRange(0, 1000)
         self.epochs.setSpecialValueText("model default")
         self.adapt = adapt_combo()
+
+    def _build_shot_choices(self) -> None:
+        """Few-shot personalisation (train --shots, --shots-by) and the flagged trials."""
         self.shots = QLineEdit()
         self.shots.setPlaceholderText("off (e.g. 0,1,2)")
         self.shots.setToolTip(
@@ -120,10 +146,8 @@ class TrainPanel(JobPanel):
             "network is trained once without them and its output layers fine-tuned on "
             "them (train --shots-by). Whole performances, never single windows")
         self.shots_by = QComboBox()  # train --shots-by
-        for text, value in (("auto: fine-tune a network, refit rf / knn", "auto"),
-                            ("join the training (one training per K)", "join"),
-                            ("fine-tune the output layers (networks)", "fine-tune")):
-            self.shots_by.addItem(text, value)
+        for value in SHOTS_BY:
+            self.shots_by.addItem(SHOTS_BY_TEXT[value], value)
         self.shots_by.setToolTip(
             "How the shots reach the model. join: they join the training, one training per "
             "K. fine-tune (networks only): the fold is trained once without them and its "
@@ -135,6 +159,9 @@ class TrainPanel(JobPanel):
             "train --exclude-flagged: trials with a quality flag (no contact, saturated, a "
             "stuck channel, off-centre...) or a model check's flag are left out of training "
             "and testing (the run's config says so); off: every ok trial is used")
+
+    def _build_run_folder(self) -> QHBoxLayout:
+        """The run folder line and its Browse button."""
         self.out = QLineEdit()
         self.out.setPlaceholderText("run folder (re-use it to resume)")
         self.out.setToolTip("Named from the model and the time, under the runs folder "
@@ -146,6 +173,10 @@ class TrainPanel(JobPanel):
         out_row.setContentsMargins(0, 0, 0, 0)
         out_row.addWidget(self.out, 1)
         out_row.addWidget(self.browse_out)
+        return out_row
+
+    def _build_setup_side(self, out_row: QHBoxLayout) -> QWidget:
+        """The left side: the form, the recipe, the options table and the buttons."""
         self.recipe = RecipeForm()
         self.options = QTableWidget(0, 3)
         self.options.setHorizontalHeaderLabels(["option", "value", "help"])
@@ -164,7 +195,7 @@ class TrainPanel(JobPanel):
         self.start_button = QPushButton("Train")
         self.cancel_button = QPushButton("Cancel")
         self.resume_button = QPushButton("Resume")
-        self.ablate_button = QPushButton("Channel ablation: normal / shear / both")
+        self.ablate_button = QPushButton("Channel ablation: " + " / ".join(CHANNEL_SETS))
         self.sweep_button = QPushButton("Compare several models in parallel (Sweep tab)…")
         self.sweep_button.setToolTip("models x channel sets on local worker processes or "
                                      "a Ray cluster, with a results table")
@@ -180,6 +211,10 @@ class TrainPanel(JobPanel):
         ll.addLayout(buttons)
         ll.addWidget(self.ablate_button)
         ll.addWidget(self.sweep_button)
+        return left
+
+    def _build_results_side(self) -> QWidget:
+        """The right side: progress, status, the validation curves and the fold table."""
         self.progress = QProgressBar()
         self.status = QLabel("Pick sessions in the Sessions tab, then Train.")
         self.status.setWordWrap(True)
@@ -198,11 +233,9 @@ class TrainPanel(JobPanel):
         rl.addWidget(self.status)
         rl.addWidget(self.plot, 3)
         rl.addWidget(self.folds, 2)
-        split = QSplitter()
-        split.addWidget(left)
-        split.addWidget(right)
-        split.setSizes([430, 800])
-        QVBoxLayout(self).addWidget(split)
+        return right
+
+    def _connect(self) -> None:
         self.model.currentIndexChanged.connect(self.fill_options)
         self.model.currentIndexChanged.connect(lambda _: self._follow_model())
         self.preset.currentIndexChanged.connect(self.fill_options)
@@ -213,11 +246,6 @@ class TrainPanel(JobPanel):
         self.ablate_button.clicked.connect(self.start_ablation)
         self.sweep_button.clicked.connect(lambda: self.sweepRequested.emit(
             self.model.currentText(), self.channels.currentText()))
-        self.bound = self._bind_settings()
-        self._load_settings()
-        self.fill_options()
-        self._protocol_changed()
-        self._set_running(False)
 
     # --- setup -------------------------------------------------------------------------
     def _text_choices(self) -> tuple[tuple[str, QComboBox], ...]:
@@ -370,8 +398,7 @@ class TrainPanel(JobPanel):
     def start_ablation(self) -> bool:
         try:
             root = self._out()
-            self.queue = [(self.config(c), str(Path(root) / c)) for c in ("normal", "shear",
-                                                                          "both")]
+            self.queue = [(self.config(c), str(Path(root) / c)) for c in CHANNEL_SETS]
         except UserError as exc:
             self.error.emit(str(exc))
             return False

@@ -20,14 +20,13 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.choices import CHANNEL_SETS, GRIDS
 from tactile_studio.learn.data import cache
 from tactile_studio.sensor.decode import decode
 from tactile_studio.storage.session import Session
 from tactile_studio.storage.session_set import SessionSet, describe_skipped, select_sessions
 from tactile_studio.storage.trials import TrialRecord, label_order
 
-GRIDS = ("physical", "virtual")
-CHANNEL_SETS = ("normal", "shear", "both")
 # Slices into the decoded (normal, shear-x, shear-y) stack; pressure-only data has 1 channel.
 _CHANNEL_SLICES = {"normal": slice(0, 1), "shear": slice(1, 3), "both": slice(0, 3)}
 _CHANNEL_NAMES = {"normal": ["normal"], "shear": ["shear_x", "shear_y"],

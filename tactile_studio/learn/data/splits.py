@@ -22,8 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tactile_studio.errors import UserError
-
-PROTOCOLS = ("all-inclusive", "lopo", "group-kfold")
+from tactile_studio.learn.choices import PROTOCOLS
 
 
 @dataclass

@@ -18,11 +18,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from tactile_studio.learn.choices import AGGREGATES
 from tactile_studio.learn.data.views import window_starts
 from tactile_studio.learn.evaluation import metrics as M
 
 DEFAULT_WINDOW_S = 2.0
-AGGREGATES = ("mean", "vote")
 
 
 @dataclass(frozen=True)

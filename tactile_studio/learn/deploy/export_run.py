@@ -43,11 +43,14 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
+from tactile_studio.learn.choices import EXPORT_FORMATS
+from tactile_studio.learn.data.dataset import TrialDataset
 from tactile_studio.learn.data.windowing import AGGREGATES
 from tactile_studio.learn.evaluation.evaluate import RunData, load_run_data
 from tactile_studio.learn.evaluation.summary import summarise
-from tactile_studio.learn.experiments.experiment import prepare_inputs
+from tactile_studio.learn.experiments.experiment import ExperimentConfig, prepare_inputs
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
+from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.fold_predictions import FoldPredictions
 from tactile_studio.learn.learners.fused import (
     RF_FILE,
@@ -72,10 +75,7 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
 
     from tactile_studio.learn.deploy import export
 
-    if fmt not in ("onnx", "int8"):
-        raise UserError(f"unknown export format {fmt!r} (available: onnx, int8)")
-    if aggregate is not None and aggregate not in AGGREGATES:
-        raise UserError(f"unknown aggregate {aggregate!r} (available: {', '.join(AGGREGATES)})")
+    _check_request(fmt, aggregate)
     if threads:
         torch.set_num_threads(threads)
     loaded = load_run_data(run, data, cache_dir, device="cpu",
@@ -83,22 +83,9 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
     config, resolved, records, ds, learner, info = loaded
     how = aggregate or config.aggregate
     fused_run = learner.kind == "fused"  # a network + rf (learn/learners/fused.py)
-    if fused_run and fmt != "onnx":
-        raise UserError(f"model '{config.model}' is fused with rf: it exports as onnx only "
-                        "(the network's .onnx beside the forest's .rf.onnx)")
+    _check_model(config.model, learner, fmt)
     if learner.kind == "baseline":
-        if fmt != "onnx":
-            raise UserError(f"model '{config.model}' is a scikit-learn baseline: it exports "
-                            "as onnx only (int8 is for torch models)")
         return _export_baseline(run, loaded, progress, cancel, tolerance, how)
-    if "onnx" not in learner.facts.export:
-        raise UserError(f"model '{config.model}' declares no ONNX export "
-                        f"(it exports as: {', '.join(learner.facts.export) or 'nothing'})")
-    if fmt == "int8" and not learner.facts.quantizable:
-        from tactile_studio.learn.models import MODELS
-
-        small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
-        raise UserError(f"model '{config.model}' has no int8 export (quantizable: {small})")
     quant_format = export.int8_format(config.model)
     ds, x, owner, index = _windows(learner, ds, config)
     out_dir = Path(run) / "export"
@@ -115,20 +102,14 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
         with torch.no_grad():
             ref = model(torch.from_numpy(xt)).numpy() if len(xt) else np.zeros((0, info.n_classes))
         entry: dict[str, Any] = {"name": Path(rec["_dir"]).name, "n": int(len(yt))}
-        meta = {"labels": json.dumps(ds.label_names), "model": config.model,
-                "preset": config.preset, "channels": ds.channels,
-                "view": json.dumps(resolved["model"]["view"]),
-                "norm": json.dumps(rec["norm"])}
+        meta = _metadata(config, ds, resolved["model"]["view"], rec["norm"])
         if fused_run:
             meta.update(rf_weight=str(learner.weight), rf_model=f"{entry['name']}.rf.onnx")
         if fmt == "onnx":
             path = out_dir / f"{entry['name']}.onnx"
             export.export_onnx(model, example, path, metadata=meta)
             got = export.load_onnx_predictor(path, threads)(xt) if len(xt) else ref
-            diff = float(np.abs(got - ref).max()) if len(xt) else 0.0
-            if diff > tolerance * max(1.0, float(np.abs(ref).max())):
-                raise UserError(f"{path}: ONNX logits differ from torch by {diff:.3g} "
-                                f"(tolerance {tolerance:g})")
+            diff = _onnx_diff(path, got, ref, tolerance)
             entry.update(path=str(path), max_abs_diff=diff)
         else:
             tr = np.array([index[u] for u in rec["train"] if u in index], dtype=np.int64)
@@ -157,10 +138,61 @@ def export_run(run: str | os.PathLike, fmt: str, data: list[str] | None = None,
     if fmt == "int8":
         report.update(quant_format=quant_format, size_bytes=sum(f["size_bytes"] for f in folds),
                       float_size_bytes=sum(f["float_size_bytes"] for f in folds))
+    return _written(out_dir, fmt, report, progress)
+
+
+def _onnx_diff(path: Path, got: np.ndarray, ref: np.ndarray, tolerance: float) -> float:
+    """The largest difference of the ONNX file's logits from torch's; one line refuses
+    the file when it exceeds ``tolerance`` (relative to the logits' size)."""
+    diff = float(np.abs(got - ref).max()) if len(got) else 0.0
+    if diff > tolerance * max(1.0, float(np.abs(ref).max())):
+        raise UserError(f"{path}: ONNX logits differ from torch by {diff:.3g} "
+                        f"(tolerance {tolerance:g})")
+    return diff
+
+
+def _written(out_dir: Path, fmt: str, report: dict[str, object],
+             progress: ProgressFn) -> dict[str, object]:
     out_dir.mkdir(parents=True, exist_ok=True)
     write_json(out_dir / f"{fmt}.json", report)
     progress(1.0, "exported")
     return report
+
+
+def _check_request(fmt: str, aggregate: str | None) -> None:
+    if fmt not in EXPORT_FORMATS:
+        raise UserError(f"unknown export format {fmt!r} "
+                        f"(available: {', '.join(EXPORT_FORMATS)})")
+    if aggregate is not None and aggregate not in AGGREGATES:
+        raise UserError(f"unknown aggregate {aggregate!r} (available: {', '.join(AGGREGATES)})")
+
+
+def _check_model(model: str, learner: Learner, fmt: str) -> None:
+    """Refuse, in one line, a format the run's model does not export as."""
+    if learner.kind == "fused" and fmt != "onnx":
+        raise UserError(f"model '{model}' is fused with rf: it exports as onnx only "
+                        "(the network's .onnx beside the forest's .rf.onnx)")
+    if learner.kind == "baseline":
+        if fmt != "onnx":
+            raise UserError(f"model '{model}' is a scikit-learn baseline: it exports "
+                            "as onnx only (int8 is for torch models)")
+        return
+    if "onnx" not in learner.facts.export:
+        raise UserError(f"model '{model}' declares no ONNX export "
+                        f"(it exports as: {', '.join(learner.facts.export) or 'nothing'})")
+    if fmt == "int8" and not learner.facts.quantizable:
+        from tactile_studio.learn.models import MODELS
+
+        small = ", ".join(n for n, s in MODELS.items() if s.quantizable)
+        raise UserError(f"model '{model}' has no int8 export (quantizable: {small})")
+
+
+def _metadata(config: ExperimentConfig, ds: TrialDataset, view: object,
+              norm: object) -> dict[str, str]:
+    """What a fold's exported file carries: labels, model, view and normalisation."""
+    return {"labels": json.dumps(ds.label_names), "model": config.model,
+            "preset": config.preset, "channels": ds.channels,
+            "view": json.dumps(view), "norm": json.dumps(norm)}
 
 
 def _export_baseline(run: str | os.PathLike, loaded: RunData, progress: ProgressFn,
@@ -182,10 +214,7 @@ def _export_baseline(run: str | os.PathLike, loaded: RunData, progress: Progress
         learner.load(source, info)  # a clear error for a damaged or pre-ONNX fold model
         name = Path(rec["_dir"]).name
         path = out_dir / f"{name}.onnx"
-        _copy_onnx(source, path, {"labels": json.dumps(ds.label_names), "model": config.model,
-                                  "preset": config.preset, "channels": ds.channels,
-                                  "view": json.dumps(resolved["model"]["view"]),
-                                  "norm": json.dumps({})})
+        _copy_onnx(source, path, _metadata(config, ds, resolved["model"]["view"], {}))
         exported = BaselineModel.load(path, learner.name, learner.options, info.n_classes)
         got = exported.predict_proba(x[mask])
         ref = FoldPredictions.from_dict(rec["predictions"]).probs

@@ -23,6 +23,7 @@ import torch
 from torch import nn
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import CHANNEL_SETS
 from tactile_studio.learn.data import views
 from tactile_studio.learn.learners.baselines import BaselineModel
 from tactile_studio.learn.models import Streaming, ViewSpec, spec_of
@@ -43,7 +44,8 @@ def frames_from_raw(
     if not layout.has_shear:
         return frames.normal[:, None]
     if channels not in _CHANNEL_SLICES:
-        raise UserError(f"unknown channel set {channels!r} (available: normal, shear, both)")
+        raise UserError(f"unknown channel set {channels!r} "
+                        f"(available: {', '.join(CHANNEL_SETS)})")
     return np.ascontiguousarray(frames.stack()[_CHANNEL_SLICES[channels]].transpose(1, 0, 2, 3))
 
 

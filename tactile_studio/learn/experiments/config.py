@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import GRIDS, SHOTS_BY
 from tactile_studio.learn.data.augment import parse_kinds
-from tactile_studio.learn.data.dataset import GRIDS
 from tactile_studio.learn.data.splits import PROTOCOLS
 from tactile_studio.learn.data.windowing import AGGREGATES
 from tactile_studio.learn.learners.baselines import BASELINES
@@ -35,7 +35,6 @@ RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "prese
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
                "participant_norm", "balance", "val_by", "adapt", "shots", "shots_by")
-SHOTS_BY = ("auto", "join", "fine-tune")  # how a held-out person's shots reach the model
 # what ``auto`` means for a network (rf, knn and fused models always join): measured on
 # the simulator, docs/learning/figures.md "Few-shot personalisation, measured"
 NETWORK_SHOTS_BY = "fine-tune"

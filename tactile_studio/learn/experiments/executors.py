@@ -47,9 +47,9 @@ from typing import Any
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
+from tactile_studio.learn.choices import EXECUTORS
 
 Task = tuple[dict[str, Any], float]  # (keyword arguments, GPUs requested)
-EXECUTORS = ("local", "ray")
 _POLL_S = 0.2
 _PARENT_CHECK_S = 1.0
 

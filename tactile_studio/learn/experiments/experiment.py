@@ -51,6 +51,7 @@ from tactile_studio.learn.experiments.fold_plan import FoldPlan
 from tactile_studio.learn.experiments.job_events import Epoch, Fold
 from tactile_studio.learn.experiments.runfolder import RunFolder
 from tactile_studio.learn.learners.baselines import BASELINES
+from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
 from tactile_studio.learn.learners.fold_predictions import FoldPredictions
@@ -333,10 +334,10 @@ def _torch_threads(n: int | None, torch_too: bool = True) -> Iterator[None]:
             torch.set_num_threads(previous)
 
 
-def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToken,
-         listener: Listener, model_spec: Any, dataset: TrialDataset | None) -> RunResult:
-    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
-                           config.device, model_spec)
+def _run_dataset(config: ExperimentConfig, dataset: TrialDataset | None,
+                 progress: ProgressFn, cancel: CancelToken) -> TrialDataset:
+    """The run's trials: ``dataset`` (its channels selected) or built from the config's
+    data; at least two gestures."""
     if dataset is None:
         ds = build_dataset(config.data, config.grid, config.channels, config.cache_dir,
                            config.use_cache, lambda f, m: progress(0.05 * f, m), cancel,
@@ -347,29 +348,73 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     if ds.n_classes < 2:
         raise UserError(f"the data has one gesture only ({ds.label_names[0]}); "
                         "classification needs at least 2")
+    return ds
+
+
+def _resolved(learner: Learner, info: DataInfo, ds: TrialDataset) -> dict[str, object]:
+    """What the config resolved to on this data and machine (config.json's "resolved")."""
+    return {"model": learner.describe(), "data_info": info.to_dict(),
+            "dataset": ds.summary(), "versions": _versions(),
+            # the CPU threads the folds train with (what a run's times depend on)
+            "threads": {"torch": sys.modules["torch"].get_num_threads()
+                        if "torch" in sys.modules else None,
+                        "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "")},
+            "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+
+
+def _start_folder(out: str | os.PathLike | None, config: ExperimentConfig,
+                  resolved: dict[str, object], ds: TrialDataset) -> RunFolder | None:
+    """The run folder started (or resumed) with its config and trial table; None when the
+    run keeps nothing."""
+    if out is None:
+        return None
+    folder = RunFolder(out)
+    folder.start(config.to_dict(), resolved, RESULT_KEYS, result_defaults())
+    from tactile_studio.learn.data.trialinfo import write_trial_table
+
+    write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
+    return folder
+
+
+def _fold_event(rec: dict[str, object], ds: TrialDataset, learner: Learner,
+                config: ExperimentConfig, r: int, k: int, n_folds: int, name: str,
+                resumed: bool) -> Fold:
+    """The listener's event for a finished (or resumed) fold: its accuracies."""
+    fm = fold_metrics(rec, ds.label_names, learner.windowed, aggregate=config.aggregate)
+    return Fold(round=r, fold=k, n_folds=n_folds, fold_name=name,
+                accuracy=float(fm["accuracy"]), trial_accuracy=float(fm["trial_accuracy"]),
+                cut=trials_were_cut(fm), resumed=resumed)
+
+
+def _cancelled(records: list[dict[str, object]], folder: RunFolder | None, ds: TrialDataset,
+               learner: Learner, header: dict[str, object], title: str,
+               total_units: int) -> Cancelled:
+    """A cancelled run: the folds finished so far written as partial results, and the
+    one line saying how many and where they are kept."""
+    if records and folder is not None:
+        metrics = summarise(records, ds.label_names, learner.windowed, header, False)
+        folder.write_results(metrics, records, title + " (partial)")
+    kept = f", kept in {folder.path}; the same --out resumes" if folder is not None else ""
+    return Cancelled(f"training cancelled: {len(records)} of {total_units} folds "
+                     f"finished{kept}")
+
+
+def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToken,
+         listener: Listener, model_spec: Any, dataset: TrialDataset | None) -> RunResult:
+    learner = make_learner(config.model, config.preset, config.overrides, config.epochs,
+                           config.device, model_spec)
+    ds = _run_dataset(config, dataset, progress, cancel)
     info = DataInfo.of(ds)
     learner.check(info)
     first_folds = folds_for(config, ds, 0)  # fails early on too few participants
     header = run_header(config, ds.channels, learner.windowed)
     if config.shots:  # the trials a plain run would test: said beside the shots' test set
         header["data_trials"] = len(ds)
-    resolved = {"model": learner.describe(), "data_info": info.to_dict(),
-                "dataset": ds.summary(), "versions": _versions(),
-                # the CPU threads the folds train with (what a run's times depend on)
-                "threads": {"torch": sys.modules["torch"].get_num_threads()
-                            if "torch" in sys.modules else None,
-                            "omp_wait_policy": os.environ.get("OMP_WAIT_POLICY", "")},
-                "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    folder = RunFolder(out) if out is not None else None
-    if folder is not None:
-        folder.start(config.to_dict(), resolved, RESULT_KEYS, result_defaults())
-        from tactile_studio.learn.data.trialinfo import write_trial_table
-
-        write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
+    resolved = _resolved(learner, info, ds)
+    folder = _start_folder(out, config, resolved, ds)
     progress(0.05, f"making model inputs: {len(ds)} trials, {learner.facts.view} view")
     ds, x, owner, n_pieces, spec, extra, moments = prepare_inputs(learner, ds, config)
-    header["window_s"] = spec.seconds
-    header["windows"] = n_pieces
+    header.update(window_s=spec.seconds, windows=n_pieces)
     total_units = config.rounds * len(first_folds)
     records: list[dict[str, Any]] = []
     done = 0
@@ -421,19 +466,10 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
                 records.append(rec)
                 done += 1
                 progress(0.05 + 0.92 * done / total_units, f"{where} done")
-                fm = fold_metrics(rec, ds.label_names, learner.windowed,
-                                  aggregate=config.aggregate)
-                listener(Fold(round=r, fold=k, n_folds=len(folds), fold_name=fold.name,
-                              accuracy=float(fm["accuracy"]),
-                              trial_accuracy=float(fm["trial_accuracy"]),
-                              cut=trials_were_cut(fm), resumed=resumed))
+                listener(_fold_event(rec, ds, learner, config, r, k, len(folds), fold.name,
+                                     resumed))
     except Cancelled:
-        if records and folder is not None:
-            metrics = summarise(records, ds.label_names, learner.windowed, header, False)
-            folder.write_results(metrics, records, title + " (partial)")
-        kept = f", kept in {folder.path}; the same --out resumes" if folder is not None else ""
-        raise Cancelled(f"training cancelled: {len(records)} of {total_units} folds "
-                        f"finished{kept}") from None
+        raise _cancelled(records, folder, ds, learner, header, title, total_units) from None
     progress(0.98, "writing results")
     metrics = summarise(records, ds.label_names, learner.windowed, header, True)
     if folder is not None:

@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import BASELINES
 from tactile_studio.learn.learners.contract import PRESETS
 
-BASELINES = ("rf", "et", "knn")
 # what ``train`` without --model and the train panel train: extra-trees on the touch
 # features, adapted per person and surface (its ``--adapt auto``), chosen on the
 # development set's five real people (issue 45; docs/learning/defaults.md)

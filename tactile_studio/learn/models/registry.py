@@ -15,11 +15,12 @@ import re
 from collections.abc import Iterator, Mapping
 
 from tactile_studio.errors import UserError
+from tactile_studio.learn.choices import BASELINES
 from tactile_studio.learn.models.spec import ModelSpec, check_preset
 from tactile_studio.registry import Registry
 
 GROUP = "tactile_studio.models"
-RESERVED = ("rf", "et", "knn")  # the scikit-learn baselines (learn/learners/baselines.py)
+RESERVED = BASELINES  # the scikit-learn baselines' names (learn/learners/baselines.py)
 NAME_RE = re.compile(r"^[a-z][a-z0-9_-]*$")
 
 
