@@ -321,7 +321,8 @@ class CollectConsole(ConsoleActions):
             beeper=self.beeper, clock=self.clock, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health,
             recorder=self.acquisition.start_recording, pilot=choice.pilot,
-            trial_check=self._off_gui(choice.qc.checker(choice.participant))),
+            trial_check=self._off_gui(choice.qc.checker(choice.participant)),
+            personalise_check=choice.qc.personalise),
             choice.device, choice.device_settings)
 
     @staticmethod
