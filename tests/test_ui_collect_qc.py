@@ -17,7 +17,14 @@ from console_helpers import fill_setup
 from learn_fixtures import make_dataset_folder
 from PySide6.QtCore import QSettings, Qt
 from PySide6.QtWidgets import QFileDialog
-from test_ui_collect import WAIT_MS, do_trial, env, make_console, snap  # noqa: F401 (env)
+from test_ui_collect import (  # noqa: F401 (env)
+    WAIT_MS,
+    continue_after_break,
+    do_trial,
+    env,
+    make_console,
+    snap,
+)
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.protocol.snapshot import State
@@ -71,17 +78,21 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     assert qc.path.text() == str(qc_run)
     assert qc.info.text() == "run (rf) scores 2 of the 3 gestures; not scored: Tickle"
     qc.top_k.setValue(1)
+    assert qc.personalise.isEnabled() and not qc.personalise.isChecked()
+    qc.personalise.setChecked(True)
     # a file that is no model: one line, no model kept
     monkeypatch.setattr(QFileDialog, "getOpenFileName",
                         staticmethod(lambda *a, **k: (str(tmp_path / "gone.onnx"), "")))
     qtbot.mouseClick(qc.file_button, Qt.MouseButton.LeftButton)
     assert qc.path.text() == "" and "no such run folder or exported model" in qc.info.text()
+    assert not qc.personalise.isEnabled() and not qc.choice().personalise
     choose_run(qtbot, setup, qc_run, monkeypatch)
     # the next setup of this study has it back, with its settings; another study does not
     again = CollectSetup(settings)
     qtbot.addWidget(again)
     again.set_protocol_file(str(proto))
     assert again.qc.path.text() == str(qc_run) and again.qc.top_k.value() == 1
+    assert again.qc.personalise.isChecked() and again.qc.choice().personalise
     assert "not scored: Tickle" in again.qc.info.text()
     again.protocol.setCurrentIndex(0)  # a built-in protocol: another study
     assert again.qc.path.text() == ""
@@ -94,30 +105,41 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
     proto, out = env
     console = make_console(qtbot)
     s = console.setup
-    # P01, a person of the run: its fold that never saw them checks the trials
-    fill_setup(qtbot, console, proto, out, "P01", blocks=1)
+    # P01, a person of the run: its fold that never saw them checks the trials; after
+    # their first block it is fitted to them (off the screen's thread) and checks the rest
+    fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run, monkeypatch)
+    s.qc.personalise.setChecked(True)
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert s.error.text() == "" and console.stack.currentIndex() == 1
     path = console.session.path
     qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
-    for g in [x for x in snap(console).gestures if not x.done]:
-        nxt = snap(console)
-        g = next(x for x in nxt.gestures if x.name == nxt.prompted)
-        do_trial(qtbot, console, g.name, g.key)
-        if console.redo_banner.isVisible():  # flagged (by the model or the signal): kept
-            qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    for block in range(2):
+        if block:
+            continue_after_break(qtbot, console)
+        for _ in [x for x in snap(console).gestures if not x.done]:
+            nxt = snap(console)
+            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
+            do_trial(qtbot, console, g.name, g.key)
+            if console.redo_banner.isVisible():  # flagged (model or signal): kept
+                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
     with Session(path) as sess:
-        trials, meta = sess.trials, sess.metadata
+        trials, meta, events = sess.trials, sess.metadata, sess.events
     check = meta["trial_check"]
     assert check["model"] == "run/P01" and check["out_of_fold"] is True
     assert check["not_scored"] == ["Tickle"] and check["top_k"] == DEFAULT_TOP_K
-    scored = {t.gesture: t.check for t in trials}
-    assert scored["Tickle"] is None
-    for name in ("Poke", "Twist"):
-        assert scored[name]["model"] == "run/P01" and 1 <= scored[name]["rank"] <= 2
+    fitted = [e for e in events if e.get("kind") == "trial_check_personalised"]
+    first = [t for t in trials if t.block == 0 and t.gesture != "Tickle" and t.usable]
+    assert len(fitted) == 1 and fitted[0]["trials"] == len(first) == 2, fitted
+    assert fitted[0]["model"] == "run/P01+2 own trials"
+    for t in trials:
+        if t.gesture == "Tickle":
+            assert t.check is None
+        else:  # block 0 by the run's fold, block 1 by it fitted to them
+            model = "run/P01" if t.block == 0 else "run/P01+2 own trials"
+            assert t.check["model"] == model and 1 <= t.check["rank"] <= 2, t
 
 
 def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):  # noqa: F811 (env)
@@ -139,7 +161,11 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     with pytest.raises(UserError, match="no such run folder or exported model"):
         console_options(args)
     args = build_parser().parse_args([*base, "--qc-model", str(qc_run), "--qc-personalise"])
-    with pytest.raises(UserError, match="the console does not personalise yet"):
+    console = build_console(**console_options(args))
+    qtbot.addWidget(console)
+    assert console.setup.qc.personalise.isChecked() and console.setup.choice().qc.personalise
+    args = build_parser().parse_args([*base, "--qc-personalise"])
+    with pytest.raises(UserError, match="--qc-personalise needs --qc-model"):
         console_options(args)
 
 

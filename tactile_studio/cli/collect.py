@@ -176,14 +176,14 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
-    if getattr(args, "qc_personalise", False):  # not silently dropped
-        raise UserError("--qc-personalise personalises a headless collection's check "
-                        "(--virtual-participant); the console does not personalise yet")
+    if getattr(args, "qc_personalise", False) and not getattr(args, "qc_model", None):
+        raise UserError("--qc-personalise needs --qc-model")
     if getattr(args, "qc_model", None):  # the setup's trial check, pre-filled (checked
         # here: a model that cannot check is one line before any window opens)
         qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold)
         options["qc"] = {"model": str(Path(args.qc_model).expanduser().resolve()),
-                         "top_k": args.qc_top_k, "threshold": args.qc_threshold}
+                         "top_k": args.qc_top_k, "threshold": args.qc_threshold,
+                         "personalise": bool(getattr(args, "qc_personalise", False))}
     if getattr(args, "markers", None):
         options["markers"] = list(args.markers)  # the console's recording takes them in
     if getattr(args, "silence_warning", None) is not None:

@@ -7,10 +7,13 @@ same checker scores the trial on one worker thread: the trial is written at once
 signal flags, the verdict joins it (``check``, ``model_mismatch``) at the first tick after
 the model answers, and a held session waits for it (at most ``wait_s``) before the next
 key is taken. Headless collection keeps the plain checker (nothing to keep responsive).
+Personalising the check after the first block (seconds: a forest is refit) runs on the
+same worker, so the trials ended meanwhile are scored, in order, by the fitted model.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
@@ -20,6 +23,7 @@ from tactile_studio.protocol.trial_check import TrialChecker, TrialVerdict
 from tactile_studio.sensor.layout import Layout
 
 WAIT_S = 2.0  # a held trial waits this long for its verdict, then the session goes on
+PERSONALISE_WAIT_S = 60.0  # a session ending waits this long for a personalisation underway
 
 
 class BackgroundCheck:
@@ -40,10 +44,27 @@ class BackgroundCheck:
         return self.checker.check(layout, raw, baseline, rate_hz, prompted)
 
     def submit(self, layout: Layout, raw: np.ndarray, baseline: np.ndarray, rate_hz: float,
-               prompted: str) -> Future:
-        """Score a trial on the worker (copies of the frames: the ring moves on)."""
-        return self._pool.submit(self.checker.check, layout, np.array(raw), np.array(baseline),
-                                 rate_hz, prompted)
+               prompted: str) -> Future[tuple[TrialVerdict | None, str]]:
+        """Score a trial on the worker (copies of the frames: the ring moves on); the
+        future gives (verdict, the id of the model that gave it)."""
+        raw, baseline = np.array(raw), np.array(baseline)
+
+        def score() -> tuple[TrialVerdict | None, str]:
+            verdict = self.checker.check(layout, raw, baseline, rate_hz, prompted)
+            return verdict, str(self.checker.describe()["model"])
+        return self._pool.submit(score)
+
+    @property
+    def can_personalise(self) -> bool:
+        return hasattr(self.checker, "personalise")
+
+    def personalise_later(self, layout: Layout,
+                          trials: Sequence[tuple[np.ndarray, np.ndarray, str]],
+                          rate_hz: float) -> Future[int]:
+        """Personalise the checker on the worker (the trials scored after it wait for it);
+        the future gives the number of trials used, or raises the checker's UserError."""
+        personalise = getattr(self.checker, "personalise")
+        return self._pool.submit(personalise, layout, list(trials), rate_hz)
 
     def close(self) -> None:
         """Let the worker end after the check it is running (none is lost: the runner

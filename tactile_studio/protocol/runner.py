@@ -21,7 +21,11 @@ from typing import Any
 
 from tactile_studio.devices.frame_stream import FrameStream, hold_frames
 from tactile_studio.errors import UserError
-from tactile_studio.protocol.background_check import WAIT_S, BackgroundCheck
+from tactile_studio.protocol.background_check import (
+    PERSONALISE_WAIT_S,
+    WAIT_S,
+    BackgroundCheck,
+)
 from tactile_studio.protocol.block_plan import BlockPlan
 from tactile_studio.protocol.clock import Clock, StreamClock
 from tactile_studio.protocol.progress import build_snapshot
@@ -80,13 +84,17 @@ class CollectionRunner(RunnerInputs):
         self.auto_continue, self.hold_flagged = auto_continue, hold_flagged
         self._beeper = beeper
         # the model check of each finished trial (protocol/trial_check.py), None: off;
-        # a BackgroundCheck scores off this thread: (trial index, its future, since)
+        # a BackgroundCheck scores off this thread: (trial index, its future, since) of
+        # each trial whose verdict has not joined it yet, oldest first
         self.trial_check = trial_check
-        self._pending: tuple[int, Any, float] | None = None
+        self._pending: list[tuple[int, Any, float]] = []
         # personalise the check with the first block's trials when it ends (a checker
         # with ``personalise``): their frames, kept until then, by trial index
+        can = (trial_check.can_personalise if isinstance(trial_check, BackgroundCheck)
+               else hasattr(trial_check, "personalise"))
         self._shots: dict[int, tuple[Any, Any, str]] | None = (
-            {} if personalise_check and hasattr(trial_check, "personalise") else None)
+            {} if personalise_check and can else None)
+        self._personalising: Any = None  # a BackgroundCheck's personalisation underway
         self._shots_block: int | None = None
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
@@ -190,6 +198,7 @@ class CollectionRunner(RunnerInputs):
         """Advance whatever is due now; cheap, call it often."""
         self._tick_frame = self.engine.frames
         self.take_verdict()
+        self._take_personalised()
         s = self.state
         if s == State.SETUP:
             if self._start_requested:
@@ -222,7 +231,7 @@ class CollectionRunner(RunnerInputs):
     def _held(self) -> bool:
         if not self.hold_flagged:
             return False
-        if self._pending is not None and self.clock() - self._pending[2] < self.trial_check.wait_s:
+        if self._pending and self.clock() - self._pending[-1][2] < self.trial_check.wait_s:
             return True  # its verdict is on its way: the next key waits for it
         return bool(self.records and self.records[-1].flagged)
 
@@ -327,9 +336,9 @@ class CollectionRunner(RunnerInputs):
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
         if later:
-            self._pending = (record.index, self.trial_check.submit(
+            self._pending.append((record.index, self.trial_check.submit(
                 self.engine.layout, m.raw, self.engine.baseline, self.rate, cur["gesture"]),
-                self.clock())
+                self.clock()))
         if self._shots is not None and not practice and m.raw is not None \
                 and self._shots_block in (None, record.block):
             self._shots_block = record.block  # the first block this run collects
@@ -354,22 +363,24 @@ class CollectionRunner(RunnerInputs):
         """A BackgroundCheck's verdict joins its trial (``check``, ``model_mismatch``) at
         the first tick after the model answered (``wait_s``: wait that long for it, as the
         session ends); the redo prompt asks about it while it is still the last trial."""
-        if self._pending is None:
-            return
-        index, future, _since = self._pending
-        if not future.done() and wait_s <= 0:
-            return
-        try:
-            v = future.result(timeout=wait_s or None)
-        except TimeoutError:
-            return
-        finally:
-            if future.done():
-                self._pending = None
+        while self._pending:
+            index, future, _since = self._pending[0]
+            if not future.done() and wait_s <= 0:
+                return
+            try:
+                v, model = future.result(timeout=wait_s or None)
+            except TimeoutError:
+                return
+            finally:
+                if future.done():
+                    self._pending.pop(0)
+            self._join_verdict(index, v, model)
+
+    def _join_verdict(self, index: int, v: Any, model: str) -> None:
         trial = next((t for t in self.records if t.index == index), None)
         if v is None or trial is None:
             return
-        changes: dict[str, Any] = {"check": v.stored(str(self.trial_check.describe()["model"]))}
+        changes: dict[str, Any] = {"check": v.stored(model)}
         if v.flagged:
             changes["flags"] = [*trial.flags, MISMATCH_FLAG]
         new = self._update_trial(trial, **changes)
@@ -385,16 +396,45 @@ class CollectionRunner(RunnerInputs):
         usable = [shots[t.index] for t in self.records if t.index in shots and t.ok]
         # it takes seconds: a stream that waits for its readers must not run a ring ahead
         # meanwhile (the next trial's frames would be gone before its key names them)
+        if isinstance(self.trial_check, BackgroundCheck):  # the console: off the GUI thread
+            self._personalising = self.trial_check.personalise_later(
+                self.engine.layout, usable, self.rate)
+            return
         self._hold(lambda: self._tick_frame, self._lead)
         try:
             n = self.trial_check.personalise(self.engine.layout, usable, self.rate)
         except UserError as exc:
-            self._log("trial_check_personalised", trials=0, error=str(exc))
-            self._refuse(f"the check could not be personalised: {exc}")
+            self._personalised(exc)
+        else:
+            self._personalised(n)
+
+    def _take_personalised(self, wait_s: float = 0.0) -> None:
+        """A BackgroundCheck's personalisation, once done, goes on record (``wait_s``: wait
+        that long for it, as the session ends)."""
+        future = self._personalising
+        if future is None or (not future.done() and wait_s <= 0):
+            return
+        try:
+            n = future.result(timeout=wait_s or None)
+        except TimeoutError:
+            return
+        except UserError as exc:
+            self._personalising = None
+            self._personalised(exc)
+            return
+        self._personalising = None
+        self._personalised(n)
+
+    def _personalised(self, outcome: int | UserError) -> None:
+        """The check's personalisation on record: an event, or a hint when it failed (the
+        session goes on with the check as it was)."""
+        if isinstance(outcome, UserError):
+            self._log("trial_check_personalised", trials=0, error=str(outcome))
+            self._refuse(f"the check could not be personalised: {outcome}")
             return
         model = str(self.trial_check.describe()["model"])
-        self._log("trial_check_personalised", trials=n, model=model)
-        self._emit(CheckPersonalised(n, model))
+        self._log("trial_check_personalised", trials=outcome, model=model)
+        self._emit(CheckPersonalised(outcome, model))
 
     def _drop_current(self) -> None:
         """Forget the running trial and let the stream go on without it."""
@@ -492,7 +532,9 @@ class CollectionRunner(RunnerInputs):
         self._set_state(State.PAUSED)
 
     def _finish(self) -> None:
-        self.take_verdict(wait_s=WAIT_S)  # the last trial's verdict is in the file
+        # the personalisation and the last trials' verdicts are in the file
+        self._take_personalised(wait_s=PERSONALISE_WAIT_S)
+        self.take_verdict(wait_s=WAIT_S)
         self._log("session_end", trials=len(self.records))
         self._end_file_here()
         self.recorder.flush()

@@ -327,7 +327,8 @@ class CollectConsole(ConsoleActions):
             choice.protocol, participant=choice.participant, out_dir=choice.out_dir,
             seed=choice.seed, condition=choice.condition, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health, pilot=choice.pilot,
-            trial_check=self._off_gui(choice.qc.checker(choice.participant))),
+            trial_check=self._off_gui(choice.qc.checker(choice.participant)),
+            personalise_check=choice.qc.personalise),
             self.acquisition, beeper=self.beeper, clock=self.clock),
             choice.device, choice.device_settings)
 

@@ -17,6 +17,7 @@ from typing import Any
 
 from PySide6.QtCore import QSettings, Signal
 from PySide6.QtWidgets import (
+    QCheckBox,
     QDoubleSpinBox,
     QHBoxLayout,
     QLabel,
@@ -33,7 +34,7 @@ from tactile_studio.storage.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.settings import get_json, set_json
 
-KEY_QC = "collect/qc_model/"  # + protocol name: {"model", "top_k", "threshold"}
+KEY_QC = "collect/qc_model/"  # + protocol name: {"model", "top_k", "threshold", "personalise"}
 DIALOG_KIND = "qc_model"
 NO_MODEL = ("No QC model: each trial's signal is still checked (contact, saturation, a "
             "stuck channel, off-centre, gaps).")
@@ -47,6 +48,7 @@ class QcChoice:
     top_k: int = DEFAULT_TOP_K
     threshold: float = DEFAULT_THRESHOLD
     ready: TrialChecker | None = None  # already built (a script's own): used as it is
+    personalise: bool = False  # fit the check to the participant after their first block
 
     def checker(self, participant: str) -> TrialChecker | None:
         """The core's ModelTrialCheck for ``participant`` (None without a model); a model
@@ -91,6 +93,11 @@ class QcModelField(QWidget):
         self.threshold.setSingleStep(0.01)
         self.threshold.setToolTip("or when the model's probability of the prompted gesture "
                                   "is below this")
+        self.personalise = QCheckBox("Fit the check to each participant after their first "
+                                     "block")
+        self.personalise.setToolTip(
+            "refit the model with the participant's own first-block trials (the few-shot "
+            "route), off the screen's thread; their later trials are checked by it")
         self.info = QLabel(NO_MODEL)
         self.info.setWordWrap(True)
         self.info.setStyleSheet("color: #606770;")
@@ -111,12 +118,14 @@ class QcModelField(QWidget):
         box.setContentsMargins(0, 0, 0, 0)
         box.addLayout(row)
         box.addLayout(settings_row)
+        box.addWidget(self.personalise)
         box.addWidget(self.info)
         self.run_button.clicked.connect(self.choose_run)
         self.file_button.clicked.connect(self.choose_file)
         self.clear_button.clicked.connect(lambda: self.set_model(None))
         self.top_k.valueChanged.connect(self._remember)
         self.threshold.valueChanged.connect(self._remember)
+        self.personalise.toggled.connect(self._remember)
         self._set_settings(DEFAULT_TOP_K, DEFAULT_THRESHOLD)
 
     # ---- per study ------------------------------------------------------------------
@@ -126,10 +135,14 @@ class QcModelField(QWidget):
         saved = get_json(self.settings, KEY_QC + name, {}) if name else {}
         saved = saved if isinstance(saved, dict) else {}
         self._set_settings(saved.get("top_k", DEFAULT_TOP_K),
-                           saved.get("threshold", DEFAULT_THRESHOLD))
+                           saved.get("threshold", DEFAULT_THRESHOLD),
+                           saved.get("personalise") is True)
         self.set_model(saved.get("model") or None, remember=False)
 
-    def _set_settings(self, top_k: object, threshold: object) -> None:
+    def _set_settings(self, top_k: object, threshold: object, personalise: bool = False) -> None:
+        self.personalise.blockSignals(True)
+        self.personalise.setChecked(personalise)
+        self.personalise.blockSignals(False)
         for w, v in ((self.top_k, top_k), (self.threshold, threshold)):
             w.blockSignals(True)
             try:
@@ -142,7 +155,8 @@ class QcModelField(QWidget):
         if self._study:
             set_json(self.settings, KEY_QC + self._study, {
                 "model": self.path.text() or None, "top_k": self.top_k.value(),
-                "threshold": round(self.threshold.value(), 4)})
+                "threshold": round(self.threshold.value(), 4),
+                "personalise": self.personalise.isChecked()})
         self.changed.emit()
 
     # ---- the model --------------------------------------------------------------------
@@ -171,6 +185,7 @@ class QcModelField(QWidget):
             else:
                 self.known = checker.known
                 text = self._scores(checker.describe())
+        self.personalise.setEnabled(bool(path))
         self.path.setText(str(path or ""))
         self.path.setToolTip(str(path or ""))
         self.info.setText(text)
@@ -196,11 +211,12 @@ class QcModelField(QWidget):
                 + (f"; not scored: {', '.join(missing)}" if missing else ""))
 
     def prefill(self, model: str, top_k: int = DEFAULT_TOP_K,
-                threshold: float = DEFAULT_THRESHOLD) -> bool:
+                threshold: float = DEFAULT_THRESHOLD, personalise: bool = False) -> bool:
         """The ``collect --qc-model`` options (remembered for the study, as if chosen)."""
-        self._set_settings(top_k, threshold)
+        self._set_settings(top_k, threshold, personalise)
         return self.set_model(model)
 
     def choice(self) -> QcChoice:
         return QcChoice(self.path.text() or None, self.top_k.value(),
-                        round(self.threshold.value(), 4))
+                        round(self.threshold.value(), 4),
+                        personalise=bool(self.path.text()) and self.personalise.isChecked())
