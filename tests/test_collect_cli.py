@@ -30,7 +30,7 @@ def _collect(*args: str, **kw) -> subprocess.CompletedProcess:
 def _trials_in(path: Path) -> list[dict]:
     try:
         with Session(path) as s:
-            return s.trials
+            return s.journal.trials
     except SessionFileError:  # the writer is between creating and first flush
         return []
 
@@ -73,7 +73,7 @@ def test_headless_session_and_determinism(tmp_path: Path, capsys) -> None:
         assert path.parent == tmp_path / name and path.name.startswith("P01_shear9_")
         assert "collect P01" in err  # progress on stderr
         with Session(path) as s:
-            runs.append((s.trials, s.raw(0, s.n_frames)))
+            runs.append((s.journal.trials, s.raw(0, s.n_frames)))
     (ta, ra), (tb, rb), (tc, _) = runs
     assert len(ta) == 9 and all(t["status"] == "ok" for t in ta)
     assert ta == tb  # same seed: the same trials at the same rows...
@@ -219,7 +219,7 @@ def test_kill_minus_9_then_resume_loses_nothing_and_keeps_the_order(tmp_path: Pa
     order = block_orders(load_protocol("shear9"), "P01", seed=5, blocks=3)
     with Session(path) as s:
         assert s.closed_cleanly and s.metadata["resumes"] == 1
-        trials = s.trials
+        trials = s.journal.trials
     assert trials[:len(kept)] == kept  # every completed trial survived, unchanged
     assert [t["index"] for t in trials] == list(range(len(trials)))
     assert all(t["status"] == "ok" for t in trials)
@@ -240,7 +240,7 @@ def test_ctrl_c_or_sigterm_stops_cleanly_keeping_trials(tmp_path: Path, sig) -> 
     assert "--resume" in err and "Traceback" not in err
     with Session(path) as s:
         assert s.closed_cleanly
-        assert 2 <= len(s.trials) < 18
+        assert 2 <= len(s.journal.trials) < 18
         assert any(e["kind"] == "abort" for e in s.events)
 
 

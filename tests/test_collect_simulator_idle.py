@@ -82,7 +82,7 @@ def test_a_console_on_the_live_demo_simulator_records_only_touches(qtbot, tmp_pa
         engine.stop()
     with Session(path) as sess:
         assert sess.metadata["device"]["settings"]["gesture"] == "idle"
-        t = sess.trials[0]
+        t = sess.journal.trials[0]
         raw = sess.raw(t["start_sample"], t["end_sample"])
         load = decode(sess.layout, raw, sess.baseline(t["start_sample"])).normal
         assert float(np.abs(load).max()) < 1.0  # kPa: noise, no gesture

@@ -49,7 +49,7 @@ def test_runner_markers_match_the_session_file(tmp_path: Path) -> None:
         "trial_start", "beep", "trial_end", "discard", "note"]
     assert "not streamed" not in json.dumps([m for m, _ in markers])
     with Session(rig.session.path) as s:
-        trials = s.trials
+        trials = s.journal.trials
         host = s.column("host_time", 0, s.n_frames)
         offset = next(e for e in s.events if e["kind"] == "lsl_clock")["offset_s"]
     assert offset == streamer.offset.offset_s
@@ -85,7 +85,7 @@ def test_headless_collect_with_lsl_publishes_every_trial(tmp_path: Path, capsys)
     assert "LSL: publishing 'TactileStudio-simulated'" in err
     assert "LSL: a recipient is connected" in err  # so no marker was published unseen
     with Session(Path(out.strip().splitlines()[-1])) as s:
-        trials = s.trials
+        trials = s.journal.trials
         assert any(e["kind"] == "lsl_clock" for e in s.events)
     ends = [json.loads(m[0]) for m in got.samples]
     ends = [m for m in ends if m["kind"] == "trial_end"]

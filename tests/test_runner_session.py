@@ -31,7 +31,7 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
     assert rig.beeps.asked == [(protocol.beep_hz, protocol.beep_s)] * 18
     n = round(protocol.trial_s * rig.device.nominal_rate_hz)
     with Session(rig.session.path) as s:
-        trials = s.trials
+        trials = s.journal.trials
         order = s.metadata["block_order"]
         assert s.metadata["participant"] == "P07" and s.metadata["source"] == "collect"
         assert s.metadata["gestures"] == protocol.gesture_names
@@ -69,8 +69,8 @@ def test_a_session_as_fast_as_possible_keeps_every_trial_in_a_small_ring(tmp_pat
     assert n < 128 < 2 * n
     run_virtual_participant(rig, "P05")
     with Session(rig.session.path) as s:
-        assert len(s.trials) == 8
-        for t in s.trials:
+        assert len(s.journal.trials) == 8
+        for t in s.journal.trials:
             assert t["status"] == "ok" and "dropped_frames" not in t["flags"], t
             seq = s.column("seq", t["start_sample"], t["end_sample"])
             assert np.array_equal(np.diff(seq), np.ones(n - 1))
@@ -121,8 +121,8 @@ def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> No
         assert s.metadata["trial_order"] == "free"
         assert any(o != names for o in order)  # so the habit differs from the prompts
         for b in (0, 1):  # free order: the protocol's order, whatever the block's was
-            assert [t["gesture"] for t in s.trials if t["block"] == b] == names
-        for t in s.trials:
+            assert [t["gesture"] for t in s.journal.trials if t["block"] == b] == names
+        for t in s.journal.trials:
             seq = s.column("seq", t["start_sample"], t["end_sample"])
             assert rig.device.gesture_at(int(seq[len(seq) // 2])) == t["gesture"]
 
@@ -184,7 +184,7 @@ def test_prompted_order_is_enforced_block_by_block(tmp_path: Path) -> None:
         assert s.metadata["trial_order"] == "prompted"
         assert s.metadata["protocol_spec"]["order"] == "prompted"
         for b in (0, 1):
-            assert [t["gesture"] for t in s.trials if t["block"] == b] == orders[b]
+            assert [t["gesture"] for t in s.journal.trials if t["block"] == b] == orders[b]
 
 
 def test_free_order_takes_any_remaining_gesture(tmp_path: Path) -> None:
@@ -203,7 +203,7 @@ def test_free_order_takes_any_remaining_gesture(tmp_path: Path) -> None:
         rig.close()
     with Session(rig.session.path) as s:
         assert s.metadata["trial_order"] == "free"
-        assert [t["gesture"] for t in s.trials] == order[::-1]
+        assert [t["gesture"] for t in s.journal.trials] == order[::-1]
 
 
 def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path) -> None:
@@ -234,7 +234,7 @@ def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path)
     finally:
         rig.close()
     with Session(rig.session.path) as s:
-        status = [(t["gesture"], t["status"], t["reason"]) for t in s.trials]
+        status = [(t["gesture"], t["status"], t["reason"]) for t in s.journal.trials]
     assert status[0] == (g0, "redone", "participant hesitated")
     assert status[1] == (g0, "ok", None)
     assert status[2][:2] == (g1, "redone") and status[3][:2] == (g1, "ok")
@@ -260,8 +260,8 @@ def test_discard_needs_a_reason_and_is_not_collected_again(tmp_path: Path) -> No
     finally:
         rig.close()
     with Session(rig.session.path) as s:
-        assert s.trials[0]["status"] == "discarded"
-        assert s.trials[0]["reason"] == "participant sneezed"
+        assert s.journal.trials[0]["status"] == "discarded"
+        assert s.journal.trials[0]["reason"] == "participant sneezed"
         assert "re-taped" in s.metadata["notes"]
         assert any(e["kind"] == "note" for e in s.events)
 
@@ -306,8 +306,8 @@ def test_stuck_channel_and_off_centre_flags_reach_the_file(tmp_path: Path) -> No
     finally:
         rig.close()
     with Session(rig.session.path) as s:
-        assert "stuck_channel" in s.trials[0]["flags"]
-        assert "off_centre" in s.trials[1]["flags"]
+        assert "stuck_channel" in s.journal.trials[0]["flags"]
+        assert "off_centre" in s.journal.trials[1]["flags"]
 
 
 def test_practice_then_blocks_and_other_gesture_sets(tmp_path: Path) -> None:
@@ -358,7 +358,7 @@ def test_a_discarded_trial_collected_again_in_the_break_after_its_block(tmp_path
     finally:
         rig.close()
     with Session(rig.session.path) as s:
-        statuses = [(t["block"], t["gesture"], t["status"]) for t in s.trials]
+        statuses = [(t["block"], t["gesture"], t["status"]) for t in s.journal.trials]
     assert statuses.count((0, order[0], "discarded")) == 1  # on record, with its reason
     assert statuses.count((0, order[0], "ok")) == 1 and len(statuses) == 5
 
@@ -394,7 +394,7 @@ def test_a_trial_discarded_and_collected_again_stays_discarded_on_record(
     finally:
         rig.close()
     with Session(rig.session.path) as s:
-        trials = s.trials
+        trials = s.journal.trials
     assert [(t["gesture"], t["status"]) for t in trials] == \
         [(order[0], "discarded"), (order[0], "ok"), (order[1], "ok")]
     capsys.readouterr()

@@ -59,7 +59,7 @@ def test_break_after_every_k_blocks_with_minimum(tmp_path: Path) -> None:
     with Session(rig.session.path) as s:
         kinds = [e["kind"] for e in s.events]
         assert kinds.count("break_start") == 1 and kinds.count("break_end") == 1
-        assert [t["block"] for t in s.trials] == [0, 0, 1, 1, 2, 2, 3, 3]
+        assert [t["block"] for t in s.journal.trials] == [0, 0, 1, 1, 2, 2, 3, 3]
 
 
 def test_auto_continue_after_the_minimum(tmp_path: Path) -> None:
@@ -163,9 +163,9 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
     rig.close()  # the window closes mid-trial: the running trial is dropped
     path = rig.session.path
     with Session(path) as s:
-        assert s.closed_cleanly and len(s.trials) == 2
+        assert s.closed_cleanly and len(s.journal.trials) == 2
         n_old = s.n_frames
-        old_trials = s.trials
+        old_trials = s.journal.trials
     rig2 = make_rig(tmp_path, protocol, resume=path)  # the same sensor (sim-0)
     r2 = rig2.runner
     try:
@@ -184,13 +184,13 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
     finally:
         rig2.close()
     with Session(path) as s:
-        assert s.trials[:2] == old_trials
-        assert [t["gesture"] for t in s.trials] == order[0] + order[1]
-        assert all(t["start_sample"] >= n_old for t in s.trials[2:])
+        assert s.journal.trials[:2] == old_trials
+        assert [t["gesture"] for t in s.journal.trials] == order[0] + order[1]
+        assert all(t["start_sample"] >= n_old for t in s.journal.trials[2:])
         assert s.n_frames > n_old
         assert any(e["kind"] == "resume" for e in s.events)
         assert s.metadata["resumes"] == 1
     with Session(rig2.session.backup) as b:
-        assert b.trials == old_trials
+        assert b.journal.trials == old_trials
     with pytest.raises(UserError, match="complete"):
         make_rig(tmp_path, protocol, resume=path)

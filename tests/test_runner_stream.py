@@ -135,7 +135,7 @@ def test_runner_runs_a_block_on_a_plain_stream_without_threads(tmp_path: Path) -
     assert recorder.rows_written >= second["end_sample"]
     recorder.stop()
     with Session(tmp_path / "s.h5") as s:
-        assert [(t["gesture"], t["start_sample"], t["status"]) for t in s.trials] == [
+        assert [(t["gesture"], t["start_sample"], t["status"]) for t in s.journal.trials] == [
             (t["gesture"], t["start_sample"], "ok") for t in (first, second)]
         rows = slice(second["start_sample"], second["end_sample"])
         frames = slice(second["start_sample"], second["start_sample"] + n)

@@ -238,7 +238,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     beeps_before = list(console.beeper.requests)
     console.close()
     with Session(path) as sess:
-        assert sess.n_frames > 0 and len(sess.trials) == 5
+        assert sess.n_frames > 0 and len(sess.journal.trials) == 5
 
     # 6. a new console resumes the file and the session runs to the end
     console2 = make_console(qtbot)
@@ -261,7 +261,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
 
     # the file: every completed trial exactly once, with the right statuses
     with Session(path) as sess:
-        trials = sess.trials
+        trials = sess.journal.trials
         meta = sess.metadata
         n_rows = sess.n_frames
     assert [t["index"] for t in trials] == list(range(len(trials)))

@@ -120,7 +120,7 @@ def test_a_flagged_trial_is_redone_or_kept_from_the_banner_and_summed_up_per_blo
     path = console.session.path
     console.close()
     with Session(path) as sess:
-        trials = sess.trials
+        trials = sess.journal.trials
     assert [t["status"] for t in trials[:2]] == ["redone", "ok"]
     assert trials[1]["flags"] == ["no_contact"]
     assert [t.get("decision") for t in trials[:2]] == ["redo", "keep"]
@@ -207,5 +207,5 @@ def test_the_console_stays_live_while_the_model_thinks(qtbot, env):  # noqa: F81
     path = console.session.path
     console.close()
     with Session(path) as sess:
-        stored = sess.trials[0]
+        stored = sess.journal.trials[0]
     assert stored["check"]["flagged"] and stored["decision"] == "keep"

@@ -163,7 +163,7 @@ def test_a_discarded_gesture_is_collected_again_at_the_end_of_its_block(qtbot, e
     qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
     path = console._closed_session_path
     with Session(path) as f:
-        trials = f.trials
+        trials = f.journal.trials
         events = [e for e in f.events if e.get("kind") == "discard"]
     assert [t["gesture"] for t in trials] == [*order, order[0]]
     assert trials[-1]["status"] == "ok" and trials[-1]["reason"] == "collected again for trial 1"

@@ -74,9 +74,9 @@ def test_labrecorders_capture_of_a_collection_imports_with_its_trials(tmp_path, 
         assert b.n_frames == len(frames.stamps) and b.layout.name == a.layout.name
         assert b.metadata["participant"] == "P09" and b.metadata["session_label"] == "2"
         want = [(t["gesture"], t["status"], t["end_sample"] - t["start_sample"])
-                for t in a.trials]
+                for t in a.journal.trials]
         got = [(t["gesture"], t["status"], t["end_sample"] - t["start_sample"])
-               for t in b.trials]
+               for t in b.journal.trials]
         assert [g[:2] for g in got] == [w[:2] for w in want] == [
             (first, "redone"), (first, "ok"), (want[2][0], "discarded")]
         # rows come from timestamps after jitter removal: a trial keeps its length to

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,7 +45,7 @@ from tactile_studio.protocol.runner_events import (
 )
 from tactile_studio.protocol.runner_inputs import RunnerInputs
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
-from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker
+from tactile_studio.protocol.trial_check import MISMATCH_FLAG, TrialChecker, TrialVerdict
 from tactile_studio.protocol.trial_record import TrialMeasure, measure_trial
 from tactile_studio.storage.protocol_file import Protocol
 from tactile_studio.storage.recorder import Recorder
@@ -94,7 +95,8 @@ class CollectionRunner(RunnerInputs):
                else hasattr(trial_check, "personalise"))
         self._shots: dict[int, tuple[Any, Any, str]] | None = (
             {} if personalise_check and can else None)
-        self._personalising: Any = None  # a BackgroundCheck's personalisation underway
+        # a BackgroundCheck's personalisation underway
+        self._personalising: Future[int] | None = None
         self._shots_block: int | None = None
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
@@ -376,7 +378,7 @@ class CollectionRunner(RunnerInputs):
                     self._pending.pop(0)
             self._join_verdict(index, v, model)
 
-    def _join_verdict(self, index: int, v: Any, model: str) -> None:
+    def _join_verdict(self, index: int, v: TrialVerdict | None, model: str) -> None:
         trial = next((t for t in self.records if t.index == index), None)
         if v is None or trial is None:
             return
