@@ -36,9 +36,32 @@ os.environ.setdefault("LSLAPICFG", _LSL_CFG)
 _RAY_FILES = {"test_sweep.py", "test_ui_research_sweep.py"}
 
 
+# The files that take longest, longest first (wall time of a whole `make test` run on a
+# loaded 2-core machine; the Ray files are one unit). Whole files go to a worker in this
+# order, the rest after them in collection order: a long file handed out last kept one
+# worker busy for minutes after the other ran out of work. A stale list costs only balance.
+_SLOWEST_FILES = (
+    "test_sweep.py", "test_ui_research_sweep.py", "test_personalise.py",
+    "test_hostile_sessions.py", "test_learn_windows.py", "test_learn_faults.py",
+    "test_population.py", "test_learn_models.py", "test_fused.py", "test_adapt.py",
+    "test_shots.py", "test_baselines_onnx.py", "test_terminal_output.py",
+    "test_generalise.py", "test_train_job.py", "test_faults_output.py",
+    "test_faults_recording.py", "test_characterise_plan_cli.py", "test_export.py",
+    "test_resume_clock.py", "test_person_calibration.py", "test_remote_control_faults.py",
+    "test_compare.py", "test_characterise.py",
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """The slowest files first (``_SLOWEST_FILES``), each file's tests in their order."""
+    rank = {name: i for i, name in enumerate(_SLOWEST_FILES)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+
+
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config, log):
-    """Whole files per worker (module fixtures are built once), the Ray files together."""
+    """Whole files per worker (module fixtures are built once), the Ray files together,
+    handed out in collection order (slowest first), not by their number of tests."""
     from xdist.scheduler import LoadFileScheduling
 
     class FilesRayTogether(LoadFileScheduling):
@@ -46,6 +69,7 @@ def pytest_xdist_make_scheduler(config, log):
             path = nodeid.split("::", 1)[0]
             return "ray" if os.path.basename(path) in _RAY_FILES else path
 
+    config.option.loadscopereorder = False
     return FilesRayTogether(config, log)
 
 
