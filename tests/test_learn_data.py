@@ -19,7 +19,8 @@ from tactile_studio.learn.data import cache, views
 from tactile_studio.learn.data.dataset import build_dataset, read_sessions
 from tactile_studio.learn.data.features import feature_matrix, gesture_metrics, trial_features
 from tactile_studio.learn.data.splits import all_inclusive, group_kfold, lopo
-from tactile_studio.learn.evaluation.metrics import classification_metrics, vote
+from tactile_studio.learn.data.windowing import vote
+from tactile_studio.learn.evaluation.metrics import classification_metrics
 from tactile_studio.simulate import GESTURES
 
 

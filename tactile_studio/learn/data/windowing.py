@@ -20,7 +20,6 @@ import numpy as np
 
 from tactile_studio.learn.choices import AGGREGATES
 from tactile_studio.learn.data.views import window_starts
-from tactile_studio.learn.evaluation import metrics as M
 
 DEFAULT_WINDOW_S = 2.0
 
@@ -74,6 +73,23 @@ def learner_samples(learner, ds, spec: WindowSpec) -> tuple[np.ndarray, np.ndarr
     return x, piece_owner[sample_piece], len(pieces)
 
 
+def vote(owner: np.ndarray, probs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Trial-level predictions by majority vote over each trial's windows.
+
+    Returns (trial ids in sorted order, predicted class per trial); a tie between classes
+    goes to the one with the larger summed probability.
+    """
+    owner = np.asarray(owner)
+    trials, inverse = np.unique(owner, return_inverse=True)
+    n_classes = probs.shape[1]
+    votes = np.zeros((len(trials), n_classes))
+    np.add.at(votes, (inverse, probs.argmax(axis=1)), 1.0)
+    mass = np.zeros((len(trials), n_classes))
+    np.add.at(mass, inverse, probs)
+    score = votes + 1e-6 * mass / np.maximum(mass.sum(axis=1, keepdims=True), 1e-12)
+    return trials, score.argmax(axis=1)
+
+
 def aggregate(owner: np.ndarray, probs: np.ndarray,
               how: str = "mean") -> tuple[np.ndarray, np.ndarray]:
     """Trial predictions from sample probabilities: (trial ids sorted, predicted class).
@@ -82,7 +98,7 @@ def aggregate(owner: np.ndarray, probs: np.ndarray,
     ``vote`` is the majority of window predictions (ties to the larger summed probability).
     """
     if how == "vote":
-        return M.vote(owner, probs)
+        return vote(owner, probs)
     if how != "mean":
         raise ValueError(f"unknown aggregate {how!r} (known: {', '.join(AGGREGATES)})")
     trials, inverse = np.unique(np.asarray(owner), return_inverse=True)

@@ -167,7 +167,7 @@ class StreamingPredictor:
     def _onnx(self, frame: np.ndarray) -> tuple:
         """(frame-or-window session, classifier session or None), exported on first use."""
         if self._sessions is None:
-            from tactile_studio.learn.deploy.export import cpu_session, onnx_bytes
+            from tactile_studio.learn.learners.onnx_io import cpu_session, onnx_bytes
 
             one = torch.from_numpy(frame)[None]
             if self.cached:

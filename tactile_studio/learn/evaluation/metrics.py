@@ -62,23 +62,6 @@ def classification_metrics(y_true: np.ndarray, y_pred: np.ndarray,
     return metrics_from_counts(confusion_counts(y_true, y_pred, len(label_names)), label_names)
 
 
-def vote(owner: np.ndarray, probs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Trial-level predictions by majority vote over each trial's windows.
-
-    Returns (trial ids in sorted order, predicted class per trial); a tie between classes
-    goes to the one with the larger summed probability.
-    """
-    owner = np.asarray(owner)
-    trials, inverse = np.unique(owner, return_inverse=True)
-    n_classes = probs.shape[1]
-    votes = np.zeros((len(trials), n_classes))
-    np.add.at(votes, (inverse, probs.argmax(axis=1)), 1.0)
-    mass = np.zeros((len(trials), n_classes))
-    np.add.at(mass, inverse, probs)
-    score = votes + 1e-6 * mass / np.maximum(mass.sum(axis=1, keepdims=True), 1e-12)
-    return trials, score.argmax(axis=1)
-
-
 def median_of(dicts: list[dict[str, Any]], keys: tuple[str, ...] = SCALAR_KEYS) -> dict[str, float]:
     """Median of each scalar key over rounds (keys missing anywhere are skipped)."""
     out = {}

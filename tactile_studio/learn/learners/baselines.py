@@ -25,7 +25,7 @@ import numpy as np
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.choices import BASELINES
-from tactile_studio.learn.learners.contract import PRESETS
+from tactile_studio.learn.presets import PRESETS
 
 # what ``train`` without --model and the train panel train: extra-trees on the touch
 # features, adapted per person and surface (its ``--adapt auto``), chosen on the
@@ -146,7 +146,7 @@ class BaselineModel:
 
     # ---- prediction ------------------------------------------------------------------
     def _open(self, model: bytes | str) -> None:
-        from tactile_studio.learn.deploy.export import cpu_session
+        from tactile_studio.learn.learners.onnx_io import cpu_session
 
         self._session = cpu_session(model, threads=1)
         meta = dict(self._session.get_modelmeta().custom_metadata_map)
@@ -257,7 +257,7 @@ def _to_onnx(estimator: Any, x: np.ndarray, name: str, metadata: dict[str, str])
     float32 features); k-NN takes float64 so its distances match scikit-learn's."""
     from skl2onnx import to_onnx
 
-    from tactile_studio.learn.deploy.export import OPSET
+    from tactile_studio.learn.learners.onnx_io import OPSET
 
     dtype = np.float64 if name == "knn" else np.float32
     proto = to_onnx(estimator, np.asarray(x[:1], dtype=dtype),

@@ -169,7 +169,7 @@ def _check_facts(spec: ModelSpec, model: torch.nn.Module, x: torch.Tensor,
                 problems.append("classify_embeddings(frame_features(frames)) differs from the "
                                 "forward pass")
     if "onnx" in spec.export:
-        from tactile_studio.learn.deploy.export import cpu_session, onnx_bytes
+        from tactile_studio.learn.learners.onnx_io import cpu_session, onnx_bytes
 
         try:
             session = cpu_session(onnx_bytes(model, x), 1)

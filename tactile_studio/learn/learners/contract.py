@@ -19,12 +19,10 @@ from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 import numpy as np
 
 from tactile_studio.jobs import CancelToken
+from tactile_studio.learn.presets import PRESETS  # noqa: F401 (its home is learn/presets.py)
 
 if TYPE_CHECKING:
     from tactile_studio.learn.data.dataset import TrialDataset
-
-# every learner, network or baseline, comes in these sizes; full is the default
-PRESETS = ("full", "tiny")
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import torch
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.learners.contract import PRESETS
+from tactile_studio.learn.presets import PRESETS
 
 VIEW_KINDS = ("resample", "windows", "slices", "gradient")
 EXPORT_FORMATS = ("onnx", "torchscript")
