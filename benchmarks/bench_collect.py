@@ -12,12 +12,12 @@ from pathlib import Path
 
 from tactile_studio.acquisition.open_stream import open_stream
 from tactile_studio.plugins.simulated import SimulatedSensor
-from tactile_studio.protocol.collect import CollectionSettings, open_session
-from tactile_studio.protocol.runner import State, StreamClock
+from tactile_studio.protocol.collect import CollectionSettings, open_collection
 from tactile_studio.protocol.runner_events import TrialStarted
+from tactile_studio.protocol.trial_runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 def run(speed: float, blocks: int | None = None) -> None:
@@ -27,8 +27,8 @@ def run(speed: float, blocks: int | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         device = SimulatedSensor(speed=speed, gesture="idle")
         engine = open_stream(device, capacity=1 << 18 if speed == 0 else 1 << 16)
-        session = open_session(CollectionSettings(protocol, "P01", Path(tmp)), engine,
-                               clock=StreamClock(engine))
+        session = open_collection(CollectionSettings(protocol, "P01", Path(tmp)), engine,
+                                  clock=StreamClock(engine))
         vp = VirtualParticipant(session.runner, device, "P01")
         vp.prepare()
         lags: list[int] = []
@@ -54,7 +54,7 @@ def run(speed: float, blocks: int | None = None) -> None:
         session.close()
         streamed = engine.frames  # at speed 0 the simulator runs ahead of the runner
         engine.stop()
-        with Session(session.path) as s:
+        with SessionFile(session.path) as s:
             n, trials, frames = len(s.trials), s.trials, s.n_frames
         size = session.path.stat().st_size / 1e6
         ok = sum(t["status"] == "ok" for t in trials)

@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 from tactile_studio.acquisition.open_stream import open_stream
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
 
 
 def run(settings: dict, seconds: float) -> dict:
@@ -30,7 +30,7 @@ def run(settings: dict, seconds: float) -> dict:
         f1, t1 = engine.frames, time.perf_counter()
         engine.stop()
         recorder.stop()
-        with Session(path) as s:
+        with SessionFile(path) as s:
             written = s.n_frames
         return {"ingest_fps": (f1 - f0) / (t1 - t0), "frames": engine.frames,
                 "written": written, "recorder_dropped": recorder.dropped,
@@ -56,7 +56,7 @@ def replay_conversion(frames: int = 300_000) -> None:
         code = cli(["record", "--device", "replay", "--set", f"path={src}", "--set",
                     "speed=0", "--seconds", "1e6", "--out", str(dst)])  # ends with the file
         wall = time.perf_counter() - t0
-        with Session(dst) as s:
+        with SessionFile(dst) as s:
             kept = s.n_frames
     print(f"replay at speed 0 into a new recording (record --device replay): {frames:,} "
           f"frames in {wall:.1f} s wall ({frames / wall:,.0f} frames/s), {kept:,} kept, "

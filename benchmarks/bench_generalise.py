@@ -9,7 +9,7 @@ rounds (the cost on one core), the sweep's wall time, the parameters of the mode
 channels, 6x6, 9 gestures) and its inference time per 2 s trial (batch of 64, one thread,
 including the mirror averaging of the full recipe). With rf among the models (first),
 every learned model is also compared with it trial by trial on the same test trials of
-every round (learn/evaluation/compare.py: the accuracy difference, Wilcoxon signed-rank over the
+every round (learn/experiments/compare.py: the accuracy difference, Wilcoxon signed-rank over the
 participants, McNemar over the trials): one accuracy has a standard error of ~2.5 points,
 the paired test says whether a difference is more than that.
 
@@ -57,14 +57,14 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.evaluation.compare import compare_predictions, compare_runs  # noqa: E402
-from tactile_studio.learn.evaluation.trialpreds import (  # noqa: E402
-    RunPredictions,
-    load_predictions,
-)
+from tactile_studio.learn.experiments.compare import compare_predictions, compare_runs  # noqa: E402
 from tactile_studio.learn.experiments.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiments.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.experiments.sweep import run_sweep  # noqa: E402
+from tactile_studio.learn.experiments.trialpreds import (  # noqa: E402
+    RunPredictions,
+    load_predictions,
+)
 from tactile_studio.learn.learners.baselines import BASELINES  # noqa: E402
 from tactile_studio.learn.learners.contract import PRESETS  # noqa: E402
 from tactile_studio.learn.learners.fused import fuse  # noqa: E402

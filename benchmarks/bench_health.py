@@ -26,11 +26,11 @@ PLATE = (1000, 2000, 5000, 10000, 20000)
 
 
 def per_placement(real_time: bool) -> None:
-    """Seconds per placed weight of each kind, through the wizards' own HealthRun: the
+    """Seconds per placed weight of each kind, through the wizards' own HealthCheck: the
     wall time at speed 0, and (``real_time``) the device time at speed 1."""
     from tactile_studio.health.calibration import CalibrationSpec
     from tactile_studio.health.estimate import FULL_SPEED_S, REAL_TIME_S
-    from tactile_studio.health.runner import HealthRun
+    from tactile_studio.health.health_check import HealthCheck
     from tactile_studio.health.wellness import WellnessSpec
 
     kinds = {"plate": (CalibrationSpec("sim-0", PLATE, plate=True), 5),
@@ -39,8 +39,8 @@ def per_placement(real_time: bool) -> None:
     for kind, (spec, n) in kinds.items():
         for speed in ((0.0, 1.0) if real_time else (0.0,)):
             t = time.perf_counter()
-            run = HealthRun("simulated", {"speed": speed, "gesture": "idle"}, spec,
-                            auto=True).start()
+            run = HealthCheck("simulated", {"speed": speed, "gesture": "idle"}, spec,
+                              auto=True).start()
             run.join()
             wall = time.perf_counter() - t
             if run.error:

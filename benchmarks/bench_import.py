@@ -19,9 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from tactile_studio.storage import shearsense as ss
-from tactile_studio.storage.importers import import_shearsense_file
-from tactile_studio.storage.shearsense import HEADER, read_shearsense_csv, write_shearsense_csv
+from tactile_studio.storage.exchange import shearsense as ss
+from tactile_studio.storage.exchange.importers import import_shearsense_file
+from tactile_studio.storage.exchange.shearsense import (
+    HEADER,
+    read_shearsense_csv,
+    write_shearsense_csv,
+)
 
 
 def _file(folder: Path, rows: int) -> Path:

@@ -51,8 +51,8 @@ def _inlet_counter(source_id: str, counts: dict, stop: threading.Event) -> None:
 
 def run(settings: dict, seconds: float, decoded: bool) -> dict:
     from tactile_studio.acquisition.open_stream import open_stream
-    from tactile_studio.storage.recorder import Recorder
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
+    from tactile_studio.storage.recording.recorder import Recorder
     from tactile_studio.streams.lsl_outlet import LslStreamer
 
     with tempfile.TemporaryDirectory() as tmp:
@@ -80,7 +80,7 @@ def run(settings: dict, seconds: float, decoded: bool) -> dict:
         stop.set()
         reader.join(10)
         recorder.stop()
-        with Session(path) as s:
+        with SessionFile(path) as s:
             written = s.n_frames
         return {"ingest_fps": (f1 - f0) / (t1 - t0), "frames": engine.frames,
                 "written": written, "recorder_dropped": recorder.dropped,

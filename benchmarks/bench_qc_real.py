@@ -52,11 +52,11 @@ def train(sessions: Path, model: str, out: Path) -> float:
 
 def performances(sessions: Path) -> list[dict[str, Any]]:
     """Every ok trial of the set: participant, gesture, raw counts, baseline, rate."""
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
 
     out = []
     for path in sorted(sessions.glob("*.h5")):
-        with Session(path) as s:
+        with SessionFile(path) as s:
             who = str(s.metadata.get("participant") or path.stem)
             for t in s.trials:
                 if t.get("status", "ok") != "ok" or not t.get("gesture"):
@@ -111,7 +111,7 @@ def figures(labels: list[str], scored: list[dict[str, Any]], unit: str, seeds: i
     """AUC and flag rates over ``seeds`` relabelling draws (10% of each person's)."""
     from sklearn.metrics import roc_auc_score
 
-    from tactile_studio.storage.trial_checks import verdict
+    from tactile_studio.storage.format.trial_checks import verdict
 
     aucs = []
     rates = {s: [[], []] for s in SETTINGS}  # setting -> [relabelled flags, honest flags]
@@ -145,10 +145,10 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
     from tactile_studio.acquisition.open_stream import open_stream
     from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
     from tactile_studio.plugins.simulated import SimulatedSensor
-    from tactile_studio.protocol.collect import CollectionSettings, open_session
-    from tactile_studio.protocol.runner import StreamClock
+    from tactile_studio.protocol.collect import CollectionSettings, open_collection
+    from tactile_studio.protocol.trial_runner import StreamClock
     from tactile_studio.protocol.virtual import VirtualParticipant
-    from tactile_studio.storage.protocol_file import load_protocol
+    from tactile_studio.storage.format.protocol_file import load_protocol
 
     check = ModelTrialCheck(run)
     seen: list[float] = []
@@ -157,8 +157,8 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
     device = SimulatedSensor(speed=1.0, gesture="idle", seed=1)
     engine = open_stream(device)
     with tempfile.TemporaryDirectory() as tmp:
-        session = open_session(CollectionSettings(protocol, "P90", tmp, trial_check=check),
-                               engine, clock=StreamClock(engine))
+        session = open_collection(CollectionSettings(protocol, "P90", tmp, trial_check=check),
+                                  engine, clock=StreamClock(engine))
         runner = session.runner
 
         def on(event: RunnerEvent) -> None:

@@ -33,9 +33,9 @@ import numpy as np
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate.simulator import SensorSimulator, SimConfig
-from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.importers import import_shearsense_file
-from tactile_studio.storage.shearsense import HEADER, read_shearsense_csv
+from tactile_studio.storage import SessionFile, SessionWriter
+from tactile_studio.storage.exchange.importers import import_shearsense_file
+from tactile_studio.storage.exchange.shearsense import HEADER, read_shearsense_csv
 
 
 def _frames(rows: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -84,14 +84,14 @@ def _csv_reader_pass(path: Path) -> None:
 
 
 def _load_session(path: Path) -> None:
-    with Session(path) as s:
+    with SessionFile(path) as s:
         s.raw()
         s.column("device_time")
 
 
 def own_counts(rows: int) -> None:
     """The simulator's own counts, written as a recording is, against its CSV export."""
-    from tactile_studio.storage.exporters import export_shearsense_csv
+    from tactile_studio.storage.exchange.exporters import export_shearsense_csv
 
     sim = SensorSimulator(SimConfig(seed=3))  # its demo gestures, its own counts
     raw = sim.step(rows)
@@ -116,7 +116,7 @@ def main(rows: int = 100_000) -> None:
         _write_csv(csv_path, raw, times, labels)
         new = import_shearsense_file(csv_path, folder / "new.h5")
         old = folder / "old.h5"
-        with Session(new) as s:
+        with SessionFile(new) as s:
             back = s.raw()
         assert np.array_equal(back, raw), "the session must hold the CSV's counts exactly"
         w = SessionWriter(old, SHEARSENSE_6X6, {"plugin": "bench"})

@@ -1,11 +1,11 @@
 """Memory while recording for a long time: flat once the ring buffer is full.
 
-A 1 kHz simulated recording through the same path as ``record`` (AcquisitionSession,
+A 1 kHz simulated recording through the same path as ``record`` (LiveAcquisition,
 recorder thread, a poll loop ten times a second) for ``--minutes`` (default 20). The
 process's resident memory is sampled every 10 s; once the engine's ring is full (its
 capacity / rate, ~66 s at 1 kHz) nothing should grow any more, so the figure is the
 least-squares slope of RSS after that, in KB/s. Goal: <= 1 KB/s (issue 33 measured
-+40 KB/s: h5py's default chunk cache, see storage/session_writer.py).
++40 KB/s: h5py's default chunk cache, see storage/format/session_writer.py).
 
     python -m benchmarks.bench_soak --minutes 4
 """
@@ -37,10 +37,10 @@ def rss_kb() -> int:
 def soak(minutes: float, rate: float = 1000.0, sample_s: float = 10.0,
          folder: Path | None = None) -> dict:
     """Record ``minutes`` at ``rate`` Hz; RSS samples and the slope after the ring fills."""
-    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 
     with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        acq = AcquisitionSession()
+        acq = LiveAcquisition()
         engine = acq.open("simulated", {"rate": rate})
         acq.start_recording(Path(tmp) / "soak.h5", metadata={"source": "bench_soak"})
         acq.start()

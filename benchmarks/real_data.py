@@ -113,7 +113,7 @@ def dev_sessions(verbose: bool = False) -> Path:
 def import_files(files: list[Path], out: Path) -> tuple[float, float]:
     """``import shearsense FILES --out OUT`` as the CLI runs it: (wall, CPU) seconds (the
     CPU time says what the import costs whatever the neighbours do)."""
-    from tactile_studio.storage.importers.shearsense import import_shearsense_study
+    from tactile_studio.storage.exchange.importers.shearsense import import_shearsense_study
 
     start, cpu = time.perf_counter(), time.process_time()
     import_shearsense_study(files, out)

@@ -25,7 +25,7 @@ import numpy as np
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch, Setting
 from tactile_studio.errors import DeviceNotFound, UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6, Layout
-from tactile_studio.storage.segments import pauses, segmented_rate_hz
+from tactile_studio.storage.format.segments import pauses, segmented_rate_hz
 
 
 def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int], list[int]]:
@@ -34,19 +34,19 @@ def _load(path: Path) -> tuple[Layout, np.ndarray, np.ndarray, dict[str, int], l
     pauses its import would find)."""
     if not path.exists():
         raise DeviceNotFound(f"replay: {path}: no such file")
-    from tactile_studio.storage.file_guards import not_regular
+    from tactile_studio.storage.format.file_guards import not_regular
 
     if not_regular(path):  # a FIFO or device would block or never end
         raise UserError(f"replay: {path}: {not_regular(path)}")
     if path.suffix.lower() == ".csv":
-        from tactile_studio.storage.shearsense import read_shearsense_csv
+        from tactile_studio.storage.exchange.shearsense import read_shearsense_csv
 
         data = read_shearsense_csv(path)
         times = np.asarray(data.times, dtype=np.float64)
         return SHEARSENSE_6X6, data.raw, times, dict(data.malformed_by_kind), pauses(times)
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
 
-    with Session(path) as s:
+    with SessionFile(path) as s:
         times = s.column("device_time")
         if len(times) >= 2 and not np.all(np.diff(times) >= 0):
             times = s.column("host_time")

@@ -6,7 +6,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from collect_fixtures import do_trial, make_rig, mini_protocol, start
+from collect_fixtures import do_trial, drive, make_rig, mini_protocol, start
 
 from tactile_studio.protocol.randomise import block_orders
 from tactile_studio.protocol.trial_check import TrialVerdict, verdict
@@ -52,8 +52,12 @@ def record_checked_session(folder: Path) -> Path:
         do_trial(rig, order[0], perform=False)
         assert r.redo_last()
         do_trial(rig, order[0])
-        do_trial(rig, order[1], perform=False)
-        assert r.proceed()  # Keep
+        # the untouched trial once the touch before it has let go (its recovery tail read
+        # as contact when the next key came at the first free frame)
+        settled = rig.engine.frames + round(rig.engine.nominal_rate_hz)
+        drive(rig, lambda: rig.engine.frames > settled)
+        untouched = do_trial(rig, order[1], perform=False)
+        assert r.proceed(), untouched  # Keep
         do_trial(rig, order[2])
     finally:
         rig.close()

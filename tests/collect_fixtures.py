@@ -11,14 +11,14 @@ from typing import Any
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.collect import (
-    CollectionSession,
+    Collection,
     CollectionSettings,
-    open_session,
-    resume_session,
+    open_collection,
+    resume_collection,
 )
-from tactile_studio.protocol.runner import StreamClock
+from tactile_studio.protocol.trial_runner import StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
-from tactile_studio.storage.protocol_file import Protocol, load_protocol
+from tactile_studio.storage.format.protocol_file import CollectionProtocol, load_protocol
 
 TIMEOUT_S = 15.0  # a safety net for a hung loop, never a timing assertion
 
@@ -44,7 +44,7 @@ class Beeps:
         self.asked.append((frequency_hz, length_s))
 
 
-def mini_protocol(n_gestures: int = 3, **overrides: Any) -> Protocol:
+def mini_protocol(n_gestures: int = 3, **overrides: Any) -> CollectionProtocol:
     """shear9 cut down to a few gestures and short phases, to keep tests fast."""
     base = load_protocol("shear9")
     data = {"gestures": base.to_dict()["gestures"][:n_gestures], "blocks": 2,
@@ -55,7 +55,7 @@ def mini_protocol(n_gestures: int = 3, **overrides: Any) -> Protocol:
 
 @dataclass
 class Rig:
-    session: CollectionSession
+    session: Collection
     device: SimulatedSensor
     engine: AcquisitionEngine
     beeps: Beeps
@@ -70,7 +70,8 @@ class Rig:
         self.engine.stop()
 
 
-def make_rig(tmp_path: Path, protocol: Protocol, participant: str = "P01", *, speed: float = 40.0,
+def make_rig(tmp_path: Path, protocol: CollectionProtocol, participant: str = "P01", *,
+             speed: float = 40.0,
              clock: Any = None, resume: Path | None = None, seed: int = 0,
              capacity: int = 1 << 16, **options: Any) -> Rig:
     device = SimulatedSensor(speed=speed, gesture="idle", seed=seed,
@@ -79,10 +80,10 @@ def make_rig(tmp_path: Path, protocol: Protocol, participant: str = "P01", *, sp
     beeps = Beeps()
     clk = clock if clock is not None else StreamClock(engine)
     if resume is not None:
-        session = resume_session(resume, engine, beeper=beeps, clock=clk, **options)
+        session = resume_collection(resume, engine, beeper=beeps, clock=clk, **options)
     else:
-        session = open_session(CollectionSettings(protocol, participant, tmp_path, seed=seed,
-                                                  **options), engine, beeper=beeps, clock=clk)
+        session = open_collection(CollectionSettings(protocol, participant, tmp_path, seed=seed,
+                                                     **options), engine, beeper=beeps, clock=clk)
     engine.start()
     return Rig(session, device, engine, beeps, clk)
 

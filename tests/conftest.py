@@ -124,8 +124,8 @@ def sessions_written_pass_check(request):
     if not files or request.node.get_closest_marker("damaged_files"):
         return
     from tactile_studio.errors import SessionFileError
-    from tactile_studio.storage.session_check import check_file
-    from tactile_studio.storage.session_compress import wait_for_compression
+    from tactile_studio.storage.format.session_check import check_file
+    from tactile_studio.storage.format.session_compress import wait_for_compression
     failed = []
     for f in files:
         wait_for_compression(f)
@@ -161,7 +161,7 @@ def wait_until():
 def no_recorder_left_running():
     """A test that starts a recorder stops it: one left running would write into its
     file while the interpreter tears down (a crash after the last test)."""
-    from tactile_studio.storage.recorder import running_recorders
+    from tactile_studio.storage.recording.recorder import running_recorders
     before = set(map(id, running_recorders()))
     yield
     left = [r for r in running_recorders() if id(r) not in before]

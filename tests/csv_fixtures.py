@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
 
 def labelled_csv(folder: Path, name: str, seed: int, keys: str = "rpz") -> Path:

@@ -16,8 +16,8 @@ import numpy as np
 from tactile_studio.protocol.virtual import sim_gesture
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.simulate import GESTURE_NAMES, SensorSimulator, SimConfig
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 
 def trial_record(i: int, gesture: str, start: int, stop: int, rate: float = 43.0,

@@ -19,7 +19,7 @@ from collect_fixtures import make_rig, mini_protocol, start
 from lsl_fixtures import Collector, unique
 from waiting import wait_until
 
-from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.acquisition.file_sink import close_file_sink, open_file_sink
 from tactile_studio.acquisition.marker_recording import MarkerRecording
 from tactile_studio.acquisition.sinks import LslPublishing, Sink
@@ -28,9 +28,9 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.jobs import CancelToken
 from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import Logbook
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
 
 
 @pytest.fixture
@@ -47,7 +47,7 @@ def _usage_rows(sensor: str) -> int:
 
 
 def test_the_file_lsl_publishing_and_marker_inlets_are_sinks(tmp_path, data_dir) -> None:
-    s = AcquisitionSession()
+    s = LiveAcquisition()
     engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle"})
     name = unique("stim")
     outlet = pylsl.StreamOutlet(pylsl.StreamInfo(name, "Markers", 1, pylsl.IRREGULAR_RATE,
@@ -65,7 +65,7 @@ def test_the_file_lsl_publishing_and_marker_inlets_are_sinks(tmp_path, data_dir)
 
 
 def test_a_session_event_reaches_the_file_and_the_lsl_markers(tmp_path, data_dir) -> None:
-    s = AcquisitionSession()
+    s = LiveAcquisition()
     seed = str(uuid.uuid4().int % 100000)  # its own LSL source ID among parallel tests
     engine = s.open("simulated", {"rate": "100", "speed": "4", "seed": seed})
     s.set_lsl(True)
@@ -81,7 +81,7 @@ def test_a_session_event_reaches_the_file_and_the_lsl_markers(tmp_path, data_dir
     finally:
         s.close()
         got.stop()
-    with Session(tmp_path / "s.h5") as f:
+    with SessionFile(tmp_path / "s.h5") as f:
         ev = [e for e in f.events if e["kind"] == "condition"]
     assert len(ev) == 1 and ev[0]["name"] == "gloved" and ev[0]["time"] == 1234.5
     marker = [json.loads(m[0]) for m in got.samples if json.loads(m[0])["kind"] == "condition"]
@@ -90,7 +90,7 @@ def test_a_session_event_reaches_the_file_and_the_lsl_markers(tmp_path, data_dir
 
 
 def test_a_session_stop_books_the_hours_of_use_exactly_once(tmp_path, data_dir) -> None:
-    s = AcquisitionSession()
+    s = LiveAcquisition()
     engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
                                   "seed": "31"})
     rec = s.start_recording(tmp_path / "s.h5")
@@ -100,7 +100,7 @@ def test_a_session_stop_books_the_hours_of_use_exactly_once(tmp_path, data_dir) 
     close_file_sink(rec)  # a second close (a collection's close()) books nothing more
     rec.stop()
     s.close()
-    with Session(tmp_path / "s.h5") as f:
+    with SessionFile(tmp_path / "s.h5") as f:
         rows = f.n_frames
     assert rows == rec.recorded > 0
     with Logbook() as book:
@@ -110,7 +110,7 @@ def test_a_session_stop_books_the_hours_of_use_exactly_once(tmp_path, data_dir) 
 
 def test_a_file_sink_closed_by_its_owner_books_once(tmp_path, data_dir) -> None:
     """The way in for collect's plain recorder and the characterisation lab."""
-    s = AcquisitionSession()
+    s = LiveAcquisition()
     engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
                                   "seed": "32"})
     s.start()
@@ -119,7 +119,7 @@ def test_a_file_sink_closed_by_its_owner_books_once(tmp_path, data_dir) -> None:
     close_file_sink(rec)
     close_file_sink(rec)
     s.close()
-    with Session(tmp_path / "f.h5") as f:
+    with SessionFile(tmp_path / "f.h5") as f:
         assert f.metadata["sensor_id"] == "sim-32"
         rows = f.n_frames
     with Logbook() as book:
@@ -144,8 +144,8 @@ def test_only_the_file_sink_makes_a_recorder() -> None:
 
 LEFT_OPEN = textwrap.dedent("""
     import sys
-    from tactile_studio.acquisition import AcquisitionSession
-    s = AcquisitionSession()
+    from tactile_studio.acquisition import LiveAcquisition
+    s = LiveAcquisition()
     engine = s.open("simulated", {"rate": "100", "speed": "0", "gesture": "idle",
                                   "seed": "33"})
     rec = s.start_recording(sys.argv[1])
@@ -161,7 +161,7 @@ def test_a_recording_closed_by_the_exit_hook_books_its_hours(tmp_path, data_dir)
     done = subprocess.run([sys.executable, "-c", LEFT_OPEN, str(out)], env=env,
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
-    with Session(out) as f:
+    with SessionFile(out) as f:
         assert f.closed_cleanly
         rows = f.n_frames
     assert rows >= 200
@@ -171,7 +171,7 @@ def test_a_recording_closed_by_the_exit_hook_books_its_hours(tmp_path, data_dir)
 
 
 def test_a_collection_without_a_session_books_its_hours_once(tmp_path, data_dir) -> None:
-    """collect's plain recorder (no AcquisitionSession) is a file sink too."""
+    """collect's plain recorder (no LiveAcquisition) is a file sink too."""
     rig = make_rig(tmp_path, mini_protocol(n_gestures=3, blocks=1), "P01", speed=0.0,
                    seed=35)
     try:
@@ -179,7 +179,7 @@ def test_a_collection_without_a_session_books_its_hours_once(tmp_path, data_dir)
     finally:
         rig.close()
     rig.session.close()  # closed twice: booked once
-    with Session(rig.session.path) as f:
+    with SessionFile(rig.session.path) as f:
         rows = f.n_frames
     assert rows > 0
     with Logbook() as book:
@@ -199,7 +199,7 @@ def test_the_characterisation_lab_books_its_hours_once(tmp_path, data_dir) -> No
     finally:
         lab.close()
         stage.close()
-    with Session(tmp_path / "lab.h5") as f:
+    with SessionFile(tmp_path / "lab.h5") as f:
         rows = f.n_frames
     with Logbook() as book:
         assert book.hours("sim-36") * 3600 == pytest.approx(rows / device.nominal_rate_hz)

@@ -15,13 +15,13 @@ from learn_fixtures import make_dataset_folder, write_participant
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.evaluation.compare import compare_runs
-from tactile_studio.learn.evaluation.evaluate import load_run_data, rescore_run
+from tactile_studio.learn.experiments.compare import compare_runs
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     prepare_inputs,
     run_experiment,
 )
+from tactile_studio.learn.experiments.rescore import load_run_data, rescore_run
 from tactile_studio.learn.experiments.runfolder import model_file
 from tactile_studio.learn.learners.generalise import person_standardised
 from tactile_studio.learn.learners.train import adapt_batchnorm

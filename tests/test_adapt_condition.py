@@ -14,12 +14,12 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main
 from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.data.windowing import WindowSpec, cut
-from tactile_studio.learn.evaluation.evaluate import load_run_data, rescore_run
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     prepare_inputs,
     run_experiment,
 )
+from tactile_studio.learn.experiments.rescore import load_run_data, rescore_run
 from tactile_studio.learn.experiments.runfolder import model_file
 from tactile_studio.learn.learners.generalise import adapt_groups
 

@@ -19,8 +19,8 @@ from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.data.features import feature_matrix
 from tactile_studio.learn.deploy.export_run import export_run
 from tactile_studio.learn.deploy.streaming import StreamingPredictor
-from tactile_studio.learn.evaluation.evaluate import rescore_run
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.learners.baselines import BaselineModel, baseline_options
 from tactile_studio.learn.learners.families import DataInfo
 

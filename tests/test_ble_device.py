@@ -15,7 +15,7 @@ from tactile_studio.devices.engine import ERROR, RECONNECTING, RUNNING
 from tactile_studio.errors import DeviceNotFound, SettingsError
 from tactile_studio.plugins import ble_device
 from tactile_studio.plugins.ble_device import BleDevice
-from tactile_studio.storage import Recorder, Session
+from tactile_studio.storage import Recorder, SessionFile
 
 
 @pytest.fixture(autouse=True)
@@ -100,7 +100,7 @@ def test_disconnect_reconnects_with_a_gap_and_the_recording_continues(tmp_path):
         engine.stop()
         recorder.stop()
     assert per.connects == 2
-    with Session(tmp_path / "ble.h5") as s:
+    with SessionFile(tmp_path / "ble.h5") as s:
         summary, raw, seq = s.summary(), s.raw(), s.column("seq")
     np.testing.assert_array_equal(raw, f)
     np.testing.assert_array_equal(seq, np.arange(40))  # no false sequence gap

@@ -15,10 +15,10 @@ from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.sensor.calibration import CalibrationError, check_loads, fit_taxel
 from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
 from tactile_studio.sensor.wellness import parse_taxel
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.sensor_book import sensor_metadata
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import Logbook
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
+from tactile_studio.storage.recording.sensor_book import sensor_metadata
 
 TAXELS = ("B2", "B5", "E2", "E5", "A1", "C4")
 
@@ -102,7 +102,7 @@ def test_sessions_decode_with_any_calibration_of_their_sensor(tmp_path):
     assert engine.wait_frames(trial.stop + 50, timeout=30)
     engine.stop()
     rec.stop()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         raw_before = s.raw().copy()
         assert s.metadata["calibration_id"] == first["calibration_id"]
     second, _ = calibrate({"loads_g": (1000, 2000, 5000, 10000, 20000), "plate": True}, seed=6)
@@ -114,7 +114,7 @@ def test_sessions_decode_with_any_calibration_of_their_sensor(tmp_path):
         got = float(frames.normal[lo - trial.start + trial.start:hi, r, c].mean())
         applied = 150e-3 * 9.80665 / 0.014 ** 2 / 1e3
         assert abs(got - applied) / 25.0 < 0.02, (cal_id, got, applied)
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert np.array_equal(s.raw(), raw_before)
     other, _ = calibrate({"loads_g": (20, 50, 100), "taxels": ("A1",)}, seed=9)
     with pytest.raises(Exception, match="is for sensor sim-9, the session was recorded with sim-6"):

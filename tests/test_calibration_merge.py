@@ -11,7 +11,7 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_INCOMPLETE
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 SIM = ["--device", "simulated", "--set", "speed=0", "--set", "seed=6", "--sensor", "sim-6",
        "--auto"]

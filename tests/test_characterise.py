@@ -30,7 +30,7 @@ from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
 from tactile_studio.sensor.characterise import parse_taxels
 from tactile_studio.simulate.indenter import true_parameters
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 RECOVERED = ("normal_sensitivity_low", "normal_sensitivity_high", "breakpoint_kpa",
              "shear_sensitivity_x", "shear_sensitivity_y", "crosstalk_max", "relaxation_s",
@@ -44,7 +44,7 @@ def sim_device(**extra):
 
 
 def events(path, kind):
-    with Session(path) as s:
+    with SessionFile(path) as s:
         return [e for e in s.events if e["kind"] == kind]
 
 
@@ -75,7 +75,7 @@ def test_analysis_recovers_the_simulators_true_parameters_within_10_percent(tmp_
     assert len(raw["normal"]["points"]) == 2 * 16 + 1 + 2  # load, unload, lifted, relaxed
     assert "B2" in (tmp_path / "report.html").read_text()
     # one session: sensor frames, stage positions, load-cell samples, measured points
-    with Session(tmp_path / "session.h5") as s:
+    with SessionFile(tmp_path / "session.h5") as s:
         assert s.metadata["characterisation_clock"] == "device_time"
         n_frames = len(s.column("device_time"))
         kinds = {e["kind"] for e in s.events}
@@ -121,7 +121,7 @@ def test_bad_input_is_one_line_and_keeps_the_data(tmp_path, capsys, argv, messag
         saved = json.loads((out / "characterisation.json").read_text())
         assert saved["complete"] is False and message in saved["aborted"]
         assert len(events(out / "session.h5", "char_aborted")) == 1
-        with Session(out / "session.h5") as s:
+        with SessionFile(out / "session.h5") as s:
             assert s.closed_cleanly and len(s.column("device_time")) > 0
 
 
@@ -210,7 +210,7 @@ def test_all_taxels_are_mapped(tmp_path):
 
 def test_derived_calibration_goes_to_the_logbook_and_maps_readings_to_kpa(tmp_path, capsys,
                                                                           monkeypatch):
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "data"))
     out = tmp_path / "run"
     assert main(["characterise", "--set", "speed=0", "--set", "gesture=idle", "--taxels", "B2",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 
 from tactile_studio.cli import main
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 QUICK = ["characterise", "--set", "speed=0", "--set", "gesture=idle", "--sequence", "normal",
          "--param", "dwell_s=0.5", "--param", "normal_steps=4", "--param", "settle_s=0.5"]
@@ -18,7 +18,7 @@ def error_lines(err: str) -> list[str]:
 
 
 def taxels_in(out):
-    with Session(out / "session.h5") as s:
+    with SessionFile(out / "session.h5") as s:
         return [e["taxel"] for e in s.events if e["kind"] == "char_taxel"]
 
 

@@ -14,7 +14,7 @@ from tactile_studio.devices.registry import create_device
 from tactile_studio.plugins.sim_force import SimulatedForce
 from tactile_studio.plugins.sim_stage import SimulatedStage
 from tactile_studio.sensor.characterise import parse_taxels
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 # a shortened paper plan (shorter dwells and holds), all three sequences
 PLAN = dict(sequences=("normal", "shear", "repeat"), dwell_s=1.0,
@@ -33,7 +33,7 @@ def characterise(order: str, tmp_path, cycles: int = 20) -> dict:
     result = run_characterisation(dev, SimulatedStage(), SimulatedForce(), CharacterisationRequest(
         Plan(**{**PLAN, "cycles": cycles}), parse_taxels(dev.layout, order), out, report=False))
     assert result["device"]["settings"]["gesture"] == "idle"  # the bench's hand is off
-    with Session(out / "session.h5") as s:
+    with SessionFile(out / "session.h5") as s:
         waits = [e for e in s.events if e["kind"] == "char_settled"]
     # before each sequence and shear direction, after the staircase and after the cycles
     assert len(waits) == 2 * (1 + 4 + 1 + 2)

@@ -22,7 +22,7 @@ from tactile_studio.devices import (
 from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.plugins import ble_device
 from tactile_studio.sensor.layout import grid_layout
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
 BUILT_IN = {"simulated", "replay", "serial", "ble", "lsl"}
 

@@ -15,8 +15,8 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.errors import SessionFileError
 from tactile_studio.protocol.randomise import block_orders
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
 WAIT_S = 60.0  # safety net only
@@ -29,7 +29,7 @@ def _collect(*args: str, **kw) -> subprocess.CompletedProcess:
 
 def _trials_in(path: Path) -> list[dict]:
     try:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             return s.journal.trials
     except SessionFileError:  # the writer is between creating and first flush
         return []
@@ -72,7 +72,7 @@ def test_headless_session_and_determinism(tmp_path: Path, capsys) -> None:
         path = Path(out.strip().splitlines()[-1])
         assert path.parent == tmp_path / name and path.name.startswith("P01_shear9_")
         assert "collect P01" in err  # progress on stderr
-        with Session(path) as s:
+        with SessionFile(path) as s:
             runs.append((s.journal.trials, s.raw(0, s.n_frames)))
     (ta, ra), (tb, rb), (tc, _) = runs
     assert len(ta) == 9 and all(t["status"] == "ok" for t in ta)
@@ -169,7 +169,7 @@ def test_without_a_virtual_participant_the_console_opens_pre_filled(
     assert resumed.setup.device_form.changed_values() == {"noise": "5"}
     assert resumed.runner.participant == "P01"
     resumed.close()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         assert sess.metadata["resumes"] == 1 and sess.metadata["condition"] == "FLAT"
     code, err, opened = _run_console_cli(capsys, "--protocol", "shear9", "--participant", "P01",
                                          "--device", "replay", "--out", str(out))
@@ -217,7 +217,7 @@ def test_kill_minus_9_then_resume_loses_nothing_and_keeps_the_order(tmp_path: Pa
     assert len(backups) == 1
     assert _trials_in(backups[0]) == kept
     order = block_orders(load_protocol("shear9"), "P01", seed=5, blocks=3)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.closed_cleanly and s.metadata["resumes"] == 1
         trials = s.journal.trials
     assert trials[:len(kept)] == kept  # every completed trial survived, unchanged
@@ -238,7 +238,7 @@ def test_ctrl_c_or_sigterm_stops_cleanly_keeping_trials(tmp_path: Path, sig) -> 
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert "--resume" in err and "Traceback" not in err
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.closed_cleanly
         assert 2 <= len(s.journal.trials) < 18
         assert any(e["kind"] == "abort" for e in s.events)
@@ -269,7 +269,7 @@ def test_the_order_seed_is_not_the_simulated_sensors_seed(tmp_path: Path, capsys
                                "--virtual-participant", "--blocks", "1", "--seed", "1",
                                "--speed", "0", "--out", str(tmp_path / name), *extra)
         assert code == 0, err
-        with Session(Path(out.strip().splitlines()[-1])) as s:
+        with SessionFile(Path(out.strip().splitlines()[-1])) as s:
             found[name] = (s.metadata["sensor_id"], s.metadata["order_seed"],
                            s.metadata["block_order"])
     assert found["a"][0] == "sim-0" and found["b"][0] == "sim-4"

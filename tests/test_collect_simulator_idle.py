@@ -11,7 +11,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.sensor.decode import decode
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.collect.console import CollectConsole
 
 MINI = """
@@ -80,7 +80,7 @@ def test_a_console_on_the_live_demo_simulator_records_only_touches(qtbot, tmp_pa
         assert device.settings["gesture"] == "auto"  # the live demo goes on afterwards
     finally:
         engine.stop()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         assert sess.metadata["device"]["settings"]["gesture"] == "idle"
         t = sess.journal.trials[0]
         raw = sess.raw(t["start_sample"], t["end_sample"])
@@ -115,7 +115,7 @@ def test_the_device_panel_says_the_simulator_is_idle_while_a_collection_uses_it(
         assert form.fields["rate"].widget.isVisibleTo(w)
         gesture = form.fields["gesture"]
         assert w.panel.connect_device() and gesture.text() == "auto"
-        engine = w.controller.engine
+        engine = w.acquisition.engine
         qtbot.waitUntil(lambda: engine.baseline is not None, timeout=15000)
         console = open_console(lambda: (engine, "simulated"))
         qtbot.addWidget(console)

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from tactile_studio.cli import main
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_check import check_file
+from tactile_studio.storage.format.session_check import check_file
+from tactile_studio.storage.format.session_file import SessionFile
 
 # three gestures, short trials, free play and a break after every block: every runner
 # event that a timed phase or a trial boundary places
@@ -54,7 +54,7 @@ def _collect(tmp_path: Path, capsys, speed: str, *extra: str) -> Path:
 
 
 def _written(path: Path) -> tuple[list, list]:
-    with Session(path) as s:
+    with SessionFile(path) as s:
         events = [(e["kind"], e.get("block"), e["frame"]) for e in s.events
                   if e["kind"] in RUNNER_EVENTS]
         trials = [(t.index, t.block, t.gesture, t.start_sample, t.end_sample,
@@ -91,6 +91,6 @@ def test_event_frames_and_trial_rows_are_the_same_at_speed_0_1_and_20(
     # later (speed 0 wrote 7,461 frames against 2,881 at speed 20)
     lengths = {}
     for speed, path in runs.items():
-        with Session(path) as s:
+        with SessionFile(path) as s:
             lengths[speed] = s.n_frames
     assert lengths["0"] == lengths["1"] == lengths["20"] == events[-1][2] + 1, lengths

@@ -13,11 +13,11 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
-from tactile_studio.learn.evaluation.compare import compare_runs, config_difference
-from tactile_studio.learn.evaluation.confusion import ConfusionModel
 from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
-from tactile_studio.learn.evaluation.trialpreds import TrialPrediction, load_predictions
+from tactile_studio.learn.experiments.compare import compare_runs, config_difference
+from tactile_studio.learn.experiments.confusion import ConfusionModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.trialpreds import TrialPrediction, load_predictions
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub", "Tickle")
 
@@ -280,7 +280,7 @@ def _result(diff: float, wilcoxon: float | None, mcnemar: float) -> dict:
 
 def test_a_difference_its_tests_do_not_support_is_not_said_as_a_win():
     """"both beats normal by 1.5 points, p = 0.27" said a win the test did not show."""
-    from tactile_studio.learn.evaluation.compare import sentence
+    from tactile_studio.learn.experiments.compare import sentence
 
     s = sentence(_result(0.015, 0.27, 0.40))
     assert "beats" not in s

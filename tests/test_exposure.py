@@ -17,8 +17,8 @@ from learn_fixtures import write_participant
 
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
-from tactile_studio.storage.logbook import default_path
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import default_path
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.streams import load_pylsl, measure_offset
 from tactile_studio.streams.lsl_meta import frame_stream_info, read_tactile_desc
 
@@ -49,7 +49,7 @@ def test_a_non_utf8_out_name_records_and_books_its_time(tmp_path):
                           timeout=120)
     err = proc.stderr.decode("utf-8", "replace")
     assert proc.returncode == 0 and "Traceback" not in err, err
-    with Session(os.fsdecode(name)) as s:
+    with SessionFile(os.fsdecode(name)) as s:
         assert s.n_frames > 0 and s.closed_cleanly
     assert subprocess.run([EXE, "info", name], capture_output=True, env=env,
                           timeout=60).returncode == 0

@@ -18,7 +18,7 @@ from csv_fixtures import labelled_csv
 
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_ERROR, EXIT_INCOMPLETE
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 LIMIT = 400 * 1024  # above everything P01 makes, below everything P02 makes
 GESTURES = "r=Rub,p=Poke,z=Zap"
@@ -73,7 +73,7 @@ def test_an_import_that_fills_the_disk_keeps_the_sessions_it_finished(fmt, sourc
     assert str(out / "P02_FLAT.h5") in line and "file too large" in line, line
     assert "the 1 session(s) imported before it are kept" in line, line
     assert _files(out) == ["P01_FLAT.h5"]  # the cut P02 is gone, not passed off as whole
-    with Session(out / "P01_FLAT.h5") as s:
+    with SessionFile(out / "P01_FLAT.h5") as s:
         assert s.closed_cleanly and s.n_frames == 140
 
 
@@ -114,7 +114,7 @@ def test_an_import_never_passes_off_a_session_cut_at_close_as_imported(limit_kb,
     proc = _cli(["import", "shearsense", str(inputs / "csv" / "P02_FLAT.csv"), "--gestures",
                  GESTURES, "--out", str(out)], tmp_path, limit_kb * 1024)
     if proc.returncode == 0:
-        with Session(out / "P02_FLAT.h5") as s:
+        with SessionFile(out / "P02_FLAT.h5") as s:
             assert s.n_frames == 1860
     else:
         assert proc.returncode == EXIT_ERROR, proc.stderr[-3000:]

@@ -26,10 +26,10 @@ from tactile_studio.errors import (
 )
 from tactile_studio.instruments.registry import FORCE_GROUP, STAGE_GROUP, available
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_writer import SessionWriter
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 NON_FINITE = ("nan", "NaN", "inf", "-inf", "Infinity", "1e999")
 
@@ -303,7 +303,7 @@ def test_import_keeps_the_good_files_lists_the_empty_one_and_exits_3(capsys, tmp
     assert one_line(err.split("\r")[-1]).endswith(
         "1 of 2 file(s) not imported (no frames after the baseline row)")
     assert sorted(p.name for p in out.glob("*.h5")) == ["P01_FLAT.h5"]
-    with Session(out / "P01_FLAT.h5") as s:
+    with SessionFile(out / "P01_FLAT.h5") as s:
         assert s.n_frames > 0 and len(s.trials) == 3
 
 
@@ -433,7 +433,7 @@ def test_xdf_import_lists_a_tactile_stream_without_samples_and_imports_the_rest(
     assert "numbering" not in stdout  # CoST's and HAART's label maps are not an XDF's
     assert one_line(err).endswith("1 tactile stream(s) not imported (no samples; listed above)")
     assert sorted(p.name for p in out.glob("*.h5")) == ["two_MatA.h5"]
-    with Session(out / "two_MatA.h5") as s:
+    with SessionFile(out / "two_MatA.h5") as s:
         assert s.n_frames == 50
 
 

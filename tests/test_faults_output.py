@@ -235,16 +235,16 @@ def test_a_file_where_the_output_folder_goes_is_named_as_such(argv, data, capsys
 
 
 def test_a_health_run_that_cannot_write_its_file_ends_in_the_one_line(tmp_path, monkeypatch):
-    """The calibration wizard's run (HealthRun): its CAL.json place is a folder."""
+    """The calibration wizard's run (HealthCheck): its CAL.json place is a folder."""
     from tactile_studio.file_claims import claim
     from tactile_studio.health.calibration import CalibrationSpec
-    from tactile_studio.health.runner import HealthRun
+    from tactile_studio.health.health_check import HealthCheck
 
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "appdata"))
     with claim(tmp_path / "cal.json"):  # another job of this program writes it meanwhile
-        run = HealthRun("simulated", {"speed": 0}, CalibrationSpec("sim-0", (100, 200, 300),
-                                                                   taxels=("B2",)),
-                        auto=True, out=str(tmp_path / "cal.json")).start()
+        run = HealthCheck("simulated", {"speed": 0}, CalibrationSpec("sim-0", (100, 200, 300),
+                                                                     taxels=("B2",)),
+                          auto=True, out=str(tmp_path / "cal.json")).start()
         assert run.join(120)
     # the calibration was stored before its file failed: the line says so (no re-measuring)
     assert run.error == (f"{tmp_path}/cal.json: this calibration file is being written "

@@ -16,11 +16,11 @@ import numpy as np
 from waiting import wait_until
 
 from tactile_studio.acquisition.events import RecordingStopped
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.acquisition.outcome import recording_outcome
-from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
 from tactile_studio.errors import EXIT_INCOMPLETE, SessionFileError
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 LIMIT_BYTES = 3 * 1024 * 1024
 
@@ -54,7 +54,7 @@ def test_the_file_size_limit_stops_the_recording_cleanly_and_the_file_opens(tmp_
     line = _error_line(stderr)
     assert str(out) in line and "file too large" in line and "kept" in line
     assert "running" not in stdout.splitlines()[-1]
-    with Session(out) as s:  # was refused as "truncated"
+    with SessionFile(out) as s:  # was refused as "truncated"
         n = s.n_frames
         times = s.column("device_time")
         assert not s.closed_cleanly and s.cut_short
@@ -81,7 +81,7 @@ def test_collect_under_the_file_size_limit_ends_with_the_same_line(tmp_path):
     line = _error_line(stderr)
     (path,) = out.glob("*.h5")
     assert line.count(str(path)) == 1 and "write failed: file too large" in line
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.cut_short and s.n_frames > 1000 and f"kept {s.n_frames} frames" in line
         assert np.all(np.diff(s.column("device_time")) > 0)
 
@@ -95,7 +95,7 @@ def test_characterise_stops_at_the_write_error_instead_of_measuring_on(tmp_path)
     assert "Traceback" not in stderr
     line = _error_line(stderr)
     assert "session.h5: write failed: file too large" in line
-    with Session(out / "session.h5") as s:
+    with SessionFile(out / "session.h5") as s:
         assert s.n_frames > 0
 
 
@@ -138,7 +138,7 @@ def test_a_truncated_copy_is_still_refused_in_one_line(tmp_path):
     cut = tmp_path / "cut.h5"
     cut.write_bytes(out.read_bytes()[: out.stat().st_size // 3])
     try:
-        Session(cut).close()
+        SessionFile(cut).close()
     except SessionFileError as exc:
         assert "cut.h5" in str(exc)
     else:
@@ -161,7 +161,7 @@ def test_a_device_lost_for_good_ends_record_with_exit_3_saying_so(tmp_path):
     try:
         def some_frames() -> bool:
             try:
-                with Session(out) as s:
+                with SessionFile(out) as s:
                     return s.n_frames >= 100
             except SessionFileError:
                 return False
@@ -174,14 +174,14 @@ def test_a_device_lost_for_good_ends_record_with_exit_3_saying_so(tmp_path):
     line = _error_line(stderr)
     assert str(out) in line and "device lost" in line and "s into the recording" in line
     assert "tried to reconnect for" in line
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.n_frames >= 100 and f"kept {s.n_frames} frames" in line
 
 
 def test_frames_the_recorder_lost_are_in_the_final_line_and_make_it_incomplete(tmp_path):
     """A recorder that falls a whole ring behind: an ``overrun`` in the file, and the
     outcome every command uses says how many frames were lost (exit 3)."""
-    acq = AcquisitionSession(capacity=256)
+    acq = LiveAcquisition(capacity=256)
     acq.open("simulated", {"rate": 1000, "speed": 4})
     out = tmp_path / "overrun.h5"
     rec = acq.start_recording(out, start=False)  # nobody pulls: the ring overruns
@@ -221,7 +221,7 @@ def test_info_says_how_many_frames_a_file_lost(tmp_path, capsys):
     ``info --json`` has ``frames_lost`` (recorder overruns, device sequence gaps)."""
     from tactile_studio.cli import main
 
-    acq = AcquisitionSession(capacity=256)
+    acq = LiveAcquisition(capacity=256)
     acq.open("simulated", {"rate": 1000, "speed": 4})
     out = tmp_path / "overrun.h5"
     rec = acq.start_recording(out, start=False)  # nobody pulls: the ring overruns

@@ -14,7 +14,7 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.evaluation.compare import compare_runs
+from tactile_studio.learn.experiments.compare import compare_runs
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.experiments.train_job import model_settings
 from tactile_studio.learn.learners.contract import LEARNER_MEMBERS, Learner

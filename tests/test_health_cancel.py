@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from tactile_studio.errors import EXIT_CANCELLED
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 
 def _env(tmp_path: Path) -> dict[str, str]:

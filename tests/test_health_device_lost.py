@@ -11,7 +11,7 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 
 @pytest.fixture(autouse=True)

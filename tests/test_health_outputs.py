@@ -12,7 +12,7 @@ import sys
 import pytest
 
 from tactile_studio.cli import main
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 SIM = ["--device", "simulated", "--set", "speed=0", "--sensor", "sim-0", "--auto"]
 

@@ -14,7 +14,7 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_ERROR
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 HEADER = "subject, variant, gesture, frame, " + ", ".join(f"ch{i}" for i in range(1, 65))
 

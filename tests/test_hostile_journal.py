@@ -17,7 +17,7 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_CHECK_FAIL
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 pytestmark = pytest.mark.damaged_files
 

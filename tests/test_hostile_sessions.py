@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 from learn_fixtures import write_participant
 
-from tactile_studio.storage.session_compress import wait_for_compression
+from tactile_studio.storage.format.session_compress import wait_for_compression
 
 pytestmark = pytest.mark.damaged_files  # the files are hostile on purpose
 

@@ -19,7 +19,7 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_writer import SessionWriter
 from tactile_studio.terminal import printable
 
 pytestmark = pytest.mark.damaged_files  # one event without a frame, on purpose

@@ -17,7 +17,7 @@ import pytest
 from test_import_export import haart_csvs, shearsense_csv
 
 from tactile_studio.cli import main
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 COMPRESS = {".xz": lzma.compress, ".gz": gzip.compress, ".bz2": bz2.compress}
 
@@ -30,7 +30,7 @@ def compressed(path, suffix):
 
 
 def same_session(a, b):
-    with Session(a) as s, Session(b) as t:
+    with SessionFile(a) as s, SessionFile(b) as t:
         assert np.array_equal(s.raw(), t.raw())
         assert s.trials == t.trials
         for key in ("session_id", "participant", "condition", "gestures", "malformed_rows"):
@@ -56,7 +56,7 @@ def test_shearsense_archive_imports_as_its_plain_file(tmp_path, capsys, suffix):
 
 
 def test_archive_progress_runs_over_the_file_on_disk(tmp_path):
-    from tactile_studio.storage.shearsense import read_shearsense_csv
+    from tactile_studio.storage.exchange.shearsense import read_shearsense_csv
 
     packed = compressed(shearsense_csv(tmp_path), ".gz")
     seen = []
@@ -115,7 +115,7 @@ def test_a_plain_file_named_as_an_archive_is_one_line(tmp_path, capsys):
 
 def test_real_development_files_import_compressed(dev_set, tmp_path):
     """A handful of the real .csv.xz files, straight through ``import shearsense``."""
-    from tactile_studio.storage.importers.shearsense import import_shearsense_study
+    from tactile_studio.storage.exchange.importers.shearsense import import_shearsense_study
 
     files = sorted(dev_set.glob("*.csv.xz"))
     files = ([f for f in files if "FLAT" in f.name][:2]
@@ -123,7 +123,7 @@ def test_real_development_files_import_compressed(dev_set, tmp_path):
     paths, _ = import_shearsense_study(files, tmp_path)
     assert [p.name for p in paths] == [f.name[:-len(".csv.xz")] + ".h5" for f in files]
     for path, source in zip(paths, files):
-        with Session(path) as s:
+        with SessionFile(path) as s:
             assert s.metadata["participant"].startswith("P")
             assert s.metadata["condition"] in source.name
             assert len(s.trials) == 1 and s.n_frames > 400  # one ~12 s performance

@@ -11,7 +11,7 @@ def test_no_module_or_package_cycles_in_the_whole_house(tmp_path):
     house = house_imports.build_house(tmp_path / "house")
     graphs = house_imports.graphs(house)
     # the graph saw the core, ui (and its two rooms) and the plugins
-    for module in ("tactile_studio.storage.session", "tactile_studio.ui.main_window",
+    for module in ("tactile_studio.storage.format.session_file", "tactile_studio.ui.main_window",
                    "tactile_studio.ui.collect.console", "tactile_studio.ui.research.window",
                    "tactile_studio.plugins.replay"):
         assert module in graphs["modules"], module

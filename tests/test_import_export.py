@@ -19,11 +19,11 @@ from tactile_studio.errors import Cancelled
 from tactile_studio.jobs import CancelToken
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.exporters import export_npz, export_session
-from tactile_studio.storage.importers import _common, import_shearsense
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.shearsense import read_shearsense_csv, write_shearsense_csv
+from tactile_studio.storage import SessionFile, SessionWriter
+from tactile_studio.storage.exchange.exporters import export_npz, export_session
+from tactile_studio.storage.exchange.importers import _common, import_shearsense
+from tactile_studio.storage.exchange.shearsense import read_shearsense_csv, write_shearsense_csv
+from tactile_studio.storage.format.protocol_file import load_protocol
 
 COST_NAMES = ["grab", "hit", "massage", "pat", "pinch", "poke", "press", "rub", "scratch",
               "slap", "stroke", "squeeze", "tap", "tickle"]
@@ -134,7 +134,7 @@ def test_shearsense_import_makes_a_session_with_trials_and_malformed_counts(tmp_
     assert rc == 0 and "P04_lab_PILLOW.h5" in stdout
     data = read_shearsense_csv(src)
     shear9 = load_protocol("shear9")
-    with Session(out / "P04_lab_PILLOW.h5") as s:
+    with SessionFile(out / "P04_lab_PILLOW.h5") as s:
         assert s.layout.name == "shearsense-6x6" and s.n_frames == data.n_frames
         np.testing.assert_array_equal(s.raw(), data.raw)
         np.testing.assert_array_equal(s.column("device_time"), data.times)
@@ -188,8 +188,8 @@ def test_import_export_import_round_trips_frames_labels_and_trials(tmp_path, cap
                  "shearsense-csv", "--out", str(tmp_path / "b")]) == 0
     exported = tmp_path / "b" / "P04_lab_PILLOW.csv"
     assert main(["import", "shearsense", str(exported), "--out", str(tmp_path / "c")]) == 0
-    with Session(tmp_path / "a" / "P04_lab_PILLOW.h5") as a, \
-            Session(tmp_path / "c" / "P04_lab_PILLOW.h5") as c:
+    with SessionFile(tmp_path / "a" / "P04_lab_PILLOW.h5") as a, \
+            SessionFile(tmp_path / "c" / "P04_lab_PILLOW.h5") as c:
         np.testing.assert_array_equal(a.raw(), c.raw())
         np.testing.assert_array_equal(a.column("device_time"), c.column("device_time"))
         np.testing.assert_array_equal(a.baseline(0), c.baseline(0))
@@ -217,7 +217,7 @@ def test_cancel_keeps_finished_sessions_and_removes_the_half_written_one(tmp_pat
     with pytest.raises(Cancelled):
         import_shearsense(files, out, progress, token)
     assert sorted(p.name for p in out.iterdir()) == ["P01_x_FLAT.h5"]
-    with Session(out / "P01_x_FLAT.h5") as s:
+    with SessionFile(out / "P01_x_FLAT.h5") as s:
         assert s.closed_cleanly and len(s.trials) == 3
 
 
@@ -253,7 +253,7 @@ def test_cost_import_one_session_per_subject_one_trial_per_capture(tmp_path, cap
     src, channels, captures = cost_csv(tmp_path)
     rc, _, _ = run_cli(capsys, "import", "cost", str(src), "--out", str(tmp_path))
     assert rc == 0
-    with Session(tmp_path / "cost_P01.h5") as s:
+    with SessionFile(tmp_path / "cost_P01.h5") as s:
         assert s.layout.name == "cost-8x8" and s.n_frames == 45
         assert s.summary()["rate_hz"] == pytest.approx(135.0)
         np.testing.assert_array_equal(s.raw(), channels[:45].astype(np.float32))
@@ -263,7 +263,7 @@ def test_cost_import_one_session_per_subject_one_trial_per_capture(tmp_path, cap
         assert s.metadata["participant"] == "P01" and s.metadata["source"] == "import:cost"
         assert s.metadata["gestures"] == COST_NAMES
         assert s.summary()["malformed_by_kind"] == {"short_row": 1, "unparsable": 1}
-    with Session(tmp_path / "cost_P02.h5") as s:
+    with SessionFile(tmp_path / "cost_P02.h5") as s:
         assert [t.gesture for t in s.trials] == ["pinch"] and s.n_frames == 12
 
 
@@ -272,28 +272,28 @@ def test_haart_train_and_test_files_map_subjects_gestures_and_captures(tmp_path,
     rc, _, _ = run_cli(capsys, "import", "haart", str(train), str(test), "--out", str(tmp_path))
     assert rc == 0
     names = load_protocol("haart7").gesture_names
-    with Session(tmp_path / "haart_training_P01.h5") as s:
+    with SessionFile(tmp_path / "haart_training_P01.h5") as s:
         assert s.layout.name == "haart-8x8" and s.n_frames == 1296
         assert [(t.gesture, t.end_sample - t.start_sample, t.block) for t in s.trials] \
             == [("stroke", 432, 0), ("stroke", 432, 1), (names[1], 432, 0)]
         assert s.metadata["participant"] == "P01" and s.metadata["covers"] == ["none"]
         assert s.summary()["rate_hz"] == pytest.approx(54.0)
-    with Session(tmp_path / "haart_training_P02.h5") as s:
+    with SessionFile(tmp_path / "haart_training_P02.h5") as s:
         assert [(t.gesture, list(t.flags)) for t in s.trials] == [
             ("constant", []), ("constant", ["short_capture"])]
-    with Session(tmp_path / "haart_testWITHLABELS_P09.h5") as s:
+    with SessionFile(tmp_path / "haart_testWITHLABELS_P09.h5") as s:
         assert [t.gesture for t in s.trials] == ["pat", "tickle"]
         assert all(t.gesture in names for t in s.trials)
 
 
 def test_haart_without_header_reads_columns_by_position(tmp_path):
-    from tactile_studio.storage.importers import import_haart
+    from tactile_studio.storage.exchange.importers import import_haart
 
     rows = [",".join(["3", "1", "rub", "0"] + ["5"] * 64) for _ in range(432)]
     path = tmp_path / "test.csv"
     path.write_text("\n".join(rows))
     (out,) = import_haart(path, tmp_path)
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.metadata["participant"] == "P03" and [t.gesture for t in s.trials] == ["rub"]
 
 
@@ -304,7 +304,7 @@ def test_npz_export_has_paper_shape_and_only_ok_trials_by_default(tmp_path):
     out.mkdir()
     files = export_npz(session, out)
     assert len(files) == 2
-    with Session(session) as s:
+    with SessionFile(session) as s:
         base = s.baseline(0)
     d = np.load(files[1])
     assert d["x"].shape == (3, 43, 11, 11) and d["x"].dtype == np.float32
@@ -320,7 +320,7 @@ def test_npz_export_has_paper_shape_and_only_ok_trials_by_default(tmp_path):
 
 def test_npz_of_a_pressure_grid_keeps_the_dataset_values(tmp_path):
     src, channels, _ = cost_csv(tmp_path)
-    from tactile_studio.storage.importers import import_cost
+    from tactile_studio.storage.exchange.importers import import_cost
     sessions = import_cost(src, tmp_path)
     files = export_session(sessions[0], "npz", tmp_path)
     x = np.load(files[2])["x"]
@@ -414,7 +414,7 @@ def test_a_virtual_participants_session_exported_as_shearsense_csv_imports_with_
                      "--out", str(folder / "csv")]) == 0
         assert main(["import", "shearsense", str(folder / "csv" / "P01_lab_FLAT.csv"),
                      "--out", str(folder / "back"), *extra]) == 0
-        with Session(h5) as made, Session(folder / "back" / "P01_lab_FLAT.h5") as back:
+        with SessionFile(h5) as made, SessionFile(folder / "back" / "P01_lab_FLAT.h5") as back:
             assert [t.gesture for t in back.trials] == [t.gesture for t in made.trials]
             assert sorted(t.gesture for t in back.trials) == sorted(gestures)
             assert back.metadata.get("unmapped_keys") in (None, [])

@@ -18,8 +18,8 @@ from csv_fixtures import labelled_csv
 from test_xdf_hostile import counts, run
 
 from tactile_studio.errors import EXIT_OK
-from tactile_studio.storage import Session
-from tactile_studio.storage.xdf_writer import XdfWriter
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.exchange.xdf_writer import XdfWriter
 
 COST_HEADER = "subject, variant, gesture, frame, " + ", ".join(f"ch{i}" for i in range(1, 65))
 
@@ -41,7 +41,7 @@ def test_two_subjects_named_alike_write_two_files(tmp_path, capsys):
     assert code == EXIT_OK, err
     assert sorted(p.name for p in out.glob("*.h5")) == ["cost_P01-2.h5", "cost_P01.h5"]
     for name, subject in (("cost_P01.h5", "1"), ("cost_P01-2.h5", "1.0")):
-        with Session(out / name) as s:
+        with SessionFile(out / name) as s:
             assert s.n_frames == 40 and s.metadata["subject"] == subject
 
 
@@ -55,7 +55,7 @@ def test_a_classic_mac_csv_reads_as_its_windows_twin(tmp_path, capsys):
     out = tmp_path / "out"
     code, _, err = run(capsys, "import", "shearsense", crlf, cr, "--out", out)
     assert code == EXIT_OK, err
-    with Session(out / "P01_a_FLAT.h5") as a, Session(out / "P02_a_FLAT.h5") as b:
+    with SessionFile(out / "P01_a_FLAT.h5") as a, SessionFile(out / "P02_a_FLAT.h5") as b:
         np.testing.assert_array_equal(a.raw(), b.raw())
         assert [t.gesture for t in a.trials] == [t.gesture for t in b.trials]
 
@@ -77,7 +77,7 @@ def test_a_line_without_end_is_dropped_as_read_not_grown(tmp_path):
                            str(src), "--out", str(out)], capture_output=True, text=True,
                           env=env, preexec_fn=_one_gib, timeout=120)
     assert done.returncode == EXIT_OK, done.stderr
-    with Session(out / "P03_tail_FLAT.h5") as s:
+    with SessionFile(out / "P03_tail_FLAT.h5") as s:
         assert s.n_frames == 60 + 40 * 3  # every row (the baseline is a row of its own)
         assert s.summary()["malformed_by_kind"] == {"long_row": 1}
 
@@ -99,7 +99,7 @@ def test_two_xdf_streams_named_alike_write_two_sessions(tmp_path, capsys):
     code, _, err = run(capsys, "import", "xdf", src, "--out", out)
     assert code == EXIT_OK, err
     for name, sid in (("twins_Mat.h5", 1), ("twins_Mat-2.h5", 2)):
-        with Session(out / name) as s:
+        with SessionFile(out / name) as s:
             np.testing.assert_array_equal(s.raw(), counts(100) + sid)
 
 

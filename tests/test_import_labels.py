@@ -7,7 +7,7 @@ import numpy as np
 from csv_fixtures import labelled_csv
 
 from tactile_studio.cli import main
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 # CoST's README, alphabetical: 10 slap, 11 squeeze, 12 stroke, 13 tap
 COST_KNOWN = {1: "grab", 8: "rub", 10: "slap", 11: "squeeze", 12: "stroke", 13: "tap",
@@ -34,7 +34,7 @@ def test_cost_labels_follow_the_corpus_numbering(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "gesture labels: CoST's published numbering: 1=grab, " in out
     assert "10=slap, 11=squeeze, 12=stroke, 13=tap, 14=tickle" in out
-    with Session(tmp_path / "cost_P01.h5") as s:
+    with SessionFile(tmp_path / "cost_P01.h5") as s:
         assert [t.gesture for t in s.trials] == list(COST_KNOWN.values())
 
 
@@ -44,7 +44,7 @@ def test_haart_numbers_follow_its_published_names(tmp_path, capsys):
     assert main(["import", "haart", str(src), "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert "gesture labels: HAART's published numbering: 1=constant, 2=notouch" in out
-    with Session(tmp_path / "haart_training_P01.h5") as s:
+    with SessionFile(tmp_path / "haart_training_P01.h5") as s:
         assert [t.gesture for t in s.trials] == list(HAART_KNOWN.values())
 
 
@@ -54,7 +54,7 @@ def test_shearsense_keys_without_a_map_are_said_to_be_guessed(tmp_path, capsys):
     out = capsys.readouterr().out
     assert ("gesture keys guessed (no map given, shear9's keys assumed): p=Poke, w=Wide Pinch"
             in out)
-    with Session(tmp_path / "out" / "P03_FLAT.h5") as s:
+    with SessionFile(tmp_path / "out" / "P03_FLAT.h5") as s:
         assert [t.gesture for t in s.trials] == ["Circular Stroke", "Wide Pinch",
                                                     "Back & Forth Rub"]
 

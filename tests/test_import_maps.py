@@ -9,13 +9,13 @@ import pytest
 from csv_fixtures import labelled_csv
 
 from tactile_studio.cli import main
-from tactile_studio.storage.importers.maps import (
+from tactile_studio.storage.exchange.importers.maps import (
     MapError,
     gesture_key_map,
     normalise_participant,
     participant_map,
 )
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 @pytest.fixture
@@ -35,7 +35,7 @@ def _import(capsys, tmp_path, files, *extra):
     assert code == 0, err
     people = {}
     for f in files:
-        with Session(out / f"{f.stem}.h5") as s:
+        with SessionFile(out / f"{f.stem}.h5") as s:
             people[f.name] = (s.metadata["participant"], [t.gesture for t in s.trials],
                               s.metadata["unmapped_keys"])
     return stdout, people
@@ -74,7 +74,7 @@ def test_a_protocol_names_the_keys_by_name_or_file(tmp_path, capsys, files):
     (tmp_path / "study.toml").write_text(shipped.read_text())
     stdout, people = _import(capsys, tmp_path, files, "--gestures", str(tmp_path / "study.toml"))
     assert people["P8_FLAT.csv"][1] == ["rub", "pat", "z"]
-    with Session(tmp_path / "out" / "P8_FLAT.h5") as s:
+    with SessionFile(tmp_path / "out" / "P8_FLAT.h5") as s:
         assert s.metadata["gestures"][:3] == ["grab", "hit", "massage"]
 
 
@@ -86,7 +86,7 @@ def test_maps_inline_and_from_toml(tmp_path, capsys, files):
     assert people["P8_FLAT.csv"][1] == ["Rub", "Press", "z"]
     assert "Pilot -> P00" in stdout and "P8 -> P07" in stdout
     assert "gesture keys (from the map given): r=Rub, p=Press" in stdout
-    with Session(tmp_path / "out" / "P8_FLAT.h5") as s:
+    with SessionFile(tmp_path / "out" / "P8_FLAT.h5") as s:
         assert s.metadata["gestures"] == ["Rub", "Press", "z"]
         assert s.metadata["protocol"] == ""  # not shear9's names any more
     assert main(["info", str(tmp_path / "out" / "P8_FLAT.h5")]) == 0

@@ -10,9 +10,9 @@ import numpy as np
 
 from tactile_studio.cli import main
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage.session import Session, user_block
-from tactile_studio.storage.session_writer import SessionWriter
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
+from tactile_studio.storage.format.session_file import SessionFile, user_block
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 # protocol order, deliberately not alphabetical
 GESTURES = ["Poke", "Wide Pinch", "Heavy Pat"]
@@ -54,7 +54,7 @@ def test_blocks_are_one_based_in_info_json_npz_and_csv(tmp_path, capsys):
     js = json.loads(_info(capsys, path, "--json"))
     assert [t["block"] for t in js["trials"]] == [0, 1, 1, 1, 2]
     assert [e["block"] for e in js["events"] if e["kind"] == "block_start"] == [1]
-    with Session(path) as s:  # the journal keeps the runner's numbering
+    with SessionFile(path) as s:  # the journal keeps the runner's numbering
         assert [t.block for t in s.trials] == [-1, 0, 0, 0, 1]
     text = _info(capsys, path)
     assert "blocks: 2 (1..2)" in text and "practice trials: 1" in text
@@ -114,7 +114,7 @@ def test_imported_rate_is_one_measured_figure(tmp_path, capsys):
 def test_info_on_a_folder_adds_up_the_study_and_names_who_lacks_a_gesture(tmp_path, capsys):
     from learn_fixtures import write_participant
 
-    from tactile_studio.storage.study_summary import study_counts
+    from tactile_studio.storage.format.study_summary import study_counts
     gestures = ["Poke", "Twist", "Tickle"]
     for i, (person, surface, done) in enumerate([
             ("P01", "FLAT", gestures), ("P01", "PILLOW", gestures),

@@ -268,7 +268,7 @@ def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp
 
     from tactile_studio.characterise import CharacterisationRequest, Plan, run_characterisation
     from tactile_studio.devices.registry import create_device
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
 
     spring = LoadCellEmulator(lambda t: (0.0, 0.0, 20.0 * max(0.0, 20.0 - printer.position()[2])),
                               rate_hz=200)
@@ -302,7 +302,7 @@ def test_characterise_with_printer_and_load_cell_emulators_then_a_disconnect(tmp
                                  CharacterisationRequest(plan, [0, 1], tmp_path / "cut"),
                                  on_point=unplug_in_the_second_taxel)
         assert printer.position()[2] == pytest.approx(25.0, abs=1e-3)  # retracted
-        with Session(tmp_path / "cut" / "session.h5") as s:
+        with SessionFile(tmp_path / "cut" / "session.h5") as s:
             assert s.closed_cleanly and len(s.column("host_time")) > 20
             assert any(e["kind"] == "char_aborted" for e in s.events)
     finally:

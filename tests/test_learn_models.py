@@ -19,9 +19,9 @@ from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.data import views
 from tactile_studio.learn.data.dataset import build_dataset
-from tactile_studio.learn.evaluation.evaluate import rescore_run
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.experiments.job_events import Fold
+from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import available_models

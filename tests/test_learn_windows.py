@@ -90,7 +90,7 @@ def test_vote_aggregate_and_bad_settings(data, tmp_path):
 
 @pytest.mark.parametrize("how", ["mean", "vote"])
 def test_per_trial_predictions_aggregate_as_the_run_does(data, tmp_path, how):
-    from tactile_studio.learn.evaluation import trialpreds
+    from tactile_studio.learn.experiments import trialpreds
 
     run = run_experiment(_config(data, "rf", aggregate=how), tmp_path / how)
     preds = trialpreds.load_predictions(tmp_path / how)
@@ -112,7 +112,7 @@ def _old_csv(path, style: int, gestures: dict[str, str], perf_s: float = 10.0) -
     """An old-software CSV: one labelled ~10 s performance per key (the pressed key's
     ASCII code on every row of it), made by repeating the gesture."""
     from tactile_studio.simulate import SensorSimulator
-    from tactile_studio.storage.shearsense import write_shearsense_csv
+    from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
     rate = 44.0
     sim = SensorSimulator(rate=rate, seed=7, gesture="idle", style_seed=style, difficulty="easy")
@@ -133,7 +133,7 @@ def _old_csv(path, style: int, gestures: dict[str, str], perf_s: float = 10.0) -
 
 
 def test_imported_long_performances_train_on_windows(tmp_path):
-    from tactile_studio.storage.importers import import_shearsense
+    from tactile_studio.storage.exchange.importers import import_shearsense
 
     keys = {"1": "Poke", "3": "Heavy Pat", "7": "Circular Stroke"}
     csvs = []
@@ -158,7 +158,7 @@ def test_the_cli_names_accuracy_per_trial_and_per_window_when_trials_were_cut(tm
     """A performance cut into windows has two accuracies; people quote the one per
     performance, so the summary line and the fold table must say which is which."""
     from tactile_studio.cli import main
-    from tactile_studio.storage.importers import import_shearsense
+    from tactile_studio.storage.exchange.importers import import_shearsense
 
     keys = {"1": "Poke", "3": "Heavy Pat", "7": "Circular Stroke"}
     csvs = [tmp_path / f"P0{p + 1}_demo_FLAT.csv" for p in range(3)]

@@ -1,4 +1,4 @@
-"""LiveView / the main window's AcquisitionSession: what the live screen shows, checked
+"""LiveView / the main window's LiveAcquisition: what the live screen shows, checked
 without any widget.
 
 Real engine and real simulated sensor; waits poll the engine, never sleep-and-assert.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.errors import SettingsError, UserError
 from tactile_studio.live import (
@@ -20,7 +20,7 @@ from tactile_studio.live import (
 )
 from tactile_studio.live.view import _Trail
 from tactile_studio.sensor import SHEARSENSE_6X6, decode
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 
 @pytest.fixture
@@ -173,7 +173,7 @@ def test_meters():
 
 
 def test_controller_connect_record_disconnect(tmp_path):
-    c = AcquisitionSession(compress_in_background=True)
+    c = LiveAcquisition(compress_in_background=True)
     assert c.status().state == "disconnected"
     with pytest.raises(SettingsError):
         c.connect("simulated", {"rate": "fast"})
@@ -193,5 +193,5 @@ def test_controller_connect_record_disconnect(tmp_path):
     finally:
         c.disconnect()
     assert c.status().state == "stopped"
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.n_frames >= 50

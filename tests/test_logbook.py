@@ -13,14 +13,14 @@ import time
 
 import pytest
 
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.plugins.simulated import SimulatedSensor
-from tactile_studio.storage.logbook import MIGRATIONS, Logbook, UnknownSensor
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import MIGRATIONS, Logbook, UnknownSensor
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
 
 
 @pytest.fixture
@@ -98,13 +98,13 @@ def test_recording_stores_sensor_and_calibration_and_adds_hours(data_dir, tmp_pa
     with Logbook() as book:
         book.ensure_sensor("sim-7")
         cal = book.add_calibration("sim-7", "plate", 0.3, {"fits": []})
-    acq = AcquisitionSession()  # the session books the sensor; the file writer never does
+    acq = LiveAcquisition()  # the session books the sensor; the file writer never does
     engine = acq.use_device(SimulatedSensor(seed=7, speed=0, gesture="idle"))
     acq.start_recording(tmp_path / "s.h5")
     acq.start()
     assert engine.wait_frames(430, timeout=20)
     acq.disconnect()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         meta, frames = s.metadata, s.n_frames
     assert meta["sensor_id"] == "sim-7" and meta["calibration_id"] == cal
     with Logbook() as book:
@@ -118,7 +118,7 @@ def test_the_file_writer_never_opens_the_logbook(data_dir, tmp_path):
     assert engine.wait_frames(100, timeout=20)
     engine.stop()
     rec.stop()
-    with Session(tmp_path / "s.h5") as s:  # the device's own sensor ID, no calibration
+    with SessionFile(tmp_path / "s.h5") as s:  # the device's own sensor ID, no calibration
         assert s.metadata["sensor_id"] == "sim-7" and "calibration_id" not in s.metadata
     assert not (data_dir / "logbook.sqlite").exists()
 
@@ -126,7 +126,7 @@ def test_the_file_writer_never_opens_the_logbook(data_dir, tmp_path):
 def test_record_cli_with_a_typed_sensor_id(data_dir, tmp_path):
     out = tmp_path / "r.h5"
     assert main(["record", "--set", "speed=0", "--seconds", "0.2", "--out", str(out)]) == 0
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.metadata["sensor_id"] == "sim-0"
     with Logbook() as book:
         assert book.hours("sim-0") > 0
@@ -156,7 +156,7 @@ def test_sensors_and_sensor_commands(data_dir, capsys):
 
 WRITER = textwrap.dedent("""
     import sys
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
     book = Logbook(sys.argv[1])
     book.ensure_sensor("S1")
     spots = [{"taxel": f"T{i}", "normal_kpa": 1.0, "shear_kpa": 0.0, "ratio": 1.0,

@@ -18,9 +18,9 @@ import sqlite3
 import pytest
 
 from tactile_studio.cli import main
-from tactile_studio.storage.logbook import Logbook, LogbookDamaged
-from tactile_studio.storage.logbook_file import CheckedConnection, problem_of
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import Logbook, LogbookDamaged
+from tactile_studio.storage.books.logbook_file import CheckedConnection, problem_of
+from tactile_studio.storage.format.session_file import SessionFile
 
 PREFIX = "tactile-studio: error: "
 SENSORS = [f"S{i}" for i in range(6)]
@@ -103,7 +103,7 @@ def test_record_records_anyway_says_so_once_and_writes_nothing_into_it(
     assert len(said) == 1 and said[0].startswith(
         f"sensor logbook not used for this recording: {logbook}: the sensor logbook is damaged")
     assert logbook.read_bytes() == damaged
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert len(s.column("device_time")) > 0 and s.metadata["sensor_id"] == "sim-0"
 
 
@@ -201,11 +201,11 @@ def test_the_main_window_records_anyway_and_its_sensor_box_says_why(qtbot, logbo
     assert f"{logbook}: the sensor logbook is damaged" in box.toolTip()
     assert w.panel.connect_device()
     assert w.panel.start_recording(str(tmp_path / "s.h5"))
-    qtbot.waitUntil(lambda: w.controller.recorder.rows_written > 20, timeout=10000)
+    qtbot.waitUntil(lambda: w.acquisition.recorder.rows_written > 20, timeout=10000)
     w.panel.stop_recording()
     w.shutdown()
     assert logbook.read_bytes() == damaged
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert len(s.column("device_time")) > 20
 
 
@@ -246,7 +246,7 @@ def test_a_logbook_in_a_read_only_folder_is_one_line_and_recording_goes_on():
         said = [ln for ln in record.stderr.splitlines() if "sensor logbook" in ln]
         assert len(said) == 1 and said[0].startswith(
             f"sensor logbook not used for this recording: {data}/logbook.sqlite:")
-        with Session(base / "r.h5") as s:
+        with SessionFile(base / "r.h5") as s:
             assert len(s.column("device_time")) > 0
     finally:
         for path in [base, *base.rglob("*")]:

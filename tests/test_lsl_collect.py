@@ -10,7 +10,7 @@ from pathlib import Path
 from collect_fixtures import do_trial, make_rig, mini_protocol, start
 from lsl_fixtures import WAIT_S, Collector, unique
 
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.streams.lsl_outlet import LslStreamer
 
 SHOWN = {"trial_start", "beep", "trial_end", "refused", "redo", "discard", "note"}
@@ -48,7 +48,7 @@ def test_runner_markers_match_the_session_file(tmp_path: Path) -> None:
         "trial_start", "beep", "trial_end", "refused", "redo",
         "trial_start", "beep", "trial_end", "discard", "note"]
     assert "not streamed" not in json.dumps([m for m, _ in markers])
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         trials = s.journal.trials
         host = s.column("host_time", 0, s.n_frames)
         offset = next(e for e in s.events if e["kind"] == "lsl_clock")["offset_s"]
@@ -84,7 +84,7 @@ def test_headless_collect_with_lsl_publishes_every_trial(tmp_path: Path, capsys)
     assert code == 0, err
     assert "LSL: publishing 'TactileStudio-simulated'" in err
     assert "LSL: a recipient is connected" in err  # so no marker was published unseen
-    with Session(Path(out.strip().splitlines()[-1])) as s:
+    with SessionFile(Path(out.strip().splitlines()[-1])) as s:
         trials = s.journal.trials
         assert any(e["kind"] == "lsl_clock" for e in s.events)
     ends = [json.loads(m[0]) for m in got.samples]

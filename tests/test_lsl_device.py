@@ -18,7 +18,7 @@ from tactile_studio.cli import main
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import DeviceNotFound, SettingsError
 from tactile_studio.sensor.layout import grid_layout
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.streams.clock import measure_offset
 from tactile_studio.streams.lsl_meta import frame_stream_info
 
@@ -89,7 +89,7 @@ def test_record_an_lsl_stream_across_a_vanish_and_return(tmp_path: Path, capsys)
 
     def recorded(enough) -> bool:  # noqa: ANN001 - the file as the recorder has it now
         try:
-            with Session(out) as s:
+            with SessionFile(out) as s:
                 return enough(s)
         except Exception:  # noqa: BLE001 - not created yet, or mid-creation
             return False
@@ -115,7 +115,7 @@ def test_record_an_lsl_stream_across_a_vanish_and_return(tmp_path: Path, capsys)
         pub.stop()
     err = capsys.readouterr().err
     assert code == 0, err
-    with Session(out) as s:
+    with SessionFile(out) as s:
         raw = s.raw(0, s.n_frames)
         dev_t = s.column("device_time", 0, s.n_frames)
         events = s.events

@@ -16,7 +16,7 @@ from waiting import wait_until
 
 from tactile_studio.acquisition.events import Health
 from tactile_studio.cli import main
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 RATE = 100.0
 
@@ -41,7 +41,7 @@ def marker_outlet(name: str) -> pylsl.StreamOutlet:
 def recording_ready(path) -> bool:
     """The file at ``path`` holds frames and the inlet's start (it is connected)."""
     try:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             return s.n_frames >= 10 and any(e["kind"] == "marker_stream" for e in s.events)
     except Exception:  # noqa: BLE001 - not created yet, or mid-creation
         return False
@@ -50,7 +50,7 @@ def recording_ready(path) -> bool:
 def markers_in(path) -> list[str]:
     """The marker texts the file at ``path`` holds so far ([] before it can be read)."""
     try:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             return [e["text"] for e in s.events if e["kind"] == "marker"]
     except Exception:  # noqa: BLE001 - not created yet, or mid-creation
         return []
@@ -85,7 +85,7 @@ def test_record_markers_land_within_one_frame_of_their_timestamps(tmp_path, caps
     pusher.join(WAIT_S)
     assert rc == 0, capsys.readouterr().err
     offset = host_to_lsl()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         host = s.column("host_time")
         marks = [e for e in s.events if e["kind"] == "marker"]
         (start,) = [e for e in s.events if e["kind"] == "marker_stream"]
@@ -118,7 +118,7 @@ def test_a_marker_stream_that_disappears_is_reported(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 0, err
     assert f"warning: lsl: marker stream '{name}' disappeared" in err
-    with Session(out) as s:
+    with SessionFile(out) as s:
         kinds = [e["kind"] for e in s.events]
         assert "marker_stream_lost" in kinds and kinds.count("marker") == 1
         (lost,) = [e for e in s.events if e["kind"] == "marker_stream_lost"]
@@ -136,10 +136,10 @@ def test_a_marker_stream_not_found_is_one_line(tmp_path, capsys):
 def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_path):
     """What ``gui --markers NAME`` sets: every recording of the window's session takes the
     markers in; a lost stream is a ``health`` event (the status bar's warning)."""
-    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.acquisition.live_acquisition import LiveAcquisition
     from tactile_studio.errors import UserError
 
-    session = AcquisitionSession()
+    session = LiveAcquisition()
     heard: list[Health] = []
     session.add_listener(lambda e: heard.append(e) if isinstance(e, Health) else None)
     session.open("simulated", {"rate": RATE})
@@ -178,7 +178,7 @@ def test_the_live_session_records_markers_and_says_when_their_stream_goes(tmp_pa
         session.stop_recording()
     finally:
         session.close()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["a", "b"]
         assert any(e["kind"] == "marker_stream_lost" for e in s.events)
 
@@ -217,7 +217,7 @@ def test_the_collection_console_records_markers_from_collect_markers(qtbot, tmp_
     # 1 of 1188; alone it passed 5 of 5)
     qtbot.waitUntil(lambda: bool(markers_in(path)), timeout=int(WAIT_S * 1000))
     console.close()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["block cue"]
 
 
@@ -254,7 +254,7 @@ def test_a_marker_stream_of_two_channels_keeps_both(tmp_path, capsys):
                "--out", str(out), "--markers", name])
     pusher.join(WAIT_S)
     assert rc == 0, capsys.readouterr().err
-    with Session(out) as s:
+    with SessionFile(out) as s:
         (m,) = [e for e in s.events if e["kind"] == "marker"]
     assert (m["text"], m["channels"]) == ("cue | left", ["cue", "left"])
 
@@ -268,12 +268,12 @@ def test_a_marker_stamped_before_the_first_frame_is_at_row_0_however_late(tmp_pa
     then the newest frames: a window that had moved on, or that started after frame 0.
     Held at a fixed frame count (the simulator at speed 0 runs as its readers let it),
     the placement is the same on any machine."""
-    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.acquisition.live_acquisition import LiveAcquisition
     from tactile_studio.devices.frame_stream import hold_frames
 
     name = unique("stimpc")
     outlet = marker_outlet(name)
-    session = AcquisitionSession()
+    session = LiveAcquisition()
     engine = session.open("simulated", {"speed": 0, "gesture": "idle"})
     release = hold_frames(engine, lambda: 0, HELD)
     session.marker_streams = (name,)
@@ -295,7 +295,7 @@ def test_a_marker_stamped_before_the_first_frame_is_at_row_0_however_late(tmp_pa
     finally:
         release()
         session.close()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         (mark,) = [e for e in s.events if e["kind"] == "marker"]
     assert mark["frame"] == 0 and mark["text"] == "before the first frame"
     assert main(["info", str(out)]) == 0  # (the conftest runs `check` on the file too)
@@ -311,7 +311,7 @@ def test_check_names_a_marker_stored_after_its_frame_and_info_lists_markers(tmp_
     import numpy as np
 
     from tactile_studio.sensor.layout import SHEARSENSE_6X6
-    from tactile_studio.storage.session_writer import SessionWriter
+    from tactile_studio.storage.format.session_writer import SessionWriter
 
     path = tmp_path / "sub-P01_ses-S1_task-touch_run-002_tactile.h5"
     t = 1.7e9 + np.arange(200) / 43.0

@@ -18,7 +18,7 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.sensor.decode import decode
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.streams import LslUnavailable, load_pylsl, measure_offset
 from tactile_studio.streams.lsl_meta import stable_source_id
 from tactile_studio.streams.lsl_outlet import LslStreamer
@@ -136,7 +136,7 @@ def test_record_with_lsl_keeps_the_clock_offset_for_exact_alignment(tmp_path: Pa
     got.wait_count(1)
     got.stop()
     assert code == 0, capsys.readouterr().err
-    with Session(out) as s:
+    with SessionFile(out) as s:
         clock = [e for e in s.events if e["kind"] == "lsl_clock"]
         host = s.column("host_time", 0, s.n_frames)
         raw = s.raw(0, s.n_frames)
@@ -156,7 +156,7 @@ def test_record_with_lsl_keeps_the_clock_offset_for_exact_alignment(tmp_path: Pa
 
 
 def test_a_recording_started_later_carries_the_offset_in_force(tmp_path: Path) -> None:
-    from tactile_studio.storage.recorder import Recorder
+    from tactile_studio.storage.recording.recorder import Recorder
 
     engine = _engine(seed=4)
     streamer = LslStreamer(engine, name=unique("late")).start()
@@ -167,7 +167,7 @@ def test_a_recording_started_later_carries_the_offset_in_force(tmp_path: Path) -
     engine.stop()
     streamer.stop()
     rec.stop()
-    with Session(tmp_path / "late.h5") as s:
+    with SessionFile(tmp_path / "late.h5") as s:
         clock = [e for e in s.events if e["kind"] == "lsl_clock"]
     assert clock[0]["frame"] == 0 and clock[0]["carried"] is True
     assert clock[0]["offset_s"] == streamer.offset.offset_s
@@ -178,8 +178,8 @@ def test_a_resumed_recording_carries_the_offset_at_its_first_row(tmp_path: Path)
     """A resume on a device already streaming to LSL (the console on the live engine):
     the offset in force is the new run's, from the first new row. At row 0 it was said
     to hold for the earlier run's frames too, which were never on that stream."""
-    from tactile_studio.storage.recorder import Recorder
-    from tactile_studio.storage.session_writer import SessionWriter
+    from tactile_studio.storage.format.session_writer import SessionWriter
+    from tactile_studio.storage.recording.recorder import Recorder
 
     old = tmp_path / "old.h5"
     with SessionWriter(old, SHEARSENSE_6X6, {"plugin": "simulated", "nominal_rate_hz": 400.0},
@@ -190,7 +190,7 @@ def test_a_resumed_recording_carries_the_offset_at_its_first_row(tmp_path: Path)
     streamer = LslStreamer(engine, name=unique("resumed")).start()
     engine.start()
     assert engine.wait_frames(50, timeout=20)
-    with Session(old) as earlier:
+    with SessionFile(old) as earlier:
         rec = Recorder(engine, tmp_path / "resumed.h5", row_offset=40)
         rec.copy_earlier(earlier)
     rec.start()
@@ -198,7 +198,7 @@ def test_a_resumed_recording_carries_the_offset_at_its_first_row(tmp_path: Path)
     engine.stop()
     streamer.stop()
     rec.stop()
-    with Session(tmp_path / "resumed.h5") as s:
+    with SessionFile(tmp_path / "resumed.h5") as s:
         clock = [e for e in s.events if e["kind"] == "lsl_clock"]
     assert clock[0]["frame"] == 40 and clock[0]["carried"] is True
 
@@ -250,7 +250,7 @@ def test_the_core_and_the_plugin_import_without_pylsl() -> None:
 
 
 def test_a_wall_clock_step_is_recorded_and_applies_from_its_frame(tmp_path: Path) -> None:
-    from tactile_studio.storage.recorder import Recorder
+    from tactile_studio.storage.recording.recorder import Recorder
 
     step = {"s": 0.0}
     engine = _engine(seed=6)
@@ -268,7 +268,7 @@ def test_a_wall_clock_step_is_recorded_and_applies_from_its_frame(tmp_path: Path
     streamer.stop()
     got.stop()
     rec.stop()
-    with Session(tmp_path / "step.h5") as s:
+    with SessionFile(tmp_path / "step.h5") as s:
         clocks = [e for e in s.events if e["kind"] == "lsl_clock" and e["streaming"]]
         host = s.column("host_time", 0, s.n_frames)
     assert len(clocks) == 2

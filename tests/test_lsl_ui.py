@@ -43,9 +43,9 @@ def _shots(tmp_path: Path) -> Path:
 
 def test_device_panel_toggle_streams_and_follows_a_restart(qtbot, window, tmp_path) -> None:
     panel = window.panel
-    qtbot.waitUntil(lambda: window.controller.status().state == "running", timeout=WAIT_MS)
+    qtbot.waitUntil(lambda: window.acquisition.status().state == "running", timeout=WAIT_MS)
     panel.lsl_toggle.click()  # as the user does
-    streamer = window.controller.lsl
+    streamer = window.acquisition.lsl
     assert panel.lsl_toggle.isChecked() and streamer is not None and streamer.running
     got = Collector(f"source_id='{streamer.source_id}'")
     got.wait_connected()
@@ -59,10 +59,10 @@ def test_device_panel_toggle_streams_and_follows_a_restart(qtbot, window, tmp_pa
     assert panel.grab().save(str(_shots(tmp_path) / "lsl-device-panel.png"))
 
     assert panel.connect_device()  # "Restart": a new engine, the stream follows it
-    assert window.controller.lsl is not None and window.controller.lsl is not streamer
-    assert not streamer.running and window.controller.lsl.engine is window.controller.engine
+    assert window.acquisition.lsl is not None and window.acquisition.lsl is not streamer
+    assert not streamer.running and window.acquisition.lsl.engine is window.acquisition.engine
     panel.lsl_toggle.click()
-    assert window.controller.lsl is None and not panel.lsl_toggle.isChecked()
+    assert window.acquisition.lsl is None and not panel.lsl_toggle.isChecked()
     got.stop()
     assert got.array().shape[1] == 180
 
@@ -73,7 +73,7 @@ def test_device_panel_without_liblsl_shows_one_line_and_unchecks(qtbot, window,
     window.panel.lsl_toggle.click()
     assert not window.panel.lsl_toggle.isChecked()
     assert window.panel.error_text().startswith("Lab Streaming Layer is not available")
-    assert window.controller.lsl is None and window.controller.engine.running
+    assert window.acquisition.lsl is None and window.acquisition.engine.running
 
 
 def test_console_toggle_streams_the_session_markers(qtbot, tmp_path) -> None:

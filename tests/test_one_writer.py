@@ -24,8 +24,8 @@ import pytest
 from waiting import wait_until
 
 from tactile_studio.errors import SessionFileError
-from tactile_studio.storage import Session
-from tactile_studio.storage.xdf_writer import XdfWriter
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.exchange.xdf_writer import XdfWriter
 from tactile_studio.streams.remote_control import send_commands
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
@@ -58,7 +58,7 @@ def _begun(path: Path) -> bool:
 
 def _frames(path: Path) -> int:
     try:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             return s.n_frames
     except SessionFileError:  # between creating the file and its first flush
         return 0
@@ -103,14 +103,14 @@ def test_a_second_record_of_a_file_being_recorded_is_refused_and_a_killed_ones_l
         if first.poll() is None:
             first.kill()
             first.communicate()
-    with Session(out) as s:  # the first recording, recovered, not the refused one
+    with SessionFile(out) as s:  # the first recording, recovered, not the refused one
         assert s.metadata["notes"] == "first" and s.n_frames > 50
     assert _lock(out).exists() and not _held(out)  # the stale lock of the killed process
     third = subprocess.run([EXE, "record", "--seconds", "0.5", "--force", "--out", str(out),
                             "--notes", "third"], capture_output=True, text=True,
                            timeout=WAIT_S)
     assert third.returncode == 0, third.stderr  # a stale lock never blocks
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.metadata["notes"] == "third" and s.closed_cleanly
     assert _leftovers(tmp_path) == []  # its lock file went with its claim
 
@@ -149,7 +149,7 @@ def test_a_listener_asked_to_record_a_file_another_writer_holds_says_error(tmp_p
         listener.send_signal(signal.SIGINT)
         listener.communicate(timeout=WAIT_S)
     assert listener.returncode in (0, 130)
-    with Session(target) as s:
+    with SessionFile(target) as s:
         assert s.closed_cleanly and s.n_frames >= 20
     assert _leftovers(target.parent) == []
 
@@ -182,7 +182,7 @@ def _import(src: Path, out: Path, *extra: str) -> subprocess.Popen:
 
 
 def _whole(path: Path, n: int = IMPORT_FRAMES) -> bool:
-    with Session(path) as s:
+    with SessionFile(path) as s:
         return s.closed_cleanly and s.n_frames == n
 
 

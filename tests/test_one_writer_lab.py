@@ -23,10 +23,10 @@ from waiting import wait_until
 from tactile_studio.cli import main
 from tactile_studio.devices import AcquisitionEngine, create_device
 from tactile_studio.file_claims import FileBusy, NameTaken, first_free
-from tactile_studio.protocol.collect import CollectionSettings, open_session, resume_session
-from tactile_studio.protocol.runner import StreamClock
+from tactile_studio.protocol.collect import CollectionSettings, open_collection, resume_collection
+from tactile_studio.protocol.trial_runner import StreamClock
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Session, SessionWriter
+from tactile_studio.storage import SessionFile, SessionWriter
 
 WAIT_S = 30.0
 HELPER = ("import sys; from tactile_studio.file_claims import claim, claim_folder; "
@@ -80,10 +80,10 @@ def test_a_writer_refuses_an_existing_file_unless_asked_and_a_claimed_one_always
     with Holder(path) as other:
         with pytest.raises(FileBusy, match=f"pid {other.proc.pid}: "):
             _session(path, overwrite=True)
-        with Session(path) as s:  # untouched
+        with SessionFile(path) as s:  # untouched
             assert s.n_frames == 50
     _session(path, frames=60, overwrite=True)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.n_frames == 60
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.h5"]
 
@@ -95,7 +95,7 @@ def test_a_staged_writer_shows_nothing_until_it_closes_whole(tmp_path):
     w.append_frames(np.full((20, 180), 30000, np.uint16), t, t)
     assert not path.exists() and w.file.name.startswith(".imp.h5.")
     w.close()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.n_frames == 20 and s.closed_cleanly
     w = SessionWriter(tmp_path / "gone.h5", SHEARSENSE_6X6, {"plugin": "test"}, {},
                       staged=True)
@@ -120,13 +120,13 @@ def test_a_second_window_cannot_record_into_the_file_the_first_records(qtbot, tm
     first, second = windows
     try:
         assert first.panel.start_recording(str(path))
-        qtbot.waitUntil(lambda: first.controller.status().recorded_frames > 10,
+        qtbot.waitUntil(lambda: first.acquisition.status().recorded_frames > 10,
                         timeout=WAIT_S * 1000)
         assert not second.panel.start_recording(str(path))  # the save dialog said replace
         assert second.panel.error_text() == (
             f"{path}: this session file is being written already by this program (another "
             "recording, job or window); nothing was written to it")
-        assert second.controller.recorder is None
+        assert second.acquisition.recorder is None
         with Holder(tmp_path / "other.h5") as other:  # and a file another process writes
             assert not second.panel.start_recording(str(tmp_path / "other.h5"))
             assert f"another process (pid {other.proc.pid}:" in second.panel.error_text()
@@ -134,7 +134,7 @@ def test_a_second_window_cannot_record_into_the_file_the_first_records(qtbot, tm
     finally:
         for w in windows:
             w.shutdown()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.closed_cleanly and s.n_frames > 10
     assert not (tmp_path / "other.h5").exists()
 
@@ -146,24 +146,24 @@ def _engine(seed: int = 0) -> AcquisitionEngine:
 
 def test_a_resume_while_another_resume_of_the_file_runs_is_refused(tmp_path):
     engines = [_engine(), _engine()]
-    first = open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), engines[0],
-                         clock=StreamClock(engines[0]))
+    first = open_collection(CollectionSettings(mini_protocol(), "P01", tmp_path), engines[0],
+                            clock=StreamClock(engines[0]))
     engines[0].start()
     wait_until(lambda: first.recorder.rows_written >= 20, what="frames")
     first.close()
     engines[0].stop()
     path = first.path
     engines = [_engine(), _engine()]
-    a = resume_session(path, engines[0], clock=StreamClock(engines[0]))
+    a = resume_collection(path, engines[0], clock=StreamClock(engines[0]))
     try:
         with pytest.raises(FileBusy, match="being written already"):
-            resume_session(path, engines[1], clock=StreamClock(engines[1]))
+            resume_collection(path, engines[1], clock=StreamClock(engines[1]))
         engines[0].start()
         wait_until(lambda: a.recorder.rows_written >= 40, what="resumed frames")
     finally:
         a.close()
         engines[0].stop()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.closed_cleanly and s.n_frames >= 40
         assert [e["backup"] for e in s.events if e["kind"] == "resume"] == [
             f"{path.stem}.bak-1.h5"]
@@ -173,12 +173,12 @@ def test_a_resume_while_another_resume_of_the_file_runs_is_refused(tmp_path):
 
 def test_a_backup_name_taken_meanwhile_is_never_overwritten(tmp_path):
     engine = _engine()
-    first = open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), engine,
-                         clock=StreamClock(engine))
+    first = open_collection(CollectionSettings(mini_protocol(), "P01", tmp_path), engine,
+                            clock=StreamClock(engine))
     first.close()
     path = first.path
     (tmp_path / f"{path.stem}.bak-1.h5").write_bytes(b"someone's copy")
-    again = resume_session(path, engine, clock=StreamClock(engine))
+    again = resume_collection(path, engine, clock=StreamClock(engine))
     again.close()
     assert again.backup.name == f"{path.stem}.bak-2.h5"
     assert (tmp_path / f"{path.stem}.bak-1.h5").read_bytes() == b"someone's copy"
@@ -197,14 +197,14 @@ def test_a_name_the_program_picks_moves_on_while_it_is_taken_or_claimed(tmp_path
 
 def test_two_collections_into_one_folder_each_get_their_own_file(tmp_path):
     engines = [_engine(), _engine(1)]
-    sessions = [open_session(CollectionSettings(mini_protocol(), "P01", tmp_path), e,
-                             clock=StreamClock(e))
+    sessions = [open_collection(CollectionSettings(mini_protocol(), "P01", tmp_path), e,
+                                clock=StreamClock(e))
                 for e in engines]
     for s in sessions:
         s.close()
     assert sessions[0].path != sessions[1].path
     for s in sessions:
-        with Session(s.path) as f:
+        with SessionFile(s.path) as f:
             assert f.closed_cleanly
 
 

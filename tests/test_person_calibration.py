@@ -20,12 +20,12 @@ from tactile_studio.devices.engine import AcquisitionEngine
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.live_inference import LiveInference, RunningCalibration
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.evaluation.evaluate import load_run_data
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     prepare_inputs,
     run_experiment,
 )
+from tactile_studio.learn.experiments.rescore import load_run_data
 from tactile_studio.learn.learners.fused import person_columns
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time

@@ -18,8 +18,8 @@ from tactile_studio.protocol.quality import QualitySettings
 from tactile_studio.protocol.runner_events import RunnerEvent, TrialEnded
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.sensor.decode import contact_taxels
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_set import select_sessions
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_set import select_sessions
 
 
 def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
@@ -73,7 +73,7 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     assert snap(console).state == State.FINISHED and paused
     path = Path(console._closed_session_path)
     assert path.name.startswith("PILOT_P99_mini3_")
-    with Session(path) as f:
+    with SessionFile(path) as f:
         trials, meta = f.trials, f.metadata
     assert meta["pilot"] is True and len(trials) == 6
     for t in trials:  # someone touched, with the prompted gesture, during its trial
@@ -84,7 +84,7 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     # saw the prompt, and a short Tickle of this style is too light to register in ~4% of
     # draws (a person's too), so "no trial flagged" was a lottery the load drew (the touch
     # and its trial coincided, the rows held no contact)
-    with Session(path) as f:
+    with SessionFile(path) as f:
         for t in trials:
             rows = f.raw(t.start_sample, t.end_sample)
             touched = contact_taxels(console.engine.layout, rows, f.baseline(t.start_sample),

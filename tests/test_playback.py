@@ -98,7 +98,7 @@ def test_bad_session_files(tmp_path):
 
 def test_events_are_placed_on_their_frames(tmp_path):
     from tactile_studio.simulate import SensorSimulator, SimConfig
-    from tactile_studio.storage.session_writer import SessionWriter
+    from tactile_studio.storage.format.session_writer import SessionWriter
 
     sim = SensorSimulator(SimConfig(rate=43.0, seed=1, gesture="idle"))
     raw = sim.step(200)

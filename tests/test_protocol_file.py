@@ -10,7 +10,7 @@ import pytest
 
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.randomise import block_orders, practice_order
-from tactile_studio.storage.protocol_file import (
+from tactile_studio.storage.format.protocol_file import (
     ProtocolError,
     list_protocols,
     load_protocol,

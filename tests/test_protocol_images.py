@@ -16,9 +16,9 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.protocol.collect import read_resume_info
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 SHIPPED = Path(load_protocol("shear9").image_file(load_protocol("shear9").gestures[0])).parent
 MINI = """
@@ -65,7 +65,7 @@ def test_sessions_and_their_exports_name_images_relative_to_the_protocol(
                              ("shear9", [f"images/{g.image.split('/')[-1]}"
                                          for g in load_protocol("shear9").gestures])):
         path = _collect(capsys, out, protocol)
-        with Session(path) as s:
+        with SessionFile(path) as s:
             meta = s.metadata
         spec = meta["protocol_spec"]
         assert [g["image"] for g in spec["gestures"]] == images

@@ -12,7 +12,7 @@ import sys
 from test_import_export import shearsense_csv
 
 from benchmarks import real_data
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 
 def stand_in(tmp_path):
@@ -33,7 +33,7 @@ def test_imported_once_into_the_cache_and_reused(tmp_path, monkeypatch):
     assert first.parent == tmp_path / "cache" / "tactile-studio" / "shearsense-dev"
     names = sorted(p.name for p in first.glob("*.h5"))
     assert names == ["P01_a_FLAT.h5", "P02_b_PILLOW.h5"]
-    with Session(first / names[0]) as s:
+    with SessionFile(first / names[0]) as s:
         assert s.metadata["participant"] == "P01" and s.metadata["condition"] == "FLAT"
     stamp = (first / names[0]).stat().st_mtime_ns
     assert real_data.dev_sessions() == first  # reused, not imported again

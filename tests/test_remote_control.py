@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.streams.remote_control import send_commands
 from tactile_studio.streams.remote_names import CommandError, parse_filename, recording_path
 
@@ -72,7 +72,7 @@ def test_a_script_drives_listen_through_filename_start_mark_stop(tmp_path):
     path = out / "sub-P01/ses-S1/sub-P01_ses-S1_task-T_run-001_tactile.h5"
     assert f"wrote {path}" in stdout
     assert status["file"] == str(path)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.metadata["participant"] == "P01" and s.metadata["task"] == "T"
         assert s.metadata["session_label"] == "S1" and s.metadata["source"] == "remote"
         assert s.n_frames >= 50
@@ -98,7 +98,7 @@ def test_the_psychopy_style_script_in_the_docs_works(tmp_path):
     finally:
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=WAIT_S)
-    with Session(out / "sub-P01/ses-S1/sub-P01_ses-S1_task-stroke_run-001_tactile.h5") as s:
+    with SessionFile(out / "sub-P01/ses-S1/sub-P01_ses-S1_task-stroke_run-001_tactile.h5") as s:
         marks = [e["text"] for e in s.events if e["kind"] == "marker"]
         assert marks == [f"trial_{i}_{w}" for i in range(3) for w in ("cue", "end")]
         assert s.n_frames > 0
@@ -108,13 +108,13 @@ def test_a_recording_without_frames_is_an_error_not_a_silent_empty_file(tmp_path
     """The core driven on this thread (``handle``), a serial pty that sends nothing."""
     import numpy as np
 
-    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.acquisition.live_acquisition import LiveAcquisition
     from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
     from tactile_studio.streams.remote_control import RemoteControl
 
     emu = SerialEmulator(array_source(np.zeros((10, 180), np.uint16)), link=tmp_path / "port")
     emu.open()
-    session = AcquisitionSession()
+    session = LiveAcquisition()
     try:
         session.open("serial", {"port": emu.port})
         session.start()

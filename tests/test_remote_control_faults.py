@@ -13,7 +13,7 @@ import threading
 from remote_helpers import WAIT_S, listening, raw_exchange, read_to_end
 from waiting import wait_until
 
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.streams.remote_control import send_commands
 from tactile_studio.streams.remote_socket import MAX_CLIENTS, MAX_LINE_BYTES
 
@@ -119,7 +119,7 @@ def test_malformed_requests_never_stop_the_listener_or_the_recording(tmp_path):
             ["OK", f"error: {out / 'taken/deeper'}: cannot write (Not a directory)"]
         assert ls.status()["state"] == "running"
     assert ls.returncode == 0 and "Traceback" not in ls.stderr, ls.stderr
-    with Session(out / "sub-P7/sub-P7_run-001_tactile.h5") as s:
+    with SessionFile(out / "sub-P7/sub-P7_run-001_tactile.h5") as s:
         assert s.n_frames >= before + 5
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["\0"]
 
@@ -168,7 +168,7 @@ def test_nothing_a_client_sends_reaches_the_terminal_raw(tmp_path):
     for text in (ls.stdout, ls.stderr):
         assert all(c.isprintable() or c == "\n" for c in text), repr(text)
     assert "> mark \\u001b]0;owned\\u0007\\u001b[2J \\u202eevil" in ls.stdout
-    with Session(out / "sub-P1/sub-P1_tactile.h5") as s:  # the file keeps the text sent
+    with SessionFile(out / "sub-P1/sub-P1_tactile.h5") as s:  # the file keeps the text sent
         (mark,) = [e for e in s.events if e["kind"] == "marker"]
         assert mark["text"] == "\x1b]0;owned\x07\x1b[2J \u202eevil"
 
@@ -191,7 +191,7 @@ def test_a_taken_name_is_never_overwritten_and_the_file_says_its_own_run(tmp_pat
         assert ls.send("stop") == ["OK"]
     assert taken.read_bytes() == first
     for name, run in (("exp_001.h5", "1"), ("exp_002.h5", "2"), ("exp_004.h5", "4")):
-        with Session(out / name) as s:
+        with SessionFile(out / name) as s:
             assert s.metadata["run"] == run
 
 

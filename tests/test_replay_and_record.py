@@ -14,8 +14,8 @@ from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import DeviceNotFound, UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Recorder, Session, SessionWriter
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage import Recorder, SessionFile, SessionWriter
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
 
 def record_simulated(path, seconds="1", *extra):
@@ -62,7 +62,7 @@ def test_record_refuses_to_overwrite_and_reports_bad_settings(tmp_path, capsys):
 def test_replay_of_a_session_reproduces_frames_and_timing(tmp_path):
     src = tmp_path / "src.h5"
     record_simulated(src)
-    with Session(src) as s:
+    with SessionFile(src) as s:
         raw, dev_t = s.raw(), s.column("device_time")
     engine = AcquisitionEngine(create_device("replay", {"path": str(src), "speed": "0"}))
     copy = tmp_path / "copy.h5"
@@ -71,7 +71,7 @@ def test_replay_of_a_session_reproduces_frames_and_timing(tmp_path):
     wait_finished(engine)
     engine.stop()
     rec.stop()
-    with Session(copy) as c:
+    with SessionFile(copy) as c:
         assert np.array_equal(c.raw(), raw)
         assert np.allclose(c.column("device_time"), dev_t - dev_t[0])
         assert np.array_equal(c.column("seq"), np.arange(len(raw)))
@@ -85,7 +85,7 @@ def test_as_fast_as_possible_waits_for_the_recorder_instead_of_lapping_the_ring(
     # simulator makes thousands of frames in that time, so without the hold the ring laps
     src = tmp_path / "src.h5"
     record_simulated(src)
-    with Session(src) as s:
+    with SessionFile(src) as s:
         raw = s.raw()
     settings = {"path": str(src)} if device == "replay" else {"seed": "3"}
     engine = AcquisitionEngine(create_device(device, {**settings, "speed": "0"}),
@@ -99,7 +99,7 @@ def test_as_fast_as_possible_waits_for_the_recorder_instead_of_lapping_the_ring(
         wait_until(lambda: rec.recorded >= 3000, 30.0, what="3000 simulated frames recorded")
     engine.stop()
     rec.stop()
-    with Session(copy) as c:
+    with SessionFile(copy) as c:
         assert "overrun" not in [e["kind"] for e in c.events] and c.journal.counters["dropped"] == 0
         seq = c.column("seq")
         assert np.array_equal(seq, np.arange(len(seq)))
@@ -125,7 +125,7 @@ def test_a_file_ended_at_a_frame_keeps_its_frames_however_far_the_stream_runs_on
     finally:
         engine.stop()
         rec.stop()
-    with Session(tmp_path / "ended.h5") as c:
+    with SessionFile(tmp_path / "ended.h5") as c:
         assert c.n_frames == 100 and np.array_equal(c.column("seq"), np.arange(100))
         assert "overrun" not in [e["kind"] for e in c.events]
         assert c.journal.counters["dropped"] == 0
@@ -146,7 +146,7 @@ def test_a_real_time_device_is_not_held_back_by_a_slow_reader():
 def test_replay_loops_with_continuous_time_and_sequence(tmp_path):
     src = tmp_path / "src.h5"
     record_simulated(src, "0.5")
-    with Session(src) as s:
+    with SessionFile(src) as s:
         n = s.n_frames
     # Driven directly: at speed 0 an engine would lap its ring before the test could read.
     dev = create_device("replay", {"path": str(src), "speed": "0", "loop": "true"})

@@ -9,8 +9,8 @@ import numpy as np
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.devices.registry import create_device
-from tactile_studio.storage import Session
-from tactile_studio.storage.shearsense import read_shearsense_csv, write_shearsense_csv
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.exchange.shearsense import read_shearsense_csv, write_shearsense_csv
 
 
 def _bad_csv(folder):
@@ -47,5 +47,5 @@ def test_replay_reports_malformed_rows_by_kind_like_import(tmp_path, capsys):
     assert main(["record", "--device", "replay", "--set", f"path={path}", "--set", "speed=0",
                  "--seconds", "5", "--out", str(out)]) == 0
     assert "malformed 8" in capsys.readouterr().out
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.summary()["malformed_by_kind"] == expected

@@ -15,8 +15,8 @@ import numpy as np
 
 from tactile_studio.cli import main
 from tactile_studio.errors import SessionFileError
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_check import check_file
+from tactile_studio.storage.format.session_check import check_file
+from tactile_studio.storage.format.session_file import SessionFile
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
 WAIT_S = 60.0  # safety net only
@@ -24,7 +24,7 @@ WAIT_S = 60.0  # safety net only
 
 def _ok_trials(path: Path) -> int:
     try:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             return sum(1 for t in s.trials if t.status == "ok")
     except SessionFileError:  # between creating the file and its first flush
         return 0
@@ -58,7 +58,7 @@ def _resume(capsys, path: Path, *extra: str) -> tuple[int, str]:
 def test_resume_continues_the_device_clock_and_refuses_another_sensor(
         tmp_path: Path, capsys) -> None:
     path = _killed_session(tmp_path)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         n_old, last_old = s.n_frames, float(s.column("device_time")[-1])
     # another sensor (the simulator's seed is its identity): one line, the file untouched
     code, err = _resume(capsys, path, "--set", "seed=7")
@@ -70,7 +70,7 @@ def test_resume_continues_the_device_clock_and_refuses_another_sensor(
     assert code == 0, err
     result = check_file(path)
     assert result.ok, result.violations
-    with Session(path) as s:
+    with SessionFile(path) as s:
         dev = s.column("device_time")
         resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
         starts = [t.start_time for t in s.trials]
@@ -106,7 +106,7 @@ def test_resume_on_another_sensor_with_a_note_keeps_the_note(tmp_path: Path, cap
     code, err = _resume(capsys, path, "--set", "seed=7", "--allow-other-sensor",
                         "sim-5 cable broke; same participant on sim-7")
     assert code == 0, err
-    with Session(path) as s:
+    with SessionFile(path) as s:
         other = s.metadata["other_sensor"]
         notes = [e for e in s.events if e["kind"] == "note"]
     assert other[0]["sensor_id"] == "sim-7" and "sim-5" in other[0]["why"]
@@ -209,7 +209,7 @@ def test_the_console_says_the_sensor_differs_and_resumes_on_it_with_a_note(
     assert console.engine.sensor_id() == "sim-7"
     console.close_session()
     # stored exactly as collect --allow-other-sensor stores it
-    with Session(path) as s:
+    with SessionFile(path) as s:
         other = s.metadata["other_sensor"]
         notes = [e["text"] for e in s.events if e["kind"] == "note"]
     assert other[0]["sensor_id"] == "sim-7" and "sim-5" in other[0]["why"]
@@ -224,7 +224,7 @@ def test_the_console_says_the_sensor_differs_and_resumes_on_it_with_a_note(
     setup.continue_button.click()
     assert console.session is not None, setup.error.text()
     console.close_session()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert len(s.metadata["other_sensor"]) == 1 and s.metadata["resumes"] == 2
     assert check_file(path).ok
 
@@ -259,7 +259,7 @@ def test_a_resume_at_another_frame_rate_is_refused_unless_told_why(
     code, err = _resume(capsys, path, "--set", "rate=100", "--allow-other-sensor",
                         "firmware update: the receiver now sends 100 frames/s")
     assert code == 0, err
-    with Session(path) as s:
+    with SessionFile(path) as s:
         other = s.metadata["other_sensor"]
     assert "recorded at 43 Hz" in other[0]["why"] and "firmware" in other[0]["note"]
     assert check_file(path).ok
@@ -276,8 +276,12 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
 
     from tactile_studio.devices import AcquisitionEngine, create_device
     from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-    from tactile_studio.protocol.collect import CollectionSettings, open_session, resume_session
-    from tactile_studio.protocol.runner import StreamClock
+    from tactile_studio.protocol.collect import (
+        CollectionSettings,
+        open_collection,
+        resume_collection,
+    )
+    from tactile_studio.protocol.trial_runner import StreamClock
 
     emu = SerialEmulator(array_source(np.full((997, 180), 30000, dtype=np.uint16)),
                          rate_hz=200, link=tmp_path / "port", reader_grace=0.05)
@@ -286,9 +290,9 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
 
     def run(resume: Path | None = None) -> Path:
         engine = AcquisitionEngine(create_device("serial", {"port": emu.port}))
-        session = (resume_session(resume, engine, clock=StreamClock(engine)) if resume
-                   else open_session(CollectionSettings(mini_protocol(), "P01", tmp_path),
-                                     engine, clock=StreamClock(engine)))
+        session = (resume_collection(resume, engine, clock=StreamClock(engine)) if resume
+                   else open_collection(CollectionSettings(mini_protocol(), "P01", tmp_path),
+                                        engine, clock=StreamClock(engine)))
         first = session.recorder.row_offset
         try:
             engine.start()
@@ -304,7 +308,7 @@ def test_a_resumed_device_whose_clock_runs_on_keeps_its_own_times(tmp_path: Path
     finally:
         emu.close()
     assert check_file(path).ok
-    with Session(path) as s:
+    with SessionFile(path) as s:
         dev, host = s.column("device_time"), s.column("host_time")
         resume = next(e for e in s.events if e["kind"] == "resume" and "from_file" in e)
     assert resume["device_time_offset"] == 0.0
@@ -318,11 +322,11 @@ def test_a_resume_on_a_running_engine_keeps_the_earlier_rows_baselines(tmp_path:
     from waiting import wait_until
 
     from tactile_studio.devices import AcquisitionEngine, create_device
-    from tactile_studio.protocol.collect import resume_session
-    from tactile_studio.protocol.runner import StreamClock
+    from tactile_studio.protocol.collect import resume_collection
+    from tactile_studio.protocol.trial_runner import StreamClock
 
     path = _killed_session(tmp_path, trials=1)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         n_old = s.n_frames
         before = [s.baseline(row) for row in (0, 50, n_old - 1)]
     engine = AcquisitionEngine(create_device("simulated", {"seed": 5, "speed": 20,
@@ -331,13 +335,13 @@ def test_a_resume_on_a_running_engine_keeps_the_earlier_rows_baselines(tmp_path:
     try:
         wait_until(lambda: engine.baseline is not None and engine.frames > 300,
                    what="a tared engine")
-        session = resume_session(path, engine, clock=StreamClock(engine))
+        session = resume_collection(path, engine, clock=StreamClock(engine))
         wait_until(lambda: session.recorder.rows_written >= n_old + 20, what="new rows")
         session.close()
         new_baseline = np.asarray(engine.baseline, dtype=np.float64)
     finally:
         engine.stop()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         after = [s.baseline(row) for row in (0, 50, n_old - 1)]
         assert np.array_equal(s.baseline(n_old), new_baseline)
     for a, b in zip(before, after):

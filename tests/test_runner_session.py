@@ -18,8 +18,8 @@ from collect_fixtures import (
 
 from tactile_studio.cli import main
 from tactile_studio.protocol.runner_events import TrialStarted
-from tactile_studio.storage.protocol_file import load_protocol
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.protocol_file import load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
@@ -30,7 +30,7 @@ def test_virtual_participant_two_blocks(tmp_path: Path) -> None:
     assert snap.trials_done == snap.trials_total == 18 and snap.progress == 1.0
     assert rig.beeps.asked == [(protocol.beep_hz, protocol.beep_s)] * 18
     n = round(protocol.trial_s * rig.device.nominal_rate_hz)
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         trials = s.journal.trials
         order = s.metadata["block_order"]
         assert s.metadata["participant"] == "P07" and s.metadata["source"] == "collect"
@@ -68,7 +68,7 @@ def test_a_session_as_fast_as_possible_keeps_every_trial_in_a_small_ring(tmp_pat
     n = round(protocol.trial_s * rig.device.nominal_rate_hz)
     assert n < 128 < 2 * n
     run_virtual_participant(rig, "P05")
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert len(s.journal.trials) == 8
         for t in s.journal.trials:
             assert t["status"] == "ok" and "dropped_frames" not in t["flags"], t
@@ -106,7 +106,7 @@ def test_an_aborted_session_ends_its_file_where_it_was_aborted(tmp_path: Path) -
         drive(rig, lambda: rig.engine.frames > at_abort + 10 * 128)  # the stream runs on
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         abort = [e for e in s.events if e["kind"] == "abort"]
         assert len(abort) == 1 and s.n_frames == abort[0]["frame"] + 1 <= at_abort
 
@@ -116,7 +116,7 @@ def test_virtual_participant_in_free_order_keeps_its_habit(tmp_path: Path) -> No
     rig = make_rig(tmp_path, protocol, "P03", speed=60.0)
     run_virtual_participant(rig, "P03")
     names = protocol.gesture_names
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         order = s.metadata["block_order"]
         assert s.metadata["trial_order"] == "free"
         assert any(o != names for o in order)  # so the habit differs from the prompts
@@ -180,7 +180,7 @@ def test_prompted_order_is_enforced_block_by_block(tmp_path: Path) -> None:
                 assert do_trial(rig, g)["gesture"] == g  # the prompted key starts it
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert s.metadata["trial_order"] == "prompted"
         assert s.metadata["protocol_spec"]["order"] == "prompted"
         for b in (0, 1):
@@ -201,7 +201,7 @@ def test_free_order_takes_any_remaining_gesture(tmp_path: Path) -> None:
         assert r.state == "finished"
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert s.metadata["trial_order"] == "free"
         assert [t["gesture"] for t in s.journal.trials] == order[::-1]
 
@@ -233,7 +233,7 @@ def test_redo_puts_the_gesture_back_and_reopens_a_finished_block(tmp_path: Path)
         assert r.snapshot().block_number == 2 and r.snapshot().prompted == b2_first
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         status = [(t["gesture"], t["status"], t["reason"]) for t in s.journal.trials]
     assert status[0] == (g0, "redone", "participant hesitated")
     assert status[1] == (g0, "ok", None)
@@ -259,7 +259,7 @@ def test_discard_needs_a_reason_and_is_not_collected_again(tmp_path: Path) -> No
         assert r.add_note("sensor re-taped after trial 0")
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert s.journal.trials[0]["status"] == "discarded"
         assert s.journal.trials[0]["reason"] == "participant sneezed"
         assert "re-taped" in s.metadata["notes"]
@@ -305,7 +305,7 @@ def test_stuck_channel_and_off_centre_flags_reach_the_file(tmp_path: Path) -> No
         assert "off_centre" in r.trials[-1]["flags"]
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert "stuck_channel" in s.journal.trials[0]["flags"]
         assert "off_centre" in s.journal.trials[1]["flags"]
 
@@ -357,7 +357,7 @@ def test_a_discarded_trial_collected_again_in_the_break_after_its_block(tmp_path
         drive(rig, lambda: r.state == "finished")
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         statuses = [(t["block"], t["gesture"], t["status"]) for t in s.journal.trials]
     assert statuses.count((0, order[0], "discarded")) == 1  # on record, with its reason
     assert statuses.count((0, order[0], "ok")) == 1 and len(statuses) == 5
@@ -393,7 +393,7 @@ def test_a_trial_discarded_and_collected_again_stays_discarded_on_record(
         drive(rig, lambda: r.state == "finished")
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         trials = s.journal.trials
     assert [(t["gesture"], t["status"]) for t in trials] == \
         [(order[0], "discarded"), (order[0], "ok"), (order[1], "ok")]

@@ -17,7 +17,7 @@ from collect_fixtures import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 def _finish_block(rig) -> None:
@@ -56,7 +56,7 @@ def test_break_after_every_k_blocks_with_minimum(tmp_path: Path) -> None:
         assert r.state == "finished"
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         kinds = [e["kind"] for e in s.events]
         assert kinds.count("break_start") == 1 and kinds.count("break_end") == 1
         assert [t["block"] for t in s.journal.trials] == [0, 0, 1, 1, 2, 2, 3, 3]
@@ -123,7 +123,7 @@ def test_pause_freezes_countdowns_and_blocks_keys(tmp_path: Path) -> None:
         assert not r.resume() and "not paused" in r.snapshot().hint
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         kinds = [e["kind"] for e in s.events]
         assert kinds.count("pause") == 3 and kinds.count("resume") == 3
 
@@ -162,7 +162,7 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
     assert r.key(r.protocol.gesture_by_name(order[0][2]).key, at_frame=frame)
     rig.close()  # the window closes mid-trial: the running trial is dropped
     path = rig.session.path
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.closed_cleanly and len(s.journal.trials) == 2
         n_old = s.n_frames
         old_trials = s.journal.trials
@@ -183,14 +183,14 @@ def test_abort_keeps_finished_trials_and_close_mid_block_resumes(tmp_path: Path)
         assert r2.state == "finished"
     finally:
         rig2.close()
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.journal.trials[:2] == old_trials
         assert [t["gesture"] for t in s.journal.trials] == order[0] + order[1]
         assert all(t["start_sample"] >= n_old for t in s.journal.trials[2:])
         assert s.n_frames > n_old
         assert any(e["kind"] == "resume" for e in s.events)
         assert s.metadata["resumes"] == 1
-    with Session(rig2.session.backup) as b:
+    with SessionFile(rig2.session.backup) as b:
         assert b.journal.trials == old_trials
     with pytest.raises(UserError, match="complete"):
         make_rig(tmp_path, protocol, resume=path)

@@ -13,10 +13,10 @@ from collect_fixtures import ManualClock, mini_protocol
 
 from tactile_studio.devices.frame_stream import FrameStream, RecordableStream
 from tactile_studio.devices.ring import FrameChunk
-from tactile_studio.protocol.runner import CollectionRunner, RunnerOptions
+from tactile_studio.protocol.trial_runner import RunnerOptions, TrialRunner
 from tactile_studio.sensor import SHEARSENSE_6X6
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
 
 RATE = 100.0
 
@@ -83,12 +83,12 @@ def _rig(tmp_path: Path, capacity: int = 1 << 16):
     recorder = Recorder(stream, tmp_path / "s.h5", {"source": "collect"})
     clock = ManualClock()
     names = [g.name for g in protocol.gestures]
-    runner = CollectionRunner(protocol, stream, recorder, "P01", [names],
-                              options=RunnerOptions(clock=clock))
+    runner = TrialRunner(protocol, stream, recorder, "P01", [names],
+                         options=RunnerOptions(clock=clock))
     return stream, recorder, runner, clock
 
 
-def _trial(stream: ArrayStream, runner: CollectionRunner, clock: ManualClock) -> dict:
+def _trial(stream: ArrayStream, runner: TrialRunner, clock: ManualClock) -> dict:
     stream.arrive(30)
     start = stream.frames - 1
     assert runner.key(runner.snapshot().prompted_key), runner.hint
@@ -134,7 +134,7 @@ def test_runner_runs_a_block_on_a_plain_stream_without_threads(tmp_path: Path) -
     assert "dropped_frames" not in first["flags"] + second["flags"]
     assert recorder.rows_written >= second["end_sample"]
     recorder.stop()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert [(t["gesture"], t["start_sample"], t["status"]) for t in s.journal.trials] == [
             (t["gesture"], t["start_sample"], "ok") for t in (first, second)]
         rows = slice(second["start_sample"], second["end_sample"])
@@ -164,7 +164,7 @@ def test_frames_the_recorder_lost_shift_the_rows_of_later_trials(tmp_path: Path)
     assert trial["start_sample"] == recorder.row_of(start) == start - 144
     assert "dropped_frames" not in trial["flags"]  # the trial's own frames all arrived
     recorder.stop()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert s.journal.counters["dropped"] == 144
         assert [e["lost"] for e in s.events if e["kind"] == "overrun"] == [144]
         np.testing.assert_array_equal(s.raw(trial["start_sample"], trial["end_sample"]),

@@ -15,7 +15,7 @@ from tactile_studio.devices.engine import ERROR, RECONNECTING, RUNNING
 from tactile_studio.devices.line_decoder import KINDS
 from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.errors import DeviceLost, DeviceNotFound, SettingsError
-from tactile_studio.storage import Recorder, Session
+from tactile_studio.storage import Recorder, SessionFile
 
 
 def source(seed: int = 0, n: int = 997):
@@ -74,7 +74,7 @@ def test_unplug_reconnects_with_a_gap_and_the_recording_continues(emulator, engi
     recorder.stop()
 
     rep = emulator.report()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         summary, raw = s.summary(), s.raw()
     assert summary["frames"] == rep["good"]
     assert summary["malformed_by_kind"] == rep["malformed_by_kind"]

@@ -20,8 +20,8 @@ from tactile_studio.devices.line_decoder import KINDS, LineDecoder
 from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator, array_source
 from tactile_studio.errors import UserError
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Recorder, Session, SessionWriter
-from tactile_studio.storage.frame_sources import load_source
+from tactile_studio.storage import Recorder, SessionFile, SessionWriter
+from tactile_studio.storage.recording.frame_sources import load_source
 
 
 def ramp_source():
@@ -177,7 +177,7 @@ def test_emulate_serial_restarted_on_the_same_link_is_one_exact_recording(tmp_pa
         for proc in procs:
             if proc.poll() is None:
                 proc.kill()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         summary = s.summary()
     assert all(r["interrupted"] == 0 for r in reports)
     assert summary["frames"] == sum(r["good"] for r in reports)

@@ -13,8 +13,8 @@ import pytest
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_ERROR
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.session_check import check_file
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_check import check_file
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 
 def _record(path: Path, capsys) -> Path:

@@ -9,8 +9,8 @@ import numpy as np
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
 from tactile_studio.simulate.simulator import SensorSimulator
-from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.session_compress import FILTERS, chunk_rows, read_rows
+from tactile_studio.storage import SessionFile, SessionWriter
+from tactile_studio.storage.format.session_compress import FILTERS, chunk_rows, read_rows
 
 
 def _frames(n: int) -> np.ndarray:
@@ -36,7 +36,7 @@ def test_closed_session_is_compressed_with_chunks_sized_to_the_data(tmp_path):
         assert ds.id.get_storage_size() < raw.nbytes / 1.5
         assert json.loads(f.attrs["trials_json"])[0]["gesture"] == "Poke"
     assert not list(tmp_path.glob(".*compressing"))
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert s.n_frames == 1300 and s.closed_cleanly
         assert np.array_equal(s.raw(), raw)
         assert np.array_equal(s.column("device_time"), t)
@@ -47,7 +47,7 @@ def test_closed_session_is_compressed_with_chunks_sized_to_the_data(tmp_path):
 def test_an_empty_session_closes_and_opens(tmp_path):
     p = tmp_path / "empty.h5"
     SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}).close()
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert s.n_frames == 0 and s.closed_cleanly
 
 
@@ -75,7 +75,7 @@ def test_a_file_written_the_old_uncompressed_way_still_opens(tmp_path):
     _write_old_format(p, raw, t)
     with h5py.File(p, "r") as f:
         assert f["frames/raw"].compression is None
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert s.n_frames == 500 and s.metadata["participant"] == "P09"
         assert np.array_equal(s.raw(100, 200), raw[100:200])
         assert s.summary()["rate_hz"] > 42.9
@@ -108,7 +108,7 @@ def test_background_compression_keeps_the_file_whole_and_guards_the_name(tmp_pat
     """The GUI compresses a stopped recording on a worker thread: the file is complete
     before and after, and a new writer at the same name waits so the swap cannot land on
     the newer recording."""
-    from tactile_studio.storage.session_compress import wait_for_compression
+    from tactile_studio.storage.format.session_compress import wait_for_compression
 
     raw = np.tile(_frames(2000), (10, 1))  # ~0.2 s to compress: the writer comes first
     t = 1.69e9 + np.arange(20000) / 43.0
@@ -116,13 +116,13 @@ def test_background_compression_keeps_the_file_whole_and_guards_the_name(tmp_pat
     w = SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P01"})
     w.append_frames(raw, t, t, np.arange(20000))
     w.close(background=True)
-    with Session(p) as s:  # readable at once, whichever copy is in place
+    with SessionFile(p) as s:  # readable at once, whichever copy is in place
         assert s.n_frames == 20000
     with SessionWriter(p, SHEARSENSE_6X6, {"plugin": "test"}, {"participant": "P02"},
                        overwrite=True) as w2:
         w2.append_frames(raw[:10], t[:10], t[:10], np.arange(10))
     assert wait_for_compression(timeout=30)
-    with Session(p) as s:  # the newer recording, not the older one swapped over it
+    with SessionFile(p) as s:  # the newer recording, not the older one swapped over it
         assert s.n_frames == 10 and s.metadata["participant"] == "P02"
     with h5py.File(p, "r") as f:
         assert f["frames/raw"].compression == "gzip"
@@ -130,7 +130,7 @@ def test_background_compression_keeps_the_file_whole_and_guards_the_name(tmp_pat
 
 
 def test_background_compression_ends_compressed(tmp_path):
-    from tactile_studio.storage.session_compress import wait_for_compression
+    from tactile_studio.storage.format.session_compress import wait_for_compression
 
     raw = _frames(500)
     t = 1.69e9 + np.arange(500) / 43.0

@@ -18,11 +18,11 @@ from learn_fixtures import write_participant
 from tactile_studio.cli import main
 from tactile_studio.learn.data.dataset import build_dataset, read_sessions
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage.importers import import_shearsense
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_set import is_resume_backup, select_sessions
-from tactile_studio.storage.session_writer import SessionWriter
-from tactile_studio.storage.shearsense import write_shearsense_csv
+from tactile_studio.storage.exchange.importers import import_shearsense
+from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_set import is_resume_backup, select_sessions
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir())
 
@@ -58,7 +58,7 @@ def test_resumed_session_keeps_its_id_and_a_dataset_counts_each_trial_once(tmp_p
     data.mkdir()
     path, backup, gestures = _resumed_session(data)
     assert is_resume_backup(backup) and backup.parent == data
-    with Session(path) as s, Session(backup) as b:
+    with SessionFile(path) as s, SessionFile(backup) as b:
         sid = s.session_id
         assert uuid.UUID(sid).version == 4 and s.metadata["session_id"] == sid
         assert b.metadata["session_id"] == sid  # the original and its resume: one session
@@ -124,11 +124,11 @@ def test_files_without_an_id_get_a_stable_fingerprint(tmp_path):
     a = _old_style_file(tmp_path / "a.h5", frames)
     b = _old_style_file(tmp_path / "b.h5", frames[:80])  # the same start: a backup's view
     c = _old_style_file(tmp_path / "c.h5", frames[::-1].copy())
-    with Session(a) as sa, Session(b) as sb, Session(c) as sc:
+    with SessionFile(a) as sa, SessionFile(b) as sb, SessionFile(c) as sc:
         assert not sa.metadata.get("session_id")
         assert sa.session_id == sb.session_id != sc.session_id
         assert uuid.UUID(sa.session_id).version == 5
-        again = Session(a)
+        again = SessionFile(a)
         assert again.session_id == sa.session_id  # stable across reads
         again.close()
     with h5py.File(a, "r") as f:  # reading derives the id, it never writes it
@@ -150,7 +150,7 @@ def test_the_same_csv_imported_twice_is_one_session(tmp_path):
     (tmp_path / "two").mkdir()
     [a] = import_shearsense([csv], tmp_path / "one")
     [b, c] = import_shearsense([csv, other], tmp_path / "two")
-    with Session(a) as sa, Session(b) as sb, Session(c) as sc:
+    with SessionFile(a) as sa, SessionFile(b) as sb, SessionFile(c) as sc:
         assert sa.session_id == sb.session_id != sc.session_id
         assert uuid.UUID(sa.session_id).version == 5
     ds = read_sessions([tmp_path / "one", tmp_path / "two"])
@@ -196,8 +196,8 @@ def test_a_session_imported_back_from_its_export_is_the_same_recording(tmp_path,
     """A session re-imported from its own CSV export got a new session id, so the same
     person's trials were trained on twice (the issue's 162 trials for 81)."""
     study, again = _reimported(tmp_path)
-    with Session(study / "data" / "P01.h5") as a, Session(again) as b, \
-            Session(study / "data" / "P02.h5") as c:
+    with SessionFile(study / "data" / "P01.h5") as a, SessionFile(again) as b, \
+            SessionFile(study / "data" / "P02.h5") as c:
         assert a.session_id != b.session_id  # the import's own id...
         assert a.recording == b.recording  # ...but the same frames
         assert c.recording != a.recording

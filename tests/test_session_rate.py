@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_writer import SessionWriter
 
 RATE = 43.0
 
@@ -30,7 +30,7 @@ def _session(path, outage_s: float, *, reconnect_event: bool):
 @pytest.mark.parametrize("reconnect_event", [True, False])
 def test_a_reconnect_outage_is_not_frame_time(tmp_path, reconnect_event):
     path = _session(tmp_path / "s.h5", 3.0, reconnect_event=reconnect_event)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         summary = s.summary()
     assert summary["rate_hz"] == pytest.approx(RATE, rel=1e-3)  # was 32.5 over the outage
     assert summary["duration_s"] == pytest.approx(400 / RATE, rel=1e-3)
@@ -71,7 +71,7 @@ def test_a_pause_in_an_old_shearsense_csv_is_a_gap_and_no_frame_time(tmp_path, c
     import json
 
     from tactile_studio.cli import main
-    from tactile_studio.storage.shearsense import write_shearsense_csv
+    from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
     raw = np.full((400, 180), 30000, dtype=np.uint16)
     times = 1.69e9 + np.arange(400) / RATE
@@ -101,7 +101,7 @@ def test_frames_a_device_skipped_are_at_their_row_and_no_frame_time(tmp_path):
     from waiting import wait_until
 
     from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
-    from tactile_studio.storage.recorder import Recorder
+    from tactile_studio.storage.recording.recorder import Recorder
 
     engine = AcquisitionEngine(CountingDevice(frames=300, skip_every=50), capacity=1024)
     rec = Recorder(engine, tmp_path / "skips.h5")
@@ -109,7 +109,7 @@ def test_frames_a_device_skipped_are_at_their_row_and_no_frame_time(tmp_path):
     wait_until(lambda: engine.state == FINISHED, what="the device to finish")
     rec.stop()
     engine.stop()
-    with Session(tmp_path / "skips.h5") as s:
+    with SessionFile(tmp_path / "skips.h5") as s:
         seq = s.column("seq")
         gaps = [e for e in s.events if e["kind"] == "gap"]
         summary = s.summary()

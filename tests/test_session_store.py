@@ -19,8 +19,8 @@ from plugin_fixtures import LAYOUT, CountingDevice
 from tactile_studio.cli import main
 from tactile_studio.devices.engine import FINISHED, AcquisitionEngine
 from tactile_studio.errors import SessionFileError
-from tactile_studio.storage import Recorder, Session, SessionWriter
-from tactile_studio.storage.trials import TrialRecord, TrialStatus
+from tactile_studio.storage import Recorder, SessionFile, SessionWriter
+from tactile_studio.storage.format.trials import TrialRecord, TrialStatus
 
 TESTS = Path(__file__).parent
 
@@ -43,7 +43,7 @@ def make_session(path: Path, n: int = 200) -> None:
 def test_round_trip_of_frames_journal_and_readable_copies(tmp_path):
     p = tmp_path / "s.h5"
     make_session(p)
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert s.n_frames == 200 and s.layout.name == "grid-2x2"
         assert np.array_equal(s.raw(5, 7), np.arange(20, 28, dtype=np.float32).reshape(2, 4))
         assert s.metadata["participant"] == "P07" and s.metadata["notes"] == "calm"
@@ -74,7 +74,7 @@ def test_recorder_writes_every_engine_frame_and_event(tmp_path):
         time.sleep(0.01)
     eng.stop()
     rec.stop()
-    with Session(tmp_path / "r.h5") as s:
+    with SessionFile(tmp_path / "r.h5") as s:
         raw, seq, idx = s.raw(), s.column("seq"), s.column("index")
         summary = s.summary()
     assert len(raw) == 3000 and np.array_equal(idx, np.arange(3000))
@@ -83,7 +83,7 @@ def test_recorder_writes_every_engine_frame_and_event(tmp_path):
     assert summary["malformed_by_kind"] == {"short": 6} and summary["malformed"] == 6
     kinds = [e["kind"] for e in summary["events"]]
     assert kinds[0] == "connect" and "tare" in kinds and kinds[-1] == "finished"
-    with Session(tmp_path / "r.h5") as s:
+    with SessionFile(tmp_path / "r.h5") as s:
         assert np.allclose(s.baseline(0), raw[:100].mean(axis=0))
 
 
@@ -120,13 +120,13 @@ def test_sigkill_while_recording_keeps_every_flushed_frame(tmp_path):
         deadline = time.monotonic() + 30
         while seen < 2000 and time.monotonic() < deadline:
             time.sleep(0.05)
-            with Session(p) as s:  # reading while it is being written (SWMR)
+            with SessionFile(p) as s:  # reading while it is being written (SWMR)
                 seen = s.n_frames
     finally:
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait()
     assert seen >= 2000
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert not s.closed_cleanly
         assert s.n_frames >= seen
         raw, seq = s.raw(), s.column("seq")
@@ -138,16 +138,16 @@ def test_sigkill_while_recording_keeps_every_flushed_frame(tmp_path):
 def test_bad_files_give_one_line_errors(tmp_path, capsys):
     missing = tmp_path / "missing.h5"
     with pytest.raises(SessionFileError, match="no such file"):
-        Session(missing)
+        SessionFile(missing)
     junk = tmp_path / "junk.h5"
     junk.write_bytes(b"this is not hdf5" * 100)
     with pytest.raises(SessionFileError, match="junk.h5"):
-        Session(junk)
+        SessionFile(junk)
     other = tmp_path / "other.h5"
     with h5py.File(other, "w") as f:
         f["x"] = [1, 2, 3]
     with pytest.raises(SessionFileError, match="not a Tactile Studio session"):
-        Session(other)
+        SessionFile(other)
     good = tmp_path / "good.h5"
     make_session(good, n=5000)
     truncated = tmp_path / "truncated.h5"
@@ -163,8 +163,8 @@ def test_older_trials_read_typed_and_their_file_form_is_unchanged(tmp_path, caps
     """Trials as older writers and importers stored them (no status, key or flags, an
     importer's own column) read as records with their extra column kept; info --json,
     the dataset's uids and check see the file as before."""
-    from tactile_studio.learn.data.trialinfo import session_trial_table
-    from tactile_studio.storage.session_check import check_file
+    from tactile_studio.learn.experiments.trialinfo import session_trial_table
+    from tactile_studio.storage.format.session_check import check_file
 
     p = tmp_path / "old.h5"
     w = SessionWriter(p, LAYOUT, {"plugin": "counting"},
@@ -180,7 +180,7 @@ def test_older_trials_read_typed_and_their_file_form_is_unchanged(tmp_path, caps
         w.add_trial(trial)
     w.close()
     assert check_file(p).ok
-    with Session(p) as s:
+    with SessionFile(p) as s:
         assert s.journal.trials == old
         first, second = s.trials
         assert first.usable and first.status == TrialStatus.OK and first.key is None
@@ -233,9 +233,9 @@ def test_events_at_rows_a_truncation_cut_are_kept_at_the_last_row(tmp_path):
     import numpy as np
 
     from tactile_studio.sensor.layout import SHEARSENSE_6X6
-    from tactile_studio.storage import Session
-    from tactile_studio.storage.session_check import check_file
-    from tactile_studio.storage.session_writer import SessionWriter
+    from tactile_studio.storage import SessionFile
+    from tactile_studio.storage.format.session_check import check_file
+    from tactile_studio.storage.format.session_writer import SessionWriter
     path = tmp_path / "cut.h5"
     t = np.arange(10) / 43.0
     with SessionWriter(path, SHEARSENSE_6X6, {"plugin": "simulated", "nominal_rate_hz": 43.0},
@@ -244,7 +244,7 @@ def test_events_at_rows_a_truncation_cut_are_kept_at_the_last_row(tmp_path):
         w.add_event("session_end", 5)
         w.add_event("stream_silent", 8, seconds=2.0)
         w.truncate(6)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.n_frames == 6
         assert [(e["kind"], e["frame"]) for e in s.events] == [("session_end", 5),
                                                                 ("stream_silent", 5)]
@@ -264,6 +264,6 @@ def test_a_detail_never_overwrites_a_journal_records_own_fields(tmp_path):
             w.add_trial({"type": "metadata", "index": 0, "gesture": "Poke",
                          "start_sample": 0, "end_sample": 2})
         w.add_event("note", 1, 1.0, text="kept")
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert s.layout.name == LAYOUT.name and s.trials == []
         assert [e["kind"] for e in s.events] == ["note"]

@@ -15,8 +15,8 @@ from hypothesis import strategies as st
 
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.storage import shearsense as ss
-from tactile_studio.storage.shearsense import (
+from tactile_studio.storage.exchange import shearsense as ss
+from tactile_studio.storage.exchange.shearsense import (
     ShearSenseError,
     parse_shearsense_name,
     read_shearsense_csv,

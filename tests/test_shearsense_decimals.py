@@ -11,8 +11,13 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from tactile_studio.storage import shearsense as ss
-from tactile_studio.storage.shearsense import HEADER, MAX_COUNT, N_FIELDS, read_shearsense_csv
+from tactile_studio.storage.exchange import shearsense as ss
+from tactile_studio.storage.exchange.shearsense import (
+    HEADER,
+    MAX_COUNT,
+    N_FIELDS,
+    read_shearsense_csv,
+)
 
 
 def _q(values) -> str:

@@ -105,7 +105,7 @@ def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
                      "--cache-dir", str(tmp_path / "cache")]) == 0
         runs.append(out)
     capsys.readouterr()
-    from tactile_studio.learn.evaluation.compare import compare_runs
+    from tactile_studio.learn.experiments.compare import compare_runs
     r = compare_runs(*runs)
     assert [s["k"] for s in r["shots"]] == [0, 1]
     assert r["n_matched"] == r["shots"][0]["n_matched"] == 18  # each trial once, at K = 0

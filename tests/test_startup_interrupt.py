@@ -48,7 +48,7 @@ ENTRIES = {"console-script": [EXE], "python-m": [sys.executable, "-m", "tactile_
 POINTS = [
     ("tactile_studio.cli", ["info", "missing.h5"], "starting"),
     ("tactile_studio.cli.learn", ["info", "missing.h5"], "starting"),
-    ("tactile_studio.storage.exporters", ["export", "missing.h5", "--format", "npz"],
+    ("tactile_studio.storage.exchange.exporters", ["export", "missing.h5", "--format", "npz"],
      "running"),
 ]
 

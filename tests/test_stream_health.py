@@ -13,9 +13,9 @@ from serial_helpers import received_all
 from waiting import wait_until
 
 from tactile_studio.acquisition.events import Health
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 
 class Clock:
@@ -32,7 +32,7 @@ def test_a_device_gone_silent_while_recording_is_said_once_and_recorded(tmp_path
                          reader_grace=0.05)
     emu.open()
     clock = Clock()
-    session = AcquisitionSession(clock=clock)
+    session = LiveAcquisition(clock=clock)
     session.silence_warning_s = 1.5
     heard: list[str] = []
     session.add_listener(lambda e: heard.append(e.message) if isinstance(e, Health) else None)
@@ -59,7 +59,7 @@ def test_a_device_gone_silent_while_recording_is_said_once_and_recorded(tmp_path
     finally:
         session.close()
         emu.close()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
         back = [e for e in s.events if e["kind"] == "stream_resumed"]
         assert len(silent) == 1 and silent[0]["frame"] == 30 and silent[0]["device"] == "serial"
@@ -92,7 +92,7 @@ def test_record_takes_the_silence_threshold_from_its_option(tmp_path, capsys):
         emu.close()
     err = capsys.readouterr().err
     assert err.count("sent no frames for 0.3 s") == 1, err
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
         assert len(silent) == 1 and silent[0]["seconds"] == 0.3 and silent[0]["frame"] == 30
 
@@ -131,7 +131,7 @@ def test_headless_collect_says_a_silent_stream_and_records_it(tmp_path, capsys):
     captured = capsys.readouterr()
     assert code == 0, captured.err
     assert "sent no frames for 0.03 s" in captured.err
-    with Session(captured.out.strip().splitlines()[-1]) as s:
+    with SessionFile(captured.out.strip().splitlines()[-1]) as s:
         silent = [e for e in s.events if e["kind"] == "stream_silent"]
         assert silent and silent[0]["seconds"] == 0.03
         assert [t.status for t in s.trials] == ["ok"]
@@ -144,12 +144,12 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
     looked)."""
     from console_helpers import open_console_session
 
-    from tactile_studio.acquisition.session import AcquisitionSession
+    from tactile_studio.acquisition.live_acquisition import LiveAcquisition
     from tactile_studio.ui.collect.console import CollectConsole
     from tactile_studio.ui.settings import SETTINGS_ENV
 
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
-    acq = AcquisitionSession()
+    acq = LiveAcquisition()
     acq.silence_warning_s = 0.03
     console = CollectConsole(acquisition=acq)
     qtbot.addWidget(console)
@@ -165,7 +165,7 @@ def test_the_collection_console_says_a_silent_stream(qtbot, tmp_path, monkeypatc
             console.grab().save(str(Path(shots) / "collect_console_stream_health.png"))
     finally:
         console.close_session()
-    with Session(path) as f:
+    with SessionFile(path) as f:
         assert [e for e in f.events if e["kind"] == "stream_silent"]
 
 
@@ -178,7 +178,7 @@ def test_record_names_a_serial_sensor_for_the_logbook(tmp_path, capsys, monkeypa
     import threading
 
     from tactile_studio.cli import main
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
 
     monkeypatch.setenv("TACTILE_STUDIO_DATA_DIR", str(tmp_path / "appdata"))
     raw = np.random.default_rng(3).integers(30000, 31000, (60, 180)).astype(np.uint16)
@@ -194,7 +194,7 @@ def test_record_names_a_serial_sensor_for_the_logbook(tmp_path, capsys, monkeypa
     finally:
         feeder.join(10)
         emu.close()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert s.metadata["sensor_id"] == "S-042" and s.n_frames == 40
     with Logbook() as book:
         assert "S-042" in book.sensor_ids()

@@ -20,9 +20,9 @@ from waiting import wait_until
 from tactile_studio.cli import main as cli_main
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
-from tactile_studio.learn.evaluation.evaluate import rescore_run
 from tactile_studio.learn.experiments.executors import LocalExecutor, RayExecutor, make_executor
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.experiments.sweep import run_sweep, task_gpus
 
 pytestmark = pytest.mark.slow  # real worker processes and a Ray instance

@@ -8,7 +8,7 @@ import pytest
 from fault_helpers import one_error_line
 
 from tactile_studio.cli import main
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 
 @pytest.fixture(autouse=True)

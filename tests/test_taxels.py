@@ -16,7 +16,7 @@ from tactile_studio.sensor.characterise import parse_taxels as characterise_taxe
 from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
 from tactile_studio.sensor.taxels import parse_taxel, parse_taxels, taxel_label
 from tactile_studio.sensor.wellness import parse_taxel as wellness_taxel
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 def test_names_and_indices_name_the_same_taxel():
@@ -56,7 +56,7 @@ def test_the_cli_records_with_a_named_fault_taxel(tmp_path, capsys):
                  "fault=dead_taxel", "--set", "speed=0", "--seconds", "0.5", "--out", str(out)])
     assert code == 0, capsys.readouterr().err
     capsys.readouterr()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.n_frames > 0
     code = main(["record", "--device", "simulated", "--set", "fault_taxel=Z9",
                  "--seconds", "0.5", "--out", str(tmp_path / "z9.h5")])

@@ -136,7 +136,7 @@ def test_a_run_from_before_the_touch_features_still_predicts(data):
     """A forest run folder whose recorded options lack ``features`` was trained on the
     115 basic features: live use and evaluate read it with those, not the 237."""
     from tactile_studio.learn.deploy.window_model import WindowModel
-    from tactile_studio.learn.evaluation.evaluate import rescore_run
+    from tactile_studio.learn.experiments.rescore import rescore_run
     from tactile_studio.playback import SessionPlayback
 
     out = data / "before"

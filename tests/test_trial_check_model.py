@@ -13,8 +13,8 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import TrialRecord
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trials import TrialRecord
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
 
@@ -48,7 +48,7 @@ def _mistakes(trials: list[TrialRecord]) -> list[TrialRecord]:
 def test_headless_collection_flags_the_virtual_participants_mistakes(run, tmp_path):
     proc, path = _collect(tmp_path / "on", "--qc-model", str(run))
     assert f"trial check: {run.name}/" in proc.stderr
-    with Session(path) as s:
+    with SessionFile(path) as s:
         trials = [t for t in s.trials if t.block >= 0]
         meta = s.metadata["trial_check"]
     wrong = _mistakes(trials)
@@ -66,7 +66,7 @@ def test_headless_collection_flags_the_virtual_participants_mistakes(run, tmp_pa
 
 def test_without_the_check_no_mistake_is_flagged(tmp_path):
     _, path = _collect(tmp_path / "off")
-    with Session(path) as s:
+    with SessionFile(path) as s:
         wrong = _mistakes([t for t in s.trials if t.block >= 0])
     assert wrong and not any("model_mismatch" in t.flags for t in wrong)
     assert not any(t.check for t in wrong)
@@ -104,7 +104,7 @@ def test_qc_refuses_sessions_that_share_no_gesture_with_the_model(run, tmp_path)
 
 def _forced_protocol(folder: Path) -> Path:
     """shear9 with every gesture declared ``force = "natural"`` (and no images)."""
-    from tactile_studio.storage.protocol_file import load_protocol
+    from tactile_studio.storage.format.protocol_file import load_protocol
 
     folder.mkdir(parents=True, exist_ok=True)
     lines = ['name = "force9"', "trial_s = 2.0", "blocks = 5", "free_play_s = 0.0"]
@@ -124,7 +124,7 @@ def test_light_and_off_centre_trials_are_flagged_by_the_signal_checks(tmp_path):
          "difficulty=easy"],
         capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
-    with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
+    with SessionFile(Path(proc.stdout.strip().splitlines()[-1])) as s:
         trials = [t for t in s.trials if t.block >= 0]
     light = [t for t in trials if "; light" in t.performed]
     off = [t for t in trials if "off centre" in t.performed]
@@ -173,7 +173,7 @@ def test_the_check_is_personalised_with_the_first_block(run, tmp_path):
          "--qc-personalise"], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "personalised with 9 trials of the first block" in proc.stderr
-    with Session(Path(proc.stdout.strip().splitlines()[-1])) as s:
+    with SessionFile(Path(proc.stdout.strip().splitlines()[-1])) as s:
         events = [e for e in s.events if e["kind"] == "trial_check_personalised"]
         models = {t.block: t.check["model"] for t in s.trials if t.block >= 0}
     assert len(events) == 1 and events[0]["trials"] == 9

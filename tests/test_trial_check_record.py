@@ -15,9 +15,9 @@ from learn_fixtures import make_dataset_folder, trial_record, write_participant
 
 from tactile_studio.cli import main
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_check import check_file
-from tactile_studio.storage.xdf_export import export_xdf
+from tactile_studio.storage.exchange.xdf_export import export_xdf
+from tactile_studio.storage.format.session_check import check_file
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +89,7 @@ def test_train_exclude_flagged_leaves_flagged_trials_out(tmp_path):
     make_dataset_folder(tmp_path / "data", participants=2, blocks=2, gestures=gestures)
     # P01's first trial flagged: rewritten with the flag on record
     path = tmp_path / "data" / "P01.h5"
-    with Session(path) as s:
+    with SessionFile(path) as s:
         first = s.trials[0]
     write_participant(path, "P01", 101, gestures, blocks=2, extra_trials=[
         {**first.to_dict(), "index": 0, "flags": ["no_contact"]}])

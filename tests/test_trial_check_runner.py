@@ -12,8 +12,8 @@ from collect_fixtures import do_trial, make_rig, mini_protocol, start
 from tactile_studio.protocol.randomise import block_orders
 from tactile_studio.protocol.runner_events import TrialEnded
 from tactile_studio.protocol.trial_check import TrialChecker
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trial_checks import check_problems
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trial_checks import check_problems
 
 
 def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -> None:
@@ -50,7 +50,7 @@ def test_a_flagged_verdict_reaches_trial_prompt_event_and_file(tmp_path: Path) -
         assert kept["decision"] == "keep" and kept["flags"] == t2["flags"]
     finally:
         rig.close()
-    with Session(rig.session.path) as s:
+    with SessionFile(rig.session.path) as s:
         assert s.metadata["trial_check"]["model"] == "contact-share"
         assert s.metadata["trial_check"]["not_scored"] == [order[-1]]
         assert [t.decision for t in s.trials[:1]] == ["redo"]

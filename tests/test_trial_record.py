@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from tactile_studio.storage.trials import (
+from tactile_studio.storage.format.trials import (
     TrialRecord,
     TrialStatus,
     label_order,

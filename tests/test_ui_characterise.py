@@ -8,7 +8,7 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QWizard
 
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.characterise_wizard import CharacteriseWizard
 
 QUICK = {"sequences": "normal,shear", "dwell_s": "0.5", "normal_steps": "4",
@@ -76,7 +76,7 @@ def test_abort_lifts_and_reports_what_was_done(qtbot, wizard):
     assert w.report.table.rowCount() == 1  # B2 finished before the abort
     assert "stopped" in w.report.summary.text()
     assert w.button(QWizard.FinishButton).isVisible()
-    with Session(w.out_dir / "session.h5") as session:
+    with SessionFile(w.out_dir / "session.h5") as session:
         stage = [e for e in session.events if e["kind"] == "stage"]
     assert stage[-1]["retract"] is True and stage[-1]["z"] == pytest.approx(5.0)
 
@@ -90,13 +90,13 @@ def test_the_main_window_opens_it_from_the_sensors_menu(qtbot, tmp_path, monkeyp
     qtbot.addWidget(w)
     w.show()
     assert w.panel.connect_device()
-    qtbot.waitUntil(lambda: w.controller.engine.state == "running", timeout=10000)
+    qtbot.waitUntil(lambda: w.acquisition.engine.state == "running", timeout=10000)
     menu = next(a.menu() for a in w.menuBar().actions() if a.text() == "&Sensors")
     action = next(a for a in menu.actions() if a.text().startswith("Characterise taxels"))
     action.trigger()
     wizard = w._wizard  # noqa: SLF001 - the window keeps the wizard it opened
     assert isinstance(wizard, CharacteriseWizard) and wizard.isVisible()
-    assert not w.controller.engine.running  # the wizard gets the sensor to itself
+    assert not w.acquisition.engine.running  # the wizard gets the sensor to itself
     wizard.close()
     w.shutdown()
 
@@ -147,7 +147,7 @@ def test_a_folder_holding_a_run_is_replaced_only_when_the_user_says_yes(qtbot, w
     qtbot.waitUntil(lambda: w.run_page.finished_run, timeout=90000)
     assert w.error == ""
     assert sorted(p.name for p in (out / "raw").iterdir()) == ["C3.json"]
-    with Session(out / "session.h5") as session:
+    with SessionFile(out / "session.h5") as session:
         assert [e["taxel"] for e in session.events if e["kind"] == "char_taxel"] == ["C3"]
 
 

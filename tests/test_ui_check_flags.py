@@ -13,8 +13,8 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.sensor.layout import get_layout
-from tactile_studio.storage.session_compress import wait_for_compression
-from tactile_studio.storage.session_writer import SessionWriter
+from tactile_studio.storage.format.session_compress import wait_for_compression
+from tactile_studio.storage.format.session_writer import SessionWriter
 from tactile_studio.ui.research.sessions_view import CHECKING, COLUMNS
 from tactile_studio.ui.research.window import ResearchWindow
 

@@ -17,7 +17,7 @@ from PySide6.QtWidgets import QFileDialog
 from tactile_studio.protocol.runner_events import StateChanged
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.protocol.tone import tone_pcm, tone_samples
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console import CollectConsole
 from tactile_studio.ui.collect.log import FLAGGED_BG
@@ -237,7 +237,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert mid["block"] == 1
     beeps_before = list(console.beeper.requests)
     console.close()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         assert sess.n_frames > 0 and len(sess.journal.trials) == 5
 
     # 6. a new console resumes the file and the session runs to the end
@@ -260,7 +260,7 @@ def test_session_end_to_end_with_redo_discard_break_and_resume(qtbot, env, monke
     assert console2.file_label.text().startswith("Saved:")
 
     # the file: every completed trial exactly once, with the right statuses
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         trials = sess.journal.trials
         meta = sess.metadata
         n_rows = sess.n_frames
@@ -340,7 +340,8 @@ def test_free_order_protocol_takes_any_remaining_key(qtbot, env):
         assert do_trial(qtbot, console, name, keys[name])["gesture"] == name
     qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
     assert [t["gesture"] for t in snap(console).trials] == order[::-1]
-    with Session(console.session.path if console.session else console._closed_session_path) as f:
+    with SessionFile(console.session.path if console.session
+                     else console._closed_session_path) as f:
         assert f.metadata["trial_order"] == "free"
 
 
@@ -435,8 +436,8 @@ def test_main_window_menu_opens_a_console_on_the_live_engine(qtbot, env):
     window = MainWindow(device="simulated", settings={"speed": "8", "gesture": "idle"},
                         connect=True, persist=False)
     qtbot.addWidget(window)
-    qtbot.waitUntil(lambda: window.controller.engine is not None
-                    and window.controller.engine.running, timeout=WAIT_MS)
+    qtbot.waitUntil(lambda: window.acquisition.engine is not None
+                    and window.acquisition.engine.running, timeout=WAIT_MS)
     action = next(a for a in window.menuBar().actions()[0].menu().actions()
                   if a.text().startswith("New &collection"))
     action.trigger()
@@ -447,11 +448,11 @@ def test_main_window_menu_opens_a_console_on_the_live_engine(qtbot, env):
     qtbot.keyClicks(s.participant, "P02")
     s.out_dir.setText(str(out))
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert console.engine is window.controller.engine
+    assert console.engine is window.acquisition.engine
     path = console.session.path
     console.close()
-    assert window.controller.engine.running  # the live engine is not the console's to stop
-    with Session(path) as sess:
+    assert window.acquisition.engine.running  # the live engine is not the console's to stop
+    with SessionFile(path) as sess:
         assert sess.metadata["participant"] == "P02"
     window.shutdown()
 

@@ -30,7 +30,7 @@ from test_ui_collect_keys import press
 from tactile_studio.protocol.flag_summary import block_summary, trial_reason
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.protocol.trial_check import verdict
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.collect.console import CollectConsole
 from tactile_studio.ui.collect.log import FLAGGED_BG
 from tactile_studio.ui.collect.qc_setup import QcChoice
@@ -119,7 +119,7 @@ def test_a_flagged_trial_is_redone_or_kept_from_the_banner_and_summed_up_per_blo
     assert places(console) == before
     path = console.session.path
     console.close()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         trials = sess.journal.trials
     assert [t["status"] for t in trials[:2]] == ["redone", "ok"]
     assert trials[1]["flags"] == ["no_contact"]
@@ -206,6 +206,6 @@ def test_the_console_stays_live_while_the_model_thinks(qtbot, env):  # noqa: F81
     assert snap(console).trials[0]["decision"] == "keep"
     path = console.session.path
     console.close()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         stored = sess.journal.trials[0]
     assert stored["check"]["flagged"] and stored["decision"] == "keep"

@@ -25,7 +25,7 @@ from test_ui_collect import (
 )
 
 from tactile_studio.protocol.snapshot import State
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.collect.beep import QtBeeper
 from tactile_studio.ui.collect.console import CollectConsole
 
@@ -162,7 +162,7 @@ def test_a_discarded_gesture_is_collected_again_at_the_end_of_its_block(qtbot, e
         do_trial(qtbot, console, name, keys[name])
     qtbot.waitUntil(lambda: snap(console).state == State.FINISHED, timeout=WAIT_MS)
     path = console._closed_session_path
-    with Session(path) as f:
+    with SessionFile(path) as f:
         trials = f.journal.trials
         events = [e for e in f.events if e.get("kind") == "discard"]
     assert [t["gesture"] for t in trials] == [*order, order[0]]

@@ -28,8 +28,8 @@ from test_ui_collect import (  # noqa: F401 (env)
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.protocol.snapshot import State
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
 from tactile_studio.ui.collect.qc_setup import DIALOG_KIND
 from tactile_studio.ui.collect.setup import CollectSetup
 from tactile_studio.ui.file_dialogs import start_folder
@@ -125,7 +125,7 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
             if console.redo_banner.isVisible():  # flagged (model or signal): kept
                 qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         trials, meta, events = sess.trials, sess.metadata, sess.events
     check = meta["trial_check"]
     assert check["model"] == "run/P01" and check["out_of_fold"] is True
@@ -214,7 +214,7 @@ def test_a_pilot_with_mistakes_flags_them_redo_collects_again_and_keep_is_stored
             decided.setdefault("keep", last.index)
             qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         trials = sess.trials
     wrong = [t for t in trials if t.performed.split(";")[0] != t.gesture]
     seen = [(t.gesture, t.performed, t.flags, t.status) for t in trials]

@@ -16,7 +16,7 @@ from tactile_studio.acquisition import LiveStatus, format_malformed
 from tactile_studio.devices.discovery import list_serial_ports
 from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
 from tactile_studio.plugins import ble_device
-from tactile_studio.storage.frame_sources import simulated_source
+from tactile_studio.storage.recording.frame_sources import simulated_source
 from tactile_studio.ui.device_discovery import DiscoverField
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
@@ -126,8 +126,8 @@ def test_serial_emulator_typed_port_connects_counts_bad_lines_and_reconnects(
         qtbot.waitUntil(lambda: not field.is_scanning(), timeout=10000)
         assert field.text() == emu.port  # the automatic scan left the typed text alone
         qtbot.mouseClick(w.panel.connect_button, Qt.MouseButton.LeftButton)
-        engine = w.controller.engine
-        assert engine is not None and w.controller.device_name == "serial"
+        engine = w.acquisition.engine
+        assert engine is not None and w.acquisition.device_name == "serial"
 
         emu.send_lines(240)
         rep = emu.report()

@@ -38,7 +38,7 @@ def names(w: MainWindow) -> tuple[list[str], list[str]]:
 
 
 def live(w: MainWindow) -> bool:
-    return w.controller.engine is not None and w.controller.engine.running
+    return w.acquisition.engine is not None and w.acquisition.engine.running
 
 
 @pytest.mark.parametrize("kind", ["wellness", "calibration", "characterisation"])
@@ -58,7 +58,7 @@ def test_a_wizard_gives_the_live_view_back_as_it_found_it(qtbot, window, kind):
         assert wizard.run_page.cancel_button.text() == "Cancel wellness check"
     wizard.reject()
     qtbot.waitUntil(lambda: live(w), timeout=10000)  # connected again, same device
-    assert w.controller.device_name == "simulated" and names(w) == NAMES
+    assert w.acquisition.device_name == "simulated" and names(w) == NAMES
     qtbot.waitUntil(lambda: w._shown is not None, timeout=10000)
 
 
@@ -98,7 +98,7 @@ def test_characterisation_wizard_defaults(qtbot, tmp_path):
 def test_characterisation_wizard_saves_the_calibration_like_the_cli(qtbot, tmp_path):
     from test_ui_characterise import fill_plan
 
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
     w = CharacteriseWizard(str(tmp_path / "run"))
     qtbot.addWidget(w)
     w.show()
@@ -149,7 +149,7 @@ def test_a_snapshot_of_the_demo_waits_for_its_first_touch(qtbot):
 
 
 def test_the_sensors_window_counts_hours_from_zero_without_a_prefix(qtbot):
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
     from tactile_studio.ui.sensors_window import SensorsWindow
     with Logbook() as book:
         book.ensure_sensor("NEW-1")

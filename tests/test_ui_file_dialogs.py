@@ -139,7 +139,7 @@ def test_record_and_sweep_folders_carry_over_from_their_former_keys(qtbot, tmp_p
     not forget them."""
     from PySide6.QtCore import QSettings
 
-    from tactile_studio.acquisition import AcquisitionSession
+    from tactile_studio.acquisition import LiveAcquisition
     from tactile_studio.ui.device_panel import DevicePanel
 
     recordings, sweeps = tmp_path / "recordings", tmp_path / "sweeps"
@@ -154,7 +154,7 @@ def test_record_and_sweep_folders_carry_over_from_their_former_keys(qtbot, tmp_p
     from tactile_studio.ui.file_dialogs import start_folder
     assert start_folder("live_run") == str(sweeps)
     assert start_folder("live_calibration") == str(recordings)
-    panel = DevicePanel(AcquisitionSession(compress_in_background=True))
+    panel = DevicePanel(LiveAcquisition(compress_in_background=True))
     qtbot.addWidget(panel)
     dialogs.answer = ""
     assert panel.ask_record_path() is None

@@ -8,7 +8,7 @@ from PySide6.QtWidgets import QWizard
 
 from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
 from tactile_studio.sensor.wellness import parse_taxel
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 from tactile_studio.ui.wellness_wizard import WellnessWizard
 
 FAULTS = [("none", "B2", None), ("dead_taxel", "E5", "E5"), ("stuck_channel", "C3", "C3"),
@@ -163,7 +163,7 @@ def test_sensors_window_shows_the_trend(qtbot):
 
 def test_main_window_sensor_id_goes_into_recordings_and_menus_open(qtbot, tmp_path,
                                                                    monkeypatch):
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
     from tactile_studio.ui.main_window import MainWindow
     from tactile_studio.ui.settings import SETTINGS_ENV
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
@@ -172,17 +172,17 @@ def test_main_window_sensor_id_goes_into_recordings_and_menus_open(qtbot, tmp_pa
     qtbot.addWidget(w)
     w.show()
     assert w.panel.connect_device()
-    qtbot.waitUntil(lambda: w.controller.engine.state == "running", timeout=10000)
+    qtbot.waitUntil(lambda: w.acquisition.engine.state == "running", timeout=10000)
     w.panel.sensor_box.setCurrentText("array-007")
     assert w.panel.start_recording(str(tmp_path / "s.h5"))
-    qtbot.waitUntil(lambda: w.controller.recorder.rows_written > 50, timeout=10000)
+    qtbot.waitUntil(lambda: w.acquisition.recorder.rows_written > 50, timeout=10000)
     w.panel.stop_recording()
-    with Session(tmp_path / "s.h5") as s:
+    with SessionFile(tmp_path / "s.h5") as s:
         assert s.metadata["sensor_id"] == "array-007"
     with Logbook() as book:
         assert book.hours("array-007") > 0
     wizard = w.open_health("wellness")
-    assert not w.controller.engine.running  # the wizard gets the device to itself
+    assert not w.acquisition.engine.running  # the wizard gets the device to itself
     assert wizard.setup.device == "simulated" and wizard.setup.settings["rate"] == "200"
     wizard.done(0)
     sensors = w.open_sensors()

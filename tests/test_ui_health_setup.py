@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 from PySide6.QtWidgets import QWizard
 
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 LIVE_VIEW = {"speed": 1.0, "seed": 4, "gesture": "auto"}  # what the main window passes
 

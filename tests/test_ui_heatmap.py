@@ -242,7 +242,7 @@ def test_colour_scheme_persists_and_the_live_readout_still_works(qtbot):
     assert w2.heatmap.color_scheme == "diverging"
     assert w2.heatmap.scheme_box.currentData() == "diverging"
     assert w2.panel.connect_device()
-    engine = w2.controller.engine
+    engine = w2.acquisition.engine
     qtbot.waitUntil(lambda: engine.baseline is not None, timeout=15000)
     qtbot.waitUntil(lambda: w2.heatmap.image_data() is not None, timeout=5000)
     w2.hover_taxel("C4")

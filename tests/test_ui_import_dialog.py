@@ -15,7 +15,7 @@ from csv_fixtures import labelled_csv
 from fault_helpers import file_size_limit
 
 from tactile_studio.errors import UserError
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.ui.background_job import BackgroundJob
 from tactile_studio.ui.research.window import ResearchWindow
 
@@ -59,7 +59,7 @@ def test_import_from_the_workspace_names_gestures_and_lists_the_sessions(window,
     assert "gesture keys (from protocol cost14): g=grab, h=hit" in summary
     assert "participants: P01, P02, P1 -> P01" in summary
     assert "key 'z' (code 122) has no gesture name" in summary
-    with Session(out / "P1_PILLOW.h5") as s:
+    with SessionFile(out / "P1_PILLOW.h5") as s:
         assert [t.gesture for t in s.trials] == ["rub", "pat", "z"]
         assert s.metadata["participant"] == "P01" and s.metadata["condition"] == "PILLOW"
     # the imported folder is in the Sessions tab, ready to train on
@@ -149,7 +149,7 @@ def test_a_disk_filling_up_part_way_says_which_sessions_were_kept(window, qtbot,
     assert text.endswith("that session was removed, the 1 session(s) imported before it "
                          "are kept"), text
     assert sorted(p.name for p in out.iterdir()) == ["P01_FLAT.h5"]
-    with Session(out / "P01_FLAT.h5") as s:
+    with SessionFile(out / "P01_FLAT.h5") as s:
         assert s.closed_cleanly
     assert window.sessions.folders == [str(out)] and len(window.sessions.rows) == 1
     assert dialog.import_button.isEnabled()

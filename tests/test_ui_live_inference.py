@@ -12,7 +12,7 @@ import pytest
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.research.menu import live_inference_dock
 from tactile_studio.ui.settings import SETTINGS_ENV
@@ -68,14 +68,14 @@ def test_live_inference_follows_the_simulated_gesture(run, qtbot, tmp_path, monk
         w.grab().save(str(SHOTS / "research_live_inference.png"))
         # record while the gesture changes: the prediction changes and is recorded
         path = tmp_path / "rec.h5"
-        w.controller.connect("simulated", {"rate": "43", "gesture": "Poke", "difficulty": "easy"})
-        w.controller.start_recording(path)
+        w.acquisition.connect("simulated", {"rate": "43", "gesture": "Poke", "difficulty": "easy"})
+        w.acquisition.start_recording(path)
         qtbot.waitUntil(lambda: panel.inference is not None
-                        and panel.inference.engine is w.controller.engine
+                        and panel.inference.engine is w.acquisition.engine
                         and panel.inference.count >= 14, timeout=40_000)
         assert panel.top() == "Poke", panel.inference.latest.top3
-        w.controller.stop_recording()
-        with Session(path) as s:
+        w.acquisition.stop_recording()
+        with SessionFile(path) as s:
             preds = [e for e in s.events if e.get("kind") == "prediction"]
         assert preds and preds[-1]["gesture"] == "Poke"
         assert all(e["gesture"] in GESTURES and e["run"] == "run" for e in preds)

@@ -20,7 +20,7 @@ from tactile_studio import cli
 from tactile_studio.devices.contract import DevicePlugin, FrameBatch
 from tactile_studio.errors import DeviceNotFound
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.ui.app import close_on_signals, ensure_app
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
@@ -49,7 +49,7 @@ def _tare_events(engine) -> int:
 def test_live_view_end_to_end(qtbot, window, tmp_path, monkeypatch):
     w = window
     assert w.panel.connect_device()
-    engine = w.controller.engine
+    engine = w.acquisition.engine
     qtbot.waitUntil(lambda: engine.state == "running" and engine.baseline is not None,
                     timeout=15000)
 
@@ -96,11 +96,11 @@ def test_live_view_end_to_end(qtbot, window, tmp_path, monkeypatch):
     path = tmp_path / "live.h5"
     monkeypatch.setattr(w.panel, "ask_record_path", lambda: str(path))
     qtbot.mouseClick(w.panel.record_button, Qt.MouseButton.LeftButton)
-    assert w.controller.recorder is not None
-    qtbot.waitUntil(lambda: w.controller.status().recorded_frames > 20, timeout=10000)
+    assert w.acquisition.recorder is not None
+    qtbot.waitUntil(lambda: w.acquisition.status().recorded_frames > 20, timeout=10000)
     qtbot.mouseClick(w.panel.record_button, Qt.MouseButton.LeftButton)
-    assert w.controller.recorder is None and not w.panel.record_button.isChecked()
-    with Session(path) as s:
+    assert w.acquisition.recorder is None and not w.panel.record_button.isChecked()
+    with SessionFile(path) as s:
         assert s.n_frames > 20 and s.closed_cleanly
         assert s.metadata["device"]["plugin"] == "simulated"
 
@@ -119,7 +119,7 @@ def test_bad_setting_shows_one_line_error_and_blocks_connect(qtbot, window):
     assert "\n" not in w.panel.error_text()
     assert not w.panel.connect_button.isEnabled()
     assert w.panel._fields["rate"].editor.property("invalid") is True
-    assert not w.panel.connect_device() and w.controller.engine is None
+    assert not w.panel.connect_device() and w.acquisition.engine is None
     w.panel._fields["rate"].set_text("0")
     assert "below the minimum" in w.panel.error_text()
     w.panel._fields["rate"].set_text("200")
@@ -167,7 +167,7 @@ def test_plugin_error_is_shown_and_the_app_lives_on(qtbot, nosensor):
     qtbot.addWidget(w)
     w.show()
     assert w.panel.connect_device()
-    qtbot.waitUntil(lambda: w.controller.engine.state == "error", timeout=5000)
+    qtbot.waitUntil(lambda: w.acquisition.engine.state == "error", timeout=5000)
     w.refresh_status()
     assert w.panel.error_text() == "nosensor: no sensor on /dev/ttyFAKE"
     assert "no sensor on /dev/ttyFAKE" in w.status.state.text()
@@ -183,7 +183,7 @@ def test_plugin_error_is_shown_and_the_app_lives_on(qtbot, nosensor):
 def test_settings_persist_across_windows(qtbot, tmp_path):
     w1 = MainWindow()  # nothing saved yet: the default device, not connected
     qtbot.addWidget(w1)
-    assert w1.panel.device_name() == "simulated" and w1.controller.engine is None
+    assert w1.panel.device_name() == "simulated" and w1.acquisition.engine is None
     w1.panel._fields["rate"].set_text("123")
     w1.panel._fields["noise"].set_text("7.5")
     w1.set_virtual(True)
@@ -247,10 +247,10 @@ def test_a_signal_closes_the_window_and_finishes_its_recording(qtbot, window, tm
     assert window.panel.connect_device()
     path = tmp_path / "killed.h5"
     assert window.panel.start_recording(str(path))
-    qtbot.waitUntil(lambda: window.controller.status().recorded_frames > 20, timeout=10000)
+    qtbot.waitUntil(lambda: window.acquisition.status().recorded_frames > 20, timeout=10000)
     with close_on_signals(ensure_app()):
         os.kill(os.getpid(), sig)
         qtbot.waitUntil(lambda: not window.isVisible(), timeout=10000)
-    assert window.controller.recorder is None and not window.controller.engine.running
-    with Session(path) as s:
+    assert window.acquisition.recorder is None and not window.acquisition.engine.running
+    with SessionFile(path) as s:
         assert s.closed_cleanly and s.n_frames > 20

@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 from waiting import wait_until
 
-from tactile_studio.acquisition import AcquisitionSession
-from tactile_studio.storage import Session
+from tactile_studio.acquisition import LiveAcquisition
+from tactile_studio.storage import SessionFile
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
 
@@ -20,7 +20,7 @@ def isolated_settings(tmp_path, monkeypatch):
 
 
 def test_recording_stops_with_the_stream_and_the_button_follows(qtbot, tmp_path) -> None:
-    src = AcquisitionSession()
+    src = LiveAcquisition()
     src.open("simulated", {"rate": "400", "speed": "8"})
     rec = src.start_recording(tmp_path / "src.h5")
     src.start()
@@ -32,15 +32,15 @@ def test_recording_stops_with_the_stream_and_the_button_follows(qtbot, tmp_path)
     changes: list[str] = []
     w.panel.recordingChanged.connect(changes.append)
     try:
-        qtbot.waitUntil(lambda: w.controller.status().state == "running", timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.status().state == "running", timeout=WAIT_MS)
         assert w.panel.start_recording(str(tmp_path / "copy.h5"))
         assert w.panel.record_button.isChecked()
-        qtbot.waitUntil(lambda: w.controller.status().state == "finished", timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.status().state == "finished", timeout=WAIT_MS)
         qtbot.waitUntil(lambda: not w.panel.record_button.isChecked(), timeout=WAIT_MS)
-        assert w.controller.recorder is None
+        assert w.acquisition.recorder is None
         assert w.panel.record_label.text() == f"Saved {tmp_path / 'copy.h5'}"
         assert changes == [str(tmp_path / "copy.h5"), ""]
     finally:
         w.shutdown()
-    with Session(tmp_path / "copy.h5") as s:
+    with SessionFile(tmp_path / "copy.h5") as s:
         assert s.closed_cleanly and s.n_frames > 0

@@ -56,7 +56,7 @@ def test_prompted_touches_personalise_the_live_model(run, qtbot, tmp_path, monke
         # an rf trained without --adapt has no statistics to take from a recording
         assert not dialog.recording_button.isEnabled()
         dialog.k.setValue(2)
-        engine = w.controller.engine
+        engine = w.acquisition.engine
         qtbot.waitUntil(lambda: engine.baseline is not None, timeout=20_000)
         assert dialog.start()
         p = dialog.prompts

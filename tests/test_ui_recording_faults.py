@@ -10,7 +10,7 @@ from console_helpers import open_console_session
 from fault_helpers import file_size_limit
 
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.ui.collect.console import CollectConsole
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV
@@ -30,20 +30,20 @@ def test_main_window_stops_the_recording_and_shows_a_banner(qtbot, tmp_path):
     w.show()
     out = tmp_path / "full.h5"
     try:
-        qtbot.waitUntil(lambda: w.controller.status().state == "running", timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.status().state == "running", timeout=WAIT_MS)
         with file_size_limit(2_000_000):
             assert w.panel.start_recording(str(out))
-            qtbot.waitUntil(lambda: w.controller.recorder is None, timeout=WAIT_MS)
+            qtbot.waitUntil(lambda: w.acquisition.recorder is None, timeout=WAIT_MS)
         assert not w.panel.record_button.isChecked()
         assert w.status.fault.isVisible()
         text = w.status.fault.text()
         assert str(out) in text and "file too large" in text and "kept" in text
         assert "file too large" in w.panel.error_label.toolTip() + w.panel.error_label.text()
         w.grab().save(str(tmp_path / "main_window_fault.png"))
-        assert w.controller.status().state == "running"  # the live view goes on
+        assert w.acquisition.status().state == "running"  # the live view goes on
     finally:
         w.shutdown()
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.n_frames > 0 and s.cut_short
 
 
@@ -63,7 +63,7 @@ def test_collection_console_ends_the_session_with_a_banner(qtbot, tmp_path):
         console.grab().save(str(tmp_path / "console_fault.png"))
     finally:
         console.close_session()
-    with Session(path) as f:
+    with SessionFile(path) as f:
         assert f.n_frames > 0 and f.cut_short
 
 
@@ -80,11 +80,11 @@ def test_main_window_says_the_device_was_lost_when_the_recording_ends(qtbot, tmp
     w.show()
     out = tmp_path / "lost.h5"
     try:
-        qtbot.waitUntil(lambda: w.controller.status().state == "running", timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.status().state == "running", timeout=WAIT_MS)
         assert w.panel.start_recording(str(out))
-        qtbot.waitUntil(lambda: w.controller.recorder.rows_written >= 50, timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.recorder.rows_written >= 50, timeout=WAIT_MS)
         emu.close()  # unplugged for good
-        qtbot.waitUntil(lambda: w.controller.status().state == "reconnecting", timeout=WAIT_MS)
+        qtbot.waitUntil(lambda: w.acquisition.status().state == "reconnecting", timeout=WAIT_MS)
         assert not w.status.fault.isVisible()  # still trying: the recording goes on
         w.panel.stop_recording()
         assert w.status.fault.isVisible()
@@ -114,5 +114,5 @@ def test_collection_console_ends_the_session_when_its_device_ends(qtbot, tmp_pat
         assert console.runner.snapshot().state == "aborted"
     finally:
         console.close_session()
-    with Session(path) as f:
+    with SessionFile(path) as f:
         assert [e["kind"] for e in f.events].count("abort") == 1

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from tactile_studio.devices.serial_emulator import SerialEmulator, array_source
-from tactile_studio.storage import Session
-from tactile_studio.storage.session_compress import wait_for_compression
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.format.session_compress import wait_for_compression
 from tactile_studio.streams.remote_control import send_commands
 from tactile_studio.ui.main_window import MainWindow
 from tactile_studio.ui.settings import SETTINGS_ENV, app_settings
@@ -38,7 +38,7 @@ def test_a_script_records_through_the_window_and_the_port_is_shown(qtbot, tmp_pa
         assert not toggle.action.isChecked() and toggle.control is None  # off by default
         assert not w.status.remote.isVisible()
         assert w.panel.connect_device()
-        qtbot.waitUntil(lambda: w.controller.engine.frames > 20, timeout=15000)
+        qtbot.waitUntil(lambda: w.acquisition.engine.frames > 20, timeout=15000)
         toggle.action.setChecked(True)
         port = toggle.control.port
         assert w.status.remote.text() == f"remote :{port}" and w.status.remote.isVisible()
@@ -48,13 +48,13 @@ def test_a_script_records_through_the_window_and_the_port_is_shown(qtbot, tmp_pa
         client.start()
         qtbot.waitUntil(lambda: not client.is_alive(), timeout=15000)
         assert replies[:3] == ["OK", "OK", "OK"] and replies[3].startswith("error: unknown")
-        assert w.controller.recording
-        rec = w.controller.recorder
+        assert w.acquisition.recording
+        rec = w.acquisition.recorder
         qtbot.waitUntil(lambda: rec.rows_written > 20, timeout=10000)
         stop = threading.Thread(target=lambda: replies.extend(send_commands(["stop"], port)))
         stop.start()
         qtbot.waitUntil(lambda: not stop.is_alive(), timeout=15000)
-        assert replies[-1] == "OK" and not w.controller.recording
+        assert replies[-1] == "OK" and not w.acquisition.recording
         toggle.action.setChecked(False)
         assert toggle.control is None and not w.status.remote.isVisible()
         assert str(app_settings().value("remote_control/enabled")) == "false"
@@ -62,7 +62,7 @@ def test_a_script_records_through_the_window_and_the_port_is_shown(qtbot, tmp_pa
         w.shutdown()
     path = tmp_path / "rec/sub-P05/sub-P05_task-pat_run-002_tactile.h5"
     wait_for_compression(path)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.metadata["participant"] == "P05" and s.metadata["task"] == "pat"
         assert [e["text"] for e in s.events if e["kind"] == "marker"] == ["go"]
 
@@ -76,17 +76,17 @@ def test_a_silent_device_shows_a_warning_in_the_status_bar(qtbot, tmp_path):
     qtbot.addWidget(w)
     w.show()
     try:
-        w.controller.silence_warning_s = 0.3
+        w.acquisition.silence_warning_s = 0.3
         assert w.panel.connect_device()
-        w.controller.start_recording(tmp_path / "s.h5")
+        w.acquisition.start_recording(tmp_path / "s.h5")
         emu.send_lines(120)
-        qtbot.waitUntil(lambda: w.controller.engine.frames >= 120, timeout=10000)
+        qtbot.waitUntil(lambda: w.acquisition.engine.frames >= 120, timeout=10000)
         qtbot.waitUntil(lambda: w.status.warning.isVisible(), timeout=10000)
         assert "serial sent no frames for 0.3 s" in w.status.warning.text()
         w.grab().save(str(tmp_path / "warning.png"))
         emu.send_lines(20)
         qtbot.waitUntil(lambda: not w.status.warning.isVisible(), timeout=10000)
-        w.controller.stop_recording()
+        w.acquisition.stop_recording()
     finally:
         w.shutdown()
         emu.close()
@@ -109,7 +109,7 @@ def test_switching_the_remote_control_off_ends_a_connected_client(qtbot, tmp_pat
     try:
         toggle = w.remote_control
         assert w.panel.connect_device()
-        qtbot.waitUntil(lambda: w.controller.engine.frames > 5, timeout=15000)
+        qtbot.waitUntil(lambda: w.acquisition.engine.frames > 5, timeout=15000)
         toggle.action.setChecked(True)
         client = socket.create_connection(("127.0.0.1", toggle.control.port), timeout=WAIT_S)
         replies: list[bytes] = []
@@ -122,21 +122,21 @@ def test_switching_the_remote_control_off_ends_a_connected_client(qtbot, tmp_pat
         thread = threading.Thread(target=script)
         thread.start()
         qtbot.waitUntil(lambda: not thread.is_alive(), timeout=15000)
-        assert replies == [b"OK\n", b"OK\n"] and w.controller.recording
+        assert replies == [b"OK\n", b"OK\n"] and w.acquisition.recording
         toggle.action.setChecked(False)
         assert read_to_end(client) == b""  # closed, not left waiting
         client.close()
-        assert w.controller.recording  # the window's recording is the window's
+        assert w.acquisition.recording  # the window's recording is the window's
         toggle.action.setChecked(True)
         again: list[str] = []
         thread = threading.Thread(target=lambda: again.extend(
             send_commands(["stop"], toggle.control.port)))
         thread.start()
         qtbot.waitUntil(lambda: not thread.is_alive(), timeout=15000)
-        assert again == ["OK"] and not w.controller.recording
+        assert again == ["OK"] and not w.acquisition.recording
     finally:
         w.shutdown()
     path = tmp_path / "rec/sub-P3/sub-P3_tactile.h5"
     wait_for_compression(path)
-    with Session(path) as s:
+    with SessionFile(path) as s:
         assert s.metadata["participant"] == "P3"

@@ -223,7 +223,7 @@ def test_fourteen_long_gesture_names_stay_readable(window, workspace):
     size, and the screenshot is kept for review."""
     import numpy as np
 
-    from tactile_studio.learn.evaluation.trialpreds import RunPredictions, TrialPrediction
+    from tactile_studio.learn.experiments.trialpreds import RunPredictions, TrialPrediction
 
     names = [f"{g} ({k})" for k, g in enumerate(
         ["Back & Forth Rub", "Circular Stroke", "Constant Touch", "Heavy Pat", "Isometric Rub",

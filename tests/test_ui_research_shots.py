@@ -14,10 +14,10 @@ from learn_fixtures import make_dataset_folder
 from PySide6.QtCore import Qt
 
 from tactile_studio.learn.data.dataset import read_sessions
-from tactile_studio.learn.evaluation.compare import compare_runs
-from tactile_studio.learn.evaluation.confusion import ConfusionModel
-from tactile_studio.learn.evaluation.trialpreds import load_predictions
+from tactile_studio.learn.experiments.compare import compare_runs
+from tactile_studio.learn.experiments.confusion import ConfusionModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.trialpreds import load_predictions
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.runs_view import COLUMNS, RunsView

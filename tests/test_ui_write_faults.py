@@ -85,7 +85,7 @@ def test_record_button_into_an_unwritable_place_shows_one_line(qtbot, blocker):
     assert w.panel.connect_device()
     assert not w.panel.start_recording(str(blocker / "s.h5"))
     assert w.panel.error_text() == f"{blocker}/s.h5: cannot write (Not a directory)"
-    assert w.controller.recorder is None
+    assert w.acquisition.recorder is None
     w.shutdown()
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 from tactile_studio.errors import EXIT_CANCELLED
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=["ctrl-c", "sigterm"])
@@ -39,5 +39,5 @@ def test_record_stopped_early_exits_130_keeping_the_file(tmp_path: Path, sig) ->
     assert proc.returncode == EXIT_CANCELLED, stderr
     assert f"wrote {out}:" in stdout and "Traceback" not in stderr
     assert stderr.strip().splitlines()[-1] == "tactile-studio: cancelled; finished work was kept"
-    with Session(out) as s:
+    with SessionFile(out) as s:
         assert s.closed_cleanly and s.n_frames > 0

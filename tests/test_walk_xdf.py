@@ -13,15 +13,15 @@ import numpy as np
 import pyxdf
 
 from tactile_studio.cli import main
-from tactile_studio.storage import Session
-from tactile_studio.storage.session_check import check_file
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.format.session_check import check_file
 
 
-def _rows(s: Session) -> list[tuple]:
+def _rows(s: SessionFile) -> list[tuple]:
     return [(t.gesture, t.start_sample, t.end_sample, t.status) for t in s.trials]
 
 
-def _events(s: Session) -> list[tuple]:
+def _events(s: SessionFile) -> list[tuple]:
     return [(e["kind"], e.get("frame")) for e in s.events
             if e["kind"] in ("session_start", "block_start", "session_end")]
 
@@ -36,7 +36,7 @@ def test_a_speed_0_collection_round_trips_through_xdf_with_its_trials(tmp_path, 
     (xdf,) = sorted((tmp_path / "x").glob("*.xdf"))
     streams, _ = pyxdf.load_xdf(str(xdf), dejitter_timestamps=False)
     frames = next(s for s in streams if s["info"]["type"][0] == "Tactile")
-    with Session(src) as a:
+    with SessionFile(src) as a:
         dev = a.column("device_time")
         # on the device's clock: the stamps advance by the frame period, not in bursts
         np.testing.assert_allclose(np.diff(frames["time_stamps"]), np.diff(dev), atol=1e-6)
@@ -44,7 +44,7 @@ def test_a_speed_0_collection_round_trips_through_xdf_with_its_trials(tmp_path, 
     (back,) = sorted((tmp_path / "in").glob("*.h5"))
     result = check_file(back)
     assert result.ok, result.violations
-    with Session(src) as a, Session(back) as b:
+    with SessionFile(src) as a, SessionFile(back) as b:
         assert b.n_frames == a.n_frames and len(a.trials) >= 9
         assert _rows(b) == _rows(a)
         assert _events(b) == _events(a)

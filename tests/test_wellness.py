@@ -17,7 +17,7 @@ from tactile_studio.jobs import CancelToken
 from tactile_studio.plugins.simulated import SimulatedSensor
 from tactile_studio.sensor.layout import SHEARSENSE_6X6 as LAY
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS, parse_taxel, taxel_label
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 
 @pytest.fixture(autouse=True)
@@ -216,13 +216,13 @@ def test_a_sensor_varying_like_real_ones_passes_once_calibrated(seed, tmp_path):
 
 
 def test_every_event_of_a_health_run_is_a_declared_type():
-    """A whole check through HealthRun (as the wizard runs it): each event it queues is
+    """A whole check through HealthCheck (as the wizard runs it): each event it queues is
     one of health/events.py's types, the bench's steps and the run's own alike."""
     from tactile_studio.health.events import CheckDone, Phase, Progress
-    from tactile_studio.health.runner import HealthRun
+    from tactile_studio.health.health_check import HealthCheck
 
-    run = HealthRun("simulated", {"speed": 0, "difficulty": "easy", "seed": 3},
-                    WellnessSpec("sim-3", 200.0, ("B2",)), auto=True).start()
+    run = HealthCheck("simulated", {"speed": 0, "difficulty": "easy", "seed": 3},
+                      WellnessSpec("sim-3", 200.0, ("B2",)), auto=True).start()
     assert run.join(120), "the check did not end"
     seen = run.events()
     assert run.error is None, run.error

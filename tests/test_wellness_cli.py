@@ -10,7 +10,7 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_CHECK_FAIL, EXIT_CHECK_WARN
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 SIM = ["--device", "simulated", "--set", "speed=0"]
 

@@ -9,9 +9,9 @@ import pytest
 
 from tactile_studio.cli import main
 from tactile_studio.health.gate import WellnessRequired, admit, wellness_status
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.protocol_file import ProtocolError, load_protocol
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.logbook import Logbook
+from tactile_studio.storage.format.protocol_file import ProtocolError, load_protocol
+from tactile_studio.storage.format.session_file import SessionFile
 
 PROTO = """
 name = "mini1"
@@ -95,7 +95,7 @@ def test_cli_collect_requires_a_check_or_an_override(capsys, proto, tmp_path):
     assert list((tmp_path / "a").glob("*.h5")) == []
     code, out, err = _collect(capsys, proto, tmp_path / "b", "--wellness-override", "no weight")
     assert code == 0, err
-    with Session(out.strip().splitlines()[-1]) as s:
+    with SessionFile(out.strip().splitlines()[-1]) as s:
         w = s.metadata["wellness"]
         assert w["override"] == "no weight" and w["check_id"] is None
         assert s.metadata["sensor_id"] == "sim-5"
@@ -106,7 +106,7 @@ def test_cli_collect_requires_a_check_or_an_override(capsys, proto, tmp_path):
     code, out, err = _collect(capsys, proto, tmp_path / "c")
     assert code == 0, err
     assert "Sensor sim-5: last check PASS" in err
-    with Session(out.strip().splitlines()[-1]) as s:
+    with SessionFile(out.strip().splitlines()[-1]) as s:
         w = s.metadata["wellness"]
         assert w["verdict"] == "pass" and w["override"] is None and w["check_id"] == 1
 
@@ -135,7 +135,7 @@ def test_console_asks_for_an_override_note(qtbot, proto, tmp_path, monkeypatch):
     assert "Sensor sim-9: last check FAIL" in console.file_label.text()
     path = console.session.path
     console.close_session()
-    with Session(path) as sess:
+    with SessionFile(path) as sess:
         assert sess.metadata["wellness"]["override"] == "re-checked E5 by hand"
         assert sess.metadata["wellness"]["verdict"] == "fail"
         assert sess.metadata["sensor_id"] == "sim-9"

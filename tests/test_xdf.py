@@ -16,9 +16,9 @@ import pyxdf
 from tactile_studio.cli import main
 from tactile_studio.sensor.channels import RAW, frame_channels
 from tactile_studio.sensor.layout import SHEARSENSE_6X6
-from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.aux_signals import AuxSignal
-from tactile_studio.storage.xdf_export import export_xdf
+from tactile_studio.storage import SessionFile, SessionWriter
+from tactile_studio.storage.exchange.xdf_export import export_xdf
+from tactile_studio.storage.format.aux_signals import AuxSignal
 
 RATE = 43.0
 T0 = 1.7e9
@@ -114,7 +114,7 @@ def test_export_xdf_without_lsl_is_on_host_time_and_the_cli_writes_it(tmp_path, 
     streams, _ = load(out / "plain.xdf", dejitter_timestamps=False)
     np.testing.assert_allclose(streams["TactileStudio-simulated"]["time_stamps"], host, atol=1e-6)
     assert set(streams) == {"TactileStudio-simulated", "TactileStudio-simulated-markers"}
-    with Session(src) as s:
+    with SessionFile(src) as s:
         assert s.aux_signals() == []
 
 
@@ -201,7 +201,7 @@ def test_a_foreign_xdf_imports_with_clocks_markers_aux_and_bids_names(tmp_path, 
     out = tmp_path / "out"
     rc = main(["import", "xdf", str(src), "--out", str(out), "--participant", "IGNORED"])
     assert rc == 0, capsys.readouterr().err
-    with Session(out / "sub-P07_ses-S2_task-touch_run-1.h5") as s:
+    with SessionFile(out / "sub-P07_ses-S2_task-touch_run-1.h5") as s:
         m = s.metadata
         assert (m["participant"], m["session_label"], m["task"], m["run"]) == (
             "P07", "S2", "touch", "1")
@@ -238,7 +238,7 @@ def test_our_own_xdf_imports_back_with_trials_events_and_aux(tmp_path, capsys):
     xdf = export_xdf(src, tmp_path)
     out = tmp_path / "out"
     assert main(["import", "xdf", str(xdf), "--out", str(out)]) == 0
-    with Session(src) as a, Session(out / "s.h5") as b:
+    with SessionFile(src) as a, SessionFile(out / "s.h5") as b:
         assert b.n_frames == a.n_frames and b.layout.name == "shearsense-6x6"
         np.testing.assert_array_equal(b.raw(), a.raw())
         assert b.metadata["participant"] == "P03"
@@ -291,7 +291,7 @@ def test_a_session_recorded_while_streaming_exports_the_stamps_the_outlet_sent(t
     streams, _ = load(export_xdf(src, tmp_path), synchronize_clocks=True,
                       dejitter_timestamps=False)
     frames = streams["TactileStudio-simulated"]
-    with Session(src) as s:
+    with SessionFile(src) as s:
         assert len(frames["time_stamps"]) == s.n_frames == len(got.stamps)
         np.testing.assert_array_equal(frames["time_series"], np.asarray(got.samples))
     np.testing.assert_allclose(frames["time_stamps"], got.stamps, rtol=0, atol=1e-9)

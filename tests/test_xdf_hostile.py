@@ -3,7 +3,7 @@ the real ``import xdf`` command, each ends in its one line and documented exit s
 what the file held is imported as it was, and every session written passes ``check``
 (the suite's autouse check).
 
-Files are made with our XDF writer (storage/xdf_writer.py) and, where a file must lie,
+Files are made with our XDF writer (storage/exchange/xdf_writer.py) and, where a file must lie,
 with raw chunks. Budget: ~6 s; the 10^9-channel file runs in a child process whose
 address space is limited, so a regression ends in a MemoryError instead of 8 GB."""
 
@@ -23,8 +23,8 @@ from test_xdf import chunk, footer, header_xml, numeric_samples
 
 from tactile_studio.cli import main
 from tactile_studio.errors import EXIT_ERROR, EXIT_INCOMPLETE, EXIT_OK
-from tactile_studio.storage import Session, SessionWriter
-from tactile_studio.storage.xdf_writer import XdfWriter
+from tactile_studio.storage import SessionFile, SessionWriter
+from tactile_studio.storage.exchange.xdf_writer import XdfWriter
 
 T0 = 1000.0
 RATE = 43.0
@@ -80,7 +80,7 @@ def error_line(err: str) -> str:
 
 
 def info(path: Path) -> dict:
-    with Session(path) as s:
+    with SessionFile(path) as s:
         return s.summary()
 
 
@@ -194,7 +194,7 @@ def test_float_samples_that_are_no_counts_are_left_out_and_counted(tmp_path, cap
         "times it cannot store as they are (NaN or infinite 1, beyond the layout's range 2, "
         "not whole counts 1)")
     kept = np.delete(np.arange(N), [5, 6, 7, 8])
-    with Session(tmp_path / "floats.h5") as s:
+    with SessionFile(tmp_path / "floats.h5") as s:
         np.testing.assert_array_equal(s.raw(), counts()[kept])
         assert s.summary()["malformed_by_kind"] == {"not_finite": 1, "out_of_range": 2,
                                                     "not_whole": 1}
@@ -252,7 +252,7 @@ def test_a_cut_file_imports_what_it_held_as_cut_short(tmp_path, capsys, fraction
                                       f"ends at byte {int(len(data) * fraction):,}, inside a "
                                       "chunk")
     assert f"wrote {out / cut.stem}.h5" in stdout
-    with Session(out / f"{cut.stem}.h5") as s:
+    with SessionFile(out / f"{cut.stem}.h5") as s:
         n = s.n_frames
         # what a byte count of frames can hold, less a chunk's header and the streams'
         assert 0.5 * fraction * len(raw) < n < fraction * len(raw)
@@ -398,5 +398,5 @@ def test_importing_many_files_holds_one_file_at_a_time(tmp_path):
     one = peak_kib("import", "xdf", runs[0], "--out", tmp_path / "one")
     six = peak_kib("import", "xdf", *runs, "--out", tmp_path / "six")
     assert six - one < 40 * 1024, (one, six)  # each file held added its 31 MB
-    with Session(tmp_path / "six" / "sub-P06_run-1.h5") as s:
+    with SessionFile(tmp_path / "six" / "sub-P06_run-1.h5") as s:
         assert s.n_frames == 400 and s.aux_signals()[0].values.shape == (15_000, 256)

@@ -18,7 +18,7 @@ from lsl_fixtures import WAIT_S, Collector, unique
 from test_xdf import chunk, footer, numeric_samples, string_samples
 
 from tactile_studio.cli import main
-from tactile_studio.storage import Session
+from tactile_studio.storage import SessionFile
 from tactile_studio.streams.lsl_outlet import LslStreamer
 
 
@@ -70,7 +70,7 @@ def test_labrecorders_capture_of_a_collection_imports_with_its_trials(tmp_path, 
     write_like_labrecorder(xdf, [frames, markers])
     out = tmp_path / "imported"
     assert main(["import", "xdf", str(xdf), "--out", str(out)]) == 0, capsys.readouterr().err
-    with Session(rig.session.path) as a, Session(out / f"{xdf.stem}.h5") as b:
+    with SessionFile(rig.session.path) as a, SessionFile(out / f"{xdf.stem}.h5") as b:
         assert b.n_frames == len(frames.stamps) and b.layout.name == a.layout.name
         assert b.metadata["participant"] == "P09" and b.metadata["session_label"] == "2"
         want = [(t["gesture"], t["status"], t["end_sample"] - t["start_sample"])

@@ -12,10 +12,10 @@ import pytest
 import pyxdf
 
 from tactile_studio.cli import main
-from tactile_studio.storage import Session
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.xdf_export import export_xdf
-from tactile_studio.storage.xdf_session_fields import CARRIED, session_fields
+from tactile_studio.storage import SessionFile
+from tactile_studio.storage.books.logbook import Logbook
+from tactile_studio.storage.exchange.xdf_export import export_xdf
+from tactile_studio.storage.exchange.xdf_session_fields import CARRIED, session_fields
 
 PROTOCOL_FIELDS = ("protocol", "protocol_spec", "condition", "gestures", "trial_order",
                    "seed", "order_seed", "block_order", "practice_order", "sensor_id",
@@ -35,7 +35,7 @@ def collected(tmp_path, monkeypatch, capsys):
                  "--out", str(tmp_path / "data")]) == 0
     capsys.readouterr()
     (path,) = (tmp_path / "data").glob("*.h5")
-    with Session(path) as s:
+    with SessionFile(path) as s:
         meta = s.metadata
     assert meta["calibration_id"] and meta["sensor_id"] == "sim-1" and meta["block_order"]
     return path, meta
@@ -81,7 +81,7 @@ def test_an_xdf_exported_and_imported_back_is_the_same_session_for_a_researcher(
     assert main(["import", "xdf", str(xdf), "--out", str(tmp_path / "back")]) == 0
     capsys.readouterr()
     (again,) = (tmp_path / "back").glob("*.h5")
-    with Session(path) as a, Session(again) as b:
+    with SessionFile(path) as a, SessionFile(again) as b:
         np.testing.assert_array_equal(b.raw(), a.raw())
         assert {k: b.metadata.get(k) for k in PROTOCOL_FIELDS} == \
             {k: a.metadata.get(k) for k in PROTOCOL_FIELDS}

@@ -31,7 +31,7 @@ SEAMS = (
     "tactile_studio/devices/contract.py", "tactile_studio/devices/frame_stream.py",
     "tactile_studio/instruments/contract.py", "tactile_studio/learn/learners/contract.py",
     "tactile_studio/acquisition/file_sink.py", "tactile_studio/learn/experiments/job_events.py",
-    "tactile_studio/protocol/trial_record.py", "tactile_studio/storage/trials.py",
+    "tactile_studio/protocol/trial_record.py", "tactile_studio/storage/format/trials.py",
     "tactile_studio/devices/engine_events.py", "tactile_studio/acquisition/events.py",
     "tactile_studio/protocol/runner_events.py", "tactile_studio/health/events.py",
     "tactile_studio/learn/learners/fold_predictions.py",

@@ -30,9 +30,9 @@ def run_gui(device: str, settings: dict[str, Any], connect: bool = True,
     may be silent while recording before it is said (acquisition/stream_health.py)."""
     app = ensure_app()
     window = MainWindow(device=device, settings=settings, connect=connect)
-    window.controller.marker_streams = tuple(markers or ())
+    window.acquisition.marker_streams = tuple(markers or ())
     if silence_warning_s is not None:
-        window.controller.silence_warning_s = silence_warning_s
+        window.acquisition.silence_warning_s = silence_warning_s
     if lsl and not window.panel.set_lsl(True):
         window.shutdown()
         raise UserError(window.panel.error_text() or "cannot stream to LSL")
@@ -120,7 +120,7 @@ def snapshot(device: str, settings: dict[str, Any], seconds: float, out: str | o
             window.hover_taxel(hover)
         wait_for(seconds)
         touch = _wait_for_touch(window)
-        st = window.controller.status()
+        st = window.acquisition.status()
         if st.error:
             raise UserError(f"device {device}: {st.error}")
         window.refresh_status()

@@ -22,7 +22,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.health.calibration import CalibrationSpec, coverage_line, replace_instead
-from tactile_studio.health.runner import HealthRun
+from tactile_studio.health.health_check import HealthCheck
 from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.ui.array_picture import SERIES_COLOURS
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
@@ -204,7 +204,7 @@ class CalibrationWizard(HealthWizard):
         super().__init__("Calibration", CalibrationSetupPage(device, settings or {}),
                          CalibrationResultPage, (820, 640), parent)
 
-    def _make_run(self) -> HealthRun:
+    def _make_run(self) -> HealthCheck:
         s = self.setup
-        return HealthRun(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked(),
-                         out=s.out.text().strip() or None)
+        return HealthCheck(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked(),
+                           out=s.out.text().strip() or None)

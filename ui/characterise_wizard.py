@@ -43,8 +43,8 @@ from tactile_studio.characterise.prepare import (
     prepare,
     settings_from_text,
 )
+from tactile_studio.characterise.procedure import check_sensor_request, save_calibration
 from tactile_studio.characterise.report import TABLE_KEYS, column_title, format_value
-from tactile_studio.characterise.run import check_sensor_request, save_calibration
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.paths import data_dir

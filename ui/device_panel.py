@@ -26,12 +26,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.acquisition import AcquisitionSession, LiveStatus
+from tactile_studio.acquisition import LiveAcquisition, LiveStatus
 from tactile_studio.acquisition.events import AcquisitionEvent, RecordingStarted, RecordingStopped
 from tactile_studio.devices.contract import DevicePlugin
 from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 from tactile_studio.ui.device_discovery import DiscoverField, ElidedLabel
 from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.settings_form import SettingField, SettingsForm, one_line
@@ -41,7 +41,7 @@ from tactile_studio.ui.write_faults import fault_text
 class DevicePanel(QWidget):
     """Device chooser + generated settings form + connect/tare/record + live state.
 
-    Handed the main window's session (:class:`AcquisitionSession`): it forwards the verbs
+    Handed the main window's session (:class:`LiveAcquisition`): it forwards the verbs
     and shows what the session reports; the session decides when a recording stops (its
     events drive the Record button). Emits ``engineChanged`` after connect or disconnect
     so the owner can point its live view at the new engine, ``recordingChanged(path)``
@@ -52,10 +52,10 @@ class DevicePanel(QWidget):
     recordingChanged = Signal(str)
     deviceChosen = Signal(str)
 
-    def __init__(self, controller: AcquisitionSession, parent: QWidget | None = None) -> None:
+    def __init__(self, acquisition: LiveAcquisition, parent: QWidget | None = None) -> None:
         super().__init__(parent)
-        self.controller = controller
-        controller.add_listener(self._on_session_event)
+        self.acquisition = acquisition
+        acquisition.add_listener(self._on_session_event)
         self.plugins = available_plugins()
         self._form_error: str | None = None
         self._build_device_choice()
@@ -228,25 +228,25 @@ class DevicePanel(QWidget):
         if name is None or not self._validate():
             return False
         try:
-            self.controller.connect(name, self.values())
+            self.acquisition.connect(name, self.values())
         except UserError as exc:
             self.show_error(one_line(exc))
             return False
         self.show_error(None)
         self._release_held()
-        engine = self.controller.engine
+        engine = self.acquisition.engine
         self._connected = dict(getattr(engine.device, "settings", None) or {})
         self.engineChanged.emit()
-        self.refresh(self.controller.status())
+        self.refresh(self.acquisition.status())
         return True
 
     def disconnect_device(self) -> None:
-        self.controller.disconnect("disconnect")  # a recording stops with it (an event)
+        self.acquisition.disconnect("disconnect")  # a recording stops with it (an event)
         self.engineChanged.emit()
-        self.refresh(self.controller.status())
+        self.refresh(self.acquisition.status())
 
     def tare(self) -> None:
-        self.controller.tare()
+        self.acquisition.tare()
 
     def ask_record_path(self) -> str | None:
         """Ask where to record, starting in the folder the user last recorded to."""
@@ -259,21 +259,21 @@ class DevicePanel(QWidget):
 
     def toggle_recording(self) -> None:
         """The Record button (and File > Record): stop, or ask where and start."""
-        if self.controller.recorder is not None:
+        if self.acquisition.recorder is not None:
             self.stop_recording()
             return
         path = self.ask_record_path()
         if path:
             self.start_recording(path)
-        self.record_button.setChecked(self.controller.recorder is not None)
+        self.record_button.setChecked(self.acquisition.recorder is not None)
 
     def start_recording(self, path: str) -> bool:
         """Record to ``path``, replacing a file there (the save dialog asked first); a
         file another recording or program is writing is refused (its one line shown)."""
         try:
             sensor = self.sensor_box.currentText().strip()
-            self.controller.start_recording(path, {"sensor_id": sensor} if sensor else None,
-                                            overwrite=True)
+            self.acquisition.start_recording(path, {"sensor_id": sensor} if sensor else None,
+                                             overwrite=True)
         except (UserError, OSError) as exc:
             text = fault_text(exc)
             if text is None:
@@ -282,11 +282,11 @@ class DevicePanel(QWidget):
             self.record_button.setChecked(False)
             return False
         self.show_error(None)
-        self.refresh(self.controller.status())
+        self.refresh(self.acquisition.status())
         return True
 
     def stop_recording(self) -> str | None:
-        return self.controller.stop_recording()
+        return self.acquisition.stop_recording()
 
     def _on_session_event(self, event: AcquisitionEvent) -> None:
         """The session started or stopped a recording (asked here, or on its own: the
@@ -326,7 +326,7 @@ class DevicePanel(QWidget):
     def set_lsl(self, on: bool) -> bool:
         """Forward the toggle to the core; False (toggle off, error shown) if refused."""
         try:
-            self.controller.set_lsl(on)
+            self.acquisition.set_lsl(on)
         except UserError as exc:
             self.show_error(one_line(exc))
             on = False
@@ -338,7 +338,7 @@ class DevicePanel(QWidget):
         return on
 
     def _show_lsl(self) -> None:
-        text = self.controller.lsl_status() if self.lsl_toggle.isChecked() else ""
+        text = self.acquisition.lsl_status() if self.lsl_toggle.isChecked() else ""
         self.lsl_label.setText(text)
         self.lsl_label.setToolTip(text)
         self.lsl_label.setVisible(bool(text))
@@ -370,7 +370,7 @@ class DevicePanel(QWidget):
         collection session sets the simulator idle: its touches must be the
         participant's) is shown as it is, locked, with a line saying why; it goes back
         when the device does. The form never claims gesture=auto while it is idle."""
-        engine = self.controller.engine
+        engine = self.acquisition.engine
         live = st.state in ("connecting", "running", "reconnecting") and engine is not None
         now = dict(getattr(engine.device, "settings", None) or {}) if live else {}
         lines = []

@@ -25,7 +25,7 @@ from tactile_studio.health.events import (
     SpotMeasured,
     Warned,
 )
-from tactile_studio.health.runner import HealthRun
+from tactile_studio.health.health_check import HealthCheck
 from tactile_studio.ui.array_picture import ArrayPicture
 
 PHASE_TITLES = {"rest": "Rest: leave the sensor unloaded", "place": "Place the weight",
@@ -34,17 +34,17 @@ PHASE_TITLES = {"rest": "Rest: leave the sensor unloaded", "place": "Place the w
 
 
 class HealthRunPage(QWizardPage):
-    """Starts a :class:`HealthRun` from ``make_run`` when shown and follows its events.
+    """Starts a :class:`HealthCheck` from ``make_run`` when shown and follows its events.
 
     Complete (Next enabled) when the run ended with a result; an error is shown in words
     and the page offers Retry.
     """
 
-    def __init__(self, title: str, make_run: Callable[[], HealthRun]) -> None:
+    def __init__(self, title: str, make_run: Callable[[], HealthCheck]) -> None:
         super().__init__()
         self.setTitle(title)
         self.make_run = make_run
-        self.run: HealthRun | None = None
+        self.run: HealthCheck | None = None
         self.phase = QLabel("")
         self.phase.setStyleSheet("font-size: 16pt; font-weight: bold")
         self.prompt = QLabel("")
@@ -188,7 +188,7 @@ class HealthWizard(QWizard):
             self.addPage(page)
         self.resize(*size)
 
-    def _make_run(self) -> HealthRun:
+    def _make_run(self) -> HealthCheck:
         raise NotImplementedError
 
     def done(self, code: int) -> None:

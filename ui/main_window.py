@@ -20,7 +20,7 @@ from PySide6.QtCore import QByteArray, QEventLoop, Qt, QTimer
 from PySide6.QtGui import QAction, QCloseEvent, QKeySequence, QShowEvent
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QScrollArea, QWidget
 
-from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.devices.registry import DEFAULT_DEVICE
 from tactile_studio.errors import UserError
 from tactile_studio.live import (
@@ -61,7 +61,7 @@ class MainWindow(QMainWindow):
         self.setStyleSheet(style_sheet())
         self.persist = persist
         # stopping a recording must not freeze the window: compressed on a worker thread
-        self.controller = AcquisitionSession(compress_in_background=True)
+        self.acquisition = LiveAcquisition(compress_in_background=True)
         self.live = LiveView()
         self.fps = RateMeter(1.0)
         self.latency = LatencyMeter(keep=600)
@@ -81,11 +81,11 @@ class MainWindow(QMainWindow):
 
         self.heatmap = HeatmapView()
         self.setCentralWidget(self.heatmap)
-        self.panel = DevicePanel(self.controller)
+        self.panel = DevicePanel(self.acquisition)
         self.strip = StripChart(seconds=self.live.history_s)
         self.status = LiveStatusBar()
         self.setStatusBar(self.status)
-        self.status.follow(self.controller)  # a device gone silent while recording
+        self.status.follow(self.acquisition)  # a device gone silent while recording
         self.device_dock = self._dock("Device", "deviceDock", self._scrolled(self.panel),
                                       Qt.DockWidgetArea.LeftDockWidgetArea)
         self.strip_dock = self._dock("Strip chart", "stripDock", self.strip,
@@ -160,7 +160,7 @@ class MainWindow(QMainWindow):
         # collection sessions (ui/collect/app.py): the console shares the live engine
         from tactile_studio.ui.collect.app import add_collection_menu
         add_collection_menu(self, file_menu,
-                            lambda: (self.controller.engine, self.controller.device_name))
+                            lambda: (self.acquisition.engine, self.acquisition.device_name))
         from tactile_studio.ui.remote_control import add_remote_control  # off by default
         self.remote_control = add_remote_control(self, file_menu)
         file_menu.addSeparator()
@@ -215,7 +215,7 @@ class MainWindow(QMainWindow):
     def _lend_device(self) -> bool:
         """Disconnect the live view for a wizard (a serial port has one owner); True if
         it was live, so the wizard's end connects it again."""
-        if self.controller.engine is not None and self.controller.engine.running:
+        if self.acquisition.engine is not None and self.acquisition.engine.running:
             self.panel.disconnect_device()
             self.heatmap.set_readout_text(
                 "Disconnected while a wizard uses the device; it reconnects when the "
@@ -226,7 +226,7 @@ class MainWindow(QMainWindow):
     def _return_device_after(self, wizard: QWidget, was_live: bool) -> None:
         """When ``wizard`` closes, leave the live view as the wizard found it."""
         def back(*_: object) -> None:
-            if was_live and not (self.controller.engine and self.controller.engine.running):
+            if was_live and not (self.acquisition.engine and self.acquisition.engine.running):
                 self.panel.connect_device()
             self._update_readout()
         wizard.finished.connect(back)
@@ -236,8 +236,8 @@ class MainWindow(QMainWindow):
         live device is disconnected first, as for the health wizards)."""
         from tactile_studio.ui.characterise_wizard import CharacteriseWizard
         sensor = self.panel.sensor_box.currentText().strip()
-        if not sensor and self.controller.engine is not None:
-            sensor = self.controller.engine.sensor_id() or ""
+        if not sensor and self.acquisition.engine is not None:
+            sensor = self.acquisition.engine.sensor_id() or ""
         was_live = self._lend_device()
         self._wizard = CharacteriseWizard(sensor_id=sensor)
         self._return_device_after(self._wizard, was_live)
@@ -311,8 +311,8 @@ class MainWindow(QMainWindow):
         return self.fps.rate()
 
     def refresh_status(self) -> None:
-        self.controller.poll()  # the session stops a recording whose stream ended
-        st = self.controller.status()
+        self.acquisition.poll()  # the session stops a recording whose stream ended
+        st = self.acquisition.status()
         self.panel.refresh(st)
         med = self.latency.percentile(50, last=60)
         self.status.update_status(st, self.display_fps(), None if med is None else med * 1e3)
@@ -382,7 +382,7 @@ class MainWindow(QMainWindow):
             self.panel.set_device(name, self._saved_device_values(name))
 
     def _on_engine_changed(self) -> None:
-        engine = self.controller.engine
+        engine = self.acquisition.engine
         self.live.attach(engine if engine is not None and engine.running else None)
         lay = self.live.layout
         self.heatmap.set_layout(lay)
@@ -394,7 +394,7 @@ class MainWindow(QMainWindow):
         self._painted_index = -1
         self._update_readout()
         self.latency.clear()
-        if self.persist and self.controller.device_name:
+        if self.persist and self.acquisition.device_name:
             self.save_device_settings()
         self.refresh_status()
 
@@ -484,7 +484,7 @@ class MainWindow(QMainWindow):
         if self.persist:
             self.save_settings()
         self.remote_control.close()
-        self.controller.disconnect()  # finishes a recording first (the stop order)
+        self.acquisition.disconnect()  # finishes a recording first (the stop order)
 
 
 DEVICE_PANEL_MIN_WIDTH = 260  # below this the device form is cut off

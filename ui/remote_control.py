@@ -93,6 +93,6 @@ class RemoteControlToggle(QObject):
 
 def add_remote_control(window: Any, menu: QMenu) -> RemoteControlToggle:
     """The File menu's tick box for ``window`` (its ``controller`` and ``status``)."""
-    toggle = RemoteControlToggle(window, window.controller, window.status)
+    toggle = RemoteControlToggle(window, window.acquisition, window.status)
     menu.addAction(toggle.action)
     return toggle

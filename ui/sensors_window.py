@@ -28,7 +28,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.health.history import SensorHistory, covers_text, sensor_history
-from tactile_studio.storage.logbook import NOTE_KINDS, Logbook, age_text
+from tactile_studio.storage.books.logbook import NOTE_KINDS, Logbook, age_text
 from tactile_studio.ui.array_picture import SERIES_COLOURS, VERDICT_COLOURS
 
 _VERDICT_Y = {"pass": 0, "warn": 1, "fail": 2}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QLabel, QStatusBar, QWidget
 
-from tactile_studio.acquisition import AcquisitionSession, LiveStatus
+from tactile_studio.acquisition import LiveAcquisition, LiveStatus
 from tactile_studio.acquisition.events import (
     AcquisitionEvent,
     Health,
@@ -47,7 +47,7 @@ class LiveStatusBar(QStatusBar):
         for w in (self.remote, self.rate, self.fps, self.malformed, self.dropped, self.latency):
             self.addPermanentWidget(w)
 
-    def follow(self, session: AcquisitionSession) -> None:
+    def follow(self, session: LiveAcquisition) -> None:
         """Show ``session``'s stream-health warnings (acquisition/stream_health.py) until the
         device sends again or the next recording starts, and a recording that ended short
         of what was asked (red, its one line) until the next one starts."""

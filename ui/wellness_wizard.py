@@ -25,11 +25,11 @@ from PySide6.QtWidgets import (
 from tactile_studio.devices.registry import create_device
 from tactile_studio.errors import UserError
 from tactile_studio.health.estimate import estimate_text, simulated_speed
+from tactile_studio.health.health_check import HealthCheck
 from tactile_studio.health.report import write_report
-from tactile_studio.health.runner import HealthRun
 from tactile_studio.health.wellness import REFERENCE_RULE, WellnessSpec
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 from tactile_studio.ui.array_picture import VERDICT_COLOURS, ArrayPicture
 from tactile_studio.ui.file_dialogs import ask_save_file
 from tactile_studio.ui.health_run_page import HealthRunPage, HealthWizard
@@ -221,6 +221,6 @@ class WellnessWizard(HealthWizard):
         super().__init__("Wellness check", WellnessSetupPage(device, settings or {}),
                          WellnessResultPage, (720, 620), parent)
 
-    def _make_run(self) -> HealthRun:
+    def _make_run(self) -> HealthCheck:
         s = self.setup
-        return HealthRun(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked())
+        return HealthCheck(s.device, s.run_settings(), s.spec(), auto=s.auto.isChecked())

@@ -1,6 +1,6 @@
 """Acquisition, Qt-free: device → engine → sinks, one seam for every place that acquires.
 
-- :mod:`tactile_studio.acquisition.session`: :class:`AcquisitionSession`, device +
+- :mod:`tactile_studio.acquisition.live_acquisition`: :class:`LiveAcquisition`, device +
   engine + sinks with one start order, auto-stop and events (the main window, ``record``,
   ``collect`` and the collection console all use it; ui's only way to acquisition, an
   import-linter contract); the stream it hands out (``session.engine``) is held by the
@@ -20,8 +20,8 @@
 
 from __future__ import annotations
 
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.acquisition.open_stream import open_stream
-from tactile_studio.acquisition.session import AcquisitionSession
 from tactile_studio.acquisition.status import LiveStatus, format_malformed
 
-__all__ = ["AcquisitionSession", "LiveStatus", "format_malformed", "open_stream"]
+__all__ = ["LiveAcquisition", "LiveStatus", "format_malformed", "open_stream"]

@@ -1,4 +1,4 @@
-"""The events an :class:`~tactile_studio.acquisition.session.AcquisitionSession` tells its
+"""The events an :class:`~tactile_studio.acquisition.live_acquisition.LiveAcquisition` tells its
 listeners (the live screen's device panel and status bar, the collection console,
 ``record`` and ``listen``): one frozen dataclass per kind, declared here once, so a
 listener switches on the type (``isinstance``, ``match``) and a misspelt field is an error
@@ -33,7 +33,7 @@ class Disconnected:
 
 @dataclass(frozen=True)
 class StateChanged:
-    """:meth:`AcquisitionSession.poll` saw the engine reach ``state``."""
+    """:meth:`LiveAcquisition.poll` saw the engine reach ``state``."""
 
     state: EngineState
 

@@ -3,10 +3,10 @@
 The acquisition session (and through it every collection, protocol/collect.py) and the
 characterisation lab record through :func:`open_file_sink` and
 :func:`close_file_sink`, so every recording is told about its sensor the same way
-(:func:`~tactile_studio.storage.sensor_book.sensor_metadata`, before the first row) and
+(:func:`~tactile_studio.storage.recording.sensor_book.sensor_metadata`, before the first row) and
 books its hours of use exactly once however it ends: its owner's stop, or the exit hook
 closing a file left open (the recorder's on-stop callback;
-:func:`~tactile_studio.storage.sensor_book.book_usage` guards "once").
+:func:`~tactile_studio.storage.recording.sensor_book.book_usage` guards "once").
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from typing import Any
 
 from tactile_studio.devices.frame_stream import RecordableStream
 from tactile_studio.errors import SessionFileError
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.sensor_book import book_usage, sensor_metadata
+from tactile_studio.storage.recording.recorder import Recorder
+from tactile_studio.storage.recording.sensor_book import book_usage, sensor_metadata
 
 
 def open_file_sink(engine: RecordableStream, path: str | os.PathLike[str],

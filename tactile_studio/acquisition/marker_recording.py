@@ -1,4 +1,4 @@
-"""Other programs' LSL markers in a recording made through an AcquisitionSession (the
+"""Other programs' LSL markers in a recording made through an LiveAcquisition (the
 live window's ``gui --markers NAME``): the inlets (streams/marker_inlet.py) start with
 the recording and stop before its file closes; their problems (a stream that
 disappeared) are handed to the owner's thread, which says them as ``health`` events."""

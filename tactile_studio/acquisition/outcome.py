@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from tactile_studio.errors import EXIT_INCOMPLETE, EXIT_OK, IncompleteError, UserError
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.recording.recorder import Recorder
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class RecordingOutcome:
 def recording_outcome(summary: dict[str, Any], *, write_error: str | None = None,
                       started_at: float | None = None, ended_at: float | None = None,
                       reconnect_attempts: int | None = None) -> RecordingOutcome:
-    """Judge a recording from its file's ``Session.summary()`` and the live facts.
+    """Judge a recording from its file's ``SessionFile.summary()`` and the live facts.
 
     ``started_at``/``ended_at`` are the recording's wall-clock start and stop (Unix s):
     a lost device is placed "N s into the recording" and "tried for M s" with them (else
@@ -130,7 +130,7 @@ def _device_lost(events: list[dict[str, Any]], rate: float, started_at: float | 
 def outcome_of(recorder: Recorder, reconnect_attempts: int | None = None) -> RecordingOutcome:
     """Judge a stopped recorder's recording (its file is opened and summarised)."""
     try:
-        with Session(recorder.path) as s:
+        with SessionFile(recorder.path) as s:
             summary = s.summary()
     except UserError as exc:  # nothing readable was kept
         path = str(recorder.path)

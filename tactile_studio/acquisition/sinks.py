@@ -1,8 +1,8 @@
-"""Where an acquisition's stream goes: the sinks an :class:`AcquisitionSession` holds.
+"""Where an acquisition's stream goes: the sinks an :class:`LiveAcquisition` holds.
 
 A sink is small (:class:`Sink`): ``start()`` sets it up, ``event(kind, **detail)``
 takes an application event, ``stop()`` closes it, once, writing its end. The HDF5
-recorder (storage/recorder.py, opened by acquisition/file_sink.py), the device's LSL
+recorder (storage/recording/recorder.py, opened by acquisition/file_sink.py), the device's LSL
 publishing and the marker inlets of a recording are sinks.
 
 Frames are not handed to sinks: each pulls them (and the engine's own events) from the
@@ -10,7 +10,7 @@ engine by cursor, at its own pace. The engine's ring already is the fan-out: pus
 frames would copy every chunk once per sink on the acquisition thread, and a slow sink
 (a file on a busy disk) would hold the device back instead of reading behind it.
 
-Events the session itself is given (:meth:`AcquisitionSession.add_event`) are stamped
+Events the session itself is given (:meth:`LiveAcquisition.add_event`) are stamped
 once and handed to every sink (:meth:`SinkList.event`): the file writes them, LSL
 publishing sends them as markers, the marker inlets ignore them. The session keeps the
 sinks in stop order and stops them: the outlets a caller added (their end reaches the

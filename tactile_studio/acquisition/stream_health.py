@@ -2,7 +2,7 @@
 
 LabRecorder's users asked for it: a stream that stops sending while a recording runs
 should be noticed then, not when the file is opened. :class:`StreamHealth` is checked
-from the owner's poll (``AcquisitionSession.poll``): when no frame has arrived for
+from the owner's poll (``LiveAcquisition.poll``): when no frame has arrived for
 ``threshold_s`` (once frames have flowed) it writes an engine event ``stream_silent``
 (device, seconds, state;
 so the file has it at the row where frames stopped) and returns a warning; when frames

@@ -9,7 +9,7 @@ from tactile_studio.characterise.instrument_checks import (
     check_stage,
 )
 from tactile_studio.characterise.plan import DIRECTIONS, SEQUENCES, Plan
-from tactile_studio.characterise.run import (
+from tactile_studio.characterise.procedure import (
     CharacterisationRequest,
     RunControl,
     calibration_from,

@@ -58,10 +58,10 @@ def _measured(session: Path) -> bool:
     that ended at homing holds only the seconds before. Unreadable: kept, to be safe."""
     if not session.exists():
         return False
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
 
     try:
-        with Session(session) as s:
+        with SessionFile(session) as s:
             return any(e.get("kind") == "char_taxel" for e in s.events)
     except (OSError, UserError, ValueError, KeyError):
         return True

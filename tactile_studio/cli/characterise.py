@@ -24,7 +24,7 @@ from tactile_studio.characterise.plan import (
     sequence_lab_s,
     stage_time_text,
 )
-from tactile_studio.characterise.run import check_sensor_request, save_calibration
+from tactile_studio.characterise.procedure import check_sensor_request, save_calibration
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.devices.registry import create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
@@ -32,7 +32,7 @@ from tactile_studio.health.history import covers_text
 from tactile_studio.instruments import create_force, create_stage
 from tactile_studio.jobs import TerminalProgress, ctrl_c_cancels
 from tactile_studio.sensor.characterise import parse_taxels
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 PAPER_TAXELS = "B2,B5,E2,E5,A1,C4"
 

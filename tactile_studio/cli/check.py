@@ -10,7 +10,7 @@ import argparse
 
 from tactile_studio.cli.json_output import print_json
 from tactile_studio.errors import CheckFailed, UserError
-from tactile_studio.storage.session_check import CheckResult, check_file, summary_line
+from tactile_studio.storage.format.session_check import CheckResult, check_file, summary_line
 
 
 def register(sub: argparse._SubParsersAction) -> None:

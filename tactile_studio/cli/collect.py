@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
@@ -32,17 +32,17 @@ from tactile_studio.health.gate import admit, wellness_status
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
 from tactile_studio.protocol.collect import (
-    CollectionSession,
+    Collection,
     CollectionSettings,
     check_participant,
-    open_session,
+    open_collection,
     read_resume_info,
+    resume_collection,
     resume_device,
-    resume_session,
 )
-from tactile_studio.protocol.runner import State, StreamClock
+from tactile_studio.protocol.trial_runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
-from tactile_studio.storage.protocol_file import Protocol, load_protocol
+from tactile_studio.storage.format.protocol_file import CollectionProtocol, load_protocol
 
 DEFAULT_SPEED = 20.0
 TICK_S = 0.002
@@ -130,7 +130,7 @@ def _check_resume(args: argparse.Namespace) -> dict[str, Any]:
     return info
 
 
-def _new_session(args: argparse.Namespace) -> tuple[Protocol, str, int]:
+def _new_session(args: argparse.Namespace) -> tuple[CollectionProtocol, str, int]:
     """Protocol (with --blocks applied), participant and seed of a new session."""
     if not args.protocol or not args.participant:
         raise UserError("collect needs --protocol and --participant (or --resume FILE)")
@@ -223,51 +223,54 @@ def run(args: argparse.Namespace) -> int:
     device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
-    acq = AcquisitionSession()
-    apply_silence_option(acq, args)
-    watch_health(acq)  # a device gone silent is said as it happens, as record says it
-    engine = acq.use_device(device, name)
+    acquisition = LiveAcquisition()
+    apply_silence_option(acquisition, args)
+    watch_health(acquisition)  # a device gone silent is said as it happens, as record says it
+    engine = acquisition.use_device(device, name)
     clock = StreamClock(engine)
     if args.resume:
-        session = resume_session(args.resume, acq, clock=clock,
-                                 allow_other_sensor=args.allow_other_sensor, trial_check=check)
-        print(f"resuming {session.path} (backup of the original: {session.backup.name}); "
+        collection = resume_collection(args.resume, acquisition, clock=clock,
+                                       allow_other_sensor=args.allow_other_sensor,
+                                       trial_check=check)
+        print(f"resuming {collection.path} (backup of the original: {collection.backup.name}); "
               f"{info['trials_done']}/{info['trials_total']} trials were done", file=sys.stderr)
     else:
         out = make_out_dir(args.out or ".")
         status = wellness_status(device.sensor_id(), protocol.wellness_required,
                                  protocol.wellness_max_age_h)
         print(status.text(), file=sys.stderr)
-        session = open_session(CollectionSettings(
+        collection = open_collection(CollectionSettings(
             protocol, participant, out, seed=seed, condition=args.condition,
             wellness=admit(status, args.wellness_override), pilot=args.pilot,
-            trial_check=check, personalise_check=args.qc_personalise), acq, clock=clock)
-        print(f"writing {session.path}", file=sys.stderr)
+            trial_check=check, personalise_check=args.qc_personalise), acquisition, clock=clock)
+        print(f"writing {collection.path}", file=sys.stderr)
     if check is not None:
-        announce_check(check, protocol, session.runner)
-    vp = VirtualParticipant(session.runner, device, participant, seed)
+        announce_check(check, protocol, collection.runner)
+    vp = VirtualParticipant(collection.runner, device, participant, seed)
     vp.prepare()
     try:
         if args.lsl:  # stopped before the file closes: the end of streaming is recorded
-            acq.add_outlet(start_lsl(engine, wait_s=args.lsl_wait)).attach_runner(session.runner)
+            acquisition.add_outlet(start_lsl(engine,
+                                             wait_s=args.lsl_wait)).attach_runner(collection.runner)
         if args.markers:
-            acq.add_outlet(start_markers(engine, args.markers))
-        acq.start()
-        _drive(session, vp, engine, acq)
+            acquisition.add_outlet(start_markers(engine, args.markers))
+        acquisition.start()
+        _drive(collection, vp, engine, acquisition)
     finally:
-        acq.close_outlets()
-        session.close()
-        acq.close()
-    print(session.path)
-    if acq.outcome is not None:  # acquisition/outcome.py: the same judgement as record and the GUI
-        if not acq.outcome.complete:
-            print(acq.outcome.summary_line, file=sys.stderr)
-        acq.outcome.raise_if_incomplete()  # device failed, write failed, frames lost: 3
+        acquisition.close_outlets()
+        collection.close()
+        acquisition.close()
+    print(collection.path)
+    # acquisition/outcome.py: the same judgement as record and the GUI
+    if acquisition.outcome is not None:
+        if not acquisition.outcome.complete:
+            print(acquisition.outcome.summary_line, file=sys.stderr)
+        acquisition.outcome.raise_if_incomplete()  # device failed, write failed, frames lost: 3
     return 0
 
 
-def _drive(session: CollectionSession, vp: VirtualParticipant, engine: LiveStream,
-           acq: AcquisitionSession) -> None:
+def _drive(session: Collection, vp: VirtualParticipant, engine: LiveStream,
+           acq: LiveAcquisition) -> None:
     runner = session.runner
     progress = TerminalProgress(f"collect {session.participant}")
     token = CancelToken()

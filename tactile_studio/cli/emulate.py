@@ -22,7 +22,7 @@ from tactile_studio.devices.line_decoder import KINDS
 from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
 from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
-from tactile_studio.storage.frame_sources import load_source
+from tactile_studio.storage.recording.frame_sources import load_source
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -38,7 +38,7 @@ from tactile_studio.output_faults import (
 )
 from tactile_studio.sensor.calibration import spread_line
 from tactile_studio.sensor.wellness import DEFAULT_SPOTS
-from tactile_studio.storage.logbook import Logbook, age_text
+from tactile_studio.storage.books.logbook import Logbook, age_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:

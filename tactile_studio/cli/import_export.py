@@ -90,9 +90,9 @@ def _bar(label: str) -> Iterator[_Bar]:
 
 def cmd_import(args: argparse.Namespace) -> int:
     make_out_dir(args.out)
-    from tactile_studio.storage.importers import import_cost, import_haart
-    from tactile_studio.storage.importers.shearsense import import_shearsense_study
-    from tactile_studio.storage.importers.xdf import XdfReport
+    from tactile_studio.storage.exchange.importers import import_cost, import_haart
+    from tactile_studio.storage.exchange.importers.shearsense import import_shearsense_study
+    from tactile_studio.storage.exchange.importers.xdf import XdfReport
 
     token = CancelToken()
     said = XdfReport()  # xdf: streams without frames, what was imported short, notes
@@ -109,7 +109,7 @@ def cmd_import(args: argparse.Namespace) -> int:
                                                   args.participant_map, bar, token,
                                                   args.force, done)
         elif args.import_format == "xdf":
-            from tactile_studio.storage.importers.xdf import XdfChoice, import_xdf
+            from tactile_studio.storage.exchange.importers.xdf import XdfChoice, import_xdf
 
             choice = XdfChoice(args.participant, args.stream, args.layout)
             out = import_xdf(args.files, args.out, choice, bar, token, args.force, done, said)
@@ -126,7 +126,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         for line in (*said.skipped, *shorts, *said.notes):
             print(line)
     else:
-        from tactile_studio.storage.importers.datasets import COST, HAART, numbering_line
+        from tactile_studio.storage.exchange.importers.datasets import COST, HAART, numbering_line
         print(numbering_line(COST if args.import_format == "cost" else HAART))
     print(f"imported {len(out)} session(s) into {args.out}")
     if args.import_format == "shearsense" and report.no_frames:  # listed above
@@ -144,7 +144,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_export(args: argparse.Namespace) -> int:
     make_out_dir(args.out)
-    from tactile_studio.storage.exporters import export_session, shearsense_status_note
+    from tactile_studio.storage.exchange.exporters import export_session, shearsense_status_note
 
     token = CancelToken()
     written: list[Path] = []

@@ -235,7 +235,7 @@ def print_shots(m: dict[str, Any], cut: bool) -> None:
 
 def _print_skipped(skipped: list[dict[str, Any]]) -> None:
     """Say which session files the dataset left out (resume backups, duplicates)."""
-    from tactile_studio.storage.session_set import describe_skipped
+    from tactile_studio.storage.format.session_set import describe_skipped
 
     if skipped:
         print(f"data: {describe_skipped(skipped)}")
@@ -258,7 +258,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.evaluation.evaluate import rescore_run
+    from tactile_studio.learn.experiments.rescore import rescore_run
 
     token = CancelToken()
     bar = _Bar("evaluate")

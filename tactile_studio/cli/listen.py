@@ -8,7 +8,7 @@ import sys
 import time
 
 from tactile_studio.acquisition.events import AcquisitionEvent, RecordingStarted, RecordingStopped
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.recording_warnings import (
     add_silence_option,
@@ -57,20 +57,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_listen(args: argparse.Namespace) -> int:
     out = make_out_dir(args.out)
     device = create_device(args.device, parse_set_options(args.set))
-    session = AcquisitionSession()
-    apply_silence_option(session, args)
-    session.use_device(device, args.device)
+    acquisition = LiveAcquisition()
+    apply_silence_option(acquisition, args)
+    acquisition.use_device(device, args.device)
     if args.lsl:
-        session.set_lsl(True)
-    control = RemoteControl(session, out, args.port, args.host,
+        acquisition.set_lsl(True)
+    control = RemoteControl(acquisition, out, args.port, args.host,
                             metadata={"notes": "recorded by listen"})
     incomplete: list[str] = []  # lines of recordings that ended short (acquisition/outcome.py)
-    session.add_listener(lambda e: _report(e, incomplete))
-    watch_health(session)
+    acquisition.add_listener(lambda e: _report(e, incomplete))
+    watch_health(acquisition)
     token = CancelToken()
     try:
         port = control.listen()  # a port in use: one line, nothing started
-        session.start()
+        acquisition.start()
         print(f"remote control: listening on {args.host}:{port} for {args.device}; "
               "Ctrl-C ends", file=sys.stderr, flush=True)
         if not this_machine_only(args.host):
@@ -80,20 +80,20 @@ def cmd_listen(args: argparse.Namespace) -> int:
         end = None if args.seconds is None else time.monotonic() + args.seconds
         with ctrl_c_cancels(token):
             while not token.wait(POLL_S):
-                session.poll()
+                acquisition.poll()
                 for line, reply in control.process():  # a stranger's text: escaped, cut
                     print(f"> {_echo(line)}\n< {_echo(reply)}", flush=True)
                 if end is not None and time.monotonic() >= end:
                     break
     finally:
         control.close()
-        session.close()
+        acquisition.close()
     if incomplete:  # a recording ended short (disk full, device lost, frames lost): exit 3
         raise IncompleteError(incomplete[-1] if len(incomplete) == 1 else
                               f"{len(incomplete)} recordings incomplete; the last: "
                               f"{incomplete[-1]}")
-    if session.engine is not None and session.engine.error:
-        raise UserError(f"{args.device}: {session.engine.error}")
+    if acquisition.engine is not None and acquisition.engine.error:
+        raise UserError(f"{args.device}: {acquisition.engine.error}")
     return 0
 
 

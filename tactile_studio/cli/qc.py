@@ -3,7 +3,7 @@ and the model-check options ``collect --qc-model`` shares with it.
 
 Per trial: the signal checks (protocol/quality.py) and the model check (the prompted
 gesture not among the model's top k, or its probability below the threshold;
-storage/trial_checks.py), with the fold of a leave-one-participant-out run that never saw
+storage/format/trial_checks.py), with the fold of a leave-one-participant-out run that never saw
 the trial's participant (out of fold). Exit 0 whether or not trials are flagged; 1 when
 the model and the sessions share no gesture. docs/trial-check.md.
 """
@@ -34,13 +34,13 @@ from tactile_studio.protocol.trial_check import (
     TrialChecker,
     unknown_gestures,
 )
-from tactile_studio.storage.protocol_file import Protocol, protocol_from_dict
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import TrialStatus, trial_number
+from tactile_studio.storage.format.protocol_file import CollectionProtocol, protocol_from_dict
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trials import TrialStatus, trial_number
 
 if TYPE_CHECKING:
     from tactile_studio.learn.deploy.trial_check import RunChecks
-    from tactile_studio.protocol.runner import CollectionRunner
+    from tactile_studio.protocol.trial_runner import TrialRunner
 
 
 def add_qc_options(p: argparse.ArgumentParser, model_flag: str, help_text: str,
@@ -66,7 +66,7 @@ def qc_checker(model: str | None, top_k: int, threshold: float,
     return ModelTrialCheck(model, top_k, threshold, participant)
 
 
-def announce_check(check: TrialChecker, protocol: Protocol, runner: CollectionRunner) -> None:
+def announce_check(check: TrialChecker, protocol: CollectionProtocol, runner: TrialRunner) -> None:
     """Say which model checks the trials and which gestures it does not score, and
     print each flagged trial as it ends (headless collection)."""
     d = check.describe()
@@ -114,7 +114,7 @@ def cmd_qc(args: argparse.Namespace) -> int:
     rows: list[dict[str, Any]] = []
     shared = False
     for path in args.session:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             gestures = {t.gesture for t in s.trials if t.gesture}
             shared = shared or bool(gestures & checks.known)
             rows.extend(session_rows(s, Path(path), checks))
@@ -135,7 +135,7 @@ def cmd_qc(args: argparse.Namespace) -> int:
     return 0
 
 
-def session_protocol(s: Session) -> Protocol | None:
+def session_protocol(s: SessionFile) -> CollectionProtocol | None:
     """The protocol a collection stored (its [quality] and forces), None for imports."""
     try:
         return protocol_from_dict(s.metadata["protocol_spec"], "protocol_spec",
@@ -144,7 +144,7 @@ def session_protocol(s: Session) -> Protocol | None:
         return None
 
 
-def session_rows(s: Session, path: Path, checks: RunChecks) -> list[dict[str, Any]]:
+def session_rows(s: SessionFile, path: Path, checks: RunChecks) -> list[dict[str, Any]]:
     """One row per trial (practice and discarded ones left out) of session ``s``."""
     participant = str(s.metadata.get("participant") or path.stem)
     check = checks.for_participant(participant)

@@ -8,7 +8,7 @@ import sys
 from typing import Any
 
 from tactile_studio.acquisition.events import Health
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.acquisition.stream_health import DEFAULT_SILENCE_S
 from tactile_studio.cli.argtypes import positive_float
 
@@ -33,6 +33,6 @@ def apply_silence_option(session: Any, args: argparse.Namespace) -> None:
         session.silence_warning_s = args.silence_warning
 
 
-def watch_health(session: AcquisitionSession) -> None:
+def watch_health(session: LiveAcquisition) -> None:
     """Print the acquisition session's :class:`Health` events (its poll finds them)."""
     session.add_listener(lambda e: warn(e.message) if isinstance(e, Health) else None)

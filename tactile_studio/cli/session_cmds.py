@@ -10,7 +10,7 @@ from collections import Counter
 from pathlib import Path
 from typing import Any
 
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.cli import tables
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
@@ -25,10 +25,10 @@ from tactile_studio.devices.registry import available_plugins, create_device, pa
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
 from tactile_studio.paths import make_out_dir
-from tactile_studio.storage.aux_signals import AuxSignal
-from tactile_studio.storage.logbook import check_sensor_id
-from tactile_studio.storage.session import Session, measured_rate_hz
-from tactile_studio.storage.trials import TrialRecord
+from tactile_studio.storage.books.logbook import check_sensor_id
+from tactile_studio.storage.format.aux_signals import AuxSignal
+from tactile_studio.storage.format.session_file import SessionFile, measured_rate_hz
+from tactile_studio.storage.format.trials import TrialRecord
 
 FIRST_FRAME_TIMEOUT_S = 10.0  # `record` gives up when a device sends nothing this long
 
@@ -90,48 +90,49 @@ def cmd_record(args: argparse.Namespace) -> int:
         raise UserError(f"--seconds must be positive, got {args.seconds}")
     device = create_device(args.device, parse_set_options(args.set))
     make_out_dir(out.parent)  # the rule of every output folder
-    session = AcquisitionSession()
-    apply_silence_option(session, args)
-    watch_health(session)  # a device gone silent while recording: a warning line
+    acquisition = LiveAcquisition()
+    apply_silence_option(acquisition, args)
+    watch_health(acquisition)  # a device gone silent while recording: a warning line
     metadata = {"notes": args.notes, "source": "record"}
     if args.sensor is not None:
         metadata["sensor_id"] = _sensor_for(device, args.sensor)
-    engine = session.use_device(device, args.device)
+    engine = acquisition.use_device(device, args.device)
     # The recorder exists before the engine starts so the connect and tare events are
     # kept. The file is claimed there: another writer of it (a second `record`, a
     # listener, the GUI) is refused in one line before anything is recorded.
-    session.start_recording(out, metadata=metadata, overwrite=args.force)
+    acquisition.start_recording(out, metadata=metadata, overwrite=args.force)
     try:
         if args.lsl:
-            session.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
+            acquisition.add_outlet(start_lsl(engine, wait_s=args.lsl_wait))
         if args.markers:
-            session.add_outlet(start_markers(engine, args.markers))
+            acquisition.add_outlet(start_markers(engine, args.markers))
     except UserError:
-        session.stop_recording(discard=True)  # removed while still ours
-        session.close()
+        acquisition.stop_recording(discard=True)  # removed while still ours
+        acquisition.close()
         raise
-    session.start()
+    acquisition.start()
     if not engine.wait_frames(1, timeout=FIRST_FRAME_TIMEOUT_S):
-        session.stop_recording(discard=True)
-        session.close()
+        acquisition.stop_recording(discard=True)
+        acquisition.close()
         raise UserError(engine.error or f"{device_label(device)}: no frames within "
                         f"{FIRST_FRAME_TIMEOUT_S:g} s "
                         "(is it switched on and sending?)")
     progress = TerminalProgress(f"recording {out.name}", total=args.seconds, unit="s")
     token = CancelToken()
     start = time.monotonic()
-    session.stop_recording_after(seconds=args.seconds, disconnect=True)
+    acquisition.stop_recording_after(seconds=args.seconds, disconnect=True)
     with ctrl_c_cancels(token):
         while not token.wait(0.1):
-            session.poll()  # stops the recording at --seconds, or when the device ends
+            acquisition.poll()  # stops the recording at --seconds, or when the device ends
             elapsed = time.monotonic() - start
             progress(min(1.0, elapsed / args.seconds),
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
-            if not session.recording:
+            if not acquisition.recording:
                 break
     progress.close()
-    session.close()  # engine, then the LSL outlet (its end goes into the file), then the file
-    outcome = session.outcome  # acquisition/outcome.py: the same judgement as collect and the GUI
+    acquisition.close()  # engine, then the LSL outlet (its end goes into the file), then the file
+    # acquisition/outcome.py: the same judgement as collect and the GUI
+    outcome = acquisition.outcome
     if outcome is None:
         raise UserError(f"{out}: the recording did not start")
     print(f"\n{outcome.summary_line}")
@@ -155,12 +156,12 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     """One row per session file under ``paths`` (folders searched recursively): what an
     experimenter checks after importing a study (malformed rows, unmapped keys, trials).
     A file that cannot be read gets its one-line reason in the row; the exit code is 1."""
-    from tactile_studio.storage.session_set import (
+    from tactile_studio.storage.format.session_set import (
         is_pilot,
         is_resume_backup,
         scan_session_files,
     )
-    from tactile_studio.storage.study_summary import study_counts
+    from tactile_studio.storage.format.study_summary import study_counts
 
     files, backups = scan_session_files(paths)
     # a backup named explicitly is still a backup: its trials are its session's again
@@ -172,7 +173,7 @@ def _info_files(paths: list[str], as_json: bool) -> int:
     for f in every:
         name = f.relative_to(root).as_posix()
         try:
-            with Session(f) as s:
+            with SessionFile(f) as s:
                 summary = s.summary()
                 ok_trials = [t for t in s.trials if t.ok]
         except UserError as exc:
@@ -244,7 +245,7 @@ def _trial_table(trials: list[TrialRecord], gestures: list[str]) -> str:
 def cmd_info(args: argparse.Namespace) -> int:
     if len(args.file) > 1 or Path(args.file[0]).is_dir():
         return _info_files(args.file, args.json)
-    with Session(args.file[0]) as s:
+    with SessionFile(args.file[0]) as s:
         summary = s.summary()
         table = _trial_table(s.trials, summary["gestures"]) if s.trials else ""
         aux = [_aux_line(a) for a in s.aux_signals()]
@@ -270,7 +271,7 @@ def cmd_info(args: argparse.Namespace) -> int:
            if summary["events"] else ""),
         f"closed:     {_closed_text(summary)}",
     ]
-    from tactile_studio.storage.session_set import BACKUP_RE, is_pilot, is_resume_backup
+    from tactile_studio.storage.format.session_set import BACKUP_RE, is_pilot, is_resume_backup
 
     if is_resume_backup(Path(args.file[0])):  # as the table of several files marks it
         lines.insert(1, f"backup:     a resume backup: the session continues in "

@@ -89,7 +89,7 @@ class FrameStream(Protocol):
 
 @runtime_checkable
 class RecordableStream(FrameStream, Protocol):
-    """A stream the :class:`~tactile_studio.storage.recorder.Recorder` can write to a
+    """A stream the :class:`~tactile_studio.storage.recording.recorder.Recorder` can write to a
     file: it also names its device and keeps the counters a session file stores."""
 
     def counters(self) -> dict[str, Any]:

@@ -41,9 +41,9 @@ from tactile_studio.sensor.decode import StressFrames, relative_change
 from tactile_studio.sensor.layout import CENTRE
 from tactile_studio.sensor.taxels import distinct_taxels
 from tactile_studio.sensor.wellness import parse_taxel, stress_kpa, taxel_label
-from tactile_studio.storage.calibration_store import store_calibration
-from tactile_studio.storage.logbook import Logbook
-from tactile_studio.storage.session import Session
+from tactile_studio.storage.books.calibration_store import store_calibration
+from tactile_studio.storage.books.logbook import Logbook
+from tactile_studio.storage.format.session_file import SessionFile
 
 
 @dataclass(frozen=True)
@@ -168,7 +168,7 @@ def decode_session(path: str | os.PathLike, calibration_id: int | None = None,
     Default: the calibration the session was recorded with (``calibration_id`` in its
     metadata). The raw counts in the file are read, never changed.
     """
-    with Session(path) as s:
+    with SessionFile(path) as s:
         meta, raw, base, layout = s.metadata, s.raw(start, stop), s.baseline(start), s.layout
     sensor = meta.get("sensor_id")
     cal_id = calibration_id if calibration_id is not None else meta.get("calibration_id")

@@ -1,5 +1,5 @@
 """The events of a wellness check or a calibration (the bench's steps, the
-:class:`~tactile_studio.health.runner.HealthRun` around them) for whoever follows it: the
+:class:`~tactile_studio.health.health_check.HealthCheck` around them) for whoever follows it: the
 wizard's run page, the ``wellness`` and ``calibrate`` commands' prompts. One frozen
 dataclass per kind, declared here once, so a follower switches on the type and a misspelt
 field is an error where the event is made. None of them is written to a file.

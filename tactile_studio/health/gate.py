@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from tactile_studio.errors import UserError
-from tactile_studio.storage.logbook import Logbook, age_hours, age_text
-from tactile_studio.storage.logbook_file import LogbookDamaged, say_once
+from tactile_studio.storage.books.logbook import Logbook, age_hours, age_text
+from tactile_studio.storage.books.logbook_file import LogbookDamaged, say_once
 
 
 class WellnessRequired(UserError):

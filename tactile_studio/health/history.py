@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-from tactile_studio.storage.logbook import Logbook
+from tactile_studio.storage.books.logbook import Logbook
 
 
 @dataclass

@@ -31,7 +31,7 @@ from tactile_studio.sensor.wellness import (
     taxel_label,
     worst,
 )
-from tactile_studio.storage.logbook import Logbook, check_sensor_id
+from tactile_studio.storage.books.logbook import Logbook, check_sensor_id
 
 
 @dataclass(frozen=True)

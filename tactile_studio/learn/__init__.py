@@ -1,8 +1,9 @@
 """Learning core, in rooms named for what they hold (docs/learning/ has a page per room):
 ``data`` (trials, views, windows, splits), ``models`` (the torch networks and their
 registry), ``learners`` (the model contract, baselines, training, adaptation),
-``experiments`` (runs, jobs, sweeps, run folders), ``evaluation`` (metrics, statistics,
-comparison) and ``deploy`` (export, streaming, live inference, personalisation).
+``experiments`` (runs, jobs, sweeps, run folders, reading and comparing finished runs),
+``evaluation`` (metrics, statistics, figures) and
+``deploy`` (export, streaming, live inference, personalisation).
 
 The model extension seam (docs/models.md) is importable from here; it loads on first use,
 so importing a submodule of this package does not pull in torch.

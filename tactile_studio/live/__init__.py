@@ -7,7 +7,7 @@ The code lives in focused modules of this package; their public names are export
   readout, strip-chart history) and its data (:class:`LiveFrame`, :class:`CellReadout`,
   :class:`History`, :func:`parse_taxel_name`);
 - the acquisition itself (device, engine, recording, LSL) is
-  :mod:`tactile_studio.acquisition` (:class:`AcquisitionSession`, the widgets' only way
+  :mod:`tactile_studio.acquisition` (:class:`LiveAcquisition`, the widgets' only way
   to it); the views hold the stream it hands out by the
   :class:`~tactile_studio.devices.frame_stream.LiveStream` protocol;
 - :mod:`tactile_studio.live.meters`: :class:`RateMeter` (display fps) and

@@ -15,8 +15,8 @@ from tactile_studio.errors import UserError
 from tactile_studio.protocol.flag_summary import trial_reason
 from tactile_studio.protocol.quality import FLAG_TEXT, FLAGS
 from tactile_studio.sensor.decode import decode
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import trial_number
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trials import trial_number
 
 ANY_FLAG = "*"  # the player's "flagged (any reason)" filter
 
@@ -75,8 +75,8 @@ class AuxTrack:
     values: np.ndarray
 
 
-def aux_tracks(session: Session, n_frames: int) -> list[AuxTrack]:
-    """Every auxiliary signal (storage/aux_signals.py) placed by its own timestamps on
+def aux_tracks(session: SessionFile, n_frames: int) -> list[AuxTrack]:
+    """Every auxiliary signal (storage/format/aux_signals.py) placed by its own timestamps on
     the frames' host clock; samples outside the recording are left out."""
     if n_frames < 1:
         return []
@@ -98,7 +98,7 @@ class SessionPlayback:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
-        self.session = Session(self.path)
+        self.session = SessionFile(self.path)
         s = self.session
         self.layout = s.layout
         self.n_frames = s.n_frames

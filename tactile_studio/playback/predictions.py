@@ -15,7 +15,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.playback import SessionPlayback
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.format.trials import TrialStatus
 
 
 def predictions_over_time(run: str | os.PathLike, pb: SessionPlayback, hop: int | None = None

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from tactile_studio.storage.trials import TrialRecord, records
+from tactile_studio.storage.format.trials import TrialRecord, records
 
 
 class BlockPlan:

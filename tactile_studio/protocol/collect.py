@@ -2,7 +2,7 @@
 
 Both the GUI and ``tactile-studio collect`` use these, so a session file looks the same
 whoever ran it. A collection is not a second way to assemble a recording: its file is
-the :class:`~tactile_studio.acquisition.session.AcquisitionSession`'s recording
+the :class:`~tactile_studio.acquisition.live_acquisition.LiveAcquisition`'s recording
 (``start_recording``, the steps the main window uses); a caller holding only a stream
 gets a session of its own that shares it.
 
@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from tactile_studio.acquisition.file_sink import close_file_sink
-from tactile_studio.acquisition.session import AcquisitionSession
+from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.devices.frame_stream import EngineState, LiveStream
 from tactile_studio.devices.registry import plugin_class
 from tactile_studio.errors import SessionFileError, UserError
@@ -40,27 +40,27 @@ from tactile_studio.participant_id import PARTICIPANT_RE, check_participant  # n
 from tactile_studio.paths import make_out_dir
 from tactile_studio.plugin_settings import validate_settings
 from tactile_studio.protocol.randomise import block_orders, order_seed, practice_order
-from tactile_studio.protocol.runner import Clock, CollectionRunner, RunnerOptions, State
 from tactile_studio.protocol.trial_check import TrialChecker, unknown_gestures
-from tactile_studio.storage.protocol_file import Protocol, restored_protocol
-from tactile_studio.storage.recorder import Recorder
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.trials import trials_done
+from tactile_studio.protocol.trial_runner import Clock, RunnerOptions, State, TrialRunner
+from tactile_studio.storage.format.protocol_file import CollectionProtocol, restored_protocol
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trials import trials_done
+from tactile_studio.storage.recording.recorder import Recorder
 
 COPY_CHUNK = 8192
 _NOT_COPIED = ("layout", "device", "schema_version", "app_version")
 
 
 @dataclass
-class CollectionSession:
+class Collection:
     """A running collection: the runner plus what it writes to. ``close()`` when done."""
 
 
-    runner: CollectionRunner
+    runner: TrialRunner
     recorder: Recorder
     engine: LiveStream
     path: Path
-    protocol: Protocol
+    protocol: CollectionProtocol
     participant: str
     seed: int
     resumed: bool = False
@@ -129,7 +129,7 @@ def can_perform(engine: LiveStream) -> bool:
     return hasattr(engine.device, "perform")
 
 
-def session_names(out_dir: Path, participant: str, protocol: Protocol, pilot: bool = False
+def session_names(out_dir: Path, participant: str, protocol: CollectionProtocol, pilot: bool = False
                   ) -> Callable[[int], Path]:
     """The k-th candidate name of a new session: ``P01_shear9_<time>.h5``, then ``-2``,
     ``-3``... The writer's claim decides (``first_free``): two collections that start in
@@ -141,11 +141,12 @@ def session_names(out_dir: Path, participant: str, protocol: Protocol, pilot: bo
     return lambda k: out_dir / (f"{stem}.h5" if k == 0 else f"{stem}-{k + 1}.h5")
 
 
-def session_metadata(protocol: Protocol, participant: str, seed: int, orders: list[list[str]],
+def session_metadata(protocol: CollectionProtocol, participant: str, seed: int,
+                     orders: list[list[str]],
                      practice: list[str], condition: str = "", pilot: bool = False
                      ) -> dict[str, Any]:
     """What a collection's file says of itself; ``pilot: true`` marks a rehearsal, which
-    datasets, ``train`` and ``info``'s study leave out (storage/session_set.py)."""
+    datasets, ``train`` and ``info``'s study leave out (storage/format/session_set.py)."""
     pilot_mark = {"pilot": True} if pilot else {}
     return {**pilot_mark,
         "participant": participant, "protocol": protocol.name, "condition": condition,
@@ -161,7 +162,7 @@ class CollectionSettings:
     """What a new collection is (who, which protocol, where) and how its runner goes:
     the setup form's choices, ``collect``'s options, a test's few."""
 
-    protocol: Protocol
+    protocol: CollectionProtocol
     participant: str
     out_dir: str | os.PathLike[str]
     seed: int = 0
@@ -181,26 +182,26 @@ class CollectionSettings:
     personalise_check: bool = False
 
 
-def acquisition_of(source: AcquisitionSession | LiveStream) -> AcquisitionSession:
+def acquisition_of(source: LiveAcquisition | LiveStream) -> LiveAcquisition:
     """The acquisition session a collection records through: the caller's, or, for a
     bare stream (a test's, a benchmark's), one of its own that shares it (and never
     starts or stops it)."""
-    if isinstance(source, AcquisitionSession):
+    if isinstance(source, LiveAcquisition):
         if source.engine is None:
             raise RuntimeError("open a device on the acquisition session before collecting")
         return source
-    acquisition = AcquisitionSession()
+    acquisition = LiveAcquisition()
     acquisition.share(source)
     return acquisition
 
 
-def open_session(settings: CollectionSettings, source: AcquisitionSession | LiveStream, *,
-                 beeper: Any = None, clock: Clock | None = None) -> CollectionSession:
+def open_collection(settings: CollectionSettings, source: LiveAcquisition | LiveStream, *,
+                    beeper: Any = None, clock: Clock | None = None) -> Collection:
     """Create the session file and a runner in ``setup``; call ``runner.start()``.
 
     ``source``: the acquisition session (its recording is the collection's file) or a
     bare stream (:func:`acquisition_of`). Its stream may be started or not: the file
-    opened before ``start()`` (the start order of an AcquisitionSession) has rows equal
+    opened before ``start()`` (the start order of an LiveAcquisition) has rows equal
     to stream frames; on a running stream the file begins now.
     """
     s = settings
@@ -232,14 +233,14 @@ def open_session(settings: CollectionSettings, source: AcquisitionSession | Live
     options = RunnerOptions(beeper=beeper, clock=clock, auto_continue=s.auto_continue,
                             hold_flagged=s.hold_flagged, trial_check=s.trial_check,
                             personalise_check=s.personalise_check)
-    runner = CollectionRunner(s.protocol, engine, rec, participant, orders, practice=practice,
-                              options=options)
-    return CollectionSession(runner, rec, engine, Path(rec.path), s.protocol, participant,
-                             s.seed, touches=touch_source(engine, pilot=s.pilot),
-                             restore_gesture=restore, pilot=s.pilot)
+    runner = TrialRunner(s.protocol, engine, rec, participant, orders, practice=practice,
+                         options=options)
+    return Collection(runner, rec, engine, Path(rec.path), s.protocol, participant,
+                      s.seed, touches=touch_source(engine, pilot=s.pilot),
+                      restore_gesture=restore, pilot=s.pilot)
 
 
-def check_metadata(trial_check: TrialChecker, protocol: Protocol) -> dict[str, Any]:
+def check_metadata(trial_check: TrialChecker, protocol: CollectionProtocol) -> dict[str, Any]:
     """The session's ``trial_check`` metadata: the model's description and the protocol's
     gestures it does not know (not scored)."""
     return {**trial_check.describe(),
@@ -247,11 +248,11 @@ def check_metadata(trial_check: TrialChecker, protocol: Protocol) -> dict[str, A
 
 
 def read_resume_info(path: str | os.PathLike,
-                     at_hand: Protocol | None = None) -> dict[str, Any]:
+                     at_hand: CollectionProtocol | None = None) -> dict[str, Any]:
     """What a resume needs from a session file (protocol, participant, seed, device...);
     ``at_hand``: the protocol file the experimenter has chosen, whose folder holds the
     images when it is the file's protocol (``restored_protocol``)."""
-    with Session(path) as old:
+    with SessionFile(path) as old:
         meta = dict(old.metadata)
         if meta.get("source") != "collect" or "block_order" not in meta:
             raise SessionFileError(f"{path}: not a collection session (nothing to resume)")
@@ -389,7 +390,7 @@ def device_differences(info: dict[str, Any], name: str | None,
             if diffs else None)
 
 
-def last_device_time(old: Session) -> float | None:
+def last_device_time(old: SessionFile) -> float | None:
     """The old file's last device time, which a resumed run's clock must follow (None
     for a file without frames or with no finite time there)."""
     n = old.n_frames
@@ -399,17 +400,17 @@ def last_device_time(old: Session) -> float | None:
     return last if np.isfinite(last) else None
 
 
-def resume_session(path: str | os.PathLike, source: AcquisitionSession | LiveStream, *,
-                   beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
-                   hold_flagged: bool = False,
-                   allow_other_sensor: str | None = None,
-                   protocol_at_hand: Protocol | None = None,
-                   trial_check: TrialChecker | None = None) -> CollectionSession:
+def resume_collection(path: str | os.PathLike, source: LiveAcquisition | LiveStream, *,
+                      beeper: Any = None, clock: Clock | None = None, auto_continue: bool = True,
+                      hold_flagged: bool = False,
+                      allow_other_sensor: str | None = None,
+                      protocol_at_hand: CollectionProtocol | None = None,
+                      trial_check: TrialChecker | None = None) -> Collection:
     """Continue a killed or closed session at the next trial of its stored order.
 
     Refused on another device or sensor than the file's, unless ``allow_other_sensor``
     gives the reason (stored as a note and in the metadata). ``source``: as for
-    :func:`open_session`. ``protocol_at_hand``: see ``read_resume_info``."""
+    :func:`open_collection`. ``protocol_at_hand``: see ``read_resume_info``."""
     path = Path(path)
     acquisition = acquisition_of(source)
     engine = acquisition.engine
@@ -426,7 +427,7 @@ def resume_session(path: str | os.PathLike, source: AcquisitionSession | LiveStr
     if other and not note:
         raise OtherSensorRefused(path, other)
     restore = quiet_simulator(engine)  # before the copy: its settings say idle
-    with Session(path) as old:
+    with SessionFile(path) as old:
         meta = {k: v for k, v in old.metadata.items() if k not in _NOT_COPIED}
         meta["session_id"] = old.session_id  # kept (derived once for files without one)
         meta["resumes"] = int(meta.get("resumes", 0)) + 1
@@ -467,15 +468,15 @@ def resume_session(path: str | os.PathLike, source: AcquisitionSession | LiveStr
         raise
     rec.start()
     protocol = info["protocol"]
-    runner = CollectionRunner(protocol, engine, rec, info["participant"],
-                              meta["block_order"], practice=meta.get("practice_order", []),
-                              previous_trials=trials,
-                              options=RunnerOptions(beeper, clock, auto_continue, hold_flagged,
-                                                    trial_check))
+    runner = TrialRunner(protocol, engine, rec, info["participant"],
+                         meta["block_order"], practice=meta.get("practice_order", []),
+                         previous_trials=trials,
+                         options=RunnerOptions(beeper, clock, auto_continue, hold_flagged,
+                                               trial_check))
     notes = rec.writer.metadata.get("notes", "")  # the earlier notes and the resume's own
     runner.notes = [line for line in str(notes).split("\n") if line]
     pilot = bool(meta.get("pilot"))  # a rehearsal stays one
-    return CollectionSession(runner, rec, engine, path, protocol, info["participant"],
-                             info["seed"], resumed=True, backup=backup,
-                             touches=touch_source(engine, pilot=pilot),
-                             restore_gesture=restore, pilot=pilot)
+    return Collection(runner, rec, engine, path, protocol, info["participant"],
+                      info["seed"], resumed=True, backup=backup,
+                      touches=touch_source(engine, pilot=pilot),
+                      restore_gesture=restore, pilot=pilot)

@@ -14,8 +14,8 @@ from collections.abc import Iterable, Mapping
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAG_TEXT, describe
-from tactile_studio.storage.trial_checks import MISMATCH_FLAG
-from tactile_studio.storage.trials import TrialRecord, records
+from tactile_studio.storage.format.trial_checks import MISMATCH_FLAG
+from tactile_studio.storage.format.trials import TrialRecord, records
 
 
 def looks_like(trial: TrialRecord) -> str | None:

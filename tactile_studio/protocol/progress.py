@@ -8,8 +8,8 @@ from typing import Any, Protocol
 
 from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.snapshot import GestureView, RunnerSnapshot, State, participant_message
-from tactile_studio.storage.protocol_file import Protocol as CollectionProtocol
-from tactile_studio.storage.trials import TrialRecord, trials_done
+from tactile_studio.storage.format.protocol_file import CollectionProtocol
+from tactile_studio.storage.format.trials import TrialRecord, trials_done
 
 
 class RunnerView(Protocol):

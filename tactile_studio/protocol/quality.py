@@ -32,10 +32,10 @@ import numpy as np
 
 from tactile_studio.sensor.decode import contact_taxels, decode, relative_change
 from tactile_studio.sensor.layout import CENTRE, Layout
-from tactile_studio.storage.trial_checks import MISMATCH_FLAG
+from tactile_studio.storage.format.trial_checks import MISMATCH_FLAG
 
 if TYPE_CHECKING:
-    from tactile_studio.storage.protocol_file import Protocol
+    from tactile_studio.storage.format.protocol_file import CollectionProtocol
 
 FLAGS = ("no_contact", "short_contact", "saturated", "stuck_channel", "dead_taxel",
          "dropped_frames", "gap", "off_centre", "too_light", "too_heavy", "release_overlap",
@@ -71,7 +71,7 @@ class QualitySettings:
     dead_share: float = 0.1        # dead: peak under this share of its pressed neighbours'
 
 
-def quality_settings(protocol: Protocol) -> QualitySettings:
+def quality_settings(protocol: CollectionProtocol) -> QualitySettings:
     """The settings a protocol (storage.protocol_file.Protocol) declares in [quality]."""
     return QualitySettings(min_contact_fraction=protocol.min_contact_fraction,
                            centre_fraction=protocol.centre_fraction,

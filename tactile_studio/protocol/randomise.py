@@ -10,16 +10,16 @@ import hashlib
 
 import numpy as np
 
-from tactile_studio.storage.protocol_file import Protocol
+from tactile_studio.storage.format.protocol_file import CollectionProtocol
 
 
-def order_seed(protocol: Protocol, participant: str, seed: int = 0) -> int:
+def order_seed(protocol: CollectionProtocol, participant: str, seed: int = 0) -> int:
     """The integer that seeds a participant's block orders."""
     text = f"{protocol.name}|{participant.strip()}|{int(protocol.seed)}|{int(seed)}"
     return int.from_bytes(hashlib.sha256(text.encode("utf-8")).digest()[:8], "little")
 
 
-def block_orders(protocol: Protocol, participant: str, seed: int = 0,
+def block_orders(protocol: CollectionProtocol, participant: str, seed: int = 0,
                  blocks: int | None = None) -> list[list[str]]:
     """One list of gesture names per block: a fresh permutation per block
     (``shuffle_per_block``) or the file's order (``fixed``)."""
@@ -31,7 +31,7 @@ def block_orders(protocol: Protocol, participant: str, seed: int = 0,
     return [[names[i] for i in rng.permutation(len(names))] for _ in range(n)]
 
 
-def practice_order(protocol: Protocol, participant: str, seed: int = 0) -> list[str]:
+def practice_order(protocol: CollectionProtocol, participant: str, seed: int = 0) -> list[str]:
     """The gestures of the practice trials (cycling through a shuffled set)."""
     names = protocol.gesture_names
     rng = np.random.default_rng([order_seed(protocol, participant, seed), 0x9AC7])

@@ -7,8 +7,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 from tactile_studio.protocol.quality import FLAGS
-from tactile_studio.storage.trial_checks import check_counts, counts_line
-from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
+from tactile_studio.storage.format.trial_checks import check_counts, counts_line
+from tactile_studio.storage.format.trials import TrialRecord, TrialStatus, records
 
 STATUSES = tuple(s.value for s in TrialStatus)  # ok, redone, discarded
 

@@ -1,4 +1,4 @@
-"""The events a :class:`~tactile_studio.protocol.runner.CollectionRunner` tells its
+"""The events a :class:`~tactile_studio.protocol.trial_runner.TrialRunner` tells its
 listeners (the collection console, ``qc``, the LSL marker stream): one frozen dataclass per
 kind, declared here once, so a listener switches on the type and a misspelt field is an
 error where the event is made.

@@ -2,7 +2,7 @@
 
 Each verb either acts and returns True, or refuses with a one-line hint (``runner.hint``
 and a "hint" event) and returns False; none raises for a wrong moment. The state
-transitions they trigger live in :mod:`tactile_studio.protocol.runner`.
+transitions they trigger live in :mod:`tactile_studio.protocol.trial_runner`.
 """
 
 from __future__ import annotations
@@ -10,11 +10,11 @@ from __future__ import annotations
 from tactile_studio.protocol.background_check import WAIT_S
 from tactile_studio.protocol.runner_events import NoteAdded
 from tactile_studio.protocol.snapshot import State
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.format.trials import TrialStatus
 
 
 class RunnerInputs:
-    """Input methods of :class:`~tactile_studio.protocol.runner.CollectionRunner`.
+    """Input methods of :class:`~tactile_studio.protocol.trial_runner.TrialRunner`.
 
     A mixin: it uses the runner's state (``state``, ``trials``, ``_plan``...) and its
     transitions (``_begin_trial``, ``_after_trial``, ``_enter_break``...).

@@ -5,7 +5,7 @@ The runner holds a checker only through :class:`TrialChecker` (the learn side's
 own): when a trial ends it asks ``check(...)`` for a :class:`TrialVerdict`, adds the flag
 ``model_mismatch`` when the verdict is flagged, and stores the verdict on the trial
 (``check``; docs/session-format.md). ``protocol`` and ``learn`` may not import each other,
-so the verdict type lives in ``storage`` (:mod:`tactile_studio.storage.trial_checks`).
+so the verdict type lives in ``storage`` (:mod:`tactile_studio.storage.format.trial_checks`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from tactile_studio.sensor.layout import Layout
-from tactile_studio.storage.trial_checks import (
+from tactile_studio.storage.format.trial_checks import (
     DEFAULT_THRESHOLD,
     DEFAULT_TOP_K,
     MISMATCH_FLAG,

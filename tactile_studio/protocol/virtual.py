@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from tactile_studio.protocol.runner import CollectionRunner, State
+from tactile_studio.protocol.trial_runner import State, TrialRunner
 
 # Protocol gestures the simulator has no model for, mapped to a similar one:
 # (simulator gesture or None for no touch, intensity factor, speed factor).
@@ -79,7 +79,7 @@ class VirtualParticipant:
     ``runner.tick()``. It starts the runner itself once the baseline is in.
     """
 
-    def __init__(self, runner: CollectionRunner, device: Any, participant: str,
+    def __init__(self, runner: TrialRunner, device: Any, participant: str,
                  seed: int = 0, plan_ahead: bool = True) -> None:
         self.runner, self.device = runner, device
         self.plan_ahead = plan_ahead

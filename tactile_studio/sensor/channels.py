@@ -2,7 +2,7 @@
 the layout a bare channel count implies.
 
 Shared by the LSL outlet (streams/lsl_meta.py), the lsl device and XDF files (storage/
-xdf_export.py, storage/importers/xdf.py), so every tool names a channel the same way.
+xdf_export.py, storage/exchange/importers/xdf.py), so every tool names a channel the same way.
 """
 
 from __future__ import annotations

@@ -117,7 +117,7 @@ class LslStreamer:
 
     # ---- markers from elsewhere ----------------------------------------------------------
     def attach_runner(self, runner: EventSource) -> Callable[[], None]:
-        """Forward a CollectionRunner's events (trials, beeps, keys, redo...) as markers;
+        """Forward a TrialRunner's events (trials, beeps, keys, redo...) as markers;
         returns a function that stops forwarding.
 
         A trial start is stamped with the arrival of its first frame, a trial end with the

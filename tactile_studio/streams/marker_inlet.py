@@ -79,7 +79,7 @@ class MarkerInlets:
         self._thread = threading.Thread(target=self._run, name="lsl-markers", daemon=True)
         self._thread.start()
 
-    # ---- lifecycle (an outlet-like: AcquisitionSession.add_outlet stops it first) -------
+    # ---- lifecycle (an outlet-like: LiveAcquisition.add_outlet stops it first) -------
     def stop(self) -> None:
         """Take what has arrived, place the waiting markers, stop."""
         self._stop.set()

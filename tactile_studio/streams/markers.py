@@ -56,7 +56,7 @@ class RecordedEvent(Protocol):
 
 
 def runner_marker(event: RecordedEvent) -> dict[str, Any]:
-    """A collection-runner event (``CollectionRunner.add_listener``) as a marker."""
+    """A collection-runner event (``TrialRunner.add_listener``) as a marker."""
     detail = event.to_record()
     kind = detail.pop("kind")
     if kind == "trial_started":

@@ -24,7 +24,7 @@ command, however malformed, stops the listener or a recording.
 Commands are queued by the socket threads and carried out by :meth:`RemoteControl.process`
 on the owner's thread (the CLI's loop, the GUI's timer), which also owns the
 acquisition session, so nothing here touches the session from another thread. The
-session is duck-typed (``live.AcquisitionSession``: ``start_recording``,
+session is duck-typed (``live.LiveAcquisition``: ``start_recording``,
 ``stop_recording``, ``recording``, ``status()``, ``engine``), as this layer sits below it.
 """
 

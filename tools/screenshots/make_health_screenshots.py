@@ -43,7 +43,7 @@ def main() -> int:
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     os.environ["TACTILE_STUDIO_DATA_DIR"] = tempfile.mkdtemp(prefix="ts-health-shots-")
     from tactile_studio.cli import main as cli
-    from tactile_studio.storage.logbook import Logbook
+    from tactile_studio.storage.books.logbook import Logbook
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.calibration_wizard import CalibrationWizard
     from tactile_studio.ui.sensors_window import SensorsWindow

@@ -23,7 +23,7 @@ def _bad_csv(folder: Path) -> Path:
     import numpy as np
 
     from tactile_studio.simulate.simulator import SensorSimulator, SimConfig
-    from tactile_studio.storage.shearsense import write_shearsense_csv
+    from tactile_studio.storage.exchange.shearsense import write_shearsense_csv
 
     sim = SensorSimulator(SimConfig(rate=44.0, seed=3, gesture="idle", style_seed=5))
     for k, g in enumerate(("Poke", "Circular Stroke", "Heavy Pat", "Back & Forth Rub")):

@@ -25,7 +25,7 @@ def main(out: str = str(HERE / "main-window-serial.png")) -> int:
     if sys.platform.startswith("linux") and not os.environ.get("DISPLAY"):
         os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     from tactile_studio.devices.serial_emulator import Corruption, SerialEmulator
-    from tactile_studio.storage.frame_sources import simulated_source
+    from tactile_studio.storage.recording.frame_sources import simulated_source
     from tactile_studio.ui.app import ensure_app
     from tactile_studio.ui.main_window import MainWindow, wait_for
 

@@ -17,7 +17,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction
 from PySide6.QtWidgets import QMenu, QWidget
 
-from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.errors import UserError
 from tactile_studio.ui.collect.console import CollectConsole
@@ -32,7 +32,7 @@ def open_console(live: LiveSource | None = None, resume: bool = False,
     engine, name = live() if live is not None else (None, None)
     if engine is not None and not engine.running:
         engine, name = None, None
-    console = CollectConsole(engine=engine, live_device=name, acquisition=AcquisitionSession())
+    console = CollectConsole(engine=engine, live_device=name, acquisition=LiveAcquisition())
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
     if keep is not None:  # the caller holds a reference while the window is open
         keep.append(console)
@@ -79,7 +79,7 @@ def build_console(protocol: str | os.PathLike | None = None, participant: str = 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
-    acquisition = AcquisitionSession()
+    acquisition = LiveAcquisition()
     acquisition.marker_streams = tuple(markers or ())
     if silence_warning_s is not None:
         acquisition.silence_warning_s = silence_warning_s

@@ -5,9 +5,9 @@ session page: the live heatmap with shear arrows, a mirror of the participant sc
 session progress and ETA, the trial log with quality flags, and the experimenter's
 buttons. One QTimer drives ``runner.tick()`` and every repaint (never one repaint per
 sample). Widgets only present ``runner.snapshot()`` and forward intent to the runner;
-opening, resuming and closing the session file is the core's ``open_session`` /
-``resume_session`` / ``close``, and the device, engine, recorder and LSL outlet belong
-to the :class:`~tactile_studio.acquisition.session.AcquisitionSession` the console is handed
+opening, resuming and closing the session file is the core's ``open_collection`` /
+``resume_collection`` / ``close``, and the device, engine, recorder and LSL outlet belong
+to the :class:`~tactile_studio.acquisition.live_acquisition.LiveAcquisition` the console is handed
 (it never builds an engine or a recorder itself).
 """
 
@@ -35,7 +35,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.acquisition import AcquisitionSession
+from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.acquisition.events import (
     AcquisitionEvent,
     Health,
@@ -53,8 +53,8 @@ from tactile_studio.protocol.collect import (
     CollectionSettings,
     OtherSensorRefused,
     can_perform,
-    open_session,
-    resume_session,
+    open_collection,
+    resume_collection,
 )
 from tactile_studio.protocol.flag_summary import block_summary
 from tactile_studio.protocol.snapshot import RunnerSnapshot
@@ -88,18 +88,18 @@ def _banner(name: str, style: str) -> QLabel:
 
 
 class CollectConsole(ConsoleActions):
-    """Runs one collection session over ``acquisition`` (a new AcquisitionSession if not
+    """Runs one collection session over ``acquisition`` (a new LiveAcquisition if not
     given); ``engine`` is a live engine it may share (the setup's "live device")."""
 
     def __init__(self, engine: LiveStream | None = None, live_device: str | None = None,
                  settings: QSettings | None = None, beeper: QtBeeper | None = None,
                  clock: Any = None, parent: QWidget | None = None,
-                 acquisition: AcquisitionSession | None = None) -> None:
+                 acquisition: LiveAcquisition | None = None) -> None:
         super().__init__(parent)
         self.setWindowTitle("Tactile Studio \u2014 collection session")
         self.shared_engine = engine
         self.live_device = live_device
-        self.acquisition = acquisition if acquisition is not None else AcquisitionSession()
+        self.acquisition = acquisition if acquisition is not None else LiveAcquisition()
         self.session: Any = None          # the core's collect session (cs)
         self.runner: Any = None
         self.protocol: Any = None
@@ -323,7 +323,7 @@ class CollectConsole(ConsoleActions):
             self._open_dialog(dlg)
             return False
         health = admit(status, override_note)
-        return self._open(lambda: open_session(CollectionSettings(
+        return self._open(lambda: open_collection(CollectionSettings(
             choice.protocol, participant=choice.participant, out_dir=choice.out_dir,
             seed=choice.seed, condition=choice.condition, hold_flagged=choice.hold_flagged,
             auto_continue=choice.auto_continue, wellness=health, pilot=choice.pilot,
@@ -356,7 +356,7 @@ class CollectConsole(ConsoleActions):
         except UserError as exc:
             self.setup.show_error(str(exc))
             return False
-        return self._open(lambda: resume_session(
+        return self._open(lambda: resume_collection(
             Path(path), self.acquisition, beeper=self.beeper, clock=self.clock,
             hold_flagged=hold, auto_continue=auto,
             allow_other_sensor=allow_other_sensor,

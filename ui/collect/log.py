@@ -25,7 +25,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.storage.trials import TrialRecord, TrialStatus, records
+from tactile_studio.storage.format.trials import TrialRecord, TrialStatus, records
 from tactile_studio.ui.collect.view import trial_row
 
 COLUMNS = ("#", "Block", "Gesture", "Status", "Flags")

@@ -30,7 +30,7 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.trial_check import TrialChecker
-from tactile_studio.storage.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
+from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.settings import get_json, set_json
 

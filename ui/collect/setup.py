@@ -36,7 +36,11 @@ from tactile_studio.devices.registry import available_plugins
 from tactile_studio.errors import UserError
 from tactile_studio.paths import data_dir
 from tactile_studio.protocol.collect import device_differences, read_resume_info, resume_device
-from tactile_studio.storage.protocol_file import Protocol, list_protocols, load_protocol
+from tactile_studio.storage.format.protocol_file import (
+    CollectionProtocol,
+    list_protocols,
+    load_protocol,
+)
 from tactile_studio.ui.collect.qc_setup import QcChoice, QcModelField
 from tactile_studio.ui.settings import get_json, set_json
 from tactile_studio.ui.settings_form import SettingsForm
@@ -79,7 +83,7 @@ def _row(first: QWidget, second: QWidget, wide: int = 0) -> QHBoxLayout:
 class SetupChoice:
     """Everything needed to open a session (protocol already loaded and overridden)."""
 
-    protocol: Protocol
+    protocol: CollectionProtocol
     participant: str
     out_dir: Path
     condition: str = ""
@@ -208,7 +212,7 @@ class CollectSetup(QWidget):
         self.form = form = QFormLayout()
         form.addRow("Session file", resume_row)
         form.addRow("", self.resume_info)
-        form.addRow("Protocol", self.protocol)
+        form.addRow("CollectionProtocol", self.protocol)
         form.addRow("", self.protocol_info)
         form.addRow("Participant", self.participant)
         form.addRow("Condition", self.condition)
@@ -547,7 +551,7 @@ class CollectSetup(QWidget):
         self.sound_result.setText(text)
         self.sound_result.setStyleSheet("color: #606770;" if ok else "color: #c0392b;")
 
-    def current_protocol(self) -> Protocol | None:
+    def current_protocol(self) -> CollectionProtocol | None:
         """The chosen protocol, or None if it cannot be loaded."""
         try:
             return load_protocol(self._protocol_source())

@@ -11,7 +11,7 @@ from dataclasses import replace
 from typing import Any
 
 from tactile_studio.protocol.flag_summary import trial_reason
-from tactile_studio.storage.trials import TrialRecord
+from tactile_studio.storage.format.trials import TrialRecord
 from tactile_studio.ui.collect.participant import Card, ParticipantView
 
 _WAIT_TITLE = "Press the key of the gesture you will do next"

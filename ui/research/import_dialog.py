@@ -11,7 +11,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QFormLayout, QLineEdit, QPlainTextEdit, QWidget
 
-from tactile_studio.storage.importers.shearsense import import_shearsense_study
+from tactile_studio.storage.exchange.importers.shearsense import import_shearsense_study
 from tactile_studio.ui.research.import_base import ImportDialogBase, ImportJob
 
 GESTURES_HINT = "shear9's keys; or cost14, a protocol or map .toml, or key=Name,…"

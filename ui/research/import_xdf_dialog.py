@@ -1,5 +1,5 @@
 """Import XDF recordings (LabRecorder's files) from the research workspace: what
-``tactile-studio import xdf`` does (storage/importers/xdf.py), with its progress shown
+``tactile-studio import xdf`` does (storage/exchange/importers/xdf.py), with its progress shown
 and Cancel keeping the finished sessions. The imported folder joins the Sessions tab."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import Any
 
 from PySide6.QtWidgets import QFormLayout, QLineEdit, QWidget
 
-from tactile_studio.storage.importers.xdf import XdfChoice, XdfReport, import_xdf
+from tactile_studio.storage.exchange.importers.xdf import XdfChoice, XdfReport, import_xdf
 from tactile_studio.ui.research.import_base import ImportDialogBase, ImportJob
 
 

@@ -59,7 +59,7 @@ def live_inference_dock(window: QMainWindow):
     from tactile_studio.ui.research.live_panel import LiveInferencePanel
 
     if getattr(window, "live_dock", None) is None:
-        c = window.controller
+        c = window.acquisition
         panel = LiveInferencePanel(lambda: c.engine, lambda: c.recorder is not None)
         dock = QDockWidget("Live inference", window)
         dock.setObjectName("live_inference")

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
 from tactile_studio.errors import UserError
 from tactile_studio.playback import PlayClock, SessionPlayback, flag_filters, session_history
 from tactile_studio.playback.chart import ChartWindow
-from tactile_studio.storage.session_check import check_file, verdict_text
+from tactile_studio.storage.format.session_check import check_file, verdict_text
 from tactile_studio.ui.heatmap import HeatmapView, strip_colors
 from tactile_studio.ui.research.timeline import Timeline
 from tactile_studio.ui.stripchart import StripChart

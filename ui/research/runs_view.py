@@ -15,7 +15,7 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.evaluation.compare import config_difference
+from tactile_studio.learn.experiments.compare import config_difference
 from tactile_studio.learn.experiments.workspace_index import RunRow, scan_runs
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table

@@ -27,7 +27,7 @@ from tactile_studio.learn.experiments.workspace_index import (
     chosen_rows,
     scan_sessions,
 )
-from tactile_studio.storage.study_summary import study_counts
+from tactile_studio.storage.format.study_summary import study_counts
 from tactile_studio.ui.background_job import BackgroundJob
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table

@@ -20,7 +20,7 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import QToolTip, QWidget
 
 from tactile_studio.playback import AuxTrack, SessionPlayback
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.format.trials import TrialStatus
 
 AUX_LANE = 30  # px per auxiliary signal (EDA, ECG...) drawn under the trials
 PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",

@@ -13,8 +13,8 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QLabel, QMainWindow, QTabWidget, QWidget
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.evaluation.compare import compare_runs as compare_run_folders
-from tactile_studio.learn.evaluation.trialpreds import load_predictions
+from tactile_studio.learn.experiments.compare import compare_runs as compare_run_folders
+from tactile_studio.learn.experiments.trialpreds import load_predictions
 from tactile_studio.ui.file_dialogs import SESSION_KIND, ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView

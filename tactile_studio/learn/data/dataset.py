@@ -23,9 +23,9 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.choices import CHANNEL_SETS, GRIDS
 from tactile_studio.learn.data import cache
 from tactile_studio.sensor.decode import decode
-from tactile_studio.storage.session import Session
-from tactile_studio.storage.session_set import SessionSet, describe_skipped, select_sessions
-from tactile_studio.storage.trials import TrialRecord, label_order
+from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_set import SessionSet, describe_skipped, select_sessions
+from tactile_studio.storage.format.trials import TrialRecord, label_order
 
 # Slices into the decoded (normal, shear-x, shear-y) stack; pressure-only data has 1 channel.
 _CHANNEL_SLICES = {"normal": slice(0, 1), "shear": slice(1, 3), "both": slice(0, 3)}
@@ -136,13 +136,13 @@ class TrialDataset:
 
 def find_session_files(paths: Sequence[str | os.PathLike]) -> tuple[list[Path], Path | None]:
     """Session files from folders (recursive ``*.h5``) and files, without resume
-    backups and duplicate sessions (see :mod:`tactile_studio.storage.session_set`); also
+    backups and duplicate sessions (see :mod:`tactile_studio.storage.format.session_set`); also
     the common root folder that trial uids are made relative to."""
     chosen = select_sessions(paths)
     return chosen.files, chosen.root
 
 
-def _trial_rate(session: Session, trial: TrialRecord, start: int, stop: int) -> float:
+def _trial_rate(session: SessionFile, trial: TrialRecord, start: int, stop: int) -> float:
     """Frames per second of one trial from the device clock, else the trial's times."""
     n = stop - start
     if n >= 2:
@@ -174,7 +174,7 @@ def read_sessions(paths: Sequence[str | os.PathLike], grid: str = "physical",
         if cancel is not None:
             cancel.check()
         progress(k / len(files), f"reading {path.name}")
-        with Session(path) as s:
+        with SessionFile(path) as s:
             if layout_name is None:
                 layout_name, first_file = s.layout.name, path
             elif s.layout.name != layout_name:
@@ -252,7 +252,7 @@ def _without_flagged(ds: TrialDataset, chosen: SessionSet) -> TrialDataset:
     """``ds`` without the trials stored with flags (their uids, ``rel#index``)."""
     flagged: set[str] = set()
     for path in chosen.files:
-        with Session(path) as s:
+        with SessionFile(path) as s:
             flagged.update(t.uid(chosen.name(path)) for t in s.trials if t.flags)
     keep = [i for i, u in enumerate(ds.uids) if u not in flagged]
     if not keep:

@@ -46,9 +46,9 @@ from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.choices import EXPORT_FORMATS
 from tactile_studio.learn.data.dataset import TrialDataset
 from tactile_studio.learn.data.windowing import AGGREGATES
-from tactile_studio.learn.evaluation.evaluate import RunData, load_run_data
 from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, prepare_inputs
+from tactile_studio.learn.experiments.rescore import RunData, load_run_data
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
 from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.fold_predictions import FoldPredictions

@@ -25,7 +25,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.sensor.layout import Layout
-from tactile_studio.storage.trial_checks import (
+from tactile_studio.storage.format.trial_checks import (
     DEFAULT_THRESHOLD,
     DEFAULT_TOP_K,
     TrialVerdict,

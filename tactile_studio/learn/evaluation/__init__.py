@@ -1,3 +1,3 @@
-"""Evaluation and statistics: metrics, trial predictions from windows, summaries and
-plots of a run, the confusion order, re-scoring a run, and comparing two runs with the
-significance tests (Wilcoxon over people, McNemar over trials)."""
+"""Evaluation: the measures and figures of a run, below the runs that record them:
+metrics, summaries (metrics.json), the paired significance tests (Wilcoxon over people,
+McNemar over trials) and plots."""

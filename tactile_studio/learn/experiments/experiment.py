@@ -370,7 +370,7 @@ def _start_folder(out: str | os.PathLike | None, config: ExperimentConfig,
         return None
     folder = RunFolder(out)
     folder.start(config.to_dict(), resolved, RESULT_KEYS, result_defaults())
-    from tactile_studio.learn.data.trialinfo import write_trial_table
+    from tactile_studio.learn.experiments.trialinfo import write_trial_table
 
     write_trial_table(folder.path, ds.uids, ds.participants.tolist(), config.data)
     return folder

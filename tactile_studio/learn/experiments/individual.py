@@ -36,12 +36,12 @@ FACTORS = ("gesture", "participant", "surface")
 
 def _surfaces(paths: list[str]) -> dict[str, str]:
     """Session path (relative, as in trial uids) -> its ``condition`` (the surface)."""
-    from tactile_studio.storage.session import Session
+    from tactile_studio.storage.format.session_file import SessionFile
 
     files, root = find_session_files(paths)
     out = {}
     for f in files:
-        with Session(f) as s:
+        with SessionFile(f) as s:
             rel = f.relative_to(root).as_posix() if root else f.name
             out[rel] = str(s.metadata.get("condition") or "unknown")
     return out

@@ -32,7 +32,7 @@ from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.file_claims import replace_whole
 from tactile_studio.learn.experiments.run_shapes import config_problem, fold_problem
 from tactile_studio.output_faults import WriteFault, said_on_fault
-from tactile_studio.storage.input_files import file_sha256
+from tactile_studio.storage.exchange.input_files import file_sha256
 
 CONFIG, METRICS, WEIGHTS, FOLD = "config.json", "metrics.json", "model.safetensors", "fold.json"
 MODEL_FILES = (WEIGHTS, "model.onnx")  # torch weights, or a baseline's ONNX file

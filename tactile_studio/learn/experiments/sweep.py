@@ -259,8 +259,8 @@ def _start_folder(folder: Path, base: ExperimentConfig) -> None:
 
 def _start_runs(folder: Path, groups: dict[str, dict[str, Any]], full) -> None:  # noqa: ANN001
     """One run folder per (model, channel set) under ``OUT/runs`` (see the module doc)."""
-    from tactile_studio.learn.data.trialinfo import write_trial_table
     from tactile_studio.learn.experiments.experiment import RESULT_KEYS, _versions, result_defaults
+    from tactile_studio.learn.experiments.trialinfo import write_trial_table
 
     for g in groups.values():
         cfg: ExperimentConfig = g["config"]

@@ -18,13 +18,13 @@ from tactile_studio.errors import UserError
 from tactile_studio.jobs import CancelToken, ProgressFn, no_progress
 from tactile_studio.learn.evaluation.summary import shots_curve
 from tactile_studio.learn.experiments.runfolder import CONFIG, METRICS, read_json, run_problems
-from tactile_studio.storage.session_set import (
+from tactile_studio.storage.format.session_set import (
     SessionKey,
     choose,
     is_resume_backup,
     session_key,
 )
-from tactile_studio.storage.trials import TrialStatus
+from tactile_studio.storage.format.trials import TrialStatus
 
 
 @dataclass
@@ -51,7 +51,7 @@ class SessionRow:
     @property
     def problem(self) -> str:
         """Why the file is not to be trusted as it is ("" when it is)."""
-        from tactile_studio.storage.session_check import verdict_text
+        from tactile_studio.storage.format.session_check import verdict_text
 
         if self.error or self.violations:
             return self.error or verdict_text(self.violations)
@@ -79,9 +79,9 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
     (``session_check``: it reads the journal and the two time columns, not the frames)
     unless ``check`` is False: then :func:`check_sessions` checks them later, so a window
     can list a folder of long sessions at once."""
-    from tactile_studio.storage.session import Session
-    from tactile_studio.storage.session_check import check_session
-    from tactile_studio.storage.session_set import is_pilot, session_files_under
+    from tactile_studio.storage.format.session_check import check_session
+    from tactile_studio.storage.format.session_file import SessionFile
+    from tactile_studio.storage.format.session_set import is_pilot, session_files_under
 
     files: list[Path] = []
     for f in map(Path, folders):
@@ -90,7 +90,7 @@ def scan_sessions(folders: list[str | os.PathLike], check: bool = True) -> list[
     for path in sorted(set(files)):
         row = SessionRow(str(path))
         try:
-            with Session(path) as s:
+            with SessionFile(path) as s:
                 row.key = session_key(path, s)
                 meta = s.metadata
                 row.participant = str(meta.get("participant") or path.stem)
@@ -157,7 +157,7 @@ def check_sessions(paths: Sequence[str], on_result: Callable[[int, list[str], st
     """``check`` each file in turn, telling ``on_result(k, violations, error)`` of the
     ``k``-th as soon as it is known (``error``: the file could not be read); the slow
     half of :func:`scan_sessions`, for a background thread. Returns the files checked."""
-    from tactile_studio.storage.session_check import check_file
+    from tactile_studio.storage.format.session_check import check_file
 
     for k, path in enumerate(paths):
         if cancel is not None:
@@ -198,7 +198,7 @@ class RunRow:
     def ran_config(self) -> dict[str, Any]:
         """The config with the channel set the run used (its metrics say which when
         train left it to the model): what ``config_difference`` compares."""
-        from tactile_studio.learn.evaluation.compare import as_ran
+        from tactile_studio.learn.experiments.compare import as_ran
 
         return as_ran(self.config, self.channels if self.channels != "all" else None)
 
