@@ -212,7 +212,7 @@ class CollectSetup(QWidget):
         self.form = form = QFormLayout()
         form.addRow("Session file", resume_row)
         form.addRow("", self.resume_info)
-        form.addRow("CollectionProtocol", self.protocol)
+        form.addRow("Protocol", self.protocol)
         form.addRow("", self.protocol_info)
         form.addRow("Participant", self.participant)
         form.addRow("Condition", self.condition)
