@@ -417,15 +417,13 @@ class TrialRunner(RunnerInputs):
         if future is None or (not future.done() and wait_s <= 0):
             return
         try:
-            n = future.result(timeout=wait_s or None)
+            outcome: int | UserError = future.result(timeout=wait_s or None)
         except TimeoutError:
             return
         except UserError as exc:
-            self._personalising = None
-            self._personalised(exc)
-            return
+            outcome = exc
         self._personalising = None
-        self._personalised(n)
+        self._personalised(outcome)
 
     def _personalised(self, outcome: int | UserError) -> None:
         """The check's personalisation on record: an event, or a hint when it failed (the
