@@ -47,8 +47,8 @@ import numpy as np
 from tactile_studio.learn.deploy.live_inference import RunningCalibration
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
-from tactile_studio.learn.experiments.rescore import load_run_data
 from tactile_studio.learn.learners.fused import display_name
+from tactile_studio.learn.results.rescore import load_run_data
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.sensor.layout import get_layout
 from tactile_studio.simulate.population import DIFFICULTIES

@@ -9,7 +9,7 @@ rounds (the cost on one core), the sweep's wall time, the parameters of the mode
 channels, 6x6, 9 gestures) and its inference time per 2 s trial (batch of 64, one thread,
 including the mirror averaging of the full recipe). With rf among the models (first),
 every learned model is also compared with it trial by trial on the same test trials of
-every round (learn/experiments/compare.py: the accuracy difference, Wilcoxon signed-rank over the
+every round (learn/results/compare.py: the accuracy difference, Wilcoxon signed-rank over the
 participants, McNemar over the trials): one accuracy has a standard error of ~2.5 points,
 the paired test says whether a difference is more than that.
 
@@ -57,17 +57,17 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from learn_fixtures import make_dataset_folder  # noqa: E402
 
-from tactile_studio.learn.experiments.compare import compare_predictions, compare_runs  # noqa: E402
 from tactile_studio.learn.experiments.executors import LocalExecutor  # noqa: E402
 from tactile_studio.learn.experiments.experiment import ExperimentConfig  # noqa: E402
 from tactile_studio.learn.experiments.sweep import run_sweep  # noqa: E402
-from tactile_studio.learn.experiments.trialpreds import (  # noqa: E402
-    RunPredictions,
-    load_predictions,
-)
 from tactile_studio.learn.learners.baselines import BASELINES  # noqa: E402
 from tactile_studio.learn.learners.contract import PRESETS  # noqa: E402
 from tactile_studio.learn.learners.fused import fuse  # noqa: E402
+from tactile_studio.learn.results.compare import compare_predictions, compare_runs  # noqa: E402
+from tactile_studio.learn.results.trialpreds import (  # noqa: E402
+    RunPredictions,
+    load_predictions,
+)
 from tactile_studio.simulate import GESTURE_NAMES  # noqa: E402
 from tactile_studio.simulate.population import DIFFICULTIES  # noqa: E402
 
@@ -213,7 +213,7 @@ def main(argv: list[str] | None = None) -> None:
                 # as recorded (and --adapt's per-person features refuse augmented windows)
                 own.pop("augment", None)
                 own.pop("augment_copies", None)
-            base = ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
+            base = ExperimentConfig(data=[str(data)], model=model, evaluation="lopo",
                                     preset=args.preset, rounds=args.rounds,
                                     epochs=None if baseline else args.epochs,
                                     overrides={} if baseline else sets,

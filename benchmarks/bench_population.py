@@ -87,7 +87,7 @@ def forest_by_difficulty() -> None:
             made = time.perf_counter() - t0
             columns[name] = population_stats(ds.trials, ds.participants, ds.channel_names)
             t0 = time.perf_counter()
-            cfg = ExperimentConfig(data=[str(folder)], model="rf", protocol="lopo")
+            cfg = ExperimentConfig(data=[str(folder)], model="rf", evaluation="lopo")
             m = run_experiment(cfg, dataset=ds).metrics
             took = time.perf_counter() - t0
             # per-person standardisation: on real people it cost rf (issue 37: -1.7 points);

@@ -38,7 +38,7 @@ def train(folder: Path, people: int) -> Path:
     from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 
     make_dataset_folder(folder / "earlier", participants=people, blocks=3)
-    cfg = ExperimentConfig(data=[str(folder / "earlier")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(folder / "earlier")], model="rf", evaluation="lopo",
                            threads=1, cache_dir=str(folder / "cache"))
     run_experiment(cfg, folder / "run")
     return folder / "run"

@@ -43,7 +43,7 @@ def train(sessions: Path, model: str, out: Path) -> float:
     from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
     from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 
-    config = ExperimentConfig(data=[str(sessions)], model=model, protocol="lopo",
+    config = ExperimentConfig(data=[str(sessions)], model=model, evaluation="lopo",
                               adapt=ADAPT_AUTO)
     start = time.perf_counter()
     run_experiment(config, out)

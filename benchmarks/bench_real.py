@@ -51,7 +51,7 @@ def run(model: str, sessions: Path, shots: tuple[int, ...], rounds: int,
     from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 
     # train's defaults (adapt auto, resolved by run_experiment as for the command)
-    config = ExperimentConfig(data=[str(sessions)], model=model, protocol="lopo",
+    config = ExperimentConfig(data=[str(sessions)], model=model, evaluation="lopo",
                               rounds=rounds, epochs=epochs, seed=seed, shots=shots,
                               threads=threads, adapt=ADAPT_AUTO)
     start = time.perf_counter()

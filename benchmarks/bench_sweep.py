@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp)
-        base = ExperimentConfig(data=[str(data(root / "data"))], model="rf", protocol="lopo",
+        base = ExperimentConfig(data=[str(data(root / "data"))], model="rf", evaluation="lopo",
                                 preset="tiny", epochs=3, cache_dir=str(root / "cache"),
                                 overrides={}, adapt="auto")
         wall, up, n = timed(LocalExecutor(2), base, root / "local")

@@ -64,7 +64,7 @@ def make_data(folder: Path) -> Path:
 
 def one_fold(model: str, data: Path, ds) -> dict[str, float]:
     """Train and test the first LOPO fold of round 1; CPU and wall seconds and more."""
-    cfg = experiment.ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
+    cfg = experiment.ExperimentConfig(data=[str(data)], model=model, evaluation="lopo",
                                       threads=1, adapt="auto")
     whole = experiment.folds_for
     folds = whole(cfg, ds, 0)
@@ -112,7 +112,7 @@ def measured_round_min(model: str, data: Path, workers: int) -> float:
     from tactile_studio.learn.experiments.executors import make_executor
     from tactile_studio.learn.experiments.sweep import run_sweep
 
-    cfg = experiment.ExperimentConfig(data=[str(data)], model=model, protocol="lopo",
+    cfg = experiment.ExperimentConfig(data=[str(data)], model=model, evaluation="lopo",
                                       threads=1, adapt="auto")
     t0 = time.perf_counter()
     with make_executor("local", jobs=workers) as ex:

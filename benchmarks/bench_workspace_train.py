@@ -48,7 +48,7 @@ def main(argv: list[str] | None = None) -> None:
             wait_for(2.5)
             idle = painted_fps(w, args.seconds)
             cfg = ExperimentConfig(data=[str(Path(tmp) / "data")], model="cnn1d",
-                                   protocol="lopo", preset="tiny", epochs=400,
+                                   evaluation="lopo", preset="tiny", epochs=400,
                                    overrides={"patience": 1000}, threads=1, device="cpu",
                                    cache_dir=str(Path(tmp) / "cache"))
             job = TrainJob(cfg, Path(tmp) / "run").start()

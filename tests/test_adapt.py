@@ -15,16 +15,16 @@ from learn_fixtures import make_dataset_folder, write_participant
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.experiments.compare import compare_runs
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     prepare_inputs,
     run_experiment,
 )
-from tactile_studio.learn.experiments.rescore import load_run_data, rescore_run
 from tactile_studio.learn.experiments.runfolder import model_file
 from tactile_studio.learn.learners.generalise import person_standardised
 from tactile_studio.learn.learners.train import adapt_batchnorm
+from tactile_studio.learn.results.compare import compare_runs
+from tactile_studio.learn.results.rescore import load_run_data, rescore_run
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 
@@ -35,7 +35,7 @@ def runs(tmp_path_factory):
     make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
 
     def run(model: str, name: str, adapt: str, **overrides) -> dict:
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
                                preset="tiny", epochs=None if model == "rf" else 2, threads=1,
                                device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
                                overrides=overrides)
@@ -184,7 +184,7 @@ def test_adapt_from_the_cli_and_its_one_line_errors(runs, capsys):
         ExperimentConfig(data=[], model="rf", adapt="people").validate()
     with pytest.raises(UserError, match="holds whole people out"):
         ExperimentConfig(data=[], model="cnn1d", adapt="person",
-                         protocol="all-inclusive").validate()
+                         evaluation="all-inclusive").validate()
     code = main(["train", "--data", str(root / "data"), "--model", "knn", "--preset", "tiny",
                  "--adapt", "person", "--cache-dir", str(root / "cache"),
                  "--out", str(root / "knn")])
@@ -206,8 +206,8 @@ def test_train_adapts_every_model_to_held_out_people_by_default(runs, capsys):
     saved = json.loads((root / "default" / "metrics.json").read_text())
     assert saved["confusion_counts"] == runs["net_adapted"].metrics["confusion_counts"]
 
-    def resolved(model: str, protocol: str = "lopo", augment: str = "", **overrides) -> str:
-        cfg = ExperimentConfig(data=[], model=model, protocol=protocol, adapt="auto",
+    def resolved(model: str, evaluation: str = "lopo", augment: str = "", **overrides) -> str:
+        cfg = ExperimentConfig(data=[], model=model, evaluation=evaluation, adapt="auto",
                                augment=augment, overrides=overrides)
         cfg.validate()
         return cfg.resolved().adapt

@@ -19,9 +19,9 @@ from tactile_studio.learn.experiments.experiment import (
     prepare_inputs,
     run_experiment,
 )
-from tactile_studio.learn.experiments.rescore import load_run_data, rescore_run
 from tactile_studio.learn.experiments.runfolder import model_file
 from tactile_studio.learn.learners.generalise import adapt_groups
+from tactile_studio.learn.results.rescore import load_run_data, rescore_run
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 
@@ -36,7 +36,7 @@ def data(tmp_path_factory):
 
 
 def _run(root, model: str, name: str, adapt: str, data: str = "data"):
-    cfg = ExperimentConfig(data=[str(root / data)], model=model, protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / data)], model=model, evaluation="lopo",
                            preset="tiny", epochs=None if model == "rf" else 2, threads=1,
                            device="cpu", cache_dir=str(root / "cache"), adapt=adapt)
     return run_experiment(cfg, root / name)

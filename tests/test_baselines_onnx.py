@@ -20,9 +20,9 @@ from tactile_studio.learn.data.features import feature_matrix
 from tactile_studio.learn.deploy.export_run import export_run
 from tactile_studio.learn.deploy.streaming import StreamingPredictor
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.learners.baselines import BaselineModel, baseline_options
 from tactile_studio.learn.learners.families import DataInfo
+from tactile_studio.learn.results.rescore import rescore_run
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +85,7 @@ def test_damaged_model_file_is_a_one_line_error(tmp_path):
 @pytest.mark.parametrize("name", ["rf", "et", "knn"])
 def test_run_folder_holds_onnx_that_evaluate_export_and_streaming_load(data, name):
     root, ds, _ = data
-    cfg = ExperimentConfig(data=[str(root / "data")], model=name, protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model=name, evaluation="lopo",
                            preset="tiny", cache_dir=str(root / "cache"), seed=0)
     out = root / f"run-{name}"
     result = run_experiment(cfg, out)

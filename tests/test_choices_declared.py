@@ -15,9 +15,9 @@ from tactile_studio.learn.choices import (
     AGGREGATES,
     BASELINES,
     CHANNEL_SETS,
+    EVALUATIONS,
     EXECUTORS,
     GRIDS,
-    PROTOCOLS,
     SHOTS_BY,
 )
 from tactile_studio.learn.learners.contract import PRESETS
@@ -30,7 +30,7 @@ from tactile_studio.ui.settings import SETTINGS_ENV
 # every option of the learning commands that offers choices: its declaration, plus the
 # values the command adds of its own (sweep's "all": every channel the data has)
 DECLARED = {
-    "protocol": (PROTOCOLS, ()), "grid": (GRIDS, ()), "channels": (CHANNEL_SETS, ()),
+    "evaluation": (EVALUATIONS, ()), "grid": (GRIDS, ()), "channels": (CHANNEL_SETS, ()),
     "channel_sets": (CHANNEL_SETS, ()), "shots_by": (SHOTS_BY, ()),
     "aggregate": (AGGREGATES, ()), "executor": (EXECUTORS, ()), "preset": (PRESETS, ()),
     "val_by": (VAL_BY, ()), "adapt": (ADAPT_CHOICES, ()),
@@ -83,8 +83,8 @@ def settings(tmp_path, monkeypatch):
 def test_the_train_tab_offers_exactly_the_declared_choices(qtbot, settings):
     panel = TrainPanel(lambda: [])
     qtbot.addWidget(panel)
-    assert sorted(_offered(panel.protocol)) == sorted(PROTOCOLS)
-    assert panel.protocol.currentText() == PROTOCOLS[0]
+    assert sorted(_offered(panel.evaluation)) == sorted(EVALUATIONS)
+    assert panel.evaluation.currentText() == EVALUATIONS[0]
     assert sorted(_offered(panel.channels)) == sorted(CHANNEL_SETS)
     assert sorted(_offered(panel.grid)) == sorted(GRIDS)
     assert sorted(_offered(panel.shots_by)) == sorted(SHOTS_BY)
@@ -97,7 +97,7 @@ def test_the_train_tab_offers_exactly_the_declared_choices(qtbot, settings):
 def test_the_sweep_tab_offers_exactly_the_declared_choices(qtbot, settings):
     panel = SweepPanel(lambda: [])
     qtbot.addWidget(panel)
-    assert sorted(_offered(panel.protocol)) == sorted(PROTOCOLS)
+    assert sorted(_offered(panel.evaluation)) == sorted(EVALUATIONS)
     assert sorted(panel.channel_boxes) == sorted(CHANNEL_SETS)
     assert sorted(_offered(panel.executor)) == sorted(EXECUTORS)
     assert sorted(_offered(panel.preset)) == sorted(PRESETS)

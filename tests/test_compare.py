@@ -14,10 +14,10 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
-from tactile_studio.learn.experiments.compare import compare_runs, config_difference
-from tactile_studio.learn.experiments.confusion import ConfusionModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.experiments.trialpreds import TrialPrediction, load_predictions
+from tactile_studio.learn.results.compare import compare_runs, config_difference
+from tactile_studio.learn.results.confusion import ConfusionModel
+from tactile_studio.learn.results.trialpreds import TrialPrediction, load_predictions
 
 GESTURES = ("Poke", "Heavy Pat", "Back & Forth Rub", "Tickle")
 
@@ -29,7 +29,7 @@ def runs(tmp_path_factory):
     out = {}
     for channels in ("normal", "both"):
         cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels=channels,
-                               protocol="lopo", preset="tiny", cache_dir=str(root / "cache"))
+                               evaluation="lopo", preset="tiny", cache_dir=str(root / "cache"))
         run_experiment(cfg, root / channels)
         out[channels] = root / channels
     return out
@@ -208,7 +208,7 @@ def test_runs_are_named_by_what_differs_and_the_cli_tables_line_up(runs, capsys)
     root = both.parent
     long = root / "knn-three-neighbours-both-channels-a-long-folder-name"
     cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels="both",
-                           protocol="lopo", preset="tiny", cache_dir=str(root / "cache"),
+                           evaluation="lopo", preset="tiny", cache_dir=str(root / "cache"),
                            overrides={"n_neighbors": 3})
     run_experiment(cfg, long)
     r = compare_runs(runs["normal"], long)
@@ -230,7 +230,7 @@ def test_a_run_on_the_models_default_channels_is_named_by_the_channels_it_used(r
     channels" beside a run on the same channels (walking the README: rf vs cnn1d)."""
     root = runs["both"].parent
     cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels=None,
-                           protocol="lopo", preset="tiny", cache_dir=str(root / "cache"),
+                           evaluation="lopo", preset="tiny", cache_dir=str(root / "cache"),
                            overrides={"n_neighbors": 3})
     run_experiment(cfg, root / "default-channels")
     r = compare_runs(root / "default-channels", runs["both"])
@@ -244,17 +244,17 @@ def test_every_setting_a_run_config_holds_is_named_when_it_differs():
     """compare said "differ in: nothing recorded" for an rf run against an rf --shots
     0,1,2 run: only some settings were described. Now every result-changing setting is,
     where it acts (the folds of a k-fold mean nothing under lopo)."""
-    base = ExperimentConfig(data=["d"], model="rf", protocol="lopo").to_dict()
+    base = ExperimentConfig(data=["d"], model="rf", evaluation="lopo").to_dict()
     changed = {"data": ["d", "e"], "model": "knn", "channels": "normal", "grid": "virtual",
-               "protocol": "group-kfold", "rounds": 3, "preset": "tiny", "epochs": 5,
+               "evaluation": "group-kfold", "rounds": 3, "preset": "tiny", "epochs": 5,
                "overrides": {"k": 3}, "seed": 1, "window_s": 12.0, "window_overlap": 0.25,
                "aggregate": "vote", "augment": "flip", "participant_norm": True,
                "balance": True, "val_by": "participant", "adapt": "person", "shots": [0, 1],
                "val_fraction": 0.3}
     # settings that act only beside another: changed together with it
-    along = {"folds": {"protocol": "group-kfold", "folds": 5},
-             "heldout_fraction": {"protocol": "group-kfold", "heldout_fraction": 0.2},
-             "split": {"protocol": "all-inclusive", "split": [0.6, 0.2, 0.2]},
+    along = {"folds": {"evaluation": "group-kfold", "folds": 5},
+             "heldout_fraction": {"evaluation": "group-kfold", "heldout_fraction": 0.2},
+             "split": {"evaluation": "all-inclusive", "split": [0.6, 0.2, 0.2]},
              "shots_by": {"shots": [0, 1], "shots_by": "fine-tune"},
              "augment_copies": {"augment": "flip", "augment_copies": 3}}
     from tactile_studio.learn.experiments.experiment import RESULT_KEYS
@@ -280,7 +280,7 @@ def _result(diff: float, wilcoxon: float | None, mcnemar: float) -> dict:
 
 def test_a_difference_its_tests_do_not_support_is_not_said_as_a_win():
     """"both beats normal by 1.5 points, p = 0.27" said a win the test did not show."""
-    from tactile_studio.learn.experiments.compare import sentence
+    from tactile_studio.learn.results.compare import sentence
 
     s = sentence(_result(0.015, 0.27, 0.40))
     assert "beats" not in s
@@ -301,7 +301,7 @@ def test_compare_names_the_channels_and_shots_the_runs_used(runs, capsys):
     root = runs["both"].parent
     for name, kw in (("model-channels", {"channels": None}), ("with-shots",
                                                               {"shots": (0, 1)})):
-        cfg = ExperimentConfig(data=[str(root / "data")], model="knn", protocol="lopo",
+        cfg = ExperimentConfig(data=[str(root / "data")], model="knn", evaluation="lopo",
                                preset="tiny", cache_dir=str(root / "cache"), **kw)
         run_experiment(cfg, root / name)
     r = compare_runs(runs["normal"], root / "model-channels")
@@ -311,3 +311,26 @@ def test_compare_names_the_channels_and_shots_the_runs_used(runs, capsys):
     out = capsys.readouterr().out
     assert "differ in: shots: none → 0,1" in out
     assert "few-shot (K 0,1)" in out and "plain" in out
+
+
+def test_a_run_written_before_protocol_was_renamed_evaluation_still_loads(runs, tmp_path,
+                                                                         capsys):
+    """Runs made before the house step say ``"protocol": "lopo"`` in config.json: the
+    workspace, compare and a resumed train read it as today's ``evaluation``."""
+    from tactile_studio.learn.results.workspace_index import read_run_row
+
+    old = tmp_path / "old"
+    shutil.copytree(runs["both"], old)
+    cfg = json.loads((old / "config.json").read_text())
+    cfg["config"]["protocol"] = cfg["config"].pop("evaluation")
+    (old / "config.json").write_text(json.dumps(cfg))
+    row = read_run_row(old)
+    assert row.error == "" and row.evaluation == "lopo"
+    assert ExperimentConfig.from_dict(cfg["config"]).evaluation == "lopo"
+    same = compare_runs(old, runs["both"])
+    assert same["n_matched"] > 0 and same["config_difference"] == []
+    # resuming it with today's settings is the same run, not "a different run"
+    again = ExperimentConfig.from_dict(json.loads((runs["both"] / "config.json").read_text())
+                                       ["config"])
+    again.cache_dir = str(tmp_path / "cache")
+    run_experiment(again, old)

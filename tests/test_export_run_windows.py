@@ -29,7 +29,7 @@ def data(tmp_path_factory):
 
 def _run(data, model: str, name: str, **kw):
     torch_model = model not in BASELINES
-    cfg = ExperimentConfig(data=[str(data / "data")], model=model, protocol="lopo",
+    cfg = ExperimentConfig(data=[str(data / "data")], model=model, evaluation="lopo",
                            preset="tiny", epochs=4 if torch_model else None,
                            cache_dir=str(data / "cache"), threads=1,
                            overrides={"lr": "0.01"} if torch_model else {}, **kw)

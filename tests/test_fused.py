@@ -14,11 +14,11 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.experiments.compare import compare_runs
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.experiments.train_job import model_settings
 from tactile_studio.learn.learners.contract import LEARNER_MEMBERS, Learner
 from tactile_studio.learn.learners.families import make_learner
+from tactile_studio.learn.results.compare import compare_runs
 
 GESTURES = ("Poke", "Heavy Pat", "Twist")
 
@@ -29,7 +29,7 @@ def runs(tmp_path_factory):
     make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
 
     def run(model: str, name: str, **overrides) -> dict:
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
                                preset="tiny", epochs=None if model == "rf" else 2, threads=1,
                                device="cpu", cache_dir=str(root / "cache"), overrides=overrides)
         return run_experiment(cfg, root / name)
@@ -112,7 +112,7 @@ def test_a_fused_sweep_task_brings_both_model_files_back(runs, tmp_path):
     from tactile_studio.learn.experiments.executors import LocalExecutor
     from tactile_studio.learn.experiments.sweep import format_rows, run_sweep
 
-    base = ExperimentConfig(data=[str(runs["root"] / "data")], model="cnn1d", protocol="lopo",
+    base = ExperimentConfig(data=[str(runs["root"] / "data")], model="cnn1d", evaluation="lopo",
                             preset="tiny", epochs=2, device="cpu", overrides={"rf_weight": 0.3},
                             cache_dir=str(runs["root"] / "cache"))
     with LocalExecutor(1) as ex:

@@ -110,7 +110,7 @@ def test_balancing_and_participant_validation(data):
 @pytest.mark.parametrize("model", ["rf", "cnn3d"])
 def test_options_run_through_the_experiment(data, model):
     torch_model = model != "rf"
-    cfg = ExperimentConfig(data=[str(data / "data")], model=model, protocol="lopo",
+    cfg = ExperimentConfig(data=[str(data / "data")], model=model, evaluation="lopo",
                            preset="tiny", epochs=4 if torch_model else None, threads=1,
                            cache_dir=str(data / "cache"), augment="all", augment_copies=2,
                            participant_norm=True, balance=True, val_by="participant",

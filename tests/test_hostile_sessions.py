@@ -199,7 +199,7 @@ def test_fifo_and_device_links_are_refused_and_listed(good, tmp_path):
             _assert_one_line(result, path.name, cause)
     # in a folder: the workspace's Sessions tab lists them with the reason, info too
     # (exit 1), train says it skipped them
-    from tactile_studio.learn.experiments.workspace_index import scan_sessions
+    from tactile_studio.learn.results.workspace_index import scan_sessions
 
     listed = {Path(r.path).name: r.error for r in scan_sessions([folder])}
     assert listed["x.h5"].endswith("x.h5: a FIFO (named pipe), not a session file")

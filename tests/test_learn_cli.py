@@ -24,7 +24,7 @@ from learn_fixtures import (
 
 from tactile_studio.cli import main
 from tactile_studio.learn.deploy.export import load_onnx_predictor
-from tactile_studio.learn.experiments.rescore import load_run_data
+from tactile_studio.learn.results.rescore import load_run_data
 
 GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
 

@@ -21,11 +21,11 @@ from tactile_studio.learn.data import views
 from tactile_studio.learn.data.dataset import build_dataset
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.experiments.job_events import Fold
-from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.families import available_models
 from tactile_studio.learn.learners.train import load_weights
+from tactile_studio.learn.results.rescore import rescore_run
 
 FAMILIES = sorted(available_models())
 CHANCE = 1 / 9
@@ -48,12 +48,12 @@ def data(tmp_path_factory):
     return root
 
 
-def config(data, model, protocol, **kw):
+def config(data, model, evaluation, **kw):
     overrides = {"lr": "0.01"} if model not in (*BASELINES, "mts3d") else {}
     if model == "cnn_transformer":
         overrides["view_stride"] = "9"  # fewer overlapping windows: 3x faster, same idea
     epochs = None if model in BASELINES else 15
-    base = dict(data=[str(data / "data")], model=model, protocol=protocol, preset="tiny",
+    base = dict(data=[str(data / "data")], model=model, evaluation=evaluation, preset="tiny",
                 epochs=epochs, overrides=overrides, cache_dir=str(data / "cache"), seed=0)
     base.update(kw)
     return ExperimentConfig(**base)
@@ -62,12 +62,12 @@ def config(data, model, protocol, **kw):
 _RUNS: dict = {}
 
 
-def trained(data, model, protocol):
-    """Each (model, protocol) is trained once per module and shared by the tests."""
-    key = (model, protocol)
+def trained(data, model, evaluation):
+    """Each (model, evaluation) is trained once per module and shared by the tests."""
+    key = (model, evaluation)
     if key not in _RUNS:
-        out = data / "runs" / f"{model}-{protocol}"
-        _RUNS[key] = (run_experiment(config(data, model, protocol), out), out)
+        out = data / "runs" / f"{model}-{evaluation}"
+        _RUNS[key] = (run_experiment(config(data, model, evaluation), out), out)
     return _RUNS[key]
 
 
@@ -76,17 +76,17 @@ def test_registry_and_baselines_are_all_there():
             "rf", "et", "knn"} <= set(FAMILIES)
 
 
-@pytest.mark.parametrize("protocol", ["lopo", "all-inclusive"])
+@pytest.mark.parametrize("evaluation", ["lopo", "all-inclusive"])
 @pytest.mark.parametrize("model", FAMILIES)
 @pytest.mark.slow
-def test_family_beats_chance_and_writes_run_folder(data, model, protocol):
-    result, out = trained(data, model, protocol)
+def test_family_beats_chance_and_writes_run_folder(data, model, evaluation):
+    result, out = trained(data, model, evaluation)
     m = result.metrics
     assert m["accuracy"] >= 3 * CHANCE, m["accuracy"]
     assert m["kappa"] > 0.25
     for key in METRIC_KEYS + ("per_fold", "rounds", "medians", "per_class_accuracy"):
         assert key in m
-    n_folds = 4 if protocol == "lopo" else 1
+    n_folds = 4 if evaluation == "lopo" else 1
     assert len(m["per_fold"]) == n_folds
     for fold in m["per_fold"]:
         assert all(k in fold for k in METRIC_KEYS)

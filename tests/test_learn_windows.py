@@ -31,7 +31,7 @@ def data(tmp_path_factory):
 
 def _config(data, model, **kw):
     torch_model = model not in BASELINES
-    base = dict(data=[str(data / "data")], model=model, protocol="lopo", preset="tiny",
+    base = dict(data=[str(data / "data")], model=model, evaluation="lopo", preset="tiny",
                 epochs=6 if torch_model else None, cache_dir=str(data / "cache"),
                 overrides={"lr": "0.01"} if torch_model else {}, threads=1)
     base.update(kw)
@@ -90,7 +90,7 @@ def test_vote_aggregate_and_bad_settings(data, tmp_path):
 
 @pytest.mark.parametrize("how", ["mean", "vote"])
 def test_per_trial_predictions_aggregate_as_the_run_does(data, tmp_path, how):
-    from tactile_studio.learn.experiments import trialpreds
+    from tactile_studio.learn.results import trialpreds
 
     run = run_experiment(_config(data, "rf", aggregate=how), tmp_path / how)
     preds = trialpreds.load_predictions(tmp_path / how)
@@ -145,7 +145,7 @@ def test_imported_long_performances_train_on_windows(tmp_path):
     ds = build_dataset([tmp_path / "sessions"], use_cache=False)
     assert len(ds) == 9 and ds.lengths().min() >= 10 * 44 - 2  # one trial per performance
     m = run_experiment(ExperimentConfig(data=[str(tmp_path / "sessions")], model="rf",
-                                        protocol="lopo", preset="tiny", use_cache=False)).metrics
+                                        evaluation="lopo", preset="tiny", use_cache=False)).metrics
     assert m["windows"] == 9 * 9  # 10 s at 2 s windows, 50% overlap: 9 windows each
     assert m["n"] == 81 and m["n_trials"] == 9
     assert m["trial_accuracy"] > 0.5

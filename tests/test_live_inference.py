@@ -25,7 +25,7 @@ def run(tmp_path_factory):
     root = tmp_path_factory.mktemp("stream")
     make_dataset_folder(root / "data", participants=2, blocks=2, gestures=GESTURES)
     cfg = ExperimentConfig(data=[str(root / "data")], model="cnn_transformer",
-                           protocol="all-inclusive", preset="tiny", epochs=2, threads=1,
+                           evaluation="all-inclusive", preset="tiny", epochs=2, threads=1,
                            device="cpu", channels="both", cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"
@@ -60,7 +60,7 @@ def test_windowed_torch_model_streams_and_matches_the_window_path(run):
 
 def test_a_streaming_model_adapting_as_they_touch_predicts_window_by_window(run, tmp_path):
     cfg = ExperimentConfig(data=[str(run.parent / "data")], model="cnn_transformer",
-                           protocol="lopo", preset="tiny", epochs=1, threads=1, device="cpu",
+                           evaluation="lopo", preset="tiny", epochs=1, threads=1, device="cpu",
                            channels="both", cache_dir=str(run.parent / "cache"), adapt="person")
     run_experiment(cfg, tmp_path / "adapted")
     model = WindowModel(tmp_path / "adapted")

@@ -25,8 +25,8 @@ from tactile_studio.learn.experiments.experiment import (
     prepare_inputs,
     run_experiment,
 )
-from tactile_studio.learn.experiments.rescore import load_run_data
 from tactile_studio.learn.learners.fused import person_columns
+from tactile_studio.learn.results.rescore import load_run_data
 from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time
 from tactile_studio.sensor.layout import get_layout
@@ -42,7 +42,7 @@ def root(tmp_path_factory):
             ("cnn1d_person", "cnn1d", "person", {}), ("rf_person", "rf", "person", {}),
             ("rf_none", "rf", "none", {}),
             ("fused_person", "cnn1d", "person", {"rf_weight": 0.5})):  # network + forest
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
                                preset="tiny", epochs=None if model == "rf" else 2, threads=1,
                                device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
                                overrides=overrides)
@@ -154,7 +154,7 @@ def test_a_long_window_is_cut_as_the_run_cut_long_trials(root, tmp_path):
     # as the mean over its 2 s windows (the trial prediction evaluation made)
     make_dataset_folder(tmp_path / "data", participants=3, blocks=1, gestures=GESTURES,
                         repeats=3)
-    cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", evaluation="lopo",
                            preset="tiny", threads=1, cache_dir=str(tmp_path / "cache"))
     run_experiment(cfg, tmp_path / "run")
     windows, rate, layout, stored = _person(tmp_path / "run", "P01")

@@ -38,7 +38,7 @@ def _run(root, model: str, adapt: str = "none", rf_weight: float = 0.0):
     out = root / f"run-{model}-{adapt}-{rf_weight:g}"
     if not (out / "metrics.json").is_file():
         run_experiment(ExperimentConfig(data=[str(root / "data")], model=model,
-                                        protocol="lopo", preset="tiny", adapt=adapt,
+                                        evaluation="lopo", preset="tiny", adapt=adapt,
                                         overrides={"rf_weight": rf_weight} if rf_weight
                                         else {}, cache_dir=str(root / "cache")), out)
     return out

@@ -67,7 +67,7 @@ def test_time_frames_trials_and_clock(tmp_path):
 
 @pytest.mark.parametrize("model", ["knn", "cnn1d"])
 def test_predictions_over_time_follow_the_gestures(data, tmp_path, model):
-    cfg = ExperimentConfig(data=[str(data / "data")], model=model, protocol="lopo",
+    cfg = ExperimentConfig(data=[str(data / "data")], model=model, evaluation="lopo",
                            preset="tiny", epochs=8 if model == "cnn1d" else None,
                            cache_dir=str(data / "cache"), threads=1, device="cpu")
     run_experiment(cfg, tmp_path / "run")

@@ -18,7 +18,7 @@ GESTURES = ("Poke", "Heavy Pat", "Twist")
 def test_the_player_predicts_12_s_performances_with_the_runs_2_s_windows(tmp_path):
     make_dataset_folder(tmp_path / "data", participants=3, blocks=1, gestures=GESTURES,
                         repeats=6)  # 12 s performances of a 2 s gesture repeated
-    cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", evaluation="lopo",
                            preset="tiny", threads=1, cache_dir=str(tmp_path / "cache"))
     run_experiment(cfg, tmp_path / "run")
     pb = SessionPlayback(tmp_path / "data" / "P02.h5")

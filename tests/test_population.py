@@ -117,7 +117,7 @@ def test_real_population_statistics_match_the_recordings(cohorts):
 def test_random_forest_lopo_drops_from_near_perfect_to_the_papers_range(cohorts):
     acc = {}
     for level, ds in cohorts.items():
-        cfg = ExperimentConfig(data=["unused"], model="rf", protocol="lopo", preset="tiny")
+        cfg = ExperimentConfig(data=["unused"], model="rf", evaluation="lopo", preset="tiny")
         acc[level] = run_experiment(cfg, dataset=ds).metrics["trial_accuracy"]
     assert acc["easy"] > 0.9
     assert 0.5 <= acc["real"] <= 0.8, acc

@@ -19,7 +19,7 @@ from learn_fixtures import make_dataset_folder
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.experiments.workspace_index import scan_runs
+from tactile_studio.learn.results.workspace_index import scan_runs
 
 GESTURES3 = ("Poke", "Heavy Pat", "Back & Forth Rub")
 

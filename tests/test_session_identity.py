@@ -162,7 +162,7 @@ def test_hidden_folders_hold_no_sessions(tmp_path):
     """A study folder with a virtual environment or a cache inside: the HDF5 files of a
     library's tests there are not sessions, so neither train nor the workspace reads them
     (a file named by the user, hidden or not, is read)."""
-    from tactile_studio.learn.experiments.workspace_index import scan_sessions
+    from tactile_studio.learn.results.workspace_index import scan_sessions
 
     (tmp_path / "study").mkdir()
     write_participant(tmp_path / "study" / "P01.h5", "P01", 1, blocks=1, trial_s=0.5)

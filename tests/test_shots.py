@@ -54,7 +54,7 @@ def test_a_gesture_keeps_one_performance_to_test():
 
 def test_run_curve_and_no_window_leaks(long_trials):
     ds = read_sessions([long_trials / "data"]).select(None)
-    cfg = ExperimentConfig(data=["unused"], model="rf", protocol="lopo", preset="tiny",
+    cfg = ExperimentConfig(data=["unused"], model="rf", evaluation="lopo", preset="tiny",
                            window_s=2.0, shots=(0, 1), overrides={"n_estimators": 30})
     result = run_experiment(cfg, dataset=ds)
     m = result.metrics
@@ -90,7 +90,8 @@ def test_cli_prints_the_curve_and_refuses_all_inclusive(long_trials, tmp_path, c
     assert [s["k"] for s in metrics["shots"]] == [0, 1]
     assert json.loads((out / "config.json").read_text())["config"]["shots"] == [0, 1]
     with pytest.raises(UserError, match="all-inclusive"):
-        ExperimentConfig(data=["x"], model="rf", protocol="all-inclusive", shots=(0, 1)).validate()
+        ExperimentConfig(data=["x"], model="rf", evaluation="all-inclusive",
+                         shots=(0, 1)).validate()
     with pytest.raises(SystemExit):
         main(["train", "--data", "x", "--model", "rf", "--out", "y", "--shots", "1,1"])
     assert "distinct" in capsys.readouterr().err
@@ -105,7 +106,7 @@ def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
                      "--cache-dir", str(tmp_path / "cache")]) == 0
         runs.append(out)
     capsys.readouterr()
-    from tactile_studio.learn.experiments.compare import compare_runs
+    from tactile_studio.learn.results.compare import compare_runs
     r = compare_runs(*runs)
     assert [s["k"] for s in r["shots"]] == [0, 1]
     assert r["n_matched"] == r["shots"][0]["n_matched"] == 18  # each trial once, at K = 0
@@ -114,7 +115,7 @@ def test_compare_reads_the_curve(long_trials, tmp_path, capsys):
 
 
 def _ft_config(ds_path, shots_by: str, model: str = "cnn1d", **kw) -> ExperimentConfig:
-    return ExperimentConfig(data=[str(ds_path)], model=model, protocol="lopo",
+    return ExperimentConfig(data=[str(ds_path)], model=model, evaluation="lopo",
                             preset="tiny", window_s=2.0, shots=(0, 1, 2), shots_by=shots_by,
                             epochs=2, **kw)
 

@@ -22,8 +22,8 @@ from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken
 from tactile_studio.learn.experiments.executors import LocalExecutor, RayExecutor, make_executor
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.experiments.rescore import rescore_run
 from tactile_studio.learn.experiments.sweep import run_sweep, task_gpus
+from tactile_studio.learn.results.rescore import rescore_run
 
 pytestmark = pytest.mark.slow  # real worker processes and a Ray instance
 
@@ -42,7 +42,7 @@ def data(tmp_path_factory):
 
 
 def _base(data, **kw) -> ExperimentConfig:
-    cfg = dict(data=[str(data / "data")], model="rf", protocol="lopo", preset="tiny", epochs=3,
+    cfg = dict(data=[str(data / "data")], model="rf", evaluation="lopo", preset="tiny", epochs=3,
                cache_dir=str(data / "cache"), overrides={}, adapt="auto")
     cfg.update(kw)
     return ExperimentConfig(**cfg)

@@ -97,7 +97,7 @@ def test_forests_fit_on_all_their_training_people_trials(data, model):
     from tactile_studio.learn.learners.baselines import BaselineModel
     from tactile_studio.learn.learners.families import DataInfo, make_learner
 
-    config = ExperimentConfig(data=[str(data / "data")], model=model, protocol="lopo",
+    config = ExperimentConfig(data=[str(data / "data")], model=model, evaluation="lopo",
                               preset="tiny", cache_dir=str(data / "cache"),
                               overrides={} if model == "knn" else {"n_estimators": 20})
     out = data / f"all-{model}"
@@ -136,12 +136,12 @@ def test_a_run_from_before_the_touch_features_still_predicts(data):
     """A forest run folder whose recorded options lack ``features`` was trained on the
     115 basic features: live use and evaluate read it with those, not the 237."""
     from tactile_studio.learn.deploy.window_model import WindowModel
-    from tactile_studio.learn.experiments.rescore import rescore_run
+    from tactile_studio.learn.results.rescore import rescore_run
     from tactile_studio.playback import SessionPlayback
 
     out = data / "before"
     result = run_experiment(ExperimentConfig(
-        data=[str(data / "data")], model="rf", protocol="lopo", preset="tiny",
+        data=[str(data / "data")], model="rf", evaluation="lopo", preset="tiny",
         overrides={"n_estimators": 20, "features": "basic"}, cache_dir=str(data / "cache")),
         out)
     cfg = json.loads((out / "config.json").read_text())
@@ -174,7 +174,7 @@ def test_live_personalisation_joins_the_shots_as_train_shots_does(tmp_path):
 
     make_dataset_folder(tmp_path / "data", participants=3, blocks=2, gestures=GESTURES4)
     config = ExperimentConfig(data=[str(tmp_path / "data")], model="et", adapt="auto",
-                              protocol="lopo", preset="tiny", shots=(0, 1),
+                              evaluation="lopo", preset="tiny", shots=(0, 1),
                               overrides={"n_estimators": 20}, cache_dir=str(tmp_path / "c"))
     result = run_experiment(config, tmp_path / "run")
     k1 = next(r for r in result.folds if r["name"] == "P01 k1")

@@ -37,7 +37,7 @@ def wait_until_finished(job: TrainJob, seconds: float = 240, stop_on=None) -> li
 
 
 def cnn_config(data) -> ExperimentConfig:
-    return ExperimentConfig(data=[str(data / "data")], model="cnn1d", protocol="lopo",
+    return ExperimentConfig(data=[str(data / "data")], model="cnn1d", evaluation="lopo",
                             preset="tiny", epochs=6, cache_dir=str(data / "cache"), threads=1,
                             device="cpu")
 
@@ -74,7 +74,7 @@ def test_worker_errors_are_messages(data, tmp_path):
     bad.mkdir()
     write_participant(bad / "P01.h5", "P01", 3, gestures=("Poke",), blocks=0,
                       extra_trials=[trial_record(0, "Poke", 5, 40, status="discarded")])
-    cfg = ExperimentConfig(data=[str(bad)], model="knn", protocol="lopo", preset="tiny",
+    cfg = ExperimentConfig(data=[str(bad)], model="knn", evaluation="lopo", preset="tiny",
                            use_cache=False)
     job = TrainJob(cfg, tmp_path / "r1").start()
     wait_until_finished(job)
@@ -121,7 +121,7 @@ def test_training_uses_one_thread_that_sleeps_by_default(data, tmp_path, monkeyp
 
     for name in THREAD_VARS:  # the suite's one-thread settings (conftest) removed
         monkeypatch.delenv(name, raising=False)
-    config = ExperimentConfig(data=[str(data / "data")], model="cnn1d", protocol="lopo",
+    config = ExperimentConfig(data=[str(data / "data")], model="cnn1d", evaluation="lopo",
                               preset="tiny", epochs=1, cache_dir=str(data / "cache"),
                               device="cpu")
     job = TrainJob(config, tmp_path / "panel").start()

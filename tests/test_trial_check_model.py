@@ -24,7 +24,7 @@ def run(tmp_path_factory) -> Path:
     """A LOPO forest over four virtual people of the nine shear9 gestures (seconds)."""
     root = tmp_path_factory.mktemp("qc_model")
     make_dataset_folder(root / "data", participants=4, blocks=3)
-    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            preset="tiny", threads=1, device="cpu",
                            cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")

@@ -95,7 +95,7 @@ def test_train_exclude_flagged_leaves_flagged_trials_out(tmp_path):
         {**first.to_dict(), "index": 0, "flags": ["no_contact"]}])
 
     def trained(name: str, exclude: bool) -> dict:
-        cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", protocol="lopo",
+        cfg = ExperimentConfig(data=[str(tmp_path / "data")], model="rf", evaluation="lopo",
                                preset="tiny", threads=1, cache_dir=str(tmp_path / "cache"),
                                exclude_flagged=exclude)
         run_experiment(cfg, tmp_path / name)

@@ -39,7 +39,7 @@ from tactile_studio.ui.file_dialogs import start_folder
 def qc_run(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("qc")
     make_dataset_folder(root / "data", participants=2, blocks=2, gestures=("Poke", "Twist"))
-    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            threads=1, cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"
@@ -51,7 +51,7 @@ def qc_run3(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("qc3")
     make_dataset_folder(root / "data", participants=3, blocks=3,
                         gestures=("Poke", "Twist", "Tickle"), trial_s=0.5)
-    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            threads=1, cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"

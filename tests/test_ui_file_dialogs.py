@@ -89,7 +89,7 @@ def test_confusion_export_suggests_the_runs_name_in_the_last_export_folder(qtbot
                                                                           dialogs):
     make_dataset_folder(tmp_path / "data", participants=3, blocks=1, trial_s=1.0)
     config = ExperimentConfig(data=[str(tmp_path / "data")], model="knn", preset="tiny",
-                              protocol="lopo", cache_dir=str(tmp_path / "cache"))
+                              evaluation="lopo", cache_dir=str(tmp_path / "cache"))
     run_experiment(config, tmp_path / "runs" / "knn-lopo")
     window = ResearchWindow()
     qtbot.addWidget(window)

@@ -26,7 +26,7 @@ SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir
 def run(tmp_path_factory):
     root = tmp_path_factory.mktemp("live")
     make_dataset_folder(root / "data", participants=3, blocks=4, gestures=GESTURES)
-    cfg = ExperimentConfig(data=[str(root / "data")], model="knn", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="knn", evaluation="lopo",
                            preset="tiny", cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"
@@ -90,7 +90,7 @@ def test_an_adapted_rf_predicts_as_trained_until_calibrated_to_the_person(run, q
                                                                        monkeypatch):
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
     root = run.parent
-    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            preset="tiny", cache_dir=str(root / "cache"), adapt="person")
     run_experiment(cfg, root / "rf_adapted")
     w = _window(qtbot)
@@ -143,7 +143,7 @@ def test_a_network_fused_with_an_adapted_forest_predicts_as_trained_too(run, qtb
                                                                        monkeypatch):
     monkeypatch.setenv(SETTINGS_ENV, str(tmp_path / "settings.ini"))
     root = run.parent
-    cfg = ExperimentConfig(data=[str(root / "data")], model="cnn1d", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="cnn1d", evaluation="lopo",
                            preset="tiny", epochs=2, cache_dir=str(root / "cache"),
                            adapt="person", overrides={"rf_weight": 0.5})
     run_experiment(cfg, root / "fused_adapted")

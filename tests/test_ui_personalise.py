@@ -27,7 +27,7 @@ SHOTS = Path(os.environ.get("TACTILE_STUDIO_SCREENSHOTS") or tempfile.gettempdir
 def run(tmp_path_factory):
     root = tmp_path_factory.mktemp("personal_ui")
     make_dataset_folder(root / "data", participants=3, blocks=3, gestures=GESTURES)
-    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            preset="tiny", cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"

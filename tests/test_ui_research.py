@@ -30,7 +30,7 @@ def workspace(tmp_path_factory):
     make_dataset_folder(root / "data", participants=4, blocks=2, gestures=GESTURE_NAMES)
     for channels in ("normal", "both"):
         cfg = ExperimentConfig(data=[str(root / "data")], model="knn", channels=channels,
-                               protocol="lopo", preset="tiny", cache_dir=str(root / "cache"))
+                               evaluation="lopo", preset="tiny", cache_dir=str(root / "cache"))
         run_experiment(cfg, root / "runs" / channels)
     broken = root / "runs" / "zz-broken"
     shutil.copytree(root / "runs" / "normal", broken)
@@ -223,7 +223,7 @@ def test_fourteen_long_gesture_names_stay_readable(window, workspace):
     size, and the screenshot is kept for review."""
     import numpy as np
 
-    from tactile_studio.learn.experiments.trialpreds import RunPredictions, TrialPrediction
+    from tactile_studio.learn.results.trialpreds import RunPredictions, TrialPrediction
 
     names = [f"{g} ({k})" for k, g in enumerate(
         ["Back & Forth Rub", "Circular Stroke", "Constant Touch", "Heavy Pat", "Isometric Rub",

@@ -47,7 +47,7 @@ def test_every_train_setting_round_trips(qtbot, tmp_path):
 
     def vary(p: TrainPanel) -> None:
         p.model.setCurrentText("rf")
-        for combo in (p.preset, p.channels, p.grid, p.protocol, p.adapt, p.shots_by):
+        for combo in (p.preset, p.channels, p.grid, p.evaluation, p.adapt, p.shots_by):
             _other(combo)
         p.rounds.setValue(3)
         p.epochs.setValue(7)
@@ -56,7 +56,7 @@ def test_every_train_setting_round_trips(qtbot, tmp_path):
         p.exclude_flagged.setChecked(True)
         _recipe(p)
 
-    names = {f"research/train/{k}" for k in ("model", "preset", "channels", "grid", "protocol",
+    names = {f"research/train/{k}" for k in ("model", "preset", "channels", "grid", "evaluation",
                                              "adapt", "rounds", "epochs", "shots", "shots_by",
                                              "out", "recipe", "exclude_flagged")}
     _round_trip(qtbot, lambda s: TrainPanel(lambda: [], s), vary, tmp_path, names)
@@ -66,7 +66,7 @@ def test_every_sweep_setting_round_trips(qtbot, tmp_path):
     def vary(p: SweepPanel) -> None:
         p.set_models(["cnn1d"])
         p.set_channels(["shear"])
-        for combo in (p.executor, p.adapt, p.preset, p.protocol):
+        for combo in (p.executor, p.adapt, p.preset, p.evaluation):
             _other(combo)
         p.jobs.setValue(p.jobs.value() % 7 + 1 if p.jobs.value() != 7 else 3)
         p.address.setText("10.0.0.5:6379")
@@ -74,6 +74,6 @@ def test_every_sweep_setting_round_trips(qtbot, tmp_path):
         _recipe(p)
 
     names = {f"research/sweep/{k}" for k in ("models", "channels", "executor", "adapt",
-                                             "jobs", "address", "preset", "protocol",
+                                             "jobs", "address", "preset", "evaluation",
                                              "rounds", "recipe")}
     _round_trip(qtbot, lambda s: SweepPanel(lambda: [], s), vary, tmp_path, names)

@@ -14,10 +14,10 @@ from learn_fixtures import make_dataset_folder
 from PySide6.QtCore import Qt
 
 from tactile_studio.learn.data.dataset import read_sessions
-from tactile_studio.learn.experiments.compare import compare_runs
-from tactile_studio.learn.experiments.confusion import ConfusionModel
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
-from tactile_studio.learn.experiments.trialpreds import load_predictions
+from tactile_studio.learn.results.compare import compare_runs
+from tactile_studio.learn.results.confusion import ConfusionModel
+from tactile_studio.learn.results.trialpreds import load_predictions
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
 from tactile_studio.ui.research.runs_view import COLUMNS, RunsView
@@ -36,7 +36,7 @@ def runs(tmp_path_factory):
     ds = read_sessions([root / "data"]).select(None)
     out = {}
     for model in ("rf", "knn"):
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, protocol="lopo",
+        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
                                preset="tiny", shots=(0, 1))
         run_experiment(cfg, root / "runs" / model, dataset=ds)
         out[model] = root / "runs" / model
@@ -60,11 +60,11 @@ def test_the_panel_trains_a_few_shot_run(settings_env, runs, qtbot, tmp_path):
     panel = w.train
     panel.model.setCurrentText("rf")
     panel.preset.setCurrentText("tiny")
-    panel.protocol.setCurrentText("all-inclusive")
+    panel.evaluation.setCurrentText("all-inclusive")
     assert not panel.shots.isEnabled() and not panel.shots_by.isEnabled()  # nobody held out
     panel.shots.setText("0,1")
     assert panel.config().shots == ()
-    panel.protocol.setCurrentText("lopo")
+    panel.evaluation.setCurrentText("lopo")
     assert panel.shots.isEnabled() and panel.config().shots == (0, 1)
     assert panel.shots_by.isEnabled() and panel.config().shots_by == "auto"
     # rf's shots always join the training: the choice is not offered, and auto is join

@@ -111,7 +111,7 @@ def test_background_and_training_jobs_end_in_the_one_line(qtbot, run_folder, blo
     assert failures == [f"{blocker}/x.h5: cannot write (Not a directory)"]
 
     data = run_folder.parent / "data"
-    cfg = ExperimentConfig(data=[str(data)], model="knn", protocol="lopo", preset="tiny",
+    cfg = ExperimentConfig(data=[str(data)], model="knn", evaluation="lopo", preset="tiny",
                            cache_dir=str(run_folder.parent / "cache"))
     train = TrainJob(cfg, blocker / "run").start()
     deadline = time.monotonic() + 120

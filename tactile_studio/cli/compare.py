@@ -9,7 +9,7 @@ from tactile_studio.cli.json_output import print_json
 
 def cmd_compare(args: argparse.Namespace) -> int:
     from tactile_studio.cli import tables
-    from tactile_studio.learn.experiments.compare import compare_runs
+    from tactile_studio.learn.results.compare import compare_runs
 
     r = compare_runs(args.run_a, args.run_b)
     if args.json:

@@ -15,9 +15,9 @@ from tactile_studio.learn.choices import (
     AGGREGATES,
     BASELINES,
     CHANNEL_SETS,
+    EVALUATIONS,
     EXPORT_FORMATS,
     GRIDS,
-    PROTOCOLS,
     SHOTS_BY,
 )
 from tactile_studio.learn.learners.baselines import DEFAULT_MODEL
@@ -76,8 +76,8 @@ def _add_train_options(p: argparse.ArgumentParser) -> None:
                         + ", ".join(n for n in BASELINES if n != DEFAULT_MODEL)
                         + ", a network of docs/models.md (cnn1d, cnn3d...) or a model a "
                           "package registers")
-    p.add_argument("--eval", dest="protocol", choices=PROTOCOLS, default=PROTOCOLS[0],
-                   help=f"evaluation protocol (default {PROTOCOLS[0]})")
+    p.add_argument("--eval", dest="evaluation", choices=EVALUATIONS, default=EVALUATIONS[0],
+                   help=f"how people are held out for testing (default {EVALUATIONS[0]})")
     p.add_argument("--shots", type=_shot_counts, default=(), metavar="K[,K...]",
                    help="few-shot personalisation under lopo/group-kfold: each held-out "
                         "person once per K, with K labelled performances per gesture of "
@@ -159,7 +159,7 @@ def _config(args: argparse.Namespace, channels: str | None):
 
     return ExperimentConfig(
         data=list(args.data), model=args.model, channels=channels, grid=args.grid,
-        protocol=args.protocol, rounds=args.rounds, preset=args.preset, epochs=args.epochs,
+        evaluation=args.evaluation, rounds=args.rounds, preset=args.preset, epochs=args.epochs,
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
         device=args.device, threads=args.threads, cache_dir=args.cache_dir,
         use_cache=not args.no_cache, window_s=args.window_s, window_overlap=args.window_overlap,
@@ -178,7 +178,7 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     from tactile_studio.learn.learners.fused import OPTION, display_name
 
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
-    print(f"{name} · {m['protocol']} · channels {m['channels']} · "
+    print(f"{name} · {m.get('evaluation', m.get('protocol'))} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)"
           + (f" · {ADAPT_PHRASE[m['adapt']]}" if m.get("adapt", "none") != "none" else ""))
     rows = [(key, _fmt(m[key])) for key in (
@@ -258,7 +258,7 @@ def cmd_train(args: argparse.Namespace) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
-    from tactile_studio.learn.experiments.rescore import rescore_run
+    from tactile_studio.learn.results.rescore import rescore_run
 
     token = CancelToken()
     bar = _Bar("evaluate")
@@ -292,7 +292,7 @@ def cmd_ablate(args: argparse.Namespace) -> int:
     keys = ["accuracy", "f1_macro", "balanced_accuracy", "kappa"]
     if any("trial_accuracy" in m for _, m in rows):
         keys.insert(1, "trial_accuracy")
-    print(f"ablation: {args.model} · {args.protocol} · {args.preset}")
+    print(f"ablation: {args.model} · {args.evaluation} · {args.preset}")
     print(f"{'channels':10s}" + "".join(f"{k:>19s}" for k in keys))
     for channels, m in rows:
         print(f"{channels:10s}" + "".join(f"{_fmt(m.get(k)):>19s}" for k in keys))

@@ -17,7 +17,7 @@ from tactile_studio.cli.learn import (
 )
 from tactile_studio.devices.registry import parse_set_options
 from tactile_studio.jobs import CancelToken, ctrl_c_cancels
-from tactile_studio.learn.choices import AGGREGATES, CHANNEL_SETS, EXECUTORS, PROTOCOLS
+from tactile_studio.learn.choices import AGGREGATES, CHANNEL_SETS, EVALUATIONS, EXECUTORS
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
@@ -26,7 +26,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     from tactile_studio.learn.experiments.sweep import format_rows, run_sweep
 
     base = ExperimentConfig(
-        data=list(args.data), model=args.models[0], grid=args.grid, protocol=args.protocol,
+        data=list(args.data), model=args.models[0], grid=args.grid, evaluation=args.evaluation,
         rounds=args.rounds, preset=args.preset, epochs=args.epochs,
         overrides=parse_set_options(args.sets), seed=args.seed, folds=args.folds,
         device=args.device, cache_dir=args.cache_dir, use_cache=not args.no_cache,
@@ -39,7 +39,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             result = run_sweep(base, args.models, channels, ex, args.out, bar, token)
     finally:
         bar.close()
-    print(f"sweep · {args.protocol} · {args.preset} · {args.rounds} round(s) · "
+    print(f"sweep · {args.evaluation} · {args.preset} · {args.rounds} round(s) · "
           f"executor {args.executor}")
     print(format_rows(result.rows))
     if args.out:
@@ -59,7 +59,7 @@ def register(subparsers) -> None:
     p.add_argument("--channels", nargs="+", default=["all"],
                    choices=(*CHANNEL_SETS, "all"),
                    help="channel sets (default all: every channel the data has)")
-    p.add_argument("--eval", dest="protocol", choices=PROTOCOLS, default=PROTOCOLS[0])
+    p.add_argument("--eval", dest="evaluation", choices=EVALUATIONS, default=EVALUATIONS[0])
     p.add_argument("--rounds", type=int, default=1)
     p.add_argument("--preset", choices=PRESETS, default=PRESETS[0], help=PRESET_HELP)
     p.add_argument("--epochs", type=int, default=None)

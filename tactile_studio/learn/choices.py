@@ -8,7 +8,7 @@ model registry read it without loading the data stack or torch.
 
 from __future__ import annotations
 
-PROTOCOLS = ("lopo", "group-kfold", "all-inclusive")  # evaluation splits; the default first
+EVALUATIONS = ("lopo", "group-kfold", "all-inclusive")  # evaluation splits; the default first
 GRIDS = ("physical", "virtual")  # the sensor's taxels, or the (2R-1)x(2C-1) virtual grid
 CHANNEL_SETS = ("normal", "shear", "both")  # "both": every channel of a shear sensor
 AGGREGATES = ("mean", "vote")  # a trial's class from its windows' probabilities

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox
 
-from tactile_studio.learn.choices import CHANNEL_SETS, GRIDS, PROTOCOLS
+from tactile_studio.learn.choices import CHANNEL_SETS, EVALUATIONS, GRIDS
 from tactile_studio.learn.learners.contract import PRESETS
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO, ADAPT_PHRASE
 
@@ -16,10 +16,10 @@ SHOTS_BY_TEXT = {"auto": "auto: fine-tune a network, refit rf / knn",
 EXECUTOR_TEXT = {"local": "Local worker processes", "ray": "Ray cluster"}
 
 
-def protocol_combo() -> QComboBox:
+def evaluation_combo() -> QComboBox:
     """"Evaluation": the splits of learn/choices.py, the default (lopo) first."""
     combo = QComboBox()
-    combo.addItems(list(PROTOCOLS))
+    combo.addItems(list(EVALUATIONS))
     return combo
 
 

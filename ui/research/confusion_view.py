@@ -23,8 +23,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.learn.experiments.confusion import ConfusionModel
-from tactile_studio.learn.experiments.trialpreds import RunPredictions, TrialPrediction
+from tactile_studio.learn.results.confusion import ConfusionModel
+from tactile_studio.learn.results.trialpreds import RunPredictions, TrialPrediction
 from tactile_studio.ui.research.matrix_widget import MatrixWidget
 from tactile_studio.ui.write_faults import write_image
 

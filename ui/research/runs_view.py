@@ -15,15 +15,15 @@ from PySide6.QtWidgets import (
 )
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiments.compare import config_difference
-from tactile_studio.learn.experiments.workspace_index import RunRow, scan_runs
+from tactile_studio.learn.results.compare import config_difference
+from tactile_studio.learn.results.workspace_index import RunRow, scan_runs
 from tactile_studio.ui.file_dialogs import ask_folder
 from tactile_studio.ui.research.tables import fill_row, make_table
 from tactile_studio.ui.settings import app_settings
 
 ROOT_KEY = "research/runs_root"
 
-COLUMNS = ["run", "model", "channels", "protocol", "preset", "accuracy", "trial acc.",
+COLUMNS = ["run", "model", "channels", "evaluation", "preset", "accuracy", "trial acc.",
            "F1 macro", "bal. acc.", "few-shot (trial acc. per K)", "folds", "complete", "created",
            "problem"]
 
@@ -92,7 +92,7 @@ class RunsView(QWidget):
         self.table.setSortingEnabled(False)
         self.table.setRowCount(len(self.rows))
         for r, row in enumerate(self.rows):
-            values = [row.name, row.model, row.channels, row.protocol, row.preset, row.accuracy,
+            values = [row.name, row.model, row.channels, row.evaluation, row.preset, row.accuracy,
                       row.trial_accuracy, row.f1_macro, row.balanced_accuracy, row.shots,
                       row.folds,
                       "yes" if row.complete else "no", row.created, row.error]

@@ -21,7 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from tactile_studio.learn.experiments.workspace_index import (
+from tactile_studio.learn.results.workspace_index import (
     SessionRow,
     check_sessions,
     chosen_rows,

@@ -1,4 +1,4 @@
-"""Sweep panel: several models x channel sets under one evaluation protocol, run by the
+"""Sweep panel: several models x channel sets under one evaluation, run by the
 same executors as ``tactile-studio sweep`` (local worker processes or a Ray cluster),
 with per-task progress, cancel and the sweep's results table. The sweep itself is
 :class:`~tactile_studio.learn.experiments.sweep_job.SweepJob` (core); this widget only gathers the
@@ -49,8 +49,8 @@ from tactile_studio.ui.research.bound_settings import BoundSettings
 from tactile_studio.ui.research.choices import (
     EXECUTOR_TEXT,
     adapt_combo,
+    evaluation_combo,
     preset_combo,
-    protocol_combo,
 )
 from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import RecipeForm
@@ -130,7 +130,7 @@ class SweepPanel(JobPanel):
         """The left side: the form (models, channels, training, executor, folder) and
         the buttons."""
         self.preset = preset_combo()
-        self.protocol = protocol_combo()
+        self.evaluation = evaluation_combo()
         self.rounds = QSpinBox()
         self.rounds.setRange(1, 20)
         self.epochs = QSpinBox()
@@ -142,7 +142,7 @@ class SweepPanel(JobPanel):
         form = QFormLayout()
         form.addRow("Models", self.models)
         form.addRow("Channel sets", channels)
-        for label, w in (("Preset", self.preset), ("Evaluation", self.protocol),
+        for label, w in (("Preset", self.preset), ("Evaluation", self.evaluation),
                          ("Rounds", self.rounds), ("Epochs", self.epochs),
                          ("Test people", self.adapt), *executor_row):
             form.addRow(label, w)
@@ -242,7 +242,7 @@ class SweepPanel(JobPanel):
             raise UserError("choose a sweep folder first")
         return ExperimentConfig(data=data, model=self.checked_models()[0],
                                 preset=self.preset.currentText(),
-                                protocol=self.protocol.currentText(),
+                                evaluation=self.evaluation.currentText(),
                                 rounds=self.rounds.value(), epochs=self.epochs.value() or None,
                                 threads=1, device="cpu", adapt=self.adapt.currentData(),
                                 **self.recipe.kwargs())
@@ -265,7 +265,7 @@ class SweepPanel(JobPanel):
         b.spin("jobs", self.jobs, os.cpu_count() or 1)
         b.text("address", self.address)
         b.combo_text("preset", self.preset)
-        b.combo_text("protocol", self.protocol)
+        b.combo_text("evaluation", self.evaluation)
         b.spin("rounds", self.rounds, 1)
         b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
         return b
@@ -297,7 +297,7 @@ class SweepPanel(JobPanel):
                        self.executor_choice(), out).start()
         self.launch(job, f"starting: {len(self.checked_models())} model(s) x "
                          f"{len(self.checked_channels())} channel set(s), "
-                         f"{self.protocol.currentText()}, into {out}")
+                         f"{self.evaluation.currentText()}, into {out}")
         return True
 
     def on_event(self, job: SweepJob, e: JobEvent) -> None:

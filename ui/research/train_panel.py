@@ -56,9 +56,9 @@ from tactile_studio.ui.research.choices import (
     SHOTS_BY_TEXT,
     adapt_combo,
     channels_combo,
+    evaluation_combo,
     grid_combo,
     preset_combo,
-    protocol_combo,
 )
 from tactile_studio.ui.research.job_panel import JobPanel
 from tactile_studio.ui.research.recipe_form import DEFAULTS as RECIPE_DEFAULTS
@@ -112,7 +112,7 @@ class TrainPanel(JobPanel):
         self.bound = self._bind_settings()
         self._load_settings()
         self.fill_options()
-        self._protocol_changed()
+        self._evaluation_changed()
         self._set_running(False)
 
     # --- the tab's parts -----------------------------------------------------------------
@@ -126,7 +126,7 @@ class TrainPanel(JobPanel):
         self.preset = preset_combo()
         self.channels = channels_combo()
         self.grid = grid_combo()
-        self.protocol = protocol_combo()
+        self.evaluation = evaluation_combo()
         self.rounds = QSpinBox()
         self.rounds.setRange(1, 20)
         self.epochs = QSpinBox()
@@ -185,7 +185,7 @@ class TrainPanel(JobPanel):
         self.form = form = QFormLayout()
         for label, w in (("Model", self.model), ("Preset", self.preset),
                          ("Channels", self.channels), ("Grid", self.grid),
-                         ("Evaluation", self.protocol), ("Rounds", self.rounds),
+                         ("Evaluation", self.evaluation), ("Rounds", self.rounds),
                          ("Epochs", self.epochs), ("Test people", self.adapt),
                          ("Shots per gesture of\nthe held-out person", self.shots),
                          ("Shots reach the model", self.shots_by),
@@ -239,7 +239,7 @@ class TrainPanel(JobPanel):
         self.model.currentIndexChanged.connect(self.fill_options)
         self.model.currentIndexChanged.connect(lambda _: self._follow_model())
         self.preset.currentIndexChanged.connect(self.fill_options)
-        self.protocol.currentIndexChanged.connect(self._protocol_changed)
+        self.evaluation.currentIndexChanged.connect(self._evaluation_changed)
         self.start_button.clicked.connect(self.start)
         self.resume_button.clicked.connect(self.start)
         self.cancel_button.clicked.connect(self.cancel)
@@ -250,7 +250,7 @@ class TrainPanel(JobPanel):
     # --- setup -------------------------------------------------------------------------
     def _text_choices(self) -> tuple[tuple[str, QComboBox], ...]:
         return (("model", self.model), ("preset", self.preset), ("channels", self.channels),
-                ("grid", self.grid), ("protocol", self.protocol))
+                ("grid", self.grid), ("evaluation", self.evaluation))
 
     def _bind_settings(self) -> BoundSettings:
         """Every remembered choice of the tab, in one list (see bound_settings.py)."""
@@ -330,7 +330,7 @@ class TrainPanel(JobPanel):
         return ExperimentConfig(
             data=data, model=self.model.currentText(), preset=self.preset.currentText(),
             channels=channels or self.channels.currentText(), grid=self.grid.currentText(),
-            protocol=self.protocol.currentText(), rounds=self.rounds.value(),
+            evaluation=self.evaluation.currentText(), rounds=self.rounds.value(),
             epochs=(self.epochs.value() or None) if self.epoch_model else None,
             overrides=self.overrides(), threads=1,
             device="cpu", adapt=self.adapt.currentData(), shots=self.shot_counts(),
@@ -343,9 +343,9 @@ class TrainPanel(JobPanel):
             return ()
         return parse_shot_counts(self.shots.text())
 
-    def _protocol_changed(self) -> None:
+    def _evaluation_changed(self) -> None:
         """Shots need people held out: lopo and group-kfold only."""
-        held_out = self.protocol.currentText() in ("lopo", "group-kfold")
+        held_out = self.evaluation.currentText() in ("lopo", "group-kfold")
         self.shots.setEnabled(held_out)
         self.shots_by.setEnabled(held_out)
 

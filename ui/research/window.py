@@ -13,8 +13,8 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QLabel, QMainWindow, QTabWidget, QWidget
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.experiments.compare import compare_runs as compare_run_folders
-from tactile_studio.learn.experiments.trialpreds import load_predictions
+from tactile_studio.learn.results.compare import compare_runs as compare_run_folders
+from tactile_studio.learn.results.trialpreds import load_predictions
 from tactile_studio.ui.file_dialogs import SESSION_KIND, ask_open_file, ask_save_file
 from tactile_studio.ui.research.compare_view import CompareView
 from tactile_studio.ui.research.confusion_view import ConfusionView
@@ -162,7 +162,7 @@ class ResearchWindow(QMainWindow):
         self.sweep.set_models(sorted({*self.sweep.checked_models(), model}))
         self.sweep.set_channels([*self.sweep.checked_channels(), channels])
         self.sweep.preset.setCurrentText(self.train.preset.currentText())
-        self.sweep.protocol.setCurrentText(self.train.protocol.currentText())
+        self.sweep.evaluation.setCurrentText(self.train.evaluation.currentText())
         self.tabs.setCurrentWidget(self.sweep)
 
     def _sweep_finished(self, out: str) -> None:

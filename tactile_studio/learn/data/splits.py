@@ -1,4 +1,4 @@
-"""Evaluation protocols as lists of folds of trial indices.
+"""Evaluations (lopo, group k-fold, all-inclusive) as lists of folds of trial indices.
 
 Splits are made over trials, never over samples, so the windows of one trial always land
 in the same part. Protocols:
@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from tactile_studio.errors import UserError
-from tactile_studio.learn.choices import PROTOCOLS
+from tactile_studio.learn.choices import EVALUATIONS
 
 
 @dataclass
@@ -141,10 +141,10 @@ def all_inclusive(labels: np.ndarray, seed: int,
     return [Fold("all", train, val, test)]
 
 
-def _check_participants(participants: np.ndarray, need: int, protocol: str) -> list[str]:
+def _check_participants(participants: np.ndarray, need: int, evaluation: str) -> list[str]:
     names = sorted(set(participants.tolist()))
     if len(names) < need:
-        raise UserError(f"{protocol} needs at least {need} participants; the data has "
+        raise UserError(f"{evaluation} needs at least {need} participants; the data has "
                         f"{len(names)} ({', '.join(names)})")
     return names
 
@@ -184,14 +184,14 @@ def group_kfold(labels: np.ndarray, participants: np.ndarray, seed: int, k: int 
     return folds
 
 
-def make_folds(protocol: str, labels: np.ndarray, participants: np.ndarray, seed: int,
+def make_folds(evaluation: str, labels: np.ndarray, participants: np.ndarray, seed: int,
                k: int = 10, heldout_fraction: float = 0.1, val_fraction: float = 0.15,
                fractions: tuple[float, float, float] = (0.7, 0.2, 0.1)) -> list[Fold]:
-    """The folds of ``protocol`` (one of :data:`PROTOCOLS`)."""
-    if protocol == "all-inclusive":
+    """The folds of ``evaluation`` (one of :data:`EVALUATIONS`)."""
+    if evaluation == "all-inclusive":
         return all_inclusive(labels, seed, fractions)
-    if protocol == "lopo":
+    if evaluation == "lopo":
         return lopo(labels, participants, seed, val_fraction)
-    if protocol == "group-kfold":
+    if evaluation == "group-kfold":
         return group_kfold(labels, participants, seed, k, heldout_fraction, val_fraction)
-    raise UserError(f"unknown evaluation protocol {protocol!r} (available: {', '.join(PROTOCOLS)})")
+    raise UserError(f"unknown evaluation {evaluation!r} (available: {', '.join(EVALUATIONS)})")

@@ -48,7 +48,6 @@ from tactile_studio.learn.data.dataset import TrialDataset
 from tactile_studio.learn.data.windowing import AGGREGATES
 from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, prepare_inputs
-from tactile_studio.learn.experiments.rescore import RunData, load_run_data
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
 from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.fold_predictions import FoldPredictions
@@ -59,6 +58,7 @@ from tactile_studio.learn.learners.fused import (
     standardises_person_features,
 )
 from tactile_studio.learn.learners.generalise import ADAPT_PHRASE
+from tactile_studio.learn.results.rescore import RunData, load_run_data
 
 ONNX_TOLERANCE = 1e-3
 

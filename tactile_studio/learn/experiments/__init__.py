@@ -1,5 +1,5 @@
 """Running experiments: one training run over folds, the job processes that run it and
 sweeps (local workers or Ray) with their typed events, the run folder's format and
-integrity, the workspace index, the per-person study, and what reads a finished run:
-its trial table and predictions, the confusion matrix, comparing two runs, re-scoring
-one."""
+integrity, its trial table, and the per-person study. What reads a finished run
+back (predictions, confusion, comparison, re-scoring, the workspace index) is the
+room above, learn/results."""

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from tactile_studio.errors import UserError
 from tactile_studio.learn.choices import GRIDS, SHOTS_BY
 from tactile_studio.learn.data.augment import parse_kinds
-from tactile_studio.learn.data.splits import PROTOCOLS
+from tactile_studio.learn.data.splits import EVALUATIONS
 from tactile_studio.learn.data.windowing import AGGREGATES
 from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.fused import (
@@ -31,10 +31,25 @@ from tactile_studio.learn.learners.generalise import (
 )
 
 # Config fields that change results (a resumed run must match on these).
-RESULT_KEYS = ("data", "model", "channels", "grid", "protocol", "rounds", "preset", "epochs",
+RESULT_KEYS = ("data", "model", "channels", "grid", "evaluation", "rounds", "preset", "epochs",
                "overrides", "seed", "folds", "heldout_fraction", "val_fraction", "split",
                "window_s", "window_overlap", "aggregate", "augment", "augment_copies",
                "participant_norm", "balance", "val_by", "adapt", "shots", "shots_by")
+# settings renamed since run folders were first written: a run's config.json (and its
+# metrics.json header) is read under today's names, so older runs keep loading
+RENAMED = {"protocol": "evaluation"}
+V = TypeVar("V")
+
+
+def upgraded(d: dict[str, V]) -> dict[str, V]:
+    """``d`` with each renamed setting under its current name (a current name wins)."""
+    out = {RENAMED.get(k, k): v for k, v in d.items() if k not in RENAMED}
+    for old, new in RENAMED.items():
+        if old in d and new not in out:
+            out[new] = d[old]
+    return out
+
+
 # what ``auto`` means for a network (rf, knn and fused models always join): measured on
 # the simulator, docs/learning/figures.md "Few-shot personalisation, measured"
 NETWORK_SHOTS_BY = "fine-tune"
@@ -46,7 +61,7 @@ class ExperimentConfig:
     model: str
     channels: str | None = None          # normal | shear | both; None = all the data has
     grid: str = "physical"               # physical | virtual
-    protocol: str = "lopo"               # all-inclusive | lopo | group-kfold
+    evaluation: str = "lopo"             # all-inclusive | lopo | group-kfold
     rounds: int = 1
     preset: str = "full"                 # full | tiny
     epochs: int | None = None            # overrides the model's max_epochs
@@ -90,7 +105,7 @@ class ExperimentConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ExperimentConfig:
-        known = {k: v for k, v in d.items() if k in cls.__dataclass_fields__}
+        known = {k: v for k, v in upgraded(d).items() if k in cls.__dataclass_fields__}
         if "split" in known:
             known["split"] = tuple(known["split"])
         if "shots" in known:
@@ -113,16 +128,16 @@ class ExperimentConfig:
 
     def resolved(self) -> ExperimentConfig:
         """This config with ``adapt="auto"`` (generalise.resolve_adapt) and
-        ``shots_by="auto"`` made concrete for its model and protocol; what a run folder
+        ``shots_by="auto"`` made concrete for its model and evaluation; what a run folder
         records and every fold reads."""
         overrides = self.overrides
-        if (self.adapt == ADAPT_AUTO and self.protocol != "all-inclusive"
+        if (self.adapt == ADAPT_AUTO and self.evaluation != "all-inclusive"
                 and self.model not in BASELINES and self.forest
                 and ADAPT_OPTION not in overrides):
             # auto adapts the network, and keeps the fused forest as rf alone is kept
             # (recorded, so the run reads the same when it is resumed or deployed)
             overrides = {**overrides, ADAPT_OPTION: 0}
-        adapt = resolve_adapt(self.adapt, self.protocol,
+        adapt = resolve_adapt(self.adapt, self.evaluation,
                               replace(self, overrides=overrides).can_adapt,
                               network=self.model not in BASELINES, model=self.model)
         shots_by = self.shots_by
@@ -133,9 +148,9 @@ class ExperimentConfig:
         return replace(self, adapt=adapt, shots_by=shots_by, overrides=overrides)
 
     def validate(self) -> None:
-        if self.protocol not in PROTOCOLS:
-            raise UserError(f"unknown evaluation protocol {self.protocol!r} "
-                            f"(available: {', '.join(PROTOCOLS)})")
+        if self.evaluation not in EVALUATIONS:
+            raise UserError(f"unknown evaluation {self.evaluation!r} "
+                            f"(available: {', '.join(EVALUATIONS)})")
         if self.grid not in GRIDS:
             raise UserError(f"unknown grid {self.grid!r} (available: {', '.join(GRIDS)})")
         if self.rounds < 1:
@@ -164,10 +179,10 @@ class ExperimentConfig:
                             f"(available: {', '.join(ADAPT_CHOICES)})")
         resolved = self.resolved()
         adapt = resolved.adapt
-        if adapt != "none" and self.protocol == "all-inclusive":
+        if adapt != "none" and self.evaluation == "all-inclusive":
             raise UserError(f"--adapt {adapt} meets each test person with their own "
                             "session; "
-                            "use it with a protocol that holds whole people out (lopo, "
+                            "use it with an evaluation that holds whole people out (lopo, "
                             "group-kfold), not all-inclusive")
         if adapt != "none" and not resolved.can_adapt:
             raise UserError(f"--adapt {adapt} standardises {self.model}'s features per "
@@ -179,7 +194,7 @@ class ExperimentConfig:
         if len(self.split) != 3 or min(self.split) <= 0:
             raise UserError("the all-inclusive split needs three positive fractions")
         if self.shots:
-            if self.protocol == "all-inclusive":
+            if self.evaluation == "all-inclusive":
                 raise UserError("--shots gives a held-out person's labelled performances to "
                                 "the training; use it with lopo or group-kfold, not "
                                 "all-inclusive")

@@ -227,7 +227,7 @@ def _fine_tune_fold(plan: FoldPlan, base: tuple[Any, dict[str, Any]], cancel: Ca
 def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
                ) -> dict[str, Any]:
     """What metrics.json (train, sweep) and rescore.json (evaluate) say about the run."""
-    header = {"model": config.model, "protocol": config.protocol, "channels": channels,
+    header = {"model": config.model, "evaluation": config.evaluation, "channels": channels,
               "grid": config.grid, "preset": config.preset, "windowed": windowed,
               "aggregate": config.aggregate}
     weight = rf_weight(config.overrides)
@@ -241,9 +241,9 @@ def run_header(config: ExperimentConfig, channels: str | None, windowed: bool
 
 
 def run_title(config: ExperimentConfig, channels: str | None) -> str:
-    """The run's title on its figures: model (fused with rf if so), preset, protocol."""
+    """The run's title on its figures: model (fused with rf if so), preset, evaluation."""
     return (f"{display_name(config.model, config.overrides)} ({config.preset}) · "
-            f"{config.protocol} · {channels}"
+            f"{config.evaluation} · {channels}"
             + (f" · {ADAPT_PHRASE[config.adapt]}" if config.adapt != "none" else ""))
 
 
@@ -270,7 +270,7 @@ def folds_for(config: ExperimentConfig, ds: TrialDataset, round_: int) -> list:
     """Round ``round_``'s folds (seed ``config.seed + round_``), validation by
     participant when ``config.val_by`` asks for it."""
     seed = config.seed + round_
-    folds = make_folds(config.protocol, ds.labels, ds.participants, seed, config.folds,
+    folds = make_folds(config.evaluation, ds.labels, ds.participants, seed, config.folds,
                        config.heldout_fraction, config.val_fraction, config.split)
     if config.val_by == "participant":
         folds = [participant_val(f, ds.participants, config.val_fraction, seed) for f in folds]
@@ -283,7 +283,7 @@ def run_experiment(config: ExperimentConfig, out: str | os.PathLike | None = Non
                    progress: ProgressFn = no_progress, cancel: CancelToken | None = None,
                    listener: Listener | None = None, model_spec: Any = None,
                    dataset: TrialDataset | None = None) -> RunResult:
-    """Train and evaluate ``config.model`` under ``config.protocol``; see module doc.
+    """Train and evaluate ``config.model`` under ``config.evaluation``; see module doc.
 
     ``dataset`` skips building (used as it is when ``config.channels`` is None or its
     channel set; otherwise it must hold every channel, e.g. ``build_dataset(...)``'s

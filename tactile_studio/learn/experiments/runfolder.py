@@ -30,6 +30,7 @@ from typing import Any
 
 from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.file_claims import replace_whole
+from tactile_studio.learn.experiments.config import upgraded
 from tactile_studio.learn.experiments.run_shapes import config_problem, fold_problem
 from tactile_studio.output_faults import WriteFault, said_on_fault
 from tactile_studio.storage.exchange.input_files import file_sha256
@@ -142,7 +143,7 @@ class RunFolder:
             raise UserError(f"{self.path}: exists and is not a folder")
         if cfg_path.exists():
             old = read_json(cfg_path)
-            before = {**clean_json(defaults or {}), **old.get("config", {})}
+            before = {**clean_json(defaults or {}), **upgraded(old.get("config", {}))}
             diff = differences(before, {k: clean_json(config.get(k)) for k in compare_keys})
             if diff:
                 raise UserError(f"{self.path} holds a different run (differs in {diff}); "
@@ -306,6 +307,7 @@ def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | N
     except UserError as exc:
         problems.append(str(exc))
     if cfg is not None:  # a stranger's run folder: each field as we write it
+        cfg["config"] = upgraded(cfg["config"])
         why = config_problem(run / CONFIG, cfg)
         if why:
             problems.append(f"{why} (damaged, or not written by this version)")

@@ -129,7 +129,7 @@ def _standardised(x: np.ndarray, reference: np.ndarray) -> np.ndarray:
 FOREST_AUTO_ADAPT = {"et": "person-condition"}
 
 
-def resolve_adapt(adapt: str, protocol: str, can_adapt: bool = True,
+def resolve_adapt(adapt: str, evaluation: str, can_adapt: bool = True,
                   network: bool = True, model: str = "") -> str:
     """``adapt`` made concrete: ``auto`` is ``person`` for a network (``network``: any
     model with a learned network, fused with rf or not) when the test people were never
@@ -147,7 +147,7 @@ def resolve_adapt(adapt: str, protocol: str, can_adapt: bool = True,
     set's real people, issue 45)."""
     if adapt != ADAPT_AUTO:
         return adapt
-    if not can_adapt or protocol == "all-inclusive":
+    if not can_adapt or evaluation == "all-inclusive":
         return "none"
     if network:
         return "person"

@@ -1,7 +1,7 @@
 """Comparing two runs on the test trials they share: accuracies, per-participant paired
 accuracies, the difference matrix, significance tests, and the result as a sentence.
 
-Trials are matched by (round, trial uid), so two runs of the same data and protocol
+Trials are matched by (round, trial uid), so two runs of the same data and evaluation
 (e.g. the channel ablation normal / shear / both) compare trial by trial.
 """
 
@@ -15,16 +15,16 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.learn.evaluation.stats import mcnemar_exact, wilcoxon_signed_rank
 from tactile_studio.learn.experiments.experiment import RESULT_KEYS, result_defaults
-from tactile_studio.learn.experiments.trialpreds import RunPredictions, load_predictions
 from tactile_studio.learn.learners.fused import display_name
+from tactile_studio.learn.results.trialpreds import RunPredictions, load_predictions
 
 _ADAPT_LABEL = {"person": "adapted", "person-condition": "adapted per condition",
                 "none": "as trained"}
 # settings that mean nothing unless another one says so: (setting, in effect when)
 _IN_EFFECT = {
-    "folds": lambda c: c.get("protocol") == "group-kfold",
-    "heldout_fraction": lambda c: c.get("protocol") == "group-kfold",
-    "split": lambda c: c.get("protocol") == "all-inclusive",
+    "folds": lambda c: c.get("evaluation") == "group-kfold",
+    "heldout_fraction": lambda c: c.get("evaluation") == "group-kfold",
+    "split": lambda c: c.get("evaluation") == "all-inclusive",
     "shots_by": lambda c: bool(c.get("shots")),
     "augment_copies": lambda c: bool(c.get("augment")),
 }
@@ -33,7 +33,7 @@ _NONE_WHEN_EMPTY = ("shots", "augment")  # an empty value means "none", not "def
 
 def _value_text(key: str, value: Any) -> str:
     """A setting's value in a phrase: lists joined ("0,1,2"), switches on/off, an unset
-    setting "default" (the model's or protocol's own), an empty list or text "none"."""
+    setting "default" (the model's or evaluation's own), an empty list or text "none"."""
     if value is None or (isinstance(value, (list, tuple, str)) and not value):
         return "none" if key in _NONE_WHEN_EMPTY else "default"
     if isinstance(value, bool):
@@ -82,9 +82,9 @@ def as_ran(config: dict[str, Any], channels: str | None) -> dict[str, Any]:
     return config
 
 
-_LABELLED = ("model", "channels", "grid", "preset", "protocol", "adapt", "shots")
+_LABELLED = ("model", "channels", "grid", "preset", "evaluation", "adapt", "shots")
 _PHRASE = {"channels": "{} channels", "grid": "{} grid", "preset": "preset {}",
-           "protocol": "{} evaluation"}
+           "evaluation": "{} evaluation"}
 _OWN_PHRASE = ("model", "adapt", "shots")  # named by their phrase even when alone
 
 
@@ -150,7 +150,7 @@ def compare_predictions(a: RunPredictions, b: RunPredictions) -> dict[str, Any]:
     keys = sorted(set(ia) & set(ib))
     if not keys:
         raise UserError(f"{a.path} and {b.path} share no test trials (different data or "
-                        "protocol); they cannot be compared")
+                        "evaluation); they cannot be compared")
     _same_recordings(a, b, [(ia[k], ib[k]) for k in keys])
     ca = np.array([ia[k].correct for k in keys])
     cb = np.array([ib[k].correct for k in keys])

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tactile_studio.learn.experiments.trialpreds import TrialPrediction
+from tactile_studio.learn.results.trialpreds import TrialPrediction
 
 MODES = ("counts", "row", "column")  # row % = share of the true gesture, column % = of predicted
 

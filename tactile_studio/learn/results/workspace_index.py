@@ -176,7 +176,7 @@ class RunRow:
     path: str
     model: str = ""
     channels: str = ""
-    protocol: str = ""
+    evaluation: str = ""
     preset: str = ""
     grid: str = ""
     accuracy: float | None = None
@@ -198,7 +198,7 @@ class RunRow:
     def ran_config(self) -> dict[str, Any]:
         """The config with the channel set the run used (its metrics say which when
         train left it to the model): what ``config_difference`` compares."""
-        from tactile_studio.learn.experiments.compare import as_ran
+        from tactile_studio.learn.results.compare import as_ran
 
         return as_ran(self.config, self.channels if self.channels != "all" else None)
 
@@ -225,7 +225,7 @@ def read_run_row(path: str | os.PathLike) -> RunRow:
         row.config = config
         row.model = str(config.get("model", ""))
         row.channels = str(config.get("channels") or "all")
-        row.protocol = str(config.get("protocol", ""))
+        row.evaluation = str(config.get("evaluation", ""))
         row.preset = str(config.get("preset", ""))
         row.grid = str(config.get("grid", ""))
         row.created = str(cfg["resolved"].get("created", ""))[:16].replace("T", " ")

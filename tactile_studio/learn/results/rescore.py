@@ -134,7 +134,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         missing = sorted(wanted - found)
         raise UserError(f"{len(missing)} of the run's test trials are not in the data "
                         f"(first: {missing[0]})")
-    if mode == "folds" and config.adapt != "none" and config.protocol == "all-inclusive":
+    if mode == "folds" and config.adapt != "none" and config.evaluation == "all-inclusive":
         raise UserError(f"{run}: --adapt {config.adapt} meets each test person with their own "
                         "session, but this all-inclusive run trained on the same people; "
                         "adapt when evaluating new people's data (--data) or a lopo run")
