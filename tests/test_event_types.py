@@ -21,6 +21,7 @@ from tactile_studio.protocol.runner_events import (
     TrialStarted,
     TrialUpdated,
 )
+from tactile_studio.storage.format.trials import TrialRecord
 from tactile_studio.streams.markers import runner_marker
 
 UI = Path(__file__).resolve().parents[1] / "ui"
@@ -49,6 +50,8 @@ def test_every_event_a_runner_sends_is_a_declared_type(tmp_path: Path) -> None:
     record = ended.to_record()
     assert list(record) == ["kind", "trial", "flags", "reason"]
     assert record["kind"] == "trial_ended" and record["flags"] == t0["flags"]
+    # the event carries the typed record; its plain form is the file's trial
+    assert isinstance(ended.trial, TrialRecord) and record["trial"] == ended.trial.to_dict()
     updated = next(e for e in seen if isinstance(e, TrialUpdated))
     assert runner_marker(updated)["kind"] == "discard"
     assert runner_marker(ended)["kind"] == "trial_end"

@@ -110,11 +110,11 @@ def test_collect_lsl_option_pre_checks_the_console_toggle(qtbot, tmp_path) -> No
 
     args = build_parser().parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
                                       "--out", str(tmp_path), "--lsl"])
-    console = build_console(**console_options(args))
+    console = build_console(console_options(args))
     qtbot.addWidget(console)
     assert console.lsl_toggle.isChecked() and console._lsl is None  # noqa: SLF001 - no session yet
     args = build_parser().parse_args(["collect", "--protocol", "shear9", "--participant", "P01",
                                       "--out", str(tmp_path)])
-    plain = build_console(**console_options(args))
+    plain = build_console(console_options(args))
     qtbot.addWidget(plain)
     assert not plain.lsl_toggle.isChecked()

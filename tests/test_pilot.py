@@ -50,7 +50,7 @@ def test_the_console_rehearses_with_a_virtual_participant_marked_pilot(
     def pause_after_the_fourth(event: RunnerEvent) -> None:
         # the experimenter's Pause as trial 4 ends (it takes effect after the trial): a
         # poll of the state could miss the moment between trials on a loaded machine
-        if isinstance(event, TrialEnded) and event.trial["index"] == 3:
+        if isinstance(event, TrialEnded) and event.trial.index == 3:
             QTimer.singleShot(0, lambda: click(qtbot, console, "pause"))
 
     console.runner.add_listener(pause_after_the_fourth)

@@ -151,7 +151,7 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     proto, out = env
     base = ["collect", "--protocol", str(proto), "--participant", "P01", "--out", str(out)]
     args = build_parser().parse_args([*base, "--qc-model", str(qc_run), "--qc-top-k", "2"])
-    console = build_console(**console_options(args))
+    console = build_console(console_options(args))
     qtbot.addWidget(console)
     qc = console.setup.qc
     assert qc.path.text() == str(qc_run) and qc.top_k.value() == 2
@@ -161,7 +161,7 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     with pytest.raises(UserError, match="no such run folder or exported model"):
         console_options(args)
     args = build_parser().parse_args([*base, "--qc-model", str(qc_run), "--qc-personalise"])
-    console = build_console(**console_options(args))
+    console = build_console(console_options(args))
     qtbot.addWidget(console)
     assert console.setup.qc.personalise.isChecked() and console.setup.choice().qc.personalise
     args = build_parser().parse_args([*base, "--qc-personalise"])

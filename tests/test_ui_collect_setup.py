@@ -122,12 +122,13 @@ def test_the_shared_form_builds_every_kind(qtbot):
 
 
 def test_the_collect_command_prefills_the_form_with_a_spaced_name(qtbot, tmp_path, monkeypatch):
+    from tactile_studio.protocol.console_options import ConsoleOptions
     from tactile_studio.ui.collect.app import build_console
 
     monkeypatch.setenv("TACTILE_STUDIO_SETTINGS", str(tmp_path / "settings.ini"))
-    console = build_console("shear9", "P01", device="ble",
-                            device_settings={"name": "Shear Sense 2", "scan_timeout": 2.0},
-                            out_dir=tmp_path)
+    console = build_console(ConsoleOptions(
+        "shear9", "P01", device="ble",
+        device_settings={"name": "Shear Sense 2", "scan_timeout": 2.0}, out_dir=str(tmp_path)))
     qtbot.addWidget(console)
     s = console.setup
     assert s.device.currentData() == "ble"

@@ -89,7 +89,7 @@ def test_a_run_from_the_panel_trains_with_the_recipe(qtbot, tmp_path, monkeypatc
     qtbot.addWidget(panel)
     panel.model.setCurrentText("rf")
     panel.preset.setCurrentText("tiny")
-    panel.protocol.setCurrentText("lopo")
+    panel.evaluation.setCurrentText("lopo")
     panel.out.setText(str(tmp_path / "run"))
     panel.recipe.header.setChecked(True)
     panel.recipe.window.setValue(0.5)  # the fixture's trials are cut into windows

@@ -64,7 +64,7 @@ def _choose(panel: SweepPanel, out: Path, models, channels, executor="local", jo
             address="") -> None:
     panel.set_models(models)
     panel.set_channels(channels)
-    panel.protocol.setCurrentText("lopo")
+    panel.evaluation.setCurrentText("lopo")
     panel.preset.setCurrentText("tiny")
     panel.executor.setCurrentIndex(panel.executor.findData(executor))
     panel.jobs.setValue(jobs)

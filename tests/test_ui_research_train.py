@@ -53,7 +53,7 @@ def test_train_cancel_resume_matrix_player(window, data, qtbot, tmp_path):
     panel.model.setCurrentText("cnn1d")
     assert panel.preset.currentText() == "full"  # as the CLI: the recipe for unseen people
     panel.preset.setCurrentText("tiny")
-    panel.protocol.setCurrentText("lopo")
+    panel.evaluation.setCurrentText("lopo")
     # every fold trains 1000 epochs, no early stop: about 2 s a fold here, so the cancel
     # clicked when the first fold is done lands seconds before the last fold could finish
     # (at 30 epochs a fold took 0.1 s and a loaded CI machine finished the run first)
@@ -155,9 +155,9 @@ def test_a_run_adapted_to_each_test_person_from_the_panel(window, data, qtbot, t
     assert panel.config().resolved().adapt == "person"
     panel.model.setCurrentText("knn")
     assert panel.config().resolved().adapt == "none"  # forests stay as trained (people)
-    panel.protocol.setCurrentText("all-inclusive")
+    panel.evaluation.setCurrentText("all-inclusive")
     assert panel.config().resolved().adapt == "none"  # nobody held out to adapt to
-    panel.protocol.setCurrentText("lopo")
+    panel.evaluation.setCurrentText("lopo")
     panel.adapt.setCurrentIndex(panel.adapt.findData("person"))
     panel.preset.setCurrentText("tiny")
     assert panel.config().adapt == "person"

@@ -17,8 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tactile_studio.devices.engine_events import ConnectionLost, DeviceFailed, Reconnected
 from tactile_studio.errors import EXIT_INCOMPLETE, EXIT_OK, IncompleteError, UserError
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_format import OVERRUN
 from tactile_studio.storage.recording.recorder import Recorder
 
 
@@ -80,10 +82,10 @@ def recording_outcome(summary: dict[str, Any], *, write_error: str | None = None
     lost = _device_lost(events, rate, started_at, ended_at, reconnect_attempts)
     if lost:
         problems.append(lost)
-    failed = [e for e in events if e.get("kind") == "error"]
+    failed = [e for e in events if e.get("kind") == DeviceFailed.kind]
     if failed and not lost:
         problems.append(f"device failed: {failed[-1].get('message', '?')}")
-    overruns = [e for e in events if e.get("kind") == "overrun"]
+    overruns = [e for e in events if e.get("kind") == OVERRUN]
     if overruns:
         n = sum(int(e.get("lost", 0)) for e in overruns)
         problems.append(f"{n} frames lost (the recorder fell a whole buffer behind "
@@ -109,9 +111,9 @@ def _device_lost(events: list[dict[str, Any]], rate: float, started_at: float | 
     a ``reconnect``; "" otherwise."""
     last = None
     for i, e in enumerate(events):
-        if e.get("kind") == "disconnect" and e.get("reason"):
+        if e.get("kind") == ConnectionLost.kind and e.get("reason"):
             last = i
-    if last is None or any(e.get("kind") == "reconnect" for e in events[last + 1:]):
+    if last is None or any(e.get("kind") == Reconnected.kind for e in events[last + 1:]):
         return ""
     e = events[last]
     t = float(e.get("time") or 0.0)

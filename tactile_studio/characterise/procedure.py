@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -178,6 +179,48 @@ def run_characterisation(device: DevicePlugin, stage: StagePlugin, force: ForceP
                              control or RunControl(), on_point, on_taxel, on_start)
 
 
+def _result_header(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin, plan: Plan,
+                   sensor_id: str | None, names: list[str]) -> dict[str, Any]:
+    """characterisation.json before any taxel is measured: what, with what, in which units."""
+    return {
+        "format": RESULT_FORMAT, "version": 1, "sensor": sensor_id,
+        "layout": device.layout.name,
+        "device": device.info(), "stage": stage.info(), "force": force.info(),
+        "plan": plan.to_dict(), "taxels_requested": names, "taxels": {},
+        "session": "session.h5", "complete": False, "aborted": None,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "units": {"normal_sensitivity": "relative change per kPa", "breakpoint": "kPa",
+                  "shear_sensitivity": "differential relative change per kPa",
+                  "relaxation": "s", "hysteresis": "fraction of loading area",
+                  "shear_offset": "fraction of peak", "crosstalk": "fraction of target"}}
+
+
+def _measure_taxel(lab: Lab, plan: Plan, taxel: int, centre: tuple[float, float],
+                   sub: Callable[[float, str], None]) -> dict[str, Any]:
+    """The plan's sequences (normal, shear, repeat) on one taxel, each saying when the
+    skin settled; ``sub(done, message)`` reports progress within the taxel."""
+    x0, y0 = centre
+    data: dict[str, Any] = {}
+    seqs = plan.sequences
+    lab.settles = []
+    for k, seq in enumerate(seqs):
+        sub(k / len(seqs), seq)
+
+        def settled(s: Any, k: int = k, seq: str = seq) -> None:
+            sub(k / len(seqs), f"{seq}: skin settled after {s.waited_s:.1f} s" if
+                s.steady else f"{seq}: skin still moving after {s.waited_s:.0f} s "
+                "(settle_max_s); measuring anyway")
+        lab.on_settled = settled
+        if seq == "normal":
+            data["normal"] = normal_sequence(lab, plan, taxel, x0, y0)
+        elif seq == "shear":
+            data["shear"] = shear_sequence(lab, plan, taxel, x0, y0)
+        else:
+            data["repeat"] = repeat_sequence(
+                lab, plan, taxel, x0, y0, lambda f, m, k=k: sub((k + f) / len(seqs), m))
+    return data
+
+
 def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
                   request: CharacterisationRequest, progress: ProgressFn, control: RunControl,
                   on_point: Any, on_taxel: Any, on_start: Any) -> dict[str, Any]:
@@ -191,16 +234,7 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
         raise UserError(f"device {device.name}: characterisation needs a shear sensor layout, "
                         f"not {layout.name}")
     names = [layout.taxel_name(*layout.taxel_rc(t)) for t in taxels]
-    result: dict[str, Any] = {
-        "format": RESULT_FORMAT, "version": 1, "sensor": sensor_id, "layout": layout.name,
-        "device": device.info(), "stage": stage.info(), "force": force.info(),
-        "plan": plan.to_dict(), "taxels_requested": names, "taxels": {},
-        "session": "session.h5", "complete": False, "aborted": None,
-        "started": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "units": {"normal_sensitivity": "relative change per kPa", "breakpoint": "kPa",
-                  "shear_sensitivity": "differential relative change per kPa",
-                  "relaxation": "s", "hysteresis": "fraction of loading area",
-                  "shear_offset": "fraction of peak", "crosstalk": "fraction of target"}}
+    result = _result_header(device, stage, force, plan, sensor_id, names)
     json_path = out_dir / "characterisation.json"
     (out_dir / "raw").mkdir(exist_ok=True)
     raw_by_taxel: dict[str, Any] = {}  # measured points and traces, also in raw/<taxel>.json
@@ -232,28 +266,10 @@ def _characterise(device: DevicePlugin, stage: StagePlugin, force: ForcePlugin,
                 lab.event("char_resumed", at=name)
             x0, y0 = layout.taxel_centre_mm(*layout.taxel_rc(taxel))
             lab.event("char_taxel", taxel=name, x=x0, y=y0)
-            data: dict[str, Any] = {}
-            seqs = plan.sequences
 
             def sub(done: float, msg: str, i: int = i, name: str = name) -> None:
                 progress((i + min(done, 1.0)) / len(taxels), f"{name}: {msg}")
-            lab.settles = []
-            for k, seq in enumerate(seqs):
-                sub(k / len(seqs), seq)
-
-                def settled(s: Any, k: int = k, seq: str = seq) -> None:
-                    sub(k / len(seqs), f"{seq}: skin settled after {s.waited_s:.1f} s" if
-                        s.steady else f"{seq}: skin still moving after {s.waited_s:.0f} s "
-                        "(settle_max_s); measuring anyway")
-                lab.on_settled = settled
-                if seq == "normal":
-                    data["normal"] = normal_sequence(lab, plan, taxel, x0, y0)
-                elif seq == "shear":
-                    data["shear"] = shear_sequence(lab, plan, taxel, x0, y0)
-                else:
-                    data["repeat"] = repeat_sequence(
-                        lab, plan, taxel, x0, y0,
-                        lambda f, m, k=k: sub((k + f) / len(seqs), m))
+            data = _measure_taxel(lab, plan, taxel, (x0, y0), sub)
             result["taxels"][name] = {**analyse_taxel(data), **settle_summary(lab.settles)}
             raw_by_taxel[name] = data
             _write_json(out_dir / "raw" / f"{name}.json", data)

@@ -40,6 +40,7 @@ from tactile_studio.protocol.collect import (
     resume_collection,
     resume_device,
 )
+from tactile_studio.protocol.console_options import ConsoleOptions
 from tactile_studio.protocol.trial_runner import State, StreamClock
 from tactile_studio.protocol.virtual import VirtualParticipant
 from tactile_studio.storage.format.protocol_file import CollectionProtocol, load_protocol
@@ -145,8 +146,8 @@ def _new_session(args: argparse.Namespace) -> tuple[CollectionProtocol, str, int
     return protocol, check_participant(args.participant), 0 if args.seed is None else args.seed
 
 
-def console_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The keyword arguments of ``run_console`` for these options, all checked (Qt-free).
+def console_options(args: argparse.Namespace) -> ConsoleOptions:
+    """What ``run_console`` pre-fills the console with, every option checked (Qt-free).
 
     Resuming keeps the file's device settings that differ from the plugin's defaults,
     except the simulator's speed and scripted gesture (a virtual participant's, not an
@@ -185,7 +186,7 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
                          "top_k": args.qc_top_k, "threshold": args.qc_threshold,
                          "personalise": bool(getattr(args, "qc_personalise", False))}
     if getattr(args, "markers", None):
-        options["markers"] = list(args.markers)  # the console's recording takes them in
+        options["markers"] = tuple(args.markers)  # the console's recording takes them in
     if getattr(args, "silence_warning", None) is not None:
         options["silence_warning_s"] = args.silence_warning
     if getattr(args, "lsl", False):
@@ -193,7 +194,7 @@ def console_options(args: argparse.Namespace) -> dict[str, Any]:
 
         load_pylsl()  # no liblsl: one line now, not a message in the window later
         options["lsl"] = True
-    return options
+    return ConsoleOptions(**options)
 
 
 def run_console_command(args: argparse.Namespace) -> int:
@@ -202,7 +203,7 @@ def run_console_command(args: argparse.Namespace) -> int:
     options = console_options(args)
     from tactile_studio.ui.collect.app import run_console
 
-    return run_console(**options)
+    return run_console(options)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -83,7 +83,7 @@ def announce_check(check: TrialChecker, protocol: CollectionProtocol, runner: Tr
                   f"block ({event.model})", file=sys.stderr)
         if isinstance(event, TrialEnded) and event.flags:
             t = event.trial
-            print(f"\ntrial {trial_number(t['index'])} ({t['gesture']}): {event.reason}",
+            print(f"\ntrial {trial_number(t.index)} ({t.gesture}): {event.reason}",
                   file=sys.stderr)
 
     runner.add_listener(flagged)

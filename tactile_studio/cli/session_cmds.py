@@ -21,6 +21,7 @@ from tactile_studio.cli.recording_warnings import (
     watch_health,
 )
 from tactile_studio.cli.stream import add_lsl_option, start_lsl
+from tactile_studio.devices.engine_events import Marker
 from tactile_studio.devices.registry import available_plugins, create_device, parse_set_options
 from tactile_studio.errors import Cancelled, UserError
 from tactile_studio.jobs import CancelToken, TerminalProgress, ctrl_c_cancels
@@ -316,7 +317,7 @@ def _recording_labels(meta: dict[str, Any]) -> list[str]:
 def _marker_lines(events: list[dict[str, Any]], rate: float) -> list[str]:
     """Each marker (another program's over LSL, or a script's ``mark TEXT``) with its
     row, its time into the recording and its text: what the experiment said happened."""
-    marks = [e for e in events if e.get("kind") == "marker"]
+    marks = [e for e in events if e.get("kind") == Marker.kind]
     if not marks:
         return []
     lines = [f"markers:    {len(marks)}"]

@@ -14,17 +14,21 @@ from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
+from tactile_studio.storage.format.trials import TrialRecord
+
 
 @dataclass(frozen=True)
 class _RunnerEvent:
     kind: ClassVar[str]
 
     def to_record(self) -> dict[str, Any]:
-        """The plain form: ``kind`` then the fields (lists and dicts copied)."""
+        """The plain form: ``kind`` then the fields (lists and dicts copied, a trial in
+        the file's form)."""
         out: dict[str, Any] = {"kind": self.kind}
         for f in fields(self):
             value = getattr(self, f.name)
-            out[f.name] = (dict(value) if isinstance(value, dict) else
+            out[f.name] = (value.to_dict() if isinstance(value, TrialRecord) else
+                           dict(value) if isinstance(value, dict) else
                            list(value) if isinstance(value, (list, tuple)) else value)
         return out
 
@@ -74,11 +78,11 @@ class CheckPersonalised(_RunnerEvent):
 
 @dataclass(frozen=True)
 class TrialEnded(_RunnerEvent):
-    """A trial was written to the file: ``trial`` in the file's form, its quality
-    ``flags`` and their ``reason`` in words ("" when it is clean)."""
+    """A trial was written to the file: ``trial`` as written, its quality ``flags`` and
+    their ``reason`` in words ("" when it is clean)."""
 
     kind: ClassVar[str] = "trial_ended"
-    trial: dict[str, Any]
+    trial: TrialRecord
     flags: tuple[str, ...]
     reason: str
 
@@ -97,7 +101,7 @@ class TrialUpdated(_RunnerEvent):
     """A written trial changed (redone, discarded): ``trial`` as it now is in the file."""
 
     kind: ClassVar[str] = "trial_updated"
-    trial: dict[str, Any]
+    trial: TrialRecord
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tactile_studio.devices.engine_events import SequenceGap
 from tactile_studio.devices.frame_stream import FrameStream
 from tactile_studio.protocol.quality import FrameTiming, QualitySettings, trial_flags
 
@@ -33,7 +34,7 @@ def measure_trial(engine: FrameStream, start: int, n: int, rate: float,
     raw, dev_t, seq = chunk.raw[keep], chunk.device_time[keep], chunk.seq[keep]
     lost = n - raw.shape[0] + recorder_lost
     gaps = sum(1 for e in engine.events_since(event_cursor)
-               if e.get("kind") == "gap" and start < int(e.get("frame", -1)) < end)
+               if e.get("kind") == SequenceGap.kind and start < int(e.get("frame", -1)) < end)
     flags: list[str] = []
     if engine.baseline is not None:
         timing = FrameTiming(dev_t, seq, rate, lost, gaps)

@@ -478,7 +478,7 @@ class TrialRunner(RunnerInputs):
         rec = self.recorder.add_trial(record)
         self.records.append(rec)
         self._redo_for = rec.index if rec.flagged else None
-        self._emit(TrialEnded(rec.to_dict(), tuple(rec.flags),
+        self._emit(TrialEnded(rec, tuple(rec.flags),
                               describe(list(rec.flags), rec.check)))
 
     def _after_trial(self) -> None:
@@ -561,7 +561,7 @@ class TrialRunner(RunnerInputs):
         new = trial.with_changes(**changes)
         self.records[self.records.index(trial)] = new
         self.recorder.update_trial(trial.index, **changes)
-        self._emit(TrialUpdated(new.to_dict()))
+        self._emit(TrialUpdated(new))
         return new
 
     @property

@@ -37,7 +37,7 @@ def _train(tmp: Path) -> Path:
 
     gestures = tuple(g for g in GESTURE_NAMES if g != "Tickle")
     make_dataset_folder(tmp / "earlier", participants=3, blocks=3, gestures=gestures)
-    cfg = ExperimentConfig(data=[str(tmp / "earlier")], model="rf", protocol="lopo",
+    cfg = ExperimentConfig(data=[str(tmp / "earlier")], model="rf", evaluation="lopo",
                            threads=1, cache_dir=str(tmp / "cache"))
     run_experiment(cfg, tmp / "runs" / "rf-earlier")
     return tmp / "runs" / "rf-earlier"

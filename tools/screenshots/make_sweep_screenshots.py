@@ -54,7 +54,7 @@ def main() -> int:
         p = w.sweep
         p.set_models(["rf", "knn"])
         p.set_channels(["normal", "shear", "both"])
-        p.protocol.setCurrentText("lopo")
+        p.evaluation.setCurrentText("lopo")
         p.jobs.setValue(2)
         p.out.setText(str(Path(tmp) / "sweeps" / "rf-vs-knn"))
         settle()

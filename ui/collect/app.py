@@ -9,7 +9,6 @@ is streaming. ``run_console`` is what ``tactile-studio collect`` (without
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from typing import Any
 
@@ -20,6 +19,7 @@ from PySide6.QtWidgets import QMenu, QWidget
 from tactile_studio.acquisition import LiveAcquisition
 from tactile_studio.devices.frame_stream import LiveStream
 from tactile_studio.errors import UserError
+from tactile_studio.protocol.console_options import ConsoleOptions
 from tactile_studio.ui.collect.console import CollectConsole
 
 LiveSource = Callable[[], tuple[LiveStream | None, str | None]]
@@ -63,61 +63,44 @@ def _text(value: Any) -> str:
     return str(value)
 
 
-def build_console(protocol: str | os.PathLike | None = None, participant: str = "",
-                  device: str | None = None, device_settings: dict[str, Any] | None = None,
-                  out_dir: str | os.PathLike | None = None, blocks: int | None = None,
-                  seed: int | None = None, condition: str = "",
-                  resume: str | os.PathLike | None = None, lsl: bool = False,
-                  markers: list[str] | None = None,
-                  silence_warning_s: float | None = None, pilot: bool = False,
-                  qc: dict[str, Any] | None = None) -> CollectConsole:
-    """A shown console with its setup form pre-filled (or resuming ``resume``);
-    ``markers``: LSL marker streams its recording takes in (acquisition/marker_recording.py);
-    ``silence_warning_s``: how long the device may be silent before it is said;
-    ``qc``: the setup's trial check (``model``, ``top_k``, ``threshold``: ``--qc-model``).
+def build_console(options: ConsoleOptions) -> CollectConsole:
+    """A shown console with its setup form pre-filled from ``options`` (or resuming
+    ``options.resume``).
 
     The form stays editable: the experimenter checks it and clicks "Open session". A
     resume that fails shows its one-line error under the form. Needs a QApplication.
     """
+    o = options
     acquisition = LiveAcquisition()
-    acquisition.marker_streams = tuple(markers or ())
-    if silence_warning_s is not None:
-        acquisition.silence_warning_s = silence_warning_s
+    acquisition.marker_streams = tuple(o.markers)
+    if o.silence_warning_s is not None:
+        acquisition.silence_warning_s = o.silence_warning_s
     console = CollectConsole(acquisition=acquisition)
     try:
         console.setup.prefill(
-            None if protocol is None else str(protocol), participant, device,
-            {k: _text(v) for k, v in (device_settings or {}).items()},
-            None if out_dir is None else str(out_dir), blocks, seed, condition, pilot)
-        if qc:
-            console.setup.qc.prefill(**qc)
+            o.protocol, o.participant, o.device,
+            {k: _text(v) for k, v in o.device_settings.items()},
+            o.out_dir, o.blocks, o.seed, o.condition, o.pilot)
+        if o.qc:
+            console.setup.qc.prefill(**o.qc)
     except UserError:
         console.close()
         console.deleteLater()
         raise
     console.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
-    console.lsl_toggle.setChecked(lsl)  # streams once a session is open
+    console.lsl_toggle.setChecked(o.lsl)  # streams once a session is open
     console.show()
-    if resume is not None:
-        console.resume_from(resume)
+    if o.resume is not None:
+        console.resume_from(o.resume)
     return console
 
 
-def run_console(protocol: str | os.PathLike | None = None, participant: str = "",
-                device: str | None = None, device_settings: dict[str, Any] | None = None,
-                out_dir: str | os.PathLike | None = None, blocks: int | None = None,
-                seed: int | None = None, condition: str = "",
-                resume: str | os.PathLike | None = None, lsl: bool = False,
-                markers: list[str] | None = None,
-                silence_warning_s: float | None = None, pilot: bool = False,
-                qc: dict[str, Any] | None = None) -> int:
-    """Open the console pre-filled (or resuming ``resume``) and run until it is closed."""
+def run_console(options: ConsoleOptions) -> int:
+    """Open the console pre-filled (or resuming) and run until it is closed."""
     from tactile_studio.ui.application import ensure_app
 
     app = ensure_app()
-    console = build_console(protocol, participant, device, device_settings, out_dir, blocks,
-                            seed, condition, resume, lsl=lsl, markers=markers,
-                            silence_warning_s=silence_warning_s, pilot=pilot, qc=qc)
+    console = build_console(options)
     # held until the window is closed (and deleted), also if the loop ends first
     _RUNNING.append(console)
     console.destroyed.connect(lambda *_: console in _RUNNING and _RUNNING.remove(console))

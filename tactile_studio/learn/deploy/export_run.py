@@ -50,7 +50,7 @@ from tactile_studio.learn.evaluation.summary import summarise
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, prepare_inputs
 from tactile_studio.learn.experiments.runfolder import model_file, write_json
 from tactile_studio.learn.learners.contract import Learner
-from tactile_studio.learn.learners.fold_predictions import FoldPredictions
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions, FoldRecord
 from tactile_studio.learn.learners.fused import (
     RF_FILE,
     display_name,
@@ -246,7 +246,7 @@ def _copy_onnx(source: Path, path: Path, metadata: dict[str, str]) -> None:
     _save_onnx(proto, meta, path, "ONNX model")
 
 
-def _fuse_forest(fitted, rec: dict[str, Any], path: Path, meta: dict[str, str],  # noqa: ANN001
+def _fuse_forest(fitted, rec: FoldRecord, path: Path, meta: dict[str, str],  # noqa: ANN001
                  features: np.ndarray, ref: np.ndarray, got: np.ndarray, learner,  # noqa: ANN001
                  info) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
     """A fused fold: copy its forest beside the network's file and fuse both probability
@@ -268,9 +268,9 @@ def _windows(learner, ds, config):  # noqa: ANN001, ANN202
     return ds, x, owner, {u: i for i, u in enumerate(ds.uids)}
 
 
-def _each_fold(records: list[dict[str, Any]], index: dict[str, int], owner: np.ndarray,
+def _each_fold(records: list[FoldRecord], index: dict[str, int], owner: np.ndarray,
                progress: ProgressFn, cancel: CancelToken | None,
-               ) -> Iterator[tuple[int, dict[str, Any], np.ndarray]]:
+               ) -> Iterator[tuple[int, FoldRecord, np.ndarray]]:
     """Each fold with the mask of its test windows, saying which fold it is at and
     stopping when cancelled (export's last 80%)."""
     for k, rec in enumerate(records):
@@ -280,7 +280,7 @@ def _each_fold(records: list[dict[str, Any]], index: dict[str, int], owner: np.n
         yield k, rec, _test_mask(rec, index, owner)
 
 
-def _test_mask(rec: dict[str, Any], index: dict[str, int], owner: np.ndarray) -> np.ndarray:
+def _test_mask(rec: FoldRecord, index: dict[str, int], owner: np.ndarray) -> np.ndarray:
     """The samples (windows) of the fold's test trials."""
     missing = [u for u in rec["test"] if u not in index]
     if missing:
@@ -296,12 +296,15 @@ def _softmax(logits: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=1, keepdims=True)
 
 
-def _scored(rec: dict[str, Any], owner: np.ndarray, y: np.ndarray, ref: np.ndarray,
-            got: np.ndarray) -> tuple[dict[str, Any], dict[str, Any]]:
+def _scored(rec: FoldRecord, owner: np.ndarray, y: np.ndarray, ref: np.ndarray,
+            got: np.ndarray) -> tuple[FoldRecord, FoldRecord]:
     """Two fold records (reference, exported) in the run's layout, for ``summarise``."""
-    def one(probs: np.ndarray) -> dict[str, Any]:
+    def one(probs: np.ndarray) -> FoldRecord:
         p = FoldPredictions(owner, y, np.asarray(probs, dtype=np.float64))
-        return {**rec, "heldout_predictions": None, "predictions": p.to_dict()}
+        out = rec.copy()
+        out.pop("heldout_predictions", None)
+        out["predictions"] = p.to_dict()
+        return out
     return one(ref), one(got)
 
 
@@ -320,7 +323,7 @@ def _adapt_note(config, learner) -> dict[str, str]:  # noqa: ANN001 - config, le
 
 
 def _report(model: str, fmt: str, folds: list[dict[str, Any]],
-            scored: list[tuple[dict[str, Any], dict[str, Any]]], labels: list[str],
+            scored: list[tuple[FoldRecord, FoldRecord]], labels: list[str],
             windowed: bool, how: str) -> dict[str, Any]:
     """Per-fold and pooled window / trial accuracy of the reference and the export, pooled
     as metrics.json pools them (so the reference figures are the run's)."""

@@ -24,6 +24,7 @@ import numpy as np
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.runfolder import read_run
+from tactile_studio.learn.learners.fold_predictions import FoldRecord
 from tactile_studio.sensor.layout import Layout
 from tactile_studio.storage.format.trial_checks import (
     DEFAULT_THRESHOLD,
@@ -50,7 +51,7 @@ def run_and_fold(path: str | os.PathLike) -> tuple[Path, str | None]:
                     "(RUN/export/<fold>.onnx)")
 
 
-def _export_name(record: dict[str, Any]) -> str:
+def _export_name(record: FoldRecord) -> str:
     """The stem export-model gives a fold's file: ``r<round>-<fold name>``."""
     safe = re.sub(r"[^A-Za-z0-9_.-]", "_", str(record.get("name")))
     return f"r{record.get('round', 0)}-{safe}"
@@ -68,8 +69,8 @@ def _fold_of(run: Path, fold: str | None, participant: str | None) -> tuple[str 
         raise UserError(f"{run}: the run has no fold {fold}")
     if participant and participant in (rec.get("test_participants") or []):
         return participant, int(rec.get("round", 0))
-    tested = rec.get("test_participants") or [None]
-    return tested[0], int(rec.get("round", 0))
+    tested = rec.get("test_participants") or []
+    return (tested[0] if tested else None), int(rec.get("round", 0))
 
 
 class ModelTrialCheck:

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from tactile_studio.learn.learners.fold_predictions import FoldRecord
+
 SUMMARY_FOLDS = 9  # from this many folds the curves become a median band + thin lines
 
 
@@ -97,7 +99,7 @@ def _band(ax, values: np.ndarray, color: str, label: str, style: str) -> None:
     ax.plot(ep[ok], med[ok], style, color=color, lw=2.2, label=f"{label} median")
 
 
-def curves_figure(records: list[dict[str, Any]], title: str = ""):
+def curves_figure(records: list[FoldRecord], title: str = ""):
     """Loss and accuracy per epoch for every fold (train dashed, validation solid).
 
     Up to ``SUMMARY_FOLDS - 1`` folds get one colour each with the legend outside the axes;
@@ -152,6 +154,6 @@ def curves_figure(records: list[dict[str, Any]], title: str = ""):
     return fig
 
 
-def curves_png(path: Path, records: list[dict[str, Any]], title: str = "") -> None:
+def curves_png(path: Path, records: list[FoldRecord], title: str = "") -> None:
     """Save :func:`curves_figure` as a PNG."""
     curves_figure(records, title).savefig(path, bbox_inches="tight", pad_inches=0.15)

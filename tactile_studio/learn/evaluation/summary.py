@@ -9,7 +9,11 @@ import numpy as np
 
 from tactile_studio.learn.data.windowing import aggregate as aggregate_trials
 from tactile_studio.learn.evaluation import metrics as M
-from tactile_studio.learn.learners.fold_predictions import FoldPredictions
+from tactile_studio.learn.learners.fold_predictions import (
+    FoldPredictions,
+    FoldRecord,
+    PredictionsKey,
+)
 
 TRIAL_KEYS = ("accuracy", "balanced_accuracy", "f1_macro", "kappa", "confusion_matrix",
               "confusion_counts", "per_class_accuracy")
@@ -31,14 +35,14 @@ def _sample_metrics(y: np.ndarray, probs: np.ndarray, owner: np.ndarray, labels:
     return out
 
 
-def fold_metrics(rec: dict[str, Any], labels: list[str], windowed: bool,
-                 key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
+def fold_metrics(rec: FoldRecord, labels: list[str], windowed: bool,
+                 key: PredictionsKey = "predictions", aggregate: str = "mean") -> dict[str, Any]:
     p = FoldPredictions.from_dict(rec[key])
     return _sample_metrics(p.y_true, p.probs, p.owner, labels, windowed, aggregate)
 
 
-def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
-            key: str = "predictions", aggregate: str = "mean") -> dict[str, Any]:
+def _pooled(records: list[FoldRecord], labels: list[str], windowed: bool,
+            key: PredictionsKey = "predictions", aggregate: str = "mean") -> dict[str, Any]:
     """Metrics over the test predictions of several folds together (trial ids made unique
     per fold so votes never mix folds)."""
     ys, ps, os_ = [], [], []
@@ -51,12 +55,12 @@ def _pooled(records: list[dict[str, Any]], labels: list[str], windowed: bool,
                            labels, windowed, aggregate)
 
 
-def shot_counts(records: list[dict[str, Any]]) -> list[int]:
+def shot_counts(records: list[FoldRecord]) -> list[int]:
     """The K of a few-shot run's folds (``--shots``), sorted; [] for other runs."""
     return sorted({int(r["shots"]) for r in records if r.get("shots") is not None})
 
 
-def summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+def summarise(records: list[FoldRecord], labels: list[str], windowed: bool,
               header: dict[str, Any], complete: bool) -> dict[str, Any]:
     """metrics.json: pooled test metrics (medians over rounds), rounds, per-fold metrics.
 
@@ -83,7 +87,7 @@ SHOT_KEYS = ("accuracy", "trial_accuracy", "balanced_accuracy", "trial_balanced_
              "f1_macro", "trial_f1_macro", "n", "n_trials")
 
 
-def _summarise(records: list[dict[str, Any]], labels: list[str], windowed: bool,
+def _summarise(records: list[FoldRecord], labels: list[str], windowed: bool,
                header: dict[str, Any], complete: bool) -> dict[str, Any]:
     agg = header.get("aggregate", "mean")
     per_fold, rounds = [], []

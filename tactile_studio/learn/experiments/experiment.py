@@ -54,7 +54,7 @@ from tactile_studio.learn.learners.baselines import BASELINES
 from tactile_studio.learn.learners.contract import Learner
 from tactile_studio.learn.learners.families import DataInfo, make_learner
 from tactile_studio.learn.learners.fine_tune import fine_tune_head
-from tactile_studio.learn.learners.fold_predictions import FoldPredictions
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions, FoldRecord
 from tactile_studio.learn.learners.fused import (
     display_name,
     person_columns,
@@ -91,7 +91,7 @@ class RunResult:
     metrics: dict[str, Any]
     config: ExperimentConfig
     out: Path | None
-    folds: list[dict[str, Any]]
+    folds: list[FoldRecord]
     complete: bool
     dataset: dict[str, Any] = field(default_factory=dict)  # TrialDataset.summary()
 
@@ -116,7 +116,8 @@ def adapt_people(config: ExperimentConfig, ds: TrialDataset, owner: np.ndarray
 
 
 def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndarray,
-                 labels: np.ndarray, stats, people: np.ndarray | None = None) -> dict[str, Any]:
+                 labels: np.ndarray, stats, people: np.ndarray | None = None
+                 ) -> dict[str, list[Any]]:
     """The test samples' probabilities; with ``people``, a model that can adapt
     (``fitted.adapted``) is adapted to each person's samples before predicting them."""
     mask = np.isin(owner, idx)
@@ -136,7 +137,7 @@ def _predictions(fitted, learner, x: np.ndarray, owner: np.ndarray, idx: np.ndar
 
 
 def _train_fold(plan: FoldPlan, info: DataInfo, cancel: CancelToken,
-                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[dict[str, Any], Any]:
+                on_epoch: Callable[[dict[str, Any]], None]) -> tuple[FoldRecord, Any]:
     t0 = time.perf_counter()
     learner, ds, x, owner, fold, seed = (plan.learner, plan.ds, plan.x, plan.owner, plan.fold,
                                          plan.seed)
@@ -162,7 +163,7 @@ def _train_fold(plan: FoldPlan, info: DataInfo, cancel: CancelToken,
 
 
 def _fold_record(plan: FoldPlan, fitted: Any, stats: dict[str, Any],
-                 history: list[dict[str, Any]], best: Any, t0: float) -> dict[str, Any]:
+                 history: list[dict[str, Any]], best: Any, t0: float) -> FoldRecord:
     """A finished fold as runfolder saves it: its trials, normalisation, training curve
     and the test (and held-out) predictions of ``fitted``."""
     learner, ds, x, owner, fold, people = (plan.learner, plan.ds, plan.x, plan.owner,
@@ -170,16 +171,17 @@ def _fold_record(plan: FoldPlan, fitted: Any, stats: dict[str, Any],
     round_, k, seed = plan.round_, plan.k, plan.seed
     y = ds.labels
     uid = np.array(ds.uids)
-    rec = {
+    rec: FoldRecord = {
         "round": round_, "fold": k, "name": fold.name, "seed": seed,
         "test_participants": fold.test_participants,
         "train": uid[fold.train].tolist(), "val": uid[fold.val].tolist(),
         "test": uid[fold.test].tolist(), "heldout": uid[fold.heldout].tolist(),
-        **({"shots": fold.shots} if fold.shots is not None else {}),
         "norm": stats, "history": history, "best_epoch": best,
         "predictions": _predictions(fitted, learner, x, owner, fold.test, y, stats, people),
         "seconds": time.perf_counter() - t0,
     }
+    if fold.shots is not None:
+        rec["shots"] = fold.shots
     if len(fold.heldout):
         rec["heldout_predictions"] = _predictions(fitted, learner, x, owner, fold.heldout, y,
                                                   stats, people)
@@ -199,7 +201,7 @@ def _without_shots(fold, participants: np.ndarray):
 
 
 def _fine_tune_fold(plan: FoldPlan, base: tuple[Any, dict[str, Any]], cancel: CancelToken
-                    ) -> tuple[dict[str, Any], Any]:
+                    ) -> tuple[FoldRecord, Any]:
     """``--shots-by fine-tune``: the fold's K = 0 model (``base``: fitted, its
     normalisation) with its output layers fine-tuned on the windows of the fold's shot
     performances, as live calibration does (learners/fine_tune.py); tested on the same
@@ -376,7 +378,7 @@ def _start_folder(out: str | os.PathLike | None, config: ExperimentConfig,
     return folder
 
 
-def _fold_event(rec: dict[str, object], ds: TrialDataset, learner: Learner,
+def _fold_event(rec: FoldRecord, ds: TrialDataset, learner: Learner,
                 config: ExperimentConfig, r: int, k: int, n_folds: int, name: str,
                 resumed: bool) -> Fold:
     """The listener's event for a finished (or resumed) fold: its accuracies."""
@@ -386,7 +388,7 @@ def _fold_event(rec: dict[str, object], ds: TrialDataset, learner: Learner,
                 cut=trials_were_cut(fm), resumed=resumed)
 
 
-def _cancelled(records: list[dict[str, object]], folder: RunFolder | None, ds: TrialDataset,
+def _cancelled(records: list[FoldRecord], folder: RunFolder | None, ds: TrialDataset,
                learner: Learner, header: dict[str, object], title: str,
                total_units: int) -> Cancelled:
     """A cancelled run: the folds finished so far written as partial results, and the
@@ -416,7 +418,7 @@ def _run(config: ExperimentConfig, out, progress: ProgressFn, cancel: CancelToke
     ds, x, owner, n_pieces, spec, extra, moments = prepare_inputs(learner, ds, config)
     header.update(window_s=spec.seconds, windows=n_pieces)
     total_units = config.rounds * len(first_folds)
-    records: list[dict[str, Any]] = []
+    records: list[FoldRecord] = []
     done = 0
     title = run_title(config, ds.channels)
     fine = config.shots_by == "fine-tune" and bool(config.shots)

@@ -26,12 +26,13 @@ import re
 from collections.abc import Iterator
 from contextlib import AbstractContextManager, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from tactile_studio.errors import IncompleteError, UserError
 from tactile_studio.file_claims import replace_whole
 from tactile_studio.learn.experiments.config import upgraded
 from tactile_studio.learn.experiments.run_shapes import config_problem, fold_problem
+from tactile_studio.learn.learners.fold_predictions import FoldRecord
 from tactile_studio.output_faults import WriteFault, said_on_fault
 from tactile_studio.storage.exchange.input_files import file_sha256
 
@@ -164,14 +165,14 @@ class RunFolder:
         safe = re.sub(r"[^A-Za-z0-9_.-]", "_", name)  # participant ids become folder names
         return self.folds_dir / f"r{round_}-{safe}"
 
-    def load_fold(self, round_: int, name: str) -> dict[str, Any] | None:
+    def load_fold(self, round_: int, name: str) -> FoldRecord | None:
         """The finished fold's record to resume from; None when it is to be trained: not
         finished, or damaged (its model file gone or not the one trained for it, its
         fold.json unreadable), as every reader of the folder would refuse it."""
         rec, why = _fold_record(self.fold_dir(round_, name))
         return None if why else rec
 
-    def save_fold(self, record: dict[str, Any], fitted: Any) -> None:
+    def save_fold(self, record: FoldRecord, fitted: Any) -> None:
         d = self.fold_dir(record["round"], record["name"])
         d.mkdir(parents=True, exist_ok=True)
         with naming(d / fitted.file_name):
@@ -181,7 +182,7 @@ class RunFolder:
                                   if f.is_file() and f.name != FOLD}
         write_json(d / FOLD, record)
 
-    def write_results(self, metrics: dict[str, Any], records: list[dict[str, Any]],
+    def write_results(self, metrics: dict[str, Any], records: list[FoldRecord],
                       title: str) -> None:
         from tactile_studio.learn.evaluation import plots
 
@@ -216,7 +217,7 @@ def write_confusion_csv(path: Path, labels: list[str], matrix: list[list[float]]
 FOLD_KEYS = ("round", "fold", "name", "test")  # what every reader of fold.json relies on
 
 
-def _fold_record(d: Path, n_classes: int | None = None) -> tuple[dict[str, Any] | None, str]:
+def _fold_record(d: Path, n_classes: int | None = None) -> tuple[FoldRecord | None, str]:
     """(record, "") of the finished fold in ``d``; (None, "") when it is unfinished (no
     fold.json yet: training resumes it); (None, why) when it is damaged (``n_classes``:
     the run's, which its recorded predictions must fit)."""
@@ -245,7 +246,7 @@ def _fold_record(d: Path, n_classes: int | None = None) -> tuple[dict[str, Any] 
                 return None, (f"{f}: fold {d.name}'s model file is not the one trained "
                               "for it (replaced or copied from another fold or run); train "
                               "again with the same --out to redo it")
-    return rec, ""
+    return cast(FoldRecord, rec), ""  # its shape checked by fold_problem above
 
 
 _DIGESTS: dict[tuple[str, int, int], str] = {}
@@ -287,7 +288,7 @@ def _metrics_problem(run: Path, finished: set[tuple[int, str]]) -> str:
 
 
 def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | None,
-                                                   list[dict[str, Any]]]:
+                                                   list[FoldRecord]]:
     """Everything wrong with a run folder, one line each naming the fold or file, with
     what could be read: (problems, config.json contents, finished fold records in order).
     The one integrity check every reader uses (evaluate, export-model, compare, live
@@ -334,7 +335,7 @@ def run_problems(path: str | os.PathLike) -> tuple[list[str], dict[str, Any] | N
     return problems, cfg, records
 
 
-def check_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+def check_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[FoldRecord]]:
     """(config.json contents, finished fold records) of a sound run folder; a damaged one
     raises UserError with its first problem (and how many more there are)."""
     problems, cfg, records = run_problems(path)
@@ -346,7 +347,7 @@ def check_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, A
     return cfg, records
 
 
-def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+def read_run(path: str | os.PathLike) -> tuple[dict[str, Any], list[FoldRecord]]:
     """(config.json contents, finished fold records in order) of a run folder; a missing
     or damaged fold model is an error naming the fold (:func:`check_run`)."""
     return check_run(path)

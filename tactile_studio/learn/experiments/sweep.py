@@ -58,7 +58,7 @@ from tactile_studio.learn.experiments.runfolder import (
     write_json,
 )
 from tactile_studio.learn.learners.families import DataInfo, make_learner
-from tactile_studio.learn.learners.fold_predictions import FoldPredictions
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions, FoldRecord
 from tactile_studio.learn.learners.fused import display_name
 
 SweepListener = Callable[[Plan | Task], None]
@@ -87,7 +87,7 @@ def task_gpus(model: str, device: str = "auto") -> float:
     return max(float(get_model_spec(model).gpus), 1.0 if device.startswith("cuda") else 0.0)
 
 
-def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> dict[str, Any]:
+def run_fold_task(config: dict[str, Any], round_: int, fold: int) -> FoldRecord:
     """One fold of one round of ``config`` (an ExperimentConfig dict): its fold record
     (split, history, test predictions), without the fitted model. Runs in a worker."""
     from tactile_studio.learn.learners.baselines import BASELINES
@@ -194,7 +194,7 @@ def _sweep(base: ExperimentConfig, models: list[str], channel_sets: list[str | N
                     tasks[tid] = ({"config": cfg.to_dict(), "round_": r, "fold": k},
                                   task_gpus(model, cfg.device))
     folder = Path(out) if out is not None else None
-    records: dict[str, dict[str, Any]] = {}
+    records: dict[str, FoldRecord] = {}
     if folder is not None:
         _start_folder(folder, base)
         _start_runs(folder, groups, full)
@@ -273,7 +273,7 @@ def _start_runs(folder: Path, groups: dict[str, dict[str, Any]], full) -> None: 
         write_trial_table(g["run"].path, ds.uids, ds.participants.tolist(), cfg.data)
 
 
-def _save_fold(run: RunFolder, rec: dict[str, Any], model: dict[str, Any] | None) -> None:
+def _save_fold(run: RunFolder, rec: FoldRecord, model: dict[str, Any] | None) -> None:
     if model is None:
         return
     d = run.fold_dir(rec["round"], rec["name"])
@@ -283,7 +283,7 @@ def _save_fold(run: RunFolder, rec: dict[str, Any], model: dict[str, Any] | None
     write_json(d / FOLD, rec)
 
 
-def _accuracy(rec: dict[str, Any]) -> float | None:
+def _accuracy(rec: FoldRecord) -> float | None:
     """A finished fold's per-window test accuracy (for the progress display)."""
     if not rec.get("predictions"):
         return None
@@ -299,8 +299,8 @@ def read_json_roundtrip(value: Any) -> Any:
     return json.loads(json.dumps(clean_json(value)))
 
 
-def _group_row(g: dict[str, Any], records: dict[str, dict[str, Any]], labels: list[str]
-               ) -> tuple[dict[str, Any], dict[str, Any] | None, list[dict[str, Any]]]:
+def _group_row(g: dict[str, Any], records: dict[str, FoldRecord], labels: list[str]
+               ) -> tuple[dict[str, Any], dict[str, Any] | None, list[FoldRecord]]:
     """(table row, metrics or None, finished fold records) of one (model, channel set)."""
     cfg: ExperimentConfig = g["config"]
     recs = sorted((records[t] for t in g["ids"] if t in records),
@@ -319,7 +319,7 @@ def _group_row(g: dict[str, Any], records: dict[str, dict[str, Any]], labels: li
     return row, m, recs
 
 
-def _table(groups: dict[str, dict[str, Any]], records: dict[str, dict[str, Any]],
+def _table(groups: dict[str, dict[str, Any]], records: dict[str, FoldRecord],
            labels: list[str], complete: bool, folder: Path | None) -> SweepResult:
     rows, metrics = [], {}
     for key, g in groups.items():

@@ -1,4 +1,5 @@
-"""A fold's predictions as code reads them: :class:`FoldPredictions`.
+"""A fold's predictions as code reads them: :class:`FoldPredictions`; the finished fold
+that carries them: :class:`FoldRecord`.
 
 In a fold record (in memory and in ``RUN/folds/*/fold.json``) the test and held-out
 predictions stay the flat form every run folder has: ``{"owner": [...], "y_true": [...],
@@ -11,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, Required, TypedDict
 
 import numpy as np
 
@@ -59,3 +60,37 @@ class FoldPredictions:
     def class_probs(self, n_classes: int) -> np.ndarray:
         """``probs`` as (n, n_classes) float64 (an empty fold included)."""
         return np.asarray(self.probs, dtype=np.float64).reshape(len(self), n_classes)
+
+
+# the fold record's two sets of predictions: the test people's and the held-out people's
+PredictionsKey = Literal["predictions", "heldout_predictions"]
+
+
+class FoldRecord(TypedDict, total=False):
+    """A finished fold as ``RUN/folds/*/fold.json`` holds it, and as the code passes it from
+    training to the summary, the sweep, export and re-scoring: every key spelled here once
+    and checked by mypy (run_shapes.fold_problem checks a stranger's file to these types).
+    The predictions stay in their flat file form; read them with FoldPredictions."""
+
+    round: Required[int]
+    fold: Required[int]
+    name: Required[str]                 # the fold's name (a LOPO fold: its participant)
+    test: Required[list[str]]           # trial uids tested
+    seed: int
+    test_participants: list[str]
+    train: list[str]
+    val: list[str]
+    heldout: list[str]
+    shots: int                          # a few-shot fold's K
+    norm: dict[str, Any]                # the input normalisation the model was trained with
+    history: list[dict[str, Any]]       # one entry per epoch (networks)
+    best_epoch: int | None
+    predictions: dict[str, list[Any]]   # FoldPredictions.to_dict()
+    heldout_predictions: dict[str, list[Any]]
+    seconds: float
+    fine_tuned_windows: int             # --shots-by fine-tune
+    as_trained: list[list[float]]       # an adapted forest: the training people pooled
+    model_sha256: dict[str, str]        # the fold's model files as saved
+    version: str
+    _dir: str                           # where it was read from (not in the file)
+    _model: dict[str, bytes]            # a sweep task's model files, on their way to disk

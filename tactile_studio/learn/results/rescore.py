@@ -37,6 +37,7 @@ from tactile_studio.learn.experiments.runfolder import model_file, read_run, wri
 from tactile_studio.learn.experiments.trialinfo import load_trial_table
 from tactile_studio.learn.learners.baselines import legacy_options
 from tactile_studio.learn.learners.families import DataInfo, make_learner
+from tactile_studio.learn.learners.fold_predictions import FoldRecord
 from tactile_studio.learn.learners.generalise import ADAPT
 from tactile_studio.output_faults import require_writable_folder
 
@@ -48,7 +49,7 @@ class RunData(NamedTuple):
 
     config: ExperimentConfig
     resolved: dict[str, Any]
-    records: list[dict[str, Any]]
+    records: list[FoldRecord]
     ds: TrialDataset
     learner: Any  # a family's learner: a fused one has more than the Learner contract
     info: DataInfo
@@ -142,10 +143,7 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
     people = adapt_people(config, ds, owner)  # new people adapt to themselves too
     # in external mode every fold model meets every trial of the data: its fold is named
     # as trained (the people it held out), but what it was tested on is the data's people
-    tested = ({"test": list(ds.uids),
-               "test_participants": sorted({str(p) for p in ds.participants})}
-              if mode == "external" else {})
-    fresh = []
+    fresh: list[FoldRecord] = []
     for k, rec in enumerate(records):
         if cancel is not None:
             cancel.check()
@@ -154,7 +152,13 @@ def rescore_run(run: str | os.PathLike, data: list[str] | None = None,
         idx = (np.array([index[u] for u in rec["test"]], dtype=np.int64) if mode == "folds"
                else np.arange(len(ds)))
         pred = _predictions(fitted, learner, x, owner, idx, ds.labels, rec["norm"], people)
-        fresh.append({**rec, **tested, "predictions": pred, "heldout_predictions": None})
+        new = rec.copy()
+        new.pop("heldout_predictions", None)
+        new["predictions"] = pred
+        if mode == "external":
+            new["test"] = list(ds.uids)
+            new["test_participants"] = sorted({str(p) for p in ds.participants})
+        fresh.append(new)
     header = {**run_header(config, ds.channels, learner.windowed),
               "mode": mode, "data": [str(p) for p in (data or config.data)]}
     metrics = summarise(fresh, ds.label_names, learner.windowed, header, True)

@@ -20,7 +20,7 @@ from tactile_studio.errors import UserError
 from tactile_studio.learn.data.windowing import aggregate
 from tactile_studio.learn.experiments.runfolder import read_run
 from tactile_studio.learn.experiments.trialinfo import load_trial_table
-from tactile_studio.learn.learners.fold_predictions import FoldPredictions
+from tactile_studio.learn.learners.fold_predictions import FoldPredictions, FoldRecord
 from tactile_studio.storage.format.trials import trial_number
 
 
@@ -84,7 +84,7 @@ class RunPredictions:
                               [t for t in self.trials if t.shots == k])
 
 
-def _trial_rows(rec: dict[str, Any], labels: list[str], table: list[dict[str, Any]],
+def _trial_rows(rec: FoldRecord, labels: list[str], table: list[dict[str, Any]],
                 how: str = "mean") -> list[TrialPrediction]:
     p = FoldPredictions.from_dict(rec["predictions"])
     owner = p.owner

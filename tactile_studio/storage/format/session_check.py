@@ -20,6 +20,7 @@ import numpy as np
 from tactile_studio.devices.ring import nearest_frame
 from tactile_studio.storage.format.segments import is_segment_start, segment_starts
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_format import OVERRUN
 from tactile_studio.storage.format.trial_checks import check_problems
 from tactile_studio.storage.format.trials import TrialStatus
 
@@ -383,7 +384,7 @@ def _check_counters(s: SessionFile, out: list[str]) -> None:
             out.append(f"counters say {counters[key]} {key} but the journal has {events} "
                        f"{kind} events")
     if "dropped" in counters:
-        lost = sum(int(e.get("lost") or 0) for e in s.events if e.get("kind") == "overrun")
+        lost = sum(int(e.get("lost") or 0) for e in s.events if e.get("kind") == OVERRUN)
         if int(counters["dropped"]) != lost:
             out.append(f"counters say {counters['dropped']} dropped frames but the overrun "
                        f"events lost {lost}")

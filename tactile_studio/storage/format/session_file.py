@@ -19,7 +19,12 @@ from tactile_studio.storage.format.aux_signals import AuxSignal, read_aux
 from tactile_studio.storage.format.file_guards import check_frames, check_regular_file, check_stored
 from tactile_studio.storage.format.segments import segment_starts, segmented_rate_hz
 from tactile_studio.storage.format.session_compress import read_rows
-from tactile_studio.storage.format.session_format import FORMAT, Journal, read_journal  # noqa: F401
+from tactile_studio.storage.format.session_format import (  # noqa: F401
+    FORMAT,
+    OVERRUN,
+    Journal,
+    read_journal,
+)
 from tactile_studio.storage.format.session_recover import (
     cut_short_rows,
     open_cut_short,
@@ -350,7 +355,7 @@ class SessionFile:
         overrun = counters.get("dropped")
         if overrun is None:
             overrun = sum(int(e.get("lost") or 0) for e in self.events
-                          if e.get("kind") == "overrun")
+                          if e.get("kind") == OVERRUN)
         missing = counters.get("missing_frames")
         if missing is None:
             missing = sum(int(e.get("missing") or 0) for e in self.events

@@ -16,6 +16,8 @@ import h5py
 
 FORMAT = "tactile-studio-session"
 SCHEMA_VERSION = 1
+# the journal's kind for frames the recorder lost (it fell a whole buffer behind)
+OVERRUN = "overrun"
 
 
 @dataclass

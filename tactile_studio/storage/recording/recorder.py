@@ -17,6 +17,7 @@ import numpy as np
 
 from tactile_studio.devices.frame_stream import RecordableStream, hold_frames
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.session_format import OVERRUN
 from tactile_studio.storage.format.session_writer import SessionWriter, WriteFailed
 from tactile_studio.storage.format.trials import TrialRecord
 
@@ -431,7 +432,7 @@ class Recorder:
             first_kept = chunk.start if end is None else min(chunk.start, end)
             self._losses.append((self._cursor, chunk.start, self.dropped))
             self.dropped += first_kept - self._cursor  # the file's frames only
-            self.writer.add_event("overrun", lost=first_kept - self._cursor)
+            self.writer.add_event(OVERRUN, lost=first_kept - self._cursor)
             self._cursor = first_kept
         if len(chunk):
             if self._segment is not None:
