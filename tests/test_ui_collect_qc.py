@@ -27,6 +27,7 @@ from test_ui_collect import (  # noqa: F401 (env)
 )
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
@@ -53,6 +54,20 @@ def qc_run3(tmp_path_factory) -> Path:
                         gestures=("Poke", "Twist", "Tickle"), trial_s=0.5)
     cfg = ExperimentConfig(data=[str(root / "data")], model="rf", evaluation="lopo",
                            threads=1, cache_dir=str(root / "cache"))
+    run_experiment(cfg, root / "run")
+    return root / "run"
+
+
+@pytest.fixture(scope="module")
+def qc_run3_adapted(tmp_path_factory) -> Path:
+    """train's default model (extra-trees, adapted per person and surface) on mini3's
+    gestures and 0.5 s trials."""
+    root = tmp_path_factory.mktemp("qc3a")
+    make_dataset_folder(root / "data", participants=3, blocks=3,
+                        gestures=("Poke", "Twist", "Tickle"), trial_s=0.5)
+    cfg = ExperimentConfig(data=[str(root / "data")], model="et", evaluation="lopo",
+                           adapt=ADAPT_AUTO, preset="tiny", threads=1,
+                           cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"
 
@@ -140,6 +155,41 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
         else:  # block 0 by the run's fold, block 1 by it fitted to them
             model = "run/P01" if t.block == 0 else "run/P01+2 own trials"
             assert t.check["model"] == model and 1 <= t.check["rank"] <= 2, t
+
+
+def test_the_consoles_check_adapts_to_the_participant_after_their_first_block(
+        qtbot, env, qc_run3_adapted, monkeypatch):  # noqa: F811 (env)
+    """On the console's worker: the first block is scored as trained, then the check
+    reads the participant with the statistics of their trials so far (fails when the
+    check does not adapt)."""
+    proto, out = env
+    console = make_console(qtbot)
+    s = console.setup
+    fill_setup(qtbot, console, proto, out, "P01", blocks=2)
+    choose_run(qtbot, s, qc_run3_adapted, monkeypatch)
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = console.session.path
+    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+    for block in range(2):
+        if block:
+            continue_after_break(qtbot, console)
+        for _ in [x for x in snap(console).gestures if not x.done]:
+            nxt = snap(console)
+            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
+            do_trial(qtbot, console, g.name, g.key)
+            if console.redo_banner.isVisible():  # flagged (model or signal): kept
+                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    with SessionFile(path) as sess:
+        trials, meta, events = sess.trials, sess.metadata, sess.events
+    assert meta["trial_check"]["model"] == "run/P01" and meta["trial_check"]["adapts"]
+    first = [t for t in trials if t.block == 0 and t.usable]
+    adapted = f"run/P01 (adapted to {len(first)} own trials)"
+    assert [(e["trials"], e["model"]) for e in events
+            if e.get("kind") == "trial_check_adapted"] == [(len(first), adapted)]
+    assert {t.block: t.check["model"] for t in trials} == {0: "run/P01", 1: adapted}
 
 
 def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):  # noqa: F811 (env)
