@@ -225,7 +225,7 @@ class TrialRunner(RunnerInputs):
         elif s == State.RECORDING:
             self._check_recording()
         elif s == State.TRIAL_END:
-            if self.clock() >= self._phase_until:
+            if self._phase_over(self.protocol.beep_s):
                 self._set_state(State.REVIEW)
                 if not self._held():
                     self._after_trial()
@@ -343,6 +343,10 @@ class TrialRunner(RunnerInputs):
             performed=cur.get("performed"))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
+        # the beep's phase counted from the trial's end: the stream may have run up to a
+        # ring past it while the check scored the trial (a speed-0 simulator under load),
+        # and from its newest frame the beep could never end (a stream held at the ring)
+        self._phase_from = end
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
