@@ -11,19 +11,24 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from learn_fixtures import make_dataset_folder
+from test_trial_check_model import EXE, _collect  # shear9, 4 blocks, 25% mistakes
 
 from tactile_studio.learn.deploy.trial_check import ModelTrialCheck, balanced
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trial_checks import (
+    DEFAULT_THRESHOLD,
+    DEFAULT_TOP_K,
+    rule_text,
+    verdict,
+)
 
-EXE = str(Path(sys.executable).parent / "tactile-studio")
 RATE = 43.0  # the simulated sensor's, what the runner read the trials at
 
 
@@ -37,16 +42,6 @@ def run(tmp_path_factory) -> Path:
                            cache_dir=str(root / "cache"))
     run_experiment(cfg, root / "run")
     return root / "run"
-
-
-def _collect(out: Path, *extra: str) -> tuple[subprocess.CompletedProcess, Path]:
-    proc = subprocess.run(
-        [EXE, "collect", "--protocol", "shear9", "--participant", "P07", "--device",
-         "simulated", "--virtual-participant", "--speed", "0", "--out", str(out),
-         "--set", "difficulty=easy", "--set", f"rate={RATE:g}", *extra],
-        capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    return proc, Path(proc.stdout.strip().splitlines()[-1])
 
 
 def _as_trained(run: Path, path: Path) -> dict[int, float]:
@@ -64,8 +59,8 @@ def _as_trained(run: Path, path: Path) -> dict[int, float]:
 
 
 def test_the_headless_check_adapts_to_the_participant_after_each_block(run, tmp_path):
-    proc, path = _collect(tmp_path, "--blocks", "3", "--set", "mistakes=0.25",
-                          "--qc-model", str(run))
+    proc, path = _collect(tmp_path, "--blocks", "3", "--qc-model", str(run),
+                          "--no-qc-personalise")
     assert "adapted to the participant after each block" in proc.stderr
     with SessionFile(path) as s:
         trials = [t for t in s.trials if t.block >= 0]
@@ -92,8 +87,7 @@ def test_the_headless_check_adapts_to_the_participant_after_each_block(run, tmp_
 
 
 def test_the_first_blocks_personalisation_combines_with_the_adaptation(run, tmp_path):
-    proc, path = _collect(tmp_path, "--blocks", "2", "--qc-model", str(run),
-                          "--qc-personalise")
+    proc, path = _collect(tmp_path, "--blocks", "2", "--qc-model", str(run))  # by default
     assert "personalised with 9 trials of the first block" in proc.stderr
     with SessionFile(path) as s:
         models = {t.block: t.check["model"] for t in s.trials if t.block >= 0}
@@ -144,3 +138,20 @@ def test_qc_adapts_to_each_participant_per_surface_over_the_whole_session(run, t
     assert {r["model"] for r in plain} == {"run/P01", "run/P02"}
     p = np.array([[r["p_prompted"] for r in rows], [r["p_prompted"] for r in plain]])
     assert (np.abs(p[0] - p[1]) > 1e-3).mean() > 0.5  # the statistics moved most scores
+
+
+def test_the_default_rule_is_the_probability_alone():
+    """Chosen from train's default model's out-of-fold scores on people
+    (docs/trial-check.md): p(prompted) < 0.13; a top-k rule only when asked for."""
+    labels = ["Poke", "Twist", "Tickle", "Wide Pinch"]
+    probs = np.array([0.5, 0.3, 0.15, 0.05])
+    third = verdict(labels, probs, "Tickle")  # third, above the threshold: not flagged
+    assert (DEFAULT_TOP_K, DEFAULT_THRESHOLD) == (0, 0.13)
+    assert third is not None and not third.flagged and third.rank == 3
+    low = verdict(labels, probs, "Wide Pinch")
+    assert low is not None and low.flagged
+    assert low.reason == "looks like Poke (0.50); Wide Pinch 0.05"
+    ranked = verdict(labels, probs, "Tickle", top_k=2)
+    assert ranked is not None and ranked.flagged
+    assert rule_text(DEFAULT_TOP_K, DEFAULT_THRESHOLD) == "p < 0.13"
+    assert rule_text(3, 0.1) == "not in the top 3 or p < 0.1"

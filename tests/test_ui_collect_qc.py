@@ -79,6 +79,28 @@ def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
     qtbot.mouseClick(setup.qc.run_button, Qt.MouseButton.LeftButton)
 
 
+def two_blocks(qtbot, console) -> Path:
+    """Start the session set up and perform its two blocks (flagged trials kept); the
+    session's file once it is closed."""
+    s = console.setup
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = console.session.path
+    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+    for block in range(2):
+        if block:
+            continue_after_break(qtbot, console)
+        for _ in [x for x in snap(console).gestures if not x.done]:
+            nxt = snap(console)
+            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
+            do_trial(qtbot, console, g.name, g.key)
+            if console.redo_banner.isVisible():  # flagged (model or signal): kept
+                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    return path
+
+
 def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
         qtbot, env, qc_run, monkeypatch, tmp_path):  # noqa: F811 (env)
     proto, _ = env
@@ -93,8 +115,8 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     assert qc.path.text() == str(qc_run)
     assert qc.info.text() == "run (rf) scores 2 of the 3 gestures; not scored: Tickle"
     qc.top_k.setValue(1)
-    assert qc.personalise.isEnabled() and not qc.personalise.isChecked()
-    qc.personalise.setChecked(True)
+    assert qc.personalise.isEnabled() and qc.personalise.isChecked()  # DEFAULT_PERSONALISE
+    qc.personalise.setChecked(False)
     # a file that is no model: one line, no model kept
     monkeypatch.setattr(QFileDialog, "getOpenFileName",
                         staticmethod(lambda *a, **k: (str(tmp_path / "gone.onnx"), "")))
@@ -107,7 +129,7 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     qtbot.addWidget(again)
     again.set_protocol_file(str(proto))
     assert again.qc.path.text() == str(qc_run) and again.qc.top_k.value() == 1
-    assert again.qc.personalise.isChecked() and again.qc.choice().personalise
+    assert not again.qc.personalise.isChecked() and not again.qc.choice().personalise
     assert "not scored: Tickle" in again.qc.info.text()
     again.protocol.setCurrentIndex(0)  # a built-in protocol: another study
     assert again.qc.path.text() == ""
@@ -125,21 +147,7 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
     fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run, monkeypatch)
     s.qc.personalise.setChecked(True)
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = console.session.path
-    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
-    for block in range(2):
-        if block:
-            continue_after_break(qtbot, console)
-        for _ in [x for x in snap(console).gestures if not x.done]:
-            nxt = snap(console)
-            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
-            do_trial(qtbot, console, g.name, g.key)
-            if console.redo_banner.isVisible():  # flagged (model or signal): kept
-                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    path = two_blocks(qtbot, console)
     with SessionFile(path) as sess:
         trials, meta, events = sess.trials, sess.metadata, sess.events
     check = meta["trial_check"]
@@ -167,21 +175,8 @@ def test_the_consoles_check_adapts_to_the_participant_after_their_first_block(
     s = console.setup
     fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run3_adapted, monkeypatch)
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = console.session.path
-    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
-    for block in range(2):
-        if block:
-            continue_after_break(qtbot, console)
-        for _ in [x for x in snap(console).gestures if not x.done]:
-            nxt = snap(console)
-            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
-            do_trial(qtbot, console, g.name, g.key)
-            if console.redo_banner.isVisible():  # flagged (model or signal): kept
-                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    s.qc.personalise.setChecked(False)  # the adaptation alone
+    path = two_blocks(qtbot, console)
     with SessionFile(path) as sess:
         trials, meta, events = sess.trials, sess.metadata, sess.events
     assert meta["trial_check"]["model"] == "run/P01" and meta["trial_check"]["adapts"]
@@ -214,6 +209,11 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     console = build_console(**console_options(args))
     qtbot.addWidget(console)
     assert console.setup.qc.personalise.isChecked() and console.setup.choice().qc.personalise
+    args = build_parser().parse_args([*base, "--qc-model", str(qc_run),
+                                      "--no-qc-personalise"])
+    console = build_console(**console_options(args))
+    qtbot.addWidget(console)
+    assert not console.setup.choice().qc.personalise
     args = build_parser().parse_args([*base, "--qc-personalise"])
     with pytest.raises(UserError, match="--qc-personalise needs --qc-model"):
         console_options(args)

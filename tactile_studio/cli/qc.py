@@ -39,6 +39,7 @@ from tactile_studio.protocol.trial_check import (
 )
 from tactile_studio.storage.format.protocol_file import CollectionProtocol, protocol_from_dict
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trial_checks import DEFAULT_PERSONALISE, rule_text
 from tactile_studio.storage.format.trials import TrialRecord, TrialStatus, trial_number
 
 if TYPE_CHECKING:
@@ -52,8 +53,8 @@ def add_qc_options(p: argparse.ArgumentParser, model_flag: str, help_text: str,
     prefix = "--qc-" if model_flag.startswith("--qc") else "--"
     p.add_argument(model_flag, metavar="RUN|MODEL", required=required, help=help_text)
     p.add_argument(f"{prefix}top-k", type=int, default=DEFAULT_TOP_K, metavar="K",
-                   help=f"flag when the prompted gesture is not among the model's top K "
-                        f"(default {DEFAULT_TOP_K})")
+                   help=f"flag also when the prompted gesture is not among the model's top "
+                        f"K (default {DEFAULT_TOP_K}: off)")
     p.add_argument(f"{prefix}threshold", type=finite_float, default=DEFAULT_THRESHOLD,
                    metavar="P", help=f"flag when the model's probability of the prompted "
                                      f"gesture is below P (default {DEFAULT_THRESHOLD:g})")
@@ -69,12 +70,24 @@ def qc_checker(model: str | None, top_k: int, threshold: float,
     return ModelTrialCheck(model, top_k, threshold, participant)
 
 
+def qc_personalise(args: argparse.Namespace) -> bool:
+    """``--qc-personalise`` / ``--no-qc-personalise`` made concrete: on by default with
+    ``--qc-model`` (DEFAULT_PERSONALISE); asked for without a model is one line."""
+    asked = getattr(args, "qc_personalise", None)
+    if not getattr(args, "qc_model", None):
+        if asked:
+            raise UserError("--qc-personalise needs --qc-model")
+        return False
+    return DEFAULT_PERSONALISE if asked is None else bool(asked)
+
+
 def announce_check(check: TrialChecker, protocol: CollectionProtocol, runner: TrialRunner) -> None:
     """Say which model checks the trials and which gestures it does not score, and
     print each flagged trial as it ends (headless collection)."""
     d = check.describe()
-    print(f"trial check: {d.get('model')} (flag when not in the top {d.get('top_k')} or "
-          f"p < {d.get('threshold')})", file=sys.stderr)
+    print(f"trial check: {d.get('model')} (flag when "
+          f"{rule_text(int(d.get('top_k') or 0), float(d.get('threshold') or 0))})",
+          file=sys.stderr)
     if d.get("adapts"):
         print("trial check: adapted to the participant after each block (their own "
               "statistics, from all their trials so far)", file=sys.stderr)
@@ -100,8 +113,9 @@ def register(sub: argparse._SubParsersAction) -> None:
         "qc", help="check recorded trials: signal checks and a model of other participants",
         description="Check every trial of the sessions as the collection checks them when "
                     "they end: signal checks (no contact, saturation, a stuck channel, off "
-                    "centre...) and a model: flagged when the prompted gesture is not among "
-                    "the model's top K or its probability is below P. A leave-one-"
+                    "centre...) and a model: flagged when its probability of the prompted "
+                    "gesture is below P (or, with --top-k K, the prompted gesture is not "
+                    "among its top K). A leave-one-"
                     "participant-out run checks each participant with the fold that never "
                     "saw them. A run trained with --adapt (train's default model) reads "
                     "each participant with their own statistics, taken over all their "
@@ -151,7 +165,7 @@ def cmd_qc(args: argparse.Namespace) -> int:
           right=("trial", "p", "rank"))
     n_flag = sum(1 for r in rows if r["flags"])
     print(f"{n_flag} of {len(rows)} trials flagged ({checks.default.describe()['model']}, "
-          f"top {args.top_k}, p < {args.threshold:g})", file=sys.stderr)
+          f"{rule_text(args.top_k, args.threshold)})", file=sys.stderr)
     return 0
 
 
@@ -177,7 +191,7 @@ class QcRow(TypedDict):
 
 
 @dataclass(frozen=True)
-class _Frames:
+class TrialFrames:
     """One trial's frames as the checks read them."""
 
     raw: np.ndarray
@@ -186,7 +200,7 @@ class _Frames:
     rate: float
 
 
-def _trials(s: SessionFile) -> list[tuple[TrialRecord, _Frames]]:
+def checked_trials(s: SessionFile) -> list[tuple[TrialRecord, TrialFrames]]:
     """The trials ``qc`` checks (practice and discarded ones left out) with their frames."""
     out = []
     for t in s.trials:
@@ -197,7 +211,7 @@ def _trials(s: SessionFile) -> list[tuple[TrialRecord, _Frames]]:
             continue
         dev_t = s.column("device_time", start, stop)
         span = float(dev_t[-1] - dev_t[0])
-        out.append((t, _Frames(s.raw(start, stop), s.baseline(start), dev_t,
+        out.append((t, TrialFrames(s.raw(start, stop), s.baseline(start), dev_t,
                                (stop - start - 1) / span if span > 0 else 43.0)))
     return out
 
@@ -208,7 +222,7 @@ def group_rows(paths: list[Path], participant: str, checks: RunChecks
     with all their usable trials there."""
     sessions = [SessionFile(p) for p in paths]
     try:
-        trials = [_trials(s) for s in sessions]
+        trials = [checked_trials(s) for s in sessions]
         usable = [(t, f) for one in trials for t, f in one if t.usable]
         check = checks.meet(participant, sessions[0].layout,
                             [(f.raw, f.baseline, t.gesture) for t, f in usable],
@@ -230,8 +244,8 @@ def session_protocol(s: SessionFile) -> CollectionProtocol | None:
 
 
 def session_rows(s: SessionFile, path: Path, check: ModelTrialCheck,
-                 trials: list[tuple[TrialRecord, _Frames]]) -> list[QcRow]:
-    """One row per trial of session ``s`` (``trials``: :func:`_trials`)."""
+                 trials: list[tuple[TrialRecord, TrialFrames]]) -> list[QcRow]:
+    """One row per trial of session ``s`` (``trials``: :func:`checked_trials`)."""
     participant = participant_of(s, path)
     protocol = session_protocol(s)
     settings = quality_settings(protocol) if protocol else QualitySettings()
@@ -258,4 +272,5 @@ def session_rows(s: SessionFile, path: Path, check: ModelTrialCheck,
     return rows
 
 
-__all__ = ["add_qc_options", "announce_check", "cmd_qc", "qc_checker"]
+__all__ = ["add_qc_options", "announce_check", "checked_trials", "cmd_qc", "qc_checker",
+           "qc_personalise"]

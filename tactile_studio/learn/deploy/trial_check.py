@@ -103,8 +103,8 @@ class ModelTrialCheck:
     def __init__(self, path: str | os.PathLike, top_k: int = DEFAULT_TOP_K,
                  threshold: float = DEFAULT_THRESHOLD, participant: str | None = None,
                  adapt: bool = True) -> None:
-        if int(top_k) < 1:
-            raise UserError(f"--qc-top-k {top_k}: give 1 or more")
+        if int(top_k) < 0:
+            raise UserError(f"--qc-top-k {top_k}: give 0 (off) or more")
         if not 0.0 <= float(threshold) <= 1.0:
             raise UserError(f"--qc-threshold {threshold}: give a probability from 0 to 1")
         self.path = Path(path)
