@@ -2,24 +2,29 @@
 fifth, and how fast a verdict follows a trial's end.
 
 The development set (benchmarks/real_data.py; five people, ~12 s labelled performances)
-is trained leave-one-participant-out through ``train``'s own path (``run_experiment``,
-default model rf, ``--model`` another family) into a temporary run folder; each person is
-then checked with the fold that never saw them, through the product's
-``ModelTrialCheck`` (what ``collect --qc-model`` and ``qc`` use). 10% of each person's
-performances are relabelled to a random other gesture (``--seeds`` draws); the score is
-p(prompted). Printed: ROC AUC (relabelled vs honest, mean and range over the draws) and
-the share of relabelled / honest performances flagged at the default setting (top 3,
-p < 0.10) and at a few others, per 12 s performance and per single 2 s trial (each
-performance's first 2 s, what a collection trial is). ``--personalise``: each person's
-check is first personalised with one performance per gesture of theirs (the few-shot
-route, after a first block), which are then left out of the figures.
+is trained leave-one-participant-out through ``train``'s own path (``run_experiment``;
+train's default model, et adapted per person and surface; ``--model`` another family)
+into a temporary run folder (``--run``: kept there, or reused); each person is then
+checked with the fold that never saw them, through the product's ``ModelTrialCheck``
+(what ``collect --qc-model`` and ``qc`` use). 10% of each person's performances are
+relabelled to a random other gesture (``--seeds`` draws); the score is p(prompted).
+Printed: ROC AUC (relabelled vs honest, mean and range over the draws) and the share of
+relabelled / honest items flagged at the default setting and a few others, per 12 s
+performance, per single 2 s trial (each performance's first 2 s: a collection trial
+starts with the touch) and per 2 s window (every window of a performance on its own, the
+research's unit), for each way of meeting the person (``--modes``, MODES): as trained
+(the training people's pooled statistics); adapted to the person's own statistics on
+each surface, from all their trials there (``qc``'s route; the collection's after a few
+blocks) or from their first block only (one performance per gesture: the collection
+just after its first block); and personalised with their first block (the few-shot
+route), whose performances are then left out.
 
 Latency: a real-time collection on the simulated sensor (43 Hz) with the check, one block
 of shear9; the time from a trial's last frame being in to its verdict on the trial, and
 the frames the engine dropped. Skips with one line where the set is absent.
 
-Run: nice -n 10 .venv/bin/python -m benchmarks.bench_qc_real [--model rf] [--seeds 20]
-     [--personalise] [--no-latency]
+Run: nice -n 10 .venv/bin/python -m benchmarks.bench_qc_real [--model et] [--seeds 20]
+     [--modes as-trained,adapted,...] [--run DIR] [--save scores.npz] [--no-latency]
 """
 
 from __future__ import annotations
@@ -34,8 +39,14 @@ import numpy as np
 
 from benchmarks.real_data import dev_sessions, dev_set, skip_reason
 from tactile_studio.protocol.runner_events import RunnerEvent, TrialEnded
+from tactile_studio.storage.format.trial_checks import (
+    DEFAULT_THRESHOLD,
+    DEFAULT_TOP_K,
+    rule_text,
+)
 
-SETTINGS = ((3, 0.10), (3, 0.05), (2, 0.10), (1, 0.0))  # (top k, threshold); first: default
+# (top k (0: off), threshold); first: the default
+SETTINGS = ((DEFAULT_TOP_K, DEFAULT_THRESHOLD), (0, 0.10), (0, 0.05), (3, 0.10), (1, 0.0))
 
 
 def train(sessions: Path, model: str, out: Path) -> float:
@@ -51,58 +62,83 @@ def train(sessions: Path, model: str, out: Path) -> float:
 
 
 def performances(sessions: Path) -> list[dict[str, Any]]:
-    """Every ok trial of the set: participant, gesture, raw counts, baseline, rate."""
+    """Every usable trial of the set (read as ``qc`` reads them): participant, surface
+    (the session's condition), gesture, raw counts, baseline, rate."""
+    from tactile_studio.cli.qc import checked_trials
     from tactile_studio.storage.format.session_file import SessionFile
 
     out = []
     for path in sorted(sessions.glob("*.h5")):
         with SessionFile(path) as s:
             who = str(s.metadata.get("participant") or path.stem)
-            for t in s.trials:
-                if t.get("status", "ok") != "ok" or not t.get("gesture"):
-                    continue
-                a, b = int(t["start_sample"]), min(int(t["end_sample"]), s.n_frames)
-                if b - a < 8:
-                    continue
-                dev = s.column("device_time", a, b)
-                span = float(dev[-1] - dev[0])
-                out.append({"participant": who, "gesture": str(t["gesture"]),
-                            "raw": s.raw(a, b), "baseline": s.baseline(a),
-                            "rate": (b - a - 1) / span if span > 0 else 43.0,
-                            "layout": s.layout})
+            surface = str(s.metadata.get("condition") or "")
+            out.extend({"participant": who, "surface": surface, "gesture": t.gesture,
+                        "raw": f.raw, "baseline": f.baseline, "rate": f.rate,
+                        "layout": s.layout}
+                       for t, f in checked_trials(s) if t.usable and len(f.raw) >= 8)
     return out
 
 
-def probabilities(run: Path, perfs: list[dict[str, Any]], personalise: bool
+# how each person's check meets them: (adapted to their own statistics, personalised)
+MODES = {"as-trained": (None, False),
+         "adapted": ("surface", False),            # all their trials on the surface (qc)
+         "adapted-first": ("first", False),         # their first block's only (early live)
+         "adapted+personalised": ("surface", True),
+         "adapted-first+personalised": ("first", True),
+         "personalised": (None, True)}
+
+
+def first_block(mine: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One performance per gesture, the first of each (what a first block holds)."""
+    shots, seen = [], set()
+    for p in mine:
+        if p["gesture"] not in seen:
+            seen.add(p["gesture"])
+            shots.append(p)
+    return shots
+
+
+def probabilities(run: Path, perfs: list[dict[str, Any]], mode: str
                   ) -> tuple[list[str], list[dict[str, Any]]]:
     """Each performance's probabilities (whole, and its first 2 s) by the fold that never
-    saw its person; with ``personalise`` the first performance per gesture of each person
-    personalises their check and is left out."""
+    saw its person, met as ``mode`` says (MODES): adapted to their statistics on each
+    surface (all their trials there, or their first block's), personalised with their
+    first block (one performance per gesture, then left out of the figures)."""
+    from tactile_studio.learn.data.windowing import window_starts
     from tactile_studio.learn.deploy.trial_check import ModelTrialCheck
 
+    adapt, personalise = MODES[mode]
     scored = []
     labels: list[str] = []
     for who in sorted({p["participant"] for p in perfs}):
-        check = ModelTrialCheck(run, participant=who)
+        check = ModelTrialCheck(run, participant=who, adapt=adapt is not None)
         assert check.out_of_fold, f"{run} has no fold that left {who} out"
+        assert adapt is None or check.adapts, f"{run}: its model does not adapt"
         labels = list(check.model.labels)
         mine = [p for p in perfs if p["participant"] == who and p["gesture"] in check.known]
+        shots = first_block(mine)
         if personalise:
-            shots, seen = [], set()
-            for p in mine:
-                if p["gesture"] not in seen:
-                    seen.add(p["gesture"])
-                    shots.append(p)
             check.personalise(mine[0]["layout"],
                               [(p["raw"], p["baseline"], p["gesture"]) for p in shots],
                               mine[0]["rate"])
-            mine = [p for p in mine if not any(p is s for s in shots)]
-        for p in mine:
-            n2 = max(8, round(2.0 * p["rate"]))
-            whole = check.probabilities(p["layout"], p["raw"], p["baseline"], p["rate"])
-            first = check.probabilities(p["layout"], p["raw"][:n2], p["baseline"], p["rate"])
-            scored.append({"participant": who, "gesture": p["gesture"], "whole": whole,
-                           "first": first})
+        for surface in sorted({p["surface"] for p in mine}):
+            here = [p for p in mine if p["surface"] == surface]
+            if adapt is not None:
+                sample = here if adapt == "surface" else first_block(here)
+                check.adapt(here[0]["layout"], [(p["raw"], p["baseline"], p["gesture"])
+                                                for p in sample], [p["rate"] for p in sample])
+            for p in here:
+                if personalise and any(p is s for s in shots):
+                    continue
+                frames = check.model.decode(p["layout"], p["raw"], p["baseline"])
+                spec, n = check.model.spec, frames.shape[1]
+                w = spec.frames(p["rate"])
+                pieces = [frames[:, a:a + w] for a in window_starts(n, w, spec.stride(p["rate"]))
+                          ] if n > spec.long_factor * w else [frames]  # as the run cut them
+                every = check.model.predict_windows(p["layout"], pieces, p["rate"])
+                scored.append({"participant": who, "gesture": p["gesture"],
+                               "whole": every.mean(axis=0), "first": every[0],
+                               "windows": every, "adapted_on": check.adapted_on})
     return labels, scored
 
 
@@ -187,33 +223,63 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
             "scored": sum(1 for t in runner.records if t.check)}
 
 
+UNITS = (("whole", "12 s performance"), ("first", "one 2 s trial"),
+         ("windows", "every 2 s window"))
+
+
+def report(labels: list[str], scored: list[dict[str, Any]], seeds: int) -> None:
+    for unit, name in UNITS:
+        items = scored
+        if unit == "windows":  # each window on its own, as the research scored them
+            items = [{**s, "windows": p} for s in scored for p in s["windows"]]
+        f = figures(labels, items, unit, seeds)
+        mean, lo, hi = f["auc"]
+        cells = "  ".join(f"{rule_text(k, th)}: {r[0]:.0%} / {r[1]:.0%}"
+                          for (k, th), r in f["rates"].items())
+        print(f"  {name:17s} AUC {mean:.3f} [{lo:.3f}-{hi:.3f}]  flagged relabelled / "
+              f"honest: {cells}", flush=True)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--model", default="rf")
+    ap.add_argument("--model", default="et", help="the family trained (default: train's)")
     ap.add_argument("--seeds", type=int, default=20)
-    ap.add_argument("--personalise", action="store_true")
+    ap.add_argument("--modes", default="as-trained,adapted,adapted+personalised",
+                    help=f"comma-separated, of {', '.join(MODES)}")
+    ap.add_argument("--run", type=Path, help="a LOPO run of the set to reuse, or where "
+                                             "to keep the one trained")
+    ap.add_argument("--save", type=Path, help="write every mode's scores here (.npz)")
     ap.add_argument("--no-latency", action="store_true")
     args = ap.parse_args(argv)
+    modes = args.modes.split(",")
+    unknown = [m for m in modes if m not in MODES]
+    if unknown:
+        ap.error(f"unknown mode {', '.join(unknown)} (of {', '.join(MODES)})")
     if dev_set() is None:
         print(f"bench_qc_real: skipped: {skip_reason()}")
         return 0
     sessions = dev_sessions(verbose=True)
     with tempfile.TemporaryDirectory() as tmp:
-        run = Path(tmp) / "run"
-        seconds = train(sessions, args.model, run)
-        print(f"trained {args.model} LOPO on the development set in {seconds:.0f} s")
+        run = args.run or Path(tmp) / "run"
+        if not (run / "config.json").is_file():
+            seconds = train(sessions, args.model, run)
+            print(f"trained {args.model} LOPO on the development set in {seconds:.0f} s")
         perfs = performances(sessions)
-        labels, scored = probabilities(run, perfs, args.personalise)
-        how = "personalised with one performance per gesture, " if args.personalise else ""
-        print(f"checked out of fold ({how}{len(scored)} performances, {len(labels)} "
-              f"gestures, 10% relabelled, {args.seeds} draws)")
-        for unit, name in (("whole", "12 s performance"), ("first", "one 2 s trial")):
-            f = figures(labels, scored, unit, args.seeds)
-            mean, lo, hi = f["auc"]
-            cells = "  ".join(f"top{k} p<{th:.2f}: {r[0]:.0%} / {r[1]:.0%}"
-                              for (k, th), r in f["rates"].items())
-            print(f"  {name:17s} AUC {mean:.3f} [{lo:.3f}-{hi:.3f}]  flagged relabelled / "
-                  f"honest: {cells}")
+        saved: dict[str, np.ndarray] = {}
+        for mode in modes:
+            labels, scored = probabilities(run, perfs, mode)
+            print(f"{mode}: checked out of fold ({len(scored)} performances, {len(labels)} "
+                  f"gestures, 10% relabelled, {args.seeds} draws)", flush=True)
+            report(labels, scored, args.seeds)
+            for unit in ("whole", "first"):
+                saved[f"{mode}/{unit}"] = np.array([s[unit] for s in scored])
+            saved[f"{mode}/windows"] = np.concatenate([s["windows"] for s in scored])
+            saved[f"{mode}/window_of"] = np.concatenate(
+                [np.full(len(s["windows"]), i) for i, s in enumerate(scored)])
+            saved[f"{mode}/gesture"] = np.array([labels.index(s["gesture"]) for s in scored])
+            saved[f"{mode}/participant"] = np.array([s["participant"] for s in scored])
+        if args.save:
+            np.savez(args.save, labels=np.array(labels), **saved)
         if not args.no_latency:
             lat = latency(run)
             ms = np.array(lat["latency_s"]) * 1000

@@ -14,6 +14,7 @@ from learn_fixtures import make_dataset_folder
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.storage.format.session_file import SessionFile
+from tactile_studio.storage.format.trial_checks import DEFAULT_TOP_K
 from tactile_studio.storage.format.trials import TrialRecord
 
 EXE = str(Path(sys.executable).parent / "tactile-studio")
@@ -57,8 +58,10 @@ def test_headless_collection_flags_the_virtual_participants_mistakes(run, tmp_pa
     assert len(caught) >= 0.9 * len(wrong), [(t.gesture, t.check) for t in wrong]
     honest = [t for t in trials if t not in wrong]
     assert sum("model_mismatch" in t.flags for t in honest) <= 0.25 * len(honest)
-    assert meta["top_k"] == 3 and meta["not_scored"] == []
-    assert all(t.check["model"] == meta["model"] for t in trials)
+    assert meta["top_k"] == DEFAULT_TOP_K and meta["not_scored"] == []
+    # the first block by the run's model, the rest by it personalised (on by default)
+    assert {t.block: t.check["model"] for t in trials} == {
+        0: meta["model"], **{b: f"{meta['model']}+9 own trials" for b in (1, 2, 3)}}
     for t in caught:  # the reason names what it looked like
         assert t.check["reason"].startswith("looks like ")
         assert t.gesture in t.check["reason"]

@@ -4,6 +4,7 @@ redo prompt and the trial-ended event; Redo and Keep are stored as the decision.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from check_fixtures import ContactShare
@@ -73,3 +74,42 @@ def test_unknown_gestures_are_not_scored(tmp_path: Path) -> None:
         rig.close()
     for g, t in seen:
         assert ("check" in t) == (g in checker.known)
+
+
+class _RingFiller(ContactShare):
+    """A check that takes as long as the stream needs to run a whole ring past the
+    trial's end (a slow model while a speed-0 simulator runs ahead)."""
+
+    def __init__(self, gestures: list[str], rig_box: list) -> None:
+        super().__init__(gestures, unknown="")
+        self.rig_box = rig_box
+        self.filled = False
+
+    def check(self, layout, raw, baseline, rate_hz, prompted):  # noqa: ANN001
+        rig = self.rig_box[0]
+        end = rig.runner._keys_from  # the trial's end: the stream is held a ring past it
+        target = end + rig.engine.ring.capacity - 2  # beep frames past it: none
+        for _ in range(30000):  # the simulator at speed 0 fills it in well under a second
+            if rig.engine.frames >= target:
+                self.filled = True
+                break
+            time.sleep(0.002)
+        return super().check(layout, raw, baseline, rate_hz, prompted)
+
+
+def test_a_check_slow_enough_for_the_stream_to_fill_the_ring_does_not_stop_the_session(
+        tmp_path: Path) -> None:
+    """The beep after a trial was timed from the newest frame once the check was done: a
+    stream that had run a ring ahead meanwhile was held there, so the beep never ended
+    and the session stopped (seen headless under load). It is timed from the trial's end."""
+    protocol = mini_protocol(2)
+    box: list = []
+    checker = _RingFiller(protocol.gesture_names, box)
+    rig = make_rig(tmp_path, protocol, speed=0.0, capacity=1 << 12, trial_check=checker)
+    box.append(rig)
+    try:
+        start(rig)
+        do_trial(rig, rig.runner.snapshot().remaining[0])  # stuck in trial_end before
+        assert checker.filled and rig.runner.state != "trial_end"
+    finally:
+        rig.close()

@@ -27,6 +27,7 @@ from test_ui_collect import (  # noqa: F401 (env)
 )
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.learners.generalise import ADAPT_AUTO
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
@@ -57,11 +58,47 @@ def qc_run3(tmp_path_factory) -> Path:
     return root / "run"
 
 
+@pytest.fixture(scope="module")
+def qc_run3_adapted(tmp_path_factory) -> Path:
+    """train's default model (extra-trees, adapted per person and surface) on mini3's
+    gestures and 0.5 s trials."""
+    root = tmp_path_factory.mktemp("qc3a")
+    make_dataset_folder(root / "data", participants=3, blocks=3,
+                        gestures=("Poke", "Twist", "Tickle"), trial_s=0.5)
+    cfg = ExperimentConfig(data=[str(root / "data")], model="et", evaluation="lopo",
+                           adapt=ADAPT_AUTO, preset="tiny", threads=1,
+                           cache_dir=str(root / "cache"))
+    run_experiment(cfg, root / "run")
+    return root / "run"
+
+
 def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
     """The "Run folder..." button and its dialog, as the experimenter picks the run."""
     monkeypatch.setattr(QFileDialog, "getExistingDirectory",
                         staticmethod(lambda *a, **k: str(run)))
     qtbot.mouseClick(setup.qc.run_button, Qt.MouseButton.LeftButton)
+
+
+def two_blocks(qtbot, console) -> Path:
+    """Start the session set up and perform its two blocks (flagged trials kept); the
+    session's file once it is closed."""
+    s = console.setup
+    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
+    assert s.error.text() == "" and console.stack.currentIndex() == 1
+    path = console.session.path
+    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
+    for block in range(2):
+        if block:
+            continue_after_break(qtbot, console)
+        for _ in [x for x in snap(console).gestures if not x.done]:
+            nxt = snap(console)
+            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
+            do_trial(qtbot, console, g.name, g.key)
+            if console.redo_banner.isVisible():  # flagged (model or signal): kept
+                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
+    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    return path
 
 
 def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
@@ -78,8 +115,8 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     assert qc.path.text() == str(qc_run)
     assert qc.info.text() == "run (rf) scores 2 of the 3 gestures; not scored: Tickle"
     qc.top_k.setValue(1)
-    assert qc.personalise.isEnabled() and not qc.personalise.isChecked()
-    qc.personalise.setChecked(True)
+    assert qc.personalise.isEnabled() and qc.personalise.isChecked()  # DEFAULT_PERSONALISE
+    qc.personalise.setChecked(False)
     # a file that is no model: one line, no model kept
     monkeypatch.setattr(QFileDialog, "getOpenFileName",
                         staticmethod(lambda *a, **k: (str(tmp_path / "gone.onnx"), "")))
@@ -92,7 +129,7 @@ def test_the_setup_takes_a_qc_model_says_what_it_scores_and_remembers_it(
     qtbot.addWidget(again)
     again.set_protocol_file(str(proto))
     assert again.qc.path.text() == str(qc_run) and again.qc.top_k.value() == 1
-    assert again.qc.personalise.isChecked() and again.qc.choice().personalise
+    assert not again.qc.personalise.isChecked() and not again.qc.choice().personalise
     assert "not scored: Tickle" in again.qc.info.text()
     again.protocol.setCurrentIndex(0)  # a built-in protocol: another study
     assert again.qc.path.text() == ""
@@ -110,21 +147,7 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
     fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run, monkeypatch)
     s.qc.personalise.setChecked(True)
-    qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
-    assert s.error.text() == "" and console.stack.currentIndex() == 1
-    path = console.session.path
-    qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
-    for block in range(2):
-        if block:
-            continue_after_break(qtbot, console)
-        for _ in [x for x in snap(console).gestures if not x.done]:
-            nxt = snap(console)
-            g = next(x for x in nxt.gestures if x.name == nxt.prompted)
-            do_trial(qtbot, console, g.name, g.key)
-            if console.redo_banner.isVisible():  # flagged (model or signal): kept
-                qtbot.mouseClick(console.redo_banner.keep, Qt.MouseButton.LeftButton)
-    qtbot.waitUntil(lambda: console.session is None, timeout=WAIT_MS)
+    path = two_blocks(qtbot, console)
     with SessionFile(path) as sess:
         trials, meta, events = sess.trials, sess.metadata, sess.events
     check = meta["trial_check"]
@@ -140,6 +163,28 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
         else:  # block 0 by the run's fold, block 1 by it fitted to them
             model = "run/P01" if t.block == 0 else "run/P01+2 own trials"
             assert t.check["model"] == model and 1 <= t.check["rank"] <= 2, t
+
+
+def test_the_consoles_check_adapts_to_the_participant_after_their_first_block(
+        qtbot, env, qc_run3_adapted, monkeypatch):  # noqa: F811 (env)
+    """On the console's worker: the first block is scored as trained, then the check
+    reads the participant with the statistics of their trials so far (fails when the
+    check does not adapt)."""
+    proto, out = env
+    console = make_console(qtbot)
+    s = console.setup
+    fill_setup(qtbot, console, proto, out, "P01", blocks=2)
+    choose_run(qtbot, s, qc_run3_adapted, monkeypatch)
+    s.qc.personalise.setChecked(False)  # the adaptation alone
+    path = two_blocks(qtbot, console)
+    with SessionFile(path) as sess:
+        trials, meta, events = sess.trials, sess.metadata, sess.events
+    assert meta["trial_check"]["model"] == "run/P01" and meta["trial_check"]["adapts"]
+    first = [t for t in trials if t.block == 0 and t.usable]
+    adapted = f"run/P01 (adapted to {len(first)} own trials)"
+    assert [(e["trials"], e["model"]) for e in events
+            if e.get("kind") == "trial_check_adapted"] == [(len(first), adapted)]
+    assert {t.block: t.check["model"] for t in trials} == {0: "run/P01", 1: adapted}
 
 
 def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_run):  # noqa: F811 (env)
@@ -164,6 +209,11 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     console = build_console(console_options(args))
     qtbot.addWidget(console)
     assert console.setup.qc.personalise.isChecked() and console.setup.choice().qc.personalise
+    args = build_parser().parse_args([*base, "--qc-model", str(qc_run),
+                                      "--no-qc-personalise"])
+    console = build_console(**console_options(args))
+    qtbot.addWidget(console)
+    assert not console.setup.choice().qc.personalise
     args = build_parser().parse_args([*base, "--qc-personalise"])
     with pytest.raises(UserError, match="--qc-personalise needs --qc-model"):
         console_options(args)

@@ -18,7 +18,7 @@ from tactile_studio.acquisition.live_acquisition import LiveAcquisition
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.gui import require_display
 from tactile_studio.cli.lsl_markers import add_markers_option, start_markers
-from tactile_studio.cli.qc import add_qc_options, announce_check, qc_checker
+from tactile_studio.cli.qc import add_qc_options, announce_check, qc_checker, qc_personalise
 from tactile_studio.cli.recording_warnings import (
     add_silence_option,
     apply_silence_option,
@@ -85,9 +85,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "note, why, is stored in the session)")
     add_qc_options(p, "--qc-model", "check each trial as it ends with this model of "
                    "earlier participants: a run folder or RUN/export/<fold>.onnx")
-    p.add_argument("--qc-personalise", action="store_true",
+    p.add_argument("--qc-personalise", action=argparse.BooleanOptionalAction, default=None,
                    help="after the first block, fit the check to the participant with their "
-                        "own trials of it (the few-shot route)")
+                        "own trials of it (the few-shot route; on by default with "
+                        "--qc-model, the console's setup remembers it per study)"),
     add_lsl_option(p)
     add_markers_option(p)
     add_silence_option(p)
@@ -177,14 +178,13 @@ def console_options(args: argparse.Namespace) -> ConsoleOptions:
     if name is not None:
         plugin_class(name).validate_settings(dict(settings))
     options.update(device=name, device_settings=settings)
-    if getattr(args, "qc_personalise", False) and not getattr(args, "qc_model", None):
-        raise UserError("--qc-personalise needs --qc-model")
+    personalise = qc_personalise(args)
     if getattr(args, "qc_model", None):  # the setup's trial check, pre-filled (checked
         # here: a model that cannot check is one line before any window opens)
         qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold)
         options["qc"] = {"model": str(Path(args.qc_model).expanduser().resolve()),
                          "top_k": args.qc_top_k, "threshold": args.qc_threshold,
-                         "personalise": bool(getattr(args, "qc_personalise", False))}
+                         "personalise": personalise}
     if getattr(args, "markers", None):
         options["markers"] = tuple(args.markers)  # the console's recording takes them in
     if getattr(args, "silence_warning", None) is not None:
@@ -219,8 +219,7 @@ def run(args: argparse.Namespace) -> int:
         protocol, participant, seed = _new_session(args)
         name, base = args.device or "simulated", None
     check = qc_checker(args.qc_model, args.qc_top_k, args.qc_threshold, participant)
-    if args.qc_personalise and check is None:
-        raise UserError("--qc-personalise needs --qc-model")
+    personalise = qc_personalise(args)
     device = create_device(name, _device_settings(args, name, base))
     if not hasattr(device, "perform"):
         raise UserError(f"--virtual-participant needs the simulated device, not {name}")
@@ -243,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
         collection = open_collection(CollectionSettings(
             protocol, participant, out, seed=seed, condition=args.condition,
             wellness=admit(status, args.wellness_override), pilot=args.pilot,
-            trial_check=check, personalise_check=args.qc_personalise), acquisition, clock=clock)
+            trial_check=check, personalise_check=personalise), acquisition, clock=clock)
         print(f"writing {collection.path}", file=sys.stderr)
     if check is not None:
         announce_check(check, protocol, collection.runner)

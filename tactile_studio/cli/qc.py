@@ -12,8 +12,11 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, TypedDict
+
+import numpy as np
 
 from tactile_studio.cli.argtypes import finite_float
 from tactile_studio.cli.json_output import print_json
@@ -36,10 +39,11 @@ from tactile_studio.protocol.trial_check import (
 )
 from tactile_studio.storage.format.protocol_file import CollectionProtocol, protocol_from_dict
 from tactile_studio.storage.format.session_file import SessionFile
-from tactile_studio.storage.format.trials import TrialStatus, trial_number
+from tactile_studio.storage.format.trial_checks import DEFAULT_PERSONALISE, rule_text
+from tactile_studio.storage.format.trials import TrialRecord, TrialStatus, trial_number
 
 if TYPE_CHECKING:
-    from tactile_studio.learn.deploy.trial_check import RunChecks
+    from tactile_studio.learn.deploy.trial_check import ModelTrialCheck, RunChecks
     from tactile_studio.protocol.trial_runner import TrialRunner
 
 
@@ -49,8 +53,8 @@ def add_qc_options(p: argparse.ArgumentParser, model_flag: str, help_text: str,
     prefix = "--qc-" if model_flag.startswith("--qc") else "--"
     p.add_argument(model_flag, metavar="RUN|MODEL", required=required, help=help_text)
     p.add_argument(f"{prefix}top-k", type=int, default=DEFAULT_TOP_K, metavar="K",
-                   help=f"flag when the prompted gesture is not among the model's top K "
-                        f"(default {DEFAULT_TOP_K})")
+                   help=f"flag also when the prompted gesture is not among the model's top "
+                        f"K (default {DEFAULT_TOP_K}: off)")
     p.add_argument(f"{prefix}threshold", type=finite_float, default=DEFAULT_THRESHOLD,
                    metavar="P", help=f"flag when the model's probability of the prompted "
                                      f"gesture is below P (default {DEFAULT_THRESHOLD:g})")
@@ -66,12 +70,27 @@ def qc_checker(model: str | None, top_k: int, threshold: float,
     return ModelTrialCheck(model, top_k, threshold, participant)
 
 
+def qc_personalise(args: argparse.Namespace) -> bool:
+    """``--qc-personalise`` / ``--no-qc-personalise`` made concrete: on by default with
+    ``--qc-model`` (DEFAULT_PERSONALISE); asked for without a model is one line."""
+    asked = getattr(args, "qc_personalise", None)
+    if not getattr(args, "qc_model", None):
+        if asked:
+            raise UserError("--qc-personalise needs --qc-model")
+        return False
+    return DEFAULT_PERSONALISE if asked is None else bool(asked)
+
+
 def announce_check(check: TrialChecker, protocol: CollectionProtocol, runner: TrialRunner) -> None:
     """Say which model checks the trials and which gestures it does not score, and
     print each flagged trial as it ends (headless collection)."""
     d = check.describe()
-    print(f"trial check: {d.get('model')} (flag when not in the top {d.get('top_k')} or "
-          f"p < {d.get('threshold')})", file=sys.stderr)
+    print(f"trial check: {d.get('model')} (flag when "
+          f"{rule_text(int(d.get('top_k') or 0), float(d.get('threshold') or 0))})",
+          file=sys.stderr)
+    if d.get("adapts"):
+        print("trial check: adapted to the participant after each block (their own "
+              "statistics, from all their trials so far)", file=sys.stderr)
     unknown = unknown_gestures(check, protocol.gesture_names)
     if unknown:
         print(f"trial check: not scored (the model does not know them): "
@@ -94,14 +113,23 @@ def register(sub: argparse._SubParsersAction) -> None:
         "qc", help="check recorded trials: signal checks and a model of other participants",
         description="Check every trial of the sessions as the collection checks them when "
                     "they end: signal checks (no contact, saturation, a stuck channel, off "
-                    "centre...) and a model: flagged when the prompted gesture is not among "
-                    "the model's top K or its probability is below P. A leave-one-"
+                    "centre...) and a model: flagged when its probability of the prompted "
+                    "gesture is below P (or, with --top-k K, the prompted gesture is not "
+                    "among its top K). A leave-one-"
                     "participant-out run checks each participant with the fold that never "
-                    "saw them. Exit 0 whether or not trials are flagged; 1 when the model "
-                    "and the sessions share no gesture.")
+                    "saw them. A run trained with --adapt (train's default model) reads "
+                    "each participant with their own statistics, taken over all their "
+                    "trials given here (per surface when it adapted per person and "
+                    "surface; unlabelled: the transductive route train --shots takes with "
+                    "a held-out person), where the collection takes them from the blocks "
+                    "done so far; --as-trained reads everyone with the training people's. "
+                    "Exit 0 whether or not trials are flagged; 1 when the model and the "
+                    "sessions share no gesture.")
     p.add_argument("session", nargs="+", help="session file(s) (.h5), imports included")
     add_qc_options(p, "--model", "a run folder (LOPO: out of fold) or RUN/export/<fold>.onnx",
                    required=True)
+    p.add_argument("--as-trained", action="store_true",
+                   help="do not adapt the model to each participant's statistics")
     p.add_argument("--json", action="store_true",
                    help="print one object per trial as a JSON list")
     p.set_defaults(func=cmd_qc)
@@ -110,17 +138,23 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_qc(args: argparse.Namespace) -> int:
     from tactile_studio.learn.deploy.trial_check import RunChecks
 
-    checks = RunChecks(args.model, args.top_k, args.threshold)
-    rows: list[dict[str, Any]] = []
+    checks = RunChecks(args.model, args.top_k, args.threshold, adapt=not args.as_trained)
+    groups: dict[tuple[str, str], list[Path]] = {}
     shared = False
-    for path in args.session:
+    for path in map(Path, args.session):
         with SessionFile(path) as s:
             gestures = {t.gesture for t in s.trials if t.gesture}
             shared = shared or bool(gestures & checks.known)
-            rows.extend(session_rows(s, Path(path), checks))
+            groups.setdefault(checks.group(participant_of(s, path),
+                                           str(s.metadata.get("condition") or "")),
+                              []).append(path)
     if not shared:
         raise UserError(f"{args.model}: the model knows {', '.join(sorted(checks.known))}; "
                         "the sessions share no gesture with it")
+    by_path: dict[Path, list[QcRow]] = {}
+    for (participant, _), paths in groups.items():
+        by_path.update(group_rows(paths, participant, checks))
+    rows = [r for path in dict.fromkeys(map(Path, args.session)) for r in by_path[path]]
     if args.json:
         print_json(rows)
         return 0
@@ -131,8 +165,73 @@ def cmd_qc(args: argparse.Namespace) -> int:
           right=("trial", "p", "rank"))
     n_flag = sum(1 for r in rows if r["flags"])
     print(f"{n_flag} of {len(rows)} trials flagged ({checks.default.describe()['model']}, "
-          f"top {args.top_k}, p < {args.threshold:g})", file=sys.stderr)
+          f"{rule_text(args.top_k, args.threshold)})", file=sys.stderr)
     return 0
+
+
+def participant_of(s: SessionFile, path: Path) -> str:
+    return str(s.metadata.get("participant") or path.stem)
+
+
+class QcRow(TypedDict):
+    """One trial as ``qc`` reports it (``--json``: one object per trial)."""
+
+    file: str
+    trial: int
+    participant: str
+    prompted: str
+    predicted: str | None
+    p_prompted: float | None
+    rank: int | None
+    flags: list[str]
+    reasons: list[str]
+    out_of_fold: bool
+    model: str
+    status: str
+
+
+@dataclass(frozen=True)
+class TrialFrames:
+    """One trial's frames as the checks read them."""
+
+    raw: np.ndarray
+    baseline: np.ndarray
+    device_time: np.ndarray
+    rate: float
+
+
+def checked_trials(s: SessionFile) -> list[tuple[TrialRecord, TrialFrames]]:
+    """The trials ``qc`` checks (practice and discarded ones left out) with their frames."""
+    out = []
+    for t in s.trials:
+        if t.practice or t.status == TrialStatus.DISCARDED:
+            continue
+        start, stop = max(0, t.start_sample), min(t.end_sample, s.n_frames)
+        if stop - start < 2:
+            continue
+        dev_t = s.column("device_time", start, stop)
+        span = float(dev_t[-1] - dev_t[0])
+        out.append((t, TrialFrames(s.raw(start, stop), s.baseline(start), dev_t,
+                               (stop - start - 1) / span if span > 0 else 43.0)))
+    return out
+
+
+def group_rows(paths: list[Path], participant: str, checks: RunChecks
+               ) -> dict[Path, list[QcRow]]:
+    """The rows of one person's sessions (on one surface), checked by their check met
+    with all their usable trials there."""
+    sessions = [SessionFile(p) for p in paths]
+    try:
+        trials = [checked_trials(s) for s in sessions]
+        usable = [(t, f) for one in trials for t, f in one if t.usable]
+        check = checks.meet(participant, sessions[0].layout,
+                            [(f.raw, f.baseline, t.gesture) for t, f in usable],
+                            [f.rate for _, f in usable])
+        return {p: session_rows(s, p, check, one)
+                for p, s, one in zip(paths, sessions, trials)}
+    finally:
+        for s in sessions:
+            s.close()
 
 
 def session_protocol(s: SessionFile) -> CollectionProtocol | None:
@@ -144,28 +243,21 @@ def session_protocol(s: SessionFile) -> CollectionProtocol | None:
         return None
 
 
-def session_rows(s: SessionFile, path: Path, checks: RunChecks) -> list[dict[str, Any]]:
-    """One row per trial (practice and discarded ones left out) of session ``s``."""
-    participant = str(s.metadata.get("participant") or path.stem)
-    check = checks.for_participant(participant)
+def session_rows(s: SessionFile, path: Path, check: ModelTrialCheck,
+                 trials: list[tuple[TrialRecord, TrialFrames]]) -> list[QcRow]:
+    """One row per trial of session ``s`` (``trials``: :func:`checked_trials`)."""
+    participant = participant_of(s, path)
     protocol = session_protocol(s)
     settings = quality_settings(protocol) if protocol else QualitySettings()
     forces = {g.name: g.force for g in protocol.gestures} if protocol else {}
-    rows = []
-    for t in s.trials:
-        if t.practice or t.status == TrialStatus.DISCARDED:
-            continue
-        start, stop = max(0, t.start_sample), min(t.end_sample, s.n_frames)
-        if stop - start < 2:
-            continue
-        raw, base = s.raw(start, stop), s.baseline(start)
-        dev_t = s.column("device_time", start, stop)
-        span = float(dev_t[-1] - dev_t[0])
-        rate = (stop - start - 1) / span if span > 0 else 43.0
+    model = str(check.describe()["model"])
+    rows: list[QcRow] = []
+    for t, fr in trials:
         prompted = t.gesture
-        flags = trial_flags(s.layout, raw, base, timing=FrameTiming(dev_t, rate_hz=rate),
+        flags = trial_flags(s.layout, fr.raw, fr.baseline,
+                            timing=FrameTiming(fr.device_time, rate_hz=fr.rate),
                             settings=settings, force=forces.get(prompted))
-        v = check.check(s.layout, raw, base, rate, prompted)
+        v = check.check(s.layout, fr.raw, fr.baseline, fr.rate, prompted)
         stored = v.stored("") if v is not None else None
         if v is not None and v.flagged:
             flags.append(MISMATCH_FLAG)
@@ -175,9 +267,10 @@ def session_rows(s: SessionFile, path: Path, checks: RunChecks) -> list[dict[str
             "p_prompted": None if v is None else round(v.p_prompted, 4),
             "rank": None if v is None else v.rank, "flags": flags,
             "reasons": [describe([f], stored) for f in flags],
-            "out_of_fold": check.out_of_fold, "model": check.describe()["model"],
+            "out_of_fold": check.out_of_fold, "model": model,
             "status": t.status.value})
     return rows
 
 
-__all__ = ["add_qc_options", "announce_check", "cmd_qc", "qc_checker"]
+__all__ = ["add_qc_options", "announce_check", "checked_trials", "cmd_qc", "qc_checker",
+           "qc_personalise"]

@@ -7,8 +7,9 @@ same checker scores the trial on one worker thread: the trial is written at once
 signal flags, the verdict joins it (``check``, ``model_mismatch``) at the first tick after
 the model answers, and a held session waits for it (at most ``wait_s``) before the next
 key is taken. Headless collection keeps the plain checker (nothing to keep responsive).
-Personalising the check after the first block (seconds: a forest is refit) runs on the
-same worker, so the trials ended meanwhile are scored, in order, by the fitted model.
+Personalising the check after the first block (seconds: a forest is refit) and adapting
+it to the participant's statistics after each block run on the same worker, so the trials
+ended meanwhile are scored, in order, by the model as it then is.
 """
 
 from __future__ import annotations
@@ -65,6 +66,22 @@ class BackgroundCheck:
         the future gives the number of trials used, or raises the checker's UserError."""
         personalise = getattr(self.checker, "personalise")
         return self._pool.submit(personalise, layout, list(trials), rate_hz)
+
+    @property
+    def adapts(self) -> bool:
+        return bool(getattr(self.checker, "adapts", False))
+
+    def adapt_later(self, layout: Layout,
+                    trials: Sequence[tuple[np.ndarray, np.ndarray, str]],
+                    rate_hz: float) -> Future[tuple[int, str]]:
+        """Adapt the checker to the participant's trials on the worker (the trials scored
+        after it wait for it); the future gives (trials it rests on, the model's id)."""
+        adapt = getattr(self.checker, "adapt")
+
+        def run() -> tuple[int, str]:
+            n = adapt(layout, list(trials), rate_hz)
+            return n, str(self.checker.describe()["model"])
+        return self._pool.submit(run)
 
     def close(self) -> None:
         """Let the worker end after the check it is running (none is lost: the runner

@@ -98,6 +98,12 @@ class TrialRunner(RunnerInputs):
         # a BackgroundCheck's personalisation underway
         self._personalising: Future[int] | None = None
         self._shots_block: int | None = None
+        # a check that adapts to the participant (``adapts``): their trials' frames by
+        # index, all of them handed to it when a block ends; its adaptations underway
+        adapts = bool(getattr(trial_check, "adapts", False))
+        self._own: dict[int, tuple[Any, Any, str]] | None = {} if adapts else None
+        self._adapting: list[Future[tuple[int, str]]] = []
+        self._adapted_on = 0
         self.rate = float(engine.nominal_rate_hz)
         self.trial_frames = max(1, round(protocol.trial_s * self.rate))
         self.quality = quality_settings(protocol)
@@ -201,6 +207,7 @@ class TrialRunner(RunnerInputs):
         self._tick_frame = self.engine.frames
         self.take_verdict()
         self._take_personalised()
+        self._take_adapted()
         s = self.state
         if s == State.SETUP:
             if self._start_requested:
@@ -218,7 +225,7 @@ class TrialRunner(RunnerInputs):
         elif s == State.RECORDING:
             self._check_recording()
         elif s == State.TRIAL_END:
-            if self.clock() >= self._phase_until:
+            if self._phase_over(self.protocol.beep_s):
                 self._set_state(State.REVIEW)
                 if not self._held():
                     self._after_trial()
@@ -275,6 +282,8 @@ class TrialRunner(RunnerInputs):
         if self._shots is not None and self._shots_block is not None \
                 and self.block > self._shots_block:
             self._personalise_check()
+        if self._own:
+            self._adapt_check()
         self._log("block_start", block=self.block)
         self._emit(BlockStarted(self.block))
         self._set_state(State.BLOCK_START)
@@ -334,6 +343,10 @@ class TrialRunner(RunnerInputs):
             performed=cur.get("performed"))
         self._plan.mark_done(cur["gesture"])
         self._min_start = cur["end"]
+        # the beep's phase counted from the trial's end: the stream may have run up to a
+        # ring past it while the check scored the trial (a speed-0 simulator under load),
+        # and from its newest frame the beep could never end (a stream held at the ring)
+        self._phase_from = end
         self._phase_until = self.clock() + self.protocol.beep_s
         self._set_state(State.TRIAL_END)
         self._write_trial(record)
@@ -345,6 +358,8 @@ class TrialRunner(RunnerInputs):
                 and self._shots_block in (None, record.block):
             self._shots_block = record.block  # the first block this run collects
             self._shots[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
+        if self._own is not None and not practice and m.raw is not None:
+            self._own[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
 
     def _model_check(self, m: TrialMeasure, prompted: str) -> dict[str, Any] | None:
         """The trial's stored ``check`` by the model check (None: no check, no baseline,
@@ -409,6 +424,41 @@ class TrialRunner(RunnerInputs):
             self._personalised(exc)
         else:
             self._personalised(n)
+
+    def _adapt_check(self) -> None:
+        """Adapt the check to this participant: their statistics from all their usable
+        trials of the blocks done (whole blocks: every gesture about as often); it reads
+        their next trials with them (learn/deploy/trial_check.py)."""
+        own, check = self._own or {}, self.trial_check
+        assert check is not None  # only a check that adapts keeps their trials
+        usable = [own[t.index] for t in self.records
+                  if t.index in own and t.ok and t.block < self.block]
+        if len(usable) <= self._adapted_on:
+            return
+        self._adapted_on = len(usable)
+        if isinstance(check, BackgroundCheck):  # the console: off the GUI thread
+            self._adapting.append(check.adapt_later(self.engine.layout, usable, self.rate))
+            return
+        self._hold(lambda: self._tick_frame, self._lead)
+        n = getattr(check, "adapt")(self.engine.layout, usable, self.rate)
+        self._adapted(n, str(check.describe()["model"]))
+
+    def _take_adapted(self, wait_s: float = 0.0) -> None:
+        """A BackgroundCheck's adaptations, once done, go on record (``wait_s``: wait
+        that long for them, as the session ends)."""
+        while self._adapting and (wait_s > 0 or self._adapting[0].done()):
+            try:
+                n, model = self._adapting[0].result(timeout=wait_s or None)
+            except TimeoutError:
+                return
+            self._adapting.pop(0)
+            self._adapted(n, model)
+
+    def _adapted(self, trials: int, model: str) -> None:
+        """The check's adaptation on record (none when the trials were too few or too
+        alike to take statistics from: it reads them as before)."""
+        if trials:
+            self._log("trial_check_adapted", trials=trials, model=model)
 
     def _take_personalised(self, wait_s: float = 0.0) -> None:
         """A BackgroundCheck's personalisation, once done, goes on record (``wait_s``: wait
@@ -534,6 +584,7 @@ class TrialRunner(RunnerInputs):
     def _finish(self) -> None:
         # the personalisation and the last trials' verdicts are in the file
         self._take_personalised(wait_s=PERSONALISE_WAIT_S)
+        self._take_adapted(wait_s=PERSONALISE_WAIT_S)
         self.take_verdict(wait_s=WAIT_S)
         self._log("session_end", trials=len(self.records))
         self._end_file_here()

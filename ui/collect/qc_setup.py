@@ -30,7 +30,11 @@ from PySide6.QtWidgets import (
 
 from tactile_studio.errors import UserError
 from tactile_studio.protocol.trial_check import TrialChecker
-from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
+from tactile_studio.storage.format.trial_checks import (
+    DEFAULT_PERSONALISE,
+    DEFAULT_THRESHOLD,
+    DEFAULT_TOP_K,
+)
 from tactile_studio.ui.file_dialogs import ask_folder, ask_open_file
 from tactile_studio.ui.settings import get_json, set_json
 
@@ -49,6 +53,7 @@ class QcChoice:
     threshold: float = DEFAULT_THRESHOLD
     ready: TrialChecker | None = None  # already built (a script's own): used as it is
     personalise: bool = False  # fit the check to the participant after their first block
+    # (the setup's box starts ticked, DEFAULT_PERSONALISE, and is remembered per study)
 
     def checker(self, participant: str) -> TrialChecker | None:
         """The core's ModelTrialCheck for ``participant`` (None without a model); a model
@@ -84,15 +89,17 @@ class QcModelField(QWidget):
         self.clear_button = QPushButton("None")
         self.clear_button.setToolTip("no model: the signal checks only")
         self.top_k = QSpinBox()
-        self.top_k.setRange(1, 50)
-        self.top_k.setToolTip("flag a trial when the prompted gesture is not among the "
-                              "model's most likely k")
+        self.top_k.setRange(0, 50)
+        self.top_k.setSpecialValueText("off")
+        self.top_k.setToolTip("or when the prompted gesture is not among the model's most "
+                              "likely k (off by default: it flagged more honest trials than "
+                              "it caught mistakes on people)")
         self.threshold = QDoubleSpinBox()
         self.threshold.setRange(0.0, 1.0)
         self.threshold.setDecimals(2)
         self.threshold.setSingleStep(0.01)
-        self.threshold.setToolTip("or when the model's probability of the prompted gesture "
-                                  "is below this")
+        self.threshold.setToolTip("flag a trial when the model's probability of the "
+                                  "prompted gesture is below this")
         self.personalise = QCheckBox("Fit the check to each participant after their first "
                                      "block")
         self.personalise.setToolTip(
@@ -108,11 +115,11 @@ class QcModelField(QWidget):
             row.addWidget(w)
         settings_row = QHBoxLayout()
         settings_row.setContentsMargins(0, 0, 0, 0)
-        settings_row.addWidget(QLabel("Flag a trial when the prompted gesture is not in the "
-                                      "model's top"))
-        settings_row.addWidget(self.top_k)
-        settings_row.addWidget(QLabel("or its probability is below"))
+        settings_row.addWidget(QLabel("Flag a trial when the model's probability of the "
+                                      "prompted gesture is below"))
         settings_row.addWidget(self.threshold)
+        settings_row.addWidget(QLabel("or it is not in the model's top"))
+        settings_row.addWidget(self.top_k)
         settings_row.addStretch(1)
         box = QVBoxLayout(self)
         box.setContentsMargins(0, 0, 0, 0)
@@ -136,10 +143,11 @@ class QcModelField(QWidget):
         saved = saved if isinstance(saved, dict) else {}
         self._set_settings(saved.get("top_k", DEFAULT_TOP_K),
                            saved.get("threshold", DEFAULT_THRESHOLD),
-                           saved.get("personalise") is True)
+                           saved.get("personalise", DEFAULT_PERSONALISE) is True)
         self.set_model(saved.get("model") or None, remember=False)
 
-    def _set_settings(self, top_k: object, threshold: object, personalise: bool = False) -> None:
+    def _set_settings(self, top_k: object, threshold: object,
+                      personalise: bool = DEFAULT_PERSONALISE) -> None:
         self.personalise.blockSignals(True)
         self.personalise.setChecked(personalise)
         self.personalise.blockSignals(False)
@@ -211,7 +219,8 @@ class QcModelField(QWidget):
                 + (f"; not scored: {', '.join(missing)}" if missing else ""))
 
     def prefill(self, model: str, top_k: int = DEFAULT_TOP_K,
-                threshold: float = DEFAULT_THRESHOLD, personalise: bool = False) -> bool:
+                threshold: float = DEFAULT_THRESHOLD,
+                personalise: bool = DEFAULT_PERSONALISE) -> bool:
         """The ``collect --qc-model`` options (remembered for the study, as if chosen)."""
         self._set_settings(top_k, threshold, personalise)
         return self.set_model(model)

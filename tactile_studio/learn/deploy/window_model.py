@@ -9,6 +9,7 @@ works the same way.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -127,17 +128,29 @@ class WindowModel:
         features standardised per person (``--adapt``)."""
         return self.learner.kind != "baseline" or self.config.adapt != "none"
 
-    def calibrate(self, layout: Layout, windows: list[np.ndarray], rate: float,
-                  source: str = "", batch_norm: bool = True) -> int:
+    def calibrate(self, layout: Layout, windows: list[np.ndarray],
+                  rate: float | Sequence[float], source: str = "",
+                  batch_norm: bool = True) -> int:
         """Meets one person as ``--adapt person`` met each test person, from decoded
-        windows (C, N, R, X) of a recording of them (labels unused): rf/knn features
+        windows (C, N, R, X) of a recording of them (labels unused; ``rate``: theirs, or
+        one per window when they were recorded at different rates): rf/knn features
         standardised by their statistics, and (``batch_norm``) a network's batch norm
         re-estimated on them. Returns the number of samples it rests on."""
+        self._can_calibrate()
+        return self.calibrate_samples(self._samples(layout, windows, rate)[0], source,
+                                      batch_norm)
+
+    def _can_calibrate(self) -> None:
         if not self.can_calibrate:
             raise UserError(f"{self.run}: {self.config.model} was trained without --adapt; "
                             "its features cannot be re-standardised afterwards (a network's "
                             "batch norm can: train again with --adapt person)")
-        x, _ = self._samples(layout, windows, rate)
+
+    def calibrate_samples(self, x: np.ndarray, source: str = "",
+                          batch_norm: bool = True) -> int:
+        """:meth:`calibrate` from the learner's samples of the person's windows
+        (``samples``), for a caller that keeps them as the person's recording grows."""
+        self._can_calibrate()
         if len(x) < 2:
             raise UserError(f"{source or 'calibration'}: too short to calibrate "
                             f"({len(x)} window(s) of {self.window} frames)")
@@ -216,14 +229,22 @@ class WindowModel:
             np.add.at(probs, owner[i:i + 256], p)
         return probs / np.maximum(np.bincount(owner, minlength=len(windows))[:, None], 1)
 
-    def _samples(self, layout: Layout, windows: list[np.ndarray], rate: float
-                 ) -> tuple[np.ndarray, np.ndarray]:
+    def samples(self, layout: Layout, windows: list[np.ndarray],
+                rate: float | Sequence[float]) -> np.ndarray:
+        """The learner's samples of decoded windows (:meth:`calibrate_samples` reads
+        them), each cut as the run cut long trials."""
+        return self._samples(layout, windows, rate)[0]
+
+    def _samples(self, layout: Layout, windows: list[np.ndarray],
+                 rate: float | Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         """The learner's samples of decoded windows, each window one trial cut as the
-        run cut long trials (samples, owner window per sample)."""
+        run cut long trials at its rate (``rate``: of all, or one per window) (samples,
+        owner window per sample)."""
+        rates = np.broadcast_to(np.asarray(rate, dtype=np.float64), (len(windows),)).copy()
         ds = TrialDataset(trials=windows, labels=np.zeros(len(windows), dtype=np.int64),
                           participants=np.array(["live"] * len(windows)),
                           uids=[f"w{i}" for i in range(len(windows))],
-                          rates=np.full(len(windows), float(rate)), label_names=self.labels,
+                          rates=rates, label_names=self.labels,
                           layout=layout.name, grid=self.config.grid,
                           has_shear=layout.has_shear,
                           channels="both" if layout.has_shear else "normal")
