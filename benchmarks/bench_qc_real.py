@@ -199,7 +199,7 @@ def latency(run: Path, blocks: int = 1) -> dict[str, Any]:
 
         def on(event: RunnerEvent) -> None:
             if isinstance(event, TrialEnded):  # the verdict is on the trial written
-                i = event.trial["index"]
+                i = event.trial.index
                 seen.append(time.perf_counter() - ended_at.get(i, time.perf_counter()))
 
         runner.add_listener(on)

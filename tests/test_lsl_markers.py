@@ -201,8 +201,8 @@ def test_the_collection_console_records_markers_from_collect_markers(qtbot, tmp_
                               "--device", "simulated", "--set", "rate=100",
                               "--out", str(tmp_path), "--markers", name])
     options = collect_cli.console_options(args)
-    assert options["markers"] == [name]
-    console = build_console(**options)
+    assert options.markers == (name,)
+    console = build_console(options)
     qtbot.addWidget(console)
     assert console.acquisition.marker_streams == (name,)
     assert console.start_session(console.setup.choice())

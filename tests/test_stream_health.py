@@ -107,7 +107,7 @@ def test_the_consoles_and_the_main_window_take_the_option_too(qtbot, tmp_path):
 
     base = ["collect", "--protocol", "shear9", "--participant", "P01", "--out", str(tmp_path)]
     for extra, expected in (([], DEFAULT_SILENCE_S), (["--silence-warning", "7.5"], 7.5)):
-        console = build_console(**console_options(build_parser().parse_args(base + extra)))
+        console = build_console(console_options(build_parser().parse_args(base + extra)))
         qtbot.addWidget(console)
         assert console.acquisition.silence_warning_s == expected
     args = build_parser().parse_args(["gui", "--silence-warning", "4"])

@@ -211,7 +211,7 @@ def test_collect_qc_model_opens_the_console_with_it_in_the_setup(qtbot, env, qc_
     assert console.setup.qc.personalise.isChecked() and console.setup.choice().qc.personalise
     args = build_parser().parse_args([*base, "--qc-model", str(qc_run),
                                       "--no-qc-personalise"])
-    console = build_console(**console_options(args))
+    console = build_console(console_options(args))
     qtbot.addWidget(console)
     assert not console.setup.choice().qc.personalise
     args = build_parser().parse_args([*base, "--qc-personalise"])
