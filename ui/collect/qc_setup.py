@@ -115,8 +115,7 @@ class QcModelField(QWidget):
             row.addWidget(w)
         settings_row = QHBoxLayout()
         settings_row.setContentsMargins(0, 0, 0, 0)
-        settings_row.addWidget(QLabel("Flag a trial when the model's probability of the "
-                                      "prompted gesture is below"))
+        settings_row.addWidget(QLabel("Flag a trial when p(prompted gesture) <"))
         settings_row.addWidget(self.threshold)
         settings_row.addWidget(QLabel("or it is not in the model's top"))
         settings_row.addWidget(self.top_k)
