@@ -155,3 +155,42 @@ def test_the_default_rule_is_the_probability_alone():
     assert ranked is not None and ranked.flagged
     assert rule_text(DEFAULT_TOP_K, DEFAULT_THRESHOLD) == "p < 0.13"
     assert rule_text(3, 0.1) == "not in the top 3 or p < 0.1"
+
+
+def test_the_consoles_check_scores_on_while_a_copy_is_personalised(run):
+    """The console personalises a fresh copy of its check on a second worker: a trial
+    that ends meanwhile is scored at once by the check as it was (before, it waited for
+    the refit: seconds of verdicts late), and the copy takes over when it is ready. The
+    refit is held on a gate here so the order is the test's, not the machine's."""
+    import threading
+
+    from tactile_studio.protocol.background_check import BackgroundCheck
+
+    gate = threading.Event()
+
+    class GatedRefit(ModelTrialCheck):
+        def fresh(self) -> ModelTrialCheck:
+            return GatedRefit(self.path, self.top_k, self.threshold, self.participant)
+
+        def personalise(self, *args, **kwargs) -> int:
+            assert gate.wait(120), "the test never opened the gate"
+            return super().personalise(*args, **kwargs)
+
+    session = sorted((run.parent / "data").rglob("P01*.h5"))[0]
+    with SessionFile(session) as s:
+        layout = s.layout
+        trials = [(s.raw(t.start_sample, t.end_sample), s.baseline(t.start_sample), t.gesture)
+                  for t in s.trials if t.block == 0 and t.usable]
+    check = BackgroundCheck(GatedRefit(run, participant="P01"))
+    try:
+        fitting = check.personalise_later(layout, trials, RATE)
+        raw, baseline, gesture = trials[0]
+        _, model = check.submit(layout, raw, baseline, RATE, gesture).result(timeout=60)
+        assert model == "run/P01" and not fitting.done()
+        gate.set()
+        n = fitting.result(timeout=300)
+        _, model = check.submit(layout, raw, baseline, RATE, gesture).result(timeout=60)
+        assert n == len(trials) and model == f"run/P01+{n} own trials"
+    finally:
+        gate.set()
+        check.close()

@@ -28,6 +28,7 @@ from test_ui_collect import (  # noqa: F401 (env)
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
 from tactile_studio.learn.learners.generalise import ADAPT_AUTO
+from tactile_studio.protocol.runner_events import CheckPersonalised
 from tactile_studio.protocol.snapshot import State
 from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.storage.format.trial_checks import DEFAULT_THRESHOLD, DEFAULT_TOP_K
@@ -79,18 +80,24 @@ def choose_run(qtbot, setup: CollectSetup, run: Path, monkeypatch) -> None:
     qtbot.mouseClick(setup.qc.run_button, Qt.MouseButton.LeftButton)
 
 
-def two_blocks(qtbot, console) -> Path:
+def two_blocks(qtbot, console, fitted_first: bool = False) -> Path:
     """Start the session set up and perform its two blocks (flagged trials kept); the
-    session's file once it is closed."""
+    session's file once it is closed. ``fitted_first``: block 1 starts once the check's
+    personalisation is in (it runs on a copy beside the scoring, however long it takes)."""
     s = console.setup
     qtbot.mouseClick(s.start_button, Qt.MouseButton.LeftButton)
     assert s.error.text() == "" and console.stack.currentIndex() == 1
     path = console.session.path
+    fitted: list[CheckPersonalised] = []
+    console.session.runner.add_listener(
+        lambda e: fitted.append(e) if isinstance(e, CheckPersonalised) else None)
     qtbot.mouseClick(console.buttons["primary"], Qt.MouseButton.LeftButton)
     qtbot.waitUntil(lambda: snap(console).state == State.WAITING, timeout=WAIT_MS)
     for block in range(2):
         if block:
             continue_after_break(qtbot, console)
+            if fitted_first:  # the fit starts as the block does
+                qtbot.waitUntil(lambda: bool(fitted), timeout=WAIT_MS)
         for _ in [x for x in snap(console).gestures if not x.done]:
             nxt = snap(console)
             g = next(x for x in nxt.gestures if x.name == nxt.prompted)
@@ -147,7 +154,7 @@ def test_a_session_with_a_qc_model_scores_the_gestures_it_knows(
     fill_setup(qtbot, console, proto, out, "P01", blocks=2)
     choose_run(qtbot, s, qc_run, monkeypatch)
     s.qc.personalise.setChecked(True)
-    path = two_blocks(qtbot, console)
+    path = two_blocks(qtbot, console, fitted_first=True)
     with SessionFile(path) as sess:
         trials, meta, events = sess.trials, sess.metadata, sess.events
     check = meta["trial_check"]

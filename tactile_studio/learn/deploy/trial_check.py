@@ -119,6 +119,7 @@ class ModelTrialCheck:
         self.known: frozenset[str] = frozenset(self.model.labels)
         self.personalised_on = 0  # labelled trials of the person it was personalised with
         # a run trained with --adapt meets each person with their own statistics
+        self._adapt_asked = bool(adapt)
         self.adapts = bool(adapt) and self.model.adapts_as_they_touch \
             and self.model.can_calibrate
         self.adapted_on = 0  # trials of the person whose statistics it reads them with
@@ -126,6 +127,12 @@ class ModelTrialCheck:
         # each trial's samples by id of its raw counts (kept, so the id is not reused): a
         # collection hands the same trials again after every block
         self._memo: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def fresh(self) -> ModelTrialCheck:
+        """The same check as loaded, before it met anyone: the console personalises this
+        copy while the check in use goes on scoring (protocol/background_check.py)."""
+        return ModelTrialCheck(self.path, self.top_k, self.threshold, self.participant,
+                               self._adapt_asked)
 
     @property
     def out_of_fold(self) -> bool:
