@@ -2,7 +2,8 @@
 difficulties do to a random forest leave-one-participant-out.
 
 Part 1, the table: populations of 10 virtual people as ``collect --virtual-participant
---seed S --set seed=S`` draws them (default ``real`` difficulty, shear9, 2 blocks, flat surface),
+--seed S --set seed=S`` draws them (the default difficulty, ``people`` since issue 45;
+``--difficulty real`` for issue 37's table; shear9, 2 blocks, flat surface),
 decoded with the project's ``decode`` on the physical grid; the statistics of
 ``tactile_studio.learn.data.touch_stats`` (median [IQR] over trials, CV of the participants'
 medians) for population seed 0 alone and pooled over ``--populations`` seeds (the mean,
@@ -16,9 +17,11 @@ person / gesture / person x gesture / within (learn/data/variance_parts.py) for 
 real development set (five people, 2 s windows of their 12 s performances, as the
 product cuts them; benchmarks/real_data.py, skipped with one line where it is absent)
 beside ``--variance-populations`` simulated populations of 10 x shear9 x 4 blocks
-(difficulty real, flat), as shares and as standard deviations of each part.
-Run: .venv/bin/python -m benchmarks population [--populations 8] [--no-rf]
-     [--variance-only] [--variance-populations 3]
+(``--variance-difficulties``, real and people by default; flat), as shares and as
+standard deviations of each part.
+Run: .venv/bin/python -m benchmarks.bench_population [--populations 8] [--no-rf]
+     [--difficulty D] [--variance-only] [--variance-populations 3]
+(``python -m benchmarks population`` runs it with these defaults: it passes no options)
 """
 
 from __future__ import annotations
@@ -49,21 +52,22 @@ from tactile_studio.learn.experiments.experiment import (  # noqa: E402
     ExperimentConfig,
     run_experiment,
 )
+from tactile_studio.simulate.population import DEFAULT_DIFFICULTY, DIFFICULTIES  # noqa: E402
 
 COHORTS = (("easy", "FLAT"), ("real", "FLAT"), ("real", "PILLOW"), ("people", "FLAT"),
            ("hard", "FLAT"))
 
 
-def simulator_table(populations: int) -> None:
+def simulator_table(populations: int, difficulty: str) -> None:
     stats = []
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(populations):
             folder = Path(tmp) / f"pop{seed}"
-            make_virtual_population(folder, seed)
+            make_virtual_population(folder, seed, difficulty=difficulty)
             ds = read_sessions([folder]).select(None)
             stats.append(population_stats(ds.trials, ds.participants, ds.channel_names))
-    print(f"Simulated people (difficulty real, shear9, 2 blocks, flat) beside the real "
+    print(f"Simulated people (difficulty {difficulty}, shear9, 2 blocks, flat) beside the real "
           f"recordings; {populations} populations of 10 in {time.perf_counter() - t0:.1f} s\n")
     print(format_table({"simulator, seed 0": stats[0],
                         f"simulator, mean of {populations}": pooled(stats)}))
@@ -171,13 +175,15 @@ def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--populations", type=int, default=8)
     p.add_argument("--no-rf", action="store_true", help="the table only")
+    p.add_argument("--difficulty", default=DEFAULT_DIFFICULTY, choices=DIFFICULTIES,
+                   help="the table's virtual people (default: the simulator's)")
     p.add_argument("--variance-only", action="store_true", help="part 3 only")
     p.add_argument("--variance-populations", type=int, default=3)
     p.add_argument("--variance-difficulties", default="real,people",
                    help="simulated difficulties beside the real people (comma-separated)")
     args = p.parse_args(argv)
     if not args.variance_only:
-        simulator_table(args.populations)
+        simulator_table(args.populations, args.difficulty)
         if not args.no_rf:
             forest_by_difficulty()
     variance_split(args.variance_populations, args.variance_difficulties.split(","))

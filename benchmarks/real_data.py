@@ -73,9 +73,18 @@ def cache_root() -> Path:
     return Path(base) / "tactile-studio" / "shearsense-dev"
 
 
+# What turns the CSVs into sessions (the importers, the session format and writer, the
+# grid, the protocols whose keys name the gestures): a package stands for all its files.
+IMPORT_CODE = ("tactile_studio.storage.exchange", "tactile_studio.storage.format",
+               "tactile_studio.sensor.layout", "tactile_studio.resources")
+
+
 def fingerprint(files: list[Path]) -> str:
-    """Names and sizes of the set's files: a changed set imports into a new folder."""
-    h = hashlib.sha256()
+    """Names and sizes of the set's files and the importer's version: a changed set, or
+    one the importer would now read differently, imports into a new folder."""
+    from tactile_studio.learn.data.cache import code_version
+
+    h = hashlib.sha256(f"importer {code_version(IMPORT_CODE)}\n".encode())
     for f in files:
         h.update(f"{f.name}\0{f.stat().st_size}\n".encode())
     return h.hexdigest()[:16]

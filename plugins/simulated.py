@@ -63,7 +63,8 @@ class SimulatedSensor(DevicePlugin):
                 minimum=0.0, maximum=0.2, label="Shear crosstalk x\u2194y",
                 unit="fraction", advanced=True),
         Setting("difficulty", "choice", DEFAULT_DIFFICULTY, "how varied virtual people are: "
-                "easy (original), real (calibrated to recordings), hard", choices=DIFFICULTIES,
+                "easy (original), real (calibrated to recordings), people "
+                "(real, its differences split as on real people), hard", choices=DIFFICULTIES,
                 label="How people vary", advanced=True),
         Setting("surface", "choice", "flat", "flat, or a soft pillow under the sensor",
                 choices=SURFACES, label="Surface under the sensor", advanced=True),

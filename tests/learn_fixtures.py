@@ -117,12 +117,13 @@ def make_virtual_population(folder: Path, population_seed: int, participants: in
                             blocks: int = 2, **kw: object) -> list[Path]:
     """Ten (``participants``) virtual people as ``collect --virtual-participant --seed S
     --set seed=S`` draws them (style from the participant id and order seed, one
-    simulated sensor per population):
+    simulated sensor per population, the simulator's default difficulty):
     the sample issue 37's table compares with the real recordings."""
     from tactile_studio.protocol.virtual import style_seed
+    from tactile_studio.simulate.population import DEFAULT_DIFFICULTY
 
     folder.mkdir(parents=True, exist_ok=True)
-    kw = {"difficulty": "real", "condition": "FLAT", **kw}
+    kw = {"difficulty": DEFAULT_DIFFICULTY, "condition": "FLAT", **kw}
     return [write_participant(folder / f"P{p + 1:02d}.h5", f"P{p + 1:02d}",
                               style_seed(f"P{p + 1:02d}", population_seed), blocks=blocks,
                               sensor_seed=population_seed, **kw)

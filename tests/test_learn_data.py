@@ -128,6 +128,44 @@ def test_cache_hit_and_invalidation(tmp_path):
     assert cache.dataset_key(files, "physical") != key
 
 
+def code_package(tmp_path, monkeypatch, name: str = "stand_in_reader"):
+    """A package of real source files on the path, standing in for code a cache keys on
+    (an importer or a decoder), and a function that edits it as a new release would."""
+    pkg = tmp_path / "code" / name
+    pkg.mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "read.py").write_text("SCALE = 1.0\n")
+    monkeypatch.syspath_prepend(str(pkg.parent))
+    releases = iter(range(2, 100))
+    return name, lambda: (pkg / "read.py").write_text(f"SCALE = {next(releases)}.0\n")
+
+
+def test_code_version_follows_the_code_and_a_new_reader_misses_the_cache(tmp_path,
+                                                                         monkeypatch):
+    """Issue 45: a dataset decoded by older code is never read back as today's."""
+    name, edit = code_package(tmp_path, monkeypatch)
+    version = cache.code_version([name])
+    assert cache.code_version([name]) == version  # the same code, the same version
+    assert cache.code_version([f"{name}.read"]) != version
+    edit()
+    assert cache.code_version([name]) != version
+    # the dataset cache's key holds the reading code's version: with the stand-in as part
+    # of it, an edit makes the next build decode again instead of reading the old entry
+    assert "tactile_studio.storage.format" in cache.DATASET_CODE
+    monkeypatch.setattr(cache, "DATASET_CODE", (*cache.DATASET_CODE, name))
+    folder = tmp_path / "data"
+    make_dataset_folder(folder, participants=1, blocks=1, gestures=("Poke", "Twist"))
+    messages = []
+    build_dataset([folder], cache_dir=tmp_path / "c")
+    build_dataset([folder], cache_dir=tmp_path / "c", progress=lambda f, m: messages.append(m))
+    assert messages == ["dataset from cache"]
+    edit()
+    messages.clear()
+    build_dataset([folder], cache_dir=tmp_path / "c", progress=lambda f, m: messages.append(m))
+    assert "dataset from cache" not in messages
+    assert len(list((tmp_path / "c" / "datasets").glob("*.npz"))) == 2
+
+
 # ---- views -----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("n", [1, 5, 10, 27, 86, 1700])

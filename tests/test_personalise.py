@@ -26,7 +26,7 @@ BLOCKS_NEW = 5  # the new person: blocks 0-1 give the shots, 2-4 are tested
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory):
-    """4 virtual people of the default (real) difficulty, 9 gestures x 2 blocks; a new
+    """4 virtual people of the `real` difficulty, 9 gestures x 2 blocks; a new
     person P09 who performs each gesture 5 times."""
     root = tmp_path_factory.mktemp("personal")
     make_dataset_folder(root / "data", participants=4, blocks=2, difficulty="real")

@@ -1,6 +1,7 @@
-"""The simulator's difficulty: ``easy`` is the original sensor, ``real`` (the default) is
-calibrated to the real recordings' population statistics and makes leave-one-participant-
-out as hard as real people make it; pillows spread and damp the load."""
+"""The simulator's difficulty: ``easy`` is the original sensor, ``real`` is calibrated to
+the real recordings' population statistics and makes leave-one-participant-out as hard as
+real people make it, ``people`` (the default, issue 45) splits its differences as real
+people's are split; pillows spread and damp the load."""
 
 from __future__ import annotations
 
@@ -31,8 +32,8 @@ from tactile_studio.simulate.population import (
 )
 
 
-def test_default_is_real_and_bad_settings_are_refused():
-    assert SimConfig().difficulty == "real" and set(DIFFICULTIES) == {"easy", "real", "hard",
+def test_default_is_people_and_bad_settings_are_refused():
+    assert SimConfig().difficulty == "people" and set(DIFFICULTIES) == {"easy", "real", "hard",
                                                                        "people"}
     with pytest.raises(UserError, match="difficulty"):
         SensorSimulator(difficulty="impossible")
@@ -94,20 +95,21 @@ def test_pillow_spreads_and_damps_the_load():
 def cohorts(tmp_path_factory):
     root = tmp_path_factory.mktemp("population")
     out = {}
-    for level in ("easy", "real"):
+    for level in ("easy", "real", "people"):
         make_dataset_folder(root / level, participants=10, blocks=3, difficulty=level)
         out[level] = read_sessions([root / level]).select(None)
     return out
 
 
-def test_real_population_statistics_match_the_recordings(cohorts):
+@pytest.mark.parametrize("level", ["real", "people"])
+def test_real_population_statistics_match_the_recordings(cohorts, level):
     easy, real = (population_stats(ds.trials, ds.participants, ds.channel_names)
-                  for ds in (cohorts["easy"], cohorts["real"]))
+                  for ds in (cohorts["easy"], cohorts[level]))
     for name in ("taxels_above", "shear_normal"):  # easy is far off on these two ...
         target = REAL[name][0]
         assert abs(real[name]["median"] - target) < 0.5 * abs(easy[name]["median"] - target)
     for name in ("peak_normal_p90", "taxels_above", "peak_shear_p90", "shear_normal"):
-        lo, hi = REAL[name][1], REAL[name][2]  # ... real's median sits in the real IQR
+        lo, hi = REAL[name][1], REAL[name][2]  # ... its median sits in the real IQR
         assert lo <= real[name]["median"] <= hi, (name, real[name])
     assert set(trial_stats(cohorts["real"].trials[0],
                            cohorts["real"].channel_names)) == set(REAL)
@@ -121,17 +123,23 @@ def test_random_forest_lopo_drops_from_near_perfect_to_the_papers_range(cohorts)
         acc[level] = run_experiment(cfg, dataset=ds).metrics["trial_accuracy"]
     assert acc["easy"] > 0.9
     assert 0.5 <= acc["real"] <= 0.8, acc
+    assert 0.5 <= acc["people"] <= 0.8, acc
 
 
 @pytest.mark.slow
-def test_virtual_people_vary_as_real_people_do(tmp_path):
+@pytest.mark.parametrize("level", ["real", "people"])
+def test_virtual_people_vary_as_real_people_do(tmp_path, level):
     """Issue 37: median, IQR and between-person CV of every statistic within 25% of the
     real recordings', over four populations of ten virtual people (2 blocks of shear9's
     nine gestures each, as the issue measured). Before the recalibration the CVs of
-    shear and of shear/normal were 1.5x and 3x the real ones."""
+    shear and of shear/normal were 1.5x and 3x the real ones. `people` (the default since
+    issue 45) holds the medians and IQRs; its between-person CVs are those of the
+    variance split of five real people instead (person and person x gesture parts), which
+    put them at 1.36x (peak normal), 1.41x (shear) and 1.42x (shear/normal) of the ten
+    recorded people's, so its CVs are not held to issue 37's 25%."""
     stats = []
     for seed in range(4):
-        make_virtual_population(tmp_path / str(seed), seed)
+        make_virtual_population(tmp_path / str(seed), seed, difficulty=level)
         ds = read_sessions([tmp_path / str(seed)]).select(None)
         stats.append(population_stats(ds.trials, ds.participants, ds.channel_names))
     ratios = ratios_to_real(pooled(stats))
@@ -139,4 +147,6 @@ def test_virtual_people_vary_as_real_people_do(tmp_path):
     for name, r in ratios.items():
         assert set(r) == {"median", "iqr", "cv"}, name
         for what, value in r.items():
+            if level == "people" and what == "cv":
+                continue
             assert 0.75 <= value <= 1.25, (name, what, round(value, 2))

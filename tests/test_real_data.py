@@ -10,6 +10,7 @@ import subprocess
 import sys
 
 from test_import_export import shearsense_csv
+from test_learn_data import code_package
 
 from benchmarks import real_data
 from tactile_studio.storage import SessionFile
@@ -43,6 +44,22 @@ def test_imported_once_into_the_cache_and_reused(tmp_path, monkeypatch):
     (folder / "P01_a_FLAT.csv.xz").write_bytes(
         (folder / "P01_a_FLAT.csv.xz").read_bytes() + lzma.compress(b""))
     assert real_data.dev_sessions() != first
+
+
+def test_a_new_importer_imports_again(tmp_path, monkeypatch):
+    """Sessions made by an older importer are not reused: its version is in the key."""
+    folder = stand_in(tmp_path)
+    monkeypatch.setenv(real_data.ENV, str(folder))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    assert "tactile_studio.storage.exchange" in real_data.IMPORT_CODE
+    name, edit = code_package(tmp_path, monkeypatch, "stand_in_importer")
+    monkeypatch.setattr(real_data, "IMPORT_CODE", (*real_data.IMPORT_CODE, name))
+    first = real_data.dev_sessions()
+    assert real_data.dev_sessions() == first
+    edit()
+    again = real_data.dev_sessions()
+    assert again != first and sorted(p.name for p in again.glob("*.h5")) == \
+        ["P01_a_FLAT.h5", "P02_b_PILLOW.h5"]
 
 
 def test_absent_set_is_one_line(tmp_path, monkeypatch):

@@ -63,7 +63,7 @@ class SimConfig:
     fault: str = "none"           # none | dead_taxel | stuck_channel | worn | delaminated
     fault_taxel: int = 14         # the taxel the fault hits (worn: plus three others)
     sensitivity_spread: float = 0.0  # per-taxel sensitivity spread (relative std)
-    difficulty: str = DEFAULT_DIFFICULTY  # easy | real | hard: how varied people are
+    difficulty: str = DEFAULT_DIFFICULTY  # easy | real | people | hard: how varied people are
     surface: str = "flat"         # flat | pillow (spreads and damps the load)
     layout: Layout = SHEARSENSE_6X6
 

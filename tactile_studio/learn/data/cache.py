@@ -1,9 +1,12 @@
 """Disk cache of decoded datasets, so a second run over the same files starts at once.
 
 The key hashes what decides the decoded values: every session file's path, size and
-modification time, the grid, and the code that decodes (the source bytes of the decode
-and dataset modules plus the package version). Any change makes a new key; stale
-entries are simply never read again. Files are plain ``.npz`` loaded with
+modification time, the grid, and the code that reads and decodes them
+(:func:`code_version` of :data:`DATASET_CODE`: the source bytes of the dataset, decode and
+layout modules and of the session format package that reads the files, plus the package
+version). Any change makes a new key; stale entries are simply never read again. What
+caches an import (``benchmarks/real_data.py``) keys on the importer's
+:func:`code_version` the same way. Files are plain ``.npz`` loaded with
 ``allow_pickle=False`` (no unpickling), written to a temporary name and renamed so a
 killed run never leaves half a cache entry.
 """
@@ -11,10 +14,10 @@ killed run never leaves half a cache entry.
 from __future__ import annotations
 
 import hashlib
-import importlib
+import importlib.util
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,21 +35,42 @@ def default_cache_dir() -> Path:
     return paths.cache_dir()
 
 
-def _code_version() -> str:
+# The code whose output a cached dataset is: a package stands for every file in it.
+DATASET_CODE = ("tactile_studio.learn.data.dataset", "tactile_studio.sensor.decode",
+                "tactile_studio.sensor.layout", "tactile_studio.storage.format")
+
+
+def _sources(name: str) -> list[Path]:
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.origin is None:
+        raise ModuleNotFoundError(f"no source for {name!r}")
+    origin = Path(spec.origin)
+    if origin.name != "__init__.py":
+        return [origin]
+    return sorted(p for p in origin.parent.rglob("*")
+                  if p.is_file() and "__pycache__" not in p.parts)
+
+
+def code_version(modules: Sequence[str]) -> str:
+    """The version of the code in ``modules`` (dotted names; a package: every file in it,
+    data files included): a hash of the package version and their bytes. Read each time,
+    not remembered, so an edited importer or decoder is never mistaken for the old one."""
     h = hashlib.sha256(f"{__version__}/{CACHE_FORMAT}".encode())
-    for name in ("tactile_studio.learn.data.dataset", "tactile_studio.sensor.decode",
-                 "tactile_studio.sensor.layout"):
-        h.update(Path(importlib.import_module(name).__file__).read_bytes())
+    for name in modules:
+        for path in _sources(name):
+            h.update(f"\0{name}:{path.name}\0".encode())
+            h.update(path.read_bytes())
     return h.hexdigest()[:16]
 
 
 def dataset_key(files: list[Path], grid: str) -> str:
-    """Hash of (file paths, sizes, mtimes, grid, code version)."""
+    """Hash of (file paths, sizes, mtimes, grid, the reading code's version)."""
     entries = []
     for f in files:
         st = f.stat()
         entries.append([str(f), st.st_size, st.st_mtime_ns])
-    blob = json.dumps({"files": entries, "grid": grid, "code": _code_version()},
+    blob = json.dumps({"files": entries, "grid": grid,
+                       "code": code_version(DATASET_CODE)},
                       sort_keys=True).encode()
     return hashlib.sha256(blob).hexdigest()[:24]
 
