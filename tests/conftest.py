@@ -150,6 +150,16 @@ def dev_set():
     return folder
 
 
+@pytest.fixture(scope="session")
+def shared_runs(tmp_path_factory):
+    """The tiny runs several learn test files read (tests/shared_runs.py), trained once
+    per test run: under xdist in a folder all workers share (``getbasetemp().parent``,
+    the run's own), else in this process's temporary folder."""
+    from shared_runs import SharedRuns
+    base = tmp_path_factory.getbasetemp()
+    return SharedRuns((base.parent if _WORKER else base) / "shared-runs")
+
+
 @pytest.fixture
 def wait_until():
     """The shared bounded wait (tests/waiting.py), for tests that prefer a fixture."""
