@@ -53,9 +53,32 @@ _SLOWEST_FILES = (
 
 
 def pytest_collection_modifyitems(config, items):
-    """The slowest files first (``_SLOWEST_FILES``), each file's tests in their order."""
+    """The slowest files first (``_SLOWEST_FILES``), each file's tests in their order.
+    A Qt test's timeout ends its worker (method ``thread``): the ``signal`` method's
+    exception is raised in whatever Qt slot runs and swallowed there, and qtbot's wait
+    never returns (seen with ``waitUntil``)."""
     rank = {name: i for i, name in enumerate(_SLOWEST_FILES)}
     items.sort(key=lambda item: rank.get(item.path.name, len(rank)))
+    for item in items:
+        if {"qtbot", "qapp"} & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.timeout(method="thread"))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """The last resort behind pytest-timeout's ``signal`` method: a test stuck where no
+    Python signal handler runs (a C call that never returns) dumps every thread's stack
+    and ends its worker a minute after its timeout, so a run never hangs."""
+    import faulthandler
+    import sys
+    limit = float(item.config.getoption("timeout", None) or item.config.getini("timeout") or 0)
+    if limit > 0:
+        faulthandler.dump_traceback_later(limit + 60, exit=True, file=sys.__stderr__)
+    try:
+        yield
+    finally:
+        if limit > 0:
+            faulthandler.cancel_dump_traceback_later()
 
 
 @pytest.hookimpl(optionalhook=True)
@@ -68,6 +91,16 @@ def pytest_xdist_make_scheduler(config, log):
         def _split_scope(self, nodeid: str) -> str:
             path = nodeid.split("::", 1)[0]
             return "ray" if os.path.basename(path) in _RAY_FILES else path
+
+        def remove_node(self, node):
+            """A worker that died (a Qt test's timeout ends it): its file's other tests
+            go to another worker, the test it died in counts as done (xdist's file
+            scheduler ran it again on every new worker until the restarts ran out)."""
+            crashed = super().remove_node(node)
+            for unit in self.workqueue.values():
+                if crashed in unit:
+                    unit[crashed] = True
+            return crashed
 
     config.option.loadscopereorder = False
     return FilesRayTogether(config, log)
@@ -148,6 +181,16 @@ def dev_set():
     if folder is None:
         pytest.skip(skip_reason())
     return folder
+
+
+@pytest.fixture(scope="session")
+def shared_runs(tmp_path_factory):
+    """The tiny runs several learn test files read (tests/shared_runs.py), trained once
+    per test run: under xdist in a folder all workers share (``getbasetemp().parent``,
+    the run's own), else in this process's temporary folder."""
+    from shared_runs import SharedRuns
+    base = tmp_path_factory.getbasetemp()
+    return SharedRuns((base.parent if _WORKER else base) / "shared-runs")
 
 
 @pytest.fixture

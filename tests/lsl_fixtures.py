@@ -27,10 +27,13 @@ def resolve(predicate: str, timeout: float = WAIT_S) -> Any:
 
 class Collector:
     """An inlet on the first stream matching ``predicate``, pulled in a thread until
-    ``stop()`` (the stream is looked up in the thread, so it may appear later)."""
+    ``stop()`` (the stream is looked up in the thread, so it may appear later).
+    ``wait_s``: how long it may take to appear, for a stream a whole program starts (a
+    bound, never a measurement: waiting ends when the stream is there)."""
 
-    def __init__(self, predicate: str) -> None:
+    def __init__(self, predicate: str, wait_s: float = WAIT_S) -> None:
         self.predicate = predicate
+        self.wait_s = wait_s
         self.samples: list[Any] = []
         self.stamps: list[float] = []
         self.info: Any = None
@@ -40,15 +43,15 @@ class Collector:
         self._thread.start()
 
     def _run(self) -> None:
-        deadline = time.monotonic() + WAIT_S
+        deadline = time.monotonic() + self.wait_s
         found: list[Any] = []
         while not found and not self._stop.is_set() and time.monotonic() < deadline:
             found = pylsl.resolve_bypred(self.predicate, 1, 1.0)
         if not found:
             return
         inlet = pylsl.StreamInlet(found[0], max_buflen=60)
-        self.info = inlet.info(WAIT_S)
-        inlet.open_stream(WAIT_S)
+        self.info = inlet.info(self.wait_s)
+        inlet.open_stream(self.wait_s)
         self.connected.set()
         while not self._stop.is_set():
             self._pull(inlet)
@@ -60,7 +63,7 @@ class Collector:
         self.stamps.extend(stamps)
 
     def wait_connected(self) -> None:
-        assert self.connected.wait(WAIT_S), f"no inlet on {self.predicate}"
+        assert self.connected.wait(self.wait_s), f"no inlet on {self.predicate}"
 
     def wait_count(self, n: int) -> None:
         deadline = time.monotonic() + WAIT_S

@@ -10,7 +10,8 @@ import json
 import numpy as np
 import pytest
 import torch
-from learn_fixtures import make_dataset_folder, write_participant
+from learn_fixtures import write_participant
+from shared_runs import GESTURES
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
@@ -18,7 +19,6 @@ from tactile_studio.learn.deploy.window_model import WindowModel
 from tactile_studio.learn.experiments.experiment import (
     ExperimentConfig,
     prepare_inputs,
-    run_experiment,
 )
 from tactile_studio.learn.experiments.runfolder import model_file
 from tactile_studio.learn.learners.generalise import person_standardised
@@ -26,26 +26,13 @@ from tactile_studio.learn.learners.train import adapt_batchnorm
 from tactile_studio.learn.results.compare import compare_runs
 from tactile_studio.learn.results.rescore import load_run_data, rescore_run
 
-GESTURES = ("Poke", "Heavy Pat", "Twist")
-
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, shared_runs):
+    """Tiny lopo runs on 3 people x ``GESTURES`` (tests/shared_runs.py), a copy of ours."""
     root = tmp_path_factory.mktemp("adapt")
-    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
-
-    def run(model: str, name: str, adapt: str, **overrides) -> dict:
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
-                               preset="tiny", epochs=None if model == "rf" else 2, threads=1,
-                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
-                               overrides=overrides)
-        return run_experiment(cfg, root / name)
-
-    return {"root": root, "net": run("cnn1d", "net", "none"),
-            "net_adapted": run("cnn1d", "net_adapted", "person"),
-            "rf": run("rf", "rf", "none"), "rf_adapted": run("rf", "rf_adapted", "person"),
-            "fused_adapted": run("cnn1d", "fused_adapted", "person", rf_weight=0.5),
-            "fused_auto": run("cnn1d", "fused_auto", "auto", rf_weight=0.5)}
+    names = ("net", "net_adapted", "rf", "rf_adapted", "fused_adapted", "fused_auto")
+    return {"root": root, **shared_runs.copy_to(root, {n: n for n in names})}
 
 
 def _batchnorm_means(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:

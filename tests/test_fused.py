@@ -9,33 +9,24 @@ import json
 
 import numpy as np
 import pytest
-from learn_fixtures import make_dataset_folder
 
 from tactile_studio.cli import main
 from tactile_studio.errors import UserError
 from tactile_studio.learn.deploy.window_model import WindowModel
-from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
+from tactile_studio.learn.experiments.experiment import ExperimentConfig
 from tactile_studio.learn.experiments.train_job import model_settings
 from tactile_studio.learn.learners.contract import LEARNER_MEMBERS, Learner
 from tactile_studio.learn.learners.families import make_learner
 from tactile_studio.learn.results.compare import compare_runs
 
-GESTURES = ("Poke", "Heavy Pat", "Twist")
-
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory):
+def runs(tmp_path_factory, shared_runs):
+    """rf (basic features), cnn1d and cnn1d fused with rf 0.3 on 3 people x 3 gestures
+    (tests/shared_runs.py), a copy of ours."""
     root = tmp_path_factory.mktemp("fused")
-    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
-
-    def run(model: str, name: str, **overrides) -> dict:
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
-                               preset="tiny", epochs=None if model == "rf" else 2, threads=1,
-                               device="cpu", cache_dir=str(root / "cache"), overrides=overrides)
-        return run_experiment(cfg, root / name)
-
-    return {"root": root, "rf": run("rf", "rf", features="basic"), "net": run("cnn1d", "net"),
-            "fused": run("cnn1d", "fused", rf_weight=0.3)}
+    return {"root": root, **shared_runs.copy_to(root, {"rf": "rf_basic", "fused": "fused_03",
+                                                       "net": "net"})}
 
 
 def test_fused_probabilities_are_the_weighted_mean_of_network_and_forest(runs):

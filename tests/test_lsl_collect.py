@@ -13,6 +13,8 @@ from lsl_fixtures import WAIT_S, Collector, unique
 from tactile_studio.storage.format.session_file import SessionFile
 from tactile_studio.streams.lsl_outlet import LslStreamer
 
+CONNECT_S = 120.0  # the headless collection's recipient: found and connected, at most
+
 SHOWN = {"trial_start", "beep", "trial_end", "refused", "redo", "discard", "note"}
 
 
@@ -75,10 +77,12 @@ def test_runner_markers_match_the_session_file(tmp_path: Path) -> None:
 def test_headless_collect_with_lsl_publishes_every_trial(tmp_path: Path, capsys) -> None:
     from tactile_studio.cli import main
 
-    got = Collector("name='TactileStudio-simulated-markers'")
+    # both waits are bounds on a condition (the stream is found, a recipient connects),
+    # ended as soon as it holds: 10 s each was not always enough on a loaded machine
+    got = Collector("name='TactileStudio-simulated-markers'", wait_s=CONNECT_S)
     code = main(["collect", "--protocol", "shear9", "--participant", "P02", "--virtual-participant",
                  "--blocks", "1", "--seed", "8", "--speed", "40", "--out", str(tmp_path), "--lsl",
-                 "--lsl-wait", "10"])
+                 "--lsl-wait", f"{CONNECT_S:g}"])
     out, err = capsys.readouterr()
     got.stop()
     assert code == 0, err

@@ -1,6 +1,6 @@
 """Markers from other programs (``record --markers NAME``): a real pylsl marker outlet on
-the loopback, as PsychoPy would publish it; every marker lands as an event within one
-frame period of its timestamp, and a sender that quits is reported.
+the loopback, as PsychoPy would publish it; every marker lands as an event at the frame
+whose host time is nearest its timestamp, and a sender that quits is reported.
 
 Budget: ~8 s (two 2-3 s recordings of the simulator at 100 Hz)."""
 
@@ -9,6 +9,7 @@ from __future__ import annotations
 import threading
 import time
 
+import numpy as np
 import pylsl
 import pytest
 from lsl_fixtures import WAIT_S, unique
@@ -74,7 +75,7 @@ def push_when_connected(outlet, texts, gap_s, sent, path, then=None):
     return thread
 
 
-def test_record_markers_land_within_one_frame_of_their_timestamps(tmp_path, capsys):
+def test_record_markers_land_at_the_frame_nearest_their_timestamps(tmp_path, capsys):
     name = unique("psychopy")
     outlet = marker_outlet(name)
     sent: list[tuple[str, float]] = []
@@ -93,7 +94,11 @@ def test_record_markers_land_within_one_frame_of_their_timestamps(tmp_path, caps
     assert [m["text"] for m in marks] == [t for t, _ in sent] and len(sent) == 5
     for m, (_, ts) in zip(marks, sent):
         assert m["stream"] == name and abs(m["lsl_time"] - ts) < 1e-3
-        assert abs(host[m["frame"]] - (ts - offset)) <= 1.0 / RATE + 1e-3
+        # at the frame whose host time is nearest (1 ms: the two offset measurements);
+        # one frame period (10 ms) apart when the frames come evenly, but on a loaded
+        # machine the simulator's frames arrive in bursts and none may be that near
+        gap = np.abs(host - (ts - offset))
+        assert gap[m["frame"]] <= gap.min() + 1e-3, (m["frame"], int(gap.argmin()))
 
 
 def test_a_marker_stream_that_disappears_is_reported(tmp_path, capsys):

@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from learn_fixtures import make_dataset_folder
+from shared_runs import GESTURES
 
 from tactile_studio.devices import create_device
 from tactile_studio.devices.engine import AcquisitionEngine
@@ -31,22 +32,14 @@ from tactile_studio.playback import SessionPlayback
 from tactile_studio.playback.predictions import calibrate_to_session, predictions_over_time
 from tactile_studio.sensor.layout import get_layout
 
-GESTURES = ("Poke", "Heavy Pat", "Twist")
-
 
 @pytest.fixture(scope="module")
-def root(tmp_path_factory):
+def root(tmp_path_factory, shared_runs):
+    """cnn1d, rf (both --adapt person and rf as trained) and cnn1d fused with rf 0.5 on
+    3 people x ``GESTURES`` (tests/shared_runs.py), a copy of ours."""
     root = tmp_path_factory.mktemp("calibration")
-    make_dataset_folder(root / "data", participants=3, blocks=2, gestures=GESTURES)
-    for name, model, adapt, overrides in (
-            ("cnn1d_person", "cnn1d", "person", {}), ("rf_person", "rf", "person", {}),
-            ("rf_none", "rf", "none", {}),
-            ("fused_person", "cnn1d", "person", {"rf_weight": 0.5})):  # network + forest
-        cfg = ExperimentConfig(data=[str(root / "data")], model=model, evaluation="lopo",
-                               preset="tiny", epochs=None if model == "rf" else 2, threads=1,
-                               device="cpu", cache_dir=str(root / "cache"), adapt=adapt,
-                               overrides=overrides)
-        run_experiment(cfg, root / name)
+    shared_runs.copy_to(root, {"cnn1d_person": "net_adapted", "rf_person": "rf_adapted",
+                               "rf_none": "rf", "fused_person": "fused_adapted"})
     return root
 
 

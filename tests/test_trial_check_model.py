@@ -10,6 +10,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_process import run_cli
 from learn_fixtures import make_dataset_folder
 
 from tactile_studio.learn.experiments.experiment import ExperimentConfig, run_experiment
@@ -33,11 +34,10 @@ def run(tmp_path_factory) -> Path:
 
 
 def _collect(out: Path, *extra: str) -> tuple[subprocess.CompletedProcess, Path]:
-    proc = subprocess.run(
+    proc = run_cli(
         [EXE, "collect", "--protocol", "shear9", "--participant", "P07", "--device",
          "simulated", "--virtual-participant", "--blocks", "4", "--speed", "0", "--out",
-         str(out), "--set", "difficulty=easy", "--set", "mistakes=0.25", *extra],
-        capture_output=True, text=True, timeout=300)
+         str(out), "--set", "difficulty=easy", "--set", "mistakes=0.25", *extra], timeout=300)
     assert proc.returncode == 0, proc.stderr
     return proc, Path(proc.stdout.strip().splitlines()[-1])
 
@@ -77,9 +77,8 @@ def test_without_the_check_no_mistake_is_flagged(tmp_path):
 
 def test_qc_checks_recorded_sessions_out_of_fold(run, tmp_path):
     data = run.parent / "data"
-    proc = subprocess.run([EXE, "qc", str(data / "P01.h5"), str(data / "P02.h5"),
-                           "--model", str(run), "--json"],
-                          capture_output=True, text=True, timeout=300)
+    proc = run_cli([EXE, "qc", str(data / "P01.h5"), str(data / "P02.h5"),
+                    "--model", str(run), "--json"], timeout=300)
     assert proc.returncode == 0, proc.stderr
     rows = json.loads(proc.stdout)
     assert {r["participant"] for r in rows} == {"P01", "P02"}
@@ -89,8 +88,7 @@ def test_qc_checks_recorded_sessions_out_of_fold(run, tmp_path):
                             "p_prompted", "rank", "flags", "reasons"}
     # honest trials of easy virtual people: few flagged
     assert sum("model_mismatch" in r["flags"] for r in rows) <= 0.2 * len(rows)
-    table = subprocess.run([EXE, "qc", str(data / "P01.h5"), "--model", str(run)],
-                           capture_output=True, text=True, timeout=300)
+    table = run_cli([EXE, "qc", str(data / "P01.h5"), "--model", str(run)], timeout=300)
     assert table.returncode == 0 and "trials flagged" in table.stderr
     assert "P01" in table.stdout
 
@@ -98,8 +96,7 @@ def test_qc_checks_recorded_sessions_out_of_fold(run, tmp_path):
 def test_qc_refuses_sessions_that_share_no_gesture_with_the_model(run, tmp_path):
     path = make_dataset_folder(tmp_path / "other", participants=1, blocks=1,
                                gestures=("tap", "slap"))[0]
-    proc = subprocess.run([EXE, "qc", str(path), "--model", str(run)],
-                          capture_output=True, text=True, timeout=300)
+    proc = run_cli([EXE, "qc", str(path), "--model", str(run)], timeout=300)
     assert proc.returncode == 1
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "share no gesture" in lines[0], proc.stderr
@@ -120,12 +117,11 @@ def _forced_protocol(folder: Path) -> Path:
 
 
 def test_light_and_off_centre_trials_are_flagged_by_the_signal_checks(tmp_path):
-    proc = subprocess.run(
+    proc = run_cli(
         [EXE, "collect", "--protocol", str(_forced_protocol(tmp_path / "p")), "--participant",
          "P01", "--device", "simulated", "--virtual-participant", "--speed", "0", "--out",
          str(tmp_path / "out"), "--set", "light=0.3", "--set", "off_centre=0.3", "--set",
-         "difficulty=easy"],
-        capture_output=True, text=True, timeout=300)
+         "difficulty=easy"], timeout=300)
     assert proc.returncode == 0, proc.stderr
     with SessionFile(Path(proc.stdout.strip().splitlines()[-1])) as s:
         trials = [t for t in s.trials if t.block >= 0]
@@ -145,8 +141,7 @@ def test_a_model_that_is_not_there_is_one_line_before_anything_is_recorded(tmp_p
     for cmd in (["collect", "--protocol", "shear9", "--participant", "P01",
                  "--virtual-participant", "--out", str(tmp_path / "out"), "--qc-model"],
                 ["qc", str(tmp_path / "none.h5"), "--model"]):
-        proc = subprocess.run([EXE, *cmd, str(tmp_path / "no-run")], capture_output=True,
-                              text=True, timeout=120)
+        proc = run_cli([EXE, *cmd, str(tmp_path / "no-run")], timeout=120)
         assert proc.returncode == 1
         assert proc.stderr.strip().splitlines() == [
             f"tactile-studio: error: {tmp_path / 'no-run'}: no such run folder or exported model"]
@@ -162,18 +157,18 @@ def test_an_exported_model_checks_with_its_own_fold(run, tmp_path):
     last = exported[-1]  # r0-P04.onnx: the fold that left P04 out
     check = ModelTrialCheck(last, participant="P01")
     assert check.model.record["test_participants"] == ["P04"] and not check.out_of_fold
-    proc = subprocess.run([EXE, "qc", str(run.parent / "data" / "P02.h5"), "--model",
-                           str(last), "--json"], capture_output=True, text=True, timeout=300)
+    proc = run_cli([EXE, "qc", str(run.parent / "data" / "P02.h5"), "--model",
+                    str(last), "--json"], timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert {r["model"] for r in json.loads(proc.stdout)} == {check.describe()["model"]}
 
 
 def test_the_check_is_personalised_with_the_first_block(run, tmp_path):
-    proc = subprocess.run(
+    proc = run_cli(
         [EXE, "collect", "--protocol", "shear9", "--participant", "P08", "--device",
          "simulated", "--virtual-participant", "--blocks", "2", "--speed", "0", "--out",
          str(tmp_path), "--set", "difficulty=easy", "--qc-model", str(run),
-         "--qc-personalise"], capture_output=True, text=True, timeout=300)
+         "--qc-personalise"], timeout=300)
     assert proc.returncode == 0, proc.stderr
     assert "personalised with 9 trials of the first block" in proc.stderr
     with SessionFile(Path(proc.stdout.strip().splitlines()[-1])) as s:
