@@ -62,8 +62,12 @@ def _interrupt_at(tmp_path: Path, entry: list[str], module: str, argv: list[str]
                                          if p),
            "TACTILE_STUDIO_DATA_DIR": str(tmp_path / "data"),
            "TACTILE_STUDIO_CACHE_DIR": str(tmp_path / "cache")}
+    # Ctrl-C reaches it as from a terminal even when this suite runs in the background
+    # (a non-interactive shell starts background jobs with SIGINT ignored, and a child
+    # inherits that: Python then installs no KeyboardInterrupt handler at all)
     proc = subprocess.Popen([*entry, *argv], cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         first = proc.stderr.readline()
         assert first.strip() == f"{MARK} {module}", first + proc.stderr.read()
