@@ -354,12 +354,15 @@ class TrialRunner(RunnerInputs):
             self._pending.append((record.index, self.trial_check.submit(
                 self.engine.layout, m.raw, self.engine.baseline, self.rate, cur["gesture"]),
                 self.clock()))
-        if self._shots is not None and not practice and m.raw is not None \
-                and self._shots_block in (None, record.block):
+        if practice or m.raw is None or (self._shots is None and self._own is None):
+            return
+        # one copy of the frames for both uses (the check computes a trial's features once)
+        kept = (m.raw.copy(), self.engine.baseline, record.gesture)
+        if self._shots is not None and self._shots_block in (None, record.block):
             self._shots_block = record.block  # the first block this run collects
-            self._shots[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
-        if self._own is not None and not practice and m.raw is not None:
-            self._own[record.index] = (m.raw.copy(), self.engine.baseline, record.gesture)
+            self._shots[record.index] = kept
+        if self._own is not None:
+            self._own[record.index] = kept
 
     def _model_check(self, m: TrialMeasure, prompted: str) -> dict[str, Any] | None:
         """The trial's stored ``check`` by the model check (None: no check, no baseline,
