@@ -178,7 +178,7 @@ def _print_summary(m: dict[str, Any], out: Path | None = None) -> None:
     from tactile_studio.learn.learners.fused import OPTION, display_name
 
     name = display_name(m["model"], {OPTION: m["rf_weight"]} if "rf_weight" in m else {})
-    print(f"{name} · {m.get('evaluation', m.get('protocol'))} · channels {m['channels']} · "
+    print(f"{name} · {m['evaluation']} · channels {m['channels']} · "
           f"{len(m['per_fold'])} fold(s)"
           + (f" · {ADAPT_PHRASE[m['adapt']]}" if m.get("adapt", "none") != "none" else ""))
     rows = [(key, _fmt(m[key])) for key in (
