@@ -93,13 +93,23 @@ def pytest_xdist_make_scheduler(config, log):
             return "ray" if os.path.basename(path) in _RAY_FILES else path
 
         def remove_node(self, node):
-            """A worker that died (a Qt test's timeout ends it): its file's other tests
-            go to another worker, the test it died in counts as done (xdist's file
-            scheduler ran it again on every new worker until the restarts ran out)."""
-            crashed = super().remove_node(node)
-            for unit in self.workqueue.values():
+            """A worker that died (a Qt test's timeout ends it, or a crash): the test it
+            died in counts as done, its file's other tests go to another worker. xdist's
+            own version ran the test again on every new worker until the restarts ran
+            out, and a file left with nothing to run was handed to a new worker that then
+            waited for tests forever: the run never ended (CI's 90 min)."""
+            workload = self.assigned_work.pop(node)
+            if not self._pending_of(workload):
+                return None
+            crashed = next(nodeid for unit in workload.values()
+                           for nodeid, done in unit.items() if not done)
+            for unit in workload.values():
                 if crashed in unit:
                     unit[crashed] = True
+            self.workqueue.update((scope, unit) for scope, unit in workload.items()
+                                  if not all(unit.values()))
+            for other in self.assigned_work:
+                self._reschedule(other)
             return crashed
 
     config.option.loadscopereorder = False
