@@ -77,3 +77,21 @@ def test_every_sweep_setting_round_trips(qtbot, tmp_path):
                                              "jobs", "address", "preset", "evaluation",
                                              "rounds", "recipe")}
     _round_trip(qtbot, lambda s: SweepPanel(lambda: [], s), vary, tmp_path, names)
+
+
+def test_an_evaluation_saved_before_it_was_renamed_is_kept(qtbot, tmp_path):
+    """Issue 44 renamed the tabs' "protocol" to "evaluation": a choice saved under the old
+    key is shown, and moved to the new key, instead of falling back to lopo."""
+    path = str(tmp_path / "settings.ini")
+    old = QSettings(path, QSettings.Format.IniFormat)
+    old.setValue("research/train/protocol", "group-kfold")
+    old.setValue("research/sweep/protocol", "all-inclusive")
+    old.sync()
+    settings = QSettings(path, QSettings.Format.IniFormat)
+    train, sweep = TrainPanel(lambda: [], settings), SweepPanel(lambda: [], settings)
+    qtbot.addWidget(train)
+    qtbot.addWidget(sweep)
+    assert train.evaluation.currentText() == "group-kfold"
+    assert sweep.evaluation.currentText() == "all-inclusive"
+    assert settings.value("research/train/evaluation") == "group-kfold"
+    assert not settings.contains("research/train/protocol")

@@ -28,6 +28,7 @@ class Bound:
     read: Callable[[], Any]
     save: Callable[[QSettings, str], None]
     load: Callable[[QSettings, str], None]
+    formerly: str | None = None  # the full key it was saved under before a rename
 
 
 class BoundSettings:
@@ -43,6 +44,14 @@ class BoundSettings:
         if any(b.key == full for b in self.entries):
             raise ValueError(f"settings key {full!r} bound twice")
         self.entries.append(Bound(full, read, save, load))
+
+    def renamed(self, key: str, formerly: str) -> None:
+        """``key`` was saved as ``formerly`` by earlier versions (a rename): a choice saved
+        under the old name is loaded, and moved to the new one, instead of being lost."""
+        full = self.prefix + key
+        at = next(i for i, b in enumerate(self.entries) if b.key == full)
+        b = self.entries[at]
+        self.entries[at] = Bound(b.key, b.read, b.save, b.load, self.prefix + formerly)
 
     # --- kinds of widget ---------------------------------------------------------------
     def combo_text(self, key: str, combo: QComboBox) -> None:
@@ -80,6 +89,9 @@ class BoundSettings:
     # --- use ---------------------------------------------------------------------------
     def load(self, settings: QSettings) -> None:
         for b in self.entries:
+            if b.formerly and not settings.contains(b.key) and settings.contains(b.formerly):
+                settings.setValue(b.key, settings.value(b.formerly))
+                settings.remove(b.formerly)
             b.load(settings, b.key)
 
     def save(self, settings: QSettings) -> None:

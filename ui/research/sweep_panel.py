@@ -266,6 +266,7 @@ class SweepPanel(JobPanel):
         b.text("address", self.address)
         b.combo_text("preset", self.preset)
         b.combo_text("evaluation", self.evaluation)
+        b.renamed("evaluation", formerly="protocol")  # issue 44's rename
         b.spin("rounds", self.rounds, 1)
         b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
         return b

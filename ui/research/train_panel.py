@@ -264,6 +264,7 @@ class TrainPanel(JobPanel):
         b.combo_data("shots_by", self.shots_by, "auto")
         b.text("out", self.out)
         b.check("exclude_flagged", self.exclude_flagged)
+        b.renamed("evaluation", formerly="protocol")  # issue 44's rename
         b.json("recipe", self.recipe.kwargs, self.recipe.set_saved, {})
         return b
 
