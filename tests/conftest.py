@@ -31,6 +31,14 @@ if _WORKER:
                                      f"SessionID = tactile-studio-tests-{_WORKER}"))
     _LSL_CFG = _worker_cfg
 os.environ.setdefault("LSLAPICFG", _LSL_CFG)
+# A worker that dies (a crash in C, an abort) writes its threads' stacks to a file of its
+# own here, and the run's summary prints them: the end of a CI log shows why it died
+# (a worker's own stderr scrolls away among the progress dots)
+if not _WORKER and "TACTILE_STUDIO_TEST_CRASH_DIR" not in os.environ:
+    os.environ["TACTILE_STUDIO_TEST_CRASH_DIR"] = tempfile.mkdtemp(
+        prefix="tactile-studio-crashes-")
+_CRASH_DIR = os.environ["TACTILE_STUDIO_TEST_CRASH_DIR"]
+_CRASH_LOG = None  # this worker's open crash file
 
 # test files that start a local Ray instance: one worker runs them all, one after another
 _RAY_FILES = {"test_sweep.py", "test_ui_research_sweep.py"}
@@ -73,7 +81,8 @@ def pytest_runtest_protocol(item, nextitem):
     import sys
     limit = float(item.config.getoption("timeout", None) or item.config.getini("timeout") or 0)
     if limit > 0:
-        faulthandler.dump_traceback_later(limit + 60, exit=True, file=sys.__stderr__)
+        faulthandler.dump_traceback_later(limit + 60, exit=True,
+                                          file=_CRASH_LOG or sys.__stderr__)
     try:
         yield
     finally:
@@ -117,10 +126,37 @@ def pytest_xdist_make_scheduler(config, log):
 
 
 
+@pytest.hookimpl(trylast=True)
 def pytest_configure(config):
+    """The markers; a worker's fatal errors (and the stuck-test dump) go to its crash file
+    (trylast: after pytest's own faulthandler set-up, which would send them to stderr)."""
+    global _CRASH_LOG
+    import faulthandler
     config.addinivalue_line(
         "markers", "damaged_files: the test damages session files on purpose; the "
                    "after-test session check skips the files it wrote")
+    if _WORKER and os.path.isdir(_CRASH_DIR):
+        _CRASH_LOG = open(os.path.join(_CRASH_DIR, f"{_WORKER}-{os.getpid()}.log"), "w")
+        faulthandler.enable(file=_CRASH_LOG, all_threads=True)
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The stacks of workers that died, from their crash files (see _CRASH_DIR)."""
+    if _WORKER or not os.path.isdir(_CRASH_DIR):
+        return
+    for name in sorted(os.listdir(_CRASH_DIR)):
+        with open(os.path.join(_CRASH_DIR, name), errors="replace") as f:
+            lines = f.read().splitlines()
+        if lines:
+            terminalreporter.write_sep("-", f"a test worker died: its stacks ({name})")
+            for line in lines[-200:]:
+                terminalreporter.write_line(line)
+
+
+def pytest_unconfigure(config):
+    if not _WORKER and os.environ.get("TACTILE_STUDIO_TEST_CRASH_DIR") == _CRASH_DIR:
+        import shutil
+        shutil.rmtree(_CRASH_DIR, ignore_errors=True)
 
 
 # (path, mtime, size) of session files already checked, and the temporary folders seen
