@@ -157,8 +157,8 @@ def test_virtual_people_vary_as_real_people_do(tmp_path, level):
 def test_a_gestures_rhythm_tells_little_of_which_gesture_it_is_as_on_people(cohorts):
     """Issue 45: on the development set's people 5% of a 2 s window's dominant frequency
     is the gesture and 91% the moment; `real`'s metronome hand made it ~47% gesture.
-    `people` paces and presses unevenly (docs/simulator.md: 16% and 65%; on this
-    fixture 10% and 53%, `real` 33%)."""
+    `people` paces and presses unevenly (docs/simulator.md: 14% and 71%; on this
+    fixture 9% and 55%, `real` 33%)."""
     from tactile_studio.learn.data import variance_parts as vp
 
     share = {}
@@ -184,16 +184,3 @@ def test_an_uneven_hand_is_the_same_rendered_in_pieces_or_whole():
     halves = [render("Heavy Pat", part, 2.0, params, 11, "people", "flat")
               for part in (t[:40], t[40:])]
     np.testing.assert_allclose(np.concatenate([h.load for h in halves]), whole.load)
-
-
-def test_a_tickle_touches_from_its_start():
-    """A key-started trial of a tickle sees contact in its first half second: the slowed
-    `people` hand's first finger lands at once (TrialParams.onset), not up to a beat late
-    (the console then flagged a virtual tickle 'no contact')."""
-    from tactile_studio.simulate.population import render
-
-    t = np.arange(0, 0.5, 1 / 43)
-    for seed in range(20):
-        params = trial_params(np.random.default_rng(seed), "Tickle", seed, 1.0, 1.0, "people")
-        load = render("Tickle", t, 2.0, params, seed, "people", "flat").load.sum(axis=1)
-        assert (load > 0.5).mean() > 0.5, seed  # 0.73 or more; 0.18 without the onset

@@ -68,9 +68,6 @@ class TrialParams:
     angle: float
     phases: tuple[float, ...]
     rng_seed: tuple[int, ...]
-    # how far into its first beat a rhythmic gesture's first finger may start (1: anywhere
-    # in it; a population's hand that starts at once sets less)
-    onset: float = 1.0
 
     @classmethod
     def draw(cls, rng: np.random.Generator, style: Style, intensity: float,
@@ -231,7 +228,7 @@ def tickle(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     parts = []
     for k in range(4):
         period = float(rng.uniform(0.17, 0.26)) / p.tempo
-        phase = float(rng.uniform(0, period)) * (p.onset if k == 0 else 1.0)
+        phase = float(rng.uniform(0, period))
         base = rng.uniform(-18, 18, 2) * p.size
         n_taps = int(dur / period) + 2
         offs = rng.uniform(-5, 5, (n_taps, 2))

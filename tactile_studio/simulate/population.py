@@ -97,7 +97,6 @@ class Population:
     tempo_wander: float = 0.0
     force_wander: float = 0.0
     tempo_scale: float = 1.0         # the population's typical pace relative to easy
-    onset: float = 1.0               # TrialParams.onset: 0, a tickle's first finger lands at once
 
 
 POPULATIONS: dict[str, Population] = {
@@ -127,7 +126,7 @@ POPULATIONS: dict[str, Population] = {
         rep_size=0.2, rep_offset_mm=6.0, blend=0.65, sensor_gain=0.1, channel_gain=0.04,
         shear_track=0.95, press_drag=0.075, style_force_spread=0.4, gesture_force=0.75,
         interpret_drag=0.2, tempo_wander=0.6, force_wander=0.5,
-        tempo_scale=0.45, onset=0.0),
+        tempo_scale=0.45),
     "hard": Population(
         "hard", force_scale=1.15, person_force=0.3, person_tempo=0.25, person_size=(1.0, 1.8),
         person_offset_mm=10.0, fingers=(0.34, 0.33, 0.33), shear_gain=(0.25, 0.6),
@@ -221,7 +220,7 @@ def trial_params(rng: np.random.Generator, gesture: str, style_seed: int, intens
                    tempo=max(p.tempo * _ln(rng, pop.rep_tempo), 1e-3),
                    size=p.size * _ln(rng, pop.rep_size),
                    cx=p.cx + float(rng.uniform(-1, 1)) * pop.rep_offset_mm,
-                   cy=p.cy + float(rng.uniform(-1, 1)) * pop.rep_offset_mm, onset=pop.onset)
+                   cy=p.cy + float(rng.uniform(-1, 1)) * pop.rep_offset_mm)
 
 
 # Gestures people readily perform like one another (what a rendition may borrow from).
