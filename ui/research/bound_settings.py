@@ -10,7 +10,7 @@ and lists), so the choices saved by earlier versions load unchanged.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from PySide6.QtCore import QSettings
@@ -50,8 +50,7 @@ class BoundSettings:
         under the old name is loaded, and moved to the new one, instead of being lost."""
         full = self.prefix + key
         at = next(i for i, b in enumerate(self.entries) if b.key == full)
-        b = self.entries[at]
-        self.entries[at] = Bound(b.key, b.read, b.save, b.load, self.prefix + formerly)
+        self.entries[at] = replace(self.entries[at], formerly=self.prefix + formerly)
 
     # --- kinds of widget ---------------------------------------------------------------
     def combo_text(self, key: str, combo: QComboBox) -> None:
