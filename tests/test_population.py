@@ -117,13 +117,16 @@ def test_real_population_statistics_match_the_recordings(cohorts, level):
 
 @pytest.mark.slow
 def test_random_forest_lopo_drops_from_near_perfect_to_the_papers_range(cohorts):
+    """`real` is held to the sensor paper's range; `people` (2 s trials of nine
+    gestures) to what a forest does on 2 s windows of real people: 0.48 over the ten
+    recorded people (issue 45), 0.40-0.70 allowing for nine gestures instead of 14."""
     acc = {}
     for level, ds in cohorts.items():
         cfg = ExperimentConfig(data=["unused"], model="rf", evaluation="lopo", preset="tiny")
         acc[level] = run_experiment(cfg, dataset=ds).metrics["trial_accuracy"]
     assert acc["easy"] > 0.9
     assert 0.5 <= acc["real"] <= 0.8, acc
-    assert 0.5 <= acc["people"] <= 0.8, acc
+    assert 0.4 <= acc["people"] <= 0.7, acc
 
 
 @pytest.mark.slow
@@ -133,10 +136,18 @@ def test_virtual_people_vary_as_real_people_do(tmp_path, level):
     real recordings', over four populations of ten virtual people (2 blocks of shear9's
     nine gestures each, as the issue measured). Before the recalibration the CVs of
     shear and of shear/normal were 1.5x and 3x the real ones. `people` (the default since
-    issue 45) holds the medians and IQRs; its between-person CVs are those of the
-    variance split of five real people instead (person and person x gesture parts), which
-    put them at 1.36x (peak normal), 1.41x (shear) and 1.42x (shear/normal) of the ten
-    recorded people's, so its CVs are not held to issue 37's 25%."""
+    issue 45) is held to the same bounds: its between-person spread follows the ten
+    recorded people (the five of the development set put the person part at about twice
+    that, but on 4 degrees of freedom), its gesture and within parts the development
+    set's split.
+
+    One exception, for `people`: the between-person CVs of peak shear and of
+    shear/normal may reach 1.35x. A virtual person's median shear/normal over 18 trials
+    of 2 s varies by repetition (within-person SD 0.21 log, 0.32 on people: 1.25 x 0.21 /
+    sqrt(18) = 0.06) and by their own drag in each of nine gestures (person x gesture SD
+    0.15 / sqrt(9) = 0.05): about 0.08 with no person part at all, where the ten real
+    people's CV is 0.06 over 12 s performances of 14 gestures. Measured 1.24-1.32x
+    over every setting tried (docs/simulator.md)."""
     stats = []
     for seed in range(4):
         make_virtual_population(tmp_path / str(seed), seed, difficulty=level)
@@ -144,9 +155,72 @@ def test_virtual_people_vary_as_real_people_do(tmp_path, level):
         stats.append(population_stats(ds.trials, ds.participants, ds.channel_names))
     ratios = ratios_to_real(pooled(stats))
     assert set(ratios) == {"peak_normal_p90", "taxels_above", "peak_shear_p90", "shear_normal"}
+    sampled = {("peak_shear_p90", "cv"), ("shear_normal", "cv")} if level == "people" else set()
     for name, r in ratios.items():
         assert set(r) == {"median", "iqr", "cv"}, name
         for what, value in r.items():
-            if level == "people" and what == "cv":
-                continue
-            assert 0.75 <= value <= 1.25, (name, what, round(value, 2))
+            top = 1.35 if (name, what) in sampled else 1.25
+            assert 0.75 <= value <= top, (name, what, round(value, 2))
+
+
+@pytest.mark.slow
+def test_a_gestures_rhythm_tells_little_of_which_gesture_it_is_as_on_people(cohorts):
+    """Issue 45: on the development set's people 5% of a 2 s window's dominant frequency
+    is the gesture and 91% the moment; `real`'s metronome hand made it ~47% gesture.
+    `people` paces and presses unevenly (docs/simulator.md: 16% and 65%; on this
+    fixture 10% and 53%, `real` 33%)."""
+    from tactile_studio.learn.data import variance_parts as vp
+
+    share = {}
+    for level in ("real", "people"):
+        ds = cohorts[level]
+        rows = [vp.stats_of(x, list(ds.channel_names), float(r))
+                for x, r in zip(ds.trials, ds.rates)]
+        parts = vp.parts_table(rows, list(ds.participants), list(ds.labels))["dominant_hz"]
+        share[level] = vp.shares(parts)
+    assert share["real"]["gesture"] > 0.25, share
+    assert share["people"]["gesture"] < 0.2 and share["people"]["within"] > 0.45, share
+
+
+def test_an_uneven_hand_is_the_same_rendered_in_pieces_or_whole():
+    """The drifting pace and swelling press are functions of time within the trial, so a
+    live stream (rendered chunk by chunk) and a file (whole) see the same performance."""
+    from tactile_studio.simulate.population import render
+
+    rng = np.random.default_rng(3)
+    params = trial_params(rng, "Heavy Pat", 11, 1.0, 1.0, "people")
+    t = np.arange(0, 2.0, 1 / 43)
+    whole = render("Heavy Pat", t, 2.0, params, 11, "people", "flat")
+    halves = [render("Heavy Pat", part, 2.0, params, 11, "people", "flat")
+              for part in (t[:40], t[40:])]
+    np.testing.assert_allclose(np.concatenate([h.load for h in halves]), whole.load)
+
+
+def test_a_tickle_touches_from_its_start():
+    """A key-started trial of a tickle sees contact in its first half second: the slowed
+    `people` hand's first finger lands at once (TrialParams.onset), not up to a beat late
+    (the console then flagged a virtual tickle 'no contact')."""
+    from tactile_studio.simulate.population import render
+
+    t = np.arange(0, 0.5, 1 / 43)
+    for seed in range(20):
+        params = trial_params(np.random.default_rng(seed), "Tickle", seed, 1.0, 1.0, "people")
+        load = render("Tickle", t, 2.0, params, seed, "people", "flat").load.sum(axis=1)
+        assert (load > 0.5).mean() > 0.5, seed  # 0.73 or more; 0.18 without the onset
+
+
+@pytest.mark.parametrize("dur", [0.5, 1.0])
+def test_an_uneven_hand_ends_its_performance_on_time(dur):
+    """The drifting pace ends on time: every gesture of `people` has let go before its
+    performance's end, as on an even hand. A clock left to drift ran up to 0.35 s late, and
+    a key-started trial in the console then began during the last gesture's release."""
+    from tactile_studio.simulate.population import render
+
+    t = np.arange(0, dur + 0.6, 1 / 43)
+    for gesture in GESTURE_NAMES:
+        for seed in range(30):
+            params = trial_params(np.random.default_rng(seed), gesture, seed, 1.0, 1.0,
+                                  "people")
+            load = render(gesture, t, dur, params, seed, "people", "flat").load.sum(axis=1)
+            touched = t[load > 0.5]
+            assert touched.size == 0 or touched[-1] < dur, (gesture, seed, touched[-1] - dur)

@@ -15,7 +15,7 @@ Sensor frame: x, y in mm from the top-left taxel centre; the 6x6 ShearSense arra
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -68,6 +68,13 @@ class TrialParams:
     angle: float
     phases: tuple[float, ...]
     rng_seed: tuple[int, ...]
+    # how far into its first beat a rhythmic gesture's first finger may start (1: anywhere
+    # in it; a population's hand that starts at once sets less)
+    onset: float = 1.0
+    # the gesture's own clock for its motion (a hand whose pace drifts; None: the trial's).
+    # When the hand touches and lets go stays on the trial's clock, so a performance ends
+    # when it is over whatever its pace did.
+    pace: Callable[[np.ndarray], np.ndarray] | None = field(default=None, compare=False)
 
     @classmethod
     def draw(cls, rng: np.random.Generator, style: Style, intensity: float,
@@ -83,6 +90,10 @@ class TrialParams:
             phases=tuple(float(v) for v in rng.uniform(0, _TWO_PI, 8)),
             rng_seed=tuple(int(v) for v in rng.integers(0, 2**31, 2)),
         )
+
+    def motion(self, t: np.ndarray) -> np.ndarray:
+        """Trial time ``t`` on the gesture's own clock (the same without a drifting pace)."""
+        return t if self.pace is None else self.pace(t)
 
     def rng(self) -> np.random.Generator:
         """A generator for per-gesture details (tickle spots, pat offsets), same each call."""
@@ -133,7 +144,7 @@ def wide_pinch(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """Two fingertips land far apart and slide towards each other (convergent)."""
     ux, uy = _unit(p.angle)
     start, move = 0.1, 0.9 / p.tempo
-    u = np.clip((t - start) / move, 0.0, 1.0)
+    u = np.clip((p.motion(t) - start) / move, 0.0, 1.0)
     span = 52.0 * p.size - 14.0
     half = 0.5 * (52.0 * p.size - u * u * (3 - 2 * u) * span)  # smoothstep closing
     closing = -0.5 * span * 6 * u * (1 - u) / move  # d(half)/dt, mm/s (pointwise in t)
@@ -152,24 +163,27 @@ def heavy_pat(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """A palm slapping down hard and briefly, several times."""
     period, width = 0.45 / p.tempo, 0.16 / p.tempo
     rng = p.rng()
-    starts = np.arange(0.1, dur - width, period)
+    m = p.motion(t)
+    starts = np.arange(0.1, float(p.motion(np.asarray(dur))) - width, period)
     load = np.zeros_like(t)
     x = np.full_like(t, p.cx)
     y = np.full_like(t, p.cy)
     for s0 in starts:
-        bump = pulse(t, s0, width)
+        bump = pulse(m, s0, width)
         ox, oy = rng.uniform(-4, 4, 2)
         load += bump
-        inside = (t >= s0) & (t <= s0 + width)
+        inside = (m >= s0) & (m <= s0 + width)
         x[inside] += ox
         y[inside] += oy
+    if p.pace is not None:  # a drifting pat still lets go by the performance's end
+        load *= np.clip((dur - 0.05 - t) / 0.1, 0.0, 1.0)
     return Contacts.make(len(t), x, y, 26.0 * p.size, 24.0 * p.force * load)
 
 
 def twist(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """A thumb pad pressed in place and rotated back and forth (rotational shear)."""
     env = envelope(t, 0.1, dur - 0.1, 0.15)
-    turn = np.sin(_TWO_PI * 1.0 * p.tempo * (t - 0.1) + 0.3 * p.phases[0])
+    turn = np.sin(_TWO_PI * 1.0 * p.tempo * (p.motion(t) - 0.1) + 0.3 * p.phases[0])
     wx, wy = p.wobble(t)
     # A pure rotation nets no shear on the taxel under its axis: the signal is the
     # tangential drag on the neighbouring taxels, hence the broad, fleshy thumb pad.
@@ -183,8 +197,9 @@ def back_forth_rub(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     env = envelope(t, 0.1, dur - 0.1, 0.15)
     w = _TWO_PI * 2.0 * p.tempo
     amp = 14.0 * p.size
-    pos = amp * np.sin(w * (t - 0.1))
-    vel = amp * w * np.cos(w * (t - 0.1))
+    m = p.motion(t)
+    pos = amp * np.sin(w * (m - 0.1))
+    vel = amp * w * np.cos(w * (m - 0.1))
     drag = 2.4 * p.force * env * np.tanh(vel / 25.0)
     wx, wy = p.wobble(t)
     return Contacts.make(len(t), p.cx + ux * pos + wx, p.cy + uy * pos + wy, 6.0 * p.size,
@@ -195,7 +210,7 @@ def isometric_rub(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """A fingertip pressed in place, pushing back and forth without sliding."""
     ux, uy = _unit(p.angle)
     env = envelope(t, 0.1, dur - 0.1, 0.15)
-    drag = 2.6 * p.force * env * np.sin(_TWO_PI * 2.2 * p.tempo * (t - 0.1))
+    drag = 2.6 * p.force * env * np.sin(_TWO_PI * 2.2 * p.tempo * (p.motion(t) - 0.1))
     wx, wy = p.wobble(t)
     return Contacts.make(len(t), p.cx + 0.3 * wx, p.cy + 0.3 * wy, 6.0 * p.size,
                          10.0 * p.force * env, ux * drag, uy * drag)
@@ -205,7 +220,7 @@ def circular_stroke(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """A fingertip stroking round a circle; shear is tangential, along the motion."""
     direction = 1.0 if p.phases[2] < np.pi else -1.0
     env = envelope(t, 0.1, dur - 0.1, 0.15)
-    phi = p.phases[3] + direction * _TWO_PI * 1.1 * p.tempo * (t - 0.1)
+    phi = p.phases[3] + direction * _TWO_PI * 1.1 * p.tempo * (p.motion(t) - 0.1)
     rc = 13.0 * p.size
     tx, ty = -np.sin(phi) * direction, np.cos(phi) * direction
     drag = 1.8 * p.force * env
@@ -225,15 +240,17 @@ def constant_touch(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
 def tickle(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """Four fingertips flicking lightly and fast over scattered spots."""
     rng = p.rng()
+    m = p.motion(t)
+    beats = float(p.motion(np.asarray(dur)))
     parts = []
     for k in range(4):
         period = float(rng.uniform(0.17, 0.26)) / p.tempo
-        phase = float(rng.uniform(0, period))
+        phase = float(rng.uniform(0, period)) * (p.onset if k == 0 else 1.0)
         base = rng.uniform(-18, 18, 2) * p.size
-        n_taps = int(dur / period) + 2
+        n_taps = int(beats / period) + 2
         offs = rng.uniform(-5, 5, (n_taps, 2))
         dirs = rng.uniform(0, _TWO_PI, n_taps)
-        tau = t - 0.05 - phase
+        tau = m - 0.05 - phase
         idx = np.clip(np.floor(tau / period).astype(int), 0, n_taps - 1)
         frac = tau / period - np.floor(tau / period)
         on = (tau >= 0) & (t < dur - 0.05)
