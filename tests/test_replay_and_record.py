@@ -213,3 +213,22 @@ def test_a_replayed_outage_is_a_gap_and_no_frame_time(tmp_path, capsys):
     assert info["frames"] == 400 and info["rate_hz"] == pytest.approx(rate, rel=1e-3)
     gaps = [(e["frame"], e["missing"]) for e in info["events"] if e["kind"] == "gap"]
     assert gaps == [(200, 129)]  # 3.023 s at 43 Hz: 130 frame steps, 129 frames
+
+
+@pytest.mark.parametrize("device", ["simulated", "replay"])
+def test_record_seconds_are_the_devices_own_time_at_speed_0(tmp_path, capsys, device):
+    """A device that makes frames on demand runs at any speed: `--seconds 2` is two
+    seconds of its frames, not of the wall clock (which recorded a simulation at speed 0
+    for as many frames as the machine could make, polled every 0.1 s)."""
+    src = tmp_path / "src.h5"
+    record_simulated(src, "3")
+    settings = {"path": str(src)} if device == "replay" else {"seed": "3"}
+    rate = create_device(device, settings).nominal_rate_hz
+    out = tmp_path / "two.h5"
+    assert main(["record", "--device", device, *[f"--set={k}={v}" for k, v in settings.items()],
+                 "--set", "speed=0",
+                 "--seconds", "2", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["info", "--json", str(out)]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["frames"] == round(2 * rate), info["frames"]

@@ -217,6 +217,9 @@ class LiveAcquisition:
         self._stop_at = None if seconds is None else self.clock() + float(seconds)
         self._stop_rows = None if frames is None else int(frames)
         self._stop_all = disconnect
+        rec = self.recorder
+        if frames is not None and rec is not None:  # exactly: a fast device overshot a poll
+            rec.end_at(rec.start_frame + max(0, int(frames) - rec.row_offset))
 
     def stop_recording(self, reason: str = "requested", discard: bool = False) -> str | None:
         """Finish the file; returns its path (None if nothing was recording).

@@ -41,7 +41,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("record", help="record a device to a session file")
     p.add_argument("--device", default="simulated", help="device plugin name (see `devices`)")
     p.add_argument("--set", action="append", metavar="KEY=VALUE", help="device setting")
-    p.add_argument("--seconds", type=finite_float, required=True, help="how long to record")
+    p.add_argument("--seconds", type=finite_float, required=True,
+                   help="how long to record, in the device's own time: a simulation at "
+                        "speed 0 or a replayed file gives this many seconds of frames "
+                        "however fast it runs")
     p.add_argument("--out", required=True, help="session file to write (.h5)")
     p.add_argument("--notes", default="", help="free-form notes stored in the metadata")
     p.add_argument("--sensor", default=None, metavar="ID",
@@ -121,12 +124,17 @@ def cmd_record(args: argparse.Namespace) -> int:
     progress = TerminalProgress(f"recording {out.name}", total=args.seconds, unit="s")
     token = CancelToken()
     start = time.monotonic()
-    acquisition.stop_recording_after(seconds=args.seconds, disconnect=True)
+    # a device that makes frames on demand runs at any speed: its seconds are its frames
+    # (wall seconds recorded minutes of a simulation at speed 0, or a few frames of it)
+    want = round(args.seconds * device.nominal_rate_hz) if device.waits_for_reader else None
+    acquisition.stop_recording_after(seconds=None if want else args.seconds, frames=want,
+                                     disconnect=True)
     with ctrl_c_cancels(token):
         while not token.wait(0.1):
             acquisition.poll()  # stops the recording at --seconds, or when the device ends
             elapsed = time.monotonic() - start
-            progress(min(1.0, elapsed / args.seconds),
+            done = engine.frames / want if want else elapsed / args.seconds
+            progress(min(1.0, done),
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
             if not acquisition.recording:
                 break
