@@ -74,10 +74,17 @@ def main(argv: list[str] | None = None) -> int:
     def snap():  # noqa: ANN202
         return runner.snapshot()
 
-    def trial(g, perform: bool = True) -> None:  # noqa: ANN001
+    last = []  # the performance under way: a person lets go before the next gesture
+
+    def perform(name: str, duration_s: float) -> None:
+        if last:
+            _pump(app, lambda: dev.next_frame >= last[-1].start + last[-1].frames)
+        last.append(dev.perform(name, duration_s=duration_s))
+
+    def trial(g, perform_it: bool = True) -> None:  # noqa: ANN001
         n = len(snap().trials)
-        if perform:
-            dev.perform(g.name, duration_s=2.4)
+        if perform_it:
+            perform(g.name, 2.4)
         console.forward_key(g.key)
         _pump(app, lambda: len(snap().trials) > n and snap().state not in
               (State.RECORDING, State.TRIAL_END))
@@ -95,11 +102,11 @@ def main(argv: list[str] | None = None) -> int:
     console.forward_key(gestures[5].key)  # an upcoming gesture: refused, the prompt named
     _settle(app, 0.1)
     screen.grab().save(str(out / "collect-participant-refused.png"))
-    dev.perform("Constant Touch", duration_s=12.0)  # something on the heatmap
+    perform("Constant Touch", 3.0)  # something on the heatmap
     _settle(app, 0.8)
     console.grab().save(str(out / "collect-console.png"))
 
-    dev.perform(gestures[3].name, duration_s=2.4)
+    perform(gestures[3].name, 2.4)
     console.forward_key(gestures[3].key)
     _pump(app, lambda: snap().state != State.RECORDING or snap().trial_remaining_s < 1.25)
     console.tick()
@@ -115,8 +122,8 @@ def main(argv: list[str] | None = None) -> int:
     engine = console.engine  # the last touch relaxes off the skin (tau ~3 s) first
     settled = engine.frames + round(15 * engine.nominal_rate_hz)
     _pump(app, lambda: engine.frames >= settled)
-    trial(gestures[6], perform=False)  # nobody touched: flagged and held for a decision
-    dev.perform("Circular Stroke", duration_s=6.0)
+    trial(gestures[6], perform_it=False)  # nobody touched: flagged and held for a decision
+    perform("Circular Stroke", 6.0)
     _settle(app, 1.0)
     console.grab().save(str(out / "collect-console-flagged.png"))
     console.redo_last()
@@ -184,7 +191,7 @@ def _held_panel(app: object, out: Path, tmp: Path) -> None:
     w.resize(1400, 860)
     w.show()
     w.panel.connect_device()
-    engine = w.controller.engine
+    engine = w.acquisition.engine
     _pump(app, lambda: engine.baseline is not None)
     console = open_console(lambda: (engine, "simulated"))
     s = console.setup

@@ -59,11 +59,11 @@ def main(out: str = str(HERE / "main-window-replay-malformed.png")) -> int:
             deadline = time.monotonic() + 30
             while time.monotonic() < deadline:
                 wait_for(0.1)
-                if w.controller.status().malformed and w.controller.status().frames > 215:
+                if w.acquisition.status().malformed and w.acquisition.status().frames > 215:
                     break
             w.refresh_status()
             w.grab().save(out)
-            print(out, w.controller.status().malformed_by_kind)
+            print(out, w.acquisition.status().malformed_by_kind)
         finally:
             w.shutdown()
     return 0

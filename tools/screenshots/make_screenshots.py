@@ -31,7 +31,7 @@ def main(gesture: str = "Wide Pinch", at_s: float = 0.7) -> int:
     try:
         w.resize(1280, 800)
         w.show()
-        engine = w.controller.engine
+        engine = w.acquisition.engine
         while engine.baseline is None and engine.running:
             wait_for(0.1)
         w.hover_taxel("C3")
@@ -56,7 +56,7 @@ def show_arrows(w, gesture: str, at_s: float, tries: int = 6) -> None:  # noqa: 
     from tactile_studio.ui.main_window import wait_for
 
     for _ in range(tries):
-        w.controller.engine.device.perform(gesture, duration_s=2.0)
+        w.acquisition.engine.device.perform(gesture, duration_s=2.0)
         wait_for(at_s)
         for _ in range(50):
             if w.heatmap.arrows.count() >= 3:
@@ -70,7 +70,7 @@ def below_baseline(w, gesture: str, at_s: float) -> None:  # noqa: ANN001 - Main
     """Tare under a resting palm, lift it, and grab mid-gesture with the diverging map."""
     from tactile_studio.ui.main_window import wait_for
 
-    engine = w.controller.engine
+    engine = w.acquisition.engine
     w.set_virtual(False)
     w.heatmap.set_color_scheme("diverging")
     engine.device.perform("Constant Touch", duration_s=4.0)

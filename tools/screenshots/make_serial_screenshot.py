@@ -50,7 +50,7 @@ def main(out: str = str(HERE / "main-window-serial.png")) -> int:
             while time.monotonic() < deadline:
                 wait_for(0.1)
                 img = w.heatmap.image_data()
-                kinds = w.controller.status().malformed_by_kind
+                kinds = w.acquisition.status().malformed_by_kind
                 if (img is not None and len(kinds) >= 3 and sum(kinds.values()) >= 5
                         and float(np.max(img)) > 4.0):
                     break
