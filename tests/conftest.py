@@ -15,6 +15,12 @@ os.environ.setdefault("TACTILE_STUDIO_TESTING", "1")
 # which files run before a test depends on the machine's load)
 for _lib in ("OMP", "MKL", "OPENBLAS"):
     os.environ.setdefault(f"{_lib}_NUM_THREADS", "1")
+# Ray starts its worker processes at nice 15 (its worker_niceness), so on this 2-core
+# machine the other xdist worker's tests (nice 0) starved a local Ray instance's tasks:
+# the same 12-task sweep took 169 s beside two busy processes, 17 s at nice 0 (152 s in
+# a whole run, 16-21 s alone). Tests run Ray's workers at their own priority; what they
+# prove (identical metrics, loopback only, nothing left behind) does not depend on it.
+os.environ.setdefault("RAY_worker_niceness", "0")
 # the app's data, cache and config folders (tactile_studio.paths) live in one temporary
 # folder per test run; tests that need their own set them with monkeypatch
 _APPDIRS = tempfile.mkdtemp(prefix="tactile-studio-appdirs-")
