@@ -59,7 +59,7 @@ definition = "Tickle the sensor with quick, light movements of your fingertips."
 """
 # a participant who performs every gesture as asked (`easy`): these tests are the console's
 # flows; how varied people are is test_population's (the default, `people`, is light
-# enough in a 0.5 s trial to be flagged 'no contact' in about one trial of eight)
+# enough in a 0.5 s trial to be flagged 'no contact' in about one trial in seven)
 SIM = {"speed": "8", "gesture": "idle", "difficulty": "easy"}
 WAIT_MS = 15_000
 BUSY = (State.RECORDING, State.TRIAL_END)
