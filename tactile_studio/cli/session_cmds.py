@@ -126,14 +126,16 @@ def cmd_record(args: argparse.Namespace) -> int:
     start = time.monotonic()
     # a device that makes frames on demand runs at any speed: its seconds are its frames
     # (wall seconds recorded minutes of a simulation at speed 0, or a few frames of it)
-    want = round(args.seconds * device.nominal_rate_hz) if device.waits_for_reader else None
-    acquisition.stop_recording_after(seconds=None if want else args.seconds, frames=want,
-                                     disconnect=True)
+    # (at least one frame: a tiny --seconds rounded to 0 fell back to the wall clock)
+    want = max(1, round(args.seconds * device.nominal_rate_hz)) \
+        if device.waits_for_reader else None
+    acquisition.stop_recording_after(seconds=None if want is not None else args.seconds,
+                                     frames=want, disconnect=True)
     with ctrl_c_cancels(token):
         while not token.wait(0.1):
             acquisition.poll()  # stops the recording at --seconds, or when the device ends
             elapsed = time.monotonic() - start
-            done = engine.frames / want if want else elapsed / args.seconds
+            done = engine.frames / want if want is not None else elapsed / args.seconds
             progress(min(1.0, done),
                      f"{engine.frames} frames, {engine.measured_rate_hz():.1f} Hz, {engine.state}")
             if not acquisition.recording:
