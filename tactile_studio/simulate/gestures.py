@@ -95,6 +95,11 @@ class TrialParams:
         """Trial time ``t`` on the gesture's own clock (the same without a drifting pace)."""
         return t if self.pace is None else self.pace(t)
 
+    def motion_length(self, dur: float) -> float:
+        """How long a performance of ``dur`` s lasts on the gesture's own clock (how many
+        pats or taps fit in it)."""
+        return float(self.motion(np.asarray(dur, dtype=np.float64)))
+
     def rng(self) -> np.random.Generator:
         """A generator for per-gesture details (tickle spots, pat offsets), same each call."""
         return np.random.default_rng(list(self.rng_seed))
@@ -164,7 +169,7 @@ def heavy_pat(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     period, width = 0.45 / p.tempo, 0.16 / p.tempo
     rng = p.rng()
     m = p.motion(t)
-    starts = np.arange(0.1, float(p.motion(np.asarray(dur))) - width, period)
+    starts = np.arange(0.1, p.motion_length(dur) - width, period)
     load = np.zeros_like(t)
     x = np.full_like(t, p.cx)
     y = np.full_like(t, p.cy)
@@ -241,7 +246,7 @@ def tickle(t: np.ndarray, dur: float, p: TrialParams) -> Contacts:
     """Four fingertips flicking lightly and fast over scattered spots."""
     rng = p.rng()
     m = p.motion(t)
-    beats = float(p.motion(np.asarray(dur)))
+    beats = p.motion_length(dur)
     parts = []
     for k in range(4):
         period = float(rng.uniform(0.17, 0.26)) / p.tempo
