@@ -267,6 +267,14 @@ class SimulatedSensor(DevicePlugin):
             return self._sim.frame
 
     @property
+    def performing_until(self) -> int:
+        """The frame after the last scheduled performance ends (0: none scheduled): a
+        script that lets go of one gesture before the next waits for ``next_frame`` to
+        reach it."""
+        with self._lock:
+            return max((t.stop for t in self._sim.schedule.trials), default=0)
+
+    @property
     def simulator(self) -> SensorSimulator:
         """The underlying generator (hold no reference across threads without the lock)."""
         return self._sim

@@ -272,9 +272,10 @@ def test_plugin_controls_schedule_by_frame_and_report_ground_truth():
     dev.open()
     try:
         first = dev.read(50)
-        assert len(first) == 50 and dev.next_frame == 50
+        assert len(first) == 50 and dev.next_frame == 50 and dev.performing_until == 0
         trial = dev.perform("wide pinch", 1.0, at_frame=60)
         assert trial.gesture == "Wide Pinch" and trial.frames == 43
+        assert dev.performing_until == 103  # the frame after its last
         dev.read(15)
         assert dev.current_gesture == "Wide Pinch" and dev.gesture_at(59) == "idle"
         dev.set_gesture("Tickle")

@@ -8,8 +8,6 @@ buttons. Budget: about 15 s for the file on 2 cores.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
@@ -125,19 +123,13 @@ def settle(qtbot, console: CollectConsole, n_trials: int) -> None:
                     and snap(console).state not in BUSY, timeout=WAIT_MS)
 
 
-_LAST_PERFORMANCE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
 def perform_after_the_last(qtbot, console: CollectConsole, name: str) -> None:
     """The participant performs ``name`` once the previous gesture has ended, as a person
     does: a key-started trial that began during the last one's release is rightly flagged
     'release_overlap'. 0.8 s: a whole gesture (ramps in and out) around a 0.5 s trial."""
     device = console.engine.device
-    last = _LAST_PERFORMANCE.get(device)
-    if last is not None:
-        qtbot.waitUntil(lambda: device.next_frame >= last.start + last.frames,
-                        timeout=WAIT_MS)
-    _LAST_PERFORMANCE[device] = device.perform(name, duration_s=0.8)
+    qtbot.waitUntil(lambda: device.next_frame >= device.performing_until, timeout=WAIT_MS)
+    device.perform(name, duration_s=0.8)
 
 
 def do_trial(qtbot, console: CollectConsole, name: str, key: str, perform: bool = True,

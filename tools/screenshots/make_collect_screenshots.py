@@ -74,12 +74,10 @@ def main(argv: list[str] | None = None) -> int:
     def snap():  # noqa: ANN202
         return runner.snapshot()
 
-    last = []  # the performance under way: a person lets go before the next gesture
-
     def perform(name: str, duration_s: float) -> None:
-        if last:
-            _pump(app, lambda: dev.next_frame >= last[-1].start + last[-1].frames)
-        last.append(dev.perform(name, duration_s=duration_s))
+        """A person lets go of one gesture before the next."""
+        _pump(app, lambda: dev.next_frame >= dev.performing_until)
+        dev.perform(name, duration_s=duration_s)
 
     def trial(g, perform_it: bool = True) -> None:  # noqa: ANN001
         n = len(snap().trials)
